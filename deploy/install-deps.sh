@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Installs, from Debian 12 packages, everything Tessera needs to build, test and run.
+# Idempotent: when every package is already installed it returns in about a second
+# without touching the network. Run as root (or with sudo available).
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  build-essential cmake ninja-build pkg-config ccache git
+  # Vulkan: loader, headers, lavapipe (CPU driver), validation layers, shader compiler
+  libvulkan-dev mesa-vulkan-drivers vulkan-validationlayers vulkan-tools
+  glslang-tools spirv-tools
+  # math, glTF import (tinygltf uses nlohmann-json and stb_image)
+  libglm-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
+  # service: gRPC + Protobuf with protoc and the C++ grpc plugin
+  libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
+  # image encoding, logging
+  libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
+  # tests and benchmarks
+  libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]} == 0)); then
+  echo "install-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -q
+$SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+echo "install-deps: done"

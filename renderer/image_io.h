@@ -1,0 +1,44 @@
+#pragma once
+// Image encoding/decoding for frames and golden-image tests: JPEG through TurboJPEG, PNG
+// through libpng, and the comparison metrics the render tests use. CPU only.
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+
+namespace tessera {
+
+// Tightly packed 8-bit RGBA pixels, top row first.
+struct RgbaImage {
+  uint32_t width = 0;
+  uint32_t height = 0;
+  std::vector<uint8_t> pixels;  // width * height * 4
+};
+
+enum class ChromaSubsampling { k420, k444 };
+
+// Encodes RGBA8 (alpha ignored) as baseline JPEG. quality 1..100; INVALID_ARGUMENT otherwise.
+absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
+                                                ChromaSubsampling subsampling);
+// Decodes a JPEG to RGBA8 (alpha 255).
+absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg);
+
+// Encodes RGBA8 as a lossless 8-bit RGBA PNG.
+absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image);
+// Decodes any PNG (gray, palette, 16-bit, with/without alpha) to RGBA8.
+absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png);
+
+// Reads/writes a whole file. Errors name the path.
+absl::StatusOr<std::vector<uint8_t>> ReadFileBytes(const std::string& path);
+absl::Status WriteFileBytes(const std::string& path, std::span<const uint8_t> bytes);
+
+// PSNR in dB over the RGB channels of two images of the same size (alpha ignored);
+// +infinity when identical. INVALID_ARGUMENT when sizes differ.
+absl::StatusOr<double> Psnr(const RgbaImage& a, const RgbaImage& b);
+
+// A visual diff: |a - b| per channel, amplified by `gain` and clamped, alpha 255.
+absl::StatusOr<RgbaImage> DiffImage(const RgbaImage& a, const RgbaImage& b, float gain = 8.0f);
+
+}  // namespace tessera

@@ -1,0 +1,29 @@
+#include "renderer/scene/cpu_scene.h"
+
+#include <cmath>
+
+namespace tessera {
+
+Aabb Aabb::transformed(const glm::mat4& m) const {
+  if (empty()) return {};
+  // Arvo's method: the transformed box is the centre moved plus |M| times the half extent.
+  const glm::vec3 c = glm::vec3(m * glm::vec4(center(), 1.0f));
+  const glm::vec3 h = extent() * 0.5f;
+  glm::vec3 r(0.0f);
+  for (int col = 0; col < 3; ++col) r += glm::abs(glm::vec3(m[col])) * h[col];
+  Aabb out;
+  out.min = c - r;
+  out.max = c + r;
+  return out;
+}
+
+glm::mat3 TextureRef::uv_transform() const {
+  // glTF KHR_texture_transform: T * R * S, with R rotating uv by -rotation (column-major).
+  const float c = std::cos(rotation), s = std::sin(rotation);
+  const glm::mat3 t(1, 0, 0, 0, 1, 0, offset.x, offset.y, 1);
+  const glm::mat3 r(c, -s, 0, s, c, 0, 0, 0, 1);
+  const glm::mat3 sc(scale.x, 0, 0, 0, scale.y, 0, 0, 0, 1);
+  return t * r * sc;
+}
+
+}  // namespace tessera

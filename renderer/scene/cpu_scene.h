@@ -1,0 +1,168 @@
+#pragma once
+// The CPU-side scene: what the glTF importer and the demo-scene generator produce, and what
+// GpuScene uploads. Plain data; no Vulkan, no tinygltf.
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace tessera {
+
+// Axis-aligned bounding box. Default-constructed it is empty (min > max).
+struct Aabb {
+  glm::vec3 min{std::numeric_limits<float>::max()};
+  glm::vec3 max{std::numeric_limits<float>::lowest()};
+
+  bool empty() const { return min.x > max.x || min.y > max.y || min.z > max.z; }
+  void extend(const glm::vec3& p) { min = glm::min(min, p); max = glm::max(max, p); }
+  void extend(const Aabb& b) { if (!b.empty()) { extend(b.min); extend(b.max); } }
+  glm::vec3 center() const { return (min + max) * 0.5f; }
+  glm::vec3 extent() const { return max - min; }
+  // Radius of the sphere around center() that encloses the box.
+  float radius() const { return empty() ? 0.0f : glm::length(max - min) * 0.5f; }
+  // The AABB of this box after an affine transform (exact for the transformed box's corners).
+  Aabb transformed(const glm::mat4& m) const;
+};
+
+// The single vertex layout of the scene vertex buffer (attribute locations in
+// shaders/common/gpu_types.h). 56 bytes.
+struct Vertex {
+  glm::vec3 position{0.0f};
+  glm::vec3 normal{0.0f, 0.0f, 1.0f};
+  glm::vec4 tangent{1.0f, 0.0f, 0.0f, 1.0f};  // xyz tangent, w bitangent sign
+  glm::vec2 uv0{0.0f};
+  glm::vec2 uv1{0.0f};
+};
+
+enum class AlphaMode : uint32_t { kOpaque = 0, kMask = 1, kBlend = 2 };
+enum class WrapMode : uint32_t { kRepeat = 0, kClampToEdge = 1, kMirroredRepeat = 2 };
+
+// Decoded RGBA8 pixels. Shared between textures that use the same glTF image.
+struct Image {
+  std::string name;  // the glTF image name or URI, for messages
+  uint32_t width = 0;
+  uint32_t height = 0;
+  std::vector<uint8_t> rgba8;  // width * height * 4 bytes, top row first
+};
+
+// A glTF texture as a material uses it: image + sampler + colour space.
+struct Texture {
+  std::shared_ptr<const Image> image;
+  bool srgb = false;  // base colour and emissive are sRGB, data textures are linear
+  WrapMode wrap_s = WrapMode::kRepeat;
+  WrapMode wrap_t = WrapMode::kRepeat;
+};
+
+// A material's use of a texture (glTF textureInfo + KHR_texture_transform).
+struct TextureRef {
+  int32_t texture = -1;  // index into CpuScene::textures; -1 = none
+  uint32_t texcoord = 0;  // TEXCOORD_n set, 0 or 1
+  glm::vec2 offset{0.0f};
+  glm::vec2 scale{1.0f};
+  float rotation = 0.0f;  // radians
+  // The 3x2 uv transform of KHR_texture_transform: uv' = T * R * S * uv.
+  glm::mat3 uv_transform() const;
+};
+
+struct Material {
+  std::string name;
+  glm::vec4 base_color_factor{1.0f};
+  float metallic_factor = 1.0f;
+  float roughness_factor = 1.0f;
+  glm::vec3 emissive_factor{0.0f};
+  float emissive_strength = 1.0f;  // KHR_materials_emissive_strength
+  float normal_scale = 1.0f;
+  float occlusion_strength = 1.0f;
+  AlphaMode alpha_mode = AlphaMode::kOpaque;
+  float alpha_cutoff = 0.5f;
+  bool double_sided = false;
+  TextureRef base_color;
+  TextureRef metallic_roughness;
+  TextureRef normal;
+  TextureRef occlusion;
+  TextureRef emissive;
+};
+
+// One glTF primitive as an indexed triangle list inside the scene's single vertex and index
+// buffers. Indices are relative to first_vertex.
+struct Primitive {
+  uint32_t first_index = 0;
+  uint32_t index_count = 0;
+  uint32_t first_vertex = 0;
+  uint32_t vertex_count = 0;
+  uint32_t material = 0;  // index into CpuScene::materials (always valid)
+  Aabb bounds;            // object space
+};
+
+struct Mesh {
+  std::string name;
+  std::vector<uint32_t> primitives;  // indices into CpuScene::primitives
+};
+
+// One instance of one primitive: what a draw call draws.
+struct Drawable {
+  glm::mat4 world{1.0f};
+  uint32_t primitive = 0;
+  uint32_t mesh = 0;
+  uint32_t node = 0;  // glTF node index, for messages
+  Aabb world_bounds;
+};
+
+enum class LightType : uint32_t { kDirectional = 0, kPoint = 1, kSpot = 2 };
+
+// KHR_lights_punctual light placed in the world by its node.
+struct Light {
+  std::string name;
+  LightType type = LightType::kPoint;
+  glm::vec3 color{1.0f};
+  float intensity = 1.0f;  // candela (point/spot), lux (directional)
+  float range = 0.0f;      // 0 = infinite
+  glm::vec3 position{0.0f};
+  glm::vec3 direction{0.0f, 0.0f, -1.0f};  // where the light points, normalized
+  float inner_cone_angle = 0.0f;           // radians
+  float outer_cone_angle = 0.7853982f;     // radians (pi/4)
+};
+
+// A perspective camera from the file, with its node's world transform.
+struct SceneCamera {
+  std::string name;
+  glm::mat4 world{1.0f};  // camera looks down its local -Z, +Y up
+  float yfov = 0.8f;      // radians
+  float aspect = 0.0f;    // 0 = not given
+  float znear = 0.01f;
+  float zfar = 0.0f;      // 0 = infinite
+};
+
+// Counts as the file declares them (glTF arrays) and as instanced by the default scene.
+struct SceneCounts {
+  uint32_t nodes = 0;       // glTF nodes
+  uint32_t meshes = 0;      // glTF meshes
+  uint32_t primitives = 0;  // glTF primitives over all meshes (each mesh counted once)
+  uint64_t triangles = 0;   // triangles drawn: over every drawable of the default scene
+  uint32_t materials = 0;   // glTF materials (without the default material)
+  uint32_t textures = 0;    // glTF textures
+  uint32_t images = 0;      // glTF images
+  uint32_t lights = 0;      // KHR_lights_punctual lights placed in the scene
+  uint32_t cameras = 0;     // cameras placed in the scene
+};
+
+struct CpuScene {
+  std::string name;
+  std::vector<Vertex> vertices;
+  std::vector<uint32_t> indices;
+  std::vector<Primitive> primitives;
+  std::vector<Mesh> meshes;
+  std::vector<Material> materials;  // the file's, plus a default one when a primitive has none
+  std::vector<Texture> textures;
+  std::vector<Drawable> drawables;
+  std::vector<Light> lights;
+  std::vector<SceneCamera> cameras;
+  Aabb bounds;  // world bounds of all drawables
+  SceneCounts counts;
+  std::vector<std::string> warnings;  // things skipped or fixed up on import
+};
+
+}  // namespace tessera

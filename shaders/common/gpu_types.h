@@ -1,0 +1,115 @@
+// One truth for the layouts, bindings and limits shared by GLSL and C++.
+// Included by shaders (GLSL 460) and by renderer/ C++ code, where the GLSL types map to GLM
+// and renderer/gpu_layout_check.cpp static_asserts every size and offset.
+// Every struct here is made of 16-byte members only, so std140 and std430 agree.
+#ifndef TESSERA_SHADERS_COMMON_GPU_TYPES_H
+#define TESSERA_SHADERS_COMMON_GPU_TYPES_H
+
+#ifdef __cplusplus
+#include <cstdint>
+#include <glm/glm.hpp>
+namespace tessera::gpu {
+using vec4 = glm::vec4;
+using ivec4 = glm::ivec4;
+using uvec4 = glm::uvec4;
+using mat4 = glm::mat4;
+using uint = uint32_t;
+#define TS_CONST inline constexpr
+#else
+#define TS_CONST const
+#endif
+
+// ---- limits -------------------------------------------------------------------------------
+// Punctual lights live in a uniform buffer: on lavapipe UBO reads in the per-pixel light loop
+// are ~6x cheaper than SSBO reads. 256 * 64 B = 16 KiB, well inside maxUniformBufferRange.
+TS_CONST uint kMaxLights = 256;
+// Textures are grouped into sampler2DArray "buckets" by size and colour space, because lavapipe
+// cannot index an array of samplers dynamically; the shader picks a bucket with a switch.
+TS_CONST uint kMaxTextureBuckets = 8;
+
+// ---- descriptor set 0 (the whole frame uses one set) ----------------------------------------
+TS_CONST uint kBindingFrame = 0;        // uniform FrameUniforms
+TS_CONST uint kBindingLights = 1;       // uniform LightBlock { GpuLight lights[kMaxLights]; }
+TS_CONST uint kBindingDrawables = 2;    // buffer GpuDrawable[]
+TS_CONST uint kBindingMaterials = 3;    // buffer GpuMaterial[]
+TS_CONST uint kBindingTextures = 4;     // sampler2DArray buckets, kMaxTextureBuckets bindings
+// The tonemap pass has its own set: binding 0 is the HDR colour as a sampler2D.
+
+// ---- enums (values match the C++ enums in renderer/settings.h and scene/cpu_scene.h) ---------
+TS_CONST uint kAlphaOpaque = 0;
+TS_CONST uint kAlphaMask = 1;
+TS_CONST uint kAlphaBlend = 2;
+
+TS_CONST uint kLightDirectional = 0;
+TS_CONST uint kLightPoint = 1;
+TS_CONST uint kLightSpot = 2;
+
+TS_CONST uint kDebugNone = 0;
+TS_CONST uint kDebugNormals = 1;
+TS_CONST uint kDebugDepth = 2;
+TS_CONST uint kDebugBaseColor = 3;
+
+// Vertex attribute locations of the single scene vertex buffer (see scene::Vertex).
+TS_CONST uint kAttrPosition = 0;
+TS_CONST uint kAttrNormal = 1;
+TS_CONST uint kAttrTangent = 2;
+TS_CONST uint kAttrUv0 = 3;
+TS_CONST uint kAttrUv1 = 4;
+
+// ---- structs --------------------------------------------------------------------------------
+// A material's reference to one texture layer. uv' = (dot(row0.xyz, (uv,1)), dot(row1.xyz, (uv,1)))
+// carries KHR_texture_transform.
+struct GpuTextureRef {
+  vec4 row0;
+  vec4 row1;
+  ivec4 info;  // x: bucket (-1 = none), y: layer in the bucket, z: texcoord set (0/1), w: unused
+};
+
+struct GpuMaterial {
+  vec4 base_color_factor;  // linear RGBA
+  vec4 emissive;           // rgb: emissive factor * KHR_materials_emissive_strength
+  vec4 params;             // x metallic, y roughness, z normal scale, w occlusion strength
+  vec4 params2;            // x alpha cutoff (MASK), yzw unused
+  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, zw unused
+  GpuTextureRef base_color_tex;
+  GpuTextureRef metallic_roughness_tex;
+  GpuTextureRef normal_tex;
+  GpuTextureRef occlusion_tex;
+  GpuTextureRef emissive_tex;
+};
+
+// One node x primitive instance. Drawn with firstInstance = drawable index, so shaders find
+// it through gl_InstanceIndex (no push constant per draw).
+struct GpuDrawable {
+  mat4 world;
+  mat4 normal_matrix;  // inverse transpose of world's upper 3x3, in a mat4 for layout
+  uvec4 ids;           // x primitive, y material, zw unused
+  vec4 sphere;         // world bounding sphere: xyz centre, w radius
+  vec4 aabb_min;       // world AABB
+  vec4 aabb_max;
+};
+
+// glTF KHR_lights_punctual, in world space.
+struct GpuLight {
+  vec4 position_range;   // xyz position, w range (0 = infinite)
+  vec4 color_intensity;  // rgb linear colour, a intensity (candela for point/spot, lux for sun)
+  vec4 direction_type;   // xyz direction the light points to, w type (kLight*)
+  vec4 spot;             // x angle scale, y angle offset (glTF spot falloff), zw unused
+};
+
+struct FrameUniforms {
+  mat4 view;
+  mat4 proj;
+  mat4 view_proj;
+  vec4 camera_position;  // xyz world position
+  vec4 ambient_sky;      // rgb radiance from above
+  vec4 ambient_ground;   // rgb radiance from below
+  uvec4 counts;          // x light count, y debug view (kDebug*), z width, w height
+  vec4 params;           // x exposure, y near, z far
+};
+
+#ifdef __cplusplus
+}  // namespace tessera::gpu
+#endif
+#undef TS_CONST
+#endif  // TESSERA_SHADERS_COMMON_GPU_TYPES_H
