@@ -1,1 +1,125 @@
-// placeholder: being written
+#include "renderer/camera.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "absl/strings/str_cat.h"
+
+namespace tessera {
+
+namespace {
+bool Finite(const glm::vec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+}  // namespace
+
+absl::Status ValidateCamera(const Camera& c) {
+  auto bad = [](const char* field, const char* why) {
+    return absl::InvalidArgumentError(absl::StrCat("camera.", field, ": ", why));
+  };
+  if (c.view) {
+    for (int i = 0; i < 4; ++i)
+      if (!Finite(glm::vec3((*c.view)[i])) || !std::isfinite((*c.view)[i].w))
+        return bad("view", "matrix has non-finite values");
+    if (std::abs(glm::determinant(*c.view)) < 1e-12f) return bad("view", "matrix is singular");
+  } else {
+    if (!Finite(c.eye)) return bad("eye", "non-finite");
+    if (!Finite(c.target)) return bad("target", "non-finite");
+    if (!Finite(c.up)) return bad("up", "non-finite");
+    const glm::vec3 d = c.target - c.eye;
+    if (glm::length(d) < 1e-6f) return bad("target", "equals eye");
+    if (glm::length(glm::cross(glm::normalize(d), c.up)) < 1e-6f)
+      return bad("up", "is zero or parallel to the view direction");
+  }
+  if (!std::isfinite(c.yfov) || c.yfov <= 0.0f || c.yfov >= 3.1f)
+    return bad("yfov", "must be in (0, 3.1) radians");
+  if (!std::isfinite(c.znear) || c.znear <= 0.0f) return bad("znear", "must be > 0");
+  if (!std::isfinite(c.zfar) || (c.zfar != 0.0f && c.zfar <= c.znear))
+    return bad("zfar", "must be 0 (infinite) or > znear");
+  return absl::OkStatus();
+}
+
+glm::mat4 ViewMatrix(const Camera& c) {
+  if (c.view) return *c.view;
+  return glm::lookAtRH(c.eye, c.target, c.up);
+}
+
+glm::mat4 ProjectionMatrix(const Camera& c, float aspect) {
+  const float f = 1.0f / std::tan(c.yfov * 0.5f);
+  const float n = c.znear;
+  glm::mat4 p(0.0f);
+  p[0][0] = f / aspect;
+  p[1][1] = -f;  // Vulkan clip space has Y down
+  p[2][3] = -1.0f;
+  if (c.zfar == 0.0f) {
+    // Infinite reverse Z: depth = n / -z_view.
+    p[3][2] = n;
+  } else {
+    const float fz = c.zfar;
+    p[2][2] = n / (fz - n);
+    p[3][2] = n * fz / (fz - n);
+  }
+  return p;
+}
+
+glm::vec3 CameraPosition(const Camera& c) {
+  if (c.view) return glm::vec3(glm::inverse(*c.view)[3]);
+  return c.eye;
+}
+
+Camera FrameBounds(const Aabb& bounds, float yfov, float aspect, glm::vec3 direction) {
+  Camera cam;
+  cam.yfov = yfov;
+  const glm::vec3 center = bounds.empty() ? glm::vec3(0.0f) : bounds.center();
+  const float radius = std::max(bounds.radius(), 1e-3f);
+  const float xfov = 2.0f * std::atan(std::tan(yfov * 0.5f) * aspect);
+  const float half = 0.5f * std::min(yfov, xfov);
+  const float distance = radius / std::sin(half);
+  cam.target = center;
+  cam.eye = center + glm::normalize(direction) * distance;
+  cam.up = glm::vec3(0.0f, 1.0f, 0.0f);
+  if (glm::length(glm::cross(glm::normalize(direction), cam.up)) < 1e-3f)
+    cam.up = glm::vec3(0.0f, 0.0f, -1.0f);
+  cam.znear = std::max(distance - radius, distance * 0.01f) * 0.5f;
+  cam.zfar = 0.0f;
+  return cam;
+}
+
+Camera FromSceneCamera(const SceneCamera& sc) {
+  Camera cam;
+  cam.view = glm::inverse(sc.world);
+  cam.yfov = sc.yfov;
+  cam.znear = sc.znear > 0.0f ? sc.znear : 0.01f;
+  cam.zfar = sc.zfar > cam.znear ? sc.zfar : 0.0f;
+  return cam;
+}
+
+Frustum FrustumFromViewProj(const glm::mat4& m) {
+  // Gribb-Hartmann: rows of the matrix. Clip volume: -w<=x<=w, -w<=y<=w, 0<=z<=w.
+  const glm::vec4 r0(m[0][0], m[1][0], m[2][0], m[3][0]);
+  const glm::vec4 r1(m[0][1], m[1][1], m[2][1], m[3][1]);
+  const glm::vec4 r2(m[0][2], m[1][2], m[2][2], m[3][2]);
+  const glm::vec4 r3(m[0][3], m[1][3], m[2][3], m[3][3]);
+  Frustum f = {r3 + r0, r3 - r0, r3 + r1, r3 - r1, r2, r3 - r2};
+  for (glm::vec4& p : f) {
+    const float len = glm::length(glm::vec3(p));
+    if (len > 0.0f) p /= len;
+  }
+  return f;
+}
+
+bool AabbIntersectsFrustum(const Aabb& box, const Frustum& frustum) {
+  if (box.empty()) return false;
+  for (const glm::vec4& p : frustum) {
+    const glm::vec3 n(p);
+    // The box corner furthest along the plane normal.
+    const glm::vec3 v(n.x >= 0 ? box.max.x : box.min.x, n.y >= 0 ? box.max.y : box.min.y,
+                      n.z >= 0 ? box.max.z : box.min.z);
+    if (glm::dot(n, v) + p.w < 0.0f) return false;
+  }
+  return true;
+}
+
+}  // namespace tessera

@@ -1,1 +1,81 @@
-// placeholder: being written
+#include "renderer/frame_graph.h"
+
+#include <array>
+
+namespace tessera {
+
+std::string_view PassName(PassId id) {
+  switch (id) {
+    case PassId::kDepthPrepass: return "depth_prepass";
+    case PassId::kForward: return "forward";
+    case PassId::kTransparent: return "transparent";
+    case PassId::kTonemap: return "tonemap";
+    case PassId::kReadback: return "readback";
+    case PassId::kCount: break;
+  }
+  return "invalid";
+}
+
+std::vector<ResourceUse> PassUses(PassId id) {
+  using R = Resource;
+  using A = Access;
+  switch (id) {
+    case PassId::kDepthPrepass: return {{R::kDepth, A::kDepthWrite}};
+    case PassId::kForward: return {{R::kDepth, A::kDepthTest}, {R::kHdrColor, A::kColorWrite}};
+    case PassId::kTransparent:
+      return {{R::kDepth, A::kDepthTest}, {R::kHdrColor, A::kColorWrite}};
+    case PassId::kTonemap: return {{R::kHdrColor, A::kSampled}, {R::kLdrColor, A::kColorWrite}};
+    case PassId::kReadback: return {{R::kLdrColor, A::kTransferSrc}};
+    case PassId::kCount: break;
+  }
+  return {};
+}
+
+std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& features) {
+  (void)settings;  // later issues: culling, light culling, shadows, AA, post passes
+  std::vector<PassId> passes;
+  // Depth first: forward shading then tests EQUAL-or-nearer against it and shades each pixel
+  // once, which matters most on a CPU rasterizer where fragment work is the bill.
+  passes.push_back(PassId::kDepthPrepass);
+  passes.push_back(PassId::kForward);
+  // Blended surfaces need the opaque colour underneath and must not write depth.
+  if (features.has_transparent) passes.push_back(PassId::kTransparent);
+  passes.push_back(PassId::kTonemap);
+  passes.push_back(PassId::kReadback);
+  return passes;
+}
+
+namespace {
+bool Writes(Access a) { return a == Access::kDepthWrite || a == Access::kColorWrite; }
+// Accesses that share a layout (depth test and depth write are both attachment-optimal).
+int LayoutClass(Access a) {
+  switch (a) {
+    case Access::kDepthWrite:
+    case Access::kDepthTest: return 1;
+    case Access::kColorWrite: return 2;
+    case Access::kSampled: return 3;
+    case Access::kTransferSrc: return 4;
+    case Access::kNone: return 0;
+  }
+  return 0;
+}
+}  // namespace
+
+std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes) {
+  std::array<Access, static_cast<size_t>(Resource::kCount)> state;
+  state.fill(Access::kNone);
+  std::vector<std::vector<Transition>> plan(passes.size());
+  for (size_t i = 0; i < passes.size(); ++i) {
+    for (const ResourceUse& use : PassUses(passes[i])) {
+      Access& current = state[static_cast<size_t>(use.resource)];
+      const bool layout_change = LayoutClass(current) != LayoutClass(use.access);
+      if (layout_change || Writes(current) || Writes(use.access)) {
+        plan[i].push_back({use.resource, current, use.access});
+      }
+      current = use.access;
+    }
+  }
+  return plan;
+}
+
+}  // namespace tessera

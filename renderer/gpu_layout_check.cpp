@@ -1,1 +1,47 @@
-// placeholder: being written
+// Compile-time checks that the C++ mirrors of the GPU structs in shaders/common/gpu_types.h
+// have the sizes and offsets the GLSL std140/std430 rules give them, and that the vertex
+// layout matches the pipeline's attribute offsets.
+#include <cstddef>
+
+#include "renderer/scene/cpu_scene.h"
+#include "shaders/common/gpu_types.h"
+
+namespace tessera::gpu {
+
+static_assert(sizeof(GpuTextureRef) == 48);
+static_assert(offsetof(GpuTextureRef, row1) == 16);
+static_assert(offsetof(GpuTextureRef, info) == 32);
+
+static_assert(sizeof(GpuMaterial) == 80 + 5 * 48);
+static_assert(offsetof(GpuMaterial, emissive) == 16);
+static_assert(offsetof(GpuMaterial, params) == 32);
+static_assert(offsetof(GpuMaterial, params2) == 48);
+static_assert(offsetof(GpuMaterial, flags) == 64);
+static_assert(offsetof(GpuMaterial, base_color_tex) == 80);
+static_assert(offsetof(GpuMaterial, emissive_tex) == 80 + 4 * 48);
+static_assert(sizeof(GpuMaterial) % 16 == 0, "std430 array stride");
+
+static_assert(sizeof(GpuDrawable) == 192);
+static_assert(offsetof(GpuDrawable, normal_matrix) == 64);
+static_assert(offsetof(GpuDrawable, ids) == 128);
+static_assert(offsetof(GpuDrawable, sphere) == 144);
+static_assert(offsetof(GpuDrawable, aabb_max) == 176);
+
+static_assert(sizeof(GpuLight) == 64);
+static_assert(offsetof(GpuLight, spot) == 48);
+static_assert(sizeof(GpuLight) * kMaxLights <= 16384, "fits the minimum maxUniformBufferRange");
+
+static_assert(sizeof(FrameUniforms) == 3 * 64 + 5 * 16);
+static_assert(offsetof(FrameUniforms, camera_position) == 192);
+static_assert(offsetof(FrameUniforms, counts) == 240);
+static_assert(offsetof(FrameUniforms, params) == 256);
+
+}  // namespace tessera::gpu
+
+namespace tessera {
+static_assert(sizeof(Vertex) == 56);
+static_assert(offsetof(Vertex, normal) == 12);
+static_assert(offsetof(Vertex, tangent) == 24);
+static_assert(offsetof(Vertex, uv0) == 40);
+static_assert(offsetof(Vertex, uv1) == 48);
+}  // namespace tessera

@@ -1,1 +1,373 @@
-// placeholder: being written
+#include "renderer/image_io.h"
+
+#include <png.h>
+#include <turbojpeg.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <csetjmp>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <utility>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+
+namespace tessera {
+namespace {
+
+// Larger than any frame we render; also stops a tiny file from declaring gigapixels and
+// making us allocate them before the decoder finds out the data is missing.
+constexpr uint32_t kMaxImageSide = 16384;
+
+absl::Status ValidateImage(const RgbaImage& image, const char* what) {
+  if (image.width == 0 || image.height == 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": empty image (", image.width, "x", image.height, ")"));
+  }
+  if (image.width > kMaxImageSide || image.height > kMaxImageSide) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": image too large (", image.width,
+                                                   "x", image.height, ")"));
+  }
+  const uint64_t expected = uint64_t{image.width} * image.height * 4;
+  if (image.pixels.size() != expected) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": pixel buffer holds ",
+                                                   image.pixels.size(), " bytes, ", image.width,
+                                                   "x", image.height, " RGBA needs ", expected));
+  }
+  return absl::OkStatus();
+}
+
+// ---- TurboJPEG ---------------------------------------------------------------------------
+
+// Owns a tjhandle so every return path destroys it.
+class TjHandle {
+ public:
+  explicit TjHandle(tjhandle h) : h_(h) {}
+  ~TjHandle() {
+    if (h_ != nullptr) tjDestroy(h_);
+  }
+  TjHandle(const TjHandle&) = delete;
+  TjHandle& operator=(const TjHandle&) = delete;
+  tjhandle get() const { return h_; }
+
+ private:
+  tjhandle h_;
+};
+
+std::string TjError(tjhandle h) { return tjGetErrorStr2(h); }
+
+// ---- libpng ------------------------------------------------------------------------------
+//
+// libpng reports errors by longjmp. Everything that must survive the jump (buffers, the
+// message) lives in these state structs, owned by the caller of the setjmp frame, so no
+// object with a destructor is skipped by the jump.
+
+struct PngErrorState {
+  char message[256] = "unknown libpng error";
+};
+
+void PngErrorFn(png_structp png, png_const_charp msg) {
+  auto* err = static_cast<PngErrorState*>(png_get_error_ptr(png));
+  if (err != nullptr && msg != nullptr) {
+    std::snprintf(err->message, sizeof(err->message), "%s", msg);
+  }
+  png_longjmp(png, 1);
+}
+
+void PngWarningFn(png_structp, png_const_charp) {
+  // Warnings (bad ancillary chunks, gamma oddities) do not affect the pixels we return.
+}
+
+struct PngWriteState {
+  PngErrorState error;
+  const RgbaImage* image = nullptr;
+  std::vector<png_bytep> rows;
+  std::vector<uint8_t> out;
+};
+
+void PngWriteFn(png_structp png, png_bytep data, png_size_t length) {
+  auto* st = static_cast<PngWriteState*>(png_get_io_ptr(png));
+  st->out.insert(st->out.end(), data, data + length);
+}
+
+void PngFlushFn(png_structp) {}
+
+// Returns false with st->error set on failure.
+bool EncodePngImpl(PngWriteState* st) {
+  png_structp png =
+      png_create_write_struct(PNG_LIBPNG_VER_STRING, &st->error, PngErrorFn, PngWarningFn);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr) {
+    png_destroy_write_struct(&png, nullptr);
+    return false;
+  }
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_write_struct(&png, &info);
+    return false;
+  }
+  png_set_write_fn(png, st, PngWriteFn, PngFlushFn);
+  // Level 6 is zlib's default trade-off; golden images are small so speed matters little.
+  png_set_compression_level(png, 6);
+  png_set_IHDR(png, info, st->image->width, st->image->height, 8, PNG_COLOR_TYPE_RGBA,
+               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  png_write_image(png, st->rows.data());
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return true;
+}
+
+struct PngReadState {
+  PngErrorState error;
+  const uint8_t* data = nullptr;
+  size_t size = 0;
+  size_t pos = 0;
+  bool too_large = false;
+  RgbaImage image;
+  std::vector<png_bytep> rows;
+};
+
+void PngReadFn(png_structp png, png_bytep out, png_size_t length) {
+  auto* st = static_cast<PngReadState*>(png_get_io_ptr(png));
+  if (length > st->size - st->pos) png_error(png, "truncated PNG data");
+  std::memcpy(out, st->data + st->pos, length);
+  st->pos += length;
+}
+
+bool DecodePngImpl(PngReadState* st) {
+  png_structp png =
+      png_create_read_struct(PNG_LIBPNG_VER_STRING, &st->error, PngErrorFn, PngWarningFn);
+  if (png == nullptr) return false;
+  png_infop info = png_create_info_struct(png);
+  if (info == nullptr) {
+    png_destroy_read_struct(&png, nullptr, nullptr);
+    return false;
+  }
+  if (setjmp(png_jmpbuf(png))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    return false;
+  }
+  png_set_read_fn(png, st, PngReadFn);
+  png_set_user_limits(png, kMaxImageSide, kMaxImageSide);
+  png_read_info(png, info);
+
+  png_uint_32 width = 0, height = 0;
+  int bit_depth = 0, color_type = 0, interlace = 0;
+  png_get_IHDR(png, info, &width, &height, &bit_depth, &color_type, &interlace, nullptr,
+               nullptr);
+  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide) {
+    st->too_large = true;
+    png_error(png, "PNG dimensions out of range");
+  }
+
+  // Normalize every PNG flavour to 8-bit RGBA.
+  const bool has_trns = png_get_valid(png, info, PNG_INFO_tRNS) != 0;
+  if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+  if (color_type == PNG_COLOR_TYPE_GRAY && bit_depth < 8) png_set_expand_gray_1_2_4_to_8(png);
+  if (has_trns) png_set_tRNS_to_alpha(png);
+  if (bit_depth == 16) png_set_strip_16(png);
+  if (color_type == PNG_COLOR_TYPE_GRAY || color_type == PNG_COLOR_TYPE_GRAY_ALPHA) {
+    png_set_gray_to_rgb(png);
+  }
+  if ((color_type & PNG_COLOR_MASK_ALPHA) == 0 && !has_trns) {
+    png_set_add_alpha(png, 0xFF, PNG_FILLER_AFTER);
+  }
+  png_set_interlace_handling(png);
+  png_read_update_info(png, info);
+
+  if (png_get_rowbytes(png, info) != size_t{width} * 4) {
+    png_error(png, "PNG transform did not produce RGBA8");
+  }
+  st->image.width = width;
+  st->image.height = height;
+  st->image.pixels.resize(size_t{width} * height * 4);
+  st->rows.resize(height);
+  for (png_uint_32 y = 0; y < height; ++y) {
+    st->rows[y] = st->image.pixels.data() + size_t{y} * width * 4;
+  }
+  png_read_image(png, st->rows.data());
+  png_read_end(png, nullptr);
+  png_destroy_read_struct(&png, &info, nullptr);
+  return true;
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
+                                                ChromaSubsampling subsampling) {
+  if (quality < 1 || quality > 100) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("EncodeJpeg: quality ", quality, " outside 1..100"));
+  }
+  if (absl::Status s = ValidateImage(image, "EncodeJpeg"); !s.ok()) return s;
+
+  TjHandle tj(tjInitCompress());
+  if (tj.get() == nullptr) {
+    return absl::InternalError(absl::StrCat("tjInitCompress: ", TjError(nullptr)));
+  }
+  unsigned char* jpeg = nullptr;
+  unsigned long jpeg_size = 0;
+  const int samp = subsampling == ChromaSubsampling::k444 ? TJSAMP_444 : TJSAMP_420;
+  const int rc = tjCompress2(tj.get(), image.pixels.data(), static_cast<int>(image.width),
+                             static_cast<int>(image.width * 4), static_cast<int>(image.height),
+                             TJPF_RGBA, &jpeg, &jpeg_size, samp, quality, TJFLAG_ACCURATEDCT);
+  if (rc != 0) {
+    // TurboJPEG may have allocated the buffer before failing.
+    tjFree(jpeg);
+    return absl::InternalError(absl::StrCat("tjCompress2: ", TjError(tj.get())));
+  }
+  std::vector<uint8_t> out(jpeg, jpeg + jpeg_size);
+  tjFree(jpeg);
+  return out;
+}
+
+absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg) {
+  if (jpeg.empty()) return absl::InvalidArgumentError("DecodeJpeg: empty input");
+  if (jpeg.size() > std::numeric_limits<unsigned long>::max()) {
+    return absl::InvalidArgumentError("DecodeJpeg: input too large");
+  }
+  TjHandle tj(tjInitDecompress());
+  if (tj.get() == nullptr) {
+    return absl::InternalError(absl::StrCat("tjInitDecompress: ", TjError(nullptr)));
+  }
+  int width = 0, height = 0, subsamp = 0, colorspace = 0;
+  if (tjDecompressHeader3(tj.get(), jpeg.data(), static_cast<unsigned long>(jpeg.size()),
+                          &width, &height, &subsamp, &colorspace) != 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("DecodeJpeg: bad header: ", TjError(tj.get())));
+  }
+  if (width <= 0 || height <= 0 || static_cast<uint32_t>(width) > kMaxImageSide ||
+      static_cast<uint32_t>(height) > kMaxImageSide) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("DecodeJpeg: dimensions out of range (", width, "x", height, ")"));
+  }
+  RgbaImage image;
+  image.width = static_cast<uint32_t>(width);
+  image.height = static_cast<uint32_t>(height);
+  image.pixels.resize(size_t{image.width} * image.height * 4);
+  // Stop on warnings: a truncated scan is only a warning to libjpeg (it pads with grey),
+  // and we would rather report it than hand back a half-grey frame.
+  if (tjDecompress2(tj.get(), jpeg.data(), static_cast<unsigned long>(jpeg.size()),
+                    image.pixels.data(), width, width * 4, height, TJPF_RGBA,
+                    TJFLAG_ACCURATEDCT | TJFLAG_STOPONWARNING) != 0) {
+    return absl::InvalidArgumentError(absl::StrCat("DecodeJpeg: ", TjError(tj.get())));
+  }
+  return image;
+}
+
+absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image) {
+  if (absl::Status s = ValidateImage(image, "EncodePng"); !s.ok()) return s;
+  PngWriteState st;
+  st.image = &image;
+  st.rows.resize(image.height);
+  for (uint32_t y = 0; y < image.height; ++y) {
+    // libpng's API is not const-correct; it only reads the rows when writing.
+    st.rows[y] = const_cast<png_bytep>(image.pixels.data() + size_t{y} * image.width * 4);
+  }
+  if (!EncodePngImpl(&st)) {
+    return absl::InternalError(absl::StrCat("EncodePng: ", st.error.message));
+  }
+  return std::move(st.out);
+}
+
+absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png) {
+  if (png.empty()) return absl::InvalidArgumentError("DecodePng: empty input");
+  if (png.size() < 8 || png_sig_cmp(png.data(), 0, 8) != 0) {
+    return absl::InvalidArgumentError("DecodePng: not a PNG (bad signature)");
+  }
+  PngReadState st;
+  st.data = png.data();
+  st.size = png.size();
+  if (!DecodePngImpl(&st)) {
+    return absl::InvalidArgumentError(absl::StrCat("DecodePng: ", st.error.message));
+  }
+  return std::move(st.image);
+}
+
+absl::StatusOr<std::vector<uint8_t>> ReadFileBytes(const std::string& path) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) {
+    const int err = errno;
+    return absl::ErrnoToStatus(err, absl::StrCat("cannot open ", path));
+  }
+  std::vector<uint8_t> bytes;
+  // Chunked reads work for pipes and /proc files whose size is not known up front.
+  uint8_t chunk[64 * 1024];
+  size_t n = 0;
+  while ((n = std::fread(chunk, 1, sizeof(chunk), f)) > 0) {
+    bytes.insert(bytes.end(), chunk, chunk + n);
+  }
+  const bool failed = std::ferror(f) != 0;
+  const int err = errno;
+  std::fclose(f);
+  if (failed) return absl::ErrnoToStatus(err, absl::StrCat("cannot read ", path));
+  return bytes;
+}
+
+absl::Status WriteFileBytes(const std::string& path, std::span<const uint8_t> bytes) {
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (f == nullptr) {
+    const int err = errno;
+    return absl::ErrnoToStatus(err, absl::StrCat("cannot create ", path));
+  }
+  const size_t written = bytes.empty() ? 0 : std::fwrite(bytes.data(), 1, bytes.size(), f);
+  int err = errno;
+  bool ok = written == bytes.size();
+  // fclose flushes: a full disk often only shows up here.
+  if (std::fclose(f) != 0) {
+    if (ok) err = errno;
+    ok = false;
+  }
+  if (!ok) return absl::ErrnoToStatus(err, absl::StrCat("cannot write ", path));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<double> Psnr(const RgbaImage& a, const RgbaImage& b) {
+  if (absl::Status s = ValidateImage(a, "Psnr (first image)"); !s.ok()) return s;
+  if (absl::Status s = ValidateImage(b, "Psnr (second image)"); !s.ok()) return s;
+  if (a.width != b.width || a.height != b.height) {
+    return absl::InvalidArgumentError(absl::StrCat("Psnr: sizes differ: ", a.width, "x",
+                                                   a.height, " vs ", b.width, "x", b.height));
+  }
+  uint64_t sum_sq = 0;
+  for (size_t i = 0; i < a.pixels.size(); i += 4) {
+    for (size_t c = 0; c < 3; ++c) {
+      const int d = int{a.pixels[i + c]} - int{b.pixels[i + c]};
+      sum_sq += static_cast<uint64_t>(d * d);
+    }
+  }
+  if (sum_sq == 0) return std::numeric_limits<double>::infinity();
+  const double mse =
+      static_cast<double>(sum_sq) / (static_cast<double>(a.width) * a.height * 3.0);
+  return 10.0 * std::log10(255.0 * 255.0 / mse);
+}
+
+absl::StatusOr<RgbaImage> DiffImage(const RgbaImage& a, const RgbaImage& b, float gain) {
+  if (absl::Status s = ValidateImage(a, "DiffImage (first image)"); !s.ok()) return s;
+  if (absl::Status s = ValidateImage(b, "DiffImage (second image)"); !s.ok()) return s;
+  if (a.width != b.width || a.height != b.height) {
+    return absl::InvalidArgumentError(absl::StrCat("DiffImage: sizes differ: ", a.width, "x",
+                                                   a.height, " vs ", b.width, "x", b.height));
+  }
+  if (!std::isfinite(gain) || gain < 0.0f) {
+    return absl::InvalidArgumentError(absl::StrCat("DiffImage: bad gain ", gain));
+  }
+  RgbaImage out;
+  out.width = a.width;
+  out.height = a.height;
+  out.pixels.resize(a.pixels.size());
+  for (size_t i = 0; i < a.pixels.size(); i += 4) {
+    for (size_t c = 0; c < 3; ++c) {
+      const float d = std::abs(float(a.pixels[i + c]) - float(b.pixels[i + c])) * gain;
+      out.pixels[i + c] = static_cast<uint8_t>(std::min(255.0f, std::round(d)));
+    }
+    out.pixels[i + 3] = 255;
+  }
+  return out;
+}
+
+}  // namespace tessera

@@ -1,1 +1,494 @@
-// placeholder: being written
+#include "renderer/renderer.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <mutex>
+
+#include "absl/strings/str_cat.h"
+#include "renderer/frame_graph.h"
+#include "renderer/passes/pass.h"
+#include "renderer/scene/gpu_scene.h"
+#include "renderer/vk/context.h"
+#include "renderer/vk/resources.h"
+#include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
+
+namespace tessera {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+constexpr uint32_t kMaxTimestamps = 2 * static_cast<uint32_t>(PassId::kCount);
+
+struct AccessInfo {
+  VkPipelineStageFlags2 stage;
+  VkAccessFlags2 access;
+  VkImageLayout layout;
+};
+
+// How each declared Access maps to Vulkan synchronization.
+AccessInfo ToVulkan(Access a) {
+  constexpr VkPipelineStageFlags2 kDepthStages =
+      VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
+  switch (a) {
+    case Access::kNone:
+      return {VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_UNDEFINED};
+    case Access::kDepthWrite:
+      return {kDepthStages,
+              VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
+                  VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT,
+              VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL};
+    case Access::kDepthTest:
+      return {kDepthStages, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT,
+              VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL};
+    case Access::kColorWrite:
+      return {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
+              VK_ACCESS_2_COLOR_ATTACHMENT_READ_BIT | VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
+              VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
+    case Access::kSampled:
+      return {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+              VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    case Access::kTransferSrc:
+      return {VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT,
+              VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
+  }
+  return {};
+}
+
+gpu::GpuLight ToGpu(const Light& l) {
+  gpu::GpuLight g{};
+  g.position_range = glm::vec4(l.position, l.range);
+  g.color_intensity = glm::vec4(l.color, l.intensity);
+  g.direction_type = glm::vec4(glm::normalize(l.direction), float(static_cast<uint32_t>(l.type)));
+  // glTF spot falloff: smooth between cos(outer) and cos(inner).
+  const float cos_outer = std::cos(l.outer_cone_angle);
+  const float cos_inner = std::cos(l.inner_cone_angle);
+  const float scale = 1.0f / std::max(0.001f, cos_inner - cos_outer);
+  g.spot = glm::vec4(scale, -cos_outer * scale, 0.0f, 0.0f);
+  return g;
+}
+
+// The light a scene without lights gets: a warm sun from above and in front.
+Light DefaultSun() {
+  Light sun;
+  sun.name = "default_sun";
+  sun.type = LightType::kDirectional;
+  sun.color = glm::vec3(1.0f, 0.96f, 0.90f);
+  sun.intensity = 3.0f;
+  sun.direction = glm::normalize(glm::vec3(-0.35f, -1.0f, -0.45f));
+  return sun;
+}
+
+}  // namespace
+
+Scene::~Scene() = default;
+
+struct Renderer::Impl {
+  std::unique_ptr<vk::Context> ctx;
+  std::mutex mutex;  // the queue and everything below
+  SceneLayout scene_layout;
+  std::array<std::unique_ptr<Pass>, static_cast<size_t>(PassId::kCount)> passes;
+  VkCommandPool command_pool = VK_NULL_HANDLE;
+  VkCommandBuffer cmd = VK_NULL_HANDLE;
+  VkFence fence = VK_NULL_HANDLE;
+  VkQueryPool queries = VK_NULL_HANDLE;
+  VkDescriptorPool frame_pool = VK_NULL_HANDLE;
+  vk::Buffer frame_ubo;
+  vk::Buffer lights_ubo;
+  FrameTargets targets;
+
+  ~Impl() {
+    if (!ctx) return;
+    VkDevice d = ctx->device();
+    vkDeviceWaitIdle(d);
+    for (auto& p : passes) p.reset();
+    targets = FrameTargets{};
+    frame_ubo = vk::Buffer();
+    lights_ubo = vk::Buffer();
+    if (frame_pool) vkDestroyDescriptorPool(d, frame_pool, nullptr);
+    if (queries) vkDestroyQueryPool(d, queries, nullptr);
+    if (fence) vkDestroyFence(d, fence, nullptr);
+    if (command_pool) vkDestroyCommandPool(d, command_pool, nullptr);
+    if (scene_layout.pipeline_layout)
+      vkDestroyPipelineLayout(d, scene_layout.pipeline_layout, nullptr);
+    if (scene_layout.set_layout) vkDestroyDescriptorSetLayout(d, scene_layout.set_layout, nullptr);
+  }
+
+  absl::Status Init();
+  absl::Status EnsureTargets(uint32_t width, uint32_t height);
+  DrawLists BuildDrawLists(const GpuScene& scene, const glm::mat4& view,
+                           const glm::mat4& view_proj, CullingMode culling,
+                           FrameStats& stats) const;
+  VkDescriptorSet WriteSceneSet(const GpuScene& scene);
+};
+
+absl::Status Renderer::Impl::Init() {
+  VkDevice d = ctx->device();
+  std::vector<VkDescriptorSetLayoutBinding> bindings = {
+      {gpu::kBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingLights, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingDrawables, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingMaterials, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+  };
+  for (uint32_t b = 0; b < gpu::kMaxTextureBuckets; ++b)
+    bindings.push_back({gpu::kBindingTextures + b, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                        VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  li.bindingCount = static_cast<uint32_t>(bindings.size());
+  li.pBindings = bindings.data();
+  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, &scene_layout.set_layout),
+                     "scene set layout");
+  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pli.setLayoutCount = 1;
+  pli.pSetLayouts = &scene_layout.set_layout;
+  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, &scene_layout.pipeline_layout),
+                     "scene pipeline layout");
+
+  auto add = [this](absl::StatusOr<std::unique_ptr<Pass>> pass) -> absl::Status {
+    if (!pass.ok()) return pass.status();
+    passes[static_cast<size_t>((*pass)->id())] = std::move(*pass);
+    return absl::OkStatus();
+  };
+  if (absl::Status s = add(CreateDepthPrepass(*ctx, scene_layout)); !s.ok()) return s;
+  if (absl::Status s = add(CreateForwardPass(*ctx, scene_layout)); !s.ok()) return s;
+  if (absl::Status s = add(CreateTransparentPass(*ctx, scene_layout)); !s.ok()) return s;
+  if (absl::Status s = add(CreateTonemapPass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateReadbackPass()); !s.ok()) return s;
+
+  VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+  pci.queueFamilyIndex = ctx->queue_family();
+  VK_RETURN_IF_ERROR(vkCreateCommandPool(d, &pci, nullptr, &command_pool), "command pool");
+  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  ai.commandPool = command_pool;
+  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  ai.commandBufferCount = 1;
+  VK_RETURN_IF_ERROR(vkAllocateCommandBuffers(d, &ai, &cmd), "command buffer");
+  VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  VK_RETURN_IF_ERROR(vkCreateFence(d, &fci, nullptr, &fence), "fence");
+  VkQueryPoolCreateInfo qi{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+  qi.queryType = VK_QUERY_TYPE_TIMESTAMP;
+  qi.queryCount = kMaxTimestamps;
+  VK_RETURN_IF_ERROR(vkCreateQueryPool(d, &qi, nullptr, &queries), "query pool");
+
+  const VkDescriptorPoolSize sizes[] = {
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 4},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gpu::kMaxTextureBuckets + 4},
+  };
+  VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  dpi.maxSets = 4;
+  dpi.poolSizeCount = 3;
+  dpi.pPoolSizes = sizes;
+  VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, &frame_pool), "descriptor pool");
+
+  absl::StatusOr<vk::Buffer> fu =
+      vk::Buffer::Create(*ctx, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+                         vk::MemoryUsage::kUpload, "frame_uniforms");
+  if (!fu.ok()) return fu.status();
+  frame_ubo = std::move(*fu);
+  absl::StatusOr<vk::Buffer> lu = vk::Buffer::Create(
+      *ctx, sizeof(gpu::GpuLight) * gpu::kMaxLights, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+      vk::MemoryUsage::kUpload, "lights");
+  if (!lu.ok()) return lu.status();
+  lights_ubo = std::move(*lu);
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
+  if (targets.width == width && targets.height == height) return absl::OkStatus();
+  vkDeviceWaitIdle(ctx->device());
+  targets = FrameTargets{};
+  FrameTargets t;
+  t.width = width;
+  t.height = height;
+  vk::ImageDesc desc;
+  desc.width = width;
+  desc.height = height;
+  desc.format = kDepthFormat;
+  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
+  absl::StatusOr<vk::Image> depth = vk::Image::Create(*ctx, desc, "depth");
+  if (!depth.ok()) return depth.status();
+  desc.format = kHdrFormat;
+  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  absl::StatusOr<vk::Image> hdr = vk::Image::Create(*ctx, desc, "hdr_color");
+  if (!hdr.ok()) return hdr.status();
+  desc.format = kLdrFormat;
+  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  absl::StatusOr<vk::Image> ldr = vk::Image::Create(*ctx, desc, "ldr_color");
+  if (!ldr.ok()) return ldr.status();
+  absl::StatusOr<vk::Buffer> readback =
+      vk::Buffer::Create(*ctx, uint64_t(width) * height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                         vk::MemoryUsage::kReadback, "readback");
+  if (!readback.ok()) return readback.status();
+  t.depth = std::move(*depth);
+  t.hdr = std::move(*hdr);
+  t.ldr = std::move(*ldr);
+  t.readback = std::move(*readback);
+  targets = std::move(t);
+  return absl::OkStatus();
+}
+
+DrawLists Renderer::Impl::BuildDrawLists(const GpuScene& scene, const glm::mat4& view,
+                                         const glm::mat4& view_proj, CullingMode culling,
+                                         FrameStats& stats) const {
+  DrawLists lists;
+  const Frustum frustum = FrustumFromViewProj(view_proj);
+  const bool cull = culling == CullingMode::kCpuFrustum;
+  std::vector<std::pair<float, const DrawItem*>> opaque, mask, blend;
+  for (const DrawItem& item : scene.draws()) {
+    if (cull && !AabbIntersectsFrustum(item.world_bounds, frustum)) {
+      stats.drawables_culled++;
+      continue;
+    }
+    const float depth = -(view * glm::vec4(item.world_bounds.center(), 1.0f)).z;
+    auto& list = item.alpha == AlphaMode::kBlend  ? blend
+                 : item.alpha == AlphaMode::kMask ? mask
+                                                  : opaque;
+    list.emplace_back(depth, &item);
+  }
+  // Opaque front to back (early depth rejection); blended back to front (correct "over").
+  // Ties break on the drawable index so frames are reproducible.
+  auto near_first = [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first < b.first : a.second->drawable < b.second->drawable;
+  };
+  auto far_first = [](const auto& a, const auto& b) {
+    return a.first != b.first ? a.first > b.first : a.second->drawable < b.second->drawable;
+  };
+  std::sort(opaque.begin(), opaque.end(), near_first);
+  std::sort(mask.begin(), mask.end(), near_first);
+  std::sort(blend.begin(), blend.end(), far_first);
+  for (auto& [d, item] : opaque) lists.opaque.push_back(item);
+  for (auto& [d, item] : mask) lists.mask.push_back(item);
+  for (auto& [d, item] : blend) lists.blend.push_back(item);
+  return lists;
+}
+
+VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
+  VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  ai.descriptorPool = frame_pool;
+  ai.descriptorSetCount = 1;
+  ai.pSetLayouts = &scene_layout.set_layout;
+  VkDescriptorSet set;
+  VK_CHECK(vkAllocateDescriptorSets(ctx->device(), &ai, &set));
+  const VkDescriptorBufferInfo buffers[] = {
+      {frame_ubo.handle(), 0, VK_WHOLE_SIZE},
+      {lights_ubo.handle(), 0, VK_WHOLE_SIZE},
+      {scene.drawables().handle(), 0, VK_WHOLE_SIZE},
+      {scene.materials().handle(), 0, VK_WHOLE_SIZE},
+  };
+  const VkDescriptorType types[] = {
+      VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+  std::vector<VkDescriptorImageInfo> images;
+  for (const vk::Image& bucket : scene.texture_buckets())
+    images.push_back({scene.sampler(), bucket.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  std::vector<VkWriteDescriptorSet> writes;
+  for (uint32_t i = 0; i < 4; ++i) {
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = set;
+    w.dstBinding = i;
+    w.descriptorCount = 1;
+    w.descriptorType = types[i];
+    w.pBufferInfo = &buffers[i];
+    writes.push_back(w);
+  }
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.dstSet = set;
+  w.dstBinding = gpu::kBindingTextures;
+  w.descriptorCount = static_cast<uint32_t>(images.size());  // consecutive bindings
+  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  w.pImageInfo = images.data();
+  writes.push_back(w);
+  vkUpdateDescriptorSets(ctx->device(), static_cast<uint32_t>(writes.size()), writes.data(), 0,
+                         nullptr);
+  return set;
+}
+
+Renderer::Renderer(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+Renderer::~Renderer() = default;
+
+absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions& options) {
+  auto impl = std::make_unique<Impl>();
+  absl::StatusOr<std::unique_ptr<vk::Context>> ctx =
+      vk::Context::Create({options.device_name, options.validation});
+  if (!ctx.ok()) return ctx.status();
+  impl->ctx = std::move(*ctx);
+  if (absl::Status st = impl->Init(); !st.ok()) return st;
+  return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
+}
+
+const DeviceInfo& Renderer::device_info() const { return impl_->ctx->info(); }
+
+DeviceCaps Renderer::caps() const {
+  return {impl_->ctx->info().max_samples, impl_->ctx->info().max_image_dimension};
+}
+
+absl::StatusOr<SceneHandle> Renderer::LoadScene(const GltfSource& source) {
+  absl::StatusOr<CpuScene> cpu = ImportGltf(source);
+  if (!cpu.ok()) return cpu.status();
+  return LoadScene(*cpu);
+}
+
+absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
+  std::lock_guard lock(impl_->mutex);
+  absl::StatusOr<std::unique_ptr<GpuScene>> gpu = GpuScene::Upload(*impl_->ctx, cpu);
+  if (!gpu.ok()) return gpu.status();
+  std::shared_ptr<Scene> scene(new Scene());
+  scene->info_ = {cpu.name, cpu.counts, cpu.bounds, cpu.cameras, cpu.warnings,
+                  (*gpu)->device_bytes()};
+  scene->gpu_ = std::move(*gpu);
+  return SceneHandle(std::move(scene));
+}
+
+absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
+                                       const Settings& settings) {
+  absl::StatusOr<ResolvedSettings> resolved = ResolveSettings(settings, caps());
+  if (!resolved.ok()) return resolved.status();
+  if (absl::Status st = ValidateCamera(camera); !st.ok()) return st;
+
+  std::lock_guard lock(impl_->mutex);
+  Impl& m = *impl_;
+  const GpuScene& gs = *scene.gpu_;
+  Frame frame;
+  frame.settings = std::move(*resolved);
+  const Settings& s = frame.settings.effective;
+  if (absl::Status st = m.EnsureTargets(s.width, s.height); !st.ok()) return st;
+
+  const auto t_record = Clock::now();
+  // Uniforms.
+  const float aspect = float(s.width) / float(s.height);
+  gpu::FrameUniforms fu{};
+  fu.view = ViewMatrix(camera);
+  fu.proj = ProjectionMatrix(camera, aspect);
+  fu.view_proj = fu.proj * fu.view;
+  fu.camera_position = glm::vec4(CameraPosition(camera), 1.0f);
+  fu.ambient_sky = glm::vec4(0.30f, 0.34f, 0.40f, 0.0f);
+  fu.ambient_ground = glm::vec4(0.12f, 0.11f, 0.10f, 0.0f);
+  std::vector<Light> lights;
+  if (s.scene_lights) lights = gs.lights();
+  if (lights.empty()) lights.push_back(DefaultSun());
+  if (lights.size() > gpu::kMaxLights) {
+    frame.settings.notes.push_back(
+        {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", lights.size(),
+                                      " scene lights are shaded")});
+    lights.resize(gpu::kMaxLights);
+  }
+  auto* gl = static_cast<gpu::GpuLight*>(m.lights_ubo.mapped());
+  for (size_t i = 0; i < lights.size(); ++i) gl[i] = ToGpu(lights[i]);
+  fu.counts = glm::uvec4(uint32_t(lights.size()), static_cast<uint32_t>(s.debug_view), s.width,
+                         s.height);
+  fu.params = glm::vec4(std::exp2(s.exposure_ev), camera.znear, camera.zfar, 0.0f);
+  std::memcpy(m.frame_ubo.mapped(), &fu, sizeof(fu));
+  frame.stats.lights = uint32_t(lights.size());
+  frame.stats.drawables = uint32_t(gs.draws().size());
+
+  const DrawLists draws = m.BuildDrawLists(gs, fu.view, fu.view_proj, s.culling, frame.stats);
+  const std::vector<PassId> pass_ids = SelectPasses(s, {!draws.blend.empty()});
+  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids);
+
+  VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
+  const VkDescriptorSet scene_set = m.WriteSceneSet(gs);
+  VK_CHECK(vkResetCommandBuffer(m.cmd, 0));
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vkBeginCommandBuffer(m.cmd, &bi));
+  vkCmdResetQueryPool(m.cmd, m.queries, 0, kMaxTimestamps);
+
+  PassStats pass_stats;
+  PassContext pc;
+  pc.cmd = m.cmd;
+  pc.vk = m.ctx.get();
+  pc.targets = &m.targets;
+  pc.scene = &gs;
+  pc.draws = &draws;
+  pc.settings = &s;
+  pc.scene_pipeline_layout = m.scene_layout.pipeline_layout;
+  pc.scene_set = scene_set;
+  pc.frame_pool = m.frame_pool;
+  pc.stats = &pass_stats;
+  for (size_t i = 0; i < pass_ids.size(); ++i) {
+    std::vector<VkImageMemoryBarrier2> barriers;
+    for (const Transition& t : plan[i]) {
+      const AccessInfo from = ToVulkan(t.from), to = ToVulkan(t.to);
+      barriers.push_back(vk::MakeImageBarrier(
+          m.targets.Get(t.resource),
+          {from.stage, from.access, from.layout, to.stage, to.access, to.layout}));
+    }
+    vk::CmdBarrier(m.cmd, barriers.data(), uint32_t(barriers.size()));
+    vkCmdWriteTimestamp2(m.cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, m.queries, uint32_t(2 * i));
+    m.passes[static_cast<size_t>(pass_ids[i])]->Record(pc);
+    vkCmdWriteTimestamp2(m.cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, m.queries,
+                         uint32_t(2 * i + 1));
+  }
+  VK_CHECK(vkEndCommandBuffer(m.cmd));
+  frame.cpu.record_ms = MsSince(t_record);
+
+  const auto t_submit = Clock::now();
+  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &m.cmd;
+  VK_RETURN_IF_ERROR(vkQueueSubmit(m.ctx->queue(), 1, &si, m.fence), "vkQueueSubmit");
+  VK_RETURN_IF_ERROR(vkWaitForFences(m.ctx->device(), 1, &m.fence, VK_TRUE, UINT64_MAX),
+                     "vkWaitForFences");
+  VK_CHECK(vkResetFences(m.ctx->device(), 1, &m.fence));
+  frame.cpu.submit_wait_ms = MsSince(t_submit);
+
+  std::vector<uint64_t> stamps(2 * pass_ids.size());
+  VK_RETURN_IF_ERROR(
+      vkGetQueryPoolResults(m.ctx->device(), m.queries, 0, uint32_t(stamps.size()),
+                            stamps.size() * sizeof(uint64_t), stamps.data(), sizeof(uint64_t),
+                            VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+      "timestamps");
+  const uint32_t bits = m.ctx->info().timestamp_valid_bits;
+  const uint64_t mask = bits >= 64 ? ~0ull : ((1ull << bits) - 1);
+  const double ns = m.ctx->info().timestamp_period_ns;
+  for (size_t i = 0; i < pass_ids.size(); ++i) {
+    const uint64_t dt = (stamps[2 * i + 1] - stamps[2 * i]) & mask;
+    frame.passes.push_back({std::string(PassName(pass_ids[i])), double(dt) * ns * 1e-6});
+  }
+  frame.gpu_total_ms = double((stamps.back() - stamps.front()) & mask) * ns * 1e-6;
+  frame.stats.draws = pass_stats.draws;
+  frame.stats.triangles_submitted = pass_stats.triangles;
+
+  const auto t_readback = Clock::now();
+  m.targets.readback.InvalidateForRead();
+  frame.image.width = s.width;
+  frame.image.height = s.height;
+  frame.image.pixels.resize(size_t(s.width) * s.height * 4);
+  std::memcpy(frame.image.pixels.data(), m.targets.readback.mapped(), frame.image.pixels.size());
+  frame.cpu.readback_ms = MsSince(t_readback);
+  return frame;
+}
+
+uint64_t Renderer::validation_message_count() const {
+  return impl_->ctx->validation_message_count();
+}
+std::vector<std::string> Renderer::validation_messages() const {
+  return impl_->ctx->validation_messages();
+}
+
+absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat format) {
+  const auto t0 = Clock::now();
+  absl::StatusOr<std::vector<uint8_t>> bytes =
+      format == ImageFormat::kPng
+          ? EncodePng(frame.image)
+          : EncodeJpeg(frame.image, int(frame.settings.effective.jpeg_quality),
+                       frame.settings.effective.jpeg_444 ? ChromaSubsampling::k444
+                                                         : ChromaSubsampling::k420);
+  frame.cpu.encode_ms = MsSince(t0);
+  return bytes;
+}
+
+}  // namespace tessera

@@ -1,1 +1,152 @@
-// placeholder: being written
+#include "renderer/settings.h"
+
+#include <array>
+#include <cmath>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+
+namespace tessera {
+
+namespace {
+
+constexpr std::array<std::pair<AaMode, std::string_view>, 5> kAaNames{{
+    {AaMode::kNone, "none"}, {AaMode::kMsaa, "msaa"}, {AaMode::kFxaa, "fxaa"},
+    {AaMode::kTaa, "taa"}, {AaMode::kVisMlaa, "vis_mlaa"}}};
+constexpr std::array<std::pair<CullingMode, std::string_view>, 4> kCullingNames{{
+    {CullingMode::kNone, "none"}, {CullingMode::kCpuFrustum, "cpu_frustum"},
+    {CullingMode::kGpuFrustum, "gpu_frustum"}, {CullingMode::kGpuOcclusion, "gpu_occlusion"}}};
+constexpr std::array<std::pair<ExposureMode, std::string_view>, 2> kExposureNames{{
+    {ExposureMode::kFixed, "fixed"}, {ExposureMode::kAuto, "auto"}}};
+constexpr std::array<std::pair<DebugView, std::string_view>, 7> kDebugNames{{
+    {DebugView::kNone, "none"}, {DebugView::kNormals, "normals"}, {DebugView::kDepth, "depth"},
+    {DebugView::kBaseColor, "base_color"}, {DebugView::kLightHeatmap, "light_heatmap"},
+    {DebugView::kCullingOverlay, "culling_overlay"}, {DebugView::kAaMask, "aa_mask"}}};
+
+template <typename E, size_t N>
+std::string_view NameOf(const std::array<std::pair<E, std::string_view>, N>& table, E v) {
+  for (const auto& [e, name] : table)
+    if (e == v) return name;
+  return "invalid";
+}
+
+template <typename E, size_t N>
+absl::StatusOr<E> Parse(const std::array<std::pair<E, std::string_view>, N>& table,
+                        std::string_view field, std::string_view s) {
+  std::vector<std::string> names;
+  for (const auto& [e, name] : table) {
+    if (name == s) return e;
+    names.emplace_back(name);
+  }
+  return absl::InvalidArgumentError(absl::StrCat(std::string(field), ": unknown value '", std::string(s),
+                                                 "' (one of: ", absl::StrJoin(names, ", "), ")"));
+}
+
+template <typename E, size_t N>
+bool Known(const std::array<std::pair<E, std::string_view>, N>& table, E v) {
+  return NameOf(table, v) != "invalid";
+}
+
+}  // namespace
+
+std::string_view ToString(AaMode v) { return NameOf(kAaNames, v); }
+std::string_view ToString(CullingMode v) { return NameOf(kCullingNames, v); }
+std::string_view ToString(ExposureMode v) { return NameOf(kExposureNames, v); }
+std::string_view ToString(DebugView v) { return NameOf(kDebugNames, v); }
+absl::StatusOr<AaMode> ParseAaMode(std::string_view s) { return Parse(kAaNames, "aa", s); }
+absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s) {
+  return Parse(kCullingNames, "culling", s);
+}
+absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s) {
+  return Parse(kExposureNames, "exposure_mode", s);
+}
+absl::StatusOr<DebugView> ParseDebugView(std::string_view s) {
+  return Parse(kDebugNames, "debug_view", s);
+}
+
+absl::Status ValidateSettings(const Settings& s) {
+  auto bad = [](const char* field, auto value, const char* range) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("settings.", field, ": ", value, " is out of range (", range, ")"));
+  };
+  if (s.width < 1 || s.width > 16384) return bad("width", s.width, "1..16384");
+  if (s.height < 1 || s.height > 16384) return bad("height", s.height, "1..16384");
+  if (!Known(kAaNames, s.aa)) return bad("aa", static_cast<uint32_t>(s.aa), "an AaMode");
+  if (s.samples != 1 && s.samples != 2 && s.samples != 4 && s.samples != 8)
+    return bad("samples", s.samples, "1, 2, 4 or 8");
+  if (!Known(kCullingNames, s.culling))
+    return bad("culling", static_cast<uint32_t>(s.culling), "a CullingMode");
+  if (s.synthetic_lights > 65536) return bad("synthetic_lights", s.synthetic_lights, "0..65536");
+  if (s.tile_size != 8 && s.tile_size != 16 && s.tile_size != 32)
+    return bad("tile_size", s.tile_size, "8, 16 or 32");
+  if (!Known(kExposureNames, s.exposure_mode))
+    return bad("exposure_mode", static_cast<uint32_t>(s.exposure_mode), "an ExposureMode");
+  if (!std::isfinite(s.exposure_ev) || s.exposure_ev < -20.0f || s.exposure_ev > 20.0f)
+    return bad("exposure_ev", s.exposure_ev, "-20..20 stops");
+  if (!Known(kDebugNames, s.debug_view))
+    return bad("debug_view", static_cast<uint32_t>(s.debug_view), "a DebugView");
+  if (s.jpeg_quality < 1 || s.jpeg_quality > 100) return bad("jpeg_quality", s.jpeg_quality, "1..100");
+  return absl::OkStatus();
+}
+
+absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const DeviceCaps& caps) {
+  if (absl::Status st = ValidateSettings(settings); !st.ok()) return st;
+  ResolvedSettings r{settings, {}};
+  Settings& e = r.effective;
+  auto note = [&r](std::string field, std::string message) {
+    r.notes.push_back({std::move(field), std::move(message)});
+  };
+  auto not_applied = [&](std::string field, const std::string& why) {
+    note(std::move(field), absl::StrCat("not applied: ", why));
+  };
+
+  if (e.width > caps.max_image_dimension) {
+    note("width", absl::StrCat("clamped from ", e.width, " to ", caps.max_image_dimension,
+                               " (device maxImageDimension2D)"));
+    e.width = caps.max_image_dimension;
+  }
+  if (e.height > caps.max_image_dimension) {
+    note("height", absl::StrCat("clamped from ", e.height, " to ", caps.max_image_dimension,
+                                " (device maxImageDimension2D)"));
+    e.height = caps.max_image_dimension;
+  }
+  if (e.samples > caps.max_samples) {
+    note("samples", absl::StrCat("clamped from ", e.samples, " to ", caps.max_samples,
+                                 " (device maximum)"));
+    e.samples = caps.max_samples;
+  }
+  // Features that later issues build. Each is reported and falls back to the plain path.
+  if (e.aa != AaMode::kNone) {
+    not_applied("aa", absl::StrCat(std::string(ToString(e.aa)), " is not implemented yet; rendered with none"));
+    e.aa = AaMode::kNone;
+  }
+  if (e.culling == CullingMode::kGpuFrustum || e.culling == CullingMode::kGpuOcclusion) {
+    not_applied("culling", absl::StrCat(std::string(ToString(e.culling)),
+                                        " is not implemented yet; used cpu_frustum"));
+    e.culling = CullingMode::kCpuFrustum;
+  }
+  if (e.synthetic_lights > 0) {
+    not_applied("synthetic_lights", "needs tiled light culling (forward+), not implemented yet");
+    e.synthetic_lights = 0;
+  }
+  if (e.tile_size != 16) {
+    not_applied("tile_size", "no tiled light culling yet");
+  }
+  if (e.shadows) { not_applied("shadows", "not implemented yet"); e.shadows = false; }
+  if (e.ssao) { not_applied("ssao", "not implemented yet"); e.ssao = false; }
+  if (e.bloom) { not_applied("bloom", "not implemented yet"); e.bloom = false; }
+  if (e.ibl) { not_applied("ibl", "not implemented yet; a hemisphere ambient is used"); e.ibl = false; }
+  if (e.exposure_mode == ExposureMode::kAuto) {
+    not_applied("exposure_mode", "auto exposure is not implemented yet; used fixed exposure_ev");
+    e.exposure_mode = ExposureMode::kFixed;
+  }
+  if (e.debug_view == DebugView::kLightHeatmap || e.debug_view == DebugView::kCullingOverlay ||
+      e.debug_view == DebugView::kAaMask) {
+    not_applied("debug_view", absl::StrCat(std::string(ToString(e.debug_view)), " is not implemented yet"));
+    e.debug_view = DebugView::kNone;
+  }
+  return r;
+}
+
+}  // namespace tessera

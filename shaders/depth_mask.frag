@@ -1,2 +1,17 @@
 #version 460
-void main() {}
+#extension GL_GOOGLE_include_directive : require
+// Depth prepass for alpha-mask materials: discard where alpha is below the cutoff.
+#include "common/scene.glsl"
+#include "common/textures.glsl"
+
+layout(location = 3) in vec2 v_uv0;
+layout(location = 4) in vec2 v_uv1;
+layout(location = 5) flat in uint v_material;
+
+void main() {
+  UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
+  float alpha = materials[v_material].base_color_factor.a;
+  GpuTextureRef t = materials[v_material].base_color_tex;
+  if (HasTexture(t)) alpha *= SampleTexture(t, v_uv0, v_uv1, grads).a;
+  if (alpha < materials[v_material].params2.x) discard;
+}

@@ -1,1 +1,201 @@
-// placeholder: being written
+// tessera-render: renders a glTF scene (or the built-in demo scene) offline to a JPEG or PNG
+// and prints the GPU time of every pass. The future `tessera render` talks to the daemon; this
+// tool runs the same renderer in-process, for deploy/run.sh, benchmarks and debugging.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "renderer/renderer.h"
+#include "renderer/scene/demo_scene.h"
+
+namespace {
+
+constexpr char kUsage[] = R"(usage: tessera-render [options]
+  --scene FILE        .gltf or .glb to render (default: the built-in demo scene)
+  --out FILE          output image, .jpg/.jpeg or .png (default: tessera.jpg)
+  --width N --height N          frame size in pixels (default 1280x720)
+  --camera N          use the file's camera N (default: the file's first camera, else framed)
+  --frame             frame the scene bounds even if the file has cameras
+  --eye X,Y,Z --target X,Y,Z --up X,Y,Z   explicit camera (world units)
+  --fov DEGREES       vertical field of view (default 45.8)
+  --near N --far N    clip planes (far 0 = infinite, the default)
+  --aa MODE           none|msaa|fxaa|taa|vis_mlaa          --samples N   1|2|4|8
+  --culling MODE      none|cpu_frustum|gpu_frustum|gpu_occlusion
+  --exposure EV       exposure in stops (default 0)
+  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask
+  --no-scene-lights   ignore the file's KHR_lights_punctual lights
+  --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
+  --frames N          render N frames and report the last (default 1)
+  --device NAME       pick a Vulkan device by (part of) its name
+  --validation        enable Vulkan validation layers
+  --json              print the result as JSON instead of a table
+)";
+
+[[noreturn]] void Fail(const std::string& msg) {
+  std::fprintf(stderr, "tessera-render: %s\n", msg.c_str());
+  std::exit(2);
+}
+
+glm::vec3 ParseVec3(const std::string& flag, const std::string& s) {
+  std::vector<std::string> parts = absl::StrSplit(s, ',');
+  glm::vec3 v;
+  if (parts.size() != 3) Fail(flag + " wants X,Y,Z, got '" + s + "'");
+  for (int i = 0; i < 3; ++i)
+    if (!absl::SimpleAtof(parts[i], &v[i])) Fail(flag + ": not a number: '" + parts[i] + "'");
+  return v;
+}
+
+float ParseFloat(const std::string& flag, const std::string& s) {
+  float v;
+  if (!absl::SimpleAtof(s, &v)) Fail(flag + ": not a number: '" + s + "'");
+  return v;
+}
+
+uint32_t ParseUint(const std::string& flag, const std::string& s) {
+  uint32_t v;
+  if (!absl::SimpleAtoi(s, &v)) Fail(flag + ": not a non-negative integer: '" + s + "'");
+  return v;
+}
+
+template <typename T>
+T OrFail(absl::StatusOr<T> v) {
+  if (!v.ok()) Fail(std::string(v.status().message()));
+  return std::move(*v);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace tessera;
+  std::string scene_path, out_path = "tessera.jpg", device;
+  Settings settings;
+  Camera camera;
+  bool explicit_camera = false, frame_bounds = false, json = false, validation = false;
+  bool fov_set = false;
+  int camera_index = -1;
+  uint32_t frames = 1;
+  std::optional<float> znear, zfar;
+
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) Fail(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--help" || arg == "-h") { std::fputs(kUsage, stdout); return 0; }
+    else if (arg == "--scene") scene_path = value();
+    else if (arg == "--out") out_path = value();
+    else if (arg == "--width") settings.width = ParseUint(arg, value());
+    else if (arg == "--height") settings.height = ParseUint(arg, value());
+    else if (arg == "--camera") camera_index = int(ParseUint(arg, value()));
+    else if (arg == "--frame") frame_bounds = true;
+    else if (arg == "--eye") { camera.eye = ParseVec3(arg, value()); explicit_camera = true; }
+    else if (arg == "--target") { camera.target = ParseVec3(arg, value()); explicit_camera = true; }
+    else if (arg == "--up") camera.up = ParseVec3(arg, value());
+    else if (arg == "--fov") { camera.yfov = glm::radians(ParseFloat(arg, value())); fov_set = true; }
+    else if (arg == "--near") znear = ParseFloat(arg, value());
+    else if (arg == "--far") zfar = ParseFloat(arg, value());
+    else if (arg == "--aa") settings.aa = OrFail(ParseAaMode(value()));
+    else if (arg == "--samples") settings.samples = ParseUint(arg, value());
+    else if (arg == "--culling") settings.culling = OrFail(ParseCullingMode(value()));
+    else if (arg == "--exposure") settings.exposure_ev = ParseFloat(arg, value());
+    else if (arg == "--debug") settings.debug_view = OrFail(ParseDebugView(value()));
+    else if (arg == "--no-scene-lights") settings.scene_lights = false;
+    else if (arg == "--quality") settings.jpeg_quality = ParseUint(arg, value());
+    else if (arg == "--chroma") {
+      const std::string c = value();
+      if (c != "420" && c != "444") Fail("--chroma wants 420 or 444");
+      settings.jpeg_444 = c == "444";
+    }
+    else if (arg == "--frames") frames = std::max(1u, ParseUint(arg, value()));
+    else if (arg == "--device") device = value();
+    else if (arg == "--validation") validation = true;
+    else if (arg == "--json") json = true;
+    else Fail("unknown option '" + arg + "' (see --help)");
+  }
+  const bool png = out_path.size() >= 4 && out_path.substr(out_path.size() - 4) == ".png";
+
+  std::unique_ptr<Renderer> renderer = OrFail(Renderer::Create({device, validation}));
+  SceneHandle scene;
+  if (scene_path.empty()) {
+    scene = OrFail(renderer->LoadScene(BuildDemoScene()));
+  } else {
+    scene = OrFail(renderer->LoadScene(OrFail(LoadGltfSourceFromDisk(scene_path))));
+  }
+  const SceneInfo& info = scene->info();
+  for (const std::string& w : info.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
+
+  const float aspect = float(settings.width) / float(std::max(1u, settings.height));
+  if (!explicit_camera) {
+    if (camera_index >= 0 && size_t(camera_index) >= info.cameras.size())
+      Fail(absl::StrFormat("--camera %d: the scene has %d cameras", camera_index,
+                           info.cameras.size()));
+    if (!frame_bounds && !info.cameras.empty()) {
+      const float fov = camera.yfov;
+      camera = FromSceneCamera(info.cameras[std::max(camera_index, 0)]);
+      if (fov_set) camera.yfov = fov;
+    } else {
+      camera = FrameBounds(info.bounds, camera.yfov, aspect);
+    }
+  }
+  if (znear) camera.znear = *znear;
+  if (zfar) camera.zfar = *zfar;
+
+  Frame frame;
+  for (uint32_t f = 0; f < frames; ++f) frame = OrFail(renderer->Render(*scene, camera, settings));
+  const std::vector<uint8_t> bytes =
+      OrFail(EncodeFrame(frame, png ? ImageFormat::kPng : ImageFormat::kJpeg));
+  if (absl::Status st = WriteFileBytes(out_path, bytes); !st.ok()) Fail(std::string(st.message()));
+
+  const DeviceInfo& dev = renderer->device_info();
+  if (json) {
+    nlohmann::json j;
+    j["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
+    j["scene"] = {{"name", info.name}, {"drawables", frame.stats.drawables},
+                  {"triangles", info.counts.triangles}};
+    j["output"] = {{"path", out_path}, {"bytes", bytes.size()},
+                   {"width", frame.image.width}, {"height", frame.image.height}};
+    for (const PassTiming& p : frame.passes) j["passes"].push_back({{"pass", p.pass}, {"gpu_ms", p.gpu_ms}});
+    j["gpu_total_ms"] = frame.gpu_total_ms;
+    j["cpu_ms"] = {{"record", frame.cpu.record_ms}, {"submit_wait", frame.cpu.submit_wait_ms},
+                   {"readback", frame.cpu.readback_ms}, {"encode", frame.cpu.encode_ms}};
+    j["stats"] = {{"draws", frame.stats.draws}, {"triangles_submitted", frame.stats.triangles_submitted},
+                  {"drawables_culled", frame.stats.drawables_culled}, {"lights", frame.stats.lights}};
+    j["notes"] = nlohmann::json::array();
+    for (const SettingNote& n : frame.settings.notes)
+      j["notes"].push_back({{"field", n.field}, {"message", n.message}});
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("device   %s (%s, %s)\n", dev.name.c_str(), dev.type.c_str(), dev.driver_info.c_str());
+    std::printf("scene    %s: %u drawables, %llu triangles, %u culled\n", info.name.c_str(),
+                frame.stats.drawables, (unsigned long long)info.counts.triangles,
+                frame.stats.drawables_culled);
+    std::printf("output   %s (%ux%u, %zu bytes)\n\n", out_path.c_str(), frame.image.width,
+                frame.image.height, bytes.size());
+    std::printf("%-16s %10s\n", "pass", "gpu ms");
+    for (const PassTiming& p : frame.passes) std::printf("%-16s %10.3f\n", p.pass.c_str(), p.gpu_ms);
+    std::printf("%-16s %10.3f\n\n", "total", frame.gpu_total_ms);
+    std::printf("%-16s %10s\n", "cpu stage", "ms");
+    std::printf("%-16s %10.3f\n%-16s %10.3f\n%-16s %10.3f\n%-16s %10.3f\n", "record",
+                frame.cpu.record_ms, "submit->fence", frame.cpu.submit_wait_ms, "readback",
+                frame.cpu.readback_ms, "encode", frame.cpu.encode_ms);
+    std::printf("\ndraws %u, triangles submitted %llu, lights %u\n", frame.stats.draws,
+                (unsigned long long)frame.stats.triangles_submitted, frame.stats.lights);
+    for (const SettingNote& n : frame.settings.notes)
+      std::printf("note: %s: %s\n", n.field.c_str(), n.message.c_str());
+  }
+  if (renderer->validation_message_count() > 0) {
+    std::fprintf(stderr, "tessera-render: %llu Vulkan validation messages\n",
+                 (unsigned long long)renderer->validation_message_count());
+    return 1;
+  }
+  return 0;
+}

@@ -1,1 +1,86 @@
-// placeholder: being written
+// Forward PBR shading (glTF metallic-roughness BRDF) in two passes that share one shader:
+//  - forward: opaque and alpha-mask geometry, depth-tested GREATER_OR_EQUAL against the
+//    prepass depth with writes off, so each visible pixel is shaded once;
+//  - transparent: blended materials sorted back to front, over the opaque result.
+#include "renderer/passes/pass.h"
+#include "renderer/vk/pipeline.h"
+
+namespace tessera {
+
+namespace {
+
+// Linear HDR background behind the scene.
+constexpr VkClearColorValue kBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
+
+class ForwardPass final : public Pass {
+ public:
+  ForwardPass(PassId id, vk::Pipeline pipeline) : id_(id), pipeline_(std::move(pipeline)) {}
+  PassId id() const override { return id_; }
+
+  void Record(PassContext& ctx) override {
+    const bool transparent = id_ == PassId::kTransparent;
+    VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    color.imageView = ctx.targets->hdr.view();
+    color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    color.loadOp = transparent ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
+    color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    color.clearValue.color = kBackground;
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = ctx.targets->depth.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+    ri.renderArea = {{0, 0}, {ctx.targets->width, ctx.targets->height}};
+    ri.layerCount = 1;
+    ri.colorAttachmentCount = 1;
+    ri.pColorAttachments = &color;
+    ri.pDepthAttachment = &depth;
+    vkCmdBeginRendering(ctx.cmd, &ri);
+    BeginSceneDraw(ctx, pipeline_.handle());
+    if (transparent) {
+      RecordDraws(ctx, ctx.draws->blend);
+    } else {
+      RecordDraws(ctx, ctx.draws->opaque);
+      RecordDraws(ctx, ctx.draws->mask);
+    }
+    vkCmdEndRendering(ctx.cmd);
+  }
+
+ private:
+  PassId id_;
+  vk::Pipeline pipeline_;
+};
+
+absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,
+                                             PassId id) {
+  const bool transparent = id == PassId::kTransparent;
+  vk::GraphicsPipelineDesc d;
+  d.name = transparent ? "transparent" : "forward";
+  d.vertex_shader = "forward.vert";
+  d.fragment_shader = "forward.frag";
+  d.layout = layout.pipeline_layout;
+  d.color_formats = {kHdrFormat};
+  d.depth_format = kDepthFormat;
+  d.depth_test = true;
+  d.depth_write = false;
+  d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;
+  d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
+  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
+  if (!pipeline.ok()) return pipeline.status();
+  return std::make_unique<ForwardPass>(id, std::move(*pipeline));
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateForwardPass(const vk::Context& ctx,
+                                                        const SceneLayout& layout) {
+  return Create(ctx, layout, PassId::kForward);
+}
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateTransparentPass(const vk::Context& ctx,
+                                                            const SceneLayout& layout) {
+  return Create(ctx, layout, PassId::kTransparent);
+}
+
+}  // namespace tessera

@@ -1,1 +1,38 @@
-// placeholder: being written
+// Readback: copies the RGBA8 frame into a host-visible buffer and makes the copy visible to
+// the host, so the CPU can encode it once the frame's fence signals.
+#include "renderer/passes/pass.h"
+
+namespace tessera {
+
+namespace {
+
+class ReadbackPass final : public Pass {
+ public:
+  PassId id() const override { return PassId::kReadback; }
+
+  void Record(PassContext& ctx) override {
+    VkBufferImageCopy region{};
+    region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+    region.imageExtent = {ctx.targets->width, ctx.targets->height, 1};
+    vkCmdCopyImageToBuffer(ctx.cmd, ctx.targets->ldr.handle(),
+                           VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, ctx.targets->readback.handle(),
+                           1, &region);
+    VkBufferMemoryBarrier2 b{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
+    b.srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+    b.srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT;
+    b.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
+    b.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
+    b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    b.buffer = ctx.targets->readback.handle();
+    b.size = VK_WHOLE_SIZE;
+    vk::CmdBarrier(ctx.cmd, nullptr, 0, &b, 1);
+  }
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateReadbackPass() {
+  return std::make_unique<ReadbackPass>();
+}
+
+}  // namespace tessera

@@ -1,1 +1,379 @@
-// placeholder: being written
+#include "renderer/scene/gpu_scene.h"
+
+#include <algorithm>
+#include <bit>
+#include <cstring>
+#include <map>
+
+#include <stb/stb_image_resize.h>
+
+#include "absl/strings/str_cat.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera {
+
+namespace {
+
+// Nearest power of two in log space, clamped to [4, max_size].
+uint32_t RoundPow2(uint32_t v, uint32_t max_size) {
+  if (v <= 4) return 4;
+  const uint32_t lo = std::bit_floor(v);
+  const uint32_t hi = lo << 1;
+  const uint32_t r = (static_cast<uint64_t>(v) * v >= static_cast<uint64_t>(lo) * hi) ? hi : lo;
+  return std::min(r, std::bit_floor(std::max(max_size, 4u)));
+}
+
+uint32_t MipCount(uint32_t w, uint32_t h) {
+  return static_cast<uint32_t>(std::bit_width(std::max(w, h)));
+}
+
+absl::StatusOr<vk::Buffer> UploadBuffer(vk::Context& ctx, const void* data, size_t size,
+                                        VkBufferUsageFlags usage, const std::string& name) {
+  absl::StatusOr<vk::Buffer> buffer = vk::Buffer::Create(
+      ctx, size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kDeviceLocal, name);
+  if (!buffer.ok() || size == 0) return buffer;
+  absl::StatusOr<vk::Buffer> staging = vk::Buffer::Create(
+      ctx, size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUsage::kUpload, name + ".staging");
+  if (!staging.ok()) return staging.status();
+  std::memcpy(staging->mapped(), data, size);
+  absl::Status st = ctx.SubmitOnce([&](VkCommandBuffer cmd) {
+    const VkBufferCopy region{0, 0, size};
+    vkCmdCopyBuffer(cmd, staging->handle(), buffer->handle(), 1, &region);
+  });
+  if (!st.ok()) return st;
+  return buffer;
+}
+
+gpu::GpuTextureRef MakeTextureRef(const TextureRef& ref, const std::vector<Texture>& textures,
+                                  const TextureBucketPlan& plan) {
+  gpu::GpuTextureRef out{};
+  const glm::mat3 m = ref.uv_transform();
+  out.row0 = glm::vec4(m[0][0], m[1][0], m[2][0], 0.0f);
+  out.row1 = glm::vec4(m[0][1], m[1][1], m[2][1], 0.0f);
+  if (ref.texture < 0 || static_cast<size_t>(ref.texture) >= textures.size()) {
+    out.info = glm::ivec4(-1, 0, 0, 0);
+    return out;
+  }
+  const Texture& t = textures[ref.texture];
+  const TextureBucketPlan::Slot& slot = plan.slots[ref.texture];
+  out.info = glm::ivec4(static_cast<int>(slot.bucket), static_cast<int>(slot.layer),
+                        static_cast<int>(std::min(ref.texcoord, 1u)),
+                        static_cast<int>(t.wrap_s) | (static_cast<int>(t.wrap_t) << 2));
+  return out;
+}
+
+gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& textures,
+                              const TextureBucketPlan& plan) {
+  gpu::GpuMaterial g{};
+  g.base_color_factor = m.base_color_factor;
+  g.emissive = glm::vec4(m.emissive_factor * m.emissive_strength, 0.0f);
+  g.params = glm::vec4(m.metallic_factor, m.roughness_factor, m.normal_scale,
+                       m.occlusion_strength);
+  g.params2 = glm::vec4(m.alpha_cutoff, 0.0f, 0.0f, 0.0f);
+  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u, 0u, 0u);
+  g.base_color_tex = MakeTextureRef(m.base_color, textures, plan);
+  g.metallic_roughness_tex = MakeTextureRef(m.metallic_roughness, textures, plan);
+  g.normal_tex = MakeTextureRef(m.normal, textures, plan);
+  g.occlusion_tex = MakeTextureRef(m.occlusion, textures, plan);
+  g.emissive_tex = MakeTextureRef(m.emissive, textures, plan);
+  return g;
+}
+
+// Resamples `img` to w x h RGBA8 (sRGB-correct filtering for colour textures).
+std::vector<uint8_t> Resample(const Image& img, uint32_t w, uint32_t h, bool srgb) {
+  std::vector<uint8_t> out(static_cast<size_t>(w) * h * 4);
+  if (srgb) {
+    stbir_resize_uint8_srgb(img.rgba8.data(), img.width, img.height, 0, out.data(), w, h, 0, 4,
+                            3, 0);
+  } else {
+    stbir_resize_uint8(img.rgba8.data(), img.width, img.height, 0, out.data(), w, h, 0, 4);
+  }
+  return out;
+}
+
+// Creates one bucket image, uploads its layers in chunks (bounded staging memory), builds the
+// mip chain with blits and leaves it in SHADER_READ_ONLY_OPTIMAL.
+absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan::Bucket& b,
+                                       const std::vector<const Texture*>& layers,
+                                       const std::string& name) {
+  vk::ImageDesc desc;
+  desc.format = b.srgb ? VK_FORMAT_R8G8B8A8_SRGB : VK_FORMAT_R8G8B8A8_UNORM;
+  desc.width = b.width;
+  desc.height = b.height;
+  desc.mip_levels = MipCount(b.width, b.height);
+  desc.array_layers = static_cast<uint32_t>(layers.size());
+  desc.usage = VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT |
+               VK_IMAGE_USAGE_SAMPLED_BIT;
+  desc.view_type = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
+  absl::StatusOr<vk::Image> image = vk::Image::Create(ctx, desc, name);
+  if (!image.ok()) return image.status();
+
+  const size_t layer_bytes = static_cast<size_t>(b.width) * b.height * 4;
+  const size_t chunk_layers = std::max<size_t>(1, (64u << 20) / layer_bytes);
+  for (size_t first = 0; first < layers.size(); first += chunk_layers) {
+    const size_t count = std::min(chunk_layers, layers.size() - first);
+    absl::StatusOr<vk::Buffer> staging =
+        vk::Buffer::Create(ctx, layer_bytes * count, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                           vk::MemoryUsage::kUpload, name + ".staging");
+    if (!staging.ok()) return staging.status();
+    auto* dst = static_cast<uint8_t*>(staging->mapped());
+    for (size_t i = 0; i < count; ++i) {
+      const Image& img = *layers[first + i]->image;
+      if (img.width == b.width && img.height == b.height) {
+        std::memcpy(dst + i * layer_bytes, img.rgba8.data(), layer_bytes);
+      } else {
+        const std::vector<uint8_t> resized = Resample(img, b.width, b.height, b.srgb);
+        std::memcpy(dst + i * layer_bytes, resized.data(), layer_bytes);
+      }
+    }
+    const bool first_chunk = first == 0;
+    absl::Status st = ctx.SubmitOnce([&](VkCommandBuffer cmd) {
+      vk::ImageTransition t;
+      if (first_chunk) {
+        t.dst_stage = VK_PIPELINE_STAGE_2_COPY_BIT;
+        t.dst_access = VK_ACCESS_2_TRANSFER_WRITE_BIT;
+        t.new_layout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+        const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(*image, t);
+        vk::CmdBarrier(cmd, &barrier, 1);
+      }
+      std::vector<VkBufferImageCopy> regions(count);
+      for (size_t i = 0; i < count; ++i) {
+        regions[i].bufferOffset = i * layer_bytes;
+        regions[i].imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0,
+                                       static_cast<uint32_t>(first + i), 1};
+        regions[i].imageExtent = {b.width, b.height, 1};
+      }
+      vkCmdCopyBufferToImage(cmd, staging->handle(), image->handle(),
+                             VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
+                             static_cast<uint32_t>(regions.size()), regions.data());
+    });
+    if (!st.ok()) return st;
+  }
+
+  absl::Status st = ctx.SubmitOnce([&](VkCommandBuffer cmd) {
+    const uint32_t levels = desc.mip_levels;
+    int32_t w = static_cast<int32_t>(b.width), h = static_cast<int32_t>(b.height);
+    for (uint32_t level = 1; level < levels; ++level) {
+      // Level-1 becomes a blit source; level is still TRANSFER_DST from the first barrier.
+      vk::ImageTransition t{VK_PIPELINE_STAGE_2_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                            VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_BLIT_BIT,
+                            VK_ACCESS_2_TRANSFER_READ_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
+      const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(*image, t, level - 1, 1);
+      vk::CmdBarrier(cmd, &barrier, 1);
+      const int32_t nw = std::max(1, w / 2), nh = std::max(1, h / 2);
+      VkImageBlit blit{};
+      blit.srcSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, level - 1, 0, desc.array_layers};
+      blit.srcOffsets[1] = {w, h, 1};
+      blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, level, 0, desc.array_layers};
+      blit.dstOffsets[1] = {nw, nh, 1};
+      vkCmdBlitImage(cmd, image->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image->handle(),
+                     VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_LINEAR);
+      w = nw;
+      h = nh;
+    }
+    // All levels but the last are TRANSFER_SRC now; the last is TRANSFER_DST.
+    VkImageMemoryBarrier2 barriers[2];
+    uint32_t n = 0;
+    const vk::ImageTransition to_read_dst{
+        VK_PIPELINE_STAGE_2_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+        VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    barriers[n++] = vk::MakeImageBarrier(*image, to_read_dst, levels - 1, 1);
+    if (levels > 1) {
+      const vk::ImageTransition to_read_src{
+          VK_PIPELINE_STAGE_2_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_READ_BIT,
+          VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+          VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+      barriers[n++] = vk::MakeImageBarrier(*image, to_read_src, 0, levels - 1);
+    }
+    vk::CmdBarrier(cmd, barriers, n);
+  });
+  if (!st.ok()) return st;
+  return image;
+}
+
+absl::StatusOr<vk::Image> PlaceholderBucket(vk::Context& ctx, uint32_t index) {
+  vk::ImageDesc desc;
+  desc.format = VK_FORMAT_R8G8B8A8_UNORM;
+  desc.usage = VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  desc.view_type = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
+  absl::StatusOr<vk::Image> image =
+      vk::Image::Create(ctx, desc, absl::StrCat("texture_bucket", index, ".placeholder"));
+  if (!image.ok()) return image;
+  absl::Status st = ctx.SubmitOnce([&](VkCommandBuffer cmd) {
+    vk::ImageTransition t;
+    t.dst_stage = VK_PIPELINE_STAGE_2_CLEAR_BIT;
+    t.dst_access = VK_ACCESS_2_TRANSFER_WRITE_BIT;
+    t.new_layout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
+    VkImageMemoryBarrier2 b = vk::MakeImageBarrier(*image, t);
+    vk::CmdBarrier(cmd, &b, 1);
+    const VkClearColorValue white{{1.0f, 1.0f, 1.0f, 1.0f}};
+    const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
+    vkCmdClearColorImage(cmd, image->handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &white, 1,
+                         &range);
+    const vk::ImageTransition to_read{
+        VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+        VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    b = vk::MakeImageBarrier(*image, to_read);
+    vk::CmdBarrier(cmd, &b, 1);
+  });
+  if (!st.ok()) return st;
+  return image;
+}
+
+}  // namespace
+
+TextureBucketPlan PlanTextureBuckets(const std::vector<Texture>& textures, uint32_t max_size) {
+  struct Key {
+    uint32_t w, h;
+    bool srgb;
+    auto operator<=>(const Key&) const = default;
+  };
+  std::map<Key, std::vector<uint32_t>> groups;
+  for (uint32_t i = 0; i < textures.size(); ++i) {
+    const Texture& t = textures[i];
+    const uint32_t w = t.image ? RoundPow2(t.image->width, max_size) : 4;
+    const uint32_t h = t.image ? RoundPow2(t.image->height, max_size) : 4;
+    groups[{w, h, t.srgb}].push_back(i);
+  }
+  while (groups.size() > gpu::kMaxTextureBuckets) {
+    // Merge the smallest group that has a same-colour-space sibling into the sibling closest
+    // in area (its textures get resampled to that size).
+    auto victim = groups.end();
+    for (auto it = groups.begin(); it != groups.end(); ++it) {
+      const bool has_sibling = std::any_of(groups.begin(), groups.end(), [&](const auto& g) {
+        return &g != &*it && g.first.srgb == it->first.srgb;
+      });
+      if (has_sibling && (victim == groups.end() || it->second.size() < victim->second.size()))
+        victim = it;
+    }
+    auto target = groups.end();
+    const double area = double(victim->first.w) * victim->first.h;
+    for (auto it = groups.begin(); it != groups.end(); ++it) {
+      if (it == victim || it->first.srgb != victim->first.srgb) continue;
+      const double d = std::abs(std::log2(double(it->first.w) * it->first.h / area));
+      if (target == groups.end() ||
+          d < std::abs(std::log2(double(target->first.w) * target->first.h / area)))
+        target = it;
+    }
+    target->second.insert(target->second.end(), victim->second.begin(), victim->second.end());
+    groups.erase(victim);
+  }
+  TextureBucketPlan plan;
+  plan.slots.resize(textures.size());
+  for (auto& [key, members] : groups) {
+    std::sort(members.begin(), members.end());
+    const uint32_t bucket = static_cast<uint32_t>(plan.buckets.size());
+    plan.buckets.push_back({key.w, key.h, key.srgb, static_cast<uint32_t>(members.size())});
+    for (uint32_t layer = 0; layer < members.size(); ++layer)
+      plan.slots[members[layer]] = {bucket, layer};
+  }
+  return plan;
+}
+
+absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
+                                                            const CpuScene& scene) {
+  auto gs = std::make_unique<GpuScene>();
+  const std::string& n = scene.name;
+  constexpr VkBufferUsageFlags kVertexUsage = VK_BUFFER_USAGE_VERTEX_BUFFER_BIT;
+  auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
+    if (!src.ok()) return src.status();
+    gs->device_bytes_ += src->size();
+    dst = std::move(*src);
+    return absl::OkStatus();
+  };
+
+  absl::Status st = assign(gs->vertices_, UploadBuffer(ctx, scene.vertices.data(),
+                                                       scene.vertices.size() * sizeof(Vertex),
+                                                       kVertexUsage, n + ".vertices"));
+  if (st.ok())
+    st = assign(gs->indices_, UploadBuffer(ctx, scene.indices.data(),
+                                           scene.indices.size() * sizeof(uint32_t),
+                                           VK_BUFFER_USAGE_INDEX_BUFFER_BIT, n + ".indices"));
+  if (!st.ok()) return st;
+
+  const uint32_t max_size = std::min<uint32_t>(4096, ctx.info().max_image_dimension);
+  const TextureBucketPlan plan = PlanTextureBuckets(scene.textures, max_size);
+  for (const auto& b : plan.buckets) {
+    if (b.layers > ctx.info().max_array_layers) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(n, ": ", b.layers, " textures of ", b.width, "x", b.height,
+                       " exceed the device's ", ctx.info().max_array_layers, " array layers"));
+    }
+  }
+
+  std::vector<gpu::GpuMaterial> materials;
+  materials.reserve(scene.materials.size());
+  for (const Material& m : scene.materials)
+    materials.push_back(MakeMaterial(m, scene.textures, plan));
+  if (materials.empty()) materials.push_back(MakeMaterial(Material{}, scene.textures, plan));
+
+  std::vector<gpu::GpuDrawable> drawables;
+  drawables.reserve(scene.drawables.size());
+  for (uint32_t i = 0; i < scene.drawables.size(); ++i) {
+    const Drawable& d = scene.drawables[i];
+    const Primitive& p = scene.primitives[d.primitive];
+    const Material& m = scene.materials.empty() ? Material{} : scene.materials[p.material];
+    gpu::GpuDrawable g{};
+    g.world = d.world;
+    g.normal_matrix = glm::mat4(glm::transpose(glm::inverse(glm::mat3(d.world))));
+    g.ids = glm::uvec4(d.primitive, p.material, 0u, 0u);
+    g.sphere = glm::vec4(d.world_bounds.center(), d.world_bounds.radius());
+    g.aabb_min = glm::vec4(d.world_bounds.min, 0.0f);
+    g.aabb_max = glm::vec4(d.world_bounds.max, 0.0f);
+    drawables.push_back(g);
+    gs->draws_.push_back({i, p.first_index, p.index_count, static_cast<int32_t>(p.first_vertex),
+                          m.alpha_mode, m.double_sided, d.world_bounds});
+  }
+  if (drawables.empty()) drawables.push_back(gpu::GpuDrawable{});  // keep the binding valid
+
+  st = assign(gs->materials_,
+              UploadBuffer(ctx, materials.data(), materials.size() * sizeof(gpu::GpuMaterial),
+                           VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".materials"));
+  if (st.ok())
+    st = assign(gs->drawables_,
+                UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
+                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
+  if (!st.ok()) return st;
+
+  for (uint32_t b = 0; b < gpu::kMaxTextureBuckets; ++b) {
+    absl::StatusOr<vk::Image> image;
+    if (b < plan.buckets.size()) {
+      std::vector<const Texture*> layers(plan.buckets[b].layers);
+      for (uint32_t t = 0; t < scene.textures.size(); ++t)
+        if (plan.slots[t].bucket == b) layers[plan.slots[t].layer] = &scene.textures[t];
+      for (const Texture* t : layers)
+        if (!t || !t->image || t->image->rgba8.empty())
+          return absl::InvalidArgumentError(absl::StrCat(n, ": a texture has no decoded image"));
+      image = UploadBucket(ctx, plan.buckets[b], layers, absl::StrCat(n, ".texture_bucket", b));
+      if (image.ok()) {
+        const auto& d = image->desc();
+        gs->device_bytes_ += uint64_t(d.width) * d.height * 4 * d.array_layers * 4 / 3;
+      }
+    } else {
+      image = PlaceholderBucket(ctx, b);
+    }
+    if (!image.ok()) return image.status();
+    gs->buckets_.push_back(std::move(*image));
+  }
+
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = VK_FILTER_LINEAR;
+  si.minFilter = VK_FILTER_LINEAR;
+  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
+  // Repeat in hardware; clamp and mirror are applied to the uv in the shader per texture.
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_REPEAT;
+  si.anisotropyEnable = ctx.info().max_anisotropy > 1.0f;
+  si.maxAnisotropy = ctx.info().max_anisotropy;
+  si.maxLod = VK_LOD_CLAMP_NONE;
+  absl::StatusOr<vk::Sampler> sampler = vk::Sampler::Create(ctx, si, n + ".sampler");
+  if (!sampler.ok()) return sampler.status();
+  gs->sampler_ = std::move(*sampler);
+
+  gs->lights_ = scene.lights;
+  gs->bounds_ = scene.bounds;
+  return gs;
+}
+
+}  // namespace tessera

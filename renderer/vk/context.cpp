@@ -1,1 +1,389 @@
-// placeholder: being written
+#include "renderer/vk/context.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdlib>
+#include <cstring>
+
+#include <spdlog/spdlog.h>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera::vk {
+
+const char* ResultName(VkResult result) {
+  switch (result) {
+#define TS_CASE(r) \
+  case r:          \
+    return #r;
+    TS_CASE(VK_SUCCESS)
+    TS_CASE(VK_NOT_READY)
+    TS_CASE(VK_TIMEOUT)
+    TS_CASE(VK_INCOMPLETE)
+    TS_CASE(VK_ERROR_OUT_OF_HOST_MEMORY)
+    TS_CASE(VK_ERROR_OUT_OF_DEVICE_MEMORY)
+    TS_CASE(VK_ERROR_INITIALIZATION_FAILED)
+    TS_CASE(VK_ERROR_DEVICE_LOST)
+    TS_CASE(VK_ERROR_MEMORY_MAP_FAILED)
+    TS_CASE(VK_ERROR_LAYER_NOT_PRESENT)
+    TS_CASE(VK_ERROR_EXTENSION_NOT_PRESENT)
+    TS_CASE(VK_ERROR_FEATURE_NOT_PRESENT)
+    TS_CASE(VK_ERROR_INCOMPATIBLE_DRIVER)
+    TS_CASE(VK_ERROR_TOO_MANY_OBJECTS)
+    TS_CASE(VK_ERROR_FORMAT_NOT_SUPPORTED)
+    TS_CASE(VK_ERROR_FRAGMENTED_POOL)
+    TS_CASE(VK_ERROR_OUT_OF_POOL_MEMORY)
+#undef TS_CASE
+    default:
+      return "VK_ERROR_(unknown)";
+  }
+}
+
+void FatalVkError(VkResult result, const char* expr, const char* file, int line) {
+  spdlog::critical("{}:{}: {} failed: {}", file, line, expr, ResultName(result));
+  std::abort();
+}
+
+absl::Status VkStatus(VkResult result, const char* what) {
+  const std::string msg = absl::StrCat(what, ": ", ResultName(result));
+  if (result == VK_ERROR_OUT_OF_DEVICE_MEMORY || result == VK_ERROR_OUT_OF_HOST_MEMORY ||
+      result == VK_ERROR_TOO_MANY_OBJECTS || result == VK_ERROR_OUT_OF_POOL_MEMORY) {
+    return absl::ResourceExhaustedError(msg);
+  }
+  return absl::InternalError(msg);
+}
+
+namespace {
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+const char* TypeName(VkPhysicalDeviceType type) {
+  switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "cpu";
+    default: return "other";
+  }
+}
+
+int TypeRank(VkPhysicalDeviceType type) {
+  switch (type) {
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 4;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 3;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU: return 1;
+    default: return 0;
+  }
+}
+
+bool EnvFlag(const char* name) {
+  const char* v = std::getenv(name);
+  return v != nullptr && (std::strcmp(v, "1") == 0 || Lower(v) == "true" || Lower(v) == "on");
+}
+
+bool HasLayer(const char* name) {
+  uint32_t count = 0;
+  vkEnumerateInstanceLayerProperties(&count, nullptr);
+  std::vector<VkLayerProperties> layers(count);
+  vkEnumerateInstanceLayerProperties(&count, layers.data());
+  for (const auto& l : layers)
+    if (std::strcmp(l.layerName, name) == 0) return true;
+  return false;
+}
+
+bool HasInstanceExtension(const char* name) {
+  uint32_t count = 0;
+  vkEnumerateInstanceExtensionProperties(nullptr, &count, nullptr);
+  std::vector<VkExtensionProperties> exts(count);
+  vkEnumerateInstanceExtensionProperties(nullptr, &count, exts.data());
+  for (const auto& e : exts)
+    if (std::strcmp(e.extensionName, name) == 0) return true;
+  return false;
+}
+
+uint32_t MaxSamples(VkSampleCountFlags flags) {
+  for (uint32_t s = 64; s > 1; s >>= 1)
+    if (flags & s) return s;
+  return 1;
+}
+
+}  // namespace
+
+VKAPI_ATTR VkBool32 VKAPI_CALL Context::DebugCallback(
+    VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT,
+    const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
+  auto* self = static_cast<Context*>(user);
+  const bool error = severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+  const char* text = data && data->pMessage ? data->pMessage : "(no message)";
+  if (error) {
+    spdlog::error("vulkan validation: {}", text);
+  } else {
+    spdlog::warn("vulkan validation: {}", text);
+  }
+  self->validation_count_.fetch_add(1);
+  std::lock_guard lock(self->messages_mutex_);
+  if (self->messages_.size() < 32) self->messages_.emplace_back(text);
+  return VK_FALSE;
+}
+
+absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& options) {
+  std::unique_ptr<Context> ctx(new Context());
+  const bool validation = options.validation || EnvFlag("TESSERA_VALIDATION");
+  std::string wanted = options.device_name;
+  if (wanted.empty() && std::getenv("TESSERA_DEVICE")) wanted = std::getenv("TESSERA_DEVICE");
+
+  uint32_t loader_version = 0;
+  if (vkEnumerateInstanceVersion(&loader_version) != VK_SUCCESS ||
+      loader_version < VK_API_VERSION_1_3) {
+    return absl::FailedPreconditionError(
+        "the Vulkan loader does not offer Vulkan 1.3 (install libvulkan1 >= 1.3)");
+  }
+
+  std::vector<const char*> layers;
+  std::vector<const char*> extensions;
+  if (validation) {
+    if (!HasLayer("VK_LAYER_KHRONOS_validation")) {
+      return absl::FailedPreconditionError(
+          "validation requested (TESSERA_VALIDATION=1) but VK_LAYER_KHRONOS_validation is not "
+          "installed (apt-get install vulkan-validationlayers)");
+    }
+    layers.push_back("VK_LAYER_KHRONOS_validation");
+  }
+  const bool debug_utils = HasInstanceExtension(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+  if (debug_utils) extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
+
+  VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
+  app.pApplicationName = "tessera";
+  app.pEngineName = "tessera";
+  app.apiVersion = VK_API_VERSION_1_3;
+
+  VkDebugUtilsMessengerCreateInfoEXT messenger_info{
+      VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
+  messenger_info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
+                                   VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
+  messenger_info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
+                               VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
+                               VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
+  messenger_info.pfnUserCallback = &Context::DebugCallback;
+  messenger_info.pUserData = ctx.get();
+
+  VkInstanceCreateInfo ici{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
+  ici.pApplicationInfo = &app;
+  ici.enabledLayerCount = static_cast<uint32_t>(layers.size());
+  ici.ppEnabledLayerNames = layers.data();
+  ici.enabledExtensionCount = static_cast<uint32_t>(extensions.size());
+  ici.ppEnabledExtensionNames = extensions.data();
+  if (validation && debug_utils) ici.pNext = &messenger_info;  // also covers instance creation
+  VK_RETURN_IF_ERROR(vkCreateInstance(&ici, nullptr, &ctx->instance_), "vkCreateInstance");
+
+  if (validation && debug_utils) {
+    auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(ctx->instance_, "vkCreateDebugUtilsMessengerEXT"));
+    if (create) VK_CHECK(create(ctx->instance_, &messenger_info, nullptr, &ctx->messenger_));
+  }
+  if (debug_utils) {
+    ctx->set_name_ = reinterpret_cast<PFN_vkSetDebugUtilsObjectNameEXT>(
+        vkGetInstanceProcAddr(ctx->instance_, "vkSetDebugUtilsObjectNameEXT"));
+  }
+
+  // Choose the device: by name if asked, else the best type that offers Vulkan 1.3 and a
+  // graphics queue.
+  uint32_t count = 0;
+  vkEnumeratePhysicalDevices(ctx->instance_, &count, nullptr);
+  std::vector<VkPhysicalDevice> devices(count);
+  vkEnumeratePhysicalDevices(ctx->instance_, &count, devices.data());
+  std::vector<std::string> names;
+  int best_rank = -1;
+  for (VkPhysicalDevice pd : devices) {
+    VkPhysicalDeviceProperties props;
+    vkGetPhysicalDeviceProperties(pd, &props);
+    names.emplace_back(props.deviceName);
+    if (props.apiVersion < VK_API_VERSION_1_3) continue;
+    uint32_t qcount = 0;
+    vkGetPhysicalDeviceQueueFamilyProperties(pd, &qcount, nullptr);
+    std::vector<VkQueueFamilyProperties> families(qcount);
+    vkGetPhysicalDeviceQueueFamilyProperties(pd, &qcount, families.data());
+    int family = -1;
+    for (uint32_t i = 0; i < qcount; ++i) {
+      const VkQueueFlags need = VK_QUEUE_GRAPHICS_BIT | VK_QUEUE_COMPUTE_BIT;
+      if ((families[i].queueFlags & need) == need && families[i].timestampValidBits > 0) {
+        family = static_cast<int>(i);
+        break;
+      }
+    }
+    if (family < 0) continue;
+    if (!wanted.empty() && Lower(props.deviceName).find(Lower(wanted)) == std::string::npos)
+      continue;
+    const int rank = TypeRank(props.deviceType);
+    if (rank > best_rank) {
+      best_rank = rank;
+      ctx->physical_ = pd;
+      ctx->queue_family_ = static_cast<uint32_t>(family);
+      ctx->info_.timestamp_valid_bits = families[family].timestampValidBits;
+    }
+  }
+  if (ctx->physical_ == VK_NULL_HANDLE) {
+    return absl::NotFoundError(absl::StrCat(
+        wanted.empty() ? "no Vulkan 1.3 device with a graphics+compute queue"
+                       : absl::StrCat("no Vulkan 1.3 device matches '", wanted, "'"),
+        "; devices: [", absl::StrJoin(names, ", "), "]"));
+  }
+
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props2.pNext = &driver;
+  vkGetPhysicalDeviceProperties2(ctx->physical_, &props2);
+  const VkPhysicalDeviceProperties& p = props2.properties;
+  ctx->limits_ = p.limits;
+  vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_);
+
+  VkPhysicalDeviceFeatures supported{};
+  vkGetPhysicalDeviceFeatures(ctx->physical_, &supported);
+  VkPhysicalDeviceVulkan13Features f13_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+  VkPhysicalDeviceFeatures2 f2_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2_supported.pNext = &f13_supported;
+  vkGetPhysicalDeviceFeatures2(ctx->physical_, &f2_supported);
+  if (!f13_supported.dynamicRendering || !f13_supported.synchronization2) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
+  }
+
+  DeviceInfo& info = ctx->info_;
+  info.name = p.deviceName;
+  info.type = TypeName(p.deviceType);
+  info.driver_name = driver.driverName;
+  info.driver_info = driver.driverInfo;
+  info.api_version = absl::StrCat(VK_API_VERSION_MAJOR(p.apiVersion), ".",
+                                  VK_API_VERSION_MINOR(p.apiVersion), ".",
+                                  VK_API_VERSION_PATCH(p.apiVersion));
+  info.max_samples = MaxSamples(p.limits.framebufferColorSampleCounts &
+                                p.limits.framebufferDepthSampleCounts);
+  info.max_image_dimension = p.limits.maxImageDimension2D;
+  info.max_array_layers = p.limits.maxImageArrayLayers;
+  info.timestamp_period_ns = p.limits.timestampPeriod;
+  // Anisotropic filtering costs a lot on a CPU rasterizer and little on a GPU.
+  info.max_anisotropy = (supported.samplerAnisotropy && p.deviceType != VK_PHYSICAL_DEVICE_TYPE_CPU)
+                            ? std::min(8.0f, p.limits.maxSamplerAnisotropy)
+                            : 1.0f;
+  info.validation = validation;
+
+  VkPhysicalDeviceFeatures enabled{};
+  enabled.samplerAnisotropy = info.max_anisotropy > 1.0f ? VK_TRUE : VK_FALSE;
+  enabled.multiDrawIndirect = supported.multiDrawIndirect;
+  enabled.drawIndirectFirstInstance = supported.drawIndirectFirstInstance;
+  enabled.fragmentStoresAndAtomics = supported.fragmentStoresAndAtomics;
+  enabled.shaderInt64 = supported.shaderInt64;
+  VkPhysicalDeviceVulkan13Features f13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+  f13.dynamicRendering = VK_TRUE;
+  f13.synchronization2 = VK_TRUE;
+  f13.maintenance4 = f13_supported.maintenance4;
+  VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  f12.pNext = &f13;
+  VkPhysicalDeviceVulkan12Features f12_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceFeatures2 q{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  q.pNext = &f12_supported;
+  vkGetPhysicalDeviceFeatures2(ctx->physical_, &q);
+  f12.drawIndirectCount = f12_supported.drawIndirectCount;
+  f12.samplerFilterMinmax = f12_supported.samplerFilterMinmax;
+  f12.hostQueryReset = f12_supported.hostQueryReset;
+  f12.scalarBlockLayout = f12_supported.scalarBlockLayout;
+
+  const float priority = 1.0f;
+  VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
+  qci.queueFamilyIndex = ctx->queue_family_;
+  qci.queueCount = 1;
+  qci.pQueuePriorities = &priority;
+  VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
+  dci.pNext = &f12;
+  dci.queueCreateInfoCount = 1;
+  dci.pQueueCreateInfos = &qci;
+  dci.pEnabledFeatures = &enabled;
+  VK_RETURN_IF_ERROR(vkCreateDevice(ctx->physical_, &dci, nullptr, &ctx->device_),
+                     "vkCreateDevice");
+  vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+
+  VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
+  pci.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
+  pci.queueFamilyIndex = ctx->queue_family_;
+  VK_CHECK(vkCreateCommandPool(ctx->device_, &pci, nullptr, &ctx->upload_pool_));
+  VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
+  VK_CHECK(vkCreateFence(ctx->device_, &fci, nullptr, &ctx->upload_fence_));
+
+  spdlog::info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name,
+               info.type, info.driver_name, info.driver_info, info.max_samples,
+               validation ? "on" : "off");
+  return ctx;
+}
+
+Context::~Context() {
+  if (device_) {
+    vkDeviceWaitIdle(device_);
+    vkDestroyFence(device_, upload_fence_, nullptr);
+    vkDestroyCommandPool(device_, upload_pool_, nullptr);
+    vkDestroyDevice(device_, nullptr);
+  }
+  if (messenger_) {
+    auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
+        vkGetInstanceProcAddr(instance_, "vkDestroyDebugUtilsMessengerEXT"));
+    if (destroy) destroy(instance_, messenger_, nullptr);
+  }
+  if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+uint32_t Context::FindMemoryType(uint32_t type_bits, VkMemoryPropertyFlags required,
+                                 VkMemoryPropertyFlags preferred) const {
+  uint32_t fallback = UINT32_MAX;
+  for (uint32_t i = 0; i < memory_.memoryTypeCount; ++i) {
+    if (!(type_bits & (1u << i))) continue;
+    const VkMemoryPropertyFlags flags = memory_.memoryTypes[i].propertyFlags;
+    if ((flags & required) != required) continue;
+    if ((flags & preferred) == preferred) return i;
+    if (fallback == UINT32_MAX) fallback = i;
+  }
+  return fallback;
+}
+
+void Context::SetName(VkObjectType type, uint64_t handle, const std::string& name) const {
+  if (!set_name_ || handle == 0) return;
+  VkDebugUtilsObjectNameInfoEXT ni{VK_STRUCTURE_TYPE_DEBUG_UTILS_OBJECT_NAME_INFO_EXT};
+  ni.objectType = type;
+  ni.objectHandle = handle;
+  ni.pObjectName = name.c_str();
+  set_name_(device_, &ni);
+}
+
+absl::Status Context::SubmitOnce(const std::function<void(VkCommandBuffer)>& record) {
+  VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
+  ai.commandPool = upload_pool_;
+  ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+  ai.commandBufferCount = 1;
+  VkCommandBuffer cmd;
+  VK_RETURN_IF_ERROR(vkAllocateCommandBuffers(device_, &ai, &cmd), "vkAllocateCommandBuffers");
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+  record(cmd);
+  VK_CHECK(vkEndCommandBuffer(cmd));
+  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cmd;
+  VkResult r = vkQueueSubmit(queue_, 1, &si, upload_fence_);
+  if (r == VK_SUCCESS) r = vkWaitForFences(device_, 1, &upload_fence_, VK_TRUE, UINT64_MAX);
+  vkResetFences(device_, 1, &upload_fence_);
+  vkFreeCommandBuffers(device_, upload_pool_, 1, &cmd);
+  VK_RETURN_IF_ERROR(r, "upload submit");
+  return absl::OkStatus();
+}
+
+std::vector<std::string> Context::validation_messages() const {
+  std::lock_guard lock(messages_mutex_);
+  return messages_;
+}
+
+}  // namespace tessera::vk

@@ -1,1 +1,144 @@
-// placeholder: being written
+#include "renderer/vk/pipeline.h"
+
+#include "absl/strings/str_cat.h"
+#include "renderer/scene/cpu_scene.h"
+#include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
+#include "shaders/shader_registry.h"
+
+namespace tessera::vk {
+
+namespace {
+
+// A shader module that lives only while the pipeline is created.
+class ScopedShader {
+ public:
+  ScopedShader(VkDevice device) : device_(device) {}
+  ~ScopedShader() {
+    if (module_) vkDestroyShaderModule(device_, module_, nullptr);
+  }
+  absl::Status Load(const std::string& name) {
+    std::span<const uint32_t> code = EmbeddedShader(name);
+    if (code.empty()) return absl::InternalError(absl::StrCat("shader not embedded: ", name));
+    VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+    ci.codeSize = code.size_bytes();
+    ci.pCode = code.data();
+    VK_RETURN_IF_ERROR(vkCreateShaderModule(device_, &ci, nullptr, &module_), name.c_str());
+    return absl::OkStatus();
+  }
+  VkShaderModule get() const { return module_; }
+
+ private:
+  VkDevice device_;
+  VkShaderModule module_ = VK_NULL_HANDLE;
+};
+
+}  // namespace
+
+absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
+                                                const GraphicsPipelineDesc& desc) {
+  ScopedShader vs(ctx.device()), fs(ctx.device());
+  if (absl::Status s = vs.Load(desc.vertex_shader); !s.ok()) return s;
+  std::vector<VkPipelineShaderStageCreateInfo> stages;
+  VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
+  stage.module = vs.get();
+  stage.pName = "main";
+  stages.push_back(stage);
+  if (!desc.fragment_shader.empty()) {
+    if (absl::Status s = fs.Load(desc.fragment_shader); !s.ok()) return s;
+    stage.stage = VK_SHADER_STAGE_FRAGMENT_BIT;
+    stage.module = fs.get();
+    stages.push_back(stage);
+  }
+
+  const VkVertexInputBindingDescription binding{0, sizeof(Vertex), VK_VERTEX_INPUT_RATE_VERTEX};
+  const VkVertexInputAttributeDescription attributes[] = {
+      {gpu::kAttrPosition, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(Vertex, position)},
+      {gpu::kAttrNormal, 0, VK_FORMAT_R32G32B32_SFLOAT, offsetof(Vertex, normal)},
+      {gpu::kAttrTangent, 0, VK_FORMAT_R32G32B32A32_SFLOAT, offsetof(Vertex, tangent)},
+      {gpu::kAttrUv0, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv0)},
+      {gpu::kAttrUv1, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv1)},
+  };
+  VkPipelineVertexInputStateCreateInfo vertex_input{
+      VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
+  if (desc.scene_vertex_input) {
+    vertex_input.vertexBindingDescriptionCount = 1;
+    vertex_input.pVertexBindingDescriptions = &binding;
+    // A depth-only pipeline reads positions alone: fewer attributes fetched per vertex.
+    vertex_input.vertexAttributeDescriptionCount = desc.fragment_shader.empty() ? 1 : 5;
+    vertex_input.pVertexAttributeDescriptions = attributes;
+  }
+
+  VkPipelineInputAssemblyStateCreateInfo input_assembly{
+      VK_STRUCTURE_TYPE_PIPELINE_INPUT_ASSEMBLY_STATE_CREATE_INFO};
+  input_assembly.topology = VK_PRIMITIVE_TOPOLOGY_TRIANGLE_LIST;
+  VkPipelineViewportStateCreateInfo viewport{VK_STRUCTURE_TYPE_PIPELINE_VIEWPORT_STATE_CREATE_INFO};
+  viewport.viewportCount = 1;
+  viewport.scissorCount = 1;
+  VkPipelineRasterizationStateCreateInfo raster{
+      VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
+  raster.polygonMode = VK_POLYGON_MODE_FILL;
+  raster.cullMode = VK_CULL_MODE_NONE;  // dynamic
+  raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // glTF winding; projection flips Y
+  raster.lineWidth = 1.0f;
+  VkPipelineMultisampleStateCreateInfo multisample{
+      VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
+  multisample.rasterizationSamples = desc.samples;
+  VkPipelineDepthStencilStateCreateInfo depth{
+      VK_STRUCTURE_TYPE_PIPELINE_DEPTH_STENCIL_STATE_CREATE_INFO};
+  depth.depthTestEnable = desc.depth_test;
+  depth.depthWriteEnable = desc.depth_write;
+  depth.depthCompareOp = desc.depth_compare;
+
+  std::vector<VkPipelineColorBlendAttachmentState> blend_states(desc.color_formats.size());
+  for (auto& b : blend_states) {
+    b.colorWriteMask = VK_COLOR_COMPONENT_R_BIT | VK_COLOR_COMPONENT_G_BIT |
+                       VK_COLOR_COMPONENT_B_BIT | VK_COLOR_COMPONENT_A_BIT;
+    if (desc.blend == BlendMode::kAlpha) {
+      b.blendEnable = VK_TRUE;
+      b.srcColorBlendFactor = VK_BLEND_FACTOR_SRC_ALPHA;
+      b.dstColorBlendFactor = VK_BLEND_FACTOR_ONE_MINUS_SRC_ALPHA;
+      b.colorBlendOp = VK_BLEND_OP_ADD;
+      b.srcAlphaBlendFactor = VK_BLEND_FACTOR_ONE;
+      b.dstAlphaBlendFactor = VK_BLEND_FACTOR_ONE_MINUS_SRC_ALPHA;
+      b.alphaBlendOp = VK_BLEND_OP_ADD;
+    }
+  }
+  VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  blend.attachmentCount = static_cast<uint32_t>(blend_states.size());
+  blend.pAttachments = blend_states.data();
+
+  const VkDynamicState dynamic_states[] = {VK_DYNAMIC_STATE_VIEWPORT, VK_DYNAMIC_STATE_SCISSOR,
+                                           VK_DYNAMIC_STATE_CULL_MODE};
+  VkPipelineDynamicStateCreateInfo dynamic{VK_STRUCTURE_TYPE_PIPELINE_DYNAMIC_STATE_CREATE_INFO};
+  dynamic.dynamicStateCount = 3;
+  dynamic.pDynamicStates = dynamic_states;
+
+  VkPipelineRenderingCreateInfo rendering{VK_STRUCTURE_TYPE_PIPELINE_RENDERING_CREATE_INFO};
+  rendering.colorAttachmentCount = static_cast<uint32_t>(desc.color_formats.size());
+  rendering.pColorAttachmentFormats = desc.color_formats.data();
+  rendering.depthAttachmentFormat = desc.depth_format;
+
+  VkGraphicsPipelineCreateInfo pi{VK_STRUCTURE_TYPE_GRAPHICS_PIPELINE_CREATE_INFO};
+  pi.pNext = &rendering;
+  pi.stageCount = static_cast<uint32_t>(stages.size());
+  pi.pStages = stages.data();
+  pi.pVertexInputState = &vertex_input;
+  pi.pInputAssemblyState = &input_assembly;
+  pi.pViewportState = &viewport;
+  pi.pRasterizationState = &raster;
+  pi.pMultisampleState = &multisample;
+  pi.pDepthStencilState = &depth;
+  pi.pColorBlendState = &blend;
+  pi.pDynamicState = &dynamic;
+  pi.layout = desc.layout;
+  VkPipeline pipeline;
+  VK_RETURN_IF_ERROR(
+      vkCreateGraphicsPipelines(ctx.device(), VK_NULL_HANDLE, 1, &pi, nullptr, &pipeline),
+      desc.name.c_str());
+  ctx.SetName(pipeline, VK_OBJECT_TYPE_PIPELINE, desc.name);
+  return Pipeline(ctx.device(), pipeline);
+}
+
+}  // namespace tessera::vk

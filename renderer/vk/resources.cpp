@@ -1,1 +1,223 @@
-// placeholder: being written
+#include "renderer/vk/resources.h"
+
+#include "absl/strings/str_cat.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera::vk {
+
+namespace {
+
+absl::StatusOr<VkDeviceMemory> Allocate(const Context& ctx, const VkMemoryRequirements& req,
+                                        VkMemoryPropertyFlags required,
+                                        VkMemoryPropertyFlags preferred, const std::string& name,
+                                        VkMemoryPropertyFlags* flags_out) {
+  uint32_t type = ctx.FindMemoryType(req.memoryTypeBits, required, preferred);
+  if (type == UINT32_MAX) {
+    return absl::ResourceExhaustedError(absl::StrCat(name, ": no suitable memory type"));
+  }
+  VkPhysicalDeviceMemoryProperties mp;
+  vkGetPhysicalDeviceMemoryProperties(ctx.physical_device(), &mp);
+  if (flags_out) *flags_out = mp.memoryTypes[type].propertyFlags;
+  VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
+  ai.allocationSize = req.size;
+  ai.memoryTypeIndex = type;
+  VkDeviceMemory memory;
+  VkResult r = vkAllocateMemory(ctx.device(), &ai, nullptr, &memory);
+  if (r != VK_SUCCESS) {
+    return VkStatus(r, absl::StrCat(name, ": allocating ", req.size, " bytes").c_str());
+  }
+  return memory;
+}
+
+}  // namespace
+
+absl::StatusOr<Buffer> Buffer::Create(const Context& ctx, VkDeviceSize size,
+                                      VkBufferUsageFlags usage, MemoryUsage memory,
+                                      const std::string& name) {
+  Buffer b;
+  b.device_ = ctx.device();
+  b.size_ = size;
+  VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
+  bi.size = size == 0 ? 4 : size;  // zero-sized buffers are invalid; keep a stub
+  bi.usage = usage;
+  bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  VK_RETURN_IF_ERROR(vkCreateBuffer(b.device_, &bi, nullptr, &b.buffer_), name.c_str());
+  ctx.SetName(b.buffer_, VK_OBJECT_TYPE_BUFFER, name);
+  VkMemoryRequirements req;
+  vkGetBufferMemoryRequirements(b.device_, b.buffer_, &req);
+  VkMemoryPropertyFlags required = 0, preferred = 0;
+  switch (memory) {
+    case MemoryUsage::kDeviceLocal:
+      preferred = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
+      break;
+    case MemoryUsage::kUpload:
+      required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+      break;
+    case MemoryUsage::kReadback:
+      required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT;
+      preferred = VK_MEMORY_PROPERTY_HOST_CACHED_BIT;
+      break;
+  }
+  VkMemoryPropertyFlags flags = 0;
+  absl::StatusOr<VkDeviceMemory> mem = Allocate(ctx, req, required, preferred, name, &flags);
+  if (!mem.ok()) return mem.status();
+  b.memory_ = *mem;
+  VK_CHECK(vkBindBufferMemory(b.device_, b.buffer_, b.memory_, 0));
+  if (memory != MemoryUsage::kDeviceLocal) {
+    VK_CHECK(vkMapMemory(b.device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_));
+    b.coherent_ = flags & VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+  }
+  return b;
+}
+
+Buffer& Buffer::operator=(Buffer&& o) noexcept {
+  if (this != &o) {
+    Reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
+    memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    size_ = std::exchange(o.size_, 0);
+    mapped_ = std::exchange(o.mapped_, nullptr);
+    coherent_ = o.coherent_;
+  }
+  return *this;
+}
+
+void Buffer::InvalidateForRead() const {
+  if (coherent_ || !mapped_) return;
+  VkMappedMemoryRange range{VK_STRUCTURE_TYPE_MAPPED_MEMORY_RANGE};
+  range.memory = memory_;
+  range.size = VK_WHOLE_SIZE;
+  VK_CHECK(vkInvalidateMappedMemoryRanges(device_, 1, &range));
+}
+
+void Buffer::Reset() {
+  if (device_ == VK_NULL_HANDLE) return;
+  if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
+  if (memory_) vkFreeMemory(device_, memory_, nullptr);  // unmaps implicitly
+  buffer_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  mapped_ = nullptr;
+  device_ = VK_NULL_HANDLE;
+}
+
+bool IsDepthFormat(VkFormat f) {
+  return f == VK_FORMAT_D32_SFLOAT || f == VK_FORMAT_D16_UNORM ||
+         f == VK_FORMAT_D24_UNORM_S8_UINT || f == VK_FORMAT_D32_SFLOAT_S8_UINT;
+}
+
+VkImageAspectFlags Image::aspect() const {
+  return IsDepthFormat(desc_.format) ? VK_IMAGE_ASPECT_DEPTH_BIT : VK_IMAGE_ASPECT_COLOR_BIT;
+}
+
+absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
+                                    const std::string& name) {
+  Image img;
+  img.device_ = ctx.device();
+  img.desc_ = desc;
+  VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
+  ii.imageType = VK_IMAGE_TYPE_2D;
+  ii.format = desc.format;
+  ii.extent = {desc.width, desc.height, 1};
+  ii.mipLevels = desc.mip_levels;
+  ii.arrayLayers = desc.array_layers;
+  ii.samples = desc.samples;
+  ii.tiling = VK_IMAGE_TILING_OPTIMAL;
+  ii.usage = desc.usage;
+  ii.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+  ii.initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
+  VK_RETURN_IF_ERROR(vkCreateImage(img.device_, &ii, nullptr, &img.image_), name.c_str());
+  ctx.SetName(img.image_, VK_OBJECT_TYPE_IMAGE, name);
+  VkMemoryRequirements req;
+  vkGetImageMemoryRequirements(img.device_, img.image_, &req);
+  absl::StatusOr<VkDeviceMemory> mem =
+      Allocate(ctx, req, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, name, nullptr);
+  if (!mem.ok()) return mem.status();
+  img.memory_ = *mem;
+  VK_CHECK(vkBindImageMemory(img.device_, img.image_, img.memory_, 0));
+
+  VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+  vi.image = img.image_;
+  vi.viewType = desc.view_type;
+  vi.format = desc.format;
+  vi.subresourceRange = {img.aspect(), 0, desc.mip_levels, 0, desc.array_layers};
+  VK_RETURN_IF_ERROR(vkCreateImageView(img.device_, &vi, nullptr, &img.view_), name.c_str());
+  ctx.SetName(img.view_, VK_OBJECT_TYPE_IMAGE_VIEW, name + ".view");
+  return img;
+}
+
+Image& Image::operator=(Image&& o) noexcept {
+  if (this != &o) {
+    Reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    image_ = std::exchange(o.image_, VK_NULL_HANDLE);
+    view_ = std::exchange(o.view_, VK_NULL_HANDLE);
+    memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    desc_ = o.desc_;
+  }
+  return *this;
+}
+
+void Image::Reset() {
+  if (device_ == VK_NULL_HANDLE) return;
+  if (view_) vkDestroyImageView(device_, view_, nullptr);
+  if (image_) vkDestroyImage(device_, image_, nullptr);
+  if (memory_) vkFreeMemory(device_, memory_, nullptr);
+  view_ = VK_NULL_HANDLE;
+  image_ = VK_NULL_HANDLE;
+  memory_ = VK_NULL_HANDLE;
+  device_ = VK_NULL_HANDLE;
+}
+
+absl::StatusOr<Sampler> Sampler::Create(const Context& ctx, const VkSamplerCreateInfo& info,
+                                        const std::string& name) {
+  Sampler s;
+  s.device_ = ctx.device();
+  VK_RETURN_IF_ERROR(vkCreateSampler(s.device_, &info, nullptr, &s.sampler_), name.c_str());
+  ctx.SetName(s.sampler_, VK_OBJECT_TYPE_SAMPLER, name);
+  return s;
+}
+
+Sampler& Sampler::operator=(Sampler&& o) noexcept {
+  if (this != &o) {
+    Reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    sampler_ = std::exchange(o.sampler_, VK_NULL_HANDLE);
+  }
+  return *this;
+}
+
+void Sampler::Reset() {
+  if (device_ && sampler_) vkDestroySampler(device_, sampler_, nullptr);
+  device_ = VK_NULL_HANDLE;
+  sampler_ = VK_NULL_HANDLE;
+}
+
+VkImageMemoryBarrier2 MakeImageBarrier(const Image& image, const ImageTransition& t,
+                                       uint32_t base_mip, uint32_t mip_count) {
+  VkImageMemoryBarrier2 b{VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER_2};
+  b.srcStageMask = t.src_stage;
+  b.srcAccessMask = t.src_access;
+  b.dstStageMask = t.dst_stage;
+  b.dstAccessMask = t.dst_access;
+  b.oldLayout = t.old_layout;
+  b.newLayout = t.new_layout;
+  b.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  b.image = image.handle();
+  b.subresourceRange = {image.aspect(), base_mip, mip_count, 0, VK_REMAINING_ARRAY_LAYERS};
+  return b;
+}
+
+void CmdBarrier(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images, uint32_t image_count,
+                const VkBufferMemoryBarrier2* buffers, uint32_t buffer_count) {
+  if (image_count == 0 && buffer_count == 0) return;
+  VkDependencyInfo di{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  di.imageMemoryBarrierCount = image_count;
+  di.pImageMemoryBarriers = images;
+  di.bufferMemoryBarrierCount = buffer_count;
+  di.pBufferMemoryBarriers = buffers;
+  vkCmdPipelineBarrier2(cmd, &di);
+}
+
+}  // namespace tessera::vk

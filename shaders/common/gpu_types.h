@@ -62,7 +62,7 @@ TS_CONST uint kAttrUv1 = 4;
 struct GpuTextureRef {
   vec4 row0;
   vec4 row1;
-  ivec4 info;  // x: bucket (-1 = none), y: layer in the bucket, z: texcoord set (0/1), w: unused
+  ivec4 info;  // x: bucket (-1 = none), y: layer, z: texcoord set (0/1), w: wrap s | wrap t << 2
 };
 
 struct GpuMaterial {

@@ -1,0 +1,55 @@
+#pragma once
+// Camera description and the math around it: view and reverse-Z projection matrices, framing
+// a scene's bounds, and view-frustum planes for culling. Pure math, no Vulkan.
+#include <array>
+#include <optional>
+
+#include <glm/glm.hpp>
+
+#include "absl/status/status.h"
+#include "renderer/scene/cpu_scene.h"
+
+namespace tessera {
+
+struct Camera {
+  glm::vec3 eye{0.0f, 0.0f, 5.0f};
+  glm::vec3 target{0.0f};
+  glm::vec3 up{0.0f, 1.0f, 0.0f};
+  std::optional<glm::mat4> view;  // world -> view; when set, eye/target/up are ignored
+  float yfov = 0.8f;              // vertical field of view, radians, (0, pi)
+  float znear = 0.05f;            // > 0, world units
+  float zfar = 0.0f;              // 0 = infinite; else > znear
+};
+
+// INVALID_ARGUMENT naming the field: non-finite values, eye == target, up parallel to the view
+// direction, fov out of range, near <= 0, far <= near.
+absl::Status ValidateCamera(const Camera& camera);
+
+// World -> view (right-handed, looking down -Z).
+glm::mat4 ViewMatrix(const Camera& camera);
+
+// View -> Vulkan clip space with reverse Z (near plane at depth 1, far or infinity at 0) and
+// Y pointing down in clip space, so glTF's counter-clockwise front faces stay front faces.
+glm::mat4 ProjectionMatrix(const Camera& camera, float aspect);
+
+// The camera's world position (from eye, or from the inverse of `view`).
+glm::vec3 CameraPosition(const Camera& camera);
+
+// A camera looking at `bounds` from `direction` (pointing from the scene towards the camera)
+// at a distance where the bounding sphere fits the smaller of the two fields of view.
+Camera FrameBounds(const Aabb& bounds, float yfov, float aspect,
+                   glm::vec3 direction = glm::vec3(0.55f, 0.45f, 0.70f));
+
+// The camera of a glTF camera node (its world matrix is camera -> world).
+Camera FromSceneCamera(const SceneCamera& camera);
+
+// Frustum planes (xyz normal pointing inside, w distance) from a view-projection matrix with
+// reverse Z; an infinite far plane gives a degenerate far plane that rejects nothing.
+using Frustum = std::array<glm::vec4, 6>;
+Frustum FrustumFromViewProj(const glm::mat4& view_proj);
+
+// False when the box lies entirely outside one plane (conservative: may keep boxes that are
+// outside near a frustum corner).
+bool AabbIntersectsFrustum(const Aabb& box, const Frustum& frustum);
+
+}  // namespace tessera

@@ -1,0 +1,24 @@
+#pragma once
+// Facts about the Vulkan device, without Vulkan headers (the server reports them).
+#include <cstdint>
+#include <string>
+
+namespace tessera {
+
+// What the server and clients need to know about the device.
+struct DeviceInfo {
+  std::string name;         // VkPhysicalDeviceProperties::deviceName
+  std::string type;         // "discrete", "integrated", "virtual", "cpu", "other"
+  std::string driver_name;  // VkPhysicalDeviceDriverProperties::driverName
+  std::string driver_info;  // e.g. "Mesa 22.3.6 (LLVM 15.0.6)"
+  std::string api_version;  // "1.3.230"
+  uint32_t max_samples = 1;          // largest MSAA count for colour + depth attachments
+  uint32_t max_image_dimension = 0;  // maxImageDimension2D
+  uint32_t max_array_layers = 0;
+  float timestamp_period_ns = 1.0f;
+  uint32_t timestamp_valid_bits = 0;
+  float max_anisotropy = 1.0f;  // 1 = anisotropic filtering off
+  bool validation = false;      // validation layers active
+};
+
+}  // namespace tessera

@@ -1,0 +1,66 @@
+#pragma once
+// The frame: which passes run for a Settings value, in which order, and the barriers between
+// them. Passes declare the resources they read and write; the frame graph derives every layout
+// transition from those declarations, so no pass hand-codes a barrier for another's output.
+// The planning half is pure data and is unit-tested without a device.
+#include <cstdint>
+#include <string_view>
+#include <vector>
+
+#include "renderer/settings.h"
+
+namespace tessera {
+
+// The frame's transient resources.
+enum class Resource : uint8_t { kDepth, kHdrColor, kLdrColor, kCount };
+
+// How a pass uses a resource.
+enum class Access : uint8_t {
+  kNone,           // not yet used this frame (contents undefined)
+  kDepthWrite,     // depth attachment, test + write
+  kDepthTest,      // depth attachment, test only
+  kColorWrite,     // colour attachment
+  kSampled,        // read in a fragment shader
+  kTransferSrc,    // copied from
+};
+
+struct ResourceUse {
+  Resource resource;
+  Access access;
+};
+
+// Every pass the renderer knows, in the only order they may run.
+enum class PassId : uint8_t {
+  kDepthPrepass,  // depth of opaque + alpha-mask geometry, so shading runs once per pixel
+  kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
+  kTransparent,   // blended materials, back to front, over the opaque result
+  kTonemap,       // HDR -> exposure -> tonemap -> sRGB RGBA8
+  kReadback,      // RGBA8 image -> host buffer for the encoder
+  kCount
+};
+
+std::string_view PassName(PassId id);
+// The resources a pass reads and writes.
+std::vector<ResourceUse> PassUses(PassId id);
+
+// What the frame graph needs to know about the scene to pick passes.
+struct FrameFeatures {
+  bool has_transparent = false;  // any visible BLEND drawable
+};
+
+// The passes that run for `settings`, in order.
+std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& features);
+
+// A resource moving from one access to another before a pass.
+struct Transition {
+  Resource resource;
+  Access from;
+  Access to;
+};
+
+// For each pass, the transitions to make before it runs. A transition is emitted when the
+// layout changes or either side writes (write-after-write and read-after-write hazards);
+// read-after-read in the same layout needs none.
+std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes);
+
+}  // namespace tessera

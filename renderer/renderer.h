@@ -1,0 +1,116 @@
+#pragma once
+// Tessera's renderer: the public face used by the daemon, the tools, the tests and the
+// benchmarks. Load a scene, render it with a camera and settings, get back RGBA8 pixels with
+// the GPU time of every pass. Knows nothing of gRPC; includes no Vulkan header.
+//
+// Threading: Renderer is thread-safe; LoadScene and Render serialize on the device queue.
+// Render is synchronous: it returns after the frame's fence, so nothing it used is in flight.
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "renderer/camera.h"
+#include "renderer/device_info.h"
+#include "renderer/image_io.h"
+#include "renderer/scene/cpu_scene.h"
+#include "renderer/scene/gltf_import.h"
+#include "renderer/settings.h"
+
+namespace tessera {
+
+struct RendererOptions {
+  std::string device_name;  // substring of the device to use; empty: $TESSERA_DEVICE or best
+  bool validation = false;  // Vulkan validation layers (also TESSERA_VALIDATION=1)
+};
+
+// What a loaded scene is, without its geometry.
+struct SceneInfo {
+  std::string name;
+  SceneCounts counts;
+  Aabb bounds;
+  std::vector<SceneCamera> cameras;
+  std::vector<std::string> warnings;
+  uint64_t device_bytes = 0;  // buffers + textures on the device
+};
+
+class GpuScene;
+// A scene on the device. Shared by every frame that renders it; freed with the last handle.
+class Scene {
+ public:
+  ~Scene();
+  const SceneInfo& info() const { return info_; }
+
+ private:
+  friend class Renderer;
+  Scene() = default;
+  SceneInfo info_;
+  std::unique_ptr<GpuScene> gpu_;
+};
+using SceneHandle = std::shared_ptr<const Scene>;
+
+struct PassTiming {
+  std::string pass;  // e.g. "depth_prepass"
+  double gpu_ms = 0.0;
+};
+
+// CPU stages of one frame, milliseconds.
+struct CpuTimings {
+  double record_ms = 0.0;       // culling, sorting, uniforms, command recording
+  double submit_wait_ms = 0.0;  // vkQueueSubmit until the fence signals
+  double readback_ms = 0.0;     // copying the mapped pixels out
+  double encode_ms = 0.0;       // JPEG/PNG encoding (EncodeFrame)
+};
+
+struct FrameStats {
+  uint32_t drawables = 0;         // in the scene
+  uint32_t drawables_culled = 0;  // rejected by culling
+  uint32_t draws = 0;             // draw calls over all passes
+  uint64_t triangles_submitted = 0;  // over all passes
+  uint32_t lights = 0;            // punctual lights shaded (incl. the default sun)
+};
+
+struct Frame {
+  RgbaImage image;                 // settings.effective.width x height, sRGB RGBA8
+  std::vector<PassTiming> passes;  // in execution order
+  double gpu_total_ms = 0.0;       // first pass start to last pass end
+  CpuTimings cpu;
+  FrameStats stats;
+  ResolvedSettings settings;       // effective settings and the notes on what changed
+};
+
+enum class ImageFormat { kJpeg, kPng };
+
+class Renderer {
+ public:
+  // Opens the Vulkan device. Errors are one line: no Vulkan, no device matching the name...
+  static absl::StatusOr<std::unique_ptr<Renderer>> Create(const RendererOptions& options = {});
+  ~Renderer();
+
+  const DeviceInfo& device_info() const;
+  DeviceCaps caps() const;
+
+  // Imports (untrusted input: INVALID_ARGUMENT naming file and field) and uploads a glTF scene.
+  absl::StatusOr<SceneHandle> LoadScene(const GltfSource& source);
+  // Uploads an already-built CPU scene (e.g. BuildDemoScene()).
+  absl::StatusOr<SceneHandle> LoadScene(const CpuScene& scene);
+
+  // Renders one frame. INVALID_ARGUMENT for bad settings/camera (naming the field).
+  absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings);
+
+  // Validation-layer messages so far (tests require zero).
+  uint64_t validation_message_count() const;
+  std::vector<std::string> validation_messages() const;
+
+ private:
+  struct Impl;
+  explicit Renderer(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+// Encodes the frame's pixels (JPEG with its settings' quality and chroma subsampling, or
+// PNG) and records the time in frame.cpu.encode_ms.
+absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat format);
+
+}  // namespace tessera

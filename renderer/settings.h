@@ -1,0 +1,77 @@
+#pragma once
+// Render settings: one struct, mirrored by the proto. Validation names the bad field;
+// resolution against a device clamps what the device cannot do and says which fields were
+// clamped or are not applied yet, so nothing is silently ignored.
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace tessera {
+
+enum class AaMode : uint32_t { kNone = 0, kMsaa, kFxaa, kTaa, kVisMlaa };
+enum class CullingMode : uint32_t { kNone = 0, kCpuFrustum, kGpuFrustum, kGpuOcclusion };
+enum class ExposureMode : uint32_t { kFixed = 0, kAuto };
+// Values of the first four match kDebug* in shaders/common/gpu_types.h.
+enum class DebugView : uint32_t {
+  kNone = 0, kNormals, kDepth, kBaseColor, kLightHeatmap, kCullingOverlay, kAaMask
+};
+
+struct Settings {
+  uint32_t width = 1280;   // pixels, 1..16384 (clamped to the device's maxImageDimension2D)
+  uint32_t height = 720;   // pixels, 1..16384
+  AaMode aa = AaMode::kNone;
+  uint32_t samples = 4;    // MSAA / visibility samples for aa = msaa | vis_mlaa: 1, 2, 4 or 8
+  CullingMode culling = CullingMode::kCpuFrustum;
+  bool scene_lights = true;         // use the file's KHR_lights_punctual lights
+  uint32_t synthetic_lights = 0;    // random point lights added in the scene bounds, 0..65536
+  uint32_t light_seed = 1;          // seed of the synthetic lights
+  uint32_t tile_size = 16;          // light-culling tile, 8 | 16 | 32 pixels
+  bool shadows = false;
+  bool ssao = false;
+  bool bloom = false;
+  bool ibl = false;
+  ExposureMode exposure_mode = ExposureMode::kFixed;
+  float exposure_ev = 0.0f;  // fixed exposure in stops, -20..20 (0 = x1)
+  DebugView debug_view = DebugView::kNone;
+  uint32_t jpeg_quality = 90;  // 1..100
+  bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
+};
+
+// What the device can do, for clamping.
+struct DeviceCaps {
+  uint32_t max_samples = 1;
+  uint32_t max_image_dimension = 16384;
+};
+
+// One field the renderer changed or could not honour.
+struct SettingNote {
+  std::string field;    // e.g. "samples"
+  std::string message;  // e.g. "clamped from 8 to 4 (device maximum)" or "not applied: ..."
+};
+
+struct ResolvedSettings {
+  Settings effective;
+  std::vector<SettingNote> notes;
+};
+
+// INVALID_ARGUMENT naming the field when a value is out of its documented range.
+absl::Status ValidateSettings(const Settings& settings);
+
+// Validates, then clamps to `caps` and lists every field that is clamped or not applied.
+absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const DeviceCaps& caps);
+
+// Names used by the CLI, JSON output and (later) the proto.
+std::string_view ToString(AaMode v);
+std::string_view ToString(CullingMode v);
+std::string_view ToString(ExposureMode v);
+std::string_view ToString(DebugView v);
+absl::StatusOr<AaMode> ParseAaMode(std::string_view s);
+absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s);
+absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s);
+absl::StatusOr<DebugView> ParseDebugView(std::string_view s);
+
+}  // namespace tessera

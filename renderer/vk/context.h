@@ -1,0 +1,88 @@
+#pragma once
+// The Vulkan instance, the chosen physical device, its logical device and its queue.
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <vulkan/vulkan.h>
+
+#include "absl/status/statusor.h"
+#include "renderer/device_info.h"
+
+namespace tessera::vk {
+
+using tessera::DeviceInfo;
+
+struct ContextOptions {
+  // Case-insensitive substring of the device name to use instead of the automatic choice
+  // (discrete > integrated > virtual > CPU). Empty: $TESSERA_DEVICE, else automatic.
+  std::string device_name;
+  // Enable VK_LAYER_KHRONOS_validation. Also enabled by TESSERA_VALIDATION=1.
+  bool validation = false;
+};
+
+class Context {
+ public:
+  // Creates instance + device. Fails with a one-line reason (no Vulkan, no matching device,
+  // validation requested but not installed).
+  static absl::StatusOr<std::unique_ptr<Context>> Create(const ContextOptions& options);
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  VkInstance instance() const { return instance_; }
+  VkPhysicalDevice physical_device() const { return physical_; }
+  VkDevice device() const { return device_; }
+  VkQueue queue() const { return queue_; }
+  uint32_t queue_family() const { return queue_family_; }
+  const DeviceInfo& info() const { return info_; }
+  const VkPhysicalDeviceLimits& limits() const { return limits_; }
+
+  // A memory type index in `type_bits` with all `required` flags, preferring `preferred`.
+  // UINT32_MAX when none.
+  uint32_t FindMemoryType(uint32_t type_bits, VkMemoryPropertyFlags required,
+                          VkMemoryPropertyFlags preferred = 0) const;
+
+  // Gives a Vulkan object a debug name (shown by validation messages); no-op without
+  // debug utils.
+  void SetName(VkObjectType type, uint64_t handle, const std::string& name) const;
+  template <typename T>
+  void SetName(T handle, VkObjectType type, const std::string& name) const {
+    SetName(type, reinterpret_cast<uint64_t>(handle), name);
+  }
+
+  // Records `record` into a one-time command buffer, submits it and waits. For uploads.
+  absl::Status SubmitOnce(const std::function<void(VkCommandBuffer)>& record);
+
+  // Validation messages (warnings and errors) since creation; tests assert there are none.
+  uint64_t validation_message_count() const { return validation_count_.load(); }
+  std::vector<std::string> validation_messages() const;
+
+ private:
+  Context() = default;
+  static VKAPI_ATTR VkBool32 VKAPI_CALL DebugCallback(
+      VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT types,
+      const VkDebugUtilsMessengerCallbackDataEXT* data, void* user);
+
+  VkInstance instance_ = VK_NULL_HANDLE;
+  VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
+  VkPhysicalDevice physical_ = VK_NULL_HANDLE;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkQueue queue_ = VK_NULL_HANDLE;
+  uint32_t queue_family_ = 0;
+  VkCommandPool upload_pool_ = VK_NULL_HANDLE;
+  VkFence upload_fence_ = VK_NULL_HANDLE;
+  VkPhysicalDeviceMemoryProperties memory_{};
+  VkPhysicalDeviceLimits limits_{};
+  DeviceInfo info_;
+  PFN_vkSetDebugUtilsObjectNameEXT set_name_ = nullptr;
+  std::atomic<uint64_t> validation_count_{0};
+  mutable std::mutex messages_mutex_;
+  std::vector<std::string> messages_;  // the first few, for test failure output
+};
+
+}  // namespace tessera::vk

@@ -1,0 +1,63 @@
+#pragma once
+// Graphics pipelines from embedded SPIR-V, for dynamic rendering (no render passes).
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <vulkan/vulkan.h>
+
+#include "absl/status/statusor.h"
+#include "renderer/vk/context.h"
+
+namespace tessera::vk {
+
+// Owner of a VkPipeline (move-only).
+class Pipeline {
+ public:
+  Pipeline() = default;
+  Pipeline(VkDevice device, VkPipeline pipeline) : device_(device), pipeline_(pipeline) {}
+  ~Pipeline() { Reset(); }
+  Pipeline(Pipeline&& o) noexcept { *this = std::move(o); }
+  Pipeline& operator=(Pipeline&& o) noexcept {
+    if (this != &o) {
+      Reset();
+      device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+      pipeline_ = std::exchange(o.pipeline_, VK_NULL_HANDLE);
+    }
+    return *this;
+  }
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+  VkPipeline handle() const { return pipeline_; }
+
+ private:
+  void Reset() {
+    if (device_ && pipeline_) vkDestroyPipeline(device_, pipeline_, nullptr);
+    pipeline_ = VK_NULL_HANDLE;
+  }
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkPipeline pipeline_ = VK_NULL_HANDLE;
+};
+
+enum class BlendMode { kNone, kAlpha };
+
+struct GraphicsPipelineDesc {
+  std::string name;
+  std::string vertex_shader;    // file name in shaders/, e.g. "forward.vert"
+  std::string fragment_shader;  // empty: depth-only pipeline
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  bool scene_vertex_input = true;  // bind the scene vertex layout (else no vertex input)
+  std::vector<VkFormat> color_formats;
+  VkFormat depth_format = VK_FORMAT_UNDEFINED;
+  bool depth_test = false;
+  bool depth_write = false;
+  VkCompareOp depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reverse-Z
+  BlendMode blend = BlendMode::kNone;
+  VkSampleCountFlagBits samples = VK_SAMPLE_COUNT_1_BIT;
+};
+
+// Builds a pipeline with dynamic viewport, scissor and cull mode.
+absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
+                                                const GraphicsPipelineDesc& desc);
+
+}  // namespace tessera::vk

@@ -1,0 +1,125 @@
+#pragma once
+// Move-only RAII owners of Vulkan buffers, images and samplers, each with a debug name.
+// Lifetime rule: the renderer waits for each frame's fence before returning it, so an object
+// that outlives the Render() call that used it can be destroyed at once. When frames overlap
+// (the streaming issue), destruction moves to a per-frame deferred queue.
+#include <cstdint>
+#include <string>
+#include <utility>
+
+#include <vulkan/vulkan.h>
+
+#include "absl/status/statusor.h"
+#include "renderer/vk/context.h"
+
+namespace tessera::vk {
+
+enum class MemoryUsage {
+  kDeviceLocal,  // GPU-only
+  kUpload,       // host-visible, coherent: staging and per-frame uniforms
+  kReadback,     // host-visible, cached when possible: GPU -> CPU copies
+};
+
+class Buffer {
+ public:
+  Buffer() = default;
+  // Creates a buffer with its own memory. Host-visible buffers stay mapped.
+  static absl::StatusOr<Buffer> Create(const Context& ctx, VkDeviceSize size,
+                                       VkBufferUsageFlags usage, MemoryUsage memory,
+                                       const std::string& name);
+  ~Buffer() { Reset(); }
+  Buffer(Buffer&& o) noexcept { *this = std::move(o); }
+  Buffer& operator=(Buffer&& o) noexcept;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+
+  VkBuffer handle() const { return buffer_; }
+  VkDeviceSize size() const { return size_; }
+  void* mapped() const { return mapped_; }
+  // Makes GPU writes visible to the host for non-coherent memory.
+  void InvalidateForRead() const;
+  explicit operator bool() const { return buffer_ != VK_NULL_HANDLE; }
+
+ private:
+  void Reset();
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkBuffer buffer_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkDeviceSize size_ = 0;
+  void* mapped_ = nullptr;
+  bool coherent_ = true;
+};
+
+struct ImageDesc {
+  VkFormat format = VK_FORMAT_R8G8B8A8_UNORM;
+  uint32_t width = 1;
+  uint32_t height = 1;
+  uint32_t mip_levels = 1;
+  uint32_t array_layers = 1;
+  VkSampleCountFlagBits samples = VK_SAMPLE_COUNT_1_BIT;
+  VkImageUsageFlags usage = 0;
+  VkImageViewType view_type = VK_IMAGE_VIEW_TYPE_2D;
+};
+
+class Image {
+ public:
+  Image() = default;
+  static absl::StatusOr<Image> Create(const Context& ctx, const ImageDesc& desc,
+                                      const std::string& name);
+  ~Image() { Reset(); }
+  Image(Image&& o) noexcept { *this = std::move(o); }
+  Image& operator=(Image&& o) noexcept;
+  Image(const Image&) = delete;
+  Image& operator=(const Image&) = delete;
+
+  VkImage handle() const { return image_; }
+  VkImageView view() const { return view_; }
+  const ImageDesc& desc() const { return desc_; }
+  VkImageAspectFlags aspect() const;
+  explicit operator bool() const { return image_ != VK_NULL_HANDLE; }
+
+ private:
+  void Reset();
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkImage image_ = VK_NULL_HANDLE;
+  VkImageView view_ = VK_NULL_HANDLE;
+  VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  ImageDesc desc_;
+};
+
+class Sampler {
+ public:
+  Sampler() = default;
+  static absl::StatusOr<Sampler> Create(const Context& ctx, const VkSamplerCreateInfo& info,
+                                        const std::string& name);
+  ~Sampler() { Reset(); }
+  Sampler(Sampler&& o) noexcept { *this = std::move(o); }
+  Sampler& operator=(Sampler&& o) noexcept;
+  Sampler(const Sampler&) = delete;
+  Sampler& operator=(const Sampler&) = delete;
+  VkSampler handle() const { return sampler_; }
+
+ private:
+  void Reset();
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkSampler sampler_ = VK_NULL_HANDLE;
+};
+
+bool IsDepthFormat(VkFormat format);
+
+// A whole-image layout transition with synchronization2 scopes.
+struct ImageTransition {
+  VkPipelineStageFlags2 src_stage = VK_PIPELINE_STAGE_2_NONE;
+  VkAccessFlags2 src_access = VK_ACCESS_2_NONE;
+  VkImageLayout old_layout = VK_IMAGE_LAYOUT_UNDEFINED;
+  VkPipelineStageFlags2 dst_stage = VK_PIPELINE_STAGE_2_NONE;
+  VkAccessFlags2 dst_access = VK_ACCESS_2_NONE;
+  VkImageLayout new_layout = VK_IMAGE_LAYOUT_UNDEFINED;
+};
+VkImageMemoryBarrier2 MakeImageBarrier(const Image& image, const ImageTransition& t,
+                                       uint32_t base_mip = 0,
+                                       uint32_t mip_count = VK_REMAINING_MIP_LEVELS);
+void CmdBarrier(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images, uint32_t image_count,
+                const VkBufferMemoryBarrier2* buffers = nullptr, uint32_t buffer_count = 0);
+
+}  // namespace tessera::vk

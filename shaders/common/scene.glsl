@@ -1,0 +1,26 @@
+// Descriptor set 0 of the scene passes and the position transform every scene vertex shader
+// shares. The transform is `precise` (no FMA contraction or reassociation), so the depth
+// prepass and the shading pass produce bit-identical depths, which the GREATER_OR_EQUAL test
+// of the shading pass relies on. (`invariant gl_Position` would say the same, but glslang puts
+// the decoration on a block member, which this validation layer's SPIR-V checker flags.)
+#ifndef TESSERA_SCENE_GLSL
+#define TESSERA_SCENE_GLSL
+#include "gpu_types.h"
+
+layout(set = 0, binding = kBindingFrame, std140) uniform FrameBlock { FrameUniforms frame; };
+layout(set = 0, binding = kBindingLights, std140) uniform LightBlock {
+  GpuLight lights[kMaxLights];
+};
+layout(set = 0, binding = kBindingDrawables, std430) readonly buffer DrawableBlock {
+  GpuDrawable drawables[];
+};
+layout(set = 0, binding = kBindingMaterials, std430) readonly buffer MaterialBlock {
+  GpuMaterial materials[];
+};
+
+vec4 ClipPosition(mat4 world, vec3 position) {
+  precise vec4 world_position = world * vec4(position, 1.0);
+  precise vec4 clip = frame.view_proj * world_position;
+  return clip;
+}
+#endif
