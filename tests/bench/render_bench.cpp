@@ -1,1 +1,164 @@
-// placeholder: being written
+// tessera-bench: renders a scene N times per frame size after a warm-up and prints JSON with
+// the median GPU time of every pass, the median total and the CPU stages. A program, not a
+// timed test: compare figures as ratios within one run (the machines are noisy).
+//
+//   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf \
+//       --sizes 1280x720,1920x1080 --frames 20 --warmup 3
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <nlohmann/json.hpp>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
+#include "renderer/renderer.h"
+#include "renderer/scene/demo_scene.h"
+
+namespace {
+
+[[noreturn]] void Fail(const std::string& msg) {
+  std::fprintf(stderr, "tessera-bench: %s\n", msg.c_str());
+  std::exit(2);
+}
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+glm::vec3 ParseVec3(const std::string& s) {
+  std::vector<std::string> p = absl::StrSplit(s, ',');
+  glm::vec3 v;
+  if (p.size() != 3) Fail("want X,Y,Z: " + s);
+  for (int i = 0; i < 3; ++i)
+    if (!absl::SimpleAtof(p[i], &v[i])) Fail("not a number: " + p[i]);
+  return v;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace tessera;
+  std::string scene_path, device;
+  std::vector<std::pair<uint32_t, uint32_t>> sizes = {{1280, 720}, {1920, 1080}};
+  uint32_t frames = 20, warmup = 3;
+  std::optional<glm::vec3> eye, target;
+  Settings base;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) Fail(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--scene") scene_path = value();
+    else if (arg == "--device") device = value();
+    else if (arg == "--frames") { if (!absl::SimpleAtoi(value(), &frames) || frames == 0) Fail("--frames"); }
+    else if (arg == "--warmup") { if (!absl::SimpleAtoi(value(), &warmup)) Fail("--warmup"); }
+    else if (arg == "--eye") eye = ParseVec3(value());
+    else if (arg == "--target") target = ParseVec3(value());
+    else if (arg == "--culling") {
+      absl::StatusOr<CullingMode> c = ParseCullingMode(value());
+      if (!c.ok()) Fail(std::string(c.status().message()));
+      base.culling = *c;
+    } else if (arg == "--sizes") {
+      sizes.clear();
+      for (const std::string& s : absl::StrSplit(value(), ',')) {
+        std::vector<std::string> wh = absl::StrSplit(s, 'x');
+        uint32_t w, h;
+        if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &w) || !absl::SimpleAtoi(wh[1], &h))
+          Fail("--sizes wants WxH[,WxH...], got " + s);
+        sizes.emplace_back(w, h);
+      }
+    } else {
+      Fail("unknown option " + arg +
+           " (--scene F --sizes WxH,.. --frames N --warmup N --eye X,Y,Z --target X,Y,Z "
+           "--culling MODE --device NAME)");
+    }
+  }
+
+  absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
+  if (!renderer.ok()) Fail(std::string(renderer.status().message()));
+  const auto t0 = std::chrono::steady_clock::now();
+  absl::StatusOr<SceneHandle> scene;
+  if (scene_path.empty()) {
+    scene = (*renderer)->LoadScene(BuildDemoScene());
+  } else {
+    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(scene_path);
+    if (!source.ok()) Fail(std::string(source.status().message()));
+    scene = (*renderer)->LoadScene(*source);
+  }
+  if (!scene.ok()) Fail(std::string(scene.status().message()));
+  const double load_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const SceneInfo& info = (*scene)->info();
+
+  nlohmann::json out;
+  const DeviceInfo& dev = (*renderer)->device_info();
+  out["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
+  out["scene"] = {{"name", info.name}, {"triangles", info.counts.triangles},
+                  {"drawables", info.counts.primitives}, {"load_ms", load_ms},
+                  {"device_mib", double(info.device_bytes) / (1 << 20)}};
+  out["frames"] = frames;
+  out["warmup"] = warmup;
+  for (const auto& [w, h] : sizes) {
+    Settings s = base;
+    s.width = w;
+    s.height = h;
+    const float aspect = float(w) / float(h);
+    Camera camera = !info.cameras.empty() ? FromSceneCamera(info.cameras[0])
+                                          : FrameBounds(info.bounds, 0.8f, aspect);
+    if (eye && target) {
+      camera = Camera{};
+      camera.eye = *eye;
+      camera.target = *target;
+      camera.znear = 0.05f;
+    }
+    std::map<std::string, std::vector<double>> pass_ms;
+    std::vector<std::string> order;
+    std::vector<double> total, record, submit_wait, readback, encode, ratio;
+    Frame last;
+    for (uint32_t f = 0; f < warmup + frames; ++f) {
+      absl::StatusOr<Frame> frame = (*renderer)->Render(**scene, camera, s);
+      if (!frame.ok()) Fail(std::string(frame.status().message()));
+      if (absl::StatusOr<std::vector<uint8_t>> jpg = EncodeFrame(*frame, ImageFormat::kJpeg);
+          !jpg.ok()) {
+        Fail(std::string(jpg.status().message()));
+      }
+      if (f < warmup) continue;
+      for (const PassTiming& p : frame->passes) {
+        if (!pass_ms.count(p.pass)) order.push_back(p.pass);
+        pass_ms[p.pass].push_back(p.gpu_ms);
+      }
+      total.push_back(frame->gpu_total_ms);
+      record.push_back(frame->cpu.record_ms);
+      submit_wait.push_back(frame->cpu.submit_wait_ms);
+      readback.push_back(frame->cpu.readback_ms);
+      encode.push_back(frame->cpu.encode_ms);
+      ratio.push_back(frame->gpu_total_ms / std::max(1e-6, frame->cpu.submit_wait_ms));
+      last = std::move(*frame);
+    }
+    nlohmann::json r;
+    r["width"] = w;
+    r["height"] = h;
+    nlohmann::json passes = nlohmann::json::array();
+    for (const std::string& name : order) passes.push_back({{"pass", name}, {"gpu_ms_median", Median(pass_ms[name])}});
+    r["passes"] = passes;
+    r["gpu_total_ms_median"] = Median(total);
+    r["cpu_ms_median"] = {{"record", Median(record)}, {"submit_wait", Median(submit_wait)},
+                          {"readback", Median(readback)}, {"encode_jpeg", Median(encode)}};
+    r["gpu_total_over_wall"] = Median(ratio);
+    r["stats"] = {{"draws", last.stats.draws}, {"triangles_submitted", last.stats.triangles_submitted},
+                  {"drawables_culled", last.stats.drawables_culled}};
+    out["results"].push_back(r);
+  }
+  std::printf("%s\n", out.dump(2).c_str());
+  return 0;
+}
