@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -73,16 +74,34 @@ Camera FrameBounds(const Aabb& bounds, float yfov, float aspect, glm::vec3 direc
   Camera cam;
   cam.yfov = yfov;
   const glm::vec3 center = bounds.empty() ? glm::vec3(0.0f) : bounds.center();
-  const float radius = std::max(bounds.radius(), 1e-3f);
-  const float xfov = 2.0f * std::atan(std::tan(yfov * 0.5f) * aspect);
-  const float half = 0.5f * std::min(yfov, xfov);
-  const float distance = radius / std::sin(half);
+  const Aabb box = bounds.empty() ? Aabb{glm::vec3(-1.0f), glm::vec3(1.0f)} : bounds;
+  const glm::vec3 back = glm::normalize(direction);  // from the scene towards the camera
+  glm::vec3 up(0.0f, 1.0f, 0.0f);
+  if (glm::length(glm::cross(back, up)) < 1e-3f) up = glm::vec3(0.0f, 0.0f, -1.0f);
+  const glm::vec3 right = glm::normalize(glm::cross(up, back));
+  const glm::vec3 true_up = glm::cross(back, right);
+  // The nearest distance along `back` at which every corner of the box is inside both fields of
+  // view: a corner at lateral offsets (x, y) and depth offset z (towards the camera) needs
+  // d >= z + |x| / tan(half_xfov) and d >= z + |y| / tan(half_yfov).
+  const float tan_y = std::tan(yfov * 0.5f);
+  const float tan_x = tan_y * aspect;
+  float distance = 0.0f, nearest = std::numeric_limits<float>::max();
+  for (int i = 0; i < 8; ++i) {
+    const glm::vec3 corner(i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y,
+                           i & 4 ? box.max.z : box.min.z);
+    const glm::vec3 o = corner - center;
+    const float z = glm::dot(o, back);
+    distance = std::max({distance, z + std::abs(glm::dot(o, right)) / tan_x,
+                         z + std::abs(glm::dot(o, true_up)) / tan_y});
+    nearest = std::min(nearest, -z);
+  }
+  distance *= 1.05f;  // a small margin around the object
+  distance = std::max(distance, 1e-3f);
   cam.target = center;
-  cam.eye = center + glm::normalize(direction) * distance;
-  cam.up = glm::vec3(0.0f, 1.0f, 0.0f);
-  if (glm::length(glm::cross(glm::normalize(direction), cam.up)) < 1e-3f)
-    cam.up = glm::vec3(0.0f, 0.0f, -1.0f);
-  cam.znear = std::max(distance - radius, distance * 0.01f) * 0.5f;
+  cam.eye = center + back * distance;
+  cam.up = up;
+  // Nearest corner depth from the camera, halved for margin; reverse Z keeps precision anyway.
+  cam.znear = std::max((distance + nearest) * 0.5f, distance * 0.01f);
   cam.zfar = 0.0f;
   return cam;
 }

@@ -35,8 +35,8 @@ glm::mat4 ProjectionMatrix(const Camera& camera, float aspect);
 // The camera's world position (from eye, or from the inverse of `view`).
 glm::vec3 CameraPosition(const Camera& camera);
 
-// A camera looking at `bounds` from `direction` (pointing from the scene towards the camera)
-// at a distance where the bounding sphere fits the smaller of the two fields of view.
+// A camera looking at the centre of `bounds` from `direction` (pointing from the scene towards
+// the camera), at the nearest distance where all eight corners of the box are in view (plus 5%).
 Camera FrameBounds(const Aabb& bounds, float yfov, float aspect,
                    glm::vec3 direction = glm::vec3(0.55f, 0.45f, 0.70f));
 

@@ -374,8 +374,8 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   fu.proj = ProjectionMatrix(camera, aspect);
   fu.view_proj = fu.proj * fu.view;
   fu.camera_position = glm::vec4(CameraPosition(camera), 1.0f);
-  fu.ambient_sky = glm::vec4(0.30f, 0.34f, 0.40f, 0.0f);
-  fu.ambient_ground = glm::vec4(0.12f, 0.11f, 0.10f, 0.0f);
+  fu.ambient_sky = glm::vec4(0.50f, 0.55f, 0.62f, 0.0f);
+  fu.ambient_ground = glm::vec4(0.22f, 0.20f, 0.18f, 0.0f);
   std::vector<Light> lights;
   if (s.scene_lights) lights = gs.lights();
   if (lights.empty()) lights.push_back(DefaultSun());

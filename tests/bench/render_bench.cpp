@@ -2,7 +2,7 @@
 // the median GPU time of every pass, the median total and the CPU stages. A program, not a
 // timed test: compare figures as ratios within one run (the machines are noisy).
 //
-//   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf \
+//   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf
 //       --sizes 1280x720,1920x1080 --frames 20 --warmup 3
 #include <algorithm>
 #include <chrono>
@@ -70,7 +70,8 @@ int main(int argc, char** argv) {
       base.culling = *c;
     } else if (arg == "--sizes") {
       sizes.clear();
-      for (const std::string& s : absl::StrSplit(value(), ',')) {
+      const std::vector<std::string> items = absl::StrSplit(value(), ',');
+      for (const std::string& s : items) {
         std::vector<std::string> wh = absl::StrSplit(s, 'x');
         uint32_t w, h;
         if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &w) || !absl::SimpleAtoi(wh[1], &h))

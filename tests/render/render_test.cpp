@@ -88,6 +88,7 @@ struct GoldenCase {
   const char* name;
   const char* asset;  // relative to TESSERA_ASSETS_DIR; nullptr = built-in demo scene
   uint32_t width, height;
+  glm::vec3 direction = glm::vec3(0.25f, 0.2f, 1.0f);  // framing direction (no file camera)
 };
 
 class GoldenTest : public ::testing::TestWithParam<GoldenCase> {};
@@ -112,8 +113,7 @@ TEST_P(GoldenTest, MatchesGolden) {
   const float aspect = float(c.width) / float(c.height);
   // The file's own camera where it has one (the demo scene too), else framed from the front.
   const Camera camera = scene->info().cameras.empty()
-                            ? FrameBounds(scene->info().bounds, 0.8f, aspect,
-                                          glm::vec3(0.35f, 0.3f, 1.0f))
+                            ? FrameBounds(scene->info().bounds, 0.8f, aspect, c.direction)
                             : FromSceneCamera(scene->info().cameras[0]);
   absl::StatusOr<Frame> frame = r.Render(*scene, camera, settings);
   ASSERT_TRUE(frame.ok()) << frame.status();
@@ -126,11 +126,14 @@ TEST_P(GoldenTest, MatchesGolden) {
 INSTANTIATE_TEST_SUITE_P(
     Scenes, GoldenTest,
     ::testing::Values(GoldenCase{"demo", nullptr, 320, 180},
-                      GoldenCase{"box", "Box/glTF/Box.gltf", 192, 192},
-                      GoldenCase{"box_textured", "BoxTextured/glTF-Binary/BoxTextured.glb", 192, 192},
-                      GoldenCase{"damaged_helmet", "DamagedHelmet/glTF-Binary/DamagedHelmet.glb", 256, 256},
+                      GoldenCase{"box", "Box/glTF/Box.gltf", 192, 192, glm::vec3(1.0f, 0.8f, 1.2f)},
+                      GoldenCase{"box_textured", "BoxTextured/glTF-Binary/BoxTextured.glb", 192, 192,
+                                 glm::vec3(1.0f, 0.8f, 1.2f)},
+                      GoldenCase{"damaged_helmet", "DamagedHelmet/glTF-Binary/DamagedHelmet.glb", 256, 256,
+                                 glm::vec3(0.0f, 0.0f, 1.0f)},
                       GoldenCase{"alpha_blend_mode", "AlphaBlendModeTest/glTF/AlphaBlendModeTest.gltf", 320, 180},
-                      GoldenCase{"orientation", "OrientationTest/glTF/OrientationTest.gltf", 256, 256},
+                      GoldenCase{"orientation", "OrientationTest/glTF/OrientationTest.gltf", 256, 256,
+                                 glm::vec3(1.0f, 0.9f, 1.1f)},
                       GoldenCase{"texture_transform", "TextureTransformTest/glTF/TextureTransformTest.gltf", 256, 256}),
     [](const ::testing::TestParamInfo<GoldenCase>& info) { return std::string(info.param.name); });
 
