@@ -119,6 +119,8 @@ struct Renderer::Impl {
     if (scene_layout.pipeline_layout)
       vkDestroyPipelineLayout(d, scene_layout.pipeline_layout, nullptr);
     if (scene_layout.set_layout) vkDestroyDescriptorSetLayout(d, scene_layout.set_layout, nullptr);
+    if (scene_layout.material_set_layout)
+      vkDestroyDescriptorSetLayout(d, scene_layout.material_set_layout, nullptr);
   }
 
   absl::Status Init();
@@ -141,17 +143,25 @@ absl::Status Renderer::Impl::Init() {
       {gpu::kBindingMaterials, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
   };
-  for (uint32_t b = 0; b < gpu::kMaxTextureBuckets; ++b)
-    bindings.push_back({gpu::kBindingTextures + b, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-                        VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
   li.pBindings = bindings.data();
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, &scene_layout.set_layout),
                      "scene set layout");
+  std::vector<VkDescriptorSetLayoutBinding> texture_bindings;
+  for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k)
+    texture_bindings.push_back({k, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                                VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+  li.bindingCount = static_cast<uint32_t>(texture_bindings.size());
+  li.pBindings = texture_bindings.data();
+  VK_RETURN_IF_ERROR(
+      vkCreateDescriptorSetLayout(d, &li, nullptr, &scene_layout.material_set_layout),
+      "material set layout");
+  const VkDescriptorSetLayout set_layouts[] = {scene_layout.set_layout,
+                                               scene_layout.material_set_layout};
   VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  pli.setLayoutCount = 1;
-  pli.pSetLayouts = &scene_layout.set_layout;
+  pli.setLayoutCount = 2;
+  pli.pSetLayouts = set_layouts;
   VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, &scene_layout.pipeline_layout),
                      "scene pipeline layout");
 
@@ -185,7 +195,7 @@ absl::Status Renderer::Impl::Init() {
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 4},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, gpu::kMaxTextureBuckets + 4},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 4},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   dpi.maxSets = 4;
@@ -291,9 +301,6 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
   const VkDescriptorType types[] = {
       VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
       VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
-  std::vector<VkDescriptorImageInfo> images;
-  for (const vk::Image& bucket : scene.texture_buckets())
-    images.push_back({scene.sampler(), bucket.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
   std::vector<VkWriteDescriptorSet> writes;
   for (uint32_t i = 0; i < 4; ++i) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -304,13 +311,6 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
     w.pBufferInfo = &buffers[i];
     writes.push_back(w);
   }
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set;
-  w.dstBinding = gpu::kBindingTextures;
-  w.descriptorCount = static_cast<uint32_t>(images.size());  // consecutive bindings
-  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  w.pImageInfo = images.data();
-  writes.push_back(w);
   vkUpdateDescriptorSets(ctx->device(), static_cast<uint32_t>(writes.size()), writes.data(), 0,
                          nullptr);
   return set;
@@ -343,7 +343,8 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const GltfSource& source) {
 
 absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   std::lock_guard lock(impl_->mutex);
-  absl::StatusOr<std::unique_ptr<GpuScene>> gpu = GpuScene::Upload(*impl_->ctx, cpu);
+  absl::StatusOr<std::unique_ptr<GpuScene>> gpu =
+      GpuScene::Upload(*impl_->ctx, cpu, impl_->scene_layout.material_set_layout);
   if (!gpu.ok()) return gpu.status();
   std::shared_ptr<Scene> scene(new Scene());
   scene->info_ = {cpu.name, cpu.counts, cpu.bounds, cpu.cameras, cpu.warnings,

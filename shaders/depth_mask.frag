@@ -12,6 +12,6 @@ void main() {
   UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
   float alpha = materials[v_material].base_color_factor.a;
   GpuTextureRef t = materials[v_material].base_color_tex;
-  if (HasTexture(t)) alpha *= SampleTexture(t, v_uv0, v_uv1, grads).a;
+  if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, v_uv0, v_uv1, grads).a;
   if (alpha < materials[v_material].params2.x) discard;
 }

@@ -54,7 +54,7 @@ void main() {
   UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
   GpuMaterial m = materials[v_material];
   vec4 base = m.base_color_factor;
-  if (HasTexture(m.base_color_tex)) base *= SampleTexture(m.base_color_tex, v_uv0, v_uv1, grads);
+  if (HasTexture(m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, v_uv0, v_uv1, grads);
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).
   if (m.flags.x == kAlphaMask && base.a < m.params2.x) discard;
@@ -62,7 +62,7 @@ void main() {
   float metallic = m.params.x;
   float roughness = m.params.y;
   if (HasTexture(m.metallic_roughness_tex)) {
-    vec4 mr = SampleTexture(m.metallic_roughness_tex, v_uv0, v_uv1, grads);
+    vec4 mr = SampleTexture(u_metallic_roughness_tex, m.metallic_roughness_tex, v_uv0, v_uv1, grads);
     roughness *= mr.g;
     metallic *= mr.b;
   }
@@ -76,16 +76,16 @@ void main() {
     vec3 t = v_tangent.xyz * side;
     t = normalize(t - n * dot(n, t));
     vec3 b = cross(n, t) * v_tangent.w;
-    vec3 tn = SampleTexture(m.normal_tex, v_uv0, v_uv1, grads).xyz * 2.0 - 1.0;
+    vec3 tn = SampleTexture(u_normal_tex, m.normal_tex, v_uv0, v_uv1, grads).xyz * 2.0 - 1.0;
     tn.xy *= m.params.z;
     n = normalize(mat3(t, b, n) * tn);
   }
   float ao = 1.0;
   if (HasTexture(m.occlusion_tex)) {
-    ao = 1.0 + m.params.w * (SampleTexture(m.occlusion_tex, v_uv0, v_uv1, grads).r - 1.0);
+    ao = 1.0 + m.params.w * (SampleTexture(u_occlusion_tex, m.occlusion_tex, v_uv0, v_uv1, grads).r - 1.0);
   }
   vec3 emissive = m.emissive.rgb;
-  if (HasTexture(m.emissive_tex)) emissive *= SampleTexture(m.emissive_tex, v_uv0, v_uv1, grads).rgb;
+  if (HasTexture(m.emissive_tex)) emissive *= SampleTexture(u_emissive_tex, m.emissive_tex, v_uv0, v_uv1, grads).rgb;
 
   uint debug_view = frame.counts.y;
   if (debug_view == kDebugNormals) { out_color = vec4(n * 0.5 + 0.5, 1.0); return; }

@@ -160,7 +160,9 @@ int main(int argc, char** argv) {
     nlohmann::json j;
     j["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
     j["scene"] = {{"name", info.name}, {"drawables", frame.stats.drawables},
-                  {"triangles", info.counts.triangles}};
+                  {"triangles", info.counts.triangles},
+                  {"bounds_min", {info.bounds.min.x, info.bounds.min.y, info.bounds.min.z}},
+                  {"bounds_max", {info.bounds.max.x, info.bounds.max.y, info.bounds.max.z}}};
     j["output"] = {{"path", out_path}, {"bytes", bytes.size()},
                    {"width", frame.image.width}, {"height", frame.image.height}};
     for (const PassTiming& p : frame.passes) j["passes"].push_back({{"pass", p.pass}, {"gpu_ms", p.gpu_ms}});
@@ -178,6 +180,12 @@ int main(int argc, char** argv) {
     std::printf("scene    %s: %u drawables, %llu triangles, %u culled\n", info.name.c_str(),
                 frame.stats.drawables, (unsigned long long)info.counts.triangles,
                 frame.stats.drawables_culled);
+    std::printf("bounds   (%.3g, %.3g, %.3g) .. (%.3g, %.3g, %.3g)\n", info.bounds.min.x,
+                info.bounds.min.y, info.bounds.min.z, info.bounds.max.x, info.bounds.max.y,
+                info.bounds.max.z);
+    std::printf("camera   eye (%.3g, %.3g, %.3g) target (%.3g, %.3g, %.3g)\n",
+                CameraPosition(camera).x, CameraPosition(camera).y, CameraPosition(camera).z,
+                camera.target.x, camera.target.y, camera.target.z);
     std::printf("output   %s (%ux%u, %zu bytes)\n\n", out_path.c_str(), frame.image.width,
                 frame.image.height, bytes.size());
     std::printf("%-16s %10s\n", "pass", "gpu ms");

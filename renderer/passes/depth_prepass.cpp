@@ -28,7 +28,7 @@ class DepthPrepass final : public Pass {
     vkCmdBeginRendering(ctx.cmd, &ri);
     if (!ctx.draws->opaque.empty()) {
       BeginSceneDraw(ctx, opaque_.handle());
-      RecordDraws(ctx, ctx.draws->opaque);
+      RecordDraws(ctx, ctx.draws->opaque, /*textured=*/false);
     }
     if (!ctx.draws->mask.empty()) {
       BeginSceneDraw(ctx, mask_.handle());
@@ -79,9 +79,17 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
   vkCmdBindIndexBuffer(ctx.cmd, ctx.scene->indices().handle(), 0, VK_INDEX_TYPE_UINT32);
 }
 
-void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items) {
+void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items,
+                 bool textured) {
   int cull = -1;
+  uint32_t material = UINT32_MAX;
   for (const DrawItem* item : items) {
+    if (textured && item->material != material) {
+      const VkDescriptorSet set = ctx.scene->material_set(item->material);
+      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout,
+                              gpu::kMaterialSet, 1, &set, 0, nullptr);
+      material = item->material;
+    }
     const int want = item->double_sided ? 0 : 1;
     if (want != cull) {
       vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);

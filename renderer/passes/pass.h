@@ -46,10 +46,11 @@ struct PassStats {
   uint64_t triangles = 0;
 };
 
-// Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
-// texture buckets (shaders/common/gpu_types.h has the bindings).
+// Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs;
+// set 1 = the material's texture buckets (shaders/common/gpu_types.h has the bindings).
 struct SceneLayout {
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+  VkDescriptorSetLayout material_set_layout = VK_NULL_HANDLE;
   VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
 };
 
@@ -87,7 +88,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateReadbackPass();
 // Shared by the geometry passes: full-target viewport/scissor, scene buffers bound.
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline);
 // Draws `items` with firstInstance = drawable index, switching the cull mode per item's
-// double-sidedness only when it changes.
-void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items);
+// double-sidedness and (when `textured`) the material texture set only when they change.
+void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items,
+                 bool textured = true);
 
 }  // namespace tessera

@@ -272,9 +272,15 @@ TextureBucketPlan PlanTextureBuckets(const std::vector<Texture>& textures, uint3
   return plan;
 }
 
+GpuScene::~GpuScene() {
+  if (material_pool_) vkDestroyDescriptorPool(device_, material_pool_, nullptr);
+}
+
 absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
-                                                            const CpuScene& scene) {
+                                                            const CpuScene& scene,
+                                                            VkDescriptorSetLayout material_layout) {
   auto gs = std::make_unique<GpuScene>();
+  gs->device_ = ctx.device();
   const std::string& n = scene.name;
   constexpr VkBufferUsageFlags kVertexUsage = VK_BUFFER_USAGE_VERTEX_BUFFER_BIT;
   auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
@@ -323,8 +329,9 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
     g.aabb_min = glm::vec4(d.world_bounds.min, 0.0f);
     g.aabb_max = glm::vec4(d.world_bounds.max, 0.0f);
     drawables.push_back(g);
-    gs->draws_.push_back({i, p.first_index, p.index_count, static_cast<int32_t>(p.first_vertex),
-                          m.alpha_mode, m.double_sided, d.world_bounds});
+    gs->draws_.push_back({i, scene.materials.empty() ? 0u : p.material, p.first_index,
+                          p.index_count, static_cast<int32_t>(p.first_vertex), m.alpha_mode,
+                          m.double_sided, d.world_bounds});
   }
   if (drawables.empty()) drawables.push_back(gpu::GpuDrawable{});  // keep the binding valid
 
@@ -337,7 +344,8 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
   if (!st.ok()) return st;
 
-  for (uint32_t b = 0; b < gpu::kMaxTextureBuckets; ++b) {
+  const uint32_t bucket_count = std::max<uint32_t>(1, uint32_t(plan.buckets.size()));
+  for (uint32_t b = 0; b < bucket_count; ++b) {
     absl::StatusOr<vk::Image> image;
     if (b < plan.buckets.size()) {
       std::vector<const Texture*> layers(plan.buckets[b].layers);
@@ -370,6 +378,47 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
   absl::StatusOr<vk::Sampler> sampler = vk::Sampler::Create(ctx, si, n + ".sampler");
   if (!sampler.ok()) return sampler.status();
   gs->sampler_ = std::move(*sampler);
+
+  // One texture set per material; slots without a texture point at bucket 0 (never sampled).
+  const uint32_t material_count = uint32_t(materials.size());
+  const VkDescriptorPoolSize pool_size{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                                       material_count * gpu::kMaterialTextureSlots};
+  VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  dpi.maxSets = material_count;
+  dpi.poolSizeCount = 1;
+  dpi.pPoolSizes = &pool_size;
+  VK_RETURN_IF_ERROR(vkCreateDescriptorPool(ctx.device(), &dpi, nullptr, &gs->material_pool_),
+                     "material descriptor pool");
+  std::vector<VkDescriptorSetLayout> layouts(material_count, material_layout);
+  gs->material_sets_.resize(material_count);
+  VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  ai.descriptorPool = gs->material_pool_;
+  ai.descriptorSetCount = material_count;
+  ai.pSetLayouts = layouts.data();
+  VK_RETURN_IF_ERROR(vkAllocateDescriptorSets(ctx.device(), &ai, gs->material_sets_.data()),
+                     "material descriptor sets");
+  std::vector<VkDescriptorImageInfo> infos(size_t(material_count) * gpu::kMaterialTextureSlots);
+  std::vector<VkWriteDescriptorSet> writes;
+  for (uint32_t m = 0; m < material_count; ++m) {
+    const gpu::GpuMaterial& g = materials[m];
+    const gpu::GpuTextureRef* slots[gpu::kMaterialTextureSlots] = {
+        &g.base_color_tex, &g.metallic_roughness_tex, &g.normal_tex, &g.occlusion_tex,
+        &g.emissive_tex};
+    VkDescriptorImageInfo* info = &infos[size_t(m) * gpu::kMaterialTextureSlots];
+    for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k) {
+      const int bucket = std::max(0, slots[k]->info.x);
+      info[k] = {gs->sampler_.handle(), gs->buckets_[bucket].view(),
+                 VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    }
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = gs->material_sets_[m];
+    w.dstBinding = 0;
+    w.descriptorCount = gpu::kMaterialTextureSlots;  // consecutive bindings 0..4
+    w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    w.pImageInfo = info;
+    writes.push_back(w);
+  }
+  vkUpdateDescriptorSets(ctx.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
 
   gs->lights_ = scene.lights;
   gs->bounds_ = scene.bounds;

@@ -36,6 +36,7 @@ TextureBucketPlan PlanTextureBuckets(const std::vector<Texture>& textures, uint3
 // One draw: a drawable and what state it needs.
 struct DrawItem {
   uint32_t drawable = 0;  // index into the Drawable buffer; becomes firstInstance
+  uint32_t material = 0;  // selects the material's texture descriptor set
   uint32_t first_index = 0;
   uint32_t index_count = 0;
   int32_t vertex_offset = 0;
@@ -48,15 +49,22 @@ class GpuScene {
  public:
   // Uploads `scene` and waits for the copies. Errors: RESOURCE_EXHAUSTED when device memory
   // runs out, INVALID_ARGUMENT when the scene exceeds a device limit (e.g. array layers).
+  // `material_layout` is the layout of descriptor set 1 (gpu::kMaterialSet): one set per
+  // material is allocated and written here.
   static absl::StatusOr<std::unique_ptr<GpuScene>> Upload(vk::Context& ctx,
-                                                          const CpuScene& scene);
+                                                          const CpuScene& scene,
+                                                          VkDescriptorSetLayout material_layout);
+  ~GpuScene();
 
   const vk::Buffer& vertices() const { return vertices_; }
   const vk::Buffer& indices() const { return indices_; }
   const vk::Buffer& drawables() const { return drawables_; }
   const vk::Buffer& materials() const { return materials_; }
-  // kMaxTextureBuckets images; unused slots hold a 1x1 placeholder so every binding is valid.
+  // The texture buckets; a scene without textures has one 1x1 placeholder, so every material
+  // set binding is valid.
   const std::vector<vk::Image>& texture_buckets() const { return buckets_; }
+  // Descriptor set 1 of material `m`: its texture slots' buckets.
+  VkDescriptorSet material_set(uint32_t m) const { return material_sets_[m]; }
   VkSampler sampler() const { return sampler_.handle(); }
   const std::vector<DrawItem>& draws() const { return draws_; }
   const std::vector<Light>& lights() const { return lights_; }
@@ -67,6 +75,9 @@ class GpuScene {
   vk::Buffer vertices_, indices_, drawables_, materials_;
   std::vector<vk::Image> buckets_;
   vk::Sampler sampler_;
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkDescriptorPool material_pool_ = VK_NULL_HANDLE;
+  std::vector<VkDescriptorSet> material_sets_;
   std::vector<DrawItem> draws_;
   std::vector<Light> lights_;
   Aabb bounds_;

@@ -1,5 +1,5 @@
-// Texture buckets: one sampler2DArray per bucket, picked with a switch because lavapipe cannot
-// index an array of samplers dynamically. Sampling uses explicit gradients (UvGradients below):
+// A material's textures: set 1 binds, per texture slot, the sampler2DArray bucket holding it;
+// the layer comes from the material. Sampling uses explicit gradients (UvGradients below):
 // the per-texture wrap applied here then does not disturb mip selection, and no derivative is
 // taken of a value loaded from a buffer: llvmpipe masks buffer loads for helper invocations, so
 // such derivatives are garbage along triangle edges (seen as bright seams on the diagonals).
@@ -7,28 +7,11 @@
 #define TESSERA_TEXTURES_GLSL
 #include "gpu_types.h"
 
-layout(set = 0, binding = kBindingTextures + 0) uniform sampler2DArray u_bucket0;
-layout(set = 0, binding = kBindingTextures + 1) uniform sampler2DArray u_bucket1;
-layout(set = 0, binding = kBindingTextures + 2) uniform sampler2DArray u_bucket2;
-layout(set = 0, binding = kBindingTextures + 3) uniform sampler2DArray u_bucket3;
-layout(set = 0, binding = kBindingTextures + 4) uniform sampler2DArray u_bucket4;
-layout(set = 0, binding = kBindingTextures + 5) uniform sampler2DArray u_bucket5;
-layout(set = 0, binding = kBindingTextures + 6) uniform sampler2DArray u_bucket6;
-layout(set = 0, binding = kBindingTextures + 7) uniform sampler2DArray u_bucket7;
-
-vec4 SampleBucket(int bucket, vec3 uvl, vec2 dx, vec2 dy) {
-  switch (bucket) {
-    case 0: return textureGrad(u_bucket0, uvl, dx, dy);
-    case 1: return textureGrad(u_bucket1, uvl, dx, dy);
-    case 2: return textureGrad(u_bucket2, uvl, dx, dy);
-    case 3: return textureGrad(u_bucket3, uvl, dx, dy);
-    case 4: return textureGrad(u_bucket4, uvl, dx, dy);
-    case 5: return textureGrad(u_bucket5, uvl, dx, dy);
-    case 6: return textureGrad(u_bucket6, uvl, dx, dy);
-    case 7: return textureGrad(u_bucket7, uvl, dx, dy);
-  }
-  return vec4(1.0);
-}
+layout(set = kMaterialSet, binding = kBindingBaseColorTex) uniform sampler2DArray u_base_color_tex;
+layout(set = kMaterialSet, binding = kBindingMetallicRoughnessTex) uniform sampler2DArray u_metallic_roughness_tex;
+layout(set = kMaterialSet, binding = kBindingNormalTex) uniform sampler2DArray u_normal_tex;
+layout(set = kMaterialSet, binding = kBindingOcclusionTex) uniform sampler2DArray u_occlusion_tex;
+layout(set = kMaterialSet, binding = kBindingEmissiveTex) uniform sampler2DArray u_emissive_tex;
 
 // glTF wrap modes: 0 repeat (the sampler does it), 1 clamp to edge, 2 mirrored repeat.
 float WrapCoord(float x, int mode) {
@@ -51,7 +34,7 @@ UvGradients ComputeUvGradients(vec2 uv0, vec2 uv1) {
   return UvGradients(dFdx(uv), dFdy(uv));
 }
 
-vec4 SampleTexture(GpuTextureRef t, vec2 uv0, vec2 uv1, UvGradients g) {
+vec4 SampleTexture(sampler2DArray bucket, GpuTextureRef t, vec2 uv0, vec2 uv1, UvGradients g) {
   bool second = t.info.z == 1;
   vec3 uv = vec3(second ? uv1 : uv0, 1.0);
   vec2 tuv = vec2(dot(t.row0.xyz, uv), dot(t.row1.xyz, uv));  // KHR_texture_transform
@@ -60,6 +43,6 @@ vec4 SampleTexture(GpuTextureRef t, vec2 uv0, vec2 uv1, UvGradients g) {
   vec2 dx = linear * (second ? g.dx.zw : g.dx.xy);
   vec2 dy = linear * (second ? g.dy.zw : g.dy.xy);
   vec2 wrapped = vec2(WrapCoord(tuv.x, t.info.w & 3), WrapCoord(tuv.y, (t.info.w >> 2) & 3));
-  return SampleBucket(t.info.x, vec3(wrapped, float(t.info.y)), dx, dy);
+  return textureGrad(bucket, vec3(wrapped, float(t.info.y)), dx, dy);
 }
 #endif

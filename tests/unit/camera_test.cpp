@@ -232,6 +232,16 @@ void ExpectFramed(const Camera& cam, const Aabb& bounds, float aspect, const std
   }
 }
 
+// True when some corner of `bounds` is outside the view of `cam` (off the image or behind it).
+bool SomeCornerOutOfView(const Camera& cam, const Aabb& bounds, float aspect) {
+  const glm::mat4 vp = ProjectionMatrix(cam, aspect) * ViewMatrix(cam);
+  for (const glm::vec3& corner : Corners(bounds)) {
+    const glm::vec4 c = vp * glm::vec4(corner, 1.0f);
+    if (c.w <= 0.0f || std::abs(c.x / c.w) > 1.0f || std::abs(c.y / c.w) > 1.0f) return true;
+  }
+  return false;
+}
+
 TEST(FrameBoundsTest, WholeBoxInsideTheImage) {
   const std::vector<Aabb> boxes = {
       Box({-1, -1, -1}, {1, 1, 1}),
@@ -256,6 +266,11 @@ TEST(FrameBoundsTest, WholeBoxInsideTheImage) {
           EXPECT_FLOAT_EQ(cam.yfov, yfov) << what;
           ExpectNear3(cam.target, box.center(), 1e-4f, what);
           ExpectFramed(cam, box, aspect, what);
+          // And it is the nearest such distance plus a small margin: 8% closer, some corner
+          // leaves the image. A loose sphere fit or a runaway distance would not.
+          Camera closer = cam;
+          closer.eye = cam.target + (cam.eye - cam.target) * 0.92f;
+          EXPECT_TRUE(SomeCornerOutOfView(closer, box, aspect)) << what << ": camera too far";
         }
       }
     }
@@ -289,6 +304,22 @@ TEST(FrameBoundsTest, DegenerateBoundsGiveAValidCamera) {
                   std::isfinite(cam.eye.z))
           << "box " << i;
       if (!boxes[i].empty()) ExpectFramed(cam, boxes[i], aspect, "box " + std::to_string(i));
+    }
+  }
+}
+
+TEST(FrameBoundsTest, SmallBoundsFarFromTheOriginGiveAValidCamera) {
+  // Georeferenced files put geometry 1e5..1e6 units from the origin. A point (or a tiny box)
+  // there must still give a camera whose eye differs from its target in float precision.
+  for (float offset : {1e3f, 1e5f, 1e6f}) {
+    Aabb point;
+    point.extend(glm::vec3(offset, -offset, offset));
+    Aabb tiny = point;
+    tiny.extend(glm::vec3(offset, -offset, offset) + glm::vec3(1e-4f));
+    for (const Aabb& box : {point, tiny}) {
+      const Camera cam = FrameBounds(box, 0.8f, 1.0f);
+      const absl::Status st = ValidateCamera(cam);
+      EXPECT_TRUE(st.ok()) << "offset " << offset << " extent " << box.extent().x << ": " << st;
     }
   }
 }

@@ -2,6 +2,11 @@
 // Expected counts come from the assets README table (nodes, meshes, triangles drawn) and from
 // parsing each file's JSON here with nlohmann (materials, textures, images, primitives), never
 // from the importer itself.
+#include "renderer/scene/gltf_import.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -10,14 +15,9 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
-#include <unistd.h>
-#include <nlohmann/json.hpp>
-
-#include "renderer/scene/gltf_import.h"
 
 namespace tessera {
 namespace {
@@ -73,9 +73,7 @@ json FileJson(const std::vector<uint8_t>& d) {
   return json::parse(d.begin(), d.end());
 }
 
-size_t ArraySize(const json& j, const char* key) {
-  return j.contains(key) ? j[key].size() : 0;
-}
+size_t ArraySize(const json& j, const char* key) { return j.contains(key) ? j[key].size() : 0; }
 
 // Every variant of a model that is present: glTF/, glTF-Binary/, glTF-Embedded/.
 std::vector<fs::path> Variants(const std::string& model) {
@@ -99,8 +97,8 @@ absl::StatusOr<CpuScene> ImportFile(const fs::path& path) {
 
 // Sponza decodes 69 textures: import it once per test binary.
 const absl::StatusOr<CpuScene>& SponzaScene() {
-  static const absl::StatusOr<CpuScene>* scene = new absl::StatusOr<CpuScene>(
-      ImportFile(fs::path(AssetsDir()) / "Sponza/glTF/Sponza.gltf"));
+  static const absl::StatusOr<CpuScene>* scene =
+      new absl::StatusOr<CpuScene>(ImportFile(fs::path(AssetsDir()) / "Sponza/glTF/Sponza.gltf"));
   return *scene;
 }
 
@@ -150,8 +148,8 @@ void ExpectValidScene(const CpuScene& s) {
     EXPECT_EQ(t.image->rgba8.size(), size_t(t.image->width) * t.image->height * 4);
   }
   for (const Material& m : s.materials) {
-    for (const TextureRef* r : {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion,
-                                &m.emissive}) {
+    for (const TextureRef* r :
+         {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
       EXPECT_GE(r->texture, -1);
       EXPECT_LT(r->texture, int32_t(s.textures.size()));
       EXPECT_LE(r->texcoord, 1u);
@@ -268,7 +266,8 @@ TEST(GltfImportFeatures, TextureTransform) {
     EXPECT_EQ(p.vertex_count, p.index_count);
     for (uint32_t t = 0; t < p.index_count; t += 3) {
       const Vertex* v = &s->vertices[p.first_vertex + s->indices[p.first_index + t]];
-      const glm::vec3 face = glm::cross(v[1].position - v[0].position, v[2].position - v[0].position);
+      const glm::vec3 face =
+          glm::cross(v[1].position - v[0].position, v[2].position - v[0].position);
       EXPECT_GT(glm::dot(face, v[0].normal), 0.0f);
     }
   }
@@ -333,7 +332,8 @@ TEST(GltfImportFeatures, BoxTexturedHasOneSrgbTexture) {
       const glm::vec2 d1 = b.uv0 - a.uv0, d2 = c.uv0 - a.uv0;
       const float r = d1.x * d2.y - d2.x * d1.y;
       if (std::abs(r) < 1e-6f) continue;
-      const glm::vec3 dpdu = ((b.position - a.position) * d2.y - (c.position - a.position) * d1.y) / r;
+      const glm::vec3 dpdu =
+          ((b.position - a.position) * d2.y - (c.position - a.position) * d1.y) / r;
       EXPECT_GT(glm::dot(glm::vec3(a.tangent), dpdu), 0.0f) << "triangle " << t / 3;
     }
   }
@@ -407,12 +407,13 @@ GltfSource QuadSource(int mode) {
       b64 += i + k <= raw.size() ? kB64[(v >> (18 - 6 * k)) & 63] : '=';
     }
   }
-  json j = {{"asset", {{"version", "2.0"}}},
-            {"buffers", {{{"byteLength", 48}, {"uri", "data:application/octet-stream;base64," + b64}}}},
-            {"bufferViews", {{{"buffer", 0}, {"byteLength", 48}}}},
-            {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}}}},
-            {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}, {"mode", mode}}}}}}},
-            {"nodes", {{{"mesh", 0}}}}};
+  json j = {
+      {"asset", {{"version", "2.0"}}},
+      {"buffers", {{{"byteLength", 48}, {"uri", "data:application/octet-stream;base64," + b64}}}},
+      {"bufferViews", {{{"buffer", 0}, {"byteLength", 48}}}},
+      {"accessors", {{{"bufferView", 0}, {"componentType", 5126}, {"count", 4}, {"type", "VEC3"}}}},
+      {"meshes", {{{"primitives", {{{"attributes", {{"POSITION", 0}}}, {"mode", mode}}}}}}},
+      {"nodes", {{{"mesh", 0}}}}};
   const std::string text = j.dump();
   GltfSource src;
   src.main_file = "quad.gltf";
@@ -422,7 +423,8 @@ GltfSource QuadSource(int mode) {
 
 TEST(GltfImportFeatures, StripsAndFansBecomeLists) {
   // glTF 2.0 section 3.7.2.1: strip triangle i is (i, i+1+i%2, i+2-i%2), fan i is (i+1, i+2, 0).
-  const std::map<int, std::vector<int>> expected = {{5, {0, 1, 2, 1, 3, 2}}, {6, {1, 2, 0, 2, 3, 0}}};
+  const std::map<int, std::vector<int>> expected = {{5, {0, 1, 2, 1, 3, 2}},
+                                                    {6, {1, 2, 0, 2, 3, 0}}};
   const glm::vec3 quad[4] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
   for (const auto& [mode, corners] : expected) {
     SCOPED_TRACE(mode);
@@ -449,7 +451,10 @@ TEST(GltfImportFeatures, LightsAndImageSharing) {
   GltfSource src = Edited(Source("BoxTextured/glTF/BoxTextured.gltf"), [](json& j) {
     j["extensionsUsed"] = {"KHR_lights_punctual", "EXT_made_up"};
     j["extensions"]["KHR_lights_punctual"]["lights"] = {
-        {{"type", "spot"}, {"color", {1, 0.5, 0}}, {"intensity", 5}, {"range", 10},
+        {{"type", "spot"},
+         {"color", {1, 0.5, 0}},
+         {"intensity", 5},
+         {"range", 10},
          {"spot", {{"innerConeAngle", 0.1}, {"outerConeAngle", 0.5}}}}};
     j["nodes"][0]["matrix"][12] = 1.0;  // translation (1, 2, 3)
     j["nodes"][0]["matrix"][13] = 2.0;
@@ -480,7 +485,8 @@ TEST(GltfImportFeatures, UriDecodingMatchesFileKeys) {
   REQUIRE_ASSETS();
   // '+' is literal in RFC 3986 (tinygltf decodes it as a space); %20 is a space.
   for (const std::string& uri : {std::string("a+b.bin"), std::string("a%20b.bin")}) {
-    GltfSource src = Edited(Source("Box/glTF/Box.gltf"), [&](json& j) { j["buffers"][0]["uri"] = uri; });
+    GltfSource src =
+        Edited(Source("Box/glTF/Box.gltf"), [&](json& j) { j["buffers"][0]["uri"] = uri; });
     src.files[uri == "a+b.bin" ? "a+b.bin" : "a b.bin"] = src.files["Box0.bin"];
     src.files.erase("Box0.bin");
     absl::StatusOr<CpuScene> s = ImportGltf(src);
@@ -492,7 +498,8 @@ TEST(GltfImportFiles, DiskLoaderRefusesEscapingUris) {
   const fs::path dir = fs::temp_directory_path() / ("tessera_gltf_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const fs::path file = dir / "esc.gltf";
-  std::ofstream(file) << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"../x.bin"}]})";
+  std::ofstream(file)
+      << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":4,"uri":"../x.bin"}]})";
   absl::StatusOr<GltfSource> s = LoadGltfSourceFromDisk(file.string());
   ASSERT_FALSE(s.ok());
   EXPECT_NE(s.status().message().find("../x.bin"), absl::string_view::npos) << s.status();
@@ -579,17 +586,18 @@ TEST(GltfImportMalformed, UrisLeavingTheFileSet) {
   // The absolute path of the real Box0.bin exists on disk with the right size: the import must
   // still refuse it, which shows it never reads the file system.
   const std::string real = fs::absolute(fs::path(AssetsDir()) / "Box/glTF/Box0.bin").string();
-  for (const std::string& uri : {std::string("../x.bin"), std::string("/etc/passwd"),
-                                 std::string("file:///etc/passwd"), std::string("..\\x.bin"),
-                                 std::string("%2e%2e/Box0.bin"), std::string("sub/../../x.bin"),
-                                 std::string("C:/x.bin"), real}) {
+  for (const std::string& uri :
+       {std::string("../x.bin"), std::string("/etc/passwd"), std::string("file:///etc/passwd"),
+        std::string("..\\x.bin"), std::string("%2e%2e/Box0.bin"), std::string("sub/../../x.bin"),
+        std::string("C:/x.bin"), real}) {
     SCOPED_TRACE(uri);
     ExpectInvalid(ImportGltf(Edited(box, [&](json& j) { j["buffers"][0]["uri"] = uri; })),
                   {"buffers[0].uri", "'" + uri + "'", "not in the file set"});
   }
   GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");
-  ExpectInvalid(ImportGltf(Edited(textured, [](json& j) { j["images"][0]["uri"] = "/etc/passwd"; })),
-                {"images[0].uri", "'/etc/passwd' is not in the file set"});
+  ExpectInvalid(
+      ImportGltf(Edited(textured, [](json& j) { j["images"][0]["uri"] = "/etc/passwd"; })),
+      {"images[0].uri", "'/etc/passwd' is not in the file set"});
 }
 
 TEST(GltfImportMalformed, AbsurdDeclaredSizes) {
@@ -640,10 +648,11 @@ TEST(GltfImportMalformed, NodeHierarchy) {
                 {"nodes[", "cycle"});
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["nodes"][1]["children"] = {1}; })),
                 {"nodes[1]", "cycle"});
-  ExpectInvalid(ImportGltf(Edited(box, [](json& j) {
-                  j["nodes"].push_back({{"children", {1}}});
-                  j["scenes"][0]["nodes"].push_back(2);
-                })),
+  ExpectInvalid(ImportGltf(Edited(box,
+                                  [](json& j) {
+                                    j["nodes"].push_back({{"children", {1}}});
+                                    j["scenes"][0]["nodes"].push_back(2);
+                                  })),
                 {"nodes[1]", "more than one parent"});
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["nodes"][0]["children"] = {7}; })),
                 {"nodes[0].children", "node index 7"});
@@ -671,14 +680,22 @@ TEST(GltfImportMalformed, IndicesOutOfRange) {
        "materials[0].pbrMetallicRoughness.baseColorTexture.index"},
       {[](json& j) { j["textures"][0]["source"] = 3; }, "textures[0].source"},
       {[](json& j) { j["textures"][0]["sampler"] = 3; }, "textures[0].sampler"},
-      {[](json& j) { j["images"][0] = {{"bufferView", 9}, {"mimeType", "image/png"}}; },
+      {[](json& j) {
+         j["images"][0] = {{"bufferView", 9}, {"mimeType", "image/png"}};
+       },
        "images[0].bufferView"},
       {[](json& j) { j["nodes"][1]["extensions"]["KHR_lights_punctual"]["light"] = 0; },
        "KHR_lights_punctual.light"},
-      {[](json& j) { j["nodes"][0]["matrix"] = {1, 2, 3}; }, "nodes[0].matrix"},
-      {[](json& j) { j["accessors"][0]["sparse"] = {{"count", 1},
-            {"indices", {{"bufferView", 0}, {"componentType", 5123}}},
-            {"values", {{"bufferView", 1}}}}; }, "accessors[0]"},
+      {[](json& j) {
+         j["nodes"][0]["matrix"] = {1, 2, 3};
+       },
+       "nodes[0].matrix"},
+      {[](json& j) {
+         j["accessors"][0]["sparse"] = {{"count", 1},
+                                        {"indices", {{"bufferView", 0}, {"componentType", 5123}}},
+                                        {"values", {{"bufferView", 1}}}};
+       },
+       "accessors[0]"},
   };
   for (size_t i = 0; i < cases.size(); ++i) {
     SCOPED_TRACE("case " + std::to_string(i) + ": " + cases[i].second);
