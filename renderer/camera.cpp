@@ -96,7 +96,9 @@ Camera FrameBounds(const Aabb& bounds, float yfov, float aspect, glm::vec3 direc
     nearest = std::min(nearest, -z);
   }
   distance *= 1.05f;  // a small margin around the object
-  distance = std::max(distance, 1e-3f);
+  // Keep the eye distinguishable from the target in float even far from the origin.
+  const float magnitude = std::max({std::abs(center.x), std::abs(center.y), std::abs(center.z)});
+  distance = std::max({distance, 1e-3f, 1e-5f * magnitude});
   cam.target = center;
   cam.eye = center + back * distance;
   cam.up = up;
