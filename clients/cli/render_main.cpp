@@ -158,7 +158,9 @@ int main(int argc, char** argv) {
   const DeviceInfo& dev = renderer->device_info();
   if (json) {
     nlohmann::json j;
-    j["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
+    j["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info},
+                   {"max_samples", dev.max_samples},
+                   {"max_image_dimension", dev.max_image_dimension}};
     j["scene"] = {{"name", info.name}, {"drawables", frame.stats.drawables},
                   {"triangles", info.counts.triangles},
                   {"bounds_min", {info.bounds.min.x, info.bounds.min.y, info.bounds.min.z}},
@@ -176,7 +178,9 @@ int main(int argc, char** argv) {
       j["notes"].push_back({{"field", n.field}, {"message", n.message}});
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("device   %s (%s, %s)\n", dev.name.c_str(), dev.type.c_str(), dev.driver_info.c_str());
+    std::printf("device   %s (%s, %s), max %ux MSAA, max %u px\n", dev.name.c_str(),
+                dev.type.c_str(), dev.driver_info.c_str(), dev.max_samples,
+                dev.max_image_dimension);
     std::printf("scene    %s: %u drawables, %llu triangles, %u culled\n", info.name.c_str(),
                 frame.stats.drawables, (unsigned long long)info.counts.triangles,
                 frame.stats.drawables_culled);

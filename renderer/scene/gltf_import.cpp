@@ -209,6 +209,11 @@ std::string CheckImageSize(int w, int h, const ImportLimits& lim) {
   return "";
 }
 
+std::string DecodeFailure() {
+  const char* why = stbi_failure_reason();  // NULL when stb_image gave no reason
+  return absl::StrCat("cannot decode: ", why != nullptr ? why : "unknown error");
+}
+
 // Decodes every image a texture uses to RGBA8, after checking the size its header declares.
 bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
                const unsigned char* bytes, int size, void* user) {
@@ -222,10 +227,10 @@ bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::s
   if (bytes == nullptr || size <= 0) {
     problem = "no image data";
   } else if (!stbi_info_from_memory(bytes, size, &w, &h, &comp)) {
-    problem = absl::StrCat("cannot decode: ", stbi_failure_reason());
+    problem = DecodeFailure();
   } else if (problem = CheckImageSize(w, h, *ctx->limits); problem.empty()) {
     pixels = stbi_load_from_memory(bytes, size, &w, &h, &comp, 4);
-    if (pixels == nullptr) problem = absl::StrCat("cannot decode: ", stbi_failure_reason());
+    if (pixels == nullptr) problem = DecodeFailure();
     if (pixels != nullptr) problem = CheckImageSize(w, h, *ctx->limits);
   }
   if (problem.empty()) {
@@ -576,18 +581,15 @@ class Converter {
     for (size_t i = 0; i < m_.materials.size(); ++i) RETURN_IF_ERROR(ConvertMaterial(int(i)));
     RETURN_IF_ERROR(CheckHierarchy());
     std::vector<int> roots;
-    if (m_.defaultScene >= 0 && size_t(m_.defaultScene) >= m_.scenes.size()) {
-      return Err("scene", "scene index ", m_.defaultScene, " out of range (", m_.scenes.size(),
-                 " scenes)");
+    if (m_.defaultScene >= 0) {
+      RETURN_IF_ERROR(CheckIndex("scene", m_.defaultScene, m_.scenes.size(), "scene"));
     }
     if (!m_.scenes.empty()) {
       const int scene = std::max(m_.defaultScene, 0);
       roots = m_.scenes[scene].nodes;
       for (int r : roots) {
-        if (r < 0 || size_t(r) >= m_.nodes.size()) {
-          return Err(absl::StrCat("scenes[", scene, "].nodes"), "node index ", r, " out of range (",
-                     m_.nodes.size(), " nodes)");
-        }
+        RETURN_IF_ERROR(
+            CheckIndex(absl::StrCat("scenes[", scene, "].nodes"), r, m_.nodes.size(), "node"));
       }
     } else {
       for (size_t i = 0; i < m_.nodes.size(); ++i) {
@@ -618,27 +620,27 @@ class Converter {
     return Invalid(file_, field, what...);
   }
 
+  // "<field>: <what> index <i> out of range (<count> <what>s)" unless 0 <= index < count.
+  absl::Status CheckIndex(absl::string_view field, int64_t index, size_t count,
+                          const char* what) const {
+    if (index >= 0 && uint64_t(index) < count) return absl::OkStatus();
+    return Err(field, what, " index ", index, " out of range (", count, " ", what, "s)");
+  }
+
   void Warn(std::string msg) {
     if (s_.warnings.size() < kMaxWarnings) s_.warnings.push_back(std::move(msg));
   }
 
   absl::StatusOr<AccessorView> View(int index, const std::string& use) {
-    if (index < 0 || size_t(index) >= m_.accessors.size()) {
-      return Err(use, "accessor index ", index, " out of range (", m_.accessors.size(),
-                 " accessors)");
-    }
+    RETURN_IF_ERROR(CheckIndex(use, index, m_.accessors.size(), "accessor"));
     const tinygltf::Accessor& a = m_.accessors[index];
     const std::string field = absl::StrCat("accessors[", index, "]");
     if (a.sparse.isSparse) return Err(field, "sparse accessors are not supported");
-    if (a.bufferView < 0 || size_t(a.bufferView) >= m_.bufferViews.size()) {
-      return Err(field + ".bufferView", "missing or out of range (", m_.bufferViews.size(),
-                 " bufferViews)");
-    }
+    RETURN_IF_ERROR(
+        CheckIndex(field + ".bufferView", a.bufferView, m_.bufferViews.size(), "bufferView"));
     const tinygltf::BufferView& bv = m_.bufferViews[a.bufferView];
     const std::string bv_field = absl::StrCat("bufferViews[", a.bufferView, "]");
-    if (bv.buffer < 0 || size_t(bv.buffer) >= m_.buffers.size()) {
-      return Err(bv_field + ".buffer", "out of range");
-    }
+    RETURN_IF_ERROR(CheckIndex(bv_field + ".buffer", bv.buffer, m_.buffers.size(), "buffer"));
     const size_t have = m_.buffers[bv.buffer].data.size();
     if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset) {
       return Err(bv_field, "byteOffset + byteLength exceeds buffers[", bv.buffer, "] (", have,
@@ -759,7 +761,8 @@ class Converter {
     for (const auto& a : attrs) RETURN_IF_ERROR(a.status());
     const AccessorView &nrm = *attrs[0], &tng = *attrs[1], &uv0 = *attrs[2], &uv1 = *attrs[3];
     const bool has_normals = nrm.data != nullptr;
-    const uint64_t out_vertices = has_normals ? n : tri.size();  // flat: a vertex per corner
+    const bool has_tangents = has_normals && tng.data != nullptr;  // spec: else ignore them
+    const uint64_t out_vertices = has_normals ? n : tri.size();    // flat: a vertex per corner
     if (s_.vertices.size() + out_vertices > max_vertices_ ||
         s_.indices.size() + tri.size() > max_indices_) {
       return Err(path, "the scene exceeds the vertex or index limit");
@@ -775,7 +778,7 @@ class Converter {
         return Err(absl::StrCat("accessors[", pos->index, "]"), "non-finite POSITION value");
       }
       if (has_normals) v.normal = glm::vec3(ReadVec(nrm, i));
-      if (tng.data) v.tangent = ReadVec(tng, i);
+      if (has_tangents) v.tangent = ReadVec(tng, i);
       if (uv0.data) v.uv0 = finite_uv(ReadVec(uv0, i));
       if (uv1.data) v.uv1 = finite_uv(ReadVec(uv1, i));
     }
@@ -797,12 +800,12 @@ class Converter {
     }
     for (Vertex& v : verts) {
       v.normal = NormalizeOr(v.normal, glm::vec3(0, 0, 1));
-      if (tng.data) {
+      if (has_tangents) {
         v.tangent = glm::vec4(NormalizeOr(glm::vec3(v.tangent), AnyPerpendicular(v.normal)),
                               v.tangent.w < 0.0f ? -1.0f : 1.0f);
       }
     }
-    if (tng.data == nullptr) GenerateTangents(tri, &verts);
+    if (!has_tangents) GenerateTangents(tri, &verts);
 
     Primitive prim;
     prim.first_index = uint32_t(s_.indices.size());
@@ -810,9 +813,8 @@ class Converter {
     prim.first_vertex = uint32_t(s_.vertices.size());
     prim.vertex_count = uint32_t(verts.size());
     for (const Vertex& v : verts) prim.bounds.extend(v.position);
-    if (p.material >= 0 && size_t(p.material) >= m_.materials.size()) {
-      return Err(path + ".material", "material index ", p.material, " out of range (",
-                 m_.materials.size(), " materials)");
+    if (p.material >= 0) {
+      RETURN_IF_ERROR(CheckIndex(path + ".material", p.material, m_.materials.size(), "material"));
     }
     if (p.material < 0 && default_material_ < 0) {
       default_material_ = int32_t(s_.materials.size());
@@ -862,13 +864,11 @@ class Converter {
     }
     const tinygltf::Texture& gt = m_.textures[texture];
     const std::string field = absl::StrCat("textures[", texture, "]");
-    if (gt.source >= 0 && size_t(gt.source) >= m_.images.size()) {
-      return Err(field + ".source", "image index ", gt.source, " out of range (", m_.images.size(),
-                 " images)");
+    if (gt.source >= 0) {
+      RETURN_IF_ERROR(CheckIndex(field + ".source", gt.source, m_.images.size(), "image"));
     }
-    if (gt.sampler >= 0 && size_t(gt.sampler) >= m_.samplers.size()) {
-      return Err(field + ".sampler", "sampler index ", gt.sampler, " out of range (",
-                 m_.samplers.size(), " samplers)");
+    if (gt.sampler >= 0) {
+      RETURN_IF_ERROR(CheckIndex(field + ".sampler", gt.sampler, m_.samplers.size(), "sampler"));
     }
     int32_t& result = texture_cache_[{texture, srgb}] = -1;
     Texture t{.image = gt.source >= 0 ? ImageFor(gt.source) : nullptr, .srgb = srgb};
@@ -895,10 +895,7 @@ class Converter {
   template <typename Info>
   absl::Status TextureSlot(const Info& info, bool srgb, const std::string& path, TextureRef* out) {
     if (info.index < 0) return absl::OkStatus();
-    if (size_t(info.index) >= m_.textures.size()) {
-      return Err(path + ".index", "texture index ", info.index, " out of range (",
-                 m_.textures.size(), " textures)");
-    }
+    RETURN_IF_ERROR(CheckIndex(path + ".index", info.index, m_.textures.size(), "texture"));
     auto texcoord = [&](double tc) -> uint32_t {
       if (tc == 0.0 || tc == 1.0) return uint32_t(tc);
       Warn(absl::StrCat(path, ": texCoord ", tc, " is not supported; using 0"));
@@ -967,9 +964,7 @@ class Converter {
     for (size_t i = 0; i < count; ++i) {
       for (int c : m_.nodes[i].children) {
         const std::string field = absl::StrCat("nodes[", i, "]");
-        if (c < 0 || size_t(c) >= count) {
-          return Err(field + ".children", "node index ", c, " out of range (", count, " nodes)");
-        }
+        RETURN_IF_ERROR(CheckIndex(field + ".children", c, count, "node"));
         if (size_t(c) == i) return Err(field, "node hierarchy contains a cycle (own child)");
         if (parent_[c] >= 0) {
           return Err(absl::StrCat("nodes[", c, "]"), "node has more than one parent (nodes[",
@@ -1034,10 +1029,7 @@ class Converter {
       }
     }
     if (n.mesh >= 0) {
-      if (size_t(n.mesh) >= m_.meshes.size()) {
-        return Err(path + ".mesh", "mesh index ", n.mesh, " out of range (", m_.meshes.size(),
-                   " meshes)");
-      }
+      RETURN_IF_ERROR(CheckIndex(path + ".mesh", n.mesh, m_.meshes.size(), "mesh"));
       absl::StatusOr<uint32_t> mesh = ConvertMesh(n.mesh);
       if (!mesh.ok()) return mesh.status();
       for (uint32_t prim : s_.meshes[*mesh].primitives) {
@@ -1055,10 +1047,7 @@ class Converter {
       }
     }
     if (n.camera >= 0) {
-      if (size_t(n.camera) >= m_.cameras.size()) {
-        return Err(path + ".camera", "camera index ", n.camera, " out of range (",
-                   m_.cameras.size(), " cameras)");
-      }
+      RETURN_IF_ERROR(CheckIndex(path + ".camera", n.camera, m_.cameras.size(), "camera"));
       const tinygltf::Camera& gc = m_.cameras[n.camera];
       const tinygltf::PerspectiveCamera& p = gc.perspective;
       if (gc.type == "perspective") {

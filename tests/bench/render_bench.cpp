@@ -161,5 +161,11 @@ int main(int argc, char** argv) {
     out["results"].push_back(r);
   }
   std::printf("%s\n", out.dump(2).c_str());
+  // With TESSERA_VALIDATION=1 (as in the smoke test) any validation message is a failure.
+  if ((*renderer)->validation_message_count() > 0) {
+    for (const std::string& m : (*renderer)->validation_messages())
+      std::fprintf(stderr, "validation: %s\n", m.c_str());
+    return 1;
+  }
   return 0;
 }

@@ -40,7 +40,7 @@ void ExpectNoValidationMessages(const Renderer& r) {
 }
 
 SceneHandle LoadAsset(const std::string& relative) {
-  const std::string path = Env("TESSERA_ASSETS_DIR", "../shared/assets") + "/" + relative;
+  const std::string path = Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/" + relative;
   absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(path);
   EXPECT_TRUE(source.ok()) << source.status();
   if (!source.ok()) return nullptr;
@@ -58,7 +58,7 @@ Settings SmallSettings(uint32_t w, uint32_t h) {
 
 // Compares with tests/render/golden/<name>.png (or writes it when updating goldens).
 void CompareWithGolden(const std::string& name, const RgbaImage& image, double min_psnr) {
-  const std::string golden_path = Env("TESSERA_GOLDEN_DIR", "tests/render/golden") + "/" + name + ".png";
+  const std::string golden_path = Env("TESSERA_GOLDEN_DIR", TESSERA_DEFAULT_GOLDEN_DIR) + "/" + name + ".png";
   if (Env("TESSERA_UPDATE_GOLDENS") == "1") {
     absl::StatusOr<std::vector<uint8_t>> png = EncodePng(image);
     ASSERT_TRUE(png.ok()) << png.status();
@@ -72,7 +72,7 @@ void CompareWithGolden(const std::string& name, const RgbaImage& image, double m
   absl::StatusOr<double> psnr = Psnr(image, *golden);
   ASSERT_TRUE(psnr.ok()) << psnr.status();
   if (*psnr < min_psnr) {
-    const std::filesystem::path out_dir = Env("TESSERA_TEST_OUTPUT_DIR", "render_output");
+    const std::filesystem::path out_dir = Env("TESSERA_TEST_OUTPUT_DIR", TESSERA_DEFAULT_OUTPUT_DIR);
     std::filesystem::create_directories(out_dir);
     const std::string actual = (out_dir / (name + ".actual.png")).string();
     const std::string diff = (out_dir / (name + ".diff.png")).string();
@@ -90,6 +90,9 @@ struct GoldenCase {
   uint32_t width, height;
   glm::vec3 direction = glm::vec3(0.25f, 0.2f, 1.0f);  // framing direction (no file camera)
 };
+
+// Test names and failure messages show the case by name, not as raw bytes.
+void PrintTo(const GoldenCase& c, std::ostream* os) { *os << c.name; }
 
 class GoldenTest : public ::testing::TestWithParam<GoldenCase> {};
 

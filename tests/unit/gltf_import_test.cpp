@@ -25,10 +25,11 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-// The assets directory; every test that needs it fails (not skips) when it is not set.
+// The assets directory: $TESSERA_ASSETS_DIR, else the one the build was configured with.
+// Every test that needs it fails (not skips) when it is missing.
 std::string AssetsDir() {
   const char* dir = std::getenv("TESSERA_ASSETS_DIR");
-  return dir == nullptr ? std::string() : std::string(dir);
+  return dir == nullptr ? std::string(TESSERA_DEFAULT_ASSETS_DIR) : std::string(dir);
 }
 
 #define REQUIRE_ASSETS()                                                       \
