@@ -148,9 +148,12 @@ absl::Status Renderer::Impl::Init() {
   li.pBindings = bindings.data();
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, &scene_layout.set_layout),
                      "scene set layout");
-  std::vector<VkDescriptorSetLayoutBinding> texture_bindings;
+  std::vector<VkDescriptorSetLayoutBinding> texture_bindings = {
+      {gpu::kBindingMaterialUniform, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}};
   for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k)
-    texture_bindings.push_back({k, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+    texture_bindings.push_back({gpu::kBindingBaseColorTex + k,
+                                VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
                                 VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
   li.bindingCount = static_cast<uint32_t>(texture_bindings.size());
   li.pBindings = texture_bindings.data();

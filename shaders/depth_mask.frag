@@ -6,12 +6,11 @@
 
 layout(location = 3) in vec2 v_uv0;
 layout(location = 4) in vec2 v_uv1;
-layout(location = 5) flat in uint v_material;
 
 void main() {
   UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
-  float alpha = materials[v_material].base_color_factor.a;
-  GpuTextureRef t = materials[v_material].base_color_tex;
+  float alpha = material.base_color_factor.a;
+  GpuTextureRef t = material.base_color_tex;
   if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, v_uv0, v_uv1, grads).a;
-  if (alpha < materials[v_material].params2.x) discard;
+  if (alpha < material.params2.x) discard;
 }

@@ -12,7 +12,6 @@ layout(location = 1) in vec3 v_normal;
 layout(location = 2) in vec4 v_tangent;
 layout(location = 3) in vec2 v_uv0;
 layout(location = 4) in vec2 v_uv1;
-layout(location = 5) flat in uint v_material;
 
 layout(location = 0) out vec4 out_color;
 
@@ -52,7 +51,7 @@ vec3 Hemisphere(vec3 dir) {
 
 void main() {
   UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
-  GpuMaterial m = materials[v_material];
+  GpuMaterial m = material;
   vec4 base = m.base_color_factor;
   if (HasTexture(m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, v_uv0, v_uv1, grads);
   // The prepass discarded these too; without the same test here the shading pass would draw

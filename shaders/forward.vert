@@ -15,7 +15,6 @@ layout(location = 1) out vec3 v_normal;
 layout(location = 2) out vec4 v_tangent;
 layout(location = 3) out vec2 v_uv0;
 layout(location = 4) out vec2 v_uv1;
-layout(location = 5) flat out uint v_material;
 
 void main() {
   mat4 world = drawables[gl_InstanceIndex].world;
@@ -25,5 +24,4 @@ void main() {
   v_tangent = vec4(mat3(world) * in_tangent.xyz, in_tangent.w);
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
-  v_material = drawables[gl_InstanceIndex].ids.y;
 }

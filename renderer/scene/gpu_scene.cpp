@@ -344,6 +344,17 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
   if (!st.ok()) return st;
 
+  // The same materials for uniform reads, one aligned range per material (set 1, binding 0).
+  const VkDeviceSize align = std::max<VkDeviceSize>(16, ctx.limits().minUniformBufferOffsetAlignment);
+  const VkDeviceSize stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
+  std::vector<uint8_t> padded(stride * materials.size(), 0);
+  for (size_t i = 0; i < materials.size(); ++i)
+    std::memcpy(padded.data() + i * stride, &materials[i], sizeof(gpu::GpuMaterial));
+  st = assign(gs->material_uniforms_,
+              UploadBuffer(ctx, padded.data(), padded.size(), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+                           n + ".material_uniforms"));
+  if (!st.ok()) return st;
+
   const uint32_t bucket_count = std::max<uint32_t>(1, uint32_t(plan.buckets.size()));
   for (uint32_t b = 0; b < bucket_count; ++b) {
     absl::StatusOr<vk::Image> image;
@@ -381,12 +392,13 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
 
   // One texture set per material; slots without a texture point at bucket 0 (never sampled).
   const uint32_t material_count = uint32_t(materials.size());
-  const VkDescriptorPoolSize pool_size{VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
-                                       material_count * gpu::kMaterialTextureSlots};
+  const VkDescriptorPoolSize pool_sizes[] = {
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, material_count * gpu::kMaterialTextureSlots},
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, material_count}};
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   dpi.maxSets = material_count;
-  dpi.poolSizeCount = 1;
-  dpi.pPoolSizes = &pool_size;
+  dpi.poolSizeCount = 2;
+  dpi.pPoolSizes = pool_sizes;
   VK_RETURN_IF_ERROR(vkCreateDescriptorPool(ctx.device(), &dpi, nullptr, &gs->material_pool_),
                      "material descriptor pool");
   std::vector<VkDescriptorSetLayout> layouts(material_count, material_layout);
@@ -398,6 +410,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
   VK_RETURN_IF_ERROR(vkAllocateDescriptorSets(ctx.device(), &ai, gs->material_sets_.data()),
                      "material descriptor sets");
   std::vector<VkDescriptorImageInfo> infos(size_t(material_count) * gpu::kMaterialTextureSlots);
+  std::vector<VkDescriptorBufferInfo> buffer_infos(material_count);
   std::vector<VkWriteDescriptorSet> writes;
   for (uint32_t m = 0; m < material_count; ++m) {
     const gpu::GpuMaterial& g = materials[m];
@@ -410,10 +423,18 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
       info[k] = {gs->sampler_.handle(), gs->buckets_[bucket].view(),
                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     }
+    buffer_infos[m] = {gs->material_uniforms_.handle(), m * stride, sizeof(gpu::GpuMaterial)};
+    VkWriteDescriptorSet u{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    u.dstSet = gs->material_sets_[m];
+    u.dstBinding = gpu::kBindingMaterialUniform;
+    u.descriptorCount = 1;
+    u.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+    u.pBufferInfo = &buffer_infos[m];
+    writes.push_back(u);
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = gs->material_sets_[m];
-    w.dstBinding = 0;
-    w.descriptorCount = gpu::kMaterialTextureSlots;  // consecutive bindings 0..4
+    w.dstBinding = gpu::kBindingBaseColorTex;
+    w.descriptorCount = gpu::kMaterialTextureSlots;  // consecutive bindings
     w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
     w.pImageInfo = info;
     writes.push_back(w);

@@ -63,7 +63,7 @@ class GpuScene {
   // The texture buckets; a scene without textures has one 1x1 placeholder, so every material
   // set binding is valid.
   const std::vector<vk::Image>& texture_buckets() const { return buckets_; }
-  // Descriptor set 1 of material `m`: its texture slots' buckets.
+  // Descriptor set 1 of material `m`: the material as a uniform range and its textures' buckets.
   VkDescriptorSet material_set(uint32_t m) const { return material_sets_[m]; }
   VkSampler sampler() const { return sampler_.handle(); }
   const std::vector<DrawItem>& draws() const { return draws_; }
@@ -73,6 +73,7 @@ class GpuScene {
 
  private:
   vk::Buffer vertices_, indices_, drawables_, materials_;
+  vk::Buffer material_uniforms_;  // the materials again, each at a uniform-offset-aligned stride
   std::vector<vk::Image> buckets_;
   vk::Sampler sampler_;
   VkDevice device_ = VK_NULL_HANDLE;

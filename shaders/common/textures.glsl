@@ -1,5 +1,5 @@
-// A material's textures: set 1 binds, per texture slot, the sampler2DArray bucket holding it;
-// the layer comes from the material. Sampling uses explicit gradients (UvGradients below):
+// The draw's material (set 1): the material as a uniform block, and per texture slot the
+// sampler2DArray bucket holding it; the layer comes from the material. Sampling uses explicit gradients (UvGradients below):
 // the per-texture wrap applied here then does not disturb mip selection, and no derivative is
 // taken of a value loaded from a buffer: llvmpipe masks buffer loads for helper invocations, so
 // such derivatives are garbage along triangle edges (seen as bright seams on the diagonals).
@@ -7,6 +7,9 @@
 #define TESSERA_TEXTURES_GLSL
 #include "gpu_types.h"
 
+layout(set = kMaterialSet, binding = kBindingMaterialUniform, std140) uniform MaterialUniform {
+  GpuMaterial material;
+};
 layout(set = kMaterialSet, binding = kBindingBaseColorTex) uniform sampler2DArray u_base_color_tex;
 layout(set = kMaterialSet, binding = kBindingMetallicRoughnessTex) uniform sampler2DArray u_metallic_roughness_tex;
 layout(set = kMaterialSet, binding = kBindingNormalTex) uniform sampler2DArray u_normal_tex;
