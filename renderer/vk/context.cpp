@@ -97,11 +97,11 @@ bool HasLayer(const char* name) {
   return false;
 }
 
-bool HasInstanceExtension(const char* name) {
+bool HasInstanceExtension(const char* name, const char* layer = nullptr) {
   uint32_t count = 0;
-  vkEnumerateInstanceExtensionProperties(nullptr, &count, nullptr);
+  vkEnumerateInstanceExtensionProperties(layer, &count, nullptr);
   std::vector<VkExtensionProperties> exts(count);
-  vkEnumerateInstanceExtensionProperties(nullptr, &count, exts.data());
+  vkEnumerateInstanceExtensionProperties(layer, &count, exts.data());
   for (const auto& e : exts)
     if (std::strcmp(e.extensionName, name) == 0) return true;
   return false;
@@ -155,6 +155,10 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
     }
     layers.push_back("VK_LAYER_KHRONOS_validation");
   }
+  const bool validation_features =
+      validation && HasInstanceExtension(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME,
+                                         "VK_LAYER_KHRONOS_validation");
+  if (validation_features) extensions.push_back(VK_EXT_VALIDATION_FEATURES_EXTENSION_NAME);
   const bool debug_utils = HasInstanceExtension(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
   if (debug_utils) extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
 
@@ -179,7 +183,18 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   ici.ppEnabledLayerNames = layers.data();
   ici.enabledExtensionCount = static_cast<uint32_t>(extensions.size());
   ici.ppEnabledExtensionNames = extensions.data();
+  // Validation includes synchronization validation: a missing or wrong barrier between passes
+  // is as much a bug as a wrong parameter.
+  const VkValidationFeatureEnableEXT enables[] = {
+      VK_VALIDATION_FEATURE_ENABLE_SYNCHRONIZATION_VALIDATION_EXT};
+  VkValidationFeaturesEXT features{VK_STRUCTURE_TYPE_VALIDATION_FEATURES_EXT};
+  features.enabledValidationFeatureCount = 1;
+  features.pEnabledValidationFeatures = enables;
   if (validation && debug_utils) ici.pNext = &messenger_info;  // also covers instance creation
+  if (validation_features) {
+    features.pNext = ici.pNext;
+    ici.pNext = &features;
+  }
   VK_RETURN_IF_ERROR(vkCreateInstance(&ici, nullptr, &ctx->instance_), "vkCreateInstance");
 
   if (validation && debug_utils) {

@@ -1,0 +1,355 @@
+// Pre-scan of a glTF asset before tinygltf sees it (see gltf_prescan.h): the input comes from
+// the network, so the GLB container, the JSON nesting depth, URIs, buffer and bufferView ranges
+// and required extensions are checked here, and the file-set aliases tinygltf will ask for and
+// the images that need decoding are worked out.
+#include "renderer/scene/gltf_prescan.h"
+
+#include <algorithm>
+#include <cstring>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <utility>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+
+namespace tessera::gltf_internal {
+namespace {
+
+using nlohmann::json;
+
+#define RETURN_IF_ERROR(expr)                             \
+  do {                                                    \
+    if (absl::Status st_ = (expr); !st_.ok()) return st_; \
+  } while (false)
+
+constexpr int kMaxJsonDepth = 64;   // tinygltf walks extras/extensions recursively
+constexpr size_t kMaxQuoted = 120;  // longest string quoted in a message
+
+bool IsSupportedExtension(const std::string& name) {
+  return name == "KHR_texture_transform" || name == "KHR_materials_emissive_strength" ||
+         name == "KHR_lights_punctual";
+}
+
+int HexValue(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// RFC 3986 %-decoding, the way keys of GltfSource::files are written. With `like_tinygltf`
+// it decodes the way tinygltf does before calling the file callbacks ('+' is a space, bad hex
+// digits count as 0), so that spelling can be mapped back to the real key.
+std::string PercentDecode(absl::string_view s, bool like_tinygltf = false) {
+  std::string out;
+  for (size_t i = 0; i < s.size(); ++i) {
+    const bool hex = i + 2 < s.size() && HexValue(s[i + 1]) >= 0 && HexValue(s[i + 2]) >= 0;
+    if (like_tinygltf && s[i] == '+') {
+      out += ' ';
+    } else if (s[i] == '%' && (hex || (like_tinygltf && i + 2 < s.size()))) {
+      out +=
+          static_cast<char>(std::max(HexValue(s[i + 1]), 0) * 16 + std::max(HexValue(s[i + 2]), 0));
+      i += 2;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+// The data: URI media types tinygltf 2.7 decodes; anything else it would treat as a file name.
+bool IsTinygltfDataUri(absl::string_view uri, size_t* payload) {
+  for (absl::string_view p :
+       {"data:application/octet-stream;base64,", "data:application/gltf-buffer;base64,",
+        "data:image/jpeg;base64,", "data:image/png;base64,", "data:image/bmp;base64,",
+        "data:image/gif;base64,", "data:text/plain;base64,"}) {
+    if (uri.substr(0, p.size()) == p) {
+      *payload = uri.size() - p.size();
+      return true;
+    }
+  }
+  return false;
+}
+
+uint32_t ReadU32(const uint8_t* p) {
+  return uint32_t(p[0]) | uint32_t(p[1]) << 8 | uint32_t(p[2]) << 16 | uint32_t(p[3]) << 24;
+}
+
+struct GlbChunks {
+  absl::string_view json;
+  const uint8_t* bin = nullptr;
+  size_t bin_size = 0;
+};
+
+// Checks the GLB container ourselves: tinygltf only says "Invalid glTF binary".
+absl::Status ParseGlb(const std::string& file, const std::vector<uint8_t>& d, GlbChunks* out) {
+  if (d.size() < 20) return Invalid(file, "GLB", "file is truncated (", d.size(), " bytes)");
+  if (d.size() > std::numeric_limits<uint32_t>::max()) return Invalid(file, "GLB", "4 GiB+");
+  const uint32_t version = ReadU32(&d[4]), length = ReadU32(&d[8]);
+  if (version != 2) return Invalid(file, "GLB", "version ", version, " is not supported");
+  if (length > d.size()) {
+    return Invalid(file, "GLB", "file is truncated: header declares ", length,
+                   " bytes but the file has ", d.size());
+  }
+  const uint64_t json_len = ReadU32(&d[12]);
+  if (ReadU32(&d[16]) != 0x4E4F534Au) return Invalid(file, "GLB", "first chunk is not JSON");
+  if (20 + json_len > length) {
+    return Invalid(file, "GLB", "file is truncated: JSON chunk of ", json_len,
+                   " bytes exceeds the length ", length);
+  }
+  out->json = absl::string_view(reinterpret_cast<const char*>(&d[20]), json_len);
+  const uint64_t bin_at = 20 + json_len;
+  if (bin_at + 8 <= length && ReadU32(&d[bin_at + 4]) == 0x004E4942u) {
+    const uint64_t bin_len = ReadU32(&d[bin_at]);
+    if (bin_at + 8 + bin_len > length) {
+      return Invalid(file, "GLB", "file is truncated: BIN chunk of ", bin_len,
+                     " bytes exceeds the length ", length);
+    }
+    out->bin = &d[bin_at + 8];
+    out->bin_size = bin_len;
+  }
+  return absl::OkStatus();
+}
+
+// tinygltf recurses over arrays/objects in extras; a deep document would overflow the stack.
+bool JsonTooDeep(absl::string_view text) {
+  int depth = 0;
+  bool in_string = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (c == '\\') ++i;
+      if (c == '"') in_string = false;
+    } else if (c == '"') {
+      in_string = true;
+    } else if ((c == '[' || c == '{') && ++depth > kMaxJsonDepth) {
+      return true;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return false;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Pre-scan of the JSON for what tinygltf would otherwise trust or resolve by itself.
+
+const json* Member(const json& o, const char* key) {
+  if (!o.is_object()) return nullptr;
+  const auto it = o.find(key);
+  return it == o.end() ? nullptr : &*it;
+}
+
+size_t ArraySize(const json& o, const char* key) {
+  const json* a = Member(o, key);
+  return a != nullptr && a->is_array() ? a->size() : 0;
+}
+
+bool JsonUint(const json* v, uint64_t* out) {
+  if (v == nullptr || !v->is_number_integer()) return false;  // is_number_integer: any sign
+  if (v->is_number_unsigned()) {
+    *out = v->get<uint64_t>();
+    return true;
+  }
+  *out = uint64_t(v->get<int64_t>());
+  return v->get<int64_t>() >= 0;
+}
+
+class PreScan {
+ public:
+  PreScan(const GltfSource& src, const GlbChunks* glb, PreScanResult* result)
+      : file_(src.main_file), src_(src), glb_(glb), result_(result) {}
+
+  absl::Status Run(const json& j) {
+    if (!j.is_object()) return Invalid(file_, "JSON", "the top level is not an object");
+    for (const char* list : {"extensionsRequired", "extensionsUsed"}) {
+      const json* exts = Member(j, list);
+      for (size_t i = 0; exts && exts->is_array() && i < exts->size(); ++i) {
+        const std::string name = (*exts)[i].is_string() ? (*exts)[i].get<std::string>() : "?";
+        if (IsSupportedExtension(name)) continue;
+        if (std::strcmp(list, "extensionsRequired") == 0) {
+          return Invalid(file_, list, "unsupported required extension ", Quote(name));
+        }
+        result_->warnings.push_back(absl::StrCat("extension ", Quote(name), " is not supported"));
+      }
+    }
+    RETURN_IF_ERROR(Buffers(j));
+    RETURN_IF_ERROR(BufferViews(j));
+    RETURN_IF_ERROR(Images(j));
+    // tinygltf rejects a bad indices accessor itself, but without saying where.
+    const size_t accessors = ArraySize(j, "accessors");
+    for (size_t m = 0; m < ArraySize(j, "meshes"); ++m) {
+      const json* prims = Member(j["meshes"][m], "primitives");
+      for (size_t p = 0; prims && prims->is_array() && p < prims->size(); ++p) {
+        uint64_t index = 0;
+        const json* indices = Member((*prims)[p], "indices");
+        if (indices && (!JsonUint(indices, &index) || index >= accessors)) {
+          return Invalid(file_, absl::StrCat("meshes[", m, "].primitives[", p, "].indices"),
+                         "accessor index ", Quote(indices->dump()), " out of range (", accessors,
+                         " accessors)");
+        }
+      }
+    }
+    return absl::OkStatus();
+  }
+
+ private:
+  // Maps an external URI to its key in the file set, or explains why it cannot be used.
+  absl::StatusOr<std::string> Resolve(const std::string& field, const std::string& uri) {
+    const std::string key = PercentDecode(uri);
+    const bool dotdot = key == ".." || key.rfind("../", 0) == 0 ||
+                        key.find("/../") != std::string::npos ||
+                        (key.size() >= 3 && key.compare(key.size() - 3, 3, "/..") == 0);
+    std::string why;
+    if (key.empty()) {
+      why = " (empty URI)";
+    } else if (key.find('\\') != std::string::npos || key.find('\0') != std::string::npos) {
+      why = " (backslashes and NUL are not allowed)";
+    } else if (key[0] == '/') {
+      why = " (absolute paths are not allowed)";
+    } else if (key.find(':') != std::string::npos) {
+      why = " (URI schemes other than data: are not allowed)";
+    } else if (dotdot) {
+      why = " (it leaves the asset directory)";
+    } else if (src_.files.count(key) != 0) {
+      result_->alias.emplace(PercentDecode(uri, /*like_tinygltf=*/true), key);
+      return key;
+    }
+    return Invalid(file_, field, "'", Quote(uri), "' is not in the file set", why);
+  }
+
+  // Checks a uri; returns the size of what it names, or npos when it is a data: URI.
+  absl::StatusOr<size_t> Uri(const std::string& field, const json& uri) {
+    if (!uri.is_string()) return Invalid(file_, field, "not a string");
+    const std::string u = uri.get<std::string>();
+    size_t payload = 0;
+    if (u.rfind("data:", 0) == 0) {
+      if (IsTinygltfDataUri(u, &payload)) return std::string::npos;
+      return Invalid(file_, field, "unsupported data: URI (base64 buffer and image types only)");
+    }
+    absl::StatusOr<std::string> key = Resolve(field, u);
+    if (!key.ok()) return key.status();
+    return src_.files.at(*key).size();
+  }
+
+  absl::Status Buffers(const json& j) {
+    for (size_t i = 0; i < ArraySize(j, "buffers"); ++i) {
+      const json& b = j["buffers"][i];
+      const std::string field = absl::StrCat("buffers[", i, "]");
+      uint64_t length = 0;
+      if (!JsonUint(Member(b, "byteLength"), &length)) {
+        return Invalid(file_, field + ".byteLength", "missing or not a non-negative integer");
+      }
+      if (const json* uri = Member(b, "uri")) {
+        absl::StatusOr<size_t> have = Uri(field + ".uri", *uri);
+        if (!have.ok()) return have.status();
+        // tinygltf insists on an exact match; say so before it reads anything.
+        if (*have != std::string::npos && *have != length) {
+          return Invalid(file_, field, "byteLength (", length, ") does not match the size of '",
+                         Quote(uri->get<std::string>()), "' (", *have, " bytes)");
+        }
+      } else if (glb_ == nullptr) {
+        return Invalid(file_, field, "uri is missing (only allowed in a .glb)");
+      } else if (length > glb_->bin_size) {
+        return Invalid(file_, field, "byteLength (", length, ") exceeds the GLB BIN chunk (",
+                       glb_->bin_size, " bytes)");
+      }
+      buffer_lengths_.push_back(length);
+    }
+    return absl::OkStatus();
+  }
+
+  // tinygltf hands an image's bufferView to the image loader without any range check.
+  absl::Status BufferViews(const json& j) {
+    for (size_t i = 0; i < ArraySize(j, "bufferViews"); ++i) {
+      const json& v = j["bufferViews"][i];
+      const std::string field = absl::StrCat("bufferViews[", i, "]");
+      uint64_t buffer = 0, offset = 0, length = 0;
+      if (!JsonUint(Member(v, "buffer"), &buffer) || buffer >= buffer_lengths_.size()) {
+        return Invalid(file_, field + ".buffer", "missing or out of range (",
+                       buffer_lengths_.size(), " buffers)");
+      }
+      if (Member(v, "byteOffset") && !JsonUint(Member(v, "byteOffset"), &offset)) {
+        return Invalid(file_, field + ".byteOffset", "not a non-negative integer");
+      }
+      if (!JsonUint(Member(v, "byteLength"), &length) || length == 0) {
+        return Invalid(file_, field + ".byteLength", "missing or not a positive integer");
+      }
+      const uint64_t have = buffer_lengths_[buffer];
+      if (offset > have || length > have - offset) {
+        return Invalid(file_, field, "byteOffset + byteLength (",
+                       offset > UINT64_MAX - length ? "overflow" : absl::StrCat(offset + length),
+                       ") exceeds buffers[", buffer, "].byteLength (", have, ")");
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status Images(const json& j) {
+    const size_t count = ArraySize(j, "images"), views = ArraySize(j, "bufferViews");
+    for (size_t i = 0; i < count; ++i) {
+      const json& im = j["images"][i];
+      const std::string field = absl::StrCat("images[", i, "]");
+      uint64_t view = 0;
+      if (const json* uri = Member(im, "uri")) {
+        RETURN_IF_ERROR(Uri(field + ".uri", *uri).status());
+      } else if (const json* bv = Member(im, "bufferView");
+                 bv && (!JsonUint(bv, &view) || view >= views)) {
+        return Invalid(file_, field + ".bufferView", "out of range (", views, " bufferViews)");
+      }
+    }
+    result_->image_needed.assign(count, false);
+    for (size_t t = 0; t < ArraySize(j, "textures"); ++t) {
+      uint64_t source = 0;
+      if (JsonUint(Member(j["textures"][t], "source"), &source) && source < count) {
+        result_->image_needed[source] = true;
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  const std::string& file_;
+  const GltfSource& src_;
+  const GlbChunks* glb_;
+  PreScanResult* result_;
+  std::vector<uint64_t> buffer_lengths_;
+};
+
+}  // namespace
+
+// Cuts long strings (base64 URIs, tinygltf dumps) so messages stay readable.
+std::string Quote(absl::string_view s) {
+  return s.size() <= kMaxQuoted ? std::string(s) : absl::StrCat(s.substr(0, kMaxQuoted), "...");
+}
+
+absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source) {
+  const std::string& file = source.main_file;
+  const auto main = source.files.find(file);
+  if (main == source.files.end()) return Invalid(Quote(file), "main file", "not in the file set");
+  const std::vector<uint8_t>& bytes = main->second;
+  if (bytes.empty()) return Invalid(file, "file", "the file is empty");
+  const bool is_glb = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  GlbChunks glb;
+  absl::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
+  if (is_glb) {
+    RETURN_IF_ERROR(ParseGlb(file, bytes, &glb));
+    text = glb.json;
+  } else if (bytes.size() > std::numeric_limits<uint32_t>::max()) {
+    return Invalid(file, "file", "4 GiB or larger");
+  }
+  if (JsonTooDeep(text)) return Invalid(file, "JSON", "nested deeper than ", kMaxJsonDepth);
+  PreScanResult result{.is_glb = is_glb, .bytes = &bytes, .text = text};
+  try {
+    const json j = json::parse(text.begin(), text.end());
+    RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, &result).Run(j));
+  } catch (const std::exception& e) {  // nlohmann reports parse and type errors by throwing
+    return Invalid(file, "JSON", Quote(e.what()));
+  }
+  return result;
+}
+
+#undef RETURN_IF_ERROR
+
+}  // namespace tessera::gltf_internal

@@ -1,0 +1,42 @@
+#pragma once
+// Internal to the glTF importer (gltf_import.cpp): the checks that run before tinygltf sees the
+// data. GLB container, JSON nesting depth, and a pre-scan of the JSON (required extensions,
+// buffer/image URIs against the file set, buffer and bufferView ranges, image bufferViews,
+// primitive indices). Deliberately free of tinygltf and nlohmann headers.
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+#include "renderer/scene/gltf_import.h"
+
+namespace tessera::gltf_internal {
+
+// Cuts long strings (base64 URIs, tinygltf dumps) so messages stay readable.
+std::string Quote(absl::string_view s);
+
+// "<file>: <field>: <what>", the shape of every import error.
+template <typename... Args>
+absl::Status Invalid(absl::string_view file, absl::string_view field, const Args&... what) {
+  return absl::InvalidArgumentError(absl::StrCat(file, ": ", field, ": ", what...));
+}
+
+// What the pre-scan found, for the tinygltf load that follows. `bytes` and `text` point into
+// the GltfSource that was scanned and live as long as it does.
+struct PreScanResult {
+  bool is_glb = false;                          // the main file starts with the GLB magic
+  const std::vector<uint8_t>* bytes = nullptr;  // the main file, as in the file set
+  absl::string_view text;                       // its JSON: the whole file or the GLB JSON chunk
+  std::map<std::string, std::string> alias;     // tinygltf-decoded URI -> key in source.files
+  std::vector<bool> image_needed;               // per image: referenced by some texture
+  std::vector<std::string> warnings;            // unsupported extensionsUsed, in order
+};
+
+// Checks source before tinygltf sees it; INVALID_ARGUMENT "<file>: <field>: <what>" if unsafe.
+absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source);
+
+}  // namespace tessera::gltf_internal
