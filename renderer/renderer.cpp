@@ -91,7 +91,7 @@ Light DefaultSun() {
 Scene::~Scene() = default;
 
 struct Renderer::Impl {
-  std::unique_ptr<vk::Context> ctx;
+  std::shared_ptr<vk::Context> ctx;  // shared with the scenes, which may outlive the renderer
   std::mutex mutex;  // the queue and everything below
   SceneLayout scene_layout;
   std::array<std::unique_ptr<Pass>, static_cast<size_t>(PassId::kCount)> passes;
@@ -352,6 +352,7 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   std::shared_ptr<Scene> scene(new Scene());
   scene->info_ = {cpu.name, cpu.counts, cpu.bounds, cpu.cameras, cpu.warnings,
                   (*gpu)->device_bytes()};
+  scene->device_ = impl_->ctx;
   scene->gpu_ = std::move(*gpu);
   return SceneHandle(std::move(scene));
 }

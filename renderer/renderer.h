@@ -36,7 +36,11 @@ struct SceneInfo {
 };
 
 class GpuScene;
-// A scene on the device. Shared by every frame that renders it; freed with the last handle.
+namespace vk {
+class Context;
+}
+// A scene on the device. Shared by every frame that renders it; freed with the last handle
+// (which may outlive the Renderer: the scene keeps the device alive).
 class Scene {
  public:
   ~Scene();
@@ -46,6 +50,7 @@ class Scene {
   friend class Renderer;
   Scene() = default;
   SceneInfo info_;
+  std::shared_ptr<vk::Context> device_;  // declared first: destroyed after gpu_
   std::unique_ptr<GpuScene> gpu_;
 };
 using SceneHandle = std::shared_ptr<const Scene>;

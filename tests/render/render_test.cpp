@@ -239,3 +239,21 @@ TEST(RenderTest, CpuFrustumCullingKeepsThePicture) {
 
 }  // namespace
 }  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// A scene handle may be the last thing holding the device (a daemon drops a scene after the
+// renderer during shutdown): it must free its buffers on a live device.
+TEST(RenderTest, SceneMayOutliveTheRenderer) {
+  absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create({.validation = true});
+  ASSERT_TRUE(r.ok()) << r.status();
+  absl::StatusOr<SceneHandle> scene = (*r)->LoadScene(BuildDemoScene());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  r->reset();
+  EXPECT_GT((*scene)->info().counts.triangles, 0u);
+  scene->reset();  // frees the GPU scene, then the device
+}
+
+}  // namespace
+}  // namespace tessera
