@@ -5,7 +5,7 @@
 #include <cstdlib>
 #include <cstring>
 
-#include <spdlog/spdlog.h>
+#include "renderer/log.h"
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
@@ -42,7 +42,7 @@ const char* ResultName(VkResult result) {
 }
 
 void FatalVkError(VkResult result, const char* expr, const char* file, int line) {
-  spdlog::critical("{}:{}: {} failed: {}", file, line, expr, ResultName(result));
+  Log().critical("{}:{}: {} failed: {}", file, line, expr, ResultName(result));
   std::abort();
 }
 
@@ -122,9 +122,9 @@ VKAPI_ATTR VkBool32 VKAPI_CALL Context::DebugCallback(
   const bool error = severity & VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
   const char* text = data && data->pMessage ? data->pMessage : "(no message)";
   if (error) {
-    spdlog::error("vulkan validation: {}", text);
+    Log().error("vulkan validation: {}", text);
   } else {
-    spdlog::warn("vulkan validation: {}", text);
+    Log().warn("vulkan validation: {}", text);
   }
   self->validation_count_.fetch_add(1);
   std::lock_guard lock(self->messages_mutex_);
@@ -330,7 +330,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
   VK_CHECK(vkCreateFence(ctx->device_, &fci, nullptr, &ctx->upload_fence_));
 
-  spdlog::info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name,
+  Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name,
                info.type, info.driver_name, info.driver_info, info.max_samples,
                validation ? "on" : "off");
   return ctx;

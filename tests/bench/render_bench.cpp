@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
   const DeviceInfo& dev = (*renderer)->device_info();
   out["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
   out["scene"] = {{"name", info.name}, {"triangles", info.counts.triangles},
-                  {"drawables", info.counts.primitives}, {"load_ms", load_ms},
+                  {"primitives", info.counts.primitives}, {"load_ms", load_ms},
                   {"device_mib", double(info.device_bytes) / (1 << 20)}};
   out["frames"] = frames;
   out["warmup"] = warmup;

@@ -213,7 +213,9 @@ TEST(RenderTest, UnimplementedSettingsAreReported) {
   };
   EXPECT_TRUE(has_note("bloom"));
   EXPECT_EQ(f->settings.effective.samples, std::min(8u, r.device_info().max_samples));
-  if (r.device_info().max_samples < 8) EXPECT_TRUE(has_note("samples"));
+  if (r.device_info().max_samples < 8) {
+    EXPECT_TRUE(has_note("samples"));
+  }
 }
 
 // CPU frustum culling drops what is outside the view and nothing that is inside: the picture
