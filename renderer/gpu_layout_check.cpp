@@ -31,10 +31,11 @@ static_assert(sizeof(GpuLight) == 64);
 static_assert(offsetof(GpuLight, spot) == 48);
 static_assert(sizeof(GpuLight) * kMaxLights <= 16384, "fits the minimum maxUniformBufferRange");
 
-static_assert(sizeof(FrameUniforms) == 3 * 64 + 5 * 16);
-static_assert(offsetof(FrameUniforms, camera_position) == 192);
-static_assert(offsetof(FrameUniforms, counts) == 240);
-static_assert(offsetof(FrameUniforms, params) == 256);
+static_assert(sizeof(FrameUniforms) == 4 * 64 + 5 * 16);
+static_assert(offsetof(FrameUniforms, inv_view_proj) == 192);
+static_assert(offsetof(FrameUniforms, camera_position) == 256);
+static_assert(offsetof(FrameUniforms, counts) == 304);
+static_assert(offsetof(FrameUniforms, params) == 320);
 
 }  // namespace tessera::gpu
 

@@ -378,9 +378,10 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   fu.view = ViewMatrix(camera);
   fu.proj = ProjectionMatrix(camera, aspect);
   fu.view_proj = fu.proj * fu.view;
+  fu.inv_view_proj = glm::inverse(fu.view_proj);
   fu.camera_position = glm::vec4(CameraPosition(camera), 1.0f);
-  fu.ambient_sky = glm::vec4(0.50f, 0.55f, 0.62f, 0.0f);
-  fu.ambient_ground = glm::vec4(0.22f, 0.20f, 0.18f, 0.0f);
+  fu.ambient_sky = glm::vec4(0.40f, 0.52f, 0.75f, 0.0f);
+  fu.ambient_ground = glm::vec4(0.24f, 0.21f, 0.18f, 0.0f);
   std::vector<Light> lights;
   if (s.scene_lights) lights = gs.lights();
   if (lights.empty()) lights.push_back(DefaultSun());

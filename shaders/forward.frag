@@ -5,6 +5,7 @@
 // Punctual lights from the lights UBO, plus a hemisphere ambient with an analytic split-sum
 // specular term (IBL proper comes with the lighting issue).
 #include "common/scene.glsl"
+#include "common/sky.glsl"
 #include "common/textures.glsl"
 
 layout(location = 0) in vec3 v_world;
@@ -45,9 +46,6 @@ vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
   return f0 * ab.x + ab.y;
 }
 
-vec3 Hemisphere(vec3 dir) {
-  return mix(frame.ambient_ground.rgb, frame.ambient_sky.rgb, clamp(dir.y * 0.5 + 0.5, 0.0, 1.0));
-}
 
 void main() {
   UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);

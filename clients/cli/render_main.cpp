@@ -187,9 +187,15 @@ int main(int argc, char** argv) {
     std::printf("bounds   (%.3g, %.3g, %.3g) .. (%.3g, %.3g, %.3g)\n", info.bounds.min.x,
                 info.bounds.min.y, info.bounds.min.z, info.bounds.max.x, info.bounds.max.y,
                 info.bounds.max.z);
-    std::printf("camera   eye (%.3g, %.3g, %.3g) target (%.3g, %.3g, %.3g)\n",
-                CameraPosition(camera).x, CameraPosition(camera).y, CameraPosition(camera).z,
-                camera.target.x, camera.target.y, camera.target.z);
+    const glm::vec3 eye = CameraPosition(camera);
+    if (camera.view) {
+      const glm::vec3 forward = -glm::vec3(glm::inverse(*camera.view)[2]);
+      std::printf("camera   eye (%.3g, %.3g, %.3g) looking along (%.3g, %.3g, %.3g)\n", eye.x,
+                  eye.y, eye.z, forward.x, forward.y, forward.z);
+    } else {
+      std::printf("camera   eye (%.3g, %.3g, %.3g) target (%.3g, %.3g, %.3g)\n", eye.x, eye.y,
+                  eye.z, camera.target.x, camera.target.y, camera.target.z);
+    }
     std::printf("output   %s (%ux%u, %zu bytes)\n\n", out_path.c_str(), frame.image.width,
                 frame.image.height, bytes.size());
     std::printf("%-16s %10s\n", "pass", "gpu ms");

@@ -1,6 +1,7 @@
 // Forward PBR shading (glTF metallic-roughness BRDF) in two passes that share one shader:
 //  - forward: opaque and alpha-mask geometry, depth-tested GREATER_OR_EQUAL against the
 //    prepass depth with writes off, so each visible pixel is shaded once;
+//    Then the sky fills the pixels no surface covered (a full-screen triangle at the far plane);
 //  - transparent: blended materials sorted back to front, over the opaque result.
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
@@ -14,7 +15,8 @@ constexpr VkClearColorValue kBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
 class ForwardPass final : public Pass {
  public:
-  ForwardPass(PassId id, vk::Pipeline pipeline) : id_(id), pipeline_(std::move(pipeline)) {}
+  ForwardPass(PassId id, vk::Pipeline pipeline, vk::Pipeline sky)
+      : id_(id), pipeline_(std::move(pipeline)), sky_(std::move(sky)) {}
   PassId id() const override { return id_; }
 
   void Record(PassContext& ctx) override {
@@ -43,6 +45,12 @@ class ForwardPass final : public Pass {
     } else {
       RecordDraws(ctx, ctx.draws->opaque);
       RecordDraws(ctx, ctx.draws->mask);
+      // Debug views keep the plain background, so their values read cleanly.
+      if (ctx.settings->debug_view == DebugView::kNone) {
+        vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_.handle());
+        vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
+        vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
+      }
     }
     vkCmdEndRendering(ctx.cmd);
   }
@@ -50,6 +58,7 @@ class ForwardPass final : public Pass {
  private:
   PassId id_;
   vk::Pipeline pipeline_;
+  vk::Pipeline sky_;  // forward only
 };
 
 absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,
@@ -68,7 +77,19 @@ absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const Scene
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
   absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
   if (!pipeline.ok()) return pipeline.status();
-  return std::make_unique<ForwardPass>(id, std::move(*pipeline));
+  vk::Pipeline sky;
+  if (!transparent) {
+    // Far plane is depth 0: GREATER_OR_EQUAL passes only where the prepass left the clear value.
+    d.name = "sky";
+    d.vertex_shader = "fullscreen.vert";
+    d.fragment_shader = "sky.frag";
+    d.scene_vertex_input = false;
+    d.blend = vk::BlendMode::kNone;
+    absl::StatusOr<vk::Pipeline> s = vk::CreateGraphicsPipeline(ctx, d);
+    if (!s.ok()) return s.status();
+    sky = std::move(*s);
+  }
+  return std::make_unique<ForwardPass>(id, std::move(*pipeline), std::move(sky));
 }
 
 }  // namespace

@@ -118,6 +118,7 @@ struct FrameUniforms {
   mat4 view;
   mat4 proj;
   mat4 view_proj;
+  mat4 inv_view_proj;    // clip -> world, for the sky's view rays
   vec4 camera_position;  // xyz world position
   vec4 ambient_sky;      // rgb radiance from above
   vec4 ambient_ground;   // rgb radiance from below
