@@ -2,6 +2,7 @@
 // layers on, compared with golden PNGs by PSNR. Set TESSERA_UPDATE_GOLDENS=1 to rewrite the
 // goldens (then look at every one before committing it). On a mismatch the actual image and
 // an amplified diff are written to $TESSERA_TEST_OUTPUT_DIR.
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -255,6 +256,82 @@ TEST(RenderTest, SceneMayOutliveTheRenderer) {
   r->reset();
   EXPECT_GT((*scene)->info().counts.triangles, 0u);
   scene->reset();  // frees the GPU scene, then the device
+}
+
+}  // namespace
+}  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// A unit quad in the z = 0 plane facing +Z, with one material.
+CpuScene QuadScene(const glm::vec4& base_color) {
+  CpuScene s;
+  s.name = "quad";
+  const glm::vec3 p[4] = {{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}};
+  for (const glm::vec3& v : p) {
+    Vertex vx;
+    vx.position = v;
+    vx.normal = glm::vec3(0, 0, 1);
+    vx.uv0 = glm::vec2(v.x * 0.5f + 0.5f, 0.5f - v.y * 0.5f);
+    s.vertices.push_back(vx);
+  }
+  s.indices = {0, 1, 2, 0, 2, 3};
+  Primitive prim;
+  prim.index_count = 6;
+  prim.vertex_count = 4;
+  prim.bounds = {glm::vec3(-1, -1, 0), glm::vec3(1, 1, 0)};
+  s.primitives.push_back(prim);
+  s.meshes.push_back({"quad", {0}});
+  Material m;
+  m.base_color_factor = base_color;
+  s.materials.push_back(m);
+  Drawable d;
+  d.world_bounds = prim.bounds;
+  s.drawables.push_back(d);
+  s.bounds = prim.bounds;
+  s.counts.triangles = 2;
+  return s;
+}
+
+uint8_t SrgbByte(float linear) {
+  const float c = linear <= 0.0031308f ? linear * 12.92f : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+  return static_cast<uint8_t>(std::lround(std::clamp(c, 0.0f, 1.0f) * 255.0f));
+}
+
+// The debug views against values computed on the CPU: the material factor reaches the shader
+// unchanged and the sRGB target encodes it as the sRGB formula says; the normal of a quad facing
+// the camera comes out as (0, 0, 1).
+TEST(RenderTest, DebugViewsMatchCpuReference) {
+  Renderer& r = SharedRenderer();
+  const glm::vec4 color(0.2f, 0.6f, 0.9f, 1.0f);
+  absl::StatusOr<SceneHandle> scene = r.LoadScene(QuadScene(color));
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  Camera camera;
+  camera.eye = glm::vec3(0.0f, 0.0f, 3.0f);
+  camera.target = glm::vec3(0.0f);
+  Settings s = SmallSettings(64, 64);
+  auto center = [](const Frame& f) {
+    const size_t i = (size_t(f.image.height / 2) * f.image.width + f.image.width / 2) * 4;
+    return glm::ivec3(f.image.pixels[i], f.image.pixels[i + 1], f.image.pixels[i + 2]);
+  };
+  s.debug_view = DebugView::kBaseColor;
+  absl::StatusOr<Frame> f = r.Render(**scene, camera, s);
+  ASSERT_TRUE(f.ok()) << f.status();
+  const glm::ivec3 expected(SrgbByte(color.r), SrgbByte(color.g), SrgbByte(color.b));
+  const glm::ivec3 got = center(*f);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[c], expected[c], 1) << "channel " << c;
+
+  s.debug_view = DebugView::kNormals;
+  f = r.Render(**scene, camera, s);
+  ASSERT_TRUE(f.ok()) << f.status();
+  const glm::ivec3 normal = center(*f);
+  EXPECT_NEAR(normal.x, SrgbByte(0.5f), 1);
+  EXPECT_NEAR(normal.y, SrgbByte(0.5f), 1);
+  EXPECT_NEAR(normal.z, 255, 1);
+  // The corner is background: no surface there.
+  EXPECT_NE(glm::ivec3(f->image.pixels[0], f->image.pixels[1], f->image.pixels[2]), normal);
+  ExpectNoValidationMessages(r);
 }
 
 }  // namespace
