@@ -2,9 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
-
 #include <glm/gtc/matrix_transform.hpp>
+#include <limits>
 
 #include "absl/strings/str_cat.h"
 

@@ -2,9 +2,8 @@
 // Camera description and the math around it: view and reverse-Z projection matrices, framing
 // a scene's bounds, and view-frustum planes for culling. Pure math, no Vulkan.
 #include <array>
-#include <optional>
-
 #include <glm/glm.hpp>
+#include <optional>
 
 #include "absl/status/status.h"
 #include "renderer/scene/cpu_scene.h"

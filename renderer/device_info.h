@@ -7,11 +7,11 @@ namespace tessera {
 
 // What the server and clients need to know about the device.
 struct DeviceInfo {
-  std::string name;         // VkPhysicalDeviceProperties::deviceName
-  std::string type;         // "discrete", "integrated", "virtual", "cpu", "other"
-  std::string driver_name;  // VkPhysicalDeviceDriverProperties::driverName
-  std::string driver_info;  // e.g. "Mesa 22.3.6 (LLVM 15.0.6)"
-  std::string api_version;  // "1.3.230"
+  std::string name;                  // VkPhysicalDeviceProperties::deviceName
+  std::string type;                  // "discrete", "integrated", "virtual", "cpu", "other"
+  std::string driver_name;           // VkPhysicalDeviceDriverProperties::driverName
+  std::string driver_info;           // e.g. "Mesa 22.3.6 (LLVM 15.0.6)"
+  std::string api_version;           // "1.3.230"
   uint32_t max_samples = 1;          // largest MSAA count for colour + depth attachments
   uint32_t max_image_dimension = 0;  // maxImageDimension2D
   uint32_t max_array_layers = 0;

@@ -6,12 +6,18 @@ namespace tessera {
 
 std::string_view PassName(PassId id) {
   switch (id) {
-    case PassId::kDepthPrepass: return "depth_prepass";
-    case PassId::kForward: return "forward";
-    case PassId::kTransparent: return "transparent";
-    case PassId::kTonemap: return "tonemap";
-    case PassId::kReadback: return "readback";
-    case PassId::kCount: break;
+    case PassId::kDepthPrepass:
+      return "depth_prepass";
+    case PassId::kForward:
+      return "forward";
+    case PassId::kTransparent:
+      return "transparent";
+    case PassId::kTonemap:
+      return "tonemap";
+    case PassId::kReadback:
+      return "readback";
+    case PassId::kCount:
+      break;
   }
   return "invalid";
 }
@@ -20,13 +26,18 @@ std::vector<ResourceUse> PassUses(PassId id) {
   using R = Resource;
   using A = Access;
   switch (id) {
-    case PassId::kDepthPrepass: return {{R::kDepth, A::kDepthWrite}};
-    case PassId::kForward: return {{R::kDepth, A::kDepthTest}, {R::kHdrColor, A::kColorWrite}};
+    case PassId::kDepthPrepass:
+      return {{R::kDepth, A::kDepthWrite}};
+    case PassId::kForward:
+      return {{R::kDepth, A::kDepthTest}, {R::kHdrColor, A::kColorWrite}};
     case PassId::kTransparent:
       return {{R::kDepth, A::kDepthTest}, {R::kHdrColor, A::kColorWrite}};
-    case PassId::kTonemap: return {{R::kHdrColor, A::kSampled}, {R::kLdrColor, A::kColorWrite}};
-    case PassId::kReadback: return {{R::kLdrColor, A::kTransferSrc}};
-    case PassId::kCount: break;
+    case PassId::kTonemap:
+      return {{R::kHdrColor, A::kSampled}, {R::kLdrColor, A::kColorWrite}};
+    case PassId::kReadback:
+      return {{R::kLdrColor, A::kTransferSrc}};
+    case PassId::kCount:
+      break;
   }
   return {};
 }
@@ -51,11 +62,16 @@ bool Writes(Access a) { return a == Access::kDepthWrite || a == Access::kColorWr
 int LayoutClass(Access a) {
   switch (a) {
     case Access::kDepthWrite:
-    case Access::kDepthTest: return 1;
-    case Access::kColorWrite: return 2;
-    case Access::kSampled: return 3;
-    case Access::kTransferSrc: return 4;
-    case Access::kNone: return 0;
+    case Access::kDepthTest:
+      return 1;
+    case Access::kColorWrite:
+      return 2;
+    case Access::kSampled:
+      return 3;
+    case Access::kTransferSrc:
+      return 4;
+    case Access::kNone:
+      return 0;
   }
   return 0;
 }

@@ -16,12 +16,12 @@ enum class Resource : uint8_t { kDepth, kHdrColor, kLdrColor, kCount };
 
 // How a pass uses a resource.
 enum class Access : uint8_t {
-  kNone,           // not yet used this frame (contents undefined)
-  kDepthWrite,     // depth attachment, test + write
-  kDepthTest,      // depth attachment, test only
-  kColorWrite,     // colour attachment
-  kSampled,        // read in a fragment shader
-  kTransferSrc,    // copied from
+  kNone,         // not yet used this frame (contents undefined)
+  kDepthWrite,   // depth attachment, test + write
+  kDepthTest,    // depth attachment, test only
+  kColorWrite,   // colour attachment
+  kSampled,      // read in a fragment shader
+  kTransferSrc,  // copied from
 };
 
 struct ResourceUse {

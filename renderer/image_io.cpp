@@ -28,8 +28,8 @@ absl::Status ValidateImage(const RgbaImage& image, const char* what) {
         absl::StrCat(what, ": empty image (", image.width, "x", image.height, ")"));
   }
   if (image.width > kMaxImageSide || image.height > kMaxImageSide) {
-    return absl::InvalidArgumentError(absl::StrCat(what, ": image too large (", image.width,
-                                                   "x", image.height, ")"));
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": image too large (", image.width, "x", image.height, ")"));
   }
   const uint64_t expected = uint64_t{image.width} * image.height * 4;
   if (image.pixels.size() != expected) {
@@ -157,8 +157,7 @@ bool DecodePngImpl(PngReadState* st) {
 
   png_uint_32 width = 0, height = 0;
   int bit_depth = 0, color_type = 0, interlace = 0;
-  png_get_IHDR(png, info, &width, &height, &bit_depth, &color_type, &interlace, nullptr,
-               nullptr);
+  png_get_IHDR(png, info, &width, &height, &bit_depth, &color_type, &interlace, nullptr, nullptr);
   if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide) {
     st->too_large = true;
     png_error(png, "PNG dimensions out of range");
@@ -235,10 +234,9 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg) {
     return absl::InternalError(absl::StrCat("tjInitDecompress: ", TjError(nullptr)));
   }
   int width = 0, height = 0, subsamp = 0, colorspace = 0;
-  if (tjDecompressHeader3(tj.get(), jpeg.data(), static_cast<unsigned long>(jpeg.size()),
-                          &width, &height, &subsamp, &colorspace) != 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("DecodeJpeg: bad header: ", TjError(tj.get())));
+  if (tjDecompressHeader3(tj.get(), jpeg.data(), static_cast<unsigned long>(jpeg.size()), &width,
+                          &height, &subsamp, &colorspace) != 0) {
+    return absl::InvalidArgumentError(absl::StrCat("DecodeJpeg: bad header: ", TjError(tj.get())));
   }
   if (width <= 0 || height <= 0 || static_cast<uint32_t>(width) > kMaxImageSide ||
       static_cast<uint32_t>(height) > kMaxImageSide) {
@@ -330,8 +328,8 @@ absl::StatusOr<double> Psnr(const RgbaImage& a, const RgbaImage& b) {
   if (absl::Status s = ValidateImage(a, "Psnr (first image)"); !s.ok()) return s;
   if (absl::Status s = ValidateImage(b, "Psnr (second image)"); !s.ok()) return s;
   if (a.width != b.width || a.height != b.height) {
-    return absl::InvalidArgumentError(absl::StrCat("Psnr: sizes differ: ", a.width, "x",
-                                                   a.height, " vs ", b.width, "x", b.height));
+    return absl::InvalidArgumentError(absl::StrCat("Psnr: sizes differ: ", a.width, "x", a.height,
+                                                   " vs ", b.width, "x", b.height));
   }
   uint64_t sum_sq = 0;
   for (size_t i = 0; i < a.pixels.size(); i += 4) {
@@ -341,8 +339,7 @@ absl::StatusOr<double> Psnr(const RgbaImage& a, const RgbaImage& b) {
     }
   }
   if (sum_sq == 0) return std::numeric_limits<double>::infinity();
-  const double mse =
-      static_cast<double>(sum_sq) / (static_cast<double>(a.width) * a.height * 3.0);
+  const double mse = static_cast<double>(sum_sq) / (static_cast<double>(a.width) * a.height * 3.0);
   return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 

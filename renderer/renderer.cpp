@@ -92,7 +92,7 @@ Scene::~Scene() = default;
 
 struct Renderer::Impl {
   std::shared_ptr<vk::Context> ctx;  // shared with the scenes, which may outlive the renderer
-  std::mutex mutex;  // the queue and everything below
+  std::mutex mutex;                  // the queue and everything below
   SceneLayout scene_layout;
   std::array<std::unique_ptr<Pass>, static_cast<size_t>(PassId::kCount)> passes;
   VkCommandPool command_pool = VK_NULL_HANDLE;
@@ -125,9 +125,8 @@ struct Renderer::Impl {
 
   absl::Status Init();
   absl::Status EnsureTargets(uint32_t width, uint32_t height);
-  DrawLists BuildDrawLists(const GpuScene& scene, const glm::mat4& view,
-                           const glm::mat4& view_proj, CullingMode culling,
-                           FrameStats& stats) const;
+  DrawLists BuildDrawLists(const GpuScene& scene, const glm::mat4& view, const glm::mat4& view_proj,
+                           CullingMode culling, FrameStats& stats) const;
   VkDescriptorSet WriteSceneSet(const GpuScene& scene);
 };
 
@@ -211,9 +210,9 @@ absl::Status Renderer::Impl::Init() {
                          vk::MemoryUsage::kUpload, "frame_uniforms");
   if (!fu.ok()) return fu.status();
   frame_ubo = std::move(*fu);
-  absl::StatusOr<vk::Buffer> lu = vk::Buffer::Create(
-      *ctx, sizeof(gpu::GpuLight) * gpu::kMaxLights, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
-      vk::MemoryUsage::kUpload, "lights");
+  absl::StatusOr<vk::Buffer> lu =
+      vk::Buffer::Create(*ctx, sizeof(gpu::GpuLight) * gpu::kMaxLights,
+                         VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload, "lights");
   if (!lu.ok()) return lu.status();
   lights_ubo = std::move(*lu);
   return absl::OkStatus();
@@ -350,8 +349,8 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
       GpuScene::Upload(*impl_->ctx, cpu, impl_->scene_layout.material_set_layout);
   if (!gpu.ok()) return gpu.status();
   std::shared_ptr<Scene> scene(new Scene());
-  scene->info_ = {cpu.name, cpu.counts, cpu.bounds, cpu.cameras, cpu.warnings,
-                  (*gpu)->device_bytes()};
+  scene->info_ = {cpu.name,    cpu.counts,   cpu.bounds,
+                  cpu.cameras, cpu.warnings, (*gpu)->device_bytes()};
   scene->device_ = impl_->ctx;
   scene->gpu_ = std::move(*gpu);
   return SceneHandle(std::move(scene));
@@ -393,8 +392,8 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   }
   auto* gl = static_cast<gpu::GpuLight*>(m.lights_ubo.mapped());
   for (size_t i = 0; i < lights.size(); ++i) gl[i] = ToGpu(lights[i]);
-  fu.counts = glm::uvec4(uint32_t(lights.size()), static_cast<uint32_t>(s.debug_view), s.width,
-                         s.height);
+  fu.counts =
+      glm::uvec4(uint32_t(lights.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
   fu.params = glm::vec4(std::exp2(s.exposure_ev), camera.znear, camera.zfar, 0.0f);
   std::memcpy(m.frame_ubo.mapped(), &fu, sizeof(fu));
   frame.stats.lights = uint32_t(lights.size());

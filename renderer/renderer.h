@@ -69,11 +69,11 @@ struct CpuTimings {
 };
 
 struct FrameStats {
-  uint32_t drawables = 0;         // in the scene
-  uint32_t drawables_culled = 0;  // rejected by culling
-  uint32_t draws = 0;             // draw calls over all passes
+  uint32_t drawables = 0;            // in the scene
+  uint32_t drawables_culled = 0;     // rejected by culling
+  uint32_t draws = 0;                // draw calls over all passes
   uint64_t triangles_submitted = 0;  // over all passes
-  uint32_t lights = 0;            // punctual lights shaded (incl. the default sun)
+  uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
 };
 
 struct Frame {
@@ -82,7 +82,7 @@ struct Frame {
   double gpu_total_ms = 0.0;       // first pass start to last pass end
   CpuTimings cpu;
   FrameStats stats;
-  ResolvedSettings settings;       // effective settings and the notes on what changed
+  ResolvedSettings settings;  // effective settings and the notes on what changed
 };
 
 enum class ImageFormat { kJpeg, kPng };

@@ -11,18 +11,27 @@ namespace tessera {
 
 namespace {
 
-constexpr std::array<std::pair<AaMode, std::string_view>, 5> kAaNames{{
-    {AaMode::kNone, "none"}, {AaMode::kMsaa, "msaa"}, {AaMode::kFxaa, "fxaa"},
-    {AaMode::kTaa, "taa"}, {AaMode::kVisMlaa, "vis_mlaa"}}};
-constexpr std::array<std::pair<CullingMode, std::string_view>, 4> kCullingNames{{
-    {CullingMode::kNone, "none"}, {CullingMode::kCpuFrustum, "cpu_frustum"},
-    {CullingMode::kGpuFrustum, "gpu_frustum"}, {CullingMode::kGpuOcclusion, "gpu_occlusion"}}};
-constexpr std::array<std::pair<ExposureMode, std::string_view>, 2> kExposureNames{{
-    {ExposureMode::kFixed, "fixed"}, {ExposureMode::kAuto, "auto"}}};
-constexpr std::array<std::pair<DebugView, std::string_view>, 7> kDebugNames{{
-    {DebugView::kNone, "none"}, {DebugView::kNormals, "normals"}, {DebugView::kDepth, "depth"},
-    {DebugView::kBaseColor, "base_color"}, {DebugView::kLightHeatmap, "light_heatmap"},
-    {DebugView::kCullingOverlay, "culling_overlay"}, {DebugView::kAaMask, "aa_mask"}}};
+constexpr std::array<std::pair<AaMode, std::string_view>, 5> kAaNames{
+    {{AaMode::kNone, "none"},
+     {AaMode::kMsaa, "msaa"},
+     {AaMode::kFxaa, "fxaa"},
+     {AaMode::kTaa, "taa"},
+     {AaMode::kVisMlaa, "vis_mlaa"}}};
+constexpr std::array<std::pair<CullingMode, std::string_view>, 4> kCullingNames{
+    {{CullingMode::kNone, "none"},
+     {CullingMode::kCpuFrustum, "cpu_frustum"},
+     {CullingMode::kGpuFrustum, "gpu_frustum"},
+     {CullingMode::kGpuOcclusion, "gpu_occlusion"}}};
+constexpr std::array<std::pair<ExposureMode, std::string_view>, 2> kExposureNames{
+    {{ExposureMode::kFixed, "fixed"}, {ExposureMode::kAuto, "auto"}}};
+constexpr std::array<std::pair<DebugView, std::string_view>, 7> kDebugNames{
+    {{DebugView::kNone, "none"},
+     {DebugView::kNormals, "normals"},
+     {DebugView::kDepth, "depth"},
+     {DebugView::kBaseColor, "base_color"},
+     {DebugView::kLightHeatmap, "light_heatmap"},
+     {DebugView::kCullingOverlay, "culling_overlay"},
+     {DebugView::kAaMask, "aa_mask"}}};
 
 template <typename E, size_t N>
 std::string_view NameOf(const std::array<std::pair<E, std::string_view>, N>& table, E v) {
@@ -39,7 +48,8 @@ absl::StatusOr<E> Parse(const std::array<std::pair<E, std::string_view>, N>& tab
     if (name == s) return e;
     names.emplace_back(name);
   }
-  return absl::InvalidArgumentError(absl::StrCat(std::string(field), ": unknown value '", std::string(s),
+  return absl::InvalidArgumentError(absl::StrCat(std::string(field), ": unknown value '",
+                                                 std::string(s),
                                                  "' (one of: ", absl::StrJoin(names, ", "), ")"));
 }
 
@@ -86,7 +96,8 @@ absl::Status ValidateSettings(const Settings& s) {
     return bad("exposure_ev", s.exposure_ev, "-20..20 stops");
   if (!Known(kDebugNames, s.debug_view))
     return bad("debug_view", static_cast<uint32_t>(s.debug_view), "a DebugView");
-  if (s.jpeg_quality < 1 || s.jpeg_quality > 100) return bad("jpeg_quality", s.jpeg_quality, "1..100");
+  if (s.jpeg_quality < 1 || s.jpeg_quality > 100)
+    return bad("jpeg_quality", s.jpeg_quality, "1..100");
   return absl::OkStatus();
 }
 
@@ -112,13 +123,14 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     e.height = caps.max_image_dimension;
   }
   if (e.samples > caps.max_samples) {
-    note("samples", absl::StrCat("clamped from ", e.samples, " to ", caps.max_samples,
-                                 " (device maximum)"));
+    note("samples",
+         absl::StrCat("clamped from ", e.samples, " to ", caps.max_samples, " (device maximum)"));
     e.samples = caps.max_samples;
   }
   // Features that later issues build. Each is reported and falls back to the plain path.
   if (e.aa != AaMode::kNone) {
-    not_applied("aa", absl::StrCat(std::string(ToString(e.aa)), " is not implemented yet; rendered with none"));
+    not_applied("aa", absl::StrCat(std::string(ToString(e.aa)),
+                                   " is not implemented yet; rendered with none"));
     e.aa = AaMode::kNone;
   }
   if (e.culling == CullingMode::kGpuFrustum || e.culling == CullingMode::kGpuOcclusion) {
@@ -133,17 +145,30 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
   if (e.tile_size != 16) {
     not_applied("tile_size", "no tiled light culling yet");
   }
-  if (e.shadows) { not_applied("shadows", "not implemented yet"); e.shadows = false; }
-  if (e.ssao) { not_applied("ssao", "not implemented yet"); e.ssao = false; }
-  if (e.bloom) { not_applied("bloom", "not implemented yet"); e.bloom = false; }
-  if (e.ibl) { not_applied("ibl", "not implemented yet; a hemisphere ambient is used"); e.ibl = false; }
+  if (e.shadows) {
+    not_applied("shadows", "not implemented yet");
+    e.shadows = false;
+  }
+  if (e.ssao) {
+    not_applied("ssao", "not implemented yet");
+    e.ssao = false;
+  }
+  if (e.bloom) {
+    not_applied("bloom", "not implemented yet");
+    e.bloom = false;
+  }
+  if (e.ibl) {
+    not_applied("ibl", "not implemented yet; a hemisphere ambient is used");
+    e.ibl = false;
+  }
   if (e.exposure_mode == ExposureMode::kAuto) {
     not_applied("exposure_mode", "auto exposure is not implemented yet; used fixed exposure_ev");
     e.exposure_mode = ExposureMode::kFixed;
   }
   if (e.debug_view == DebugView::kLightHeatmap || e.debug_view == DebugView::kCullingOverlay ||
       e.debug_view == DebugView::kAaMask) {
-    not_applied("debug_view", absl::StrCat(std::string(ToString(e.debug_view)), " is not implemented yet"));
+    not_applied("debug_view",
+                absl::StrCat(std::string(ToString(e.debug_view)), " is not implemented yet"));
     e.debug_view = DebugView::kNone;
   }
   return r;

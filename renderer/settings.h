@@ -17,19 +17,25 @@ enum class CullingMode : uint32_t { kNone = 0, kCpuFrustum, kGpuFrustum, kGpuOcc
 enum class ExposureMode : uint32_t { kFixed = 0, kAuto };
 // Values of the first four match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
-  kNone = 0, kNormals, kDepth, kBaseColor, kLightHeatmap, kCullingOverlay, kAaMask
+  kNone = 0,
+  kNormals,
+  kDepth,
+  kBaseColor,
+  kLightHeatmap,
+  kCullingOverlay,
+  kAaMask
 };
 
 struct Settings {
-  uint32_t width = 1280;   // pixels, 1..16384 (clamped to the device's maxImageDimension2D)
-  uint32_t height = 720;   // pixels, 1..16384
+  uint32_t width = 1280;  // pixels, 1..16384 (clamped to the device's maxImageDimension2D)
+  uint32_t height = 720;  // pixels, 1..16384
   AaMode aa = AaMode::kNone;
-  uint32_t samples = 4;    // MSAA / visibility samples for aa = msaa | vis_mlaa: 1, 2, 4 or 8
+  uint32_t samples = 4;  // MSAA / visibility samples for aa = msaa | vis_mlaa: 1, 2, 4 or 8
   CullingMode culling = CullingMode::kCpuFrustum;
-  bool scene_lights = true;         // use the file's KHR_lights_punctual lights
-  uint32_t synthetic_lights = 0;    // random point lights added in the scene bounds, 0..65536
-  uint32_t light_seed = 1;          // seed of the synthetic lights
-  uint32_t tile_size = 16;          // light-culling tile, 8 | 16 | 32 pixels
+  bool scene_lights = true;       // use the file's KHR_lights_punctual lights
+  uint32_t synthetic_lights = 0;  // random point lights added in the scene bounds, 0..65536
+  uint32_t light_seed = 1;        // seed of the synthetic lights
+  uint32_t tile_size = 16;        // light-culling tile, 8 | 16 | 32 pixels
   bool shadows = false;
   bool ssao = false;
   bool bloom = false;

@@ -4,11 +4,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <string>
-#include <vector>
-
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_format.h"
@@ -90,36 +89,64 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) Fail(arg + " needs a value");
       return argv[++i];
     };
-    if (arg == "--help" || arg == "-h") { std::fputs(kUsage, stdout); return 0; }
-    else if (arg == "--scene") scene_path = value();
-    else if (arg == "--out") out_path = value();
-    else if (arg == "--width") settings.width = ParseUint(arg, value());
-    else if (arg == "--height") settings.height = ParseUint(arg, value());
-    else if (arg == "--camera") camera_index = int(ParseUint(arg, value()));
-    else if (arg == "--frame") frame_bounds = true;
-    else if (arg == "--eye") { camera.eye = ParseVec3(arg, value()); explicit_camera = true; }
-    else if (arg == "--target") { camera.target = ParseVec3(arg, value()); explicit_camera = true; }
-    else if (arg == "--up") camera.up = ParseVec3(arg, value());
-    else if (arg == "--fov") { camera.yfov = glm::radians(ParseFloat(arg, value())); fov_set = true; }
-    else if (arg == "--near") znear = ParseFloat(arg, value());
-    else if (arg == "--far") zfar = ParseFloat(arg, value());
-    else if (arg == "--aa") settings.aa = OrFail(ParseAaMode(value()));
-    else if (arg == "--samples") settings.samples = ParseUint(arg, value());
-    else if (arg == "--culling") settings.culling = OrFail(ParseCullingMode(value()));
-    else if (arg == "--exposure") settings.exposure_ev = ParseFloat(arg, value());
-    else if (arg == "--debug") settings.debug_view = OrFail(ParseDebugView(value()));
-    else if (arg == "--no-scene-lights") settings.scene_lights = false;
-    else if (arg == "--quality") settings.jpeg_quality = ParseUint(arg, value());
+    if (arg == "--help" || arg == "-h") {
+      std::fputs(kUsage, stdout);
+      return 0;
+    } else if (arg == "--scene")
+      scene_path = value();
+    else if (arg == "--out")
+      out_path = value();
+    else if (arg == "--width")
+      settings.width = ParseUint(arg, value());
+    else if (arg == "--height")
+      settings.height = ParseUint(arg, value());
+    else if (arg == "--camera")
+      camera_index = int(ParseUint(arg, value()));
+    else if (arg == "--frame")
+      frame_bounds = true;
+    else if (arg == "--eye") {
+      camera.eye = ParseVec3(arg, value());
+      explicit_camera = true;
+    } else if (arg == "--target") {
+      camera.target = ParseVec3(arg, value());
+      explicit_camera = true;
+    } else if (arg == "--up")
+      camera.up = ParseVec3(arg, value());
+    else if (arg == "--fov") {
+      camera.yfov = glm::radians(ParseFloat(arg, value()));
+      fov_set = true;
+    } else if (arg == "--near")
+      znear = ParseFloat(arg, value());
+    else if (arg == "--far")
+      zfar = ParseFloat(arg, value());
+    else if (arg == "--aa")
+      settings.aa = OrFail(ParseAaMode(value()));
+    else if (arg == "--samples")
+      settings.samples = ParseUint(arg, value());
+    else if (arg == "--culling")
+      settings.culling = OrFail(ParseCullingMode(value()));
+    else if (arg == "--exposure")
+      settings.exposure_ev = ParseFloat(arg, value());
+    else if (arg == "--debug")
+      settings.debug_view = OrFail(ParseDebugView(value()));
+    else if (arg == "--no-scene-lights")
+      settings.scene_lights = false;
+    else if (arg == "--quality")
+      settings.jpeg_quality = ParseUint(arg, value());
     else if (arg == "--chroma") {
       const std::string c = value();
       if (c != "420" && c != "444") Fail("--chroma wants 420 or 444");
       settings.jpeg_444 = c == "444";
-    }
-    else if (arg == "--frames") frames = std::max(1u, ParseUint(arg, value()));
-    else if (arg == "--device") device = value();
-    else if (arg == "--validation") validation = true;
-    else if (arg == "--json") json = true;
-    else Fail("unknown option '" + arg + "' (see --help)");
+    } else if (arg == "--frames")
+      frames = std::max(1u, ParseUint(arg, value()));
+    else if (arg == "--device")
+      device = value();
+    else if (arg == "--validation")
+      validation = true;
+    else if (arg == "--json")
+      json = true;
+    else
+      Fail("unknown option '" + arg + "' (see --help)");
   }
   const bool png = out_path.size() >= 4 && out_path.substr(out_path.size() - 4) == ".png";
 
@@ -158,21 +185,31 @@ int main(int argc, char** argv) {
   const DeviceInfo& dev = renderer->device_info();
   if (json) {
     nlohmann::json j;
-    j["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info},
+    j["device"] = {{"name", dev.name},
+                   {"type", dev.type},
+                   {"driver", dev.driver_info},
                    {"max_samples", dev.max_samples},
                    {"max_image_dimension", dev.max_image_dimension}};
-    j["scene"] = {{"name", info.name}, {"drawables", frame.stats.drawables},
+    j["scene"] = {{"name", info.name},
+                  {"drawables", frame.stats.drawables},
                   {"triangles", info.counts.triangles},
                   {"bounds_min", {info.bounds.min.x, info.bounds.min.y, info.bounds.min.z}},
                   {"bounds_max", {info.bounds.max.x, info.bounds.max.y, info.bounds.max.z}}};
-    j["output"] = {{"path", out_path}, {"bytes", bytes.size()},
-                   {"width", frame.image.width}, {"height", frame.image.height}};
-    for (const PassTiming& p : frame.passes) j["passes"].push_back({{"pass", p.pass}, {"gpu_ms", p.gpu_ms}});
+    j["output"] = {{"path", out_path},
+                   {"bytes", bytes.size()},
+                   {"width", frame.image.width},
+                   {"height", frame.image.height}};
+    for (const PassTiming& p : frame.passes)
+      j["passes"].push_back({{"pass", p.pass}, {"gpu_ms", p.gpu_ms}});
     j["gpu_total_ms"] = frame.gpu_total_ms;
-    j["cpu_ms"] = {{"record", frame.cpu.record_ms}, {"submit_wait", frame.cpu.submit_wait_ms},
-                   {"readback", frame.cpu.readback_ms}, {"encode", frame.cpu.encode_ms}};
-    j["stats"] = {{"draws", frame.stats.draws}, {"triangles_submitted", frame.stats.triangles_submitted},
-                  {"drawables_culled", frame.stats.drawables_culled}, {"lights", frame.stats.lights}};
+    j["cpu_ms"] = {{"record", frame.cpu.record_ms},
+                   {"submit_wait", frame.cpu.submit_wait_ms},
+                   {"readback", frame.cpu.readback_ms},
+                   {"encode", frame.cpu.encode_ms}};
+    j["stats"] = {{"draws", frame.stats.draws},
+                  {"triangles_submitted", frame.stats.triangles_submitted},
+                  {"drawables_culled", frame.stats.drawables_culled},
+                  {"lights", frame.stats.lights}};
     j["notes"] = nlohmann::json::array();
     for (const SettingNote& n : frame.settings.notes)
       j["notes"].push_back({{"field", n.field}, {"message", n.message}});
@@ -199,7 +236,8 @@ int main(int argc, char** argv) {
     std::printf("output   %s (%ux%u, %zu bytes)\n\n", out_path.c_str(), frame.image.width,
                 frame.image.height, bytes.size());
     std::printf("%-16s %10s\n", "pass", "gpu ms");
-    for (const PassTiming& p : frame.passes) std::printf("%-16s %10.3f\n", p.pass.c_str(), p.gpu_ms);
+    for (const PassTiming& p : frame.passes)
+      std::printf("%-16s %10.3f\n", p.pass.c_str(), p.gpu_ms);
     std::printf("%-16s %10.3f\n\n", "total", frame.gpu_total_ms);
     std::printf("%-16s %10s\n", "cpu stage", "ms");
     std::printf("%-16s %10.3f\n%-16s %10.3f\n%-16s %10.3f\n%-16s %10.3f\n", "record",

@@ -66,8 +66,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
 
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
   vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
-  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout, 0,
-                          1, &ctx.scene_set, 0, nullptr);
+  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout, 0, 1,
+                          &ctx.scene_set, 0, nullptr);
   const VkViewport viewport{0.0f, 0.0f, float(ctx.targets->width), float(ctx.targets->height),
                             0.0f, 1.0f};
   const VkRect2D scissor{{0, 0}, {ctx.targets->width, ctx.targets->height}};
@@ -79,8 +79,7 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
   vkCmdBindIndexBuffer(ctx.cmd, ctx.scene->indices().handle(), 0, VK_INDEX_TYPE_UINT32);
 }
 
-void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items,
-                 bool textured) {
+void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items, bool textured) {
   int cull = -1;
   uint32_t material = UINT32_MAX;
   for (const DrawItem* item : items) {

@@ -3,11 +3,11 @@
 // A pass records its own commands only; the frame graph (frame_graph.h) decides whether it
 // runs and makes the layout transitions its declared uses need, and the renderer wraps it in
 // GPU timestamps.
+#include <vulkan/vulkan.h>
+
 #include <cstdint>
 #include <memory>
 #include <vector>
-
-#include <vulkan/vulkan.h>
 
 #include "absl/status/statusor.h"
 #include "renderer/frame_graph.h"

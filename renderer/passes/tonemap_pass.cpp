@@ -13,7 +13,7 @@ namespace tessera {
 namespace {
 
 struct TonemapPush {
-  float exposure;    // linear multiplier, 2^exposure_ev
+  float exposure;        // linear multiplier, 2^exposure_ev
   uint32_t passthrough;  // 1 for debug views
 };
 
@@ -21,8 +21,11 @@ class TonemapPass final : public Pass {
  public:
   TonemapPass(const vk::Context& ctx, VkDescriptorSetLayout set_layout, VkPipelineLayout layout,
               vk::Pipeline pipeline, vk::Sampler sampler)
-      : device_(ctx.device()), set_layout_(set_layout), layout_(layout),
-        pipeline_(std::move(pipeline)), sampler_(std::move(sampler)) {}
+      : device_(ctx.device()),
+        set_layout_(set_layout),
+        layout_(layout),
+        pipeline_(std::move(pipeline)),
+        sampler_(std::move(sampler)) {}
   ~TonemapPass() override {
     vkDestroyPipelineLayout(device_, layout_, nullptr);
     vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);

@@ -2,12 +2,11 @@
 // The CPU-side scene: what the glTF importer and the demo-scene generator produce, and what
 // GpuScene uploads. Plain data; no Vulkan, no tinygltf.
 #include <cstdint>
+#include <glm/glm.hpp>
 #include <limits>
 #include <memory>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
 
 namespace tessera {
 
@@ -17,8 +16,16 @@ struct Aabb {
   glm::vec3 max{std::numeric_limits<float>::lowest()};
 
   bool empty() const { return min.x > max.x || min.y > max.y || min.z > max.z; }
-  void extend(const glm::vec3& p) { min = glm::min(min, p); max = glm::max(max, p); }
-  void extend(const Aabb& b) { if (!b.empty()) { extend(b.min); extend(b.max); } }
+  void extend(const glm::vec3& p) {
+    min = glm::min(min, p);
+    max = glm::max(max, p);
+  }
+  void extend(const Aabb& b) {
+    if (!b.empty()) {
+      extend(b.min);
+      extend(b.max);
+    }
+  }
   glm::vec3 center() const { return (min + max) * 0.5f; }
   glm::vec3 extent() const { return max - min; }
   // Radius of the sphere around center() that encloses the box.
@@ -58,7 +65,7 @@ struct Texture {
 
 // A material's use of a texture (glTF textureInfo + KHR_texture_transform).
 struct TextureRef {
-  int32_t texture = -1;  // index into CpuScene::textures; -1 = none
+  int32_t texture = -1;   // index into CpuScene::textures; -1 = none
   uint32_t texcoord = 0;  // TEXCOORD_n set, 0 or 1
   glm::vec2 offset{0.0f};
   glm::vec2 scale{1.0f};
@@ -133,7 +140,7 @@ struct SceneCamera {
   float yfov = 0.8f;      // radians
   float aspect = 0.0f;    // 0 = not given
   float znear = 0.01f;
-  float zfar = 0.0f;      // 0 = infinite
+  float zfar = 0.0f;  // 0 = infinite
 };
 
 // Counts as the file declares them (glTF arrays) and as instanced by the default scene.

@@ -4,14 +4,13 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <glm/glm.hpp>
+#include <glm/gtc/constants.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 #include <memory>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <glm/glm.hpp>
-#include <glm/gtc/constants.hpp>
-#include <glm/gtc/matrix_transform.hpp>
 
 namespace tessera {
 namespace {
@@ -89,8 +88,8 @@ class MeshBuilder {
   // and drops the zero-area triangles that pole rows produce.
   void AddTriangle(const Primitive& prim, uint32_t a, uint32_t b, uint32_t c) {
     const Vertex* base = scene_->vertices.data() + prim.first_vertex;
-    const glm::vec3 n = glm::cross(base[b].position - base[a].position,
-                                   base[c].position - base[a].position);
+    const glm::vec3 n =
+        glm::cross(base[b].position - base[a].position, base[c].position - base[a].position);
     if (glm::length(n) < 1e-9f) return;
     const glm::vec3 avg = base[a].normal + base[b].normal + base[c].normal;
     if (glm::dot(n, avg) < 0.0f) std::swap(b, c);
@@ -171,14 +170,12 @@ Primitive AddBox(MeshBuilder& mb, CpuScene& scene, float size, uint32_t material
   struct Face {
     glm::vec3 n, up;
   };
-  const Face faces[6] = {{{1, 0, 0}, {0, 1, 0}},  {{-1, 0, 0}, {0, 1, 0}},
-                         {{0, 0, 1}, {0, 1, 0}},  {{0, 0, -1}, {0, 1, 0}},
-                         {{0, 1, 0}, {0, 0, -1}}, {{0, -1, 0}, {0, 0, 1}}};
+  const Face faces[6] = {{{1, 0, 0}, {0, 1, 0}},  {{-1, 0, 0}, {0, 1, 0}}, {{0, 0, 1}, {0, 1, 0}},
+                         {{0, 0, -1}, {0, 1, 0}}, {{0, 1, 0}, {0, 0, -1}}, {{0, -1, 0}, {0, 0, 1}}};
   Primitive box;
   for (int f = 0; f < 6; ++f) {
     const Primitive face = mb.AddSurface(
-        Quad(faces[f].n * (size * 0.5f), faces[f].n, faces[f].up, glm::vec2(size),
-             glm::vec2(1.0f)),
+        Quad(faces[f].n * (size * 0.5f), faces[f].n, faces[f].up, glm::vec2(size), glm::vec2(1.0f)),
         2, 2, material);
     if (f == 0) {
       box = face;
@@ -254,8 +251,8 @@ std::shared_ptr<const Image> CheckerImage() {
     const uint32_t lx = x % kTile, ly = y % kTile;
     const bool grout = lx < 2 || ly < 2;
     const float jitter = 0.06f * (Hash01(tx, ty) - 0.5f);
-    glm::vec3 c = ((tx + ty) % 2 == 0) ? glm::vec3(0.80f, 0.78f, 0.74f)
-                                       : glm::vec3(0.22f, 0.24f, 0.28f);
+    glm::vec3 c =
+        ((tx + ty) % 2 == 0) ? glm::vec3(0.80f, 0.78f, 0.74f) : glm::vec3(0.22f, 0.24f, 0.28f);
     c += jitter;
     if (grout) c = glm::vec3(0.12f);
     return glm::vec4(c, 1.0f);
@@ -399,8 +396,8 @@ CpuScene BuildDemoScene() {
   const uint32_t floor_mat = AddMaterial(scene, floor);
   const uint32_t gold_mat =
       AddMaterial(scene, Pbr("Polished gold", glm::vec4(1.0f, 0.77f, 0.34f, 1.0f), 1.0f, 0.2f));
-  const uint32_t copper_mat = AddMaterial(
-      scene, Pbr("Brushed copper", glm::vec4(0.95f, 0.64f, 0.54f, 1.0f), 1.0f, 0.55f));
+  const uint32_t copper_mat =
+      AddMaterial(scene, Pbr("Brushed copper", glm::vec4(0.95f, 0.64f, 0.54f, 1.0f), 1.0f, 0.55f));
   const uint32_t plastic_mat =
       AddMaterial(scene, Pbr("Red plastic", glm::vec4(0.8f, 0.05f, 0.04f, 1.0f), 0.0f, 0.3f));
   Material bricks = Pbr("White bricks", glm::vec4(0.9f, 0.9f, 0.88f, 1.0f), 0.0f, 0.85f);
@@ -422,10 +419,10 @@ CpuScene BuildDemoScene() {
   const uint32_t glass_mat = AddMaterial(scene, glass);
 
   // Geometry. The spheres share one vertex/index range: primitives differ only in material.
-  const Primitive floor_prim = mb.AddSurface(
-      Quad(glm::vec3(0.0f), glm::vec3(0, 1, 0), glm::vec3(0, 0, -1), glm::vec2(12.0f),
-           glm::vec2(6.0f)),
-      12, 12, floor_mat);
+  const Primitive floor_prim =
+      mb.AddSurface(Quad(glm::vec3(0.0f), glm::vec3(0, 1, 0), glm::vec3(0, 0, -1), glm::vec2(12.0f),
+                         glm::vec2(6.0f)),
+                    12, 12, floor_mat);
   const Primitive sphere = mb.AddSurface(Sphere(0.5f), 64, 40, gold_mat);
   const Primitive torus = mb.AddSurface(Torus(0.42f, 0.15f), 64, 24, copper_mat);
   const Primitive box = AddBox(mb, scene, 0.9f, brick_mat);
@@ -434,9 +431,9 @@ CpuScene BuildDemoScene() {
   AddObject(scene, "Floor", floor_prim, glm::mat4(1.0f));
   AddObject(scene, "Gold sphere", sphere, Translate(-1.6f, 0.5f, 0.3f));
   // Stand the ring up (its axis horizontal), resting on the floor.
-  AddObject(scene, "Copper torus", torus,
-            glm::rotate(RotateY(Translate(0.1f, 0.57f, -1.3f), 0.5f), kPi * 0.5f,
-                        glm::vec3(1, 0, 0)));
+  AddObject(
+      scene, "Copper torus", torus,
+      glm::rotate(RotateY(Translate(0.1f, 0.57f, -1.3f), 0.5f), kPi * 0.5f, glm::vec3(1, 0, 0)));
   AddObject(scene, "Red plastic sphere", WithMaterial(sphere, plastic_mat),
             Translate(-0.15f, 0.5f, 0.55f));
   AddObject(scene, "Brick box", box, RotateY(Translate(-1.5f, 0.45f, -1.7f), 0.45f));

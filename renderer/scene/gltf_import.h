@@ -19,9 +19,9 @@ struct GltfSource {
 };
 
 struct ImportLimits {
-  uint64_t max_vertices = 1u << 26;    // after expansion to the scene vertex buffer
+  uint64_t max_vertices = 1u << 26;  // after expansion to the scene vertex buffer
   uint64_t max_indices = 1u << 28;
-  uint32_t max_image_dimension = 16384;  // per side; larger images are an error
+  uint32_t max_image_dimension = 16384;    // per side; larger images are an error
   uint64_t max_image_pixels = 1ull << 26;  // per image
   uint32_t max_drawables = 1u << 20;
 };

@@ -1,11 +1,11 @@
 #include "renderer/scene/gpu_scene.h"
 
+#include <stb/stb_image_resize.h>
+
 #include <algorithm>
 #include <bit>
 #include <cstring>
 #include <map>
-
-#include <stb/stb_image_resize.h>
 
 #include "absl/strings/str_cat.h"
 #include "renderer/vk/vk_check.h"
@@ -67,8 +67,7 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
   gpu::GpuMaterial g{};
   g.base_color_factor = m.base_color_factor;
   g.emissive = glm::vec4(m.emissive_factor * m.emissive_strength, 0.0f);
-  g.params = glm::vec4(m.metallic_factor, m.roughness_factor, m.normal_scale,
-                       m.occlusion_strength);
+  g.params = glm::vec4(m.metallic_factor, m.roughness_factor, m.normal_scale, m.occlusion_strength);
   g.params2 = glm::vec4(m.alpha_cutoff, 0.0f, 0.0f, 0.0f);
   g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u, 0u, 0u);
   g.base_color_tex = MakeTextureRef(m.base_color, textures, plan);
@@ -83,8 +82,8 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
 std::vector<uint8_t> Resample(const Image& img, uint32_t w, uint32_t h, bool srgb) {
   std::vector<uint8_t> out(static_cast<size_t>(w) * h * 4);
   if (srgb) {
-    stbir_resize_uint8_srgb(img.rgba8.data(), img.width, img.height, 0, out.data(), w, h, 0, 4,
-                            3, 0);
+    stbir_resize_uint8_srgb(img.rgba8.data(), img.width, img.height, 0, out.data(), w, h, 0, 4, 3,
+                            0);
   } else {
     stbir_resize_uint8(img.rgba8.data(), img.width, img.height, 0, out.data(), w, h, 0, 4);
   }
@@ -155,9 +154,10 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
     int32_t w = static_cast<int32_t>(b.width), h = static_cast<int32_t>(b.height);
     for (uint32_t level = 1; level < levels; ++level) {
       // Level-1 becomes a blit source; level is still TRANSFER_DST from the first barrier.
-      vk::ImageTransition t{VK_PIPELINE_STAGE_2_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                            VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_BLIT_BIT,
-                            VK_ACCESS_2_TRANSFER_READ_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
+      vk::ImageTransition t{
+          VK_PIPELINE_STAGE_2_TRANSFER_BIT,     VK_ACCESS_2_TRANSFER_WRITE_BIT,
+          VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_BLIT_BIT,
+          VK_ACCESS_2_TRANSFER_READ_BIT,        VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
       const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(*image, t, level - 1, 1);
       vk::CmdBarrier(cmd, &barrier, 1);
       const int32_t nw = std::max(1, w / 2), nh = std::max(1, h / 2);
@@ -175,15 +175,15 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
     VkImageMemoryBarrier2 barriers[2];
     uint32_t n = 0;
     const vk::ImageTransition to_read_dst{
-        VK_PIPELINE_STAGE_2_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+        VK_PIPELINE_STAGE_2_TRANSFER_BIT,     VK_ACCESS_2_TRANSFER_WRITE_BIT,
         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     barriers[n++] = vk::MakeImageBarrier(*image, to_read_dst, levels - 1, 1);
     if (levels > 1) {
       const vk::ImageTransition to_read_src{
-          VK_PIPELINE_STAGE_2_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_READ_BIT,
+          VK_PIPELINE_STAGE_2_TRANSFER_BIT,     VK_ACCESS_2_TRANSFER_READ_BIT,
           VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-          VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+          VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
       barriers[n++] = vk::MakeImageBarrier(*image, to_read_src, 0, levels - 1);
     }
     vk::CmdBarrier(cmd, barriers, n);
@@ -212,9 +212,9 @@ absl::StatusOr<vk::Image> PlaceholderBucket(vk::Context& ctx, uint32_t index) {
     vkCmdClearColorImage(cmd, image->handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &white, 1,
                          &range);
     const vk::ImageTransition to_read{
-        VK_PIPELINE_STAGE_2_CLEAR_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+        VK_PIPELINE_STAGE_2_CLEAR_BIT,        VK_ACCESS_2_TRANSFER_WRITE_BIT,
         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+        VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     b = vk::MakeImageBarrier(*image, to_read);
     vk::CmdBarrier(cmd, &b, 1);
   });
@@ -276,9 +276,8 @@ GpuScene::~GpuScene() {
   if (material_pool_) vkDestroyDescriptorPool(device_, material_pool_, nullptr);
 }
 
-absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
-                                                            const CpuScene& scene,
-                                                            VkDescriptorSetLayout material_layout) {
+absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, const CpuScene& scene,
+                                                           VkDescriptorSetLayout material_layout) {
   auto gs = std::make_unique<GpuScene>();
   gs->device_ = ctx.device();
   const std::string& n = scene.name;
@@ -294,18 +293,18 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
                                                        scene.vertices.size() * sizeof(Vertex),
                                                        kVertexUsage, n + ".vertices"));
   if (st.ok())
-    st = assign(gs->indices_, UploadBuffer(ctx, scene.indices.data(),
-                                           scene.indices.size() * sizeof(uint32_t),
-                                           VK_BUFFER_USAGE_INDEX_BUFFER_BIT, n + ".indices"));
+    st = assign(gs->indices_,
+                UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
+                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT, n + ".indices"));
   if (!st.ok()) return st;
 
   const uint32_t max_size = std::min<uint32_t>(4096, ctx.info().max_image_dimension);
   const TextureBucketPlan plan = PlanTextureBuckets(scene.textures, max_size);
   for (const auto& b : plan.buckets) {
     if (b.layers > ctx.info().max_array_layers) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(n, ": ", b.layers, " textures of ", b.width, "x", b.height,
-                       " exceed the device's ", ctx.info().max_array_layers, " array layers"));
+      return absl::InvalidArgumentError(absl::StrCat(n, ": ", b.layers, " textures of ", b.width,
+                                                     "x", b.height, " exceed the device's ",
+                                                     ctx.info().max_array_layers, " array layers"));
     }
   }
 
@@ -345,7 +344,8 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx,
   if (!st.ok()) return st;
 
   // The same materials for uniform reads, one aligned range per material (set 1, binding 0).
-  const VkDeviceSize align = std::max<VkDeviceSize>(16, ctx.limits().minUniformBufferOffsetAlignment);
+  const VkDeviceSize align =
+      std::max<VkDeviceSize>(16, ctx.limits().minUniformBufferOffsetAlignment);
   const VkDeviceSize stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
   std::vector<uint8_t> padded(stride * materials.size(), 0);
   for (size_t i = 0; i < materials.size(); ++i)

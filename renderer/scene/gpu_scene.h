@@ -51,8 +51,7 @@ class GpuScene {
   // runs out, INVALID_ARGUMENT when the scene exceeds a device limit (e.g. array layers).
   // `material_layout` is the layout of descriptor set 1 (gpu::kMaterialSet): one set per
   // material is allocated and written here.
-  static absl::StatusOr<std::unique_ptr<GpuScene>> Upload(vk::Context& ctx,
-                                                          const CpuScene& scene,
+  static absl::StatusOr<std::unique_ptr<GpuScene>> Upload(vk::Context& ctx, const CpuScene& scene,
                                                           VkDescriptorSetLayout material_layout);
   ~GpuScene();
 

@@ -5,10 +5,9 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "renderer/log.h"
-
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "renderer/log.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
@@ -64,21 +63,31 @@ std::string Lower(std::string s) {
 
 const char* TypeName(VkPhysicalDeviceType type) {
   switch (type) {
-    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return "discrete";
-    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return "integrated";
-    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return "virtual";
-    case VK_PHYSICAL_DEVICE_TYPE_CPU: return "cpu";
-    default: return "other";
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+      return "discrete";
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+      return "integrated";
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+      return "virtual";
+    case VK_PHYSICAL_DEVICE_TYPE_CPU:
+      return "cpu";
+    default:
+      return "other";
   }
 }
 
 int TypeRank(VkPhysicalDeviceType type) {
   switch (type) {
-    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU: return 4;
-    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU: return 3;
-    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU: return 2;
-    case VK_PHYSICAL_DEVICE_TYPE_CPU: return 1;
-    default: return 0;
+    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
+      return 4;
+    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
+      return 3;
+    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
+      return 2;
+    case VK_PHYSICAL_DEVICE_TYPE_CPU:
+      return 1;
+    default:
+      return 0;
   }
 }
 
@@ -244,10 +253,10 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
     }
   }
   if (ctx->physical_ == VK_NULL_HANDLE) {
-    return absl::NotFoundError(absl::StrCat(
-        wanted.empty() ? "no Vulkan 1.3 device with a graphics+compute queue"
-                       : absl::StrCat("no Vulkan 1.3 device matches '", wanted, "'"),
-        "; devices: [", absl::StrJoin(names, ", "), "]"));
+    return absl::NotFoundError(
+        absl::StrCat(wanted.empty() ? "no Vulkan 1.3 device with a graphics+compute queue"
+                                    : absl::StrCat("no Vulkan 1.3 device matches '", wanted, "'"),
+                     "; devices: [", absl::StrJoin(names, ", "), "]"));
   }
 
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
@@ -260,7 +269,8 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
 
   VkPhysicalDeviceFeatures supported{};
   vkGetPhysicalDeviceFeatures(ctx->physical_, &supported);
-  VkPhysicalDeviceVulkan13Features f13_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+  VkPhysicalDeviceVulkan13Features f13_supported{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
   VkPhysicalDeviceFeatures2 f2_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   f2_supported.pNext = &f13_supported;
   vkGetPhysicalDeviceFeatures2(ctx->physical_, &f2_supported);
@@ -274,11 +284,11 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   info.type = TypeName(p.deviceType);
   info.driver_name = driver.driverName;
   info.driver_info = driver.driverInfo;
-  info.api_version = absl::StrCat(VK_API_VERSION_MAJOR(p.apiVersion), ".",
-                                  VK_API_VERSION_MINOR(p.apiVersion), ".",
-                                  VK_API_VERSION_PATCH(p.apiVersion));
-  info.max_samples = MaxSamples(p.limits.framebufferColorSampleCounts &
-                                p.limits.framebufferDepthSampleCounts);
+  info.api_version =
+      absl::StrCat(VK_API_VERSION_MAJOR(p.apiVersion), ".", VK_API_VERSION_MINOR(p.apiVersion), ".",
+                   VK_API_VERSION_PATCH(p.apiVersion));
+  info.max_samples =
+      MaxSamples(p.limits.framebufferColorSampleCounts & p.limits.framebufferDepthSampleCounts);
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;
   info.timestamp_period_ns = p.limits.timestampPeriod;
@@ -300,7 +310,8 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   f13.maintenance4 = f13_supported.maintenance4;
   VkPhysicalDeviceVulkan12Features f12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   f12.pNext = &f13;
-  VkPhysicalDeviceVulkan12Features f12_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
+  VkPhysicalDeviceVulkan12Features f12_supported{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   VkPhysicalDeviceFeatures2 q{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   q.pNext = &f12_supported;
   vkGetPhysicalDeviceFeatures2(ctx->physical_, &q);
@@ -330,9 +341,8 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
   VK_CHECK(vkCreateFence(ctx->device_, &fci, nullptr, &ctx->upload_fence_));
 
-  Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name,
-               info.type, info.driver_name, info.driver_info, info.max_samples,
-               validation ? "on" : "off");
+  Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name, info.type,
+             info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
   return ctx;
 }
 

@@ -1,5 +1,7 @@
 #pragma once
 // The Vulkan instance, the chosen physical device, its logical device and its queue.
+#include <vulkan/vulkan.h>
+
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -7,8 +9,6 @@
 #include <mutex>
 #include <string>
 #include <vector>
-
-#include <vulkan/vulkan.h>
 
 #include "absl/status/statusor.h"
 #include "renderer/device_info.h"

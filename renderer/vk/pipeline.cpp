@@ -79,7 +79,7 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
   VkPipelineRasterizationStateCreateInfo raster{
       VK_STRUCTURE_TYPE_PIPELINE_RASTERIZATION_STATE_CREATE_INFO};
   raster.polygonMode = VK_POLYGON_MODE_FILL;
-  raster.cullMode = VK_CULL_MODE_NONE;  // dynamic
+  raster.cullMode = VK_CULL_MODE_NONE;                 // dynamic
   raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // glTF winding; projection flips Y
   raster.lineWidth = 1.0f;
   VkPipelineMultisampleStateCreateInfo multisample{
@@ -105,7 +105,8 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
       b.alphaBlendOp = VK_BLEND_OP_ADD;
     }
   }
-  VkPipelineColorBlendStateCreateInfo blend{VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
+  VkPipelineColorBlendStateCreateInfo blend{
+      VK_STRUCTURE_TYPE_PIPELINE_COLOR_BLEND_STATE_CREATE_INFO};
   blend.attachmentCount = static_cast<uint32_t>(blend_states.size());
   blend.pAttachments = blend_states.data();
 

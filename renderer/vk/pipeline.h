@@ -1,10 +1,10 @@
 #pragma once
 // Graphics pipelines from embedded SPIR-V, for dynamic rendering (no render passes).
+#include <vulkan/vulkan.h>
+
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <vulkan/vulkan.h>
 
 #include "absl/status/statusor.h"
 #include "renderer/vk/context.h"

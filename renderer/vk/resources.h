@@ -3,11 +3,11 @@
 // Lifetime rule: the renderer waits for each frame's fence before returning it, so an object
 // that outlives the Render() call that used it can be destroyed at once. When frames overlap
 // (the streaming issue), destruction moves to a per-frame deferred queue.
+#include <vulkan/vulkan.h>
+
 #include <cstdint>
 #include <string>
 #include <utility>
-
-#include <vulkan/vulkan.h>
 
 #include "absl/status/statusor.h"
 #include "renderer/vk/context.h"

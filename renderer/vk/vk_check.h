@@ -18,17 +18,16 @@ absl::Status VkStatus(VkResult result, const char* what);
 
 }  // namespace tessera::vk
 
-#define VK_CHECK(expr)                                                        \
-  do {                                                                        \
-    VkResult vk_check_result_ = (expr);                                       \
-    if (vk_check_result_ != VK_SUCCESS)                                       \
+#define VK_CHECK(expr)                                                          \
+  do {                                                                          \
+    VkResult vk_check_result_ = (expr);                                         \
+    if (vk_check_result_ != VK_SUCCESS)                                         \
       ::tessera::vk::FatalVkError(vk_check_result_, #expr, __FILE__, __LINE__); \
   } while (0)
 
 // Returns a Status from the enclosing function when a Vulkan call fails.
-#define VK_RETURN_IF_ERROR(expr, what)                                        \
-  do {                                                                        \
-    VkResult vk_check_result_ = (expr);                                       \
-    if (vk_check_result_ != VK_SUCCESS)                                       \
-      return ::tessera::vk::VkStatus(vk_check_result_, what);                 \
+#define VK_RETURN_IF_ERROR(expr, what)                                                          \
+  do {                                                                                          \
+    VkResult vk_check_result_ = (expr);                                                         \
+    if (vk_check_result_ != VK_SUCCESS) return ::tessera::vk::VkStatus(vk_check_result_, what); \
   } while (0)

@@ -8,12 +8,11 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <glm/glm.hpp>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
-#include <nlohmann/json.hpp>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
@@ -58,12 +57,18 @@ int main(int argc, char** argv) {
       if (i + 1 >= argc) Fail(arg + " needs a value");
       return argv[++i];
     };
-    if (arg == "--scene") scene_path = value();
-    else if (arg == "--device") device = value();
-    else if (arg == "--frames") { if (!absl::SimpleAtoi(value(), &frames) || frames == 0) Fail("--frames"); }
-    else if (arg == "--warmup") { if (!absl::SimpleAtoi(value(), &warmup)) Fail("--warmup"); }
-    else if (arg == "--eye") eye = ParseVec3(value());
-    else if (arg == "--target") target = ParseVec3(value());
+    if (arg == "--scene")
+      scene_path = value();
+    else if (arg == "--device")
+      device = value();
+    else if (arg == "--frames") {
+      if (!absl::SimpleAtoi(value(), &frames) || frames == 0) Fail("--frames");
+    } else if (arg == "--warmup") {
+      if (!absl::SimpleAtoi(value(), &warmup)) Fail("--warmup");
+    } else if (arg == "--eye")
+      eye = ParseVec3(value());
+    else if (arg == "--target")
+      target = ParseVec3(value());
     else if (arg == "--culling") {
       absl::StatusOr<CullingMode> c = ParseCullingMode(value());
       if (!c.ok()) Fail(std::string(c.status().message()));
@@ -104,8 +109,10 @@ int main(int argc, char** argv) {
   nlohmann::json out;
   const DeviceInfo& dev = (*renderer)->device_info();
   out["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
-  out["scene"] = {{"name", info.name}, {"triangles", info.counts.triangles},
-                  {"primitives", info.counts.primitives}, {"load_ms", load_ms},
+  out["scene"] = {{"name", info.name},
+                  {"triangles", info.counts.triangles},
+                  {"primitives", info.counts.primitives},
+                  {"load_ms", load_ms},
                   {"device_mib", double(info.device_bytes) / (1 << 20)}};
   out["frames"] = frames;
   out["warmup"] = warmup;
@@ -150,13 +157,17 @@ int main(int argc, char** argv) {
     r["width"] = w;
     r["height"] = h;
     nlohmann::json passes = nlohmann::json::array();
-    for (const std::string& name : order) passes.push_back({{"pass", name}, {"gpu_ms_median", Median(pass_ms[name])}});
+    for (const std::string& name : order)
+      passes.push_back({{"pass", name}, {"gpu_ms_median", Median(pass_ms[name])}});
     r["passes"] = passes;
     r["gpu_total_ms_median"] = Median(total);
-    r["cpu_ms_median"] = {{"record", Median(record)}, {"submit_wait", Median(submit_wait)},
-                          {"readback", Median(readback)}, {"encode_jpeg", Median(encode)}};
+    r["cpu_ms_median"] = {{"record", Median(record)},
+                          {"submit_wait", Median(submit_wait)},
+                          {"readback", Median(readback)},
+                          {"encode_jpeg", Median(encode)}};
     r["gpu_total_over_wall"] = Median(ratio);
-    r["stats"] = {{"draws", last.stats.draws}, {"triangles_submitted", last.stats.triangles_submitted},
+    r["stats"] = {{"draws", last.stats.draws},
+                  {"triangles_submitted", last.stats.triangles_submitted},
                   {"drawables_culled", last.stats.drawables_culled}};
     out["results"].push_back(r);
   }

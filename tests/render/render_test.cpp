@@ -2,14 +2,14 @@
 // layers on, compared with golden PNGs by PSNR. Set TESSERA_UPDATE_GOLDENS=1 to rewrite the
 // goldens (then look at every one before committing it). On a mismatch the actual image and
 // an amplified diff are written to $TESSERA_TEST_OUTPUT_DIR.
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
 #include <string>
-
-#include <gtest/gtest.h>
 
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
@@ -59,7 +59,8 @@ Settings SmallSettings(uint32_t w, uint32_t h) {
 
 // Compares with tests/render/golden/<name>.png (or writes it when updating goldens).
 void CompareWithGolden(const std::string& name, const RgbaImage& image, double min_psnr) {
-  const std::string golden_path = Env("TESSERA_GOLDEN_DIR", TESSERA_DEFAULT_GOLDEN_DIR) + "/" + name + ".png";
+  const std::string golden_path =
+      Env("TESSERA_GOLDEN_DIR", TESSERA_DEFAULT_GOLDEN_DIR) + "/" + name + ".png";
   if (Env("TESSERA_UPDATE_GOLDENS") == "1") {
     absl::StatusOr<std::vector<uint8_t>> png = EncodePng(image);
     ASSERT_TRUE(png.ok()) << png.status();
@@ -73,7 +74,8 @@ void CompareWithGolden(const std::string& name, const RgbaImage& image, double m
   absl::StatusOr<double> psnr = Psnr(image, *golden);
   ASSERT_TRUE(psnr.ok()) << psnr.status();
   if (*psnr < min_psnr) {
-    const std::filesystem::path out_dir = Env("TESSERA_TEST_OUTPUT_DIR", TESSERA_DEFAULT_OUTPUT_DIR);
+    const std::filesystem::path out_dir =
+        Env("TESSERA_TEST_OUTPUT_DIR", TESSERA_DEFAULT_OUTPUT_DIR);
     std::filesystem::create_directories(out_dir);
     const std::string actual = (out_dir / (name + ".actual.png")).string();
     const std::string diff = (out_dir / (name + ".diff.png")).string();
@@ -131,14 +133,16 @@ INSTANTIATE_TEST_SUITE_P(
     Scenes, GoldenTest,
     ::testing::Values(GoldenCase{"demo", nullptr, 320, 180},
                       GoldenCase{"box", "Box/glTF/Box.gltf", 192, 192, glm::vec3(1.0f, 0.8f, 1.2f)},
-                      GoldenCase{"box_textured", "BoxTextured/glTF-Binary/BoxTextured.glb", 192, 192,
-                                 glm::vec3(1.0f, 0.8f, 1.2f)},
-                      GoldenCase{"damaged_helmet", "DamagedHelmet/glTF-Binary/DamagedHelmet.glb", 256, 256,
-                                 glm::vec3(0.0f, 0.0f, 1.0f)},
-                      GoldenCase{"alpha_blend_mode", "AlphaBlendModeTest/glTF/AlphaBlendModeTest.gltf", 320, 180},
-                      GoldenCase{"orientation", "OrientationTest/glTF/OrientationTest.gltf", 256, 256,
-                                 glm::vec3(1.0f, 0.9f, 1.1f)},
-                      GoldenCase{"texture_transform", "TextureTransformTest/glTF/TextureTransformTest.gltf", 256, 256}),
+                      GoldenCase{"box_textured", "BoxTextured/glTF-Binary/BoxTextured.glb", 192,
+                                 192, glm::vec3(1.0f, 0.8f, 1.2f)},
+                      GoldenCase{"damaged_helmet", "DamagedHelmet/glTF-Binary/DamagedHelmet.glb",
+                                 256, 256, glm::vec3(0.0f, 0.0f, 1.0f)},
+                      GoldenCase{"alpha_blend_mode",
+                                 "AlphaBlendModeTest/glTF/AlphaBlendModeTest.gltf", 320, 180},
+                      GoldenCase{"orientation", "OrientationTest/glTF/OrientationTest.gltf", 256,
+                                 256, glm::vec3(1.0f, 0.9f, 1.1f)},
+                      GoldenCase{"texture_transform",
+                                 "TextureTransformTest/glTF/TextureTransformTest.gltf", 256, 256}),
     [](const ::testing::TestParamInfo<GoldenCase>& info) { return std::string(info.param.name); });
 
 // The same inputs give the same pixels: frames are reproducible, which jobs and caching need.
@@ -295,7 +299,8 @@ CpuScene QuadScene(const glm::vec4& base_color) {
 }
 
 uint8_t SrgbByte(float linear) {
-  const float c = linear <= 0.0031308f ? linear * 12.92f : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+  const float c =
+      linear <= 0.0031308f ? linear * 12.92f : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
   return static_cast<uint8_t>(std::lround(std::clamp(c, 0.0f, 1.0f) * 255.0f));
 }
 

@@ -3,16 +3,16 @@
 // CPU scene. Pure math: nothing here touches Vulkan.
 #include "renderer/camera.h"
 
+#include <gtest/gtest.h>
+
 #include <array>
 #include <cmath>
+#include <glm/glm.hpp>
+#include <glm/gtc/matrix_transform.hpp>
 #include <limits>
 #include <random>
 #include <string>
 #include <vector>
-
-#include <glm/glm.hpp>
-#include <glm/gtc/matrix_transform.hpp>
-#include <gtest/gtest.h>
 
 #include "renderer/scene/cpu_scene.h"
 
@@ -245,13 +245,15 @@ bool SomeCornerOutOfView(const Camera& cam, const Aabb& bounds, float aspect) {
 TEST(FrameBoundsTest, WholeBoxInsideTheImage) {
   const std::vector<Aabb> boxes = {
       Box({-1, -1, -1}, {1, 1, 1}),
-      Box({0, 0, 0}, {10, 0.5f, 0.5f}),    // long and thin along x
+      Box({0, 0, 0}, {10, 0.5f, 0.5f}),     // long and thin along x
       Box({-0.2f, -30, 2}, {0.2f, 30, 3}),  // tall
       Box({100, 200, -50}, {104, 201, -47}),
   };
   const std::vector<glm::vec3> directions = {
       glm::vec3(0.55f, 0.45f, 0.70f),  // the default
-      glm::vec3(0, 0, 1), glm::vec3(1, 0, 0), glm::vec3(-1, -2, 0.5f),
+      glm::vec3(0, 0, 1),
+      glm::vec3(1, 0, 0),
+      glm::vec3(-1, -2, 0.5f),
       glm::vec3(0, 1, 0),   // straight down: up must be replaced
       glm::vec3(0, -1, 0),  // straight up
   };
@@ -261,8 +263,8 @@ TEST(FrameBoundsTest, WholeBoxInsideTheImage) {
         for (const glm::vec3& dir : directions) {
           const Camera cam = FrameBounds(box, yfov, aspect, dir);
           const std::string what = "yfov " + std::to_string(yfov) + " aspect " +
-                                   std::to_string(aspect) + " dir " + std::to_string(dir.x) +
-                                   "," + std::to_string(dir.y) + "," + std::to_string(dir.z);
+                                   std::to_string(aspect) + " dir " + std::to_string(dir.x) + "," +
+                                   std::to_string(dir.y) + "," + std::to_string(dir.z);
           EXPECT_FLOAT_EQ(cam.yfov, yfov) << what;
           ExpectNear3(cam.target, box.center(), 1e-4f, what);
           ExpectFramed(cam, box, aspect, what);
@@ -300,8 +302,7 @@ TEST(FrameBoundsTest, DegenerateBoundsGiveAValidCamera) {
       const Camera cam = FrameBounds(boxes[i], 0.8f, aspect);
       const absl::Status st = ValidateCamera(cam);
       EXPECT_TRUE(st.ok()) << "box " << i << ": " << st;
-      EXPECT_TRUE(std::isfinite(cam.eye.x) && std::isfinite(cam.eye.y) &&
-                  std::isfinite(cam.eye.z))
+      EXPECT_TRUE(std::isfinite(cam.eye.x) && std::isfinite(cam.eye.y) && std::isfinite(cam.eye.z))
           << "box " << i;
       if (!boxes[i].empty()) ExpectFramed(cam, boxes[i], aspect, "box " + std::to_string(i));
     }
@@ -433,9 +434,8 @@ TEST(ValidateCameraTest, RejectsBadFieldsNamingThem) {
   });
   add("zfar negative", {"camera.zfar"}, [](Camera& c) { c.zfar = -10.0f; });
   add("zfar inf", {"camera.zfar"}, [&](Camera& c) { c.zfar = inf; });
-  add("singular view", {"camera.view"}, [](Camera& c) {
-    c.view = glm::scale(glm::mat4(1.0f), glm::vec3(1, 0, 1));
-  });
+  add("singular view", {"camera.view"},
+      [](Camera& c) { c.view = glm::scale(glm::mat4(1.0f), glm::vec3(1, 0, 1)); });
   add("zero view", {"camera.view"}, [](Camera& c) { c.view = glm::mat4(0.0f); });
   add("nan view", {"camera.view"}, [&](Camera& c) {
     c.view = glm::mat4(1.0f);
@@ -598,7 +598,8 @@ TEST(AabbTest, TransformedEqualsBoundsOfTransformedCorners) {
     // rotation on the other side so the scale is not axis-aligned (shear).
     glm::vec3 s(scale(rng), scale(rng), scale(rng));
     if (i % 5 == 0) s.x = -s.x;
-    glm::mat4 m = glm::translate(glm::mat4(1.0f), glm::vec3(coord(rng), coord(rng), coord(rng)) * 2.0f);
+    glm::mat4 m =
+        glm::translate(glm::mat4(1.0f), glm::vec3(coord(rng), coord(rng), coord(rng)) * 2.0f);
     m = glm::rotate(m, angle(rng), axis);
     m = glm::scale(m, s);
     if (i % 2 == 0) m = glm::rotate(m, angle(rng), glm::vec3(0, 1, 0));
@@ -640,8 +641,8 @@ TEST(UvTransformTest, IdentityByDefault) {
 }
 
 TEST(UvTransformTest, MatchesSpecFormulaOnSamplePoints) {
-  const std::vector<glm::vec2> points = {{0, 0}, {1, 0}, {0, 1}, {1, 1}, {0.25f, 0.75f},
-                                         {-0.5f, 2.0f}};
+  const std::vector<glm::vec2> points = {{0, 0}, {1, 0},         {0, 1},
+                                         {1, 1}, {0.25f, 0.75f}, {-0.5f, 2.0f}};
   std::vector<TextureRef> refs;
   for (float rot : {0.0f, 0.392699f, kPi / 2, -1.0f, 2.5f}) {
     for (glm::vec2 scale : {glm::vec2(1, 1), glm::vec2(0.5f, 2.0f), glm::vec2(1.5f, -1.0f)}) {

@@ -1,13 +1,13 @@
 #include "renderer/scene/demo_scene.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <glm/glm.hpp>
 #include <set>
 #include <vector>
-
-#include <glm/glm.hpp>
-#include <gtest/gtest.h>
 
 namespace tessera {
 namespace {
@@ -242,8 +242,8 @@ TEST_F(DemoScene, NormalAndMetallicRoughnessMapsAreSane) {
       const Image& img = *s.textures[m.normal.texture].image;
       bool tilted = false;
       for (size_t i = 0; i < img.rgba8.size(); i += 4) {
-        const glm::vec3 n = glm::vec3(img.rgba8[i], img.rgba8[i + 1], img.rgba8[i + 2]) /
-                                255.0f * 2.0f - 1.0f;
+        const glm::vec3 n =
+            glm::vec3(img.rgba8[i], img.rgba8[i + 1], img.rgba8[i + 2]) / 255.0f * 2.0f - 1.0f;
         ASSERT_NEAR(glm::length(n), 1.0f, 0.02f) << "texel " << i / 4;
         ASSERT_GT(n.z, 0.0f);
         tilted |= n.z < 0.95f;

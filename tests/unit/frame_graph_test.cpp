@@ -2,6 +2,8 @@
 // plan, and the texture bucketing of GpuScene.
 #include "renderer/frame_graph.h"
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
@@ -9,8 +11,6 @@
 #include <set>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 #include "renderer/scene/cpu_scene.h"
 #include "renderer/scene/gpu_scene.h"
@@ -141,8 +141,8 @@ TEST(SelectPassesTest, TransparentOnlyWhenTheSceneHasBlending) {
 }
 
 TEST(SelectPassesTest, DefaultFrame) {
-  const std::vector<PassId> expected = {PassId::kDepthPrepass, PassId::kForward,
-                                        PassId::kTonemap, PassId::kReadback};
+  const std::vector<PassId> expected = {PassId::kDepthPrepass, PassId::kForward, PassId::kTonemap,
+                                        PassId::kReadback};
   EXPECT_EQ(SelectPasses(Settings{}, FrameFeatures{}), expected);
 }
 
@@ -182,8 +182,8 @@ TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
 
 TEST(PlanTransitionsTest, NoBarrierForReadAfterReadInTheSameLayout) {
   // Forward then transparent both depth-test: the depth buffer stays as it is.
-  const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward,
-                                      PassId::kTransparent, PassId::kTonemap, PassId::kReadback};
+  const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward, PassId::kTransparent,
+                                      PassId::kTonemap, PassId::kReadback};
   const auto plan = PlanTransitions(passes);
   EXPECT_EQ(FindTransition(plan[2], Resource::kDepth), nullptr);
   // But depth written by the prepass and then tested by forward is a read-after-write hazard.
@@ -195,8 +195,8 @@ TEST(PlanTransitionsTest, NoBarrierForReadAfterReadInTheSameLayout) {
 
 TEST(PlanTransitionsTest, BarrierForWriteAfterWrite) {
   // Transparent blends over forward's HDR colour: same layout, but both write.
-  const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward,
-                                      PassId::kTransparent, PassId::kTonemap, PassId::kReadback};
+  const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward, PassId::kTransparent,
+                                      PassId::kTonemap, PassId::kReadback};
   const auto plan = PlanTransitions(passes);
   const Transition* t = FindTransition(plan[2], Resource::kHdrColor);
   ASSERT_NE(t, nullptr);
@@ -225,8 +225,7 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
       }
       for (const ResourceUse& u : PassUses(passes[i])) {
         EXPECT_EQ(state[static_cast<size_t>(u.resource)], u.access)
-            << d << "before " << Name(passes[i]) << " resource "
-            << static_cast<int>(u.resource);
+            << d << "before " << Name(passes[i]) << " resource " << static_cast<int>(u.resource);
       }
       // Transitions only for what the pass uses.
       for (const Transition& t : plan[i]) {
@@ -246,8 +245,8 @@ TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
       for (const ResourceUse& u : PassUses(p)) {
         const size_t r = static_cast<size_t>(u.resource);
         if (IsRead(u.access)) {
-          EXPECT_TRUE(written[r]) << Describe(passes) << ": " << Name(p)
-                                  << " reads resource " << r << " before any pass wrote it";
+          EXPECT_TRUE(written[r]) << Describe(passes) << ": " << Name(p) << " reads resource " << r
+                                  << " before any pass wrote it";
         }
       }
       for (const ResourceUse& u : PassUses(p))
@@ -328,11 +327,11 @@ TEST(PlanTextureBucketsTest, FewSizesKeepTheirRoundedSize) {
     uint32_t expect_w, expect_h;
   };
   const std::vector<Input> inputs = {
-      {1024, 1024, true, 1024, 1024}, {512, 512, true, 512, 512},
+      {1024, 1024, true, 1024, 1024},  {512, 512, true, 512, 512},
       {1000, 1000, true, 1024, 1024},  // nearest power of two
       {300, 200, false, 256, 256},     // 300 -> 256, 200 -> 256 (nearest in log space)
       {1024, 1024, false, 1024, 1024}, {512, 512, false, 512, 512},
-      {2048, 512, true, 2048, 512},    // non-square stays non-square
+      {2048, 512, true, 2048, 512},  // non-square stays non-square
   };
   std::vector<Texture> textures;
   for (const Input& in : inputs) textures.push_back(MakeTexture(in.w, in.h, in.srgb));
@@ -399,7 +398,8 @@ TEST(PlanTextureBucketsTest, EdgeCases) {
 TEST(PlanTextureBucketsTest, SameInputSamePlan) {
   // Deterministic: the upload and the material table are built from separate calls.
   std::vector<Texture> textures;
-  for (uint32_t i = 0; i < 40; ++i) textures.push_back(MakeTexture(17 * i + 5, 300 + 31 * i, i % 3 == 0));
+  for (uint32_t i = 0; i < 40; ++i)
+    textures.push_back(MakeTexture(17 * i + 5, 300 + 31 * i, i % 3 == 0));
   const TextureBucketPlan a = PlanTextureBuckets(textures, 4096);
   const TextureBucketPlan b = PlanTextureBuckets(textures, 4096);
   ASSERT_EQ(a.slots.size(), b.slots.size());

@@ -1,5 +1,6 @@
 #include "renderer/image_io.h"
 
+#include <gtest/gtest.h>
 #include <png.h>
 
 #include <cmath>
@@ -8,8 +9,6 @@
 #include <limits>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace tessera {
 namespace {
@@ -393,10 +392,8 @@ TEST(ImageIo, PsnrSinglePixelDifference) {
 }
 
 TEST(ImageIo, PsnrRejectsSizeMismatch) {
-  EXPECT_EQ(Psnr(Noise(16, 8), Noise(8, 16)).status().code(),
-            absl::StatusCode::kInvalidArgument);
-  EXPECT_EQ(Psnr(Noise(16, 8), Noise(16, 9)).status().code(),
-            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(Psnr(Noise(16, 8), Noise(8, 16)).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(Psnr(Noise(16, 8), Noise(16, 9)).status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_FALSE(Psnr(RgbaImage{}, RgbaImage{}).ok());
   RgbaImage broken = Noise(4, 4);
   broken.pixels.pop_back();

@@ -2,14 +2,14 @@
 // silently ignores a request, and enum names round-trip.
 #include "renderer/settings.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <functional>
 #include <set>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace tessera {
 namespace {
@@ -35,13 +35,20 @@ TEST(ValidateSettingsTest, DefaultsAreValid) {
 TEST(ValidateSettingsTest, RangeLimitsAreInclusive) {
   // The documented bounds themselves are valid.
   std::vector<std::function<void(Settings&)>> edits = {
-      [](Settings& s) { s.width = 1; },           [](Settings& s) { s.width = 16384; },
-      [](Settings& s) { s.height = 1; },          [](Settings& s) { s.height = 16384; },
-      [](Settings& s) { s.samples = 1; },         [](Settings& s) { s.samples = 2; },
-      [](Settings& s) { s.samples = 8; },         [](Settings& s) { s.tile_size = 8; },
-      [](Settings& s) { s.tile_size = 32; },      [](Settings& s) { s.synthetic_lights = 65536; },
-      [](Settings& s) { s.exposure_ev = -20.0f; }, [](Settings& s) { s.exposure_ev = 20.0f; },
-      [](Settings& s) { s.jpeg_quality = 1; },    [](Settings& s) { s.jpeg_quality = 100; },
+      [](Settings& s) { s.width = 1; },
+      [](Settings& s) { s.width = 16384; },
+      [](Settings& s) { s.height = 1; },
+      [](Settings& s) { s.height = 16384; },
+      [](Settings& s) { s.samples = 1; },
+      [](Settings& s) { s.samples = 2; },
+      [](Settings& s) { s.samples = 8; },
+      [](Settings& s) { s.tile_size = 8; },
+      [](Settings& s) { s.tile_size = 32; },
+      [](Settings& s) { s.synthetic_lights = 65536; },
+      [](Settings& s) { s.exposure_ev = -20.0f; },
+      [](Settings& s) { s.exposure_ev = 20.0f; },
+      [](Settings& s) { s.jpeg_quality = 1; },
+      [](Settings& s) { s.jpeg_quality = 100; },
   };
   for (size_t i = 0; i < edits.size(); ++i) {
     Settings s;
@@ -106,18 +113,30 @@ struct Field {
   std::function<bool(const Settings&, const Settings&)> same;
 };
 
-#define TESSERA_FIELD(f) Field{#f, [](const Settings& a, const Settings& b) { return a.f == b.f; }}
+#define TESSERA_FIELD(f)                                                \
+  Field {                                                               \
+#f, [](const Settings& a, const Settings& b) { return a.f == b.f; } \
+  }
 const std::vector<Field>& AllFields() {
   static const std::vector<Field> fields = {
-      TESSERA_FIELD(width),         TESSERA_FIELD(height),
-      TESSERA_FIELD(aa),            TESSERA_FIELD(samples),
-      TESSERA_FIELD(culling),       TESSERA_FIELD(scene_lights),
-      TESSERA_FIELD(synthetic_lights), TESSERA_FIELD(light_seed),
-      TESSERA_FIELD(tile_size),     TESSERA_FIELD(shadows),
-      TESSERA_FIELD(ssao),          TESSERA_FIELD(bloom),
-      TESSERA_FIELD(ibl),           TESSERA_FIELD(exposure_mode),
-      TESSERA_FIELD(exposure_ev),   TESSERA_FIELD(debug_view),
-      TESSERA_FIELD(jpeg_quality),  TESSERA_FIELD(jpeg_444),
+      TESSERA_FIELD(width),
+      TESSERA_FIELD(height),
+      TESSERA_FIELD(aa),
+      TESSERA_FIELD(samples),
+      TESSERA_FIELD(culling),
+      TESSERA_FIELD(scene_lights),
+      TESSERA_FIELD(synthetic_lights),
+      TESSERA_FIELD(light_seed),
+      TESSERA_FIELD(tile_size),
+      TESSERA_FIELD(shadows),
+      TESSERA_FIELD(ssao),
+      TESSERA_FIELD(bloom),
+      TESSERA_FIELD(ibl),
+      TESSERA_FIELD(exposure_mode),
+      TESSERA_FIELD(exposure_ev),
+      TESSERA_FIELD(debug_view),
+      TESSERA_FIELD(jpeg_quality),
+      TESSERA_FIELD(jpeg_444),
   };
   return fields;
 }
@@ -140,11 +159,12 @@ void ExpectNothingSilentlyIgnored(const Settings& requested, const DeviceCaps& c
     }
   }
   for (const SettingNote& n : r->notes) {
-    EXPECT_EQ(names.count(n.field), 1u) << what << ": note names unknown field '" << n.field
-                                        << "' (" << n.message << ")";
+    EXPECT_EQ(names.count(n.field), 1u)
+        << what << ": note names unknown field '" << n.field << "' (" << n.message << ")";
   }
   // The effective settings are themselves valid: the renderer can use them as they are.
-  EXPECT_TRUE(ValidateSettings(r->effective).ok()) << what << ": " << ValidateSettings(r->effective);
+  EXPECT_TRUE(ValidateSettings(r->effective).ok())
+      << what << ": " << ValidateSettings(r->effective);
 }
 
 TEST(ResolveSettingsTest, DefaultsNeedNoNotesOnACapableDevice) {
@@ -277,10 +297,9 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
     edit(s);
     ASSERT_TRUE(ValidateSettings(s).ok()) << what << ": " << ValidateSettings(s);
     for (const DeviceCaps& caps : devices) {
-      ExpectNothingSilentlyIgnored(
-          s, caps,
-          what + " on caps{" + std::to_string(caps.max_samples) + ", " +
-              std::to_string(caps.max_image_dimension) + "}");
+      ExpectNothingSilentlyIgnored(s, caps,
+                                   what + " on caps{" + std::to_string(caps.max_samples) + ", " +
+                                       std::to_string(caps.max_image_dimension) + "}");
     }
   }
 }
