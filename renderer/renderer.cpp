@@ -370,7 +370,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   const Settings& s = frame.settings.effective;
   if (absl::Status st = m.EnsureTargets(s.width, s.height); !st.ok()) return st;
 
-  const auto t_record = Clock::now();
+  auto t_record = Clock::now();
   // Uniforms.
   const float aspect = float(s.width) / float(s.height);
   gpu::FrameUniforms fu{};
@@ -405,11 +405,30 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
   const VkDescriptorSet scene_set = m.WriteSceneSet(gs);
-  VK_CHECK(vkResetCommandBuffer(m.cmd, 0));
+  // Lavapipe records a timestamp when its rasterizer threads reach it in their tiles, so a
+  // pass rasterized in one batch reads ~0 ms and its work lands before the next pass's start
+  // stamp (the frame total stays right). On CPU devices each pass is therefore submitted on its
+  // own and timed by the wall clock, which is the device's clock there.
+  const bool per_pass_submit = m.ctx->info().type == "cpu";
+  frame.timing = per_pass_submit ? TimingSource::kPassWallClock : TimingSource::kGpuTimestamps;
   VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
   bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vkResetCommandBuffer(m.cmd, 0));
   VK_CHECK(vkBeginCommandBuffer(m.cmd, &bi));
   vkCmdResetQueryPool(m.cmd, m.queries, 0, kMaxTimestamps);
+  // Ends, submits and waits for what is recorded so far; returns the wall time of the wait.
+  auto submit_and_wait = [&]() -> absl::StatusOr<double> {
+    VK_CHECK(vkEndCommandBuffer(m.cmd));
+    const auto t0 = Clock::now();
+    VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    si.commandBufferCount = 1;
+    si.pCommandBuffers = &m.cmd;
+    VK_RETURN_IF_ERROR(vkQueueSubmit(m.ctx->queue(), 1, &si, m.fence), "vkQueueSubmit");
+    VK_RETURN_IF_ERROR(vkWaitForFences(m.ctx->device(), 1, &m.fence, VK_TRUE, UINT64_MAX),
+                       "vkWaitForFences");
+    VK_CHECK(vkResetFences(m.ctx->device(), 1, &m.fence));
+    return MsSince(t0);
+  };
 
   PassStats pass_stats;
   PassContext pc;
@@ -423,6 +442,9 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   pc.scene_set = scene_set;
   pc.frame_pool = m.frame_pool;
   pc.stats = &pass_stats;
+  std::vector<double> pass_wall_ms;
+  double record_ms = 0.0;
+  auto t_chunk = t_record;
   for (size_t i = 0; i < pass_ids.size(); ++i) {
     std::vector<VkImageMemoryBarrier2> barriers;
     for (const Transition& t : plan[i]) {
@@ -436,19 +458,23 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     m.passes[static_cast<size_t>(pass_ids[i])]->Record(pc);
     vkCmdWriteTimestamp2(m.cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, m.queries,
                          uint32_t(2 * i + 1));
+    if (per_pass_submit && i + 1 < pass_ids.size()) {
+      record_ms += MsSince(t_chunk);
+      absl::StatusOr<double> wall = submit_and_wait();
+      if (!wall.ok()) return wall.status();
+      pass_wall_ms.push_back(*wall);
+      t_chunk = Clock::now();
+      VK_CHECK(vkResetCommandBuffer(m.cmd, 0));
+      VK_CHECK(vkBeginCommandBuffer(m.cmd, &bi));
+    }
   }
-  VK_CHECK(vkEndCommandBuffer(m.cmd));
-  frame.cpu.record_ms = MsSince(t_record);
-
-  const auto t_submit = Clock::now();
-  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  si.commandBufferCount = 1;
-  si.pCommandBuffers = &m.cmd;
-  VK_RETURN_IF_ERROR(vkQueueSubmit(m.ctx->queue(), 1, &si, m.fence), "vkQueueSubmit");
-  VK_RETURN_IF_ERROR(vkWaitForFences(m.ctx->device(), 1, &m.fence, VK_TRUE, UINT64_MAX),
-                     "vkWaitForFences");
-  VK_CHECK(vkResetFences(m.ctx->device(), 1, &m.fence));
-  frame.cpu.submit_wait_ms = MsSince(t_submit);
+  record_ms += MsSince(t_chunk);
+  absl::StatusOr<double> wall = submit_and_wait();
+  if (!wall.ok()) return wall.status();
+  pass_wall_ms.push_back(*wall);
+  frame.cpu.record_ms = record_ms;
+  frame.cpu.submit_wait_ms = 0.0;
+  for (double w : pass_wall_ms) frame.cpu.submit_wait_ms += w;
 
   std::vector<uint64_t> stamps(2 * pass_ids.size());
   VK_RETURN_IF_ERROR(
@@ -459,11 +485,15 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   const uint32_t bits = m.ctx->info().timestamp_valid_bits;
   const uint64_t mask = bits >= 64 ? ~0ull : ((1ull << bits) - 1);
   const double ns = m.ctx->info().timestamp_period_ns;
+  auto stamp_ms = [&](size_t a, size_t b) {
+    return double((stamps[b] - stamps[a]) & mask) * ns * 1e-6;
+  };
   for (size_t i = 0; i < pass_ids.size(); ++i) {
-    const uint64_t dt = (stamps[2 * i + 1] - stamps[2 * i]) & mask;
-    frame.passes.push_back({std::string(PassName(pass_ids[i])), double(dt) * ns * 1e-6});
+    frame.passes.push_back({std::string(PassName(pass_ids[i])),
+                            per_pass_submit ? pass_wall_ms[i] : stamp_ms(2 * i, 2 * i + 1),
+                            stamp_ms(2 * i, 2 * i + 1)});
   }
-  frame.gpu_total_ms = double((stamps.back() - stamps.front()) & mask) * ns * 1e-6;
+  frame.gpu_total_ms = per_pass_submit ? frame.cpu.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   frame.stats.draws = pass_stats.draws;
   frame.stats.triangles_submitted = pass_stats.triangles;
 

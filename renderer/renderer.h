@@ -56,14 +56,22 @@ class Scene {
 using SceneHandle = std::shared_ptr<const Scene>;
 
 struct PassTiming {
-  std::string pass;  // e.g. "depth_prepass"
-  double gpu_ms = 0.0;
+  std::string pass;           // e.g. "depth_prepass"
+  double gpu_ms = 0.0;        // the pass's device time (see TimingSource)
+  double timestamp_ms = 0.0;  // what the device's timestamps said, for comparison
+};
+
+// Where PassTiming::gpu_ms comes from.
+enum class TimingSource {
+  kGpuTimestamps,  // GPU timestamps around each pass (real GPUs)
+  kPassWallClock,  // CPU devices (lavapipe): each pass submitted alone and timed by the wall
+                   // clock, because lavapipe's per-pass timestamps misattribute work
 };
 
 // CPU stages of one frame, milliseconds.
 struct CpuTimings {
   double record_ms = 0.0;       // culling, sorting, uniforms, command recording
-  double submit_wait_ms = 0.0;  // vkQueueSubmit until the fence signals
+  double submit_wait_ms = 0.0;  // vkQueueSubmit until the fence signals (summed over submits)
   double readback_ms = 0.0;     // copying the mapped pixels out
   double encode_ms = 0.0;       // JPEG/PNG encoding (EncodeFrame)
 };
@@ -79,7 +87,8 @@ struct FrameStats {
 struct Frame {
   RgbaImage image;                 // settings.effective.width x height, sRGB RGBA8
   std::vector<PassTiming> passes;  // in execution order
-  double gpu_total_ms = 0.0;       // first pass start to last pass end
+  TimingSource timing = TimingSource::kGpuTimestamps;
+  double gpu_total_ms = 0.0;  // first pass start to last pass end (device time)
   CpuTimings cpu;
   FrameStats stats;
   ResolvedSettings settings;  // effective settings and the notes on what changed

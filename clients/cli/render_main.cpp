@@ -200,7 +200,10 @@ int main(int argc, char** argv) {
                    {"width", frame.image.width},
                    {"height", frame.image.height}};
     for (const PassTiming& p : frame.passes)
-      j["passes"].push_back({{"pass", p.pass}, {"gpu_ms", p.gpu_ms}});
+      j["passes"].push_back(
+          {{"pass", p.pass}, {"gpu_ms", p.gpu_ms}, {"timestamp_ms", p.timestamp_ms}});
+    j["timing"] =
+        frame.timing == TimingSource::kPassWallClock ? "pass_wall_clock" : "gpu_timestamps";
     j["gpu_total_ms"] = frame.gpu_total_ms;
     j["cpu_ms"] = {{"record", frame.cpu.record_ms},
                    {"submit_wait", frame.cpu.submit_wait_ms},
@@ -235,7 +238,10 @@ int main(int argc, char** argv) {
     }
     std::printf("output   %s (%ux%u, %zu bytes)\n\n", out_path.c_str(), frame.image.width,
                 frame.image.height, bytes.size());
-    std::printf("%-16s %10s\n", "pass", "gpu ms");
+    std::printf("%-16s %10s%s\n", "pass", "gpu ms",
+                frame.timing == TimingSource::kPassWallClock
+                    ? "   (CPU device: each pass submitted alone, timed by the wall clock)"
+                    : "");
     for (const PassTiming& p : frame.passes)
       std::printf("%-16s %10.3f\n", p.pass.c_str(), p.gpu_ms);
     std::printf("%-16s %10.3f\n\n", "total", frame.gpu_total_ms);
