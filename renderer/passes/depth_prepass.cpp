@@ -21,11 +21,7 @@ class DepthPrepass final : public Pass {
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
-    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-    ri.renderArea = {{0, 0}, {ctx.targets->width, ctx.targets->height}};
-    ri.layerCount = 1;
-    ri.pDepthAttachment = &depth;
-    vkCmdBeginRendering(ctx.cmd, &ri);
+    BeginRendering(ctx, nullptr, &depth);
     if (!ctx.draws->opaque.empty()) {
       BeginSceneDraw(ctx, opaque_.handle());
       RecordDraws(ctx, ctx.draws->opaque, /*textured=*/false);
@@ -62,43 +58,6 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
   absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
   if (!mask.ok()) return mask.status();
   return std::make_unique<DepthPrepass>(std::move(*opaque), std::move(*mask));
-}
-
-void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
-  vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
-  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout, 0, 1,
-                          &ctx.scene_set, 0, nullptr);
-  const VkViewport viewport{0.0f, 0.0f, float(ctx.targets->width), float(ctx.targets->height),
-                            0.0f, 1.0f};
-  const VkRect2D scissor{{0, 0}, {ctx.targets->width, ctx.targets->height}};
-  vkCmdSetViewport(ctx.cmd, 0, 1, &viewport);
-  vkCmdSetScissor(ctx.cmd, 0, 1, &scissor);
-  const VkBuffer vb = ctx.scene->vertices().handle();
-  const VkDeviceSize offset = 0;
-  vkCmdBindVertexBuffers(ctx.cmd, 0, 1, &vb, &offset);
-  vkCmdBindIndexBuffer(ctx.cmd, ctx.scene->indices().handle(), 0, VK_INDEX_TYPE_UINT32);
-}
-
-void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items, bool textured) {
-  int cull = -1;
-  uint32_t material = UINT32_MAX;
-  for (const DrawItem* item : items) {
-    if (textured && item->material != material) {
-      const VkDescriptorSet set = ctx.scene->material_set(item->material);
-      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout,
-                              gpu::kMaterialSet, 1, &set, 0, nullptr);
-      material = item->material;
-    }
-    const int want = item->double_sided ? 0 : 1;
-    if (want != cull) {
-      vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
-      cull = want;
-    }
-    vkCmdDrawIndexed(ctx.cmd, item->index_count, 1, item->first_index, item->vertex_offset,
-                     item->drawable);
-    ctx.stats->draws++;
-    ctx.stats->triangles += item->index_count / 3;
-  }
 }
 
 }  // namespace tessera

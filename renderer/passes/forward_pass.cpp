@@ -32,13 +32,7 @@ class ForwardPass final : public Pass {
     depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-    ri.renderArea = {{0, 0}, {ctx.targets->width, ctx.targets->height}};
-    ri.layerCount = 1;
-    ri.colorAttachmentCount = 1;
-    ri.pColorAttachments = &color;
-    ri.pDepthAttachment = &depth;
-    vkCmdBeginRendering(ctx.cmd, &ri);
+    BeginRendering(ctx, &color, &depth);
     BeginSceneDraw(ctx, pipeline_.handle());
     if (transparent) {
       RecordDraws(ctx, ctx.draws->blend);

@@ -85,7 +85,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateTransparentPass(const vk::Context& c
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx);
 absl::StatusOr<std::unique_ptr<Pass>> CreateReadbackPass();
 
-// Shared by the geometry passes: full-target viewport/scissor, scene buffers bound.
+// Begins dynamic rendering over the whole frame with these attachments (either may be null)
+// and sets the full-frame viewport and scissor.
+void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* color,
+                    const VkRenderingAttachmentInfo* depth);
+// Shared by the geometry passes: binds the pipeline, the frame's set and the scene buffers.
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline);
 // Draws `items` with firstInstance = drawable index, switching the cull mode per item's
 // double-sidedness and (when `textured`) the material texture set only when they change.

@@ -54,20 +54,10 @@ class TonemapPass final : public Pass {
     color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
     color.loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;  // every pixel is written
     color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-    ri.renderArea = {{0, 0}, {ctx.targets->width, ctx.targets->height}};
-    ri.layerCount = 1;
-    ri.colorAttachmentCount = 1;
-    ri.pColorAttachments = &color;
-    vkCmdBeginRendering(ctx.cmd, &ri);
+    BeginRendering(ctx, &color, nullptr);
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_, 0, 1, &set, 0,
                             nullptr);
-    const VkViewport viewport{0.0f, 0.0f, float(ctx.targets->width), float(ctx.targets->height),
-                              0.0f, 1.0f};
-    const VkRect2D scissor{{0, 0}, {ctx.targets->width, ctx.targets->height}};
-    vkCmdSetViewport(ctx.cmd, 0, 1, &viewport);
-    vkCmdSetScissor(ctx.cmd, 0, 1, &scissor);
     vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
     const TonemapPush push{std::exp2(ctx.settings->exposure_ev),
                            ctx.settings->debug_view != DebugView::kNone ? 1u : 0u};
