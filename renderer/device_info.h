@@ -1,7 +1,12 @@
 #pragma once
 // Facts about the Vulkan device, without Vulkan headers (the server reports them).
+#include <cstddef>
 #include <cstdint>
 #include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/statusor.h"
 
 namespace tessera {
 
@@ -20,5 +25,18 @@ struct DeviceInfo {
   float max_anisotropy = 1.0f;  // 1 = anisotropic filtering off
   bool validation = false;      // validation layers active
 };
+
+// A physical device as the chooser sees it.
+struct DeviceCandidate {
+  std::string name;
+  std::string type;     // as DeviceInfo::type
+  bool usable = false;  // Vulkan 1.3 and a graphics+compute queue with timestamps
+};
+
+// The device to use: among usable devices whose name contains `wanted` (case-insensitive; empty
+// matches all), the first of the best type: discrete > integrated > virtual > cpu > other.
+// NOT_FOUND naming every device when none qualifies.
+absl::StatusOr<size_t> ChooseDevice(const std::vector<DeviceCandidate>& devices,
+                                    std::string_view wanted);
 
 }  // namespace tessera

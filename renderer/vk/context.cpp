@@ -76,21 +76,6 @@ const char* TypeName(VkPhysicalDeviceType type) {
   }
 }
 
-int TypeRank(VkPhysicalDeviceType type) {
-  switch (type) {
-    case VK_PHYSICAL_DEVICE_TYPE_DISCRETE_GPU:
-      return 4;
-    case VK_PHYSICAL_DEVICE_TYPE_INTEGRATED_GPU:
-      return 3;
-    case VK_PHYSICAL_DEVICE_TYPE_VIRTUAL_GPU:
-      return 2;
-    case VK_PHYSICAL_DEVICE_TYPE_CPU:
-      return 1;
-    default:
-      return 0;
-  }
-}
-
 bool EnvFlag(const char* name) {
   const char* v = std::getenv(name);
   return v != nullptr && (std::strcmp(v, "1") == 0 || Lower(v) == "true" || Lower(v) == "on");
@@ -222,13 +207,12 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   vkEnumeratePhysicalDevices(ctx->instance_, &count, nullptr);
   std::vector<VkPhysicalDevice> devices(count);
   vkEnumeratePhysicalDevices(ctx->instance_, &count, devices.data());
-  std::vector<std::string> names;
-  int best_rank = -1;
+  std::vector<DeviceCandidate> candidates;
+  std::vector<int> family_of;
+  std::vector<uint32_t> timestamp_bits;
   for (VkPhysicalDevice pd : devices) {
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(pd, &props);
-    names.emplace_back(props.deviceName);
-    if (props.apiVersion < VK_API_VERSION_1_3) continue;
     uint32_t qcount = 0;
     vkGetPhysicalDeviceQueueFamilyProperties(pd, &qcount, nullptr);
     std::vector<VkQueueFamilyProperties> families(qcount);
@@ -241,23 +225,16 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
         break;
       }
     }
-    if (family < 0) continue;
-    if (!wanted.empty() && Lower(props.deviceName).find(Lower(wanted)) == std::string::npos)
-      continue;
-    const int rank = TypeRank(props.deviceType);
-    if (rank > best_rank) {
-      best_rank = rank;
-      ctx->physical_ = pd;
-      ctx->queue_family_ = static_cast<uint32_t>(family);
-      ctx->info_.timestamp_valid_bits = families[family].timestampValidBits;
-    }
+    candidates.push_back({props.deviceName, TypeName(props.deviceType),
+                          props.apiVersion >= VK_API_VERSION_1_3 && family >= 0});
+    family_of.push_back(family);
+    timestamp_bits.push_back(family >= 0 ? families[family].timestampValidBits : 0);
   }
-  if (ctx->physical_ == VK_NULL_HANDLE) {
-    return absl::NotFoundError(
-        absl::StrCat(wanted.empty() ? "no Vulkan 1.3 device with a graphics+compute queue"
-                                    : absl::StrCat("no Vulkan 1.3 device matches '", wanted, "'"),
-                     "; devices: [", absl::StrJoin(names, ", "), "]"));
-  }
+  absl::StatusOr<size_t> chosen = ChooseDevice(candidates, wanted);
+  if (!chosen.ok()) return chosen.status();
+  ctx->physical_ = devices[*chosen];
+  ctx->queue_family_ = static_cast<uint32_t>(family_of[*chosen]);
+  ctx->info_.timestamp_valid_bits = timestamp_bits[*chosen];
 
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};

@@ -41,6 +41,7 @@ class Context {
   uint32_t queue_family() const { return queue_family_; }
   const DeviceInfo& info() const { return info_; }
   const VkPhysicalDeviceLimits& limits() const { return limits_; }
+  const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
 
   // A memory type index in `type_bits` with all `required` flags, preferring `preferred`.
   // UINT32_MAX when none.

@@ -15,9 +15,7 @@ absl::StatusOr<VkDeviceMemory> Allocate(const Context& ctx, const VkMemoryRequir
   if (type == UINT32_MAX) {
     return absl::ResourceExhaustedError(absl::StrCat(name, ": no suitable memory type"));
   }
-  VkPhysicalDeviceMemoryProperties mp;
-  vkGetPhysicalDeviceMemoryProperties(ctx.physical_device(), &mp);
-  if (flags_out) *flags_out = mp.memoryTypes[type].propertyFlags;
+  if (flags_out) *flags_out = ctx.memory_properties().memoryTypes[type].propertyFlags;
   VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
   ai.allocationSize = req.size;
   ai.memoryTypeIndex = type;
