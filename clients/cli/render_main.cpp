@@ -224,9 +224,13 @@ int main(int argc, char** argv) {
     std::printf("scene    %s: %u drawables, %llu triangles, %u culled\n", info.name.c_str(),
                 frame.stats.drawables, (unsigned long long)info.counts.triangles,
                 frame.stats.drawables_culled);
-    std::printf("bounds   (%.3g, %.3g, %.3g) .. (%.3g, %.3g, %.3g)\n", info.bounds.min.x,
-                info.bounds.min.y, info.bounds.min.z, info.bounds.max.x, info.bounds.max.y,
-                info.bounds.max.z);
+    if (info.bounds.empty()) {
+      std::printf("bounds   (empty scene)\n");
+    } else {
+      std::printf("bounds   (%.3g, %.3g, %.3g) .. (%.3g, %.3g, %.3g)\n", info.bounds.min.x,
+                  info.bounds.min.y, info.bounds.min.z, info.bounds.max.x, info.bounds.max.y,
+                  info.bounds.max.z);
+    }
     const glm::vec3 eye = CameraPosition(camera);
     if (camera.view) {
       const glm::vec3 forward = -glm::vec3(glm::inverse(*camera.view)[2]);
