@@ -35,6 +35,19 @@ Renderer& SharedRenderer() {
   return *renderer;
 }
 
+// The demo scene on the shared renderer, built and uploaded once for every test that uses it.
+const SceneHandle& SharedDemoScene() {
+  static SceneHandle scene = [] {
+    absl::StatusOr<SceneHandle> s = SharedRenderer().LoadScene(BuildDemoScene());
+    if (!s.ok()) {
+      ADD_FAILURE() << "demo scene: " << s.status();
+      std::abort();
+    }
+    return *s;
+  }();
+  return scene;
+}
+
 void ExpectNoValidationMessages(const Renderer& r) {
   EXPECT_EQ(r.validation_message_count(), 0u);
   for (const std::string& m : r.validation_messages()) ADD_FAILURE() << "validation: " << m;
@@ -110,9 +123,7 @@ TEST_P(GoldenTest, MatchesGolden) {
   if (c.asset) {
     scene = LoadAsset(c.asset);
   } else {
-    absl::StatusOr<SceneHandle> demo = r.LoadScene(BuildDemoScene());
-    ASSERT_TRUE(demo.ok()) << demo.status();
-    scene = *demo;
+    scene = SharedDemoScene();
   }
   ASSERT_NE(scene, nullptr);
   const Settings settings = SmallSettings(c.width, c.height);
@@ -148,11 +159,10 @@ INSTANTIATE_TEST_SUITE_P(
 // The same inputs give the same pixels: frames are reproducible, which jobs and caching need.
 TEST(RenderTest, Deterministic) {
   Renderer& r = SharedRenderer();
-  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
-  ASSERT_TRUE(scene.ok());
-  const Camera camera = FromSceneCamera((*scene)->info().cameras[0]);
-  absl::StatusOr<Frame> a = r.Render(**scene, camera, SmallSettings(96, 64));
-  absl::StatusOr<Frame> b = r.Render(**scene, camera, SmallSettings(96, 64));
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  absl::StatusOr<Frame> a = r.Render(*scene, camera, SmallSettings(96, 64));
+  absl::StatusOr<Frame> b = r.Render(*scene, camera, SmallSettings(96, 64));
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(a->image.pixels, b->image.pixels);
   ExpectNoValidationMessages(r);
@@ -162,10 +172,9 @@ TEST(RenderTest, Deterministic) {
 // inside the wall-clock time from submit to fence (the timestamps measure real time).
 TEST(RenderTest, TimingsAreConsistent) {
   Renderer& r = SharedRenderer();
-  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
-  ASSERT_TRUE(scene.ok());
-  const Camera camera = FromSceneCamera((*scene)->info().cameras[0]);
-  absl::StatusOr<Frame> f = r.Render(**scene, camera, SmallSettings(160, 90));
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  absl::StatusOr<Frame> f = r.Render(*scene, camera, SmallSettings(160, 90));
   ASSERT_TRUE(f.ok());
   const std::vector<std::string> expected = {"depth_prepass", "forward", "transparent", "tonemap",
                                              "readback"};
@@ -189,15 +198,14 @@ TEST(RenderTest, TimingsAreConsistent) {
 // per-pass timestamps in one submission read ~0.15% here, which this catches with a wide margin.
 TEST(RenderTest, PassTimesAreAttributedToTheirPass) {
   Renderer& r = SharedRenderer();
-  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
-  ASSERT_TRUE(scene.ok());
+  const SceneHandle& scene = SharedDemoScene();
   Camera camera;
   camera.eye = glm::vec3(0.3f, 0.8f, 3.2f);
   camera.target = glm::vec3(0.3f, 0.5f, 1.2f);
   // Full size: small frames rasterize in too few tiles to show the misattribution.
-  absl::StatusOr<Frame> f = r.Render(**scene, camera, SmallSettings(1280, 720));
+  absl::StatusOr<Frame> f = r.Render(*scene, camera, SmallSettings(1280, 720));
   ASSERT_TRUE(f.ok()) << f.status();
-  f = r.Render(**scene, camera, SmallSettings(1280, 720));  // the first frame compiles shaders
+  f = r.Render(*scene, camera, SmallSettings(1280, 720));  // the first frame compiles shaders
   ASSERT_TRUE(f.ok()) << f.status();
   double forward = 0.0, transparent = 0.0;
   for (const PassTiming& p : f->passes) {
@@ -209,17 +217,16 @@ TEST(RenderTest, PassTimesAreAttributedToTheirPass) {
 
 TEST(RenderTest, InvalidSettingsNameTheField) {
   Renderer& r = SharedRenderer();
-  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
-  ASSERT_TRUE(scene.ok());
+  const SceneHandle& scene = SharedDemoScene();
   Settings s = SmallSettings(64, 64);
   s.jpeg_quality = 0;
-  absl::StatusOr<Frame> f = r.Render(**scene, Camera{}, s);
+  absl::StatusOr<Frame> f = r.Render(*scene, Camera{}, s);
   ASSERT_FALSE(f.ok());
   EXPECT_EQ(f.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_NE(std::string(f.status().message()).find("jpeg_quality"), std::string::npos);
   Camera bad;
   bad.yfov = 0.0f;
-  f = r.Render(**scene, bad, SmallSettings(64, 64));
+  f = r.Render(*scene, bad, SmallSettings(64, 64));
   ASSERT_FALSE(f.ok());
   EXPECT_NE(std::string(f.status().message()).find("camera.yfov"), std::string::npos);
 }
@@ -227,13 +234,12 @@ TEST(RenderTest, InvalidSettingsNameTheField) {
 // Requested features that do not exist yet come back as notes, never silently dropped.
 TEST(RenderTest, UnimplementedSettingsAreReported) {
   Renderer& r = SharedRenderer();
-  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
-  ASSERT_TRUE(scene.ok());
+  const SceneHandle& scene = SharedDemoScene();
   Settings s = SmallSettings(64, 64);
   s.bloom = true;
   s.samples = 8;
   s.aa = AaMode::kMsaa;
-  absl::StatusOr<Frame> f = r.Render(**scene, Camera{}, s);
+  absl::StatusOr<Frame> f = r.Render(*scene, Camera{}, s);
   ASSERT_TRUE(f.ok()) << f.status();
   auto has_note = [&](const std::string& field) {
     for (const SettingNote& n : f->settings.notes)
@@ -251,16 +257,15 @@ TEST(RenderTest, UnimplementedSettingsAreReported) {
 // is the same with culling off.
 TEST(RenderTest, CpuFrustumCullingKeepsThePicture) {
   Renderer& r = SharedRenderer();
-  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
-  ASSERT_TRUE(scene.ok());
+  const SceneHandle& scene = SharedDemoScene();
   Camera camera;
   camera.eye = glm::vec3(0.0f, 1.0f, 4.0f);
   camera.target = glm::vec3(2.0f, 0.5f, 0.0f);  // looks past some objects
   Settings s = SmallSettings(128, 96);
   s.culling = CullingMode::kNone;
-  absl::StatusOr<Frame> all = r.Render(**scene, camera, s);
+  absl::StatusOr<Frame> all = r.Render(*scene, camera, s);
   s.culling = CullingMode::kCpuFrustum;
-  absl::StatusOr<Frame> culled = r.Render(**scene, camera, s);
+  absl::StatusOr<Frame> culled = r.Render(*scene, camera, s);
   ASSERT_TRUE(all.ok() && culled.ok());
   EXPECT_EQ(all->stats.drawables_culled, 0u);
   EXPECT_GT(culled->stats.drawables_culled, 0u);
