@@ -394,7 +394,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   for (size_t i = 0; i < lights.size(); ++i) gl[i] = ToGpu(lights[i]);
   fu.counts =
       glm::uvec4(uint32_t(lights.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
-  fu.params = glm::vec4(std::exp2(s.exposure_ev), camera.znear, camera.zfar, 0.0f);
+  fu.params = glm::vec4(0.0f, camera.znear, camera.zfar, 0.0f);
   std::memcpy(m.frame_ubo.mapped(), &fu, sizeof(fu));
   frame.stats.lights = uint32_t(lights.size());
   frame.stats.drawables = uint32_t(gs.draws().size());

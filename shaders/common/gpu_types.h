@@ -123,7 +123,7 @@ struct FrameUniforms {
   vec4 ambient_sky;      // rgb radiance from above
   vec4 ambient_ground;   // rgb radiance from below
   uvec4 counts;          // x light count, y debug view (kDebug*), z width, w height
-  vec4 params;           // x exposure, y near, z far
+  vec4 params;           // x unused (exposure is the tonemap pass's push constant), y near, z far
 };
 
 #ifdef __cplusplus
