@@ -13,7 +13,9 @@ PACKAGES=(
   # math, glTF import (tinygltf uses nlohmann-json and stb_image)
   libglm-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
   # service: gRPC + Protobuf with protoc and the C++ grpc plugin
-  libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc
+  libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libabsl-dev
+  # SHA-256 of uploaded files (scene ids)
+  libssl-dev
   # image encoding, logging
   libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
   # tests and benchmarks

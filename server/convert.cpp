@@ -1,0 +1,254 @@
+#include "server/convert.h"
+
+#include <cmath>
+#include <glm/gtc/type_ptr.hpp>
+
+#include "absl/strings/str_cat.h"
+
+namespace tessera::server {
+namespace {
+
+// Proto enums put UNSPECIFIED at 0, so wire value v is renderer value v - 1.
+template <typename RendererEnum, typename IsValidFn>
+absl::Status MergeEnum(int wire, IsValidFn is_valid, const char* field, RendererEnum* out) {
+  if (wire == 0) return absl::OkStatus();  // unspecified: keep
+  if (!is_valid(wire))
+    return absl::InvalidArgumentError(absl::StrCat("settings.", field, ": unknown value ", wire));
+  *out = static_cast<RendererEnum>(wire - 1);
+  return absl::OkStatus();
+}
+
+template <typename RendererEnum>
+int WireEnum(RendererEnum v) {
+  return static_cast<int>(v) + 1;
+}
+
+bool Finite(const v1::Vec3& v) {
+  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
+}
+
+glm::vec3 Vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+void SetVec(const glm::vec3& v, v1::Vec3* out) {
+  out->set_x(v.x);
+  out->set_y(v.y);
+  out->set_z(v.z);
+}
+
+absl::Status Bad(const std::string& field, const std::string& why) {
+  return absl::InvalidArgumentError(absl::StrCat("camera.", field, ": ", why));
+}
+
+}  // namespace
+
+absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSettings& u) {
+  Settings s = base;
+  if (u.has_width()) s.width = u.width();
+  if (u.has_height()) s.height = u.height();
+  if (absl::Status st = MergeEnum(u.aa(), v1::AaMode_IsValid, "aa", &s.aa); !st.ok()) return st;
+  if (u.has_samples()) s.samples = u.samples();
+  if (absl::Status st = MergeEnum(u.culling(), v1::CullingMode_IsValid, "culling", &s.culling);
+      !st.ok())
+    return st;
+  if (u.has_scene_lights()) s.scene_lights = u.scene_lights();
+  if (u.has_synthetic_lights()) s.synthetic_lights = u.synthetic_lights();
+  if (u.has_light_seed()) s.light_seed = u.light_seed();
+  if (u.has_tile_size()) s.tile_size = u.tile_size();
+  if (u.has_shadows()) s.shadows = u.shadows();
+  if (u.has_ssao()) s.ssao = u.ssao();
+  if (u.has_bloom()) s.bloom = u.bloom();
+  if (u.has_ibl()) s.ibl = u.ibl();
+  if (absl::Status st =
+          MergeEnum(u.exposure_mode(), v1::ExposureMode_IsValid, "exposure_mode", &s.exposure_mode);
+      !st.ok())
+    return st;
+  if (u.has_exposure_ev()) s.exposure_ev = u.exposure_ev();
+  if (absl::Status st =
+          MergeEnum(u.debug_view(), v1::DebugView_IsValid, "debug_view", &s.debug_view);
+      !st.ok())
+    return st;
+  if (u.has_jpeg_quality()) s.jpeg_quality = u.jpeg_quality();
+  if (u.has_jpeg_444()) s.jpeg_444 = u.jpeg_444();
+  if (absl::Status st = ValidateSettings(s); !st.ok()) return st;
+  return s;
+}
+
+absl::StatusOr<Camera> ResolveCamera(const v1::Camera& c, const SceneInfo& scene, float aspect) {
+  Camera cam;
+  // Lens first: a scene camera brings its own, which explicit fields override.
+  switch (c.placement_case()) {
+    case v1::Camera::kLookAt: {
+      const v1::LookAt& l = c.look_at();
+      if (!Finite(l.eye())) return Bad("look_at.eye", "non-finite");
+      if (!Finite(l.target())) return Bad("look_at.target", "non-finite");
+      if (!Finite(l.up())) return Bad("look_at.up", "non-finite");
+      cam.eye = Vec(l.eye());
+      cam.target = Vec(l.target());
+      if (l.has_up()) cam.up = Vec(l.up());
+      if (glm::length(cam.target - cam.eye) < 1e-6f) return Bad("look_at.target", "equals eye");
+      if (glm::length(glm::cross(glm::normalize(cam.target - cam.eye), cam.up)) < 1e-6f)
+        return Bad("look_at.up", "is zero or parallel to the view direction");
+      break;
+    }
+    case v1::Camera::kViewMatrix: {
+      const auto& m = c.view_matrix().m();
+      if (m.size() != 16)
+        return Bad("view_matrix.m", absl::StrCat("needs 16 values, got ", m.size()));
+      for (float v : m)
+        if (!std::isfinite(v)) return Bad("view_matrix.m", "non-finite value");
+      cam.view = glm::make_mat4(m.data());
+      if (std::abs(glm::determinant(*cam.view)) < 1e-12f)
+        return Bad("view_matrix.m", "matrix is singular");
+      break;
+    }
+    case v1::Camera::kSceneCamera: {
+      if (c.scene_camera() >= scene.cameras.size())
+        return Bad("scene_camera",
+                   absl::StrCat(c.scene_camera(), " is out of range: the scene has ",
+                                scene.cameras.size(), " cameras"));
+      cam = FromSceneCamera(scene.cameras[c.scene_camera()]);
+      break;
+    }
+    case v1::Camera::kFrame:
+    case v1::Camera::PLACEMENT_NOT_SET: {
+      glm::vec3 dir(0.55f, 0.45f, 0.70f);
+      if (c.has_frame() && c.frame().has_direction()) {
+        if (!Finite(c.frame().direction())) return Bad("frame.direction", "non-finite");
+        dir = Vec(c.frame().direction());
+        if (glm::length(dir) < 1e-6f) return Bad("frame.direction", "is zero");
+      }
+      const float yfov = c.has_yfov() ? c.yfov() : cam.yfov;
+      if (!std::isfinite(yfov) || yfov <= 0.0f || yfov >= 3.1f)
+        return Bad("yfov", "must be in (0, 3.1) radians");
+      if (scene.bounds.empty()) {
+        cam.eye = glm::vec3(0.0f, 0.0f, 5.0f);  // nothing to frame
+      } else {
+        cam = FrameBounds(scene.bounds, yfov, aspect, dir);
+      }
+      break;
+    }
+  }
+  if (c.has_yfov()) cam.yfov = c.yfov();
+  if (c.has_znear()) cam.znear = c.znear();
+  if (c.has_zfar()) cam.zfar = c.zfar();
+  if (absl::Status st = ValidateCamera(cam); !st.ok()) return st;
+  return cam;
+}
+
+void ToProto(const Settings& s, v1::RenderSettings* o) {
+  o->set_width(s.width);
+  o->set_height(s.height);
+  o->set_aa(static_cast<v1::AaMode>(WireEnum(s.aa)));
+  o->set_samples(s.samples);
+  o->set_culling(static_cast<v1::CullingMode>(WireEnum(s.culling)));
+  o->set_scene_lights(s.scene_lights);
+  o->set_synthetic_lights(s.synthetic_lights);
+  o->set_light_seed(s.light_seed);
+  o->set_tile_size(s.tile_size);
+  o->set_shadows(s.shadows);
+  o->set_ssao(s.ssao);
+  o->set_bloom(s.bloom);
+  o->set_ibl(s.ibl);
+  o->set_exposure_mode(static_cast<v1::ExposureMode>(WireEnum(s.exposure_mode)));
+  o->set_exposure_ev(s.exposure_ev);
+  o->set_debug_view(static_cast<v1::DebugView>(WireEnum(s.debug_view)));
+  o->set_jpeg_quality(s.jpeg_quality);
+  o->set_jpeg_444(s.jpeg_444);
+}
+
+void ToProto(const Aabb& box, v1::Aabb* out) {
+  if (box.empty()) return;  // an empty scene has no bounds
+  SetVec(box.min, out->mutable_min());
+  SetVec(box.max, out->mutable_max());
+}
+
+void ToProto(const SceneInfo& info, v1::SceneInfo* o) {
+  o->set_name(info.name);
+  v1::SceneCounts* c = o->mutable_counts();
+  c->set_nodes(info.counts.nodes);
+  c->set_meshes(info.counts.meshes);
+  c->set_primitives(info.counts.primitives);
+  c->set_triangles(info.counts.triangles);
+  c->set_materials(info.counts.materials);
+  c->set_textures(info.counts.textures);
+  c->set_images(info.counts.images);
+  c->set_lights(info.counts.lights);
+  c->set_cameras(info.counts.cameras);
+  ToProto(info.bounds, o->mutable_bounds());
+  for (const SceneCamera& cam : info.cameras) {
+    v1::SceneCamera* pc = o->add_cameras();
+    pc->set_name(cam.name);
+    const float* m = glm::value_ptr(cam.world);
+    for (int i = 0; i < 16; ++i) pc->mutable_world()->add_m(m[i]);
+    pc->set_yfov(cam.yfov);
+    pc->set_aspect(cam.aspect);
+    pc->set_znear(cam.znear);
+    pc->set_zfar(cam.zfar);
+  }
+  for (const std::string& w : info.warnings) o->add_warnings(w);
+  o->set_device_bytes(info.device_bytes);
+}
+
+void CameraToProto(const Camera& camera, v1::Frame* out) {
+  v1::LookAt* l = out->mutable_camera();
+  if (camera.view) {
+    const glm::mat4 inv = glm::inverse(*camera.view);
+    const glm::vec3 eye(inv[3]);
+    SetVec(eye, l->mutable_eye());
+    SetVec(eye - glm::vec3(inv[2]), l->mutable_target());
+    SetVec(glm::vec3(inv[1]), l->mutable_up());
+  } else {
+    SetVec(camera.eye, l->mutable_eye());
+    SetVec(camera.target, l->mutable_target());
+    SetVec(camera.up, l->mutable_up());
+  }
+  out->set_yfov(camera.yfov);
+  out->set_znear(camera.znear);
+  out->set_zfar(camera.zfar);
+}
+
+void FrameToProto(const Frame& f, v1::Frame* o) {
+  o->set_width(f.image.width);
+  o->set_height(f.image.height);
+  ToProto(f.settings.effective, o->mutable_settings());
+  for (const SettingNote& n : f.settings.notes) {
+    v1::SettingNote* pn = o->add_notes();
+    pn->set_field(n.field);
+    pn->set_message(n.message);
+  }
+  for (const PassTiming& p : f.passes) {
+    v1::PassTiming* pp = o->add_passes();
+    pp->set_pass(p.pass);
+    pp->set_gpu_ms(p.gpu_ms);
+    pp->set_timestamp_ms(p.timestamp_ms);
+  }
+  o->set_timing_source(f.timing == TimingSource::kGpuTimestamps ? v1::TIMING_GPU_TIMESTAMPS
+                                                                : v1::TIMING_PASS_WALL_CLOCK);
+  o->set_gpu_total_ms(f.gpu_total_ms);
+  v1::CpuTimings* cpu = o->mutable_cpu();
+  cpu->set_record_ms(f.cpu.record_ms);
+  cpu->set_gpu_ms(f.cpu.submit_wait_ms);
+  cpu->set_readback_ms(f.cpu.readback_ms);
+  cpu->set_encode_ms(f.cpu.encode_ms);
+  v1::FrameStats* st = o->mutable_stats();
+  st->set_drawables(f.stats.drawables);
+  st->set_drawables_culled(f.stats.drawables_culled);
+  st->set_draws(f.stats.draws);
+  st->set_triangles_submitted(f.stats.triangles_submitted);
+  st->set_lights(f.stats.lights);
+}
+
+void FillChoices(uint32_t max_samples, v1::SettingChoices* o) {
+  for (int v = 1; v1::AaMode_IsValid(v); ++v)
+    o->add_aa(std::string(ToString(static_cast<AaMode>(v - 1))));
+  for (uint32_t s = 1; s <= max_samples; s *= 2) o->add_samples(s);
+  for (int v = 1; v1::CullingMode_IsValid(v); ++v)
+    o->add_culling(std::string(ToString(static_cast<CullingMode>(v - 1))));
+  for (int v = 1; v1::ExposureMode_IsValid(v); ++v)
+    o->add_exposure_mode(std::string(ToString(static_cast<ExposureMode>(v - 1))));
+  for (int v = 1; v1::DebugView_IsValid(v); ++v)
+    o->add_debug_view(std::string(ToString(static_cast<DebugView>(v - 1))));
+  for (uint32_t t : {8u, 16u, 32u}) o->add_tile_size(t);
+}
+
+}  // namespace tessera::server

@@ -1,0 +1,33 @@
+#pragma once
+// Translation between the wire (tessera.v1 messages) and the renderer's structs. Everything a
+// client sends passes through here first: enum values, ranges and non-finite numbers are
+// checked and errors name the proto field ("settings.width", "camera.look_at.eye").
+#include "absl/status/statusor.h"
+#include "renderer/camera.h"
+#include "renderer/renderer.h"
+#include "renderer/settings.h"
+#include "tessera/v1/render_service.pb.h"
+
+namespace tessera::server {
+
+// `base` with every field set in `update` replaced. INVALID_ARGUMENT naming the field for an
+// unknown enum value or an out-of-range result (ValidateSettings).
+absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSettings& update);
+
+// The concrete camera for `camera` in a scene (framing uses the scene bounds and the frame's
+// aspect ratio). INVALID_ARGUMENT naming the field.
+absl::StatusOr<Camera> ResolveCamera(const v1::Camera& camera, const SceneInfo& scene,
+                                     float aspect);
+
+void ToProto(const Settings& s, v1::RenderSettings* out);
+void ToProto(const SceneInfo& info, v1::SceneInfo* out);  // scene_id etc. left to the caller
+void ToProto(const Aabb& box, v1::Aabb* out);
+// Eye/target/up of any camera (a view matrix is decomposed).
+void CameraToProto(const Camera& camera, v1::Frame* out);
+// Everything of `frame` except sequence, event_id, scene_id, data, encoding and queue wait.
+void FrameToProto(const Frame& frame, v1::Frame* out);
+
+// Names accepted by each enum setting (lower case, as ToString in settings.h).
+void FillChoices(uint32_t max_samples, v1::SettingChoices* out);
+
+}  // namespace tessera::server

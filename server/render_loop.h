@@ -1,0 +1,108 @@
+#pragma once
+// The render thread and the encoder pool.
+//
+// Anything that wants frames is a RenderClient: a unary Render request or a streaming session.
+// Clients with work wait in one FIFO ready queue; the render thread takes the front one, asks
+// it for a snapshot of what to render (TakeWork), renders it, and hands the pixels to the
+// encoder pool, then moves to the next client. A client that still has work afterwards goes to
+// the back of the queue, so every client gets a turn: round-robin, nobody starves.
+//
+// Encoding (JPEG/PNG) runs on the encoder pool, so the render thread renders the next frame
+// while the previous one is encoded.
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <queue>
+#include <thread>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "renderer/renderer.h"
+#include "tessera/v1/frame.pb.h"
+
+namespace tessera::server {
+
+using Clock = std::chrono::steady_clock;
+
+// A fixed set of worker threads running tasks in FIFO order.
+class ThreadPool {
+ public:
+  ThreadPool(const char* name, uint32_t threads);
+  ~ThreadPool();  // runs the queued tasks, then joins
+  void Submit(std::function<void()> task);
+  size_t pending() const;
+
+ private:
+  void Run();
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::function<void()>> tasks_;
+  bool stop_ = false;
+  std::vector<std::thread> threads_;
+};
+
+// One frame to render: a snapshot taken by the client under its own lock.
+struct RenderWork {
+  SceneHandle scene;
+  Camera camera;
+  Settings settings;
+  ImageFormat format = ImageFormat::kJpeg;
+  uint64_t sequence = 0;
+  uint64_t event_id = 0;
+  std::string scene_id;
+  Clock::time_point requested;  // the newest change or the request: start of queue wait
+};
+
+class RenderClient {
+ public:
+  virtual ~RenderClient() = default;
+  // Render thread. What to render now, or nullopt if nothing (any more). Called once per turn.
+  virtual std::optional<RenderWork> TakeWork() = 0;
+  // Encoder thread (or render thread for errors and shutdown). The finished frame: every field
+  // set except data when it failed.
+  virtual void Deliver(const RenderWork& work, absl::StatusOr<v1::Frame> frame) = 0;
+};
+
+class RenderLoop {
+ public:
+  RenderLoop(Renderer* renderer, uint32_t encoder_threads);
+  ~RenderLoop();  // Stop()
+
+  // Puts `client` at the back of the ready queue (callers avoid queueing one client twice).
+  // After Stop(), the client is failed with UNAVAILABLE instead (without TakeWork).
+  void Enqueue(std::shared_ptr<RenderClient> client);
+  // Enqueues `client` at `when` (continuous streaming at a target fps).
+  void EnqueueAt(std::shared_ptr<RenderClient> client, Clock::time_point when);
+
+  // Finishes the frame being rendered, fails everything queued with UNAVAILABLE, waits for the
+  // encoders, and joins the render thread. Idempotent.
+  void Stop();
+
+  uint32_t queue_depth() const;
+  uint64_t frames_rendered() const;
+
+ private:
+  void Run();
+  void RenderOne(const std::shared_ptr<RenderClient>& client);
+
+  Renderer* renderer_;
+  mutable std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::shared_ptr<RenderClient>> ready_;
+  using Timed = std::pair<Clock::time_point, std::shared_ptr<RenderClient>>;
+  struct Later {
+    bool operator()(const Timed& a, const Timed& b) const { return a.first > b.first; }
+  };
+  std::priority_queue<Timed, std::vector<Timed>, Later> timers_;
+  bool stopping_ = false;
+  uint64_t frames_rendered_ = 0;
+  std::unique_ptr<ThreadPool> encoders_;
+  std::thread thread_;
+};
+
+}  // namespace tessera::server

@@ -1,0 +1,72 @@
+#pragma once
+// tesserad as a library: the gRPC RenderService (plus health and reflection) over one
+// renderer. tesserad's main() parses flags into ServerOptions and calls Start; integration
+// tests and benchmarks start it in-process on port 0.
+//
+// Threads: gRPC's callback threads run the handlers, which never block; one render thread
+// owns the Vulkan queue and serves unary renders and streaming sessions round-robin; an
+// encoder pool turns pixels into JPEG/PNG; a loader pool parses uploaded glTF files.
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "absl/status/statusor.h"
+
+namespace tessera::server {
+
+struct ServerOptions {
+  std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free port
+  std::string device;       // substring of the Vulkan device name; empty: best device
+  bool validation = false;  // Vulkan validation layers (also TESSERA_VALIDATION=1)
+
+  // Limits on what clients may ask for. Exceeding one is RESOURCE_EXHAUSTED naming it.
+  uint64_t max_upload_bytes = 1ull << 30;  // total bytes of one upload's files
+  uint32_t max_upload_files = 1024;        // files in one upload
+  uint32_t max_chunk_bytes = 1u << 20;     // data bytes in one UploadChunk
+  uint32_t max_scenes = 32;                // uploaded scenes in memory (demo not counted)
+  uint32_t max_sessions = 64;              // concurrent Stream sessions
+  uint32_t max_concurrent_uploads = 8;     // uploads receiving or parsing at once
+
+  uint32_t encoder_threads = 0;  // JPEG/PNG encoders; 0 = one per core
+  uint32_t loader_threads = 1;   // glTF parsers
+  bool load_demo_scene = true;   // scene "demo" (the built-in scene)
+};
+
+// Counters for tests, benchmarks and logs.
+struct ServerStats {
+  uint32_t scenes = 0;    // scenes in memory, incl. demo and deleted-but-in-use
+  uint32_t sessions = 0;  // open Stream sessions
+  uint32_t queue_depth = 0;
+  uint64_t frames_rendered = 0;
+  uint64_t frames_dropped = 0;       // encoded but replaced by a newer one before sending
+  uint64_t pending_frame_bytes = 0;  // encoded bytes held for sessions (slots + writes)
+  uint32_t uploads_in_progress = 0;
+  uint64_t validation_messages = 0;  // Vulkan validation-layer messages (tests require 0)
+};
+
+class Server {
+ public:
+  // Opens the device, loads the demo scene, binds and starts serving. Errors: no Vulkan device,
+  // address in use, bad options.
+  static absl::StatusOr<std::unique_ptr<Server>> Start(const ServerOptions& options);
+  ~Server();  // Shutdown() if not done
+
+  int port() const;             // the bound port (useful with port 0)
+  std::string address() const;  // "host:port" to connect to
+
+  // Stops accepting, ends open streams with UNAVAILABLE after their in-flight frame, fails
+  // queued work with UNAVAILABLE, and returns once every call is finished (or after `grace`,
+  // when remaining calls are cancelled). Idempotent.
+  void Shutdown(std::chrono::milliseconds grace = std::chrono::milliseconds(3000));
+
+  ServerStats stats() const;
+
+  struct Impl;
+
+ private:
+  explicit Server(std::unique_ptr<Impl> impl);
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace tessera::server

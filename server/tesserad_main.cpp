@@ -1,0 +1,88 @@
+// tesserad: the Tessera render daemon. Flags (or a --flagfile with one --flag=value per line)
+// set the address, the device and the limits; SIGTERM/SIGINT stop it cleanly.
+#include <signal.h>
+
+#include <cstdio>
+#include <string>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "renderer/log.h"
+#include "server/server.h"
+
+ABSL_FLAG(std::string, listen, "127.0.0.1:50051",
+          "address to serve on, host:port (port 0 picks a free port; 0.0.0.0:PORT for all "
+          "interfaces)");
+ABSL_FLAG(std::string, device, "",
+          "Vulkan device: a substring of its name (default: $TESSERA_DEVICE, else the best "
+          "device: discrete > integrated > virtual > cpu)");
+ABSL_FLAG(bool, validation, false, "enable the Vulkan validation layers (slow; for debugging)");
+ABSL_FLAG(std::string, log_level, "info", "trace, debug, info, warn, error or off");
+ABSL_FLAG(uint64_t, max_upload_bytes, 1ull << 30, "limit: total bytes of one upload");
+ABSL_FLAG(uint32_t, max_upload_files, 1024, "limit: files in one upload");
+ABSL_FLAG(uint32_t, max_chunk_bytes, 1u << 20, "limit: data bytes in one upload chunk");
+ABSL_FLAG(uint32_t, max_scenes, 32, "limit: uploaded scenes in memory");
+ABSL_FLAG(uint32_t, max_sessions, 64, "limit: concurrent streaming sessions");
+ABSL_FLAG(uint32_t, max_concurrent_uploads, 8, "limit: uploads in progress at once");
+ABSL_FLAG(uint32_t, encoder_threads, 0, "JPEG/PNG encoder threads (0: one per core)");
+ABSL_FLAG(uint32_t, shutdown_grace_ms, 3000,
+          "on SIGTERM, how long open calls may take to finish before they are cancelled");
+ABSL_FLAG(std::string, port_file, "",
+          "write the bound port to this file once serving (for scripts using port 0)");
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage(
+      "tesserad [--listen=HOST:PORT] [--device=NAME] [limits...] [--flagfile=FILE]\n"
+      "The Tessera render server. See --help for every flag; a config file is a --flagfile\n"
+      "with one --flag=value per line.");
+  absl::ParseCommandLine(argc, argv);
+
+  const std::string level = absl::GetFlag(FLAGS_log_level);
+  const spdlog::level::level_enum lvl = spdlog::level::from_str(level);
+  if (lvl == spdlog::level::off && level != "off") {
+    std::fprintf(stderr, "tesserad: --log_level: unknown level '%s'\n", level.c_str());
+    return 2;
+  }
+  tessera::Log().set_level(lvl);
+
+  // Signals are taken synchronously by this thread; every other thread inherits the mask.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  tessera::server::ServerOptions options;
+  options.listen = absl::GetFlag(FLAGS_listen);
+  options.device = absl::GetFlag(FLAGS_device);
+  options.validation = absl::GetFlag(FLAGS_validation);
+  options.max_upload_bytes = absl::GetFlag(FLAGS_max_upload_bytes);
+  options.max_upload_files = absl::GetFlag(FLAGS_max_upload_files);
+  options.max_chunk_bytes = absl::GetFlag(FLAGS_max_chunk_bytes);
+  options.max_scenes = absl::GetFlag(FLAGS_max_scenes);
+  options.max_sessions = absl::GetFlag(FLAGS_max_sessions);
+  options.max_concurrent_uploads = absl::GetFlag(FLAGS_max_concurrent_uploads);
+  options.encoder_threads = absl::GetFlag(FLAGS_encoder_threads);
+
+  auto server = tessera::server::Server::Start(options);
+  if (!server.ok()) {
+    std::fprintf(stderr, "tesserad: %s\n", std::string(server.status().message()).c_str());
+    return 1;
+  }
+  if (const std::string path = absl::GetFlag(FLAGS_port_file); !path.empty()) {
+    if (FILE* f = std::fopen(path.c_str(), "w")) {
+      std::fprintf(f, "%d\n", (*server)->port());
+      std::fclose(f);
+    }
+  }
+  tessera::Log().info("ready: try `tessera --server {} info`", (*server)->address());
+
+  int sig = 0;
+  sigwait(&signals, &sig);
+  tessera::Log().info("{} received", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+  (*server)->Shutdown(std::chrono::milliseconds(absl::GetFlag(FLAGS_shutdown_grace_ms)));
+  server->reset();
+  return 0;
+}

@@ -1,0 +1,917 @@
+// Integration tests: a real tesserad (in-process Server on port 0, or the tesserad binary for
+// signal handling) driven over real gRPC with the generated stubs.
+#include "server/server.h"
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/dynamic_message.h>
+#include <grpcpp/generic/generic_stub.h>
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <thread>
+
+#include "absl/strings/str_cat.h"
+#include "renderer/image_io.h"
+#include "renderer/scene/gltf_import.h"
+#include "tessera/scene_id.h"
+#include "tessera/v1/render_service.grpc.pb.h"
+
+namespace tessera {
+namespace {
+
+namespace fs = std::filesystem;
+using server::Server;
+using server::ServerOptions;
+
+std::string AssetsDir() {
+  const char* env = std::getenv("TESSERA_ASSETS_DIR");
+  return env ? env : TESSERA_DEFAULT_ASSETS_DIR;
+}
+
+// --- client helpers ----------------------------------------------------------------------
+
+std::unique_ptr<v1::RenderService::Stub> Connect(const std::string& address,
+                                                 bool small_window = false) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(64 << 20);
+  // A fixed 64 KiB stream window, so a slow reader really pushes back on the server.
+  if (small_window) args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+  return v1::RenderService::NewStub(
+      grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args));
+}
+
+struct UploadPart {
+  std::string name;
+  std::string bytes;
+};
+
+// Uploads files as given (no validation here: the server must do it).
+grpc::Status UploadRaw(v1::RenderService::Stub* stub, const std::vector<UploadPart>& files,
+                       v1::SceneInfo* info, const std::string& main_file = "",
+                       size_t chunk = 1 << 20, bool with_sha = true) {
+  grpc::ClientContext ctx;
+  auto writer = stub->UploadScene(&ctx, info);
+  v1::UploadRequest req;
+  v1::UploadManifest* m = req.mutable_manifest();
+  m->set_main_file(main_file);
+  for (const UploadPart& f : files) {
+    v1::UploadFile* uf = m->add_files();
+    uf->set_name(f.name);
+    uf->set_size(f.bytes.size());
+    if (with_sha) uf->set_sha256(Sha256Hex(f.bytes.data(), f.bytes.size()));
+  }
+  bool ok = writer->Write(req);
+  for (size_t i = 0; ok && i < files.size(); ++i) {
+    for (size_t off = 0; ok && off < files[i].bytes.size(); off += chunk) {
+      v1::UploadRequest c;
+      c.mutable_chunk()->set_file_index(static_cast<uint32_t>(i));
+      c.mutable_chunk()->set_offset(off);
+      c.mutable_chunk()->set_data(files[i].bytes.substr(off, chunk));
+      ok = writer->Write(c);
+    }
+  }
+  writer->WritesDone();
+  return writer->Finish();
+}
+
+std::vector<UploadPart> PartsFromDisk(const std::string& path) {
+  absl::StatusOr<GltfSource> src = LoadGltfSourceFromDisk(path);
+  EXPECT_TRUE(src.ok()) << src.status();
+  std::vector<UploadPart> parts;
+  if (!src.ok()) return parts;
+  for (const auto& [name, data] : src->files)
+    parts.push_back({name, std::string(data.begin(), data.end())});
+  return parts;
+}
+
+std::string MainName(const std::string& path) { return fs::path(path).filename().string(); }
+
+v1::RenderRequest DemoRequest(uint32_t w, uint32_t h) {
+  v1::RenderRequest req;
+  req.set_scene_id("demo");
+  req.mutable_settings()->set_width(w);
+  req.mutable_settings()->set_height(h);
+  return req;
+}
+
+void SetLookAt(v1::Camera* cam, float ex, float ey, float ez) {
+  v1::LookAt* l = cam->mutable_look_at();
+  l->mutable_eye()->set_x(ex);
+  l->mutable_eye()->set_y(ey);
+  l->mutable_eye()->set_z(ez);
+  l->mutable_target()->set_y(0.5f);
+}
+
+// Eye of camera event k in the stream tests: a circle, so every event is a new view.
+void OrbitEye(uint64_t k, v1::Camera* cam) {
+  const float a = 0.2f * float(k);
+  SetLookAt(cam, 6.0f * std::cos(a), 2.5f, 6.0f * std::sin(a));
+}
+
+// --- fixture: one in-process server for the suite ----------------------------------------
+
+class ServerTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    ServerOptions o;
+    o.listen = "127.0.0.1:0";
+    o.validation = std::getenv("TESSERA_VALIDATION") != nullptr;
+    o.max_sessions = 8;
+    absl::StatusOr<std::unique_ptr<Server>> s = Server::Start(o);
+    ASSERT_TRUE(s.ok()) << s.status();
+    server_ = s->release();
+  }
+  static void TearDownTestSuite() {
+    if (!server_) return;
+    server_->Shutdown();
+    EXPECT_EQ(server_->stats().validation_messages, 0u);
+    delete server_;
+    server_ = nullptr;
+  }
+  void SetUp() override {
+    ASSERT_NE(server_, nullptr);
+    stub_ = Connect(server_->address());
+  }
+  void TearDown() override {
+    // Every test leaves the server healthy: a plain render still works.
+    ExpectServes();
+    EXPECT_EQ(server_->stats().validation_messages, 0u);
+  }
+
+  void ExpectServes() {
+    grpc::ClientContext ctx;
+    v1::Frame f;
+    grpc::Status st = stub_->Render(&ctx, DemoRequest(32, 24), &f);
+    EXPECT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(f.width(), 32u);
+  }
+
+  grpc::Status Render(const v1::RenderRequest& req, v1::Frame* f) {
+    grpc::ClientContext ctx;
+    return stub_->Render(&ctx, req, f);
+  }
+
+  // Waits (bounded) until `pred` holds on the server's stats.
+  template <typename Pred>
+  bool WaitFor(Pred pred, int ms = 5000) {
+    for (int i = 0; i < ms / 10; ++i) {
+      if (pred(server_->stats())) return true;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return pred(server_->stats());
+  }
+
+  static Server* server_;
+  std::unique_ptr<v1::RenderService::Stub> stub_;
+};
+Server* ServerTest::server_ = nullptr;
+
+#define EXPECT_CODE(status, code, text)                                         \
+  do {                                                                          \
+    const grpc::Status& st_ = (status);                                         \
+    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << st_.error_message(); \
+    EXPECT_NE(st_.error_message().find(text), std::string::npos)                \
+        << "message \"" << st_.error_message() << "\" should name " << text;    \
+  } while (0)
+
+// --- info, health, reflection ------------------------------------------------------------
+
+TEST_F(ServerTest, ServerInfoDescribesDeviceLimitsAndChoices) {
+  grpc::ClientContext ctx;
+  v1::ServerInfo info;
+  ASSERT_TRUE(stub_->GetServerInfo(&ctx, {}, &info).ok());
+  EXPECT_FALSE(info.version().empty());
+  EXPECT_FALSE(info.device().name().empty());
+  EXPECT_FALSE(info.device().driver_name().empty());
+  EXPECT_GE(info.limits().max_samples(), 1u);
+  EXPECT_GE(info.limits().max_width(), 4096u);
+  EXPECT_EQ(info.limits().max_chunk_bytes(), 1u << 20);
+  EXPECT_GE(info.scenes_loaded(), 1u);  // demo
+  EXPECT_GE(info.uptime_s(), 0.0);
+  auto has = [](const auto& list, const std::string& v) {
+    return std::find(list.begin(), list.end(), v) != list.end();
+  };
+  EXPECT_TRUE(has(info.choices().aa(), "msaa"));
+  EXPECT_TRUE(has(info.choices().culling(), "gpu_occlusion"));
+  EXPECT_TRUE(has(info.choices().debug_view(), "normals"));
+  EXPECT_EQ(info.default_settings().width(), 1280u);
+}
+
+// grpc.health.v1.Health/Check with an empty request; the reply is HealthCheckResponse
+// {status = SERVING (1)}: field 1, varint 1.
+TEST_F(ServerTest, HealthReportsServing) {
+  auto channel = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
+  grpc::GenericStub generic(channel);
+  grpc::ClientContext ctx;
+  grpc::ByteBuffer request, response;
+  grpc::Slice empty;
+  request = grpc::ByteBuffer(&empty, 1);
+  std::mutex mu;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status status;
+  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
+                    [&](grpc::Status s) {
+                      std::lock_guard lock(mu);
+                      status = s;
+                      done = true;
+                      cv.notify_one();
+                    });
+  std::unique_lock lock(mu);
+  ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return done; }));
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  std::vector<grpc::Slice> slices;
+  ASSERT_TRUE(response.Dump(&slices).ok());
+  std::string bytes;
+  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  EXPECT_EQ(bytes, std::string("\x08\x01", 2));
+}
+
+// Server reflection: list_services must include tessera.v1.RenderService. The reflection
+// messages' descriptors come from the reflection library the server links.
+TEST_F(ServerTest, ReflectionListsRenderService) {
+  namespace pb = google::protobuf;
+  const pb::DescriptorPool* pool = pb::DescriptorPool::generated_pool();
+  const pb::Descriptor* req_d =
+      pool->FindMessageTypeByName("grpc.reflection.v1alpha.ServerReflectionRequest");
+  const pb::Descriptor* resp_d =
+      pool->FindMessageTypeByName("grpc.reflection.v1alpha.ServerReflectionResponse");
+  ASSERT_NE(req_d, nullptr);
+  ASSERT_NE(resp_d, nullptr);
+  pb::DynamicMessageFactory factory(pool);
+  std::unique_ptr<pb::Message> req(factory.GetPrototype(req_d)->New());
+  req->GetReflection()->SetString(req.get(), req_d->FindFieldByName("list_services"), "");
+  std::string req_bytes = req->SerializeAsString();
+
+  auto channel = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
+  grpc::GenericStub generic(channel);
+  grpc::ClientContext ctx;
+  grpc::CompletionQueue cq;
+  auto call = generic.PrepareCall(
+      &ctx, "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo", &cq);
+  auto step = [&](intptr_t tag) {
+    void* got = nullptr;
+    bool ok = false;
+    EXPECT_TRUE(cq.Next(&got, &ok));
+    EXPECT_EQ(reinterpret_cast<intptr_t>(got), tag);
+    return ok;
+  };
+  call->StartCall(reinterpret_cast<void*>(1));
+  ASSERT_TRUE(step(1));
+  grpc::Slice slice(req_bytes);
+  grpc::ByteBuffer out(&slice, 1);
+  call->Write(out, reinterpret_cast<void*>(2));
+  ASSERT_TRUE(step(2));
+  call->WritesDone(reinterpret_cast<void*>(3));
+  ASSERT_TRUE(step(3));
+  grpc::ByteBuffer in;
+  call->Read(&in, reinterpret_cast<void*>(4));
+  ASSERT_TRUE(step(4));
+  grpc::Status status;
+  call->Finish(&status, reinterpret_cast<void*>(5));
+  step(5);
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  std::vector<grpc::Slice> slices;
+  ASSERT_TRUE(in.Dump(&slices).ok());
+  std::string bytes;
+  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  std::unique_ptr<pb::Message> resp(factory.GetPrototype(resp_d)->New());
+  ASSERT_TRUE(resp->ParseFromString(bytes));
+  const pb::Message& list =
+      resp->GetReflection()->GetMessage(*resp, resp_d->FindFieldByName("list_services_response"));
+  const pb::FieldDescriptor* service_f = list.GetDescriptor()->FindFieldByName("service");
+  std::vector<std::string> names;
+  for (int i = 0; i < list.GetReflection()->FieldSize(list, service_f); ++i) {
+    const pb::Message& svc = list.GetReflection()->GetRepeatedMessage(list, service_f, i);
+    names.push_back(
+        svc.GetReflection()->GetString(svc, svc.GetDescriptor()->FindFieldByName("name")));
+  }
+  EXPECT_NE(std::find(names.begin(), names.end(), "tessera.v1.RenderService"), names.end());
+  EXPECT_NE(std::find(names.begin(), names.end(), "grpc.health.v1.Health"), names.end());
+}
+
+// --- uploads and renders -----------------------------------------------------------------
+
+TEST_F(ServerTest, RenderDemoAsJpegAndPng) {
+  v1::Frame f;
+  ASSERT_TRUE(Render(DemoRequest(160, 90), &f).ok());
+  EXPECT_EQ(f.encoding(), v1::IMAGE_JPEG);
+  absl::StatusOr<RgbaImage> img =
+      DecodeJpeg(std::vector<uint8_t>(f.data().begin(), f.data().end()));
+  ASSERT_TRUE(img.ok()) << img.status();
+  EXPECT_EQ(img->width, 160u);
+  EXPECT_EQ(img->height, 90u);
+  EXPECT_EQ(f.sequence(), 1u);
+  EXPECT_FALSE(f.passes().empty());
+  EXPECT_GT(f.gpu_total_ms(), 0.0);
+  EXPECT_GT(f.cpu().encode_ms(), 0.0);
+  EXPECT_GE(f.cpu().total_ms(), f.cpu().encode_ms());
+  EXPECT_EQ(f.settings().width(), 160u);
+  EXPECT_GT(f.stats().draws(), 0u);
+
+  v1::RenderRequest png = DemoRequest(64, 48);
+  png.set_encoding(v1::IMAGE_PNG);
+  ASSERT_TRUE(Render(png, &f).ok());
+  absl::StatusOr<RgbaImage> p = DecodePng(std::vector<uint8_t>(f.data().begin(), f.data().end()));
+  ASSERT_TRUE(p.ok()) << p.status();
+  EXPECT_EQ(p->width, 64u);
+}
+
+TEST_F(ServerTest, SettingsTheDeviceCannotDoAreClampedAndReported) {
+  v1::RenderRequest req = DemoRequest(64, 48);
+  req.mutable_settings()->set_aa(v1::AA_MSAA);
+  req.mutable_settings()->set_samples(8);
+  v1::Frame f;
+  ASSERT_TRUE(Render(req, &f).ok());
+  grpc::ClientContext ctx;
+  v1::ServerInfo info;
+  ASSERT_TRUE(stub_->GetServerInfo(&ctx, {}, &info).ok());
+  EXPECT_EQ(f.settings().samples(), std::min(8u, info.limits().max_samples()));
+  if (info.limits().max_samples() < 8) {
+    bool noted = false;
+    for (const auto& n : f.notes()) noted |= n.field() == "samples";
+    EXPECT_TRUE(noted);
+  }
+}
+
+// Every sample model, as .glb and as .gltf + .bin + images, uploads and renders.
+TEST_F(ServerTest, UploadAndRenderEveryAsset) {
+  std::vector<std::string> paths;
+  for (const auto& e : fs::recursive_directory_iterator(AssetsDir())) {
+    const std::string ext = e.path().extension().string();
+    if (ext == ".gltf" || ext == ".glb") paths.push_back(e.path().string());
+  }
+  std::sort(paths.begin(), paths.end());
+  ASSERT_GE(paths.size(), 10u) << "assets missing in " << AssetsDir();
+  std::vector<std::string> ids;
+  for (const std::string& path : paths) {
+    SCOPED_TRACE(path);
+    v1::SceneInfo info;
+    grpc::Status st = UploadRaw(stub_.get(), PartsFromDisk(path), &info, MainName(path));
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    EXPECT_EQ(info.scene_id().size(), 64u);
+    EXPECT_GT(info.counts().triangles(), 0u);
+    EXPECT_GT(info.device_bytes(), 0u);
+    v1::RenderRequest req;
+    req.set_scene_id(info.scene_id());
+    req.mutable_settings()->set_width(96);
+    req.mutable_settings()->set_height(64);
+    v1::Frame f;
+    st = Render(req, &f);
+    ASSERT_TRUE(st.ok()) << st.error_message();
+    absl::StatusOr<RgbaImage> img =
+        DecodeJpeg(std::vector<uint8_t>(f.data().begin(), f.data().end()));
+    ASSERT_TRUE(img.ok()) << img.status();
+    EXPECT_EQ(img->width, 96u);
+    EXPECT_EQ(img->height, 64u);
+    ids.push_back(info.scene_id());
+  }
+  // The store is bounded: free them again.
+  for (const std::string& id : ids) {
+    grpc::ClientContext ctx;
+    v1::DeleteSceneRequest del;
+    del.set_scene_id(id);
+    v1::DeleteSceneResponse r;
+    EXPECT_TRUE(stub_->DeleteScene(&ctx, del, &r).ok());
+  }
+}
+
+TEST_F(ServerTest, SceneIdIsTheContentHashAndReuploadIsFree) {
+  const std::string path = AssetsDir() + "/BoxTextured/glTF/BoxTextured.gltf";
+  std::vector<UploadPart> parts = PartsFromDisk(path);
+  std::map<std::string, std::string> hashes;
+  for (const UploadPart& p : parts) hashes[p.name] = Sha256Hex(p.bytes.data(), p.bytes.size());
+  const std::string expected = SceneId(hashes, "BoxTextured.gltf");
+
+  v1::HasSceneRequest has;
+  has.set_scene_id(expected);
+  v1::HasSceneResponse hr;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(stub_->HasScene(&ctx, has, &hr).ok());
+  }
+  EXPECT_FALSE(hr.present());
+
+  v1::SceneInfo first, second;
+  ASSERT_TRUE(UploadRaw(stub_.get(), parts, &first, "BoxTextured.gltf").ok());
+  EXPECT_EQ(first.scene_id(), expected);
+  ASSERT_TRUE(UploadRaw(stub_.get(), parts, &second, "BoxTextured.gltf").ok());
+  EXPECT_EQ(second.scene_id(), expected);
+  EXPECT_EQ(second.load_ms(), first.load_ms()) << "the second upload must not load again";
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(stub_->HasScene(&ctx, has, &hr).ok());
+  }
+  EXPECT_TRUE(hr.present());
+  EXPECT_EQ(hr.info().counts().triangles(), 12u);
+
+  // A unique prefix works as an id.
+  v1::RenderRequest req;
+  req.set_scene_id(expected.substr(0, 10));
+  req.mutable_settings()->set_width(32);
+  req.mutable_settings()->set_height(32);
+  v1::Frame f;
+  EXPECT_TRUE(Render(req, &f).ok());
+  EXPECT_EQ(f.scene_id(), expected);
+
+  v1::ListScenesResponse list;
+  {
+    grpc::ClientContext ctx;
+    ASSERT_TRUE(stub_->ListScenes(&ctx, {}, &list).ok());
+  }
+  ASSERT_GE(list.scenes_size(), 2);
+  EXPECT_EQ(list.scenes(0).scene_id(), "demo");
+  int found = 0;
+  for (const auto& s : list.scenes()) found += s.scene_id() == expected;
+  EXPECT_EQ(found, 1);
+
+  grpc::ClientContext ctx;
+  v1::DeleteSceneRequest del;
+  del.set_scene_id(expected);
+  v1::DeleteSceneResponse dr;
+  ASSERT_TRUE(stub_->DeleteScene(&ctx, del, &dr).ok());
+  EXPECT_EQ(dr.sessions_still_using(), 0u);
+  EXPECT_CODE(Render(req, &f), NOT_FOUND, "scene_id");
+}
+
+// --- bad input: the right code, a message naming the culprit, and the server goes on -------
+
+TEST_F(ServerTest, GarbageBytesAreInvalidArgumentNamingTheFile) {
+  v1::SceneInfo info;
+  std::string garbage(4096, '\0');
+  for (size_t i = 0; i < garbage.size(); ++i) garbage[i] = char((i * 2654435761u) >> 13);
+  EXPECT_CODE(UploadRaw(stub_.get(), {{"garbage.glb", garbage}}, &info), INVALID_ARGUMENT,
+              "garbage.glb");
+  EXPECT_CODE(UploadRaw(stub_.get(), {{"garbage.gltf", "{not json"}}, &info), INVALID_ARGUMENT,
+              "garbage.gltf");
+}
+
+TEST_F(ServerTest, TruncatedGlbIsInvalidArgument) {
+  std::vector<UploadPart> parts = PartsFromDisk(AssetsDir() + "/Box/glTF-Binary/Box.glb");
+  ASSERT_EQ(parts.size(), 1u);
+  parts[0].bytes.resize(parts[0].bytes.size() / 2);
+  v1::SceneInfo info;
+  EXPECT_CODE(UploadRaw(stub_.get(), parts, &info), INVALID_ARGUMENT, "Box.glb");
+}
+
+TEST_F(ServerTest, UrisOutsideTheUploadSetAreRefused) {
+  const std::string gltf = R"({"asset":{"version":"2.0"},
+    "buffers":[{"uri":"../../etc/passwd","byteLength":4}]})";
+  v1::SceneInfo info;
+  grpc::Status st = UploadRaw(stub_.get(), {{"escape.gltf", gltf}}, &info);
+  EXPECT_CODE(st, INVALID_ARGUMENT, "escape.gltf");
+  EXPECT_NE(st.error_message().find("passwd"), std::string::npos) << st.error_message();
+  // A manifest may not name such a file either.
+  EXPECT_CODE(UploadRaw(stub_.get(), {{"escape.gltf", gltf}, {"../../etc/passwd", "root"}}, &info,
+                        "escape.gltf"),
+              INVALID_ARGUMENT, "manifest.files[1]");
+  EXPECT_CODE(UploadRaw(stub_.get(), {{"/abs/escape.gltf", gltf}}, &info), INVALID_ARGUMENT,
+              "manifest.files[0]");
+}
+
+TEST_F(ServerTest, MalformedUploadStreamsAreRefused) {
+  v1::SceneInfo info;
+  // A chunk before any manifest.
+  {
+    grpc::ClientContext ctx;
+    auto w = stub_->UploadScene(&ctx, &info);
+    v1::UploadRequest c;
+    c.mutable_chunk()->set_data("x");
+    w->Write(c);
+    w->WritesDone();
+    EXPECT_CODE(w->Finish(), INVALID_ARGUMENT, "manifest");
+  }
+  // Bytes missing at the end.
+  {
+    grpc::ClientContext ctx;
+    auto w = stub_->UploadScene(&ctx, &info);
+    v1::UploadRequest m;
+    auto* f = m.mutable_manifest()->add_files();
+    f->set_name("short.glb");
+    f->set_size(100);
+    w->Write(m);
+    v1::UploadRequest c;
+    c.mutable_chunk()->set_data(std::string(10, 'x'));
+    w->Write(c);
+    w->WritesDone();
+    EXPECT_CODE(w->Finish(), INVALID_ARGUMENT, "short.glb");
+  }
+  // Wrong sha256.
+  EXPECT_EQ(UploadRaw(stub_.get(), {{"a.glb", "abc"}}, &info, "", 1 << 20, false).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  {
+    grpc::ClientContext ctx;
+    auto w = stub_->UploadScene(&ctx, &info);
+    v1::UploadRequest m;
+    auto* f = m.mutable_manifest()->add_files();
+    f->set_name("a.glb");
+    f->set_size(3);
+    f->set_sha256(std::string(64, '0'));
+    w->Write(m);
+    v1::UploadRequest c;
+    c.mutable_chunk()->set_data("abc");
+    w->Write(c);
+    w->WritesDone();
+    EXPECT_CODE(w->Finish(), DATA_LOSS, "a.glb");
+  }
+}
+
+TEST_F(ServerTest, OversizeUploadIsResourceExhaustedNamingTheLimit) {
+  grpc::ClientContext ctx;
+  v1::SceneInfo info;
+  auto w = stub_->UploadScene(&ctx, &info);
+  v1::UploadRequest m;
+  auto* f = m.mutable_manifest()->add_files();
+  f->set_name("huge.glb");
+  f->set_size(uint64_t(1) << 40);  // 1 TiB declared: refused before any byte is stored
+  w->Write(m);
+  w->WritesDone();
+  EXPECT_CODE(w->Finish(), RESOURCE_EXHAUSTED, "max_upload_bytes");
+  // A chunk larger than max_chunk_bytes.
+  grpc::ClientContext ctx2;
+  auto w2 = stub_->UploadScene(&ctx2, &info);
+  v1::UploadRequest m2;
+  auto* f2 = m2.mutable_manifest()->add_files();
+  f2->set_name("big.glb");
+  f2->set_size(3 << 20);
+  w2->Write(m2);
+  v1::UploadRequest c;
+  c.mutable_chunk()->set_data(std::string(2 << 20, 'x'));
+  w2->Write(c);
+  w2->WritesDone();
+  EXPECT_EQ(w2->Finish().error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+}
+
+TEST_F(ServerTest, BadResolutionsCameraAndSceneIds) {
+  v1::Frame f;
+  EXPECT_CODE(Render(DemoRequest(0, 0), &f), INVALID_ARGUMENT, "settings.width");
+  EXPECT_CODE(Render(DemoRequest(100000, 100000), &f), INVALID_ARGUMENT, "settings.width");
+  EXPECT_CODE(Render(DemoRequest(64, 0), &f), INVALID_ARGUMENT, "settings.height");
+
+  v1::RenderRequest nan = DemoRequest(64, 64);
+  SetLookAt(nan.mutable_camera(), std::nanf(""), 1.0f, 1.0f);
+  EXPECT_CODE(Render(nan, &f), INVALID_ARGUMENT, "camera.look_at.eye");
+  v1::RenderRequest inf = DemoRequest(64, 64);
+  inf.mutable_camera()->set_yfov(INFINITY);
+  EXPECT_CODE(Render(inf, &f), INVALID_ARGUMENT, "camera.yfov");
+  v1::RenderRequest mat = DemoRequest(64, 64);
+  mat.mutable_camera()->mutable_view_matrix()->add_m(1.0f);
+  EXPECT_CODE(Render(mat, &f), INVALID_ARGUMENT, "camera.view_matrix");
+  v1::RenderRequest cam = DemoRequest(64, 64);
+  cam.mutable_camera()->set_scene_camera(7);
+  EXPECT_CODE(Render(cam, &f), INVALID_ARGUMENT, "camera.scene_camera");
+
+  v1::RenderRequest unknown = DemoRequest(64, 64);
+  unknown.set_scene_id("0123456789abcdef");
+  EXPECT_CODE(Render(unknown, &f), NOT_FOUND, "scene_id");
+  unknown.set_scene_id("");
+  EXPECT_CODE(Render(unknown, &f), INVALID_ARGUMENT, "scene_id");
+
+  v1::RenderRequest enums = DemoRequest(64, 64);
+  enums.mutable_settings()->set_aa(static_cast<v1::AaMode>(99));
+  EXPECT_CODE(Render(enums, &f), INVALID_ARGUMENT, "settings.aa");
+
+  grpc::ClientContext ctx;
+  v1::DeleteSceneRequest del;
+  del.set_scene_id("demo");
+  v1::DeleteSceneResponse dr;
+  EXPECT_EQ(stub_->DeleteScene(&ctx, del, &dr).error_code(), grpc::StatusCode::FAILED_PRECONDITION);
+}
+
+TEST_F(ServerTest, ClientLeavingMidUploadLeavesNothingBehind) {
+  {
+    grpc::ClientContext ctx;
+    v1::SceneInfo info;
+    auto w = stub_->UploadScene(&ctx, &info);
+    v1::UploadRequest m;
+    auto* f = m.mutable_manifest()->add_files();
+    f->set_name("partial.glb");
+    f->set_size(8 << 20);
+    ASSERT_TRUE(w->Write(m));
+    v1::UploadRequest c;
+    c.mutable_chunk()->set_data(std::string(1 << 20, 'x'));
+    ASSERT_TRUE(w->Write(c));
+    EXPECT_TRUE(WaitFor([](const server::ServerStats& s) { return s.uploads_in_progress == 1; }));
+    ctx.TryCancel();
+    w->Finish();
+  }
+  EXPECT_TRUE(WaitFor([](const server::ServerStats& s) { return s.uploads_in_progress == 0; }));
+}
+
+// --- streams -------------------------------------------------------------------------------
+
+using StreamRW = grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>;
+
+v1::ClientEvent OpenEvent(const std::string& scene, uint32_t w, uint32_t h, float fps = 0) {
+  v1::ClientEvent e;
+  e.set_event_id(0);
+  e.mutable_open()->set_scene_id(scene);
+  e.mutable_open()->mutable_settings()->set_width(w);
+  e.mutable_open()->mutable_settings()->set_height(h);
+  e.mutable_open()->set_target_fps(fps);
+  OrbitEye(0, e.mutable_open()->mutable_camera());
+  return e;
+}
+
+v1::ClientEvent CameraEvent(uint64_t id) {
+  v1::ClientEvent e;
+  e.set_event_id(id);
+  OrbitEye(id, e.mutable_camera());
+  return e;
+}
+
+float EyeX(uint64_t k) {
+  v1::Camera c;
+  OrbitEye(k, &c);
+  return c.look_at().eye().x();
+}
+
+// 30 camera updates sent as fast as possible: frames come in order, each names the newest
+// event it reflects (its camera is that event's camera), and the last reflects event 30.
+TEST_F(ServerTest, StreamFramesNameTheNewestEventTheyReflect) {
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  ASSERT_TRUE(rw->Write(OpenEvent("demo", 96, 64)));
+  for (uint64_t k = 1; k <= 30; ++k) ASSERT_TRUE(rw->Write(CameraEvent(k)));
+  uint64_t last_seq = 0, last_event = 0;
+  int frames = 0;
+  v1::Frame f;
+  while (last_event < 30 && rw->Read(&f)) {
+    ++frames;
+    EXPECT_GT(f.sequence(), last_seq);
+    EXPECT_GE(f.event_id(), last_event);
+    EXPECT_LE(f.event_id(), 30u);
+    EXPECT_NEAR(f.camera().eye().x(), EyeX(f.event_id()), 1e-4) << "event " << f.event_id();
+    EXPECT_EQ(f.width(), 96u);
+    EXPECT_EQ(f.profile(), "full");
+    EXPECT_FALSE(f.passes().empty());
+    last_seq = f.sequence();
+    last_event = f.event_id();
+  }
+  EXPECT_EQ(last_event, 30u);
+  EXPECT_LE(frames, 31) << "one frame per change at most";
+  rw->WritesDone();
+  while (rw->Read(&f)) {
+  }
+  grpc::Status st = rw->Finish();
+  EXPECT_TRUE(st.ok()) << st.error_message();
+}
+
+TEST_F(ServerTest, StreamSettingsUpdatesMergeAndBadEventsEndTheStream) {
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  ASSERT_TRUE(rw->Write(OpenEvent("demo", 64, 48)));
+  v1::Frame f;
+  ASSERT_TRUE(rw->Read(&f));
+  v1::ClientEvent e;
+  e.set_event_id(1);
+  e.mutable_settings()->set_width(80);  // height stays 48
+  ASSERT_TRUE(rw->Write(e));
+  ASSERT_TRUE(rw->Read(&f));
+  EXPECT_EQ(f.width(), 80u);
+  EXPECT_EQ(f.height(), 48u);
+  EXPECT_EQ(f.event_id(), 1u);
+  v1::ClientEvent bad;
+  bad.set_event_id(2);
+  bad.mutable_settings()->set_tile_size(7);
+  rw->Write(bad);
+  while (rw->Read(&f)) {
+  }
+  EXPECT_CODE(rw->Finish(), INVALID_ARGUMENT, "settings.tile_size");
+
+  grpc::ClientContext ctx2;
+  std::unique_ptr<StreamRW> rw2 = stub_->Stream(&ctx2);
+  rw2->Write(CameraEvent(1));  // no open
+  while (rw2->Read(&f)) {
+  }
+  EXPECT_CODE(rw2->Finish(), INVALID_ARGUMENT, "open");
+
+  grpc::ClientContext ctx3;
+  std::unique_ptr<StreamRW> rw3 = stub_->Stream(&ctx3);
+  rw3->Write(OpenEvent("no-such-scene", 64, 64));
+  while (rw3->Read(&f)) {
+  }
+  EXPECT_CODE(rw3->Finish(), NOT_FOUND, "scene_id");
+}
+
+// A reader much slower than the render rate gets fewer frames, each recent, while the frames
+// the server holds for it stay bounded.
+TEST_F(ServerTest, SlowReaderGetsRecentFramesAndServerMemoryStaysBounded) {
+  auto slow_stub = Connect(server_->address(), /*small_window=*/true);
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = slow_stub->Stream(&ctx);
+  ASSERT_TRUE(rw->Write(OpenEvent("demo", 320, 240)));
+  std::atomic<uint64_t> sent{0};
+  std::atomic<bool> stop{false};
+  std::thread writer([&] {
+    for (uint64_t k = 1; !stop; ++k) {
+      if (!rw->Write(CameraEvent(k))) break;
+      sent = k;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  v1::Frame f;
+  uint64_t max_pending = 0, max_frame = 0;
+  int frames = 0;
+  std::vector<uint64_t> lag;
+  const auto t_end = std::chrono::steady_clock::now() + std::chrono::seconds(4);
+  while (std::chrono::steady_clock::now() < t_end && rw->Read(&f)) {
+    ++frames;
+    max_frame = std::max<uint64_t>(max_frame, f.data().size());
+    lag.push_back(sent - std::min<uint64_t>(sent, f.event_id()));
+    for (int i = 0; i < 4; ++i) {  // a slow reader: 400 ms per frame
+      max_pending = std::max(max_pending, server_->stats().pending_frame_bytes);
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  stop = true;
+  writer.join();
+  const uint64_t total_sent = sent;
+  rw->WritesDone();
+  ctx.TryCancel();
+  rw->Finish();
+  ASSERT_GE(frames, 5);
+  EXPECT_LT(uint64_t(frames), total_sent / 4) << "a slow reader must get fewer frames";
+  // At most the frame being written plus the newest one waiting.
+  EXPECT_LE(max_pending, 2 * max_frame + 1024) << "max frame " << max_frame;
+  // Recent: the last frames reflect events at most ~2 read periods (2 x 400 ms / 5 ms = 160
+  // events, plus transport buffering) older than the newest sent.
+  std::sort(lag.begin() + 2, lag.end());
+  EXPECT_LT(lag[2 + (lag.size() - 2) / 2], 300u) << "median event lag";
+  EXPECT_TRUE(WaitFor([](const server::ServerStats& s) { return s.sessions == 0; }));
+}
+
+TEST_F(ServerTest, TwoClientsStreamingAtOnceBothProgress) {
+  auto run = [&](int* frames_out) {
+    auto stub = Connect(server_->address());
+    grpc::ClientContext ctx;
+    std::unique_ptr<StreamRW> rw = stub->Stream(&ctx);
+    rw->Write(OpenEvent("demo", 128, 96));
+    v1::Frame f;
+    int frames = 0;
+    for (uint64_t k = 1; k <= 12 && rw->Read(&f); ++k) {
+      ++frames;
+      rw->Write(CameraEvent(k));  // ping-pong: a new view after each frame
+    }
+    rw->WritesDone();
+    while (rw->Read(&f)) ++frames;
+    EXPECT_TRUE(rw->Finish().ok());
+    *frames_out = frames;
+  };
+  int a = 0, b = 0;
+  std::thread ta(run, &a), tb(run, &b);
+  ta.join();
+  tb.join();
+  EXPECT_GE(a, 12);
+  EXPECT_GE(b, 12);
+}
+
+TEST_F(ServerTest, ContinuousStreamRendersWithoutEvents) {
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  ASSERT_TRUE(rw->Write(OpenEvent("demo", 64, 48, /*fps=*/30.0f)));
+  v1::Frame f;
+  uint64_t last = 0;
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_TRUE(rw->Read(&f));
+    EXPECT_GT(f.sequence(), last);
+    last = f.sequence();
+    EXPECT_EQ(f.event_id(), 0u);
+  }
+  rw->WritesDone();
+  while (rw->Read(&f)) {
+  }
+  EXPECT_TRUE(rw->Finish().ok());
+}
+
+TEST_F(ServerTest, DeletedSceneStaysUntilItsSessionEnds) {
+  v1::SceneInfo info;
+  ASSERT_TRUE(
+      UploadRaw(stub_.get(), PartsFromDisk(AssetsDir() + "/Box/glTF-Binary/Box.glb"), &info).ok());
+  const uint32_t scenes_before = server_->stats().scenes;
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  ASSERT_TRUE(rw->Write(OpenEvent(info.scene_id(), 64, 48)));
+  v1::Frame f;
+  ASSERT_TRUE(rw->Read(&f));
+  {
+    grpc::ClientContext dctx;
+    v1::DeleteSceneRequest del;
+    del.set_scene_id(info.scene_id());
+    v1::DeleteSceneResponse dr;
+    ASSERT_TRUE(stub_->DeleteScene(&dctx, del, &dr).ok());
+    EXPECT_EQ(dr.sessions_still_using(), 1u);
+  }
+  v1::RenderRequest req;
+  req.set_scene_id(info.scene_id());
+  EXPECT_EQ(Render(req, &f).error_code(), grpc::StatusCode::NOT_FOUND);
+  // The session still renders it.
+  ASSERT_TRUE(rw->Write(CameraEvent(1)));
+  ASSERT_TRUE(rw->Read(&f));
+  EXPECT_EQ(f.event_id(), 1u);
+  EXPECT_EQ(server_->stats().scenes, scenes_before);
+  rw->WritesDone();
+  while (rw->Read(&f)) {
+  }
+  EXPECT_TRUE(rw->Finish().ok());
+  EXPECT_TRUE(WaitFor([&](const server::ServerStats& s) { return s.scenes == scenes_before - 1; }));
+}
+
+TEST_F(ServerTest, ClientLeavingMidStreamLeavesNothingBehind) {
+  {
+    grpc::ClientContext ctx;
+    std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+    ASSERT_TRUE(rw->Write(OpenEvent("demo", 64, 48, 60.0f)));
+    v1::Frame f;
+    ASSERT_TRUE(rw->Read(&f));
+    ctx.TryCancel();
+    rw->Finish();
+  }
+  EXPECT_TRUE(WaitFor(
+      [](const server::ServerStats& s) { return s.sessions == 0 && s.pending_frame_bytes == 0; }));
+}
+
+TEST_F(ServerTest, SessionLimitIsResourceExhausted) {
+  std::vector<std::unique_ptr<grpc::ClientContext>> ctxs;
+  std::vector<std::unique_ptr<StreamRW>> streams;
+  v1::Frame f;
+  for (int i = 0; i < 8; ++i) {  // the fixture's max_sessions
+    ctxs.push_back(std::make_unique<grpc::ClientContext>());
+    streams.push_back(stub_->Stream(ctxs.back().get()));
+    ASSERT_TRUE(streams.back()->Write(OpenEvent("demo", 16, 16)));
+    ASSERT_TRUE(streams.back()->Read(&f));
+  }
+  grpc::ClientContext ctx;
+  auto extra = stub_->Stream(&ctx);
+  extra->Write(OpenEvent("demo", 16, 16));
+  while (extra->Read(&f)) {
+  }
+  EXPECT_CODE(extra->Finish(), RESOURCE_EXHAUSTED, "max_sessions");
+  for (auto& s : streams) {
+    s->WritesDone();
+    while (s->Read(&f)) {
+    }
+    EXPECT_TRUE(s->Finish().ok());
+  }
+  EXPECT_TRUE(WaitFor([](const server::ServerStats& s) { return s.sessions == 0; }));
+}
+
+// --- the tesserad binary: SIGTERM during a stream ------------------------------------------
+
+TEST(TesseradProcess, SigtermDuringAStreamEndsItWithUnavailableAndExitsZero) {
+  const std::string port_file =
+      (fs::temp_directory_path() / absl::StrCat("tesserad_port_", getpid())).string();
+  fs::remove(port_file);
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    execl(TESSERAD_PATH, TESSERAD_PATH, "--listen=127.0.0.1:0",
+          ("--port_file=" + port_file).c_str(), "--log_level=warn", (char*)nullptr);
+    _exit(127);
+  }
+  int port = 0;
+  for (int i = 0; i < 600 && port == 0; ++i) {  // up to 60 s on a busy machine
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::ifstream in(port_file);
+    in >> port;
+  }
+  ASSERT_GT(port, 0) << "tesserad did not start";
+  auto stub = Connect(absl::StrCat("127.0.0.1:", port));
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub->Stream(&ctx);
+  ASSERT_TRUE(rw->Write(OpenEvent("demo", 64, 48, /*fps=*/30.0f)));
+  v1::Frame f;
+  ASSERT_TRUE(rw->Read(&f));
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSERT_EQ(kill(pid, SIGTERM), 0);
+  while (rw->Read(&f)) {
+  }
+  grpc::Status st = rw->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::UNAVAILABLE) << st.error_message();
+  int status = 0;
+  pid_t done = 0;
+  for (int i = 0; i < 100 && done == 0; ++i) {
+    done = waitpid(pid, &status, WNOHANG);
+    if (done == 0) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  if (done == 0) {
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+    FAIL() << "tesserad did not exit within 10 s of SIGTERM";
+  }
+  EXPECT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 0);
+  EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(5));
+  fs::remove(port_file);
+}
+
+}  // namespace
+}  // namespace tessera
