@@ -103,6 +103,7 @@ uint64_t RenderLoop::frames_rendered() const {
 }
 
 void RenderLoop::Stop() {
+  std::lock_guard stop_lock(stop_mu_);  // one Stop at a time: join once
   std::deque<std::shared_ptr<RenderClient>> abandoned;
   {
     std::lock_guard lock(mu_);

@@ -91,6 +91,7 @@ class RenderLoop {
   void RenderOne(const std::shared_ptr<RenderClient>& client);
 
   Renderer* renderer_;
+  std::mutex stop_mu_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::deque<std::shared_ptr<RenderClient>> ready_;

@@ -17,11 +17,16 @@ void SceneStore::AddDemo(SceneHandle scene, v1::SceneInfo info) {
   demo_ = std::move(s);
 }
 
+size_t SceneStore::UploadedLocked() const {
+  std::erase_if(deleted_, [](const auto& w) { return w.expired(); });
+  return scenes_.size() + deleted_.size();  // deleted scenes in use still hold device memory
+}
+
 absl::Status SceneStore::CheckRoom() const {
   std::lock_guard lock(mu_);
-  if (scenes_.size() >= max_scenes_)
+  if (UploadedLocked() >= max_scenes_)
     return absl::ResourceExhaustedError(absl::StrCat(
-        "scenes: ", scenes_.size(), " uploaded scenes in memory reach the max_scenes limit (",
+        "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",
         max_scenes_, "); delete one with DeleteScene"));
   return absl::OkStatus();
 }
@@ -31,9 +36,9 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Add(const std::string& 
                                                              v1::SceneInfo info) {
   std::lock_guard lock(mu_);
   if (auto it = scenes_.find(id); it != scenes_.end()) return it->second;  // same content
-  if (scenes_.size() >= max_scenes_)
+  if (UploadedLocked() >= max_scenes_)
     return absl::ResourceExhaustedError(absl::StrCat(
-        "scenes: ", scenes_.size(), " uploaded scenes in memory reach the max_scenes limit (",
+        "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",
         max_scenes_, "); delete one with DeleteScene"));
   auto s = std::make_shared<StoredScene>();
   s->id = id;

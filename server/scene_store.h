@@ -71,6 +71,7 @@ class SceneStore {
   static void FillLiveFields(const StoredScene& s, v1::SceneInfo* out);
 
  private:
+  size_t UploadedLocked() const;  // indexed + deleted-but-in-use uploaded scenes
   const uint32_t max_scenes_;
   mutable std::mutex mu_;
   std::shared_ptr<StoredScene> demo_;

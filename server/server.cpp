@@ -28,9 +28,12 @@ struct Server::Impl {
 };
 
 absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
-  if (options.max_chunk_bytes == 0 || options.max_upload_files == 0 || options.max_sessions == 0)
+  if (options.max_chunk_bytes == 0 || options.max_chunk_bytes > (64u << 20))
+    return absl::InvalidArgumentError("max_chunk_bytes: must be 1..67108864");
+  if (options.max_upload_files == 0 || options.max_sessions == 0 ||
+      options.max_concurrent_uploads == 0)
     return absl::InvalidArgumentError(
-        "limits: max_chunk_bytes, max_upload_files and max_sessions must be > 0");
+        "limits: max_upload_files, max_sessions and max_concurrent_uploads must be > 0");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
   absl::StatusOr<std::unique_ptr<Renderer>> renderer =
@@ -40,10 +43,13 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
 
   impl->store = std::make_unique<SceneStore>(options.max_scenes);
   if (options.load_demo_scene) {
+    const auto t0 = std::chrono::steady_clock::now();
     absl::StatusOr<SceneHandle> demo = impl->renderer->LoadScene(BuildDemoScene());
     if (!demo.ok()) return demo.status();
     v1::SceneInfo info;
     ToProto((*demo)->info(), &info);
+    info.set_load_ms(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     info.set_name("demo");
     impl->store->AddDemo(*std::move(demo), std::move(info));
   }
@@ -92,7 +98,6 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
   const auto t0 = std::chrono::steady_clock::now();
   Log().info("shutting down: {} sessions, {} frames queued", impl_->state.session_count(),
              impl_->loop->queue_depth());
-  impl_->state.shutting_down = true;
   if (auto* health = impl_->grpc_server->GetHealthCheckService()) health->Shutdown();
   // Streams end with UNAVAILABLE after their in-flight frame; queued renders fail.
   impl_->state.ShutdownSessions();
@@ -110,7 +115,7 @@ ServerStats Server::stats() const {
   const ServiceState& st = impl_->state;
   ServerStats s;
   s.scenes = impl_->store->count();
-  s.sessions = const_cast<ServiceState&>(st).session_count();
+  s.sessions = st.session_count();
   s.queue_depth = impl_->loop->queue_depth();
   s.frames_rendered = impl_->loop->frames_rendered();
   s.frames_dropped = st.frames_dropped;

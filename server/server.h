@@ -26,7 +26,7 @@ struct ServerOptions {
   uint32_t max_chunk_bytes = 1u << 20;     // data bytes in one UploadChunk
   uint32_t max_scenes = 32;                // uploaded scenes in memory (demo not counted)
   uint32_t max_sessions = 64;              // concurrent Stream sessions
-  uint32_t max_concurrent_uploads = 8;     // uploads receiving or parsing at once
+  uint32_t max_concurrent_uploads = 4;     // uploads receiving or parsing at once
 
   uint32_t encoder_threads = 0;  // JPEG/PNG encoders; 0 = one per core
   uint32_t loader_threads = 1;   // glTF parsers

@@ -134,8 +134,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     self_ = shared_from_this();
     if (!admission.ok()) {
       Log().info("Stream session={} refused: {} peer={}", id_, admission.ToString(), Peer(ctx_));
-      std::lock_guard lock(mu_);
-      finished_ = true;
+      finished_ = true;  // nothing else runs before the reactor is returned
       Finish(ToGrpc(admission));
       return;
     }
@@ -155,9 +154,9 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
           Log().info("Stream session={} event={}: {}", id_, event_.event_id(), st.ToString());
           error_ = st;
         }
-        read_more = !error_;
       }
       actions = NextActionsLocked();
+      read_more = ok && !error_ && !finished_;
     }
     Perform(actions);
     if (read_more) StartRead(&event_);
@@ -210,7 +209,10 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     std::optional<RenderWork> work;
     {
       std::lock_guard lock(mu_);
-      queued_ = false;
+      // The loop cannot say whether a ready entry or a timer brought us here: clear both; a
+      // stale duplicate entry only costs a TakeWork that finds nothing due.
+      in_ready_ = false;
+      timer_armed_ = false;
       if (CanRenderLocked() && DueLocked(Clock::now())) work = MakeWorkLocked();
       if (!work) actions = NextActionsLocked();
     }
@@ -223,7 +225,8 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     {
       std::lock_guard lock(mu_);
       if (work.sequence == 0) {
-        queued_ = false;  // dropped from the queue by a stopping render loop
+        in_ready_ = false;  // dropped from the queue by a stopping render loop
+        timer_armed_ = false;
         stopping_ = true;
       } else {
         --in_pipeline_;
@@ -373,13 +376,13 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
       writing_ = true;
       a.write = true;
     }
-    if (!queued_ && CanRenderLocked()) {
-      const Clock::time_point now = Clock::now();
-      if (DueLocked(now)) {
-        queued_ = true;
+    if (CanRenderLocked()) {
+      // A change jumps the queue even while a continuous session waits for its next tick.
+      if (!in_ready_ && DueLocked(Clock::now())) {
+        in_ready_ = true;
         a.enqueue = true;
-      } else if (ContinuousLocked()) {
-        queued_ = true;
+      } else if (!in_ready_ && !timer_armed_ && ContinuousLocked()) {
+        timer_armed_ = true;
         a.enqueue_at = next_due_;
       }
     }
@@ -428,8 +431,9 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   bool dirty_ = false;
   Clock::time_point dirty_since_;
   Clock::time_point next_due_;
-  bool queued_ = false;  // in the ready queue or a timer
-  int in_pipeline_ = 0;  // frames being rendered or encoded
+  bool in_ready_ = false;     // in the render loop's ready queue
+  bool timer_armed_ = false;  // a render-loop timer will bring it back (continuous mode)
+  int in_pipeline_ = 0;       // frames being rendered or encoded
   uint64_t sequence_ = 0;
   uint64_t newest_delivered_ = 0;
   std::optional<v1::Frame> slot_;  // the newest encoded frame not yet written
@@ -449,11 +453,12 @@ grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>* RenderServiceImpl::Stream(
     grpc::CallbackServerContext* ctx) {
   auto session = std::make_shared<StreamSession>(state_, ctx);
   absl::Status admission = absl::OkStatus();
-  if (state_->shutting_down) {
-    admission = Unavailable();
-  } else {
+  {
+    // Under the lock ShutdownSessions takes, so no session slips in after its snapshot.
     std::lock_guard lock(state_->sessions_mu);
-    if (state_->sessions.size() >= state_->options.max_sessions)
+    if (state_->shutting_down)
+      admission = Unavailable();
+    else if (state_->sessions.size() >= state_->options.max_sessions)
       admission = absl::ResourceExhaustedError(absl::StrCat(
           "sessions: ", state_->sessions.size(), " open streams reach the max_sessions limit (",
           state_->options.max_sessions, ")"));
@@ -464,7 +469,7 @@ grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>* RenderServiceImpl::Stream(
   return session.get();
 }
 
-uint32_t ServiceState::session_count() {
+uint32_t ServiceState::session_count() const {
   std::lock_guard lock(sessions_mu);
   return static_cast<uint32_t>(sessions.size());
 }
@@ -473,6 +478,7 @@ void ServiceState::ShutdownSessions() {
   std::vector<std::shared_ptr<StreamSession>> open;
   {
     std::lock_guard lock(sessions_mu);
+    shutting_down = true;
     open.assign(sessions.begin(), sessions.end());
   }
   for (auto& s : open) s->Stop();
@@ -491,11 +497,11 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
         assembler_(UploadLimits{state->options.max_upload_bytes, state->options.max_upload_files,
                                 state->options.max_chunk_bytes}),
         started_(Clock::now()) {
-    ++state_->uploads_in_progress;
+    const uint32_t uploads = ++state_->uploads_in_progress;
     absl::Status admission = absl::OkStatus();
     if (state_->shutting_down) {
       admission = Unavailable();
-    } else if (state_->uploads_in_progress > state_->options.max_concurrent_uploads) {
+    } else if (uploads > state_->options.max_concurrent_uploads) {
       admission = absl::ResourceExhaustedError(
           absl::StrCat("uploads: more than the max_concurrent_uploads limit (",
                        state_->options.max_concurrent_uploads, ") at once; retry later"));
@@ -571,9 +577,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
   void Done(const absl::Status& st, const char* what = "") {
     Log().info("UploadScene {} ({} files, {} of {} bytes) -> {} {} ({:.1f} ms) peer={}",
                response_->scene_id().empty() ? assembler_.main_file() : response_->scene_id(),
-               assembler_.main_file().empty() ? 0 : 1, assembler_.received_bytes(),
-               assembler_.declared_bytes(), st.ok() ? "OK" : st.ToString(), what, MsSince(started_),
-               Peer(ctx_));
+               assembler_.file_count(), assembler_.received_bytes(), assembler_.declared_bytes(),
+               st.ok() ? "OK" : st.ToString(), what, MsSince(started_), Peer(ctx_));
     Finish(ToGrpc(st));
   }
 
@@ -623,6 +628,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   r->set_frames_rendered(state_->loop->frames_rendered());
   FillChoices(caps.max_samples, r->mutable_choices());
   ToProto(state_->default_settings, r->mutable_default_settings());
+  Log().debug("GetServerInfo peer={}", Peer(ctx));
   grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
   reactor->Finish(grpc::Status::OK);
   return reactor;
@@ -641,6 +647,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::HasScene(grpc::CallbackServerContex
     *r->mutable_info() = s->info;
     SceneStore::FillLiveFields(*s, r->mutable_info());
   }
+  Log().info("HasScene {} -> {} peer={}", req->scene_id().substr(0, 80), r->present(), Peer(ctx));
   reactor->Finish(grpc::Status::OK);
   return reactor;
 }
@@ -649,6 +656,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListScenes(grpc::CallbackServerCont
                                                         const v1::ListScenesRequest*,
                                                         v1::ListScenesResponse* r) {
   for (v1::SceneInfo& info : state_->store->List()) *r->add_scenes() = std::move(info);
+  Log().info("ListScenes -> {} scenes peer={}", r->scenes_size(), Peer(ctx));
   grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
   reactor->Finish(grpc::Status::OK);
   return reactor;

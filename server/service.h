@@ -28,17 +28,17 @@ struct ServiceState {
   Clock::time_point started = Clock::now();
   Settings default_settings;
 
-  std::atomic<bool> shutting_down{false};
+  std::atomic<bool> shutting_down{false};  // set under sessions_mu by ShutdownSessions
   std::atomic<uint32_t> uploads_in_progress{0};
   std::atomic<uint32_t> unary_queued{0};
   std::atomic<uint64_t> frames_dropped{0};
   std::atomic<uint64_t> pending_frame_bytes{0};
   std::atomic<uint64_t> next_session_id{1};
 
-  std::mutex sessions_mu;
+  mutable std::mutex sessions_mu;
   std::set<std::shared_ptr<StreamSession>> sessions;  // open Stream calls
 
-  uint32_t session_count();
+  uint32_t session_count() const;
   // Ends every open stream with UNAVAILABLE after its in-flight frame.
   void ShutdownSessions();
 };

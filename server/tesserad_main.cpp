@@ -25,7 +25,7 @@ ABSL_FLAG(uint32_t, max_upload_files, 1024, "limit: files in one upload");
 ABSL_FLAG(uint32_t, max_chunk_bytes, 1u << 20, "limit: data bytes in one upload chunk");
 ABSL_FLAG(uint32_t, max_scenes, 32, "limit: uploaded scenes in memory");
 ABSL_FLAG(uint32_t, max_sessions, 64, "limit: concurrent streaming sessions");
-ABSL_FLAG(uint32_t, max_concurrent_uploads, 8, "limit: uploads in progress at once");
+ABSL_FLAG(uint32_t, max_concurrent_uploads, 4, "limit: uploads in progress at once");
 ABSL_FLAG(uint32_t, encoder_threads, 0, "JPEG/PNG encoder threads (0: one per core)");
 ABSL_FLAG(uint32_t, shutdown_grace_ms, 3000,
           "on SIGTERM, how long open calls may take to finish before they are cancelled");

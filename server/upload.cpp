@@ -56,8 +56,8 @@ absl::Status UploadAssembler::Begin(const v1::UploadManifest& m) {
     if (!f.sha256().empty() && !IsSha256Hex(f.sha256()))
       return absl::InvalidArgumentError(
           absl::StrCat("manifest.files[", i, "].sha256: must be 64 lowercase hex characters"));
-    // Checked one by one so the sum cannot overflow.
-    if (f.size() > limits_.max_bytes || total + f.size() > limits_.max_bytes)
+    // Checked one by one, as a difference, so the sum cannot wrap (total <= max_bytes).
+    if (f.size() > limits_.max_bytes - total)
       return absl::ResourceExhaustedError(absl::StrCat(
           "manifest.files: ", f.name(), " brings the upload past the max_upload_bytes limit (",
           limits_.max_bytes, " bytes)"));
@@ -113,8 +113,9 @@ absl::Status UploadAssembler::Add(v1::UploadChunk* chunk) {
   if (f.data.size() + data.size() > f.size)
     return absl::InvalidArgumentError(
         absl::StrCat("chunk.data: ", f.name, " gets more than its declared ", f.size, " bytes"));
-  // The size is within the limits checked in Begin; reserving it once avoids doubling copies.
-  if (f.data.empty()) f.data.reserve(f.size);
+  // Reserve the declared size (within the limits checked in Begin) but at most 64 MiB up
+  // front: memory follows the bytes actually received, not what a client claims.
+  if (f.data.empty()) f.data.reserve(std::min<uint64_t>(f.size, 64u << 20));
   f.hash->Update(data.data(), data.size());
   f.data.insert(f.data.end(), data.begin(), data.end());
   received_bytes_ += data.size();

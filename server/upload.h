@@ -1,6 +1,6 @@
 #pragma once
 // Assembles an UploadScene stream into a glTF file set, checking every message against the
-// manifest and the server limits before any memory is committed. Pure logic (no gRPC calls),
+// manifest and the server limits before its bytes are stored. Pure logic (no gRPC calls),
 // so it is unit-tested directly. Not thread-safe: one per upload stream.
 #include <cstdint>
 #include <memory>
@@ -45,6 +45,7 @@ class UploadAssembler {
   uint64_t declared_bytes() const { return declared_bytes_; }
   uint64_t received_bytes() const { return received_bytes_; }
   const std::string& main_file() const { return main_file_; }
+  size_t file_count() const { return files_.size(); }
 
  private:
   struct File {
