@@ -296,6 +296,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     settings_ = *settings;
     camera_ = open.camera();
     target_fps_ = open.target_fps();
+    next_due_ = Clock::now();  // the first tick is the first frame; the cadence starts there
     opened_ = true;
     MarkDirtyLocked();
     Log().info("Stream session={} opened scene={} {}x{} fps={} peer={}", id_, (*scene)->id,

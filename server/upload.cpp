@@ -79,6 +79,7 @@ absl::Status UploadAssembler::Begin(const v1::UploadManifest& m) {
         absl::StrCat("manifest.main_file: \"", main, "\" does not end in .gltf or .glb"));
   }
   main_file_ = main;
+  file_count_ = m.files_size();
   declared_bytes_ = total;
   files_.reserve(m.files_size());
   for (const v1::UploadFile& f : m.files()) {

@@ -45,7 +45,7 @@ class UploadAssembler {
   uint64_t declared_bytes() const { return declared_bytes_; }
   uint64_t received_bytes() const { return received_bytes_; }
   const std::string& main_file() const { return main_file_; }
-  size_t file_count() const { return files_.size(); }
+  size_t file_count() const { return file_count_; }
 
  private:
   struct File {
@@ -58,6 +58,7 @@ class UploadAssembler {
   UploadLimits limits_;
   std::vector<File> files_;
   std::string main_file_;
+  size_t file_count_ = 0;
   uint64_t declared_bytes_ = 0;
   uint64_t received_bytes_ = 0;
 };

@@ -1,0 +1,372 @@
+#include "clients/cli/cli_common.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <charconv>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "google/protobuf/descriptor.h"
+#include "tessera/scene_id.h"
+
+namespace tessera::cli {
+
+namespace pb = google::protobuf;
+
+// ---------------------------------------------------------------------------------------------
+// Command line
+
+ArgReader::ArgReader(const Invocation& inv) : inv_(inv) {}
+
+bool ArgReader::Next() {
+  if (next_ >= inv_.args.size()) return false;
+  flag_ = inv_.args[next_++];
+  has_inline_ = false;
+  inline_value_.clear();
+  // "--flag=value"; a positional word may contain '=' freely.
+  if (absl::StartsWith(flag_, "--")) {
+    const size_t eq = flag_.find('=');
+    if (eq != std::string::npos) {
+      inline_value_ = flag_.substr(eq + 1);
+      flag_.resize(eq);
+      has_inline_ = true;
+    }
+  }
+  return true;
+}
+
+bool ArgReader::Is(absl::string_view name) const { return flag_ == name; }
+
+bool ArgReader::IsPositional() const { return flag_ == "-" || !absl::StartsWith(flag_, "-"); }
+
+std::string ArgReader::Value() {
+  if (has_inline_) return inline_value_;
+  if (next_ >= inv_.args.size()) Fail(absl::StrCat(flag_, " needs a value"));
+  return inv_.args[next_++];
+}
+
+double ArgReader::Double() {
+  const std::string v = Value();
+  double d;
+  if (!absl::SimpleAtod(v, &d) || !std::isfinite(d)) {
+    Fail(absl::StrCat(flag_, ": not a number: '", v, "'"));
+  }
+  return d;
+}
+
+float ArgReader::Float() { return static_cast<float>(Double()); }
+
+uint32_t ArgReader::Uint() {
+  const std::string v = Value();
+  uint32_t u;
+  if (!absl::SimpleAtoi(v, &u))
+    Fail(absl::StrCat(flag_, ": not a non-negative integer: '", v, "'"));
+  return u;
+}
+
+void ArgReader::Fail(absl::string_view message) const {
+  UsageError(inv_.command, absl::StrCat(message, " (see tessera ", inv_.command, " --help)"));
+}
+
+void ArgReader::Unknown() const {
+  if (IsPositional()) Fail(absl::StrCat("unexpected argument '", flag_, "'"));
+  Fail(absl::StrCat("unknown option '", flag_, "'"));
+}
+
+void UsageError(absl::string_view command, absl::string_view message) {
+  if (command.empty()) {
+    std::fprintf(stderr, "tessera: %.*s\n", int(message.size()), message.data());
+  } else {
+    std::fprintf(stderr, "tessera: %.*s: %.*s\n", int(command.size()), command.data(),
+                 int(message.size()), message.data());
+  }
+  std::exit(kExitUsage);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors
+
+absl::string_view StatusCodeName(grpc::StatusCode code) {
+  switch (code) {
+    case grpc::StatusCode::OK:
+      return "OK";
+    case grpc::StatusCode::CANCELLED:
+      return "CANCELLED";
+    case grpc::StatusCode::UNKNOWN:
+      return "UNKNOWN";
+    case grpc::StatusCode::INVALID_ARGUMENT:
+      return "INVALID_ARGUMENT";
+    case grpc::StatusCode::DEADLINE_EXCEEDED:
+      return "DEADLINE_EXCEEDED";
+    case grpc::StatusCode::NOT_FOUND:
+      return "NOT_FOUND";
+    case grpc::StatusCode::ALREADY_EXISTS:
+      return "ALREADY_EXISTS";
+    case grpc::StatusCode::PERMISSION_DENIED:
+      return "PERMISSION_DENIED";
+    case grpc::StatusCode::UNAUTHENTICATED:
+      return "UNAUTHENTICATED";
+    case grpc::StatusCode::RESOURCE_EXHAUSTED:
+      return "RESOURCE_EXHAUSTED";
+    case grpc::StatusCode::FAILED_PRECONDITION:
+      return "FAILED_PRECONDITION";
+    case grpc::StatusCode::ABORTED:
+      return "ABORTED";
+    case grpc::StatusCode::OUT_OF_RANGE:
+      return "OUT_OF_RANGE";
+    case grpc::StatusCode::UNIMPLEMENTED:
+      return "UNIMPLEMENTED";
+    case grpc::StatusCode::INTERNAL:
+      return "INTERNAL";
+    case grpc::StatusCode::UNAVAILABLE:
+      return "UNAVAILABLE";
+    case grpc::StatusCode::DATA_LOSS:
+      return "DATA_LOSS";
+    default:
+      return "UNKNOWN";
+  }
+}
+
+int ReportRpcError(const Invocation& inv, const grpc::Status& status) {
+  std::string message = status.error_message();
+  // Transport failures do not say where they were going; the user needs to know.
+  if (status.error_code() == grpc::StatusCode::UNAVAILABLE ||
+      status.error_code() == grpc::StatusCode::DEADLINE_EXCEEDED) {
+    absl::StrAppend(&message, " (server ", inv.global.server, ")");
+  }
+  std::fprintf(stderr, "tessera: %s: %s: %s\n", inv.command.c_str(),
+               std::string(StatusCodeName(status.error_code())).c_str(), message.c_str());
+  return kExitError;
+}
+
+int ReportError(const Invocation& inv, absl::string_view message) {
+  std::fprintf(stderr, "tessera: %s: %.*s\n", inv.command.c_str(), int(message.size()),
+               message.data());
+  return kExitError;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Connection
+
+std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
+  grpc::ChannelArguments args;
+  // Frames can be far larger than gRPC's 4 MiB default (a 4K PNG is ~30 MB).
+  args.SetMaxReceiveMessageSize(-1);
+  std::shared_ptr<grpc::Channel> channel =
+      grpc::CreateCustomChannel(inv.global.server, grpc::InsecureChannelCredentials(), args);
+  const auto deadline = std::chrono::system_clock::now() +
+                        std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                            std::chrono::duration<double>(inv.global.connect_timeout_s));
+  grpc_connectivity_state state = channel->GetState(/*try_to_connect=*/true);
+  while (state != GRPC_CHANNEL_READY) {
+    // A refused connection or an unresolvable name shows up as TRANSIENT_FAILURE at once;
+    // gRPC would keep retrying with backoff, but the user wants to hear about it now.
+    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) {
+      ReportError(inv, absl::StrCat("cannot connect to tesserad at ", inv.global.server,
+                                    ": connection failed (is tesserad running there? set the "
+                                    "address with --server or $TESSERA_SERVER)"));
+      return nullptr;
+    }
+    if (!channel->WaitForStateChange(state, deadline)) {
+      ReportError(inv, absl::StrFormat("cannot connect to tesserad at %s: no answer within %g s",
+                                       inv.global.server, inv.global.connect_timeout_s));
+      return nullptr;
+    }
+    state = channel->GetState(/*try_to_connect=*/true);
+  }
+  return channel;
+}
+
+std::unique_ptr<v1::RenderService::Stub> ConnectStub(const Invocation& inv) {
+  std::shared_ptr<grpc::Channel> channel = Connect(inv);
+  if (!channel) return nullptr;
+  return v1::RenderService::NewStub(channel);
+}
+
+void SetDeadline(grpc::ClientContext* context, double seconds) {
+  context->set_deadline(std::chrono::system_clock::now() +
+                        std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                            std::chrono::duration<double>(seconds)));
+}
+
+grpc::Status ResolveSceneId(v1::RenderService::Stub* stub, const std::string& id,
+                            std::string* resolved, v1::SceneInfo* info, bool* found) {
+  *resolved = id;
+  if (found) *found = false;
+  if (id == "demo" || IsSha256Hex(id)) {
+    if (!info && !found) return grpc::Status::OK;
+    grpc::ClientContext context;
+    SetDeadline(&context, kShortCallSeconds);
+    v1::HasSceneRequest request;
+    request.set_scene_id(id);
+    v1::HasSceneResponse response;
+    grpc::Status status = stub->HasScene(&context, request, &response);
+    if (!status.ok()) return status;
+    if (found) *found = response.present();
+    if (info && response.present()) *info = response.info();
+    return grpc::Status::OK;
+  }
+  // Shorter prefixes are too easy to get wrong (and RenderRequest takes 8+ too): the server's
+  // NOT_FOUND names them.
+  if (id.size() < kMinSceneIdPrefix) return grpc::Status::OK;
+  // A prefix: only ListScenes knows which ids exist.
+  grpc::ClientContext context;
+  SetDeadline(&context, kShortCallSeconds);
+  v1::ListScenesResponse list;
+  grpc::Status status = stub->ListScenes(&context, v1::ListScenesRequest(), &list);
+  if (!status.ok()) return status;
+  std::vector<const v1::SceneInfo*> matches;
+  for (const v1::SceneInfo& scene : list.scenes()) {
+    if (!scene.deleted() && absl::StartsWith(scene.scene_id(), id)) matches.push_back(&scene);
+  }
+  if (matches.size() > 1) {
+    std::vector<std::string> names;
+    for (const v1::SceneInfo* m : matches) names.push_back(m->scene_id().substr(0, 12));
+    return grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                        absl::StrCat("scene id '", id, "' matches ", matches.size(), " scenes (",
+                                     absl::StrJoin(names, ", "), "); give more characters"));
+  }
+  if (matches.size() == 1) {
+    *resolved = matches[0]->scene_id();
+    if (found) *found = true;
+    if (info) *info = *matches[0];
+  }
+  return grpc::Status::OK;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output
+
+bool StdoutIsTty() { return isatty(STDOUT_FILENO) == 1; }
+bool StderrIsTty() { return isatty(STDERR_FILENO) == 1; }
+
+void PrintJson(const Json& j) {
+  const std::string text = j.dump(2);
+  std::fwrite(text.data(), 1, text.size(), stdout);
+  std::fputc('\n', stdout);
+}
+
+std::string EnumShortName(const pb::EnumValueDescriptor* value) {
+  if (value->number() == 0) return "unspecified";
+  const std::string& name = value->name();
+  const size_t underscore = name.find('_');
+  return absl::AsciiStrToLower(underscore == std::string::npos ? name
+                                                               : name.substr(underscore + 1));
+}
+
+int ParseEnumShortName(const pb::EnumDescriptor* type, absl::string_view name) {
+  for (int i = 0; i < type->value_count(); ++i) {
+    const pb::EnumValueDescriptor* v = type->value(i);
+    if (v->number() != 0 && EnumShortName(v) == name) return v->number();
+  }
+  return -1;
+}
+
+std::string EnumChoices(const pb::EnumDescriptor* type) {
+  std::vector<std::string> names;
+  for (int i = 0; i < type->value_count(); ++i) {
+    if (type->value(i)->number() != 0) names.push_back(EnumShortName(type->value(i)));
+  }
+  return absl::StrJoin(names, "|");
+}
+
+namespace {
+
+// The shortest decimal that reads back as the same float, so 0.8f prints as 0.8 and not
+// 0.800000011920929.
+double FloatForJson(float f) {
+  if (!std::isfinite(f)) return f;
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf) - 1, f);
+  if (ec != std::errc()) return f;
+  *end = '\0';
+  return std::strtod(buf, nullptr);
+}
+
+Json FieldValue(const pb::Message& msg, const pb::FieldDescriptor* f, int index) {
+  const pb::Reflection* r = msg.GetReflection();
+  const bool rep = f->is_repeated();
+  switch (f->cpp_type()) {
+    case pb::FieldDescriptor::CPPTYPE_INT32:
+      return rep ? r->GetRepeatedInt32(msg, f, index) : r->GetInt32(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_INT64:
+      return rep ? r->GetRepeatedInt64(msg, f, index) : r->GetInt64(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_UINT32:
+      return rep ? r->GetRepeatedUInt32(msg, f, index) : r->GetUInt32(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_UINT64:
+      return rep ? r->GetRepeatedUInt64(msg, f, index) : r->GetUInt64(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_DOUBLE:
+      return rep ? r->GetRepeatedDouble(msg, f, index) : r->GetDouble(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_FLOAT:
+      return FloatForJson(rep ? r->GetRepeatedFloat(msg, f, index) : r->GetFloat(msg, f));
+    case pb::FieldDescriptor::CPPTYPE_BOOL:
+      return rep ? r->GetRepeatedBool(msg, f, index) : r->GetBool(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_ENUM:
+      return EnumShortName(rep ? r->GetRepeatedEnum(msg, f, index) : r->GetEnum(msg, f));
+    case pb::FieldDescriptor::CPPTYPE_STRING:
+      return rep ? r->GetRepeatedString(msg, f, index) : r->GetString(msg, f);
+    case pb::FieldDescriptor::CPPTYPE_MESSAGE:
+      return ToJson(rep ? r->GetRepeatedMessage(msg, f, index) : r->GetMessage(msg, f));
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+Json ToJson(const pb::Message& msg) {
+  Json j = Json::object();
+  const pb::Descriptor* d = msg.GetDescriptor();
+  const pb::Reflection* r = msg.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->type() == pb::FieldDescriptor::TYPE_BYTES) continue;
+    if (f->is_repeated()) {
+      Json arr = Json::array();
+      for (int k = 0; k < r->FieldSize(msg, f); ++k) arr.push_back(FieldValue(msg, f, k));
+      j[f->name()] = std::move(arr);
+    } else if (!f->has_presence() || r->HasField(msg, f)) {
+      // Fields with presence (messages, `optional`, oneof members) only when set, so "unset"
+      // stays distinguishable from a zero value.
+      j[f->name()] = FieldValue(msg, f, -1);
+    }
+  }
+  return j;
+}
+
+std::string HumanBytes(uint64_t bytes) {
+  if (bytes < 1024) return absl::StrCat(bytes, " B");
+  const double kib = bytes / 1024.0;
+  if (kib < 1024) return absl::StrFormat("%.1f KiB", kib);
+  const double mib = kib / 1024.0;
+  if (mib < 1024) return absl::StrFormat("%.1f MiB", mib);
+  return absl::StrFormat("%.2f GiB", mib / 1024.0);
+}
+
+std::string HumanDuration(double seconds) {
+  if (seconds < 60) return absl::StrFormat("%.1f s", seconds);
+  const uint64_t s = static_cast<uint64_t>(seconds);
+  if (s < 3600) return absl::StrFormat("%um %02us", s / 60, s % 60);
+  if (s < 86400) return absl::StrFormat("%uh %02um", s / 3600, s / 60 % 60);
+  return absl::StrFormat("%ud %02uh", s / 86400, s / 3600 % 24);
+}
+
+double Median(std::vector<double> v) { return Percentile(std::move(v), 50); }
+
+double Percentile(std::vector<double> v, double p) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  // Nearest rank: the smallest value with at least p% of the samples at or below it.
+  const size_t rank = static_cast<size_t>(std::ceil(p / 100.0 * v.size()));
+  return v[std::clamp<size_t>(rank, 1, v.size()) - 1];
+}
+
+}  // namespace tessera::cli

@@ -1,0 +1,127 @@
+#pragma once
+// Shared pieces of the `tessera` client: command-line reading, the connection to tesserad,
+// error reporting, and turning messages into JSON or human-readable text.
+#include <grpcpp/grpcpp.h>
+
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "absl/strings/string_view.h"
+#include "google/protobuf/message.h"
+#include "tessera/v1/render_service.grpc.pb.h"
+
+namespace tessera::cli {
+
+// JSON output keeps the order fields are added in (proto field order), not alphabetical.
+using Json = nlohmann::ordered_json;
+
+// Exit codes: 1 when the server (or the local machine) failed the command, 2 for a command
+// line that could not be understood.
+inline constexpr int kExitError = 1;
+inline constexpr int kExitUsage = 2;
+
+// Flags valid before or after the command name.
+struct GlobalOptions {
+  std::string server = "127.0.0.1:50051";
+  bool json = false;
+  double connect_timeout_s = 10;
+};
+
+// What every command gets: the global options and the words after the command name, with the
+// global flags taken out.
+struct Invocation {
+  GlobalOptions global;
+  std::string command;
+  std::vector<std::string> args;
+};
+
+// Walks one command's arguments. Accepts "--flag value" and "--flag=value".
+class ArgReader {
+ public:
+  explicit ArgReader(const Invocation& inv);
+
+  // Moves to the next argument; false at the end.
+  bool Next();
+  // The current argument is the flag `name` (with or without an "=value" part).
+  bool Is(absl::string_view name) const;
+  // A word that does not start with '-' (or "-" alone).
+  bool IsPositional() const;
+  const std::string& current() const { return flag_; }
+  // The current flag's value: its "=value" part, else the next argument.
+  std::string Value();
+  double Double();
+  float Float();
+  uint32_t Uint();
+
+  [[noreturn]] void Fail(absl::string_view message) const;
+  [[noreturn]] void Unknown() const;
+
+ private:
+  const Invocation& inv_;
+  size_t next_ = 0;
+  std::string flag_;
+  bool has_inline_ = false;
+  std::string inline_value_;
+};
+
+// "tessera: COMMAND: MESSAGE" on stderr, then exit(kExitUsage).
+[[noreturn]] void UsageError(absl::string_view command, absl::string_view message);
+
+// "tessera: COMMAND: CODE_NAME: message" on stderr; returns kExitError so callers can
+// `return ReportRpcError(...)`.
+int ReportRpcError(const Invocation& inv, const grpc::Status& status);
+// "tessera: COMMAND: message" on stderr; returns kExitError.
+int ReportError(const Invocation& inv, absl::string_view message);
+
+absl::string_view StatusCodeName(grpc::StatusCode code);
+
+// A channel to inv.global.server that is READY, or nullptr after printing why not (the address
+// and whether it refused or did not answer in time).
+std::shared_ptr<grpc::Channel> Connect(const Invocation& inv);
+std::unique_ptr<v1::RenderService::Stub> ConnectStub(const Invocation& inv);
+
+// A deadline `seconds` from now on `context`.
+void SetDeadline(grpc::ClientContext* context, double seconds);
+// Deadline of the small unary calls (info, list, has, delete).
+inline constexpr double kShortCallSeconds = 30;
+
+// Resolves a scene id the way people type it: "demo", a full id, or a unique prefix of 8+
+// characters of the ids ListScenes shows (e.g. the 12 of `tessera scenes`). Unknown ids are
+// returned unchanged so the server's NOT_FOUND names them. On an RPC error, returns it.
+inline constexpr size_t kMinSceneIdPrefix = 8;
+grpc::Status ResolveSceneId(v1::RenderService::Stub* stub, const std::string& id,
+                            std::string* resolved, v1::SceneInfo* info = nullptr,
+                            bool* found = nullptr);
+
+// Output helpers.
+bool StdoutIsTty();
+bool StderrIsTty();
+// Prints `j` as the one JSON document on stdout.
+void PrintJson(const Json& j);
+
+// Every field of `msg` as JSON with proto field names: numbers as numbers (also 64-bit ones),
+// enums as their lower-case setting names ("msaa"), bytes fields left out (callers give sizes).
+Json ToJson(const google::protobuf::Message& msg);
+
+// Lower-case name of an enum value without its type prefix: AA_MSAA -> "msaa",
+// CULLING_GPU_FRUSTUM -> "gpu_frustum", DEBUG_LIGHT_HEATMAP -> "light_heatmap". These are
+// the names renderer/settings.h uses (ParseAaMode, ToString) and SettingChoices lists.
+std::string EnumShortName(const google::protobuf::EnumValueDescriptor* value);
+// The value of `type` whose short name is `name`, or -1. Value 0 (UNSPECIFIED) never matches.
+int ParseEnumShortName(const google::protobuf::EnumDescriptor* type, absl::string_view name);
+// "none|msaa|fxaa|..." for usage and error messages.
+std::string EnumChoices(const google::protobuf::EnumDescriptor* type);
+
+// "1.5 MiB", "312 KiB", "17 B".
+std::string HumanBytes(uint64_t bytes);
+// "3h 12m", "4m 05s", "12.3 s".
+std::string HumanDuration(double seconds);
+
+// Median and 95th percentile (nearest rank) of `v`; 0 when empty.
+double Median(std::vector<double> v);
+double Percentile(std::vector<double> v, double p);
+
+}  // namespace tessera::cli

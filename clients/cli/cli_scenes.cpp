@@ -1,0 +1,168 @@
+// tessera info | scenes | rm: the small unary calls.
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "clients/cli/cli_commands.h"
+#include "clients/cli/cli_format.h"
+
+namespace tessera::cli {
+namespace {
+
+// Commands without options still reject stray words, so typos do not pass silently.
+void NoArguments(const Invocation& inv) {
+  ArgReader args(inv);
+  if (args.Next()) args.Unknown();
+}
+
+std::string JoinNumbers(const google::protobuf::RepeatedField<uint32_t>& v) {
+  return absl::StrJoin(v, "|");
+}
+
+void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
+  const v1::DeviceDescription& d = info.device();
+  const v1::Limits& l = info.limits();
+  const v1::SettingChoices& c = info.choices();
+  absl::PrintF("server     %s: tesserad %s, up %s\n", inv.global.server, info.version(),
+               HumanDuration(info.uptime_s()));
+  absl::PrintF("device     %s (%s)\n", d.name(), d.type());
+  absl::PrintF("driver     %s, %s, Vulkan %s\n", d.driver_name(), d.driver_info(), d.api_version());
+  absl::PrintF("load       %u scenes, %u sessions, queue depth %u, %u frames rendered\n",
+               info.scenes_loaded(), info.active_sessions(), info.queue_depth(),
+               info.frames_rendered());
+  absl::PrintF(
+      "limits     %ux MSAA, frames up to %ux%u, %u scenes, %u sessions, %u synthetic lights\n",
+      l.max_samples(), l.max_width(), l.max_height(), l.max_scenes(), l.max_sessions(),
+      l.max_synthetic_lights());
+  absl::PrintF("uploads    up to %s in %u files, chunks up to %s\n",
+               HumanBytes(l.max_upload_bytes()), l.max_upload_files(),
+               HumanBytes(l.max_chunk_bytes()));
+  absl::PrintF("choices    aa        %s\n", absl::StrJoin(c.aa(), "|"));
+  absl::PrintF("           samples   %s\n", JoinNumbers(c.samples()));
+  absl::PrintF("           culling   %s\n", absl::StrJoin(c.culling(), "|"));
+  absl::PrintF("           exposure  %s\n", absl::StrJoin(c.exposure_mode(), "|"));
+  absl::PrintF("           debug     %s\n", absl::StrJoin(c.debug_view(), "|"));
+  absl::PrintF("           tile      %s\n", JoinNumbers(c.tile_size()));
+  absl::PrintF("defaults   %s\n", WrapList(SettingsSummary(info.default_settings()), 11));
+}
+
+int RunInfo(const Invocation& inv) {
+  NoArguments(inv);
+  auto stub = ConnectStub(inv);
+  if (!stub) return kExitError;
+  grpc::ClientContext context;
+  SetDeadline(&context, kShortCallSeconds);
+  v1::ServerInfo info;
+  grpc::Status status = stub->GetServerInfo(&context, v1::GetServerInfoRequest(), &info);
+  if (!status.ok()) return ReportRpcError(inv, status);
+  if (inv.global.json) {
+    Json j = ToJson(info);
+    j["server"] = inv.global.server;
+    PrintJson(j);
+  } else {
+    PrintServerInfo(inv, info);
+  }
+  return 0;
+}
+
+void PrintSceneTable(const v1::ListScenesResponse& list) {
+  absl::PrintF("%-12s  %-24s  %12s  %10s  %8s  %s\n", "ID", "NAME", "TRIANGLES", "DEVICE MiB",
+               "SESSIONS", "DELETED");
+  for (const v1::SceneInfo& s : list.scenes()) {
+    std::string name = s.name();
+    // Long names would push the numbers out of their columns.
+    if (name.size() > 24) name = name.substr(0, 21) + "...";
+    absl::PrintF("%-12s  %-24s  %12u  %10.1f  %8u  %s\n", s.scene_id().substr(0, 12), name,
+                 s.counts().triangles(), s.device_bytes() / (1024.0 * 1024.0), s.sessions(),
+                 s.deleted() ? "yes" : "");
+  }
+}
+
+int RunScenes(const Invocation& inv) {
+  NoArguments(inv);
+  auto stub = ConnectStub(inv);
+  if (!stub) return kExitError;
+  grpc::ClientContext context;
+  SetDeadline(&context, kShortCallSeconds);
+  v1::ListScenesResponse list;
+  grpc::Status status = stub->ListScenes(&context, v1::ListScenesRequest(), &list);
+  if (!status.ok()) return ReportRpcError(inv, status);
+  if (inv.global.json) {
+    PrintJson(ToJson(list));
+  } else {
+    PrintSceneTable(list);
+  }
+  return 0;
+}
+
+int RunRm(const Invocation& inv) {
+  std::vector<std::string> ids;
+  ArgReader args(inv);
+  while (args.Next()) {
+    if (!args.IsPositional()) args.Unknown();
+    ids.push_back(args.current());
+  }
+  if (ids.empty()) args.Fail("which scene? give one or more scene ids");
+  auto stub = ConnectStub(inv);
+  if (!stub) return kExitError;
+
+  Json out = Json::array();
+  int rc = 0;
+  for (const std::string& id : ids) {
+    std::string full_id;
+    grpc::Status status = ResolveSceneId(stub.get(), id, &full_id);
+    v1::DeleteSceneResponse response;
+    if (status.ok()) {
+      grpc::ClientContext context;
+      SetDeadline(&context, kShortCallSeconds);
+      v1::DeleteSceneRequest request;
+      request.set_scene_id(full_id);
+      status = stub->DeleteScene(&context, request, &response);
+    }
+    if (!status.ok()) {
+      // Go on with the other ids: each one is independent.
+      rc = ReportRpcError(inv, status);
+      continue;
+    }
+    const uint32_t still = response.sessions_still_using();
+    if (inv.global.json) {
+      out.push_back({{"scene_id", full_id}, {"sessions_still_using", still}});
+    } else if (still == 0) {
+      absl::PrintF("deleted %s\n", full_id);
+    } else {
+      absl::PrintF("deleted %s; %s still use%s it (freed when %s)\n", full_id,
+                   still == 1 ? "1 session" : absl::StrCat(still, " sessions"),
+                   still == 1 ? "s" : "", still == 1 ? "it ends" : "they end");
+    }
+  }
+  if (inv.global.json) PrintJson(out);
+  return rc;
+}
+
+}  // namespace
+
+const Command kInfoCommand = {"info", "what the server is, what it can do and how busy it is",
+                              R"(usage: tessera info
+Prints the server's version, device, driver, limits, setting choices and defaults, uptime,
+scenes, sessions and queue depth (GetServerInfo). --json: the whole ServerInfo.
+)",
+                              false, RunInfo};
+
+const Command kScenesCommand = {"scenes", "list the scenes on the server",
+                                R"(usage: tessera scenes
+Lists the scenes on the server: id (first 12 characters; a unique prefix of 8+ works where a
+scene id is wanted), name, triangles, device memory, streaming sessions using it, and whether it is
+deleted but still in use. --json: every SceneInfo in full.
+)",
+                                false, RunScenes};
+
+const Command kRmCommand = {"rm", "delete scenes from the server",
+                            R"(usage: tessera rm ID...
+Deletes scenes (DeleteScene). ID is a full scene id or a unique prefix of 8+ characters.
+Sessions still rendering a scene keep it until they end; the output says how many there are.
+)",
+                            false, RunRm};
+
+}  // namespace tessera::cli

@@ -1,0 +1,126 @@
+// tessera: the command-line client of tesserad. `tessera COMMAND ...` with the subcommands in
+// cli_commands.h; this file only reads the global flags, picks the command and prints usage.
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/string_view.h"
+#include "clients/cli/cli_commands.h"
+#include "clients/cli/cli_render_flags.h"
+
+namespace tessera::cli {
+namespace {
+
+constexpr const Command* kCommands[] = {&kInfoCommand, &kUploadCommand, &kScenesCommand,
+                                        &kRmCommand,   &kRenderCommand, &kStreamCommand};
+
+constexpr char kGlobalUsage[] = R"(global flags (anywhere on the line):
+  --server ADDR       tesserad's address (default: $TESSERA_SERVER, else 127.0.0.1:50051)
+  --json              machine-readable output: one JSON document on stdout, nothing else
+  --connect-timeout SEC   give up connecting after SEC seconds (default 10)
+  -h, --help          this text; `tessera COMMAND --help` for one command
+
+Exit status: 0 done, 1 the server (or the local system) failed the command, 2 a bad command
+line. Server errors print the gRPC status code and message, e.g.
+  tessera: render: NOT_FOUND: scene_id: no scene "abc"
+)";
+
+void PrintMainUsage(FILE* out) {
+  std::fprintf(out,
+               "usage: tessera [--server ADDR] [--json] COMMAND [options]\n"
+               "The command-line client of tesserad, the Tessera render server.\n\ncommands:\n");
+  for (const Command* c : kCommands) std::fprintf(out, "  %-8s %s\n", c->name, c->summary);
+  std::fprintf(out, "\n%s", kGlobalUsage);
+}
+
+void PrintCommandUsage(const Command& c) {
+  std::fputs(c.usage, stdout);
+  if (c.render_flags) std::printf("\n%s\n%s", kCameraFlagsUsage, kSettingsFlagsUsage);
+  std::printf("\n%s", kGlobalUsage);
+}
+
+const Command* FindCommand(absl::string_view name) {
+  for (const Command* c : kCommands) {
+    if (name == c->name) return c;
+  }
+  return nullptr;
+}
+
+// Takes the global flags out of argv wherever they are; the first other word names the
+// command, and everything else belongs to it.
+struct ParsedLine {
+  Invocation inv;
+  const Command* command = nullptr;
+  bool help = false;
+};
+
+ParsedLine ParseLine(int argc, char** argv) {
+  ParsedLine line;
+  GlobalOptions& g = line.inv.global;
+  if (const char* env = std::getenv("TESSERA_SERVER"); env && *env) g.server = env;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&](absl::string_view flag) -> std::string {
+      const std::string prefix = absl::StrCat(flag, "=");
+      if (arg.rfind(prefix, 0) == 0) return arg.substr(prefix.size());
+      if (i + 1 >= argc) UsageError(line.inv.command, absl::StrCat(flag, " needs a value"));
+      return argv[++i];
+    };
+    const auto is = [&](absl::string_view flag) {
+      return arg == flag || arg.rfind(absl::StrCat(flag, "="), 0) == 0;
+    };
+    if (is("--server")) {
+      g.server = value("--server");
+      if (g.server.empty()) UsageError(line.inv.command, "--server needs an address");
+    } else if (arg == "--json") {
+      g.json = true;
+    } else if (is("--connect-timeout")) {
+      const std::string v = value("--connect-timeout");
+      if (!absl::SimpleAtod(v, &g.connect_timeout_s) || !(g.connect_timeout_s > 0)) {
+        UsageError(line.inv.command,
+                   absl::StrCat("--connect-timeout: not a positive number: '", v, "'"));
+      }
+    } else if (arg == "--help" || arg == "-h") {
+      line.help = true;
+    } else if (line.command == nullptr && arg == "help") {
+      line.help = true;  // `tessera help [COMMAND]`
+    } else if (line.command == nullptr) {
+      if (!arg.empty() && arg[0] == '-') {
+        UsageError(
+            "", absl::StrCat("unknown option '", arg, "' before the command (see tessera --help)"));
+      }
+      line.command = FindCommand(arg);
+      if (line.command == nullptr) {
+        UsageError("", absl::StrCat("unknown command '", arg, "' (see tessera --help)"));
+      }
+      line.inv.command = arg;
+    } else {
+      line.inv.args.push_back(arg);
+    }
+  }
+  return line;
+}
+
+}  // namespace
+}  // namespace tessera::cli
+
+int main(int argc, char** argv) {
+  using namespace tessera::cli;
+  const ParsedLine line = ParseLine(argc, argv);
+  if (line.help) {
+    if (line.command) {
+      PrintCommandUsage(*line.command);
+    } else {
+      PrintMainUsage(stdout);
+    }
+    return 0;
+  }
+  if (line.command == nullptr) {
+    PrintMainUsage(stderr);  // a usage error: nothing on stdout
+    return kExitUsage;
+  }
+  return line.command->run(line.inv);
+}

@@ -1,0 +1,72 @@
+#!/usr/bin/env bash
+# The tessera CLI against a real tesserad, as a user (or a script) runs it: exit codes, --json
+# output, files written, and the server's messages on errors.
+# Usage: cli_test.sh TESSERAD TESSERA ASSETS_DIR
+set -euo pipefail
+tesserad=$1 tessera=$2 assets=$3
+work=$(mktemp -d)
+pid=""
+cleanup() {
+  if [[ -n $pid ]]; then kill -TERM "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; fi
+  rm -rf "$work"
+}
+trap cleanup EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+"$tesserad" --listen=127.0.0.1:0 --port_file="$work/port" --log_level=warn &
+pid=$!
+for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.1; done
+[[ -s $work/port ]] || fail "tesserad did not start"
+export TESSERA_SERVER="127.0.0.1:$(cat "$work/port")"
+
+"$tessera" --json info > "$work/info.json"
+python3 - "$work/info.json" <<'PY' || fail "info --json"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["version"] and d["device"]["name"], d
+PY
+
+# Upload prints the id alone on stdout; a second upload is skipped and gives the same id.
+id=$("$tessera" upload "$assets/Box/glTF-Binary/Box.glb" 2>/dev/null)
+[[ $id =~ ^[0-9a-f]{64}$ ]] || fail "upload printed '$id'"
+again=$("$tessera" upload "$assets/Box/glTF-Binary/Box.glb" 2>"$work/again.err")
+[[ $again == "$id" ]] || fail "re-upload gave '$again'"
+grep -q "already on the server" "$work/again.err" || fail "re-upload was not skipped"
+
+"$tessera" scenes | grep -q "${id:0:12}" || fail "scenes does not list the upload"
+
+"$tessera" render --scene "${id:0:12}" --width 96 --height 64 -o "$work/box.png" > /dev/null
+python3 - "$work/box.png" <<'PY' || fail "render did not write a 96x64 PNG"
+import struct, sys
+b = open(sys.argv[1], "rb").read()
+assert b[:8] == b"\x89PNG\r\n\x1a\n"
+w, h = struct.unpack(">II", b[16:24])
+assert (w, h) == (96, 64), (w, h)
+PY
+
+"$tessera" --json stream --scene demo --frames 3 --orbit --width 64 --height 48 \
+  --save "$work/frames" > "$work/stream.json"
+[[ $(ls "$work/frames" | wc -l) -eq 3 ]] || fail "stream --save did not write 3 frames"
+python3 - "$work/stream.json" <<'PY' || fail "stream --json"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["frames"] == 3, d
+PY
+
+# Errors: non-zero exit and the server's code and message.
+if "$tessera" render --scene no-such-scene -o "$work/x.jpg" 2> "$work/err"; then
+  fail "render of an unknown scene succeeded"
+fi
+grep -q "NOT_FOUND" "$work/err" || fail "no NOT_FOUND in: $(cat "$work/err")"
+if "$tessera" render --scene demo --width 0 -o "$work/x.jpg" 2> "$work/err"; then
+  fail "width 0 succeeded"
+fi
+grep -q "settings.width" "$work/err" || fail "message does not name settings.width"
+
+"$tessera" rm "$id" > /dev/null
+if "$tessera" scenes | grep -q "${id:0:12}"; then fail "rm left the scene"; fi
+
+kill -TERM "$pid"
+wait "$pid" || fail "tesserad exited with $? after SIGTERM"
+pid=""
+echo "cli_test: OK"
