@@ -185,8 +185,11 @@ class Uploader {
       return false;
     }
     result->scene_id = scene->scene_id;
-    grpc::Status status = Exists(scene->scene_id, &result->info);
-    if (status.ok() && !result->info.scene_id().empty()) return true;  // nothing to send
+    std::string resolved;
+    bool present = false;
+    grpc::Status status =
+        ResolveSceneId(stub_, scene->scene_id, &resolved, &result->info, &present);
+    if (status.ok() && present) return true;  // the server has it: nothing to send
 
     uint32_t chunk_bytes = 0;
     if (status.ok()) status = FetchLimits();
@@ -214,21 +217,6 @@ class Uploader {
   }
 
  private:
-  // HasScene; `info` stays empty when the server does not have the scene.
-  grpc::Status Exists(const std::string& id, v1::SceneInfo* info) {
-    grpc::ClientContext context;
-    SetDeadline(&context, kShortCallSeconds);
-    v1::HasSceneRequest request;
-    request.set_scene_id(id);
-    v1::HasSceneResponse response;
-    grpc::Status status = stub_->HasScene(&context, request, &response);
-    if (status.ok() && response.present()) {
-      *info = response.info();
-      if (info->scene_id().empty()) info->set_scene_id(id);
-    }
-    return status;
-  }
-
   grpc::Status FetchLimits() {
     if (have_limits_) return grpc::Status::OK;
     grpc::ClientContext context;

@@ -16,21 +16,17 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "bench_stats.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 
 namespace {
 
+using tessera::bench::Median;
+
 [[noreturn]] void Fail(const std::string& msg) {
   std::fprintf(stderr, "tessera-bench: %s\n", msg.c_str());
   std::exit(2);
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
 glm::vec3 ParseVec3(const std::string& s) {

@@ -32,6 +32,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "bench_stats.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "renderer/scene/gltf_import.h"
@@ -41,6 +42,9 @@
 #include "tessera/v1/render_service.grpc.pb.h"
 
 namespace {
+
+using tessera::bench::Median;
+using tessera::bench::Percentile;
 
 namespace v1 = tessera::v1;
 using Clock = std::chrono::steady_clock;
@@ -58,21 +62,6 @@ constexpr auto kRestartGap = std::chrono::milliseconds(1);
 [[noreturn]] void Fail(const std::string& msg) {
   std::fprintf(stderr, "tessera-stream-bench: %s\n", msg.c_str());
   std::exit(2);
-}
-
-double Median(std::vector<double> v) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
-// Nearest-rank percentile, p in (0, 100].
-double Percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const size_t rank = static_cast<size_t>(std::ceil(p / 100.0 * double(v.size())));
-  return v[std::clamp<size_t>(rank, 1, v.size()) - 1];
 }
 
 double MsBetween(Clock::time_point a, Clock::time_point b) {
