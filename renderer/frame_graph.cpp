@@ -8,6 +8,8 @@ std::string_view PassName(PassId id) {
   switch (id) {
     case PassId::kDepthPrepass:
       return "depth_prepass";
+    case PassId::kLightCull:
+      return "light_cull";
     case PassId::kForward:
       return "forward";
     case PassId::kTransparent:
@@ -28,6 +30,8 @@ std::vector<ResourceUse> PassUses(PassId id) {
   switch (id) {
     case PassId::kDepthPrepass:
       return {{R::kDepth, A::kDepthWrite}};
+    case PassId::kLightCull:
+      return {{R::kDepth, A::kComputeRead}};
     case PassId::kForward:
       return {{R::kDepth, A::kDepthTest}, {R::kHdrColor, A::kColorWrite}};
     case PassId::kTransparent:
@@ -43,11 +47,12 @@ std::vector<ResourceUse> PassUses(PassId id) {
 }
 
 std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& features) {
-  (void)settings;  // later issues: culling, light culling, shadows, AA, post passes
   std::vector<PassId> passes;
   // Depth first: forward shading then tests EQUAL-or-nearer against it and shades each pixel
   // once, which matters most on a CPU rasterizer where fragment work is the bill.
   passes.push_back(PassId::kDepthPrepass);
+  // Forward+: per-tile light lists, unless there is nothing to cull or brute force was asked.
+  if (settings.light_culling && features.local_lights > 0) passes.push_back(PassId::kLightCull);
   passes.push_back(PassId::kForward);
   // Blended surfaces need the opaque colour underneath and must not write depth.
   if (features.has_transparent) passes.push_back(PassId::kTransparent);
@@ -67,6 +72,7 @@ int LayoutClass(Access a) {
     case Access::kColorWrite:
       return 2;
     case Access::kSampled:
+    case Access::kComputeRead:
       return 3;
     case Access::kTransferSrc:
       return 4;

@@ -13,6 +13,8 @@ namespace tessera {
 
 // The frame's transient resources.
 enum class Resource : uint8_t { kDepth, kHdrColor, kLdrColor, kCount };
+// (The light-culling pass's buffers are its own: it ends with a buffer barrier to the fragment
+// stage that reads them.)
 
 // How a pass uses a resource.
 enum class Access : uint8_t {
@@ -21,6 +23,7 @@ enum class Access : uint8_t {
   kDepthTest,    // depth attachment, test only
   kColorWrite,   // colour attachment
   kSampled,      // read in a fragment shader
+  kComputeRead,  // read (sampled) in a compute shader
   kTransferSrc,  // copied from
 };
 
@@ -32,6 +35,7 @@ struct ResourceUse {
 // Every pass the renderer knows, in the only order they may run.
 enum class PassId : uint8_t {
   kDepthPrepass,  // depth of opaque + alpha-mask geometry, so shading runs once per pixel
+  kLightCull,     // forward+: per-tile light lists from the prepass depth (compute)
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
   kTransparent,   // blended materials, back to front, over the opaque result
   kTonemap,       // HDR -> exposure -> tonemap -> sRGB RGBA8
@@ -46,6 +50,7 @@ std::vector<ResourceUse> PassUses(PassId id);
 // What the frame graph needs to know about the scene to pick passes.
 struct FrameFeatures {
   bool has_transparent = false;  // any visible BLEND drawable
+  uint32_t local_lights = 0;     // point and spot lights to shade
 };
 
 // The passes that run for `settings`, in order.

@@ -31,7 +31,13 @@ static_assert(sizeof(GpuLight) == 64);
 static_assert(offsetof(GpuLight, spot) == 48);
 static_assert(sizeof(GpuLight) * kMaxLights <= 16384, "fits the minimum maxUniformBufferRange");
 
-static_assert(sizeof(FrameUniforms) == 4 * 64 + 5 * 16);
+static_assert(sizeof(GpuLightBounds) == 64);
+static_assert(offsetof(GpuLightBounds, tiles) == 16);
+static_assert(offsetof(GpuLightBounds, cone2) == 48);
+
+static_assert(sizeof(FrameUniforms) == 4 * 64 + 7 * 16);
+static_assert(offsetof(FrameUniforms, lighting) == 336);
+static_assert(offsetof(FrameUniforms, depth_params) == 352);
 static_assert(offsetof(FrameUniforms, inv_view_proj) == 192);
 static_assert(offsetof(FrameUniforms, camera_position) == 256);
 static_assert(offsetof(FrameUniforms, counts) == 304);

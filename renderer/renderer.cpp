@@ -9,6 +9,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "renderer/frame_graph.h"
+#include "renderer/light_culling.h"
 #include "renderer/passes/pass.h"
 #include "renderer/scene/gpu_scene.h"
 #include "renderer/vk/context.h"
@@ -54,6 +55,9 @@ AccessInfo ToVulkan(Access a) {
               VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL};
     case Access::kSampled:
       return {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+              VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    case Access::kComputeRead:
+      return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
               VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     case Access::kTransferSrc:
       return {VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_READ_BIT,
@@ -102,6 +106,15 @@ struct Renderer::Impl {
   VkDescriptorPool frame_pool = VK_NULL_HANDLE;
   vk::Buffer frame_ubo;
   vk::Buffer lights_ubo;
+  // Forward+: local lights and their bounds (grown to the largest count seen), tile lists
+  // (sized for the tile grid).
+  vk::Buffer local_lights;
+  vk::Buffer light_bounds;
+  vk::Buffer tile_counts;
+  vk::Buffer tile_lights;
+  vk::Buffer tile_counts_readback;
+  uint32_t light_capacity = 0;
+  uint32_t tile_capacity = 0;
   FrameTargets targets;
 
   ~Impl() {
@@ -112,6 +125,9 @@ struct Renderer::Impl {
     targets = FrameTargets{};
     frame_ubo = vk::Buffer();
     lights_ubo = vk::Buffer();
+    for (vk::Buffer* b :
+         {&local_lights, &light_bounds, &tile_counts, &tile_lights, &tile_counts_readback})
+      *b = vk::Buffer();
     if (frame_pool) vkDestroyDescriptorPool(d, frame_pool, nullptr);
     if (queries) vkDestroyQueryPool(d, queries, nullptr);
     if (fence) vkDestroyFence(d, fence, nullptr);
@@ -125,6 +141,8 @@ struct Renderer::Impl {
 
   absl::Status Init();
   absl::Status EnsureTargets(uint32_t width, uint32_t height);
+  absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
+  absl::Status Capture(FrameCapture* capture, uint32_t tiles);
   DrawLists BuildDrawLists(const GpuScene& scene, const glm::mat4& view, const glm::mat4& view_proj,
                            CullingMode culling, FrameStats& stats) const;
   VkDescriptorSet WriteSceneSet(const GpuScene& scene);
@@ -141,6 +159,12 @@ absl::Status Renderer::Impl::Init() {
        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
       {gpu::kBindingMaterials, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
        VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingLocalLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
@@ -176,6 +200,7 @@ absl::Status Renderer::Impl::Init() {
   if (absl::Status s = add(CreateForwardPass(*ctx, scene_layout)); !s.ok()) return s;
   if (absl::Status s = add(CreateTransparentPass(*ctx, scene_layout)); !s.ok()) return s;
   if (absl::Status s = add(CreateTonemapPass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateLightCullPass(*ctx)); !s.ok()) return s;
   if (absl::Status s = add(CreateReadbackPass()); !s.ok()) return s;
 
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
@@ -195,9 +220,9 @@ absl::Status Renderer::Impl::Init() {
   VK_RETURN_IF_ERROR(vkCreateQueryPool(d, &qi, nullptr, &queries), "query pool");
 
   const VkDescriptorPoolSize sizes[] = {
-      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 4},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 4},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 4},
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 8},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 16},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 8},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   dpi.maxSets = 4;
@@ -215,6 +240,51 @@ absl::Status Renderer::Impl::Init() {
                          VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload, "lights");
   if (!lu.ok()) return lu.status();
   lights_ubo = std::move(*lu);
+  return EnsureLightBuffers(1, 1);
+}
+
+absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles) {
+  lights = std::max(lights, 1u);
+  tiles = std::max(tiles, 1u);
+  auto make = [this](VkDeviceSize size, VkBufferUsageFlags usage, vk::MemoryUsage mem,
+                     const char* name, vk::Buffer* out) -> absl::Status {
+    absl::StatusOr<vk::Buffer> b = vk::Buffer::Create(*ctx, size, usage, mem, name);
+    if (!b.ok()) return b.status();
+    *out = std::move(*b);
+    return absl::OkStatus();
+  };
+  if (lights > light_capacity) {
+    const uint32_t cap = std::max(lights, light_capacity * 2);
+    if (absl::Status s =
+            make(VkDeviceSize(cap) * sizeof(gpu::GpuLight), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                 vk::MemoryUsage::kUpload, "local_lights", &local_lights);
+        !s.ok())
+      return s;
+    if (absl::Status s = make(VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
+                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                              "light_bounds", &light_bounds);
+        !s.ok())
+      return s;
+    light_capacity = cap;
+  }
+  if (tiles > tile_capacity) {
+    if (absl::Status s = make(VkDeviceSize(tiles) * 4,
+                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                              vk::MemoryUsage::kDeviceLocal, "tile_counts", &tile_counts);
+        !s.ok())
+      return s;
+    if (absl::Status s = make(VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
+                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                              vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights);
+        !s.ok())
+      return s;
+    if (absl::Status s =
+            make(VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                 vk::MemoryUsage::kReadback, "tile_counts_readback", &tile_counts_readback);
+        !s.ok())
+      return s;
+    tile_capacity = tiles;
+  }
   return absl::OkStatus();
 }
 
@@ -229,7 +299,9 @@ absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
   desc.width = width;
   desc.height = height;
   desc.format = kDepthFormat;
-  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
+  // Sampled by the light-culling pass; copied out for tests (FrameCapture).
+  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+               VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
   absl::StatusOr<vk::Image> depth = vk::Image::Create(*ctx, desc, "depth");
   if (!depth.ok()) return depth.status();
   desc.format = kHdrFormat;
@@ -287,6 +359,69 @@ DrawLists Renderer::Impl::BuildDrawLists(const GpuScene& scene, const glm::mat4&
   return lists;
 }
 
+// After a frame: copies the prepass depth and the tile lists to the host (tests only).
+absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles) {
+  const VkDeviceSize depth_bytes = VkDeviceSize(targets.width) * targets.height * 4;
+  const VkDeviceSize count_bytes = VkDeviceSize(tiles) * 4;
+  const VkDeviceSize list_bytes = count_bytes * gpu::kMaxLightsPerTile;
+  absl::StatusOr<vk::Buffer> host =
+      vk::Buffer::Create(*ctx, depth_bytes + count_bytes + list_bytes,
+                         VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kReadback, "capture");
+  if (!host.ok()) return host.status();
+  VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+  bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+  VK_CHECK(vkResetCommandBuffer(cmd, 0));
+  VK_CHECK(vkBeginCommandBuffer(cmd, &bi));
+  const AccessInfo from = ToVulkan(Access::kDepthTest), to = ToVulkan(Access::kTransferSrc);
+  VkImageMemoryBarrier2 b = vk::MakeImageBarrier(
+      targets.depth, {from.stage, from.access, from.layout, to.stage, to.access, to.layout});
+  VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+  mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
+  mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
+  mb.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+  mb.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
+  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  dep.memoryBarrierCount = 1;
+  dep.pMemoryBarriers = &mb;
+  dep.imageMemoryBarrierCount = 1;
+  dep.pImageMemoryBarriers = &b;
+  vkCmdPipelineBarrier2(cmd, &dep);
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
+  region.imageExtent = {targets.width, targets.height, 1};
+  vkCmdCopyImageToBuffer(cmd, targets.depth.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                         host->handle(), 1, &region);
+  const VkBufferCopy counts{0, depth_bytes, count_bytes};
+  vkCmdCopyBuffer(cmd, tile_counts.handle(), host->handle(), 1, &counts);
+  const VkBufferCopy lists{0, depth_bytes + count_bytes, list_bytes};
+  vkCmdCopyBuffer(cmd, tile_lights.handle(), host->handle(), 1, &lists);
+  VkMemoryBarrier2 hb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+  hb.srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+  hb.srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT;
+  hb.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
+  hb.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
+  VkDependencyInfo hdep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  hdep.memoryBarrierCount = 1;
+  hdep.pMemoryBarriers = &hb;
+  vkCmdPipelineBarrier2(cmd, &hdep);
+  VK_CHECK(vkEndCommandBuffer(cmd));
+  VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+  si.commandBufferCount = 1;
+  si.pCommandBuffers = &cmd;
+  VK_RETURN_IF_ERROR(vkQueueSubmit(ctx->queue(), 1, &si, fence), "vkQueueSubmit");
+  VK_RETURN_IF_ERROR(vkWaitForFences(ctx->device(), 1, &fence, VK_TRUE, UINT64_MAX), "fence");
+  VK_CHECK(vkResetFences(ctx->device(), 1, &fence));
+  host->InvalidateForRead();
+  const auto* bytes = static_cast<const uint8_t*>(host->mapped());
+  capture->depth.resize(size_t(targets.width) * targets.height);
+  std::memcpy(capture->depth.data(), bytes, depth_bytes);
+  capture->tile_counts.resize(tiles);
+  std::memcpy(capture->tile_counts.data(), bytes + depth_bytes, count_bytes);
+  capture->tile_lights.resize(size_t(tiles) * gpu::kMaxLightsPerTile);
+  std::memcpy(capture->tile_lights.data(), bytes + depth_bytes + count_bytes, list_bytes);
+  return absl::OkStatus();
+}
+
 VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   ai.descriptorPool = frame_pool;
@@ -299,12 +434,17 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
       {lights_ubo.handle(), 0, VK_WHOLE_SIZE},
       {scene.drawables().handle(), 0, VK_WHOLE_SIZE},
       {scene.materials().handle(), 0, VK_WHOLE_SIZE},
+      {local_lights.handle(), 0, VK_WHOLE_SIZE},
+      {tile_counts.handle(), 0, VK_WHOLE_SIZE},
+      {tile_lights.handle(), 0, VK_WHOLE_SIZE},
   };
   const VkDescriptorType types[] = {
       VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
-      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
+      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
   std::vector<VkWriteDescriptorSet> writes;
-  for (uint32_t i = 0; i < 4; ++i) {
+  for (uint32_t i = 0; i < 7; ++i) {
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
     w.dstSet = set;
     w.dstBinding = i;
@@ -358,6 +498,11 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
 
 absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
                                        const Settings& settings) {
+  return Render(scene, camera, settings, nullptr);
+}
+
+absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
+                                       const Settings& settings, FrameCapture* capture) {
   absl::StatusOr<ResolvedSettings> resolved = ResolveSettings(settings, caps());
   if (!resolved.ok()) return resolved.status();
   if (absl::Status st = ValidateCamera(camera); !st.ok()) return st;
@@ -381,26 +526,51 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   fu.camera_position = glm::vec4(CameraPosition(camera), 1.0f);
   fu.ambient_sky = glm::vec4(0.40f, 0.52f, 0.75f, 0.0f);
   fu.ambient_ground = glm::vec4(0.24f, 0.21f, 0.18f, 0.0f);
-  std::vector<Light> lights;
-  if (s.scene_lights) lights = gs.lights();
-  if (lights.empty()) lights.push_back(DefaultSun());
-  if (lights.size() > gpu::kMaxLights) {
-    frame.settings.notes.push_back(
-        {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", lights.size(),
-                                      " scene lights are shaded")});
-    lights.resize(gpu::kMaxLights);
+  // Lights: directional ones are global (uniform buffer); point and spot lights, the scene's and
+  // the synthetic ones, are local and culled per tile. A scene without lights gets a sun.
+  std::vector<Light> global, local;
+  if (s.scene_lights) {
+    for (const Light& l : gs.lights())
+      (l.type == LightType::kDirectional ? global : local).push_back(l);
   }
+  if (global.empty() && local.empty()) global.push_back(DefaultSun());
+  if (global.size() > gpu::kMaxLights) {
+    frame.settings.notes.push_back(
+        {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", global.size(),
+                                      " directional lights are shaded")});
+    global.resize(gpu::kMaxLights);
+  }
+  if (s.synthetic_lights > 0) {
+    std::vector<Light> synthetic =
+        MakeSyntheticLights(scene.info().bounds, s.synthetic_lights, s.light_seed);
+    local.insert(local.end(), synthetic.begin(), synthetic.end());
+  }
+  if (local.size() > gpu::kMaxLocalLights) local.resize(gpu::kMaxLocalLights);
+  const TileGrid grid{s.width, s.height, s.tile_size};
+  if (absl::Status st = m.EnsureLightBuffers(uint32_t(local.size()), grid.tiles()); !st.ok())
+    return st;
   auto* gl = static_cast<gpu::GpuLight*>(m.lights_ubo.mapped());
-  for (size_t i = 0; i < lights.size(); ++i) gl[i] = ToGpu(lights[i]);
+  for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
+  auto* ll = static_cast<gpu::GpuLight*>(m.local_lights.mapped());
+  auto* lb = static_cast<gpu::GpuLightBounds*>(m.light_bounds.mapped());
+  for (size_t i = 0; i < local.size(); ++i) {
+    ll[i] = ToGpu(local[i]);
+    lb[i] = BoundLight(local[i], fu.view, fu.proj, camera.znear, grid);
+  }
+  const bool tiled = s.light_culling && !local.empty();
   fu.counts =
-      glm::uvec4(uint32_t(lights.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
+      glm::uvec4(uint32_t(global.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
   fu.params = glm::vec4(0.0f, camera.znear, camera.zfar, 0.0f);
+  fu.lighting = glm::uvec4(uint32_t(local.size()), s.tile_size, grid.tiles_x(), tiled ? 1u : 0u);
+  fu.depth_params = glm::vec4(fu.proj[2][2], fu.proj[3][2], float(grid.tiles_y()), 0.0f);
   std::memcpy(m.frame_ubo.mapped(), &fu, sizeof(fu));
-  frame.stats.lights = uint32_t(lights.size());
+  frame.stats.lights = uint32_t(global.size() + local.size());
+  frame.stats.local_lights = uint32_t(local.size());
   frame.stats.drawables = uint32_t(gs.draws().size());
 
   const DrawLists draws = m.BuildDrawLists(gs, fu.view, fu.view_proj, s.culling, frame.stats);
-  const std::vector<PassId> pass_ids = SelectPasses(s, {!draws.blend.empty()});
+  const std::vector<PassId> pass_ids =
+      SelectPasses(s, {!draws.blend.empty(), uint32_t(local.size())});
   const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids);
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
@@ -442,6 +612,14 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   pc.scene_set = scene_set;
   pc.frame_pool = m.frame_pool;
   pc.stats = &pass_stats;
+  LightCullBuffers light_buffers;
+  light_buffers.frame_ubo = m.frame_ubo.handle();
+  light_buffers.bounds = m.light_bounds.handle();
+  light_buffers.tile_counts = m.tile_counts.handle();
+  light_buffers.tile_lights = m.tile_lights.handle();
+  light_buffers.counts_readback = m.tile_counts_readback.handle();
+  light_buffers.tiles = grid.tiles();
+  pc.light_buffers = &light_buffers;
   std::vector<double> pass_wall_ms;
   double record_ms = 0.0;
   auto t_chunk = t_record;
@@ -496,6 +674,22 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   frame.gpu_total_ms = per_pass_submit ? frame.cpu.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   frame.stats.draws = pass_stats.draws;
   frame.stats.triangles_submitted = pass_stats.triangles;
+  if (tiled) {
+    m.tile_counts_readback.InvalidateForRead();
+    const auto* counts = static_cast<const uint32_t*>(m.tile_counts_readback.mapped());
+    const TileStats ts = ComputeTileStats(std::vector<uint32_t>(counts, counts + grid.tiles()));
+    frame.stats.tile_lights_avg = ts.average;
+    frame.stats.tile_lights_p50 = ts.p50;
+    frame.stats.tile_lights_p95 = ts.p95;
+    frame.stats.tile_lights_max = ts.max;
+    frame.stats.tile_overflows = ts.overflows;
+  }
+  if (capture) {
+    if (absl::Status st = m.Capture(capture, grid.tiles()); !st.ok()) return st;
+    capture->local_lights = std::move(local);
+    capture->view = fu.view;
+    capture->proj = fu.proj;
+  }
 
   const auto t_readback = Clock::now();
   m.targets.readback.InvalidateForRead();

@@ -82,6 +82,22 @@ struct FrameStats {
   uint32_t draws = 0;                // draw calls over all passes
   uint64_t triangles_submitted = 0;  // over all passes
   uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
+  uint32_t local_lights = 0;         // of which point and spot lights (scene + synthetic)
+  // Forward+ (when the light-culling pass ran): lights per tile over all tiles.
+  double tile_lights_avg = 0.0;
+  uint32_t tile_lights_p50 = 0;
+  uint32_t tile_lights_p95 = 0;
+  uint32_t tile_lights_max = 0;
+  uint32_t tile_overflows = 0;  // tiles with more than kMaxLightsPerTile (256) lights
+};
+
+// What tests need to check a frame's light culling against the CPU reference.
+struct FrameCapture {
+  std::vector<float> depth;           // prepass depth, width x height, row-major
+  std::vector<uint32_t> tile_counts;  // per tile (| overflow bit)
+  std::vector<uint32_t> tile_lights;  // tile * 256 + k
+  std::vector<Light> local_lights;    // in the order the lists index
+  glm::mat4 view{1.0f}, proj{1.0f};
 };
 
 struct Frame {
@@ -112,6 +128,9 @@ class Renderer {
 
   // Renders one frame. INVALID_ARGUMENT for bad settings/camera (naming the field).
   absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings);
+  // The same, also filling `capture` (tests; costs an extra copy and wait).
+  absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings,
+                               FrameCapture* capture);
 
   // Validation-layer messages so far (tests require zero).
   uint64_t validation_message_count() const;

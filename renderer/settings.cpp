@@ -138,13 +138,6 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
                                         " is not implemented yet; used cpu_frustum"));
     e.culling = CullingMode::kCpuFrustum;
   }
-  if (e.synthetic_lights > 0) {
-    not_applied("synthetic_lights", "needs tiled light culling (forward+), not implemented yet");
-    e.synthetic_lights = 0;
-  }
-  if (e.tile_size != 16) {
-    not_applied("tile_size", "no tiled light culling yet");
-  }
   if (e.shadows) {
     not_applied("shadows", "not implemented yet");
     e.shadows = false;
@@ -165,8 +158,7 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     not_applied("exposure_mode", "auto exposure is not implemented yet; used fixed exposure_ev");
     e.exposure_mode = ExposureMode::kFixed;
   }
-  if (e.debug_view == DebugView::kLightHeatmap || e.debug_view == DebugView::kCullingOverlay ||
-      e.debug_view == DebugView::kAaMask) {
+  if (e.debug_view == DebugView::kCullingOverlay || e.debug_view == DebugView::kAaMask) {
     not_applied("debug_view",
                 absl::StrCat(std::string(ToString(e.debug_view)), " is not implemented yet"));
     e.debug_view = DebugView::kNone;

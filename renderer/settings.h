@@ -36,6 +36,7 @@ struct Settings {
   uint32_t synthetic_lights = 0;  // random point lights added in the scene bounds, 0..65536
   uint32_t light_seed = 1;        // seed of the synthetic lights
   uint32_t tile_size = 16;        // light-culling tile, 8 | 16 | 32 pixels
+  bool light_culling = true;      // forward+ tile lists; false: every light for every pixel
   bool shadows = false;
   bool ssao = false;
   bool bloom = false;

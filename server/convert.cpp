@@ -69,6 +69,7 @@ absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSet
     return st;
   if (u.has_jpeg_quality()) s.jpeg_quality = u.jpeg_quality();
   if (u.has_jpeg_444()) s.jpeg_444 = u.jpeg_444();
+  if (u.has_light_culling()) s.light_culling = u.light_culling();
   if (absl::Status st = ValidateSettings(s); !st.ok()) return st;
   return s;
 }
@@ -154,6 +155,7 @@ void ToProto(const Settings& s, v1::RenderSettings* o) {
   o->set_debug_view(static_cast<v1::DebugView>(WireEnum(s.debug_view)));
   o->set_jpeg_quality(s.jpeg_quality);
   o->set_jpeg_444(s.jpeg_444);
+  o->set_light_culling(s.light_culling);
 }
 
 void ToProto(const Aabb& box, v1::Aabb* out) {
@@ -236,6 +238,12 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_draws(f.stats.draws);
   st->set_triangles_submitted(f.stats.triangles_submitted);
   st->set_lights(f.stats.lights);
+  st->set_local_lights(f.stats.local_lights);
+  st->set_tile_lights_avg(f.stats.tile_lights_avg);
+  st->set_tile_lights_p50(f.stats.tile_lights_p50);
+  st->set_tile_lights_p95(f.stats.tile_lights_p95);
+  st->set_tile_lights_max(f.stats.tile_lights_max);
+  st->set_tile_overflows(f.stats.tile_overflows);
 }
 
 void FillChoices(uint32_t max_samples, v1::SettingChoices* o) {

@@ -2,7 +2,8 @@
 #extension GL_GOOGLE_include_directive : require
 // Forward PBR shading with the glTF 2.0 metallic-roughness BRDF (Appendix B of the spec):
 // GGX distribution, height-correlated Smith visibility, Schlick Fresnel, Lambert diffuse.
-// Punctual lights from the lights UBO, plus a hemisphere ambient with an analytic split-sum
+// Global (directional) lights from the lights UBO, local lights from the tile lists (or all of
+// them, brute force), plus a hemisphere ambient with an analytic split-sum
 // specular term (IBL proper comes with the lighting issue).
 #include "common/scene.glsl"
 #include "common/sky.glsl"
@@ -46,6 +47,52 @@ vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
   return f0 * ab.x + ab.y;
 }
 
+
+// One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff).
+vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
+                float alpha) {
+  uint type = uint(light.direction_type.w);
+  vec3 l;
+  float attenuation = 1.0;
+  if (type == kLightDirectional) {
+    l = -light.direction_type.xyz;
+  } else {
+    vec3 to_light = light.position_range.xyz - p;
+    float d2 = max(dot(to_light, to_light), 1e-8);
+    l = to_light * inversesqrt(d2);
+    float range = light.position_range.w;
+    attenuation = 1.0 / d2;
+    if (range > 0.0) {
+      float r = d2 / (range * range);
+      attenuation *= clamp(1.0 - r * r, 0.0, 1.0);  // glTF: 1 - (d/range)^4
+    }
+    if (type == kLightSpot) {
+      float cd = dot(light.direction_type.xyz, -l);
+      float s = clamp(cd * light.spot.x + light.spot.y, 0.0, 1.0);
+      attenuation *= s * s;
+    }
+  }
+  float n_dot_l = dot(n, l);
+  if (n_dot_l <= 0.0 || attenuation <= 0.0) return vec3(0.0);
+  vec3 h = normalize(l + v);
+  float n_dot_h = max(dot(n, h), 0.0);
+  float v_dot_h = max(dot(v, h), 0.0);
+  vec3 f = FresnelSchlick(f0, v_dot_h);
+  vec3 diffuse = (1.0 - f) * c_diff / kPi;
+  vec3 specular = f * DistributionGgx(n_dot_h, alpha) *
+                  VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
+  vec3 radiance = light.color_intensity.rgb * light.color_intensity.a * attenuation;
+  return (diffuse + specular) * radiance * n_dot_l;
+}
+
+// Blue -> green -> yellow -> red as a tile's light count goes 0 -> 16 -> 32 -> 64+.
+vec3 Heat(uint count) {
+  float t = clamp(float(count) / 64.0, 0.0, 1.0);
+  vec3 c = t < 0.25 ? mix(vec3(0.0, 0.0, 0.4), vec3(0.0, 0.8, 0.0), t * 4.0)
+         : t < 0.5  ? mix(vec3(0.0, 0.8, 0.0), vec3(1.0, 1.0, 0.0), (t - 0.25) * 4.0)
+                    : mix(vec3(1.0, 1.0, 0.0), vec3(1.0, 0.0, 0.0), (t - 0.5) * 2.0);
+  return count == 0u ? vec3(0.02) : c;
+}
 
 void main() {
   UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
@@ -101,42 +148,28 @@ void main() {
   vec3 f0 = mix(vec3(0.04), base.rgb, metallic);
   float alpha = roughness * roughness;
 
+  // The tile this pixel belongs to, and its light list (built by the light-culling pass).
+  uint tile_size = frame.lighting.y;
+  uint tile = uint(gl_FragCoord.y) / tile_size * frame.lighting.z + uint(gl_FragCoord.x) / tile_size;
+  // Blended surfaces are not in the prepass depth the lists were culled against: brute force.
+  bool tiled = frame.lighting.w != 0u && m.flags.x != kAlphaBlend;
+  uint tile_count = tiled ? (tile_counts[tile] & ~kTileOverflowBit) : 0u;
+  if (debug_view == kDebugLightHeatmap) {
+    out_color = vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
+    return;
+  }
+
   vec3 color = vec3(0.0);
-  uint light_count = frame.counts.x;
-  for (uint i = 0u; i < light_count; ++i) {
-    GpuLight light = lights[i];
-    uint type = uint(light.direction_type.w);
-    vec3 l;
-    float attenuation = 1.0;
-    if (type == kLightDirectional) {
-      l = -light.direction_type.xyz;
-    } else {
-      vec3 to_light = light.position_range.xyz - v_world;
-      float d2 = max(dot(to_light, to_light), 1e-8);
-      l = to_light * inversesqrt(d2);
-      float range = light.position_range.w;
-      attenuation = 1.0 / d2;
-      if (range > 0.0) {
-        float r = d2 / (range * range);
-        attenuation *= clamp(1.0 - r * r, 0.0, 1.0);  // glTF: 1 - (d/range)^4
-      }
-      if (type == kLightSpot) {
-        float cd = dot(light.direction_type.xyz, -l);
-        float s = clamp(cd * light.spot.x + light.spot.y, 0.0, 1.0);
-        attenuation *= s * s;
-      }
-    }
-    float n_dot_l = dot(n, l);
-    if (n_dot_l <= 0.0 || attenuation <= 0.0) continue;
-    vec3 h = normalize(l + v);
-    float n_dot_h = max(dot(n, h), 0.0);
-    float v_dot_h = max(dot(v, h), 0.0);
-    vec3 f = FresnelSchlick(f0, v_dot_h);
-    vec3 diffuse = (1.0 - f) * c_diff / kPi;
-    vec3 specular = f * DistributionGgx(n_dot_h, alpha) *
-                    VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
-    vec3 radiance = light.color_intensity.rgb * light.color_intensity.a * attenuation;
-    color += (diffuse + specular) * radiance * n_dot_l;
+  for (uint i = 0u; i < frame.counts.x; ++i)  // global (directional) lights
+    color += ShadeLight(lights[i], v_world, n, v, n_dot_v, c_diff, f0, alpha);
+  if (tiled) {
+    uint base = tile * kMaxLightsPerTile;
+    for (uint k = 0u; k < tile_count; ++k)
+      color += ShadeLight(local_lights[tile_lights[base + k]], v_world, n, v, n_dot_v, c_diff, f0,
+                          alpha);
+  } else {  // brute force: every local light for every pixel
+    for (uint i = 0u; i < frame.lighting.x; ++i)
+      color += ShadeLight(local_lights[i], v_world, n, v, n_dot_v, c_diff, f0, alpha);
   }
 
   // Ambient: hemisphere irradiance for diffuse; for specular the hemisphere seen along the

@@ -26,6 +26,7 @@ const char kSettingsFlagsUsage[] = R"(settings (unset ones take the server's def
   --lights N          N synthetic point lights in the scene bounds   --light-seed N
   --no-scene-lights   ignore the file's KHR_lights_punctual lights (--scene-lights: use them)
   --tile-size N       light-culling tile, 8|16|32 pixels
+  --no-light-culling  shade every light at every pixel (brute force; --light-culling: tiles)
   --shadows --ssao --bloom --ibl   turn effects on (--no-shadows etc.: off)
   --exposure EV       fixed exposure in stops (default 0)   --auto-exposure
   --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask
@@ -76,6 +77,7 @@ bool ParseToggle(ArgReader& args, v1::RenderSettings* settings) {
       {"ssao", &v1::RenderSettings::set_ssao},
       {"bloom", &v1::RenderSettings::set_bloom},
       {"ibl", &v1::RenderSettings::set_ibl},
+      {"light-culling", &v1::RenderSettings::set_light_culling},
   };
   for (const auto& [name, set] : kToggles) {
     if (args.Is(absl::StrCat("--", name))) {

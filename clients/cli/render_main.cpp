@@ -31,6 +31,9 @@ constexpr char kUsage[] = R"(usage: tessera-render [options]
   --exposure EV       exposure in stops (default 0)
   --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask
   --no-scene-lights   ignore the file's KHR_lights_punctual lights
+  --lights N          N synthetic point lights in the scene bounds   --light-seed N
+  --tile-size N       light-culling tile, 8|16|32 pixels
+  --no-light-culling  shade every light at every pixel (brute force, for comparison)
   --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
   --frames N          render N frames and report the last (default 1)
   --device NAME       pick a Vulkan device by (part of) its name
@@ -131,6 +134,14 @@ int main(int argc, char** argv) {
       settings.debug_view = OrFail(ParseDebugView(value()));
     else if (arg == "--no-scene-lights")
       settings.scene_lights = false;
+    else if (arg == "--lights")
+      settings.synthetic_lights = ParseUint(arg, value());
+    else if (arg == "--light-seed")
+      settings.light_seed = ParseUint(arg, value());
+    else if (arg == "--tile-size")
+      settings.tile_size = ParseUint(arg, value());
+    else if (arg == "--no-light-culling")
+      settings.light_culling = false;
     else if (arg == "--quality")
       settings.jpeg_quality = ParseUint(arg, value());
     else if (arg == "--chroma") {
@@ -212,7 +223,13 @@ int main(int argc, char** argv) {
     j["stats"] = {{"draws", frame.stats.draws},
                   {"triangles_submitted", frame.stats.triangles_submitted},
                   {"drawables_culled", frame.stats.drawables_culled},
-                  {"lights", frame.stats.lights}};
+                  {"lights", frame.stats.lights},
+                  {"local_lights", frame.stats.local_lights},
+                  {"tile_lights_avg", frame.stats.tile_lights_avg},
+                  {"tile_lights_p50", frame.stats.tile_lights_p50},
+                  {"tile_lights_p95", frame.stats.tile_lights_p95},
+                  {"tile_lights_max", frame.stats.tile_lights_max},
+                  {"tile_overflows", frame.stats.tile_overflows}};
     j["notes"] = nlohmann::json::array();
     for (const SettingNote& n : frame.settings.notes)
       j["notes"].push_back({{"field", n.field}, {"message", n.message}});
@@ -255,6 +272,11 @@ int main(int argc, char** argv) {
                 frame.cpu.readback_ms, "encode", frame.cpu.encode_ms);
     std::printf("\ndraws %u, triangles submitted %llu, lights %u\n", frame.stats.draws,
                 (unsigned long long)frame.stats.triangles_submitted, frame.stats.lights);
+    if (frame.stats.local_lights > 0 && frame.settings.effective.light_culling)
+      std::printf("lights per %upx tile: avg %.1f, p50 %u, p95 %u, max %u, overflows %u\n",
+                  frame.settings.effective.tile_size, frame.stats.tile_lights_avg,
+                  frame.stats.tile_lights_p50, frame.stats.tile_lights_p95,
+                  frame.stats.tile_lights_max, frame.stats.tile_overflows);
     for (const SettingNote& n : frame.settings.notes)
       std::printf("note: %s: %s\n", n.field.c_str(), n.message.c_str());
   }

@@ -41,12 +41,23 @@ struct DrawLists {
   std::vector<const DrawItem*> blend;  // sorted back to front
 };
 
+// The forward+ buffers of a frame (handles owned by the renderer).
+struct LightCullBuffers {
+  VkBuffer frame_ubo = VK_NULL_HANDLE;
+  VkBuffer bounds = VK_NULL_HANDLE;           // GpuLightBounds per local light
+  VkBuffer tile_counts = VK_NULL_HANDLE;      // uint per tile
+  VkBuffer tile_lights = VK_NULL_HANDLE;      // uint per tile x kMaxLightsPerTile
+  VkBuffer counts_readback = VK_NULL_HANDLE;  // host copy of tile_counts
+  uint32_t tiles = 0;
+};
+
 struct PassStats {
   uint32_t draws = 0;
   uint64_t triangles = 0;
 };
 
-// Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs;
+// Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
+// local lights and the tile lists;
 // set 1 = the material's texture buckets (shaders/common/gpu_types.h has the bindings).
 struct SceneLayout {
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
@@ -65,6 +76,7 @@ struct PassContext {
   VkDescriptorSet scene_set = VK_NULL_HANDLE;
   VkDescriptorPool frame_pool = VK_NULL_HANDLE;  // reset every frame; passes may allocate
   PassStats* stats = nullptr;
+  const LightCullBuffers* light_buffers = nullptr;
 };
 
 class Pass {
@@ -83,6 +95,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateForwardPass(const vk::Context& ctx,
 absl::StatusOr<std::unique_ptr<Pass>> CreateTransparentPass(const vk::Context& ctx,
                                                             const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx);
+absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx);
 absl::StatusOr<std::unique_ptr<Pass>> CreateReadbackPass();
 
 // Begins dynamic rendering over the whole frame with these attachments (either may be null)

@@ -142,4 +142,22 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
   return Pipeline(ctx.device(), pipeline);
 }
 
+absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
+                                               const std::string& shader, VkPipelineLayout layout) {
+  ScopedShader cs(ctx.device());
+  if (absl::Status st = cs.Load(shader); !st.ok()) return st;
+  VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
+  ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+  ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
+  ci.stage.module = cs.get();
+  ci.stage.pName = "main";
+  ci.layout = layout;
+  VkPipeline pipeline;
+  VK_RETURN_IF_ERROR(
+      vkCreateComputePipelines(ctx.device(), VK_NULL_HANDLE, 1, &ci, nullptr, &pipeline),
+      name.c_str());
+  ctx.SetName(pipeline, VK_OBJECT_TYPE_PIPELINE, name);
+  return Pipeline(ctx.device(), pipeline);
+}
+
 }  // namespace tessera::vk

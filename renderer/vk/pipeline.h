@@ -60,4 +60,8 @@ struct GraphicsPipelineDesc {
 absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
                                                 const GraphicsPipelineDesc& desc);
 
+// A compute pipeline from an embedded shader (e.g. "light_cull.comp").
+absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
+                                               const std::string& shader, VkPipelineLayout layout);
+
 }  // namespace tessera::vk

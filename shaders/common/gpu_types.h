@@ -20,9 +20,17 @@ using uint = uint32_t;
 #endif
 
 // ---- limits -------------------------------------------------------------------------------
-// Punctual lights live in a uniform buffer: on lavapipe UBO reads in the per-pixel light loop
-// are ~6x cheaper than SSBO reads. 256 * 64 B = 16 KiB, well inside maxUniformBufferRange.
+// Global (directional) lights live in a uniform buffer: on lavapipe UBO reads in the per-pixel
+// light loop are ~6x cheaper than SSBO reads. 256 * 64 B = 16 KiB, inside maxUniformBufferRange.
 TS_CONST uint kMaxLights = 256;
+// Local (point and spot) lights live in a storage buffer, up to the scene's lights plus 65536
+// synthetic ones, and are shaded from per-tile lists built by the light-culling pass.
+TS_CONST uint kMaxLocalLights = 65536 + 4096;
+// Per-tile list capacity. A tile with more lights keeps the first kMaxLightsPerTile (lowest
+// indices) and sets kTileOverflowBit in its count; the frame reports the overflow.
+TS_CONST uint kMaxLightsPerTile = 256;
+TS_CONST uint kTileOverflowBit = 0x80000000u;
+TS_CONST uint kLightCullGroupSize = 64;  // tiles per light-culling workgroup
 // Textures are grouped into sampler2DArray "buckets" by size and colour space (lavapipe cannot
 // index an array of samplers dynamically); a material's texture is a (bucket, layer) pair.
 TS_CONST uint kMaxTextureBuckets = 8;
@@ -32,6 +40,15 @@ TS_CONST uint kBindingFrame = 0;        // uniform FrameUniforms
 TS_CONST uint kBindingLights = 1;       // uniform LightBlock { GpuLight lights[kMaxLights]; }
 TS_CONST uint kBindingDrawables = 2;    // buffer GpuDrawable[]
 TS_CONST uint kBindingMaterials = 3;    // buffer GpuMaterial[]
+TS_CONST uint kBindingLocalLights = 4;  // buffer GpuLight[] (point and spot lights)
+TS_CONST uint kBindingTileCounts = 5;   // buffer uint[] lights per tile (| kTileOverflowBit)
+TS_CONST uint kBindingTileLights = 6;   // buffer uint[] tile * kMaxLightsPerTile + k -> light
+// ---- the light-culling compute pass (its own set 0) ------------------------------------------
+TS_CONST uint kCullBindingFrame = 0;        // uniform FrameUniforms
+TS_CONST uint kCullBindingLightBounds = 1;  // buffer GpuLightBounds[]
+TS_CONST uint kCullBindingDepth = 2;        // sampler2D: the depth prepass
+TS_CONST uint kCullBindingTileCounts = 3;   // buffer uint[] (written)
+TS_CONST uint kCullBindingTileLights = 4;   // buffer uint[] (written)
 // ---- descriptor set 1: one material ---------------------------------------------------------
 // One set per material, bound when the material changes between draws: binding 0 is the
 // material itself as a uniform buffer range, binding 1 + k the bucket (sampler2DArray) holding
@@ -65,6 +82,7 @@ TS_CONST uint kDebugNone = 0;
 TS_CONST uint kDebugNormals = 1;
 TS_CONST uint kDebugDepth = 2;
 TS_CONST uint kDebugBaseColor = 3;
+TS_CONST uint kDebugLightHeatmap = 4;
 
 // Vertex attribute locations of the single scene vertex buffer (see scene::Vertex).
 TS_CONST uint kAttrPosition = 0;
@@ -114,6 +132,16 @@ struct GpuLight {
   vec4 spot;             // x angle scale, y angle offset (glTF spot falloff), zw unused
 };
 
+// What the light-culling pass needs of a local light, prepared on the CPU (each light is
+// projected once, not once per tile): the view-space bounding sphere, the rectangle of tiles it
+// can touch, and for spots the cone.
+struct GpuLightBounds {
+  vec4 sphere;  // view space: xyz centre, w radius (a spot's cone is bounded by this sphere)
+  ivec4 tiles;  // inclusive tile rectangle x0, y0, x1, y1 (x0 > x1: off screen)
+  vec4 cone;    // spots: view-space apex xyz, w cos(outer angle); points: w = -2
+  vec4 cone2;   // spots: view-space direction xyz, w range
+};
+
 struct FrameUniforms {
   mat4 view;
   mat4 proj;
@@ -124,6 +152,8 @@ struct FrameUniforms {
   vec4 ambient_ground;   // rgb radiance from below
   uvec4 counts;          // x light count, y debug view (kDebug*), z width, w height
   vec4 params;           // x unused (exposure is the tonemap pass's push constant), y near, z far
+  uvec4 lighting;        // x local lights, y tile size px, z tiles per row, w 1 = tile lists
+  vec4 depth_params;     // view depth of a depth-buffer value d: y / (d + x); z tiles per column
 };
 
 #ifdef __cplusplus

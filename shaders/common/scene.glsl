@@ -17,6 +17,15 @@ layout(set = 0, binding = kBindingDrawables, std430) readonly buffer DrawableBlo
 layout(set = 0, binding = kBindingMaterials, std430) readonly buffer MaterialBlock {
   GpuMaterial materials[];
 };
+layout(set = 0, binding = kBindingLocalLights, std430) readonly buffer LocalLightBlock {
+  GpuLight local_lights[];
+};
+layout(set = 0, binding = kBindingTileCounts, std430) readonly buffer TileCountBlock {
+  uint tile_counts[];
+};
+layout(set = 0, binding = kBindingTileLights, std430) readonly buffer TileLightBlock {
+  uint tile_lights[];
+};
 
 vec4 ClipPosition(mat4 world, vec3 position) {
   precise vec4 world_position = world * vec4(position, 1.0);
