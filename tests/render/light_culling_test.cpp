@@ -1,0 +1,302 @@
+// Forward+ light culling against its CPU reference (renderer/light_culling.h) and against the
+// ground truth: every light that reaches a pixel must be in that pixel's tile list. Also the
+// shading from the lists against the brute-force image, overflow handling, and determinism.
+#include "renderer/light_culling.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+#include "renderer/camera.h"
+#include "renderer/image_io.h"
+#include "renderer/renderer.h"
+#include "renderer/scene/demo_scene.h"
+
+namespace tessera {
+namespace {
+
+Renderer& SharedRenderer() {
+  static std::unique_ptr<Renderer> renderer = [] {
+    absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create({.validation = true});
+    if (!r.ok()) {
+      ADD_FAILURE() << "no Vulkan device: " << r.status();
+      std::abort();
+    }
+    return std::move(*r);
+  }();
+  return *renderer;
+}
+
+const SceneHandle& DemoScene() {
+  static SceneHandle scene = [] {
+    absl::StatusOr<SceneHandle> s = SharedRenderer().LoadScene(BuildDemoScene());
+    EXPECT_TRUE(s.ok()) << s.status();
+    return s.ok() ? *s : nullptr;
+  }();
+  return scene;
+}
+
+Camera DemoCamera() { return FromSceneCamera(DemoScene()->info().cameras[0]); }
+
+Settings LightSettings(uint32_t w, uint32_t h, uint32_t lights) {
+  Settings s;
+  s.width = w;
+  s.height = h;
+  s.synthetic_lights = lights;
+  s.light_seed = 7;
+  return s;
+}
+
+// --- pure CPU parts ----------------------------------------------------------------------
+
+TEST(SyntheticLights, DeterministicInsideBoundsAndStableUnderCount) {
+  Aabb box;
+  box.extend(glm::vec3(-3.0f, 0.0f, -2.0f));
+  box.extend(glm::vec3(5.0f, 4.0f, 6.0f));
+  const std::vector<Light> a = MakeSyntheticLights(box, 100, 3);
+  const std::vector<Light> b = MakeSyntheticLights(box, 100, 3);
+  const std::vector<Light> more = MakeSyntheticLights(box, 300, 3);
+  const std::vector<Light> other = MakeSyntheticLights(box, 100, 4);
+  ASSERT_EQ(a.size(), 100u);
+  int differ = 0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].position, b[i].position);
+    EXPECT_EQ(a[i].position, more[i].position) << "light " << i << " changed with the count";
+    EXPECT_EQ(a[i].range, more[i].range);
+    differ += a[i].position != other[i].position;
+    EXPECT_TRUE(glm::all(glm::greaterThanEqual(a[i].position, box.min)));
+    EXPECT_TRUE(glm::all(glm::lessThanEqual(a[i].position, box.max)));
+    EXPECT_GT(a[i].range, 0.0f);
+    EXPECT_GT(a[i].intensity, 0.0f);
+    EXPECT_EQ(a[i].type, LightType::kPoint);
+  }
+  EXPECT_GT(differ, 95) << "another seed must give other lights";
+}
+
+TEST(TileStats, AverageMedianP95MaxAndOverflows) {
+  std::vector<uint32_t> counts;
+  for (uint32_t i = 0; i < 100; ++i) counts.push_back(i);
+  counts[99] = gpu::kMaxLightsPerTile | gpu::kTileOverflowBit;
+  const TileStats s = ComputeTileStats(counts);
+  EXPECT_EQ(s.max, gpu::kMaxLightsPerTile);
+  EXPECT_EQ(s.overflows, 1u);
+  EXPECT_EQ(s.p50, 49u);
+  EXPECT_EQ(s.p95, 94u);
+  EXPECT_NEAR(s.average, (99.0 * 98.0 / 2.0 + gpu::kMaxLightsPerTile) / 100.0, 1e-9);
+}
+
+// A light just inside a tile's corner must survive, one just outside must not: the frustum is
+// the tile's (all four corners), not the wedge three corners would make.
+TEST(TileFrustum, CornersAreTheTilesOwn) {
+  const TileGrid grid{64, 64, 16};
+  Camera cam;
+  cam.eye = glm::vec3(0.0f);
+  cam.target = glm::vec3(0.0f, 0.0f, -1.0f);
+  const glm::mat4 view = ViewMatrix(cam), proj = ProjectionMatrix(cam, 1.0f);
+  // Flat wall at view depth 10 everywhere.
+  std::vector<float> depth(64 * 64, proj[3][2] / 10.0f - proj[2][2]);
+  // The ray through the pixel corner (32, 32), shared by four tiles.
+  const glm::vec3 corner_ray(0.0f / proj[0][0], 0.0f / proj[1][1], -1.0f);
+  auto lists_for = [&](glm::vec3 p, float r) {
+    Light l;
+    l.position = glm::vec3(glm::inverse(view) * glm::vec4(p, 1.0f));
+    l.range = r;
+    std::vector<gpu::GpuLightBounds> b = {BoundLight(l, view, proj, cam.znear, grid)};
+    TileLightLists t = CullLightsReference(b, depth, proj, grid);
+    std::set<uint32_t> tiles;
+    for (uint32_t i = 0; i < grid.tiles(); ++i)
+      if (t.counts[i] > 0) tiles.insert(i);
+    return tiles;
+  };
+  // A small light on the corner ray at the wall touches exactly the four tiles around it.
+  EXPECT_EQ(lists_for(corner_ray * 10.0f, 0.05f), (std::set<uint32_t>{5, 6, 9, 10}));
+  // Far in front of the wall (depth 2) the light misses the wall's depth range entirely.
+  EXPECT_TRUE(lists_for(corner_ray * 2.0f, 0.5f).empty());
+}
+
+// --- the GPU pass ------------------------------------------------------------------------
+
+struct Case {
+  uint32_t lights;
+  uint32_t tile_size;
+};
+
+class CullingTest : public ::testing::TestWithParam<Case> {};
+
+// Every light that reaches a pixel (within range, and inside the cone for spots) is in the
+// pixel's tile list; the GPU lists equal the CPU reference up to lights within 1e-3 of a test
+// boundary; lists are sorted.
+TEST_P(CullingTest, NoFalseNegativesAndMatchesTheCpuReference) {
+  const Case c = GetParam();
+  // 384x216: tiles small enough in the world that 4096 lights stay under 256 per tile.
+  const Settings s = LightSettings(384, 216, c.lights);
+  Settings st = s;
+  st.tile_size = c.tile_size;
+  FrameCapture cap;
+  absl::StatusOr<Frame> f = SharedRenderer().Render(*DemoScene(), DemoCamera(), st, &cap);
+  ASSERT_TRUE(f.ok()) << f.status();
+  const TileGrid grid{st.width, st.height, st.tile_size};
+  ASSERT_EQ(cap.tile_counts.size(), grid.tiles());
+  ASSERT_GE(cap.local_lights.size(), c.lights);
+  EXPECT_EQ(f->stats.local_lights, cap.local_lights.size());
+  EXPECT_EQ(f->stats.tile_overflows, 0u);
+
+  TileLightLists gpu;
+  gpu.grid = grid;
+  gpu.counts = cap.tile_counts;
+  gpu.lights = cap.tile_lights;
+
+  // Ground truth, pixel by pixel.
+  const glm::mat4& proj = cap.proj;
+  std::vector<glm::vec3> pos(cap.local_lights.size()), dir(cap.local_lights.size());
+  for (size_t i = 0; i < cap.local_lights.size(); ++i) {
+    pos[i] = glm::vec3(cap.view * glm::vec4(cap.local_lights[i].position, 1.0f));
+    dir[i] = glm::normalize(glm::mat3(cap.view) * cap.local_lights[i].direction);
+  }
+  uint64_t checked = 0;
+  for (uint32_t y = 0; y < st.height; y += 2) {  // every other pixel: still every tile
+    for (uint32_t x = (y / 2) % 2; x < st.width; x += 2) {
+      const float d = cap.depth[size_t(y) * st.width + x];
+      if (d <= 0.0f) continue;
+      const float z = ViewDepth(d, proj[2][2], proj[3][2]);
+      const glm::vec2 ndc(2.0f * (float(x) + 0.5f) / float(st.width) - 1.0f,
+                          2.0f * (float(y) + 0.5f) / float(st.height) - 1.0f);
+      const glm::vec3 p = glm::vec3(ndc.x / proj[0][0], ndc.y / proj[1][1], -1.0f) * z;
+      const uint32_t tile = (y / st.tile_size) * grid.tiles_x() + x / st.tile_size;
+      const std::vector<uint32_t> list = gpu.List(tile);
+      for (size_t i = 0; i < pos.size(); ++i) {
+        const Light& l = cap.local_lights[i];
+        const glm::vec3 to_p = p - pos[i];
+        const float dist = glm::length(to_p);
+        if (dist >= l.range * 0.999f) continue;
+        if (l.type == LightType::kSpot &&
+            glm::dot(to_p / dist, dir[i]) <= std::cos(l.outer_cone_angle) + 1e-3f)
+          continue;
+        ++checked;
+        ASSERT_TRUE(std::binary_search(list.begin(), list.end(), uint32_t(i)))
+            << "light " << i << " reaches pixel (" << x << ", " << y << ") but is not in tile "
+            << tile;
+      }
+    }
+  }
+  EXPECT_GT(checked, 0u) << "no light reached any pixel: the test proves nothing";
+
+  // The CPU reference, bracketed against float differences at the edges.
+  std::vector<gpu::GpuLightBounds> bounds;
+  for (const Light& l : cap.local_lights)
+    bounds.push_back(BoundLight(l, cap.view, proj, DemoCamera().znear, grid));
+  const float eps = 1e-3f;
+  const TileLightLists tight = CullLightsReference(bounds, cap.depth, proj, grid, -eps);
+  const TileLightLists loose = CullLightsReference(bounds, cap.depth, proj, grid, +eps);
+  const TileLightLists exact = CullLightsReference(bounds, cap.depth, proj, grid);
+  size_t equal_tiles = 0;
+  for (uint32_t t = 0; t < grid.tiles(); ++t) {
+    const std::vector<uint32_t> g = gpu.List(t), lo = tight.List(t), hi = loose.List(t);
+    ASSERT_TRUE(std::is_sorted(g.begin(), g.end())) << "tile " << t;
+    EXPECT_TRUE(std::includes(g.begin(), g.end(), lo.begin(), lo.end())) << "tile " << t;
+    EXPECT_TRUE(std::includes(hi.begin(), hi.end(), g.begin(), g.end())) << "tile " << t;
+    equal_tiles += g == exact.List(t);
+  }
+  EXPECT_GE(equal_tiles, grid.tiles() * 99 / 100) << "GPU and CPU lists mostly identical";
+
+  // Culling does something: far fewer lights per tile than lights.
+  if (c.lights >= 100) EXPECT_LT(f->stats.tile_lights_avg, 0.25 * double(cap.local_lights.size()));
+}
+
+INSTANTIATE_TEST_SUITE_P(Lights, CullingTest,
+                         ::testing::Values(Case{1, 16}, Case{100, 16}, Case{4096, 16},
+                                           Case{4096, 8}, Case{100, 32}),
+                         [](const auto& info) {
+                           return "lights" + std::to_string(info.param.lights) + "_tile" +
+                                  std::to_string(info.param.tile_size);
+                         });
+
+// Shading from the tile lists gives the brute-force image.
+TEST(ForwardPlus, TiledImageEqualsBruteForce) {
+  for (uint32_t lights : {1u, 100u, 4096u}) {
+    SCOPED_TRACE(lights);
+    Settings s = LightSettings(256, 144, lights);
+    s.tile_size = 8;  // no tile overflows at 4096 lights in this small frame
+    absl::StatusOr<Frame> tiled = SharedRenderer().Render(*DemoScene(), DemoCamera(), s);
+    s.light_culling = false;
+    absl::StatusOr<Frame> brute = SharedRenderer().Render(*DemoScene(), DemoCamera(), s);
+    ASSERT_TRUE(tiled.ok() && brute.ok());
+    EXPECT_EQ(tiled->stats.tile_overflows, 0u);
+    const double psnr = Psnr(tiled->image, brute->image).value();
+    EXPECT_GE(psnr, 50.0) << "tiled vs brute force";
+    const bool has_cull = std::any_of(tiled->passes.begin(), tiled->passes.end(),
+                                      [](const PassTiming& p) { return p.pass == "light_cull"; });
+    const bool brute_cull = std::any_of(brute->passes.begin(), brute->passes.end(),
+                                        [](const PassTiming& p) { return p.pass == "light_cull"; });
+    EXPECT_TRUE(has_cull);
+    EXPECT_FALSE(brute_cull);
+  }
+  // And the lights are visible at all: 100 lights change the picture.
+  Settings none = LightSettings(128, 72, 0), some = LightSettings(128, 72, 100);
+  absl::StatusOr<Frame> a = SharedRenderer().Render(*DemoScene(), DemoCamera(), none);
+  absl::StatusOr<Frame> b = SharedRenderer().Render(*DemoScene(), DemoCamera(), some);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_LT(Psnr(a->image, b->image).value(), 45.0);
+  EXPECT_EQ(SharedRenderer().validation_message_count(), 0u);
+}
+
+TEST(ForwardPlus, FramesAreReproducibleBitForBit) {
+  const Settings s = LightSettings(128, 72, 2000);
+  absl::StatusOr<Frame> a = SharedRenderer().Render(*DemoScene(), DemoCamera(), s);
+  absl::StatusOr<Frame> b = SharedRenderer().Render(*DemoScene(), DemoCamera(), s);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->image.pixels, b->image.pixels);
+}
+
+// More lights than a list holds: the tile keeps the 256 lowest indices, sorted, and the
+// overflow is flagged and counted, not silently wrapped.
+TEST(ForwardPlus, OverflowIsFlaggedAndCounted) {
+  Settings s = LightSettings(64, 64, 65536);
+  s.tile_size = 32;
+  FrameCapture cap;
+  Camera cam;
+  cam.eye = glm::vec3(0.0f, 1.2f, 3.0f);
+  cam.target = glm::vec3(0.0f, 0.3f, 0.0f);
+  absl::StatusOr<Frame> f = SharedRenderer().Render(*DemoScene(), cam, s, &cap);
+  ASSERT_TRUE(f.ok()) << f.status();
+  EXPECT_GT(f->stats.tile_overflows, 0u);
+  EXPECT_EQ(f->stats.tile_lights_max, gpu::kMaxLightsPerTile);
+  const TileGrid grid{64, 64, 32};
+  std::vector<gpu::GpuLightBounds> bounds;
+  for (const Light& l : cap.local_lights)
+    bounds.push_back(BoundLight(l, cap.view, cap.proj, cam.znear, grid));
+  const TileLightLists ref = CullLightsReference(bounds, cap.depth, cap.proj, grid);
+  uint32_t overflowed = 0;
+  for (uint32_t t = 0; t < grid.tiles(); ++t) {
+    if (!(cap.tile_counts[t] & gpu::kTileOverflowBit)) continue;
+    ++overflowed;
+    TileLightLists gpu;
+    gpu.grid = grid;
+    gpu.counts = cap.tile_counts;
+    gpu.lights = cap.tile_lights;
+    const std::vector<uint32_t> g = gpu.List(t);
+    ASSERT_EQ(g.size(), gpu::kMaxLightsPerTile);
+    EXPECT_TRUE(std::is_sorted(g.begin(), g.end()));
+    EXPECT_TRUE(ref.counts[t] & gpu::kTileOverflowBit);
+  }
+  EXPECT_EQ(overflowed, f->stats.tile_overflows);
+}
+
+TEST(ForwardPlus, HeatmapShowsTileCounts) {
+  Settings s = LightSettings(128, 72, 1000);
+  s.debug_view = DebugView::kLightHeatmap;
+  absl::StatusOr<Frame> f = SharedRenderer().Render(*DemoScene(), DemoCamera(), s);
+  ASSERT_TRUE(f.ok());
+  EXPECT_TRUE(f->settings.notes.empty()) << f->settings.notes[0].message;
+  // Several distinct colours: the counts differ between tiles.
+  std::set<uint32_t> colours;
+  for (size_t i = 0; i < f->image.pixels.size(); i += 4)
+    colours.insert(uint32_t(f->image.pixels[i]) << 16 | uint32_t(f->image.pixels[i + 1]) << 8 |
+                   f->image.pixels[i + 2]);
+  EXPECT_GE(colours.size(), 4u);
+}
+
+}  // namespace
+}  // namespace tessera
