@@ -140,6 +140,29 @@ gpu::GpuLightBounds BoundLight(const Light& light, const glm::mat4& view, const 
   return b;
 }
 
+std::vector<uint32_t> BinLightsByRow(const std::vector<gpu::GpuLightBounds>& bounds,
+                                     uint32_t rows) {
+  std::vector<uint32_t> out(rows + 1, 0u);
+  for (const gpu::GpuLightBounds& b : bounds)
+    if (b.tiles.x <= b.tiles.z)
+      for (int y = std::max(b.tiles.y, 0); y <= std::min(b.tiles.w, int(rows) - 1); ++y) ++out[y];
+  uint32_t offset = rows + 1;  // counts -> offsets
+  for (uint32_t r = 0; r <= rows; ++r) {
+    const uint32_t n = r < rows ? out[r] : 0u;
+    out[r] = offset;
+    offset += n;
+  }
+  out.resize(offset);
+  std::vector<uint32_t> fill(out.begin(), out.begin() + rows);
+  for (uint32_t i = 0; i < bounds.size(); ++i) {
+    const gpu::GpuLightBounds& b = bounds[i];
+    if (b.tiles.x <= b.tiles.z)
+      for (int y = std::max(b.tiles.y, 0); y <= std::min(b.tiles.w, int(rows) - 1); ++y)
+        out[fill[y]++] = i;
+  }
+  return out;
+}
+
 std::vector<uint32_t> TileLightLists::List(uint32_t tile) const {
   const uint32_t n = std::min(counts[tile] & ~gpu::kTileOverflowBit, gpu::kMaxLightsPerTile);
   const auto* first = lights.data() + size_t(tile) * gpu::kMaxLightsPerTile;

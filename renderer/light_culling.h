@@ -36,6 +36,10 @@ struct TileGrid {
 gpu::GpuLightBounds BoundLight(const Light& light, const glm::mat4& view, const glm::mat4& proj,
                                float znear, const TileGrid& grid);
 
+// The lights binned by tile row, in index order, as shaders/light_cull.comp reads them:
+// entries 0..rows are offsets into the same array; row r's lights are [out[r], out[r + 1]).
+std::vector<uint32_t> BinLightsByRow(const std::vector<gpu::GpuLightBounds>& bounds, uint32_t rows);
+
 // View depth (distance along -Z) of a depth-buffer value, from the projection: reverse Z with a
 // finite or infinite far plane. depth_params as in FrameUniforms (x: proj[2][2], y: proj[3][2]).
 inline float ViewDepth(float d, float p22, float p32) { return p32 / (d + p22); }

@@ -113,6 +113,8 @@ struct Renderer::Impl {
   vk::Buffer tile_counts;
   vk::Buffer tile_lights;
   vk::Buffer tile_counts_readback;
+  vk::Buffer row_lights;  // lights binned by tile row (light_cull.comp)
+  uint32_t row_capacity = 0;
   uint32_t light_capacity = 0;
   uint32_t tile_capacity = 0;
   FrameTargets targets;
@@ -125,8 +127,8 @@ struct Renderer::Impl {
     targets = FrameTargets{};
     frame_ubo = vk::Buffer();
     lights_ubo = vk::Buffer();
-    for (vk::Buffer* b :
-         {&local_lights, &light_bounds, &tile_counts, &tile_lights, &tile_counts_readback})
+    for (vk::Buffer* b : {&local_lights, &light_bounds, &tile_counts, &tile_lights,
+                          &tile_counts_readback, &row_lights})
       *b = vk::Buffer();
     if (frame_pool) vkDestroyDescriptorPool(d, frame_pool, nullptr);
     if (queries) vkDestroyQueryPool(d, queries, nullptr);
@@ -142,6 +144,7 @@ struct Renderer::Impl {
   absl::Status Init();
   absl::Status EnsureTargets(uint32_t width, uint32_t height);
   absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
+  absl::Status EnsureRowBuffer(size_t entries);
   absl::Status Capture(FrameCapture* capture, uint32_t tiles);
   DrawLists BuildDrawLists(const GpuScene& scene, const glm::mat4& view, const glm::mat4& view_proj,
                            CullingMode culling, FrameStats& stats) const;
@@ -240,7 +243,20 @@ absl::Status Renderer::Impl::Init() {
                          VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload, "lights");
   if (!lu.ok()) return lu.status();
   lights_ubo = std::move(*lu);
+  if (absl::Status s = EnsureRowBuffer(1024); !s.ok()) return s;
   return EnsureLightBuffers(1, 1);
+}
+
+absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
+  if (entries <= row_capacity) return absl::OkStatus();
+  const uint32_t cap = uint32_t(std::max<size_t>(entries, size_t(row_capacity) * 2));
+  absl::StatusOr<vk::Buffer> b =
+      vk::Buffer::Create(*ctx, VkDeviceSize(cap) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                         vk::MemoryUsage::kUpload, "row_lights");
+  if (!b.ok()) return b.status();
+  row_lights = std::move(*b);
+  row_capacity = cap;
+  return absl::OkStatus();
 }
 
 absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles) {
@@ -552,11 +568,16 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   auto* gl = static_cast<gpu::GpuLight*>(m.lights_ubo.mapped());
   for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
   auto* ll = static_cast<gpu::GpuLight*>(m.local_lights.mapped());
-  auto* lb = static_cast<gpu::GpuLightBounds*>(m.light_bounds.mapped());
+  std::vector<gpu::GpuLightBounds> bounds(local.size());
   for (size_t i = 0; i < local.size(); ++i) {
     ll[i] = ToGpu(local[i]);
-    lb[i] = BoundLight(local[i], fu.view, fu.proj, camera.znear, grid);
+    bounds[i] = BoundLight(local[i], fu.view, fu.proj, camera.znear, grid);
   }
+  if (!bounds.empty())
+    std::memcpy(m.light_bounds.mapped(), bounds.data(), bounds.size() * sizeof(bounds[0]));
+  const std::vector<uint32_t> rows = BinLightsByRow(bounds, grid.tiles_y());
+  if (absl::Status st = m.EnsureRowBuffer(rows.size()); !st.ok()) return st;
+  std::memcpy(m.row_lights.mapped(), rows.data(), rows.size() * sizeof(uint32_t));
   const bool tiled = s.light_culling && !local.empty();
   fu.counts =
       glm::uvec4(uint32_t(global.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
@@ -618,6 +639,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   light_buffers.tile_counts = m.tile_counts.handle();
   light_buffers.tile_lights = m.tile_lights.handle();
   light_buffers.counts_readback = m.tile_counts_readback.handle();
+  light_buffers.row_lights = m.row_lights.handle();
   light_buffers.tiles = grid.tiles();
   pc.light_buffers = &light_buffers;
   std::vector<double> pass_wall_ms;

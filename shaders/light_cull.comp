@@ -2,8 +2,10 @@
 #extension GL_GOOGLE_include_directive : require
 // Forward+ light culling: one invocation per screen tile, no shared memory and no barriers
 // (lavapipe runs a workgroup as a loop of SIMD-8 coroutines, where both are costly). The CPU
-// projected every light once into a tile rectangle (GpuLightBounds), so the loop over lights
-// starts with four integer compares. Lights are visited in index order, so every list is sorted
+// projected every light once into a tile rectangle (GpuLightBounds) and binned it into the tile
+// rows it covers, so a tile visits only its row's lights, starting with four integer compares.
+// Sponza 1280x720, 20000 lights, lavapipe: looping over every light per tile cost 248 ms; the
+// row bins cut that to the figure in README.md. Lights are visited in index order, so every list is sorted
 // and frames are reproducible. renderer/light_culling.cpp has the same algorithm on the CPU;
 // keep the two in step.
 #include "common/gpu_types.h"
@@ -20,6 +22,9 @@ layout(set = 0, binding = kCullBindingTileCounts, std430) writeonly buffer Count
 };
 layout(set = 0, binding = kCullBindingTileLights, std430) writeonly buffer ListBlock {
   uint tile_lights[];
+};
+layout(set = 0, binding = kCullBindingRowLights, std430) readonly buffer RowBlock {
+  uint row_lights[];
 };
 
 vec3 CornerRay(vec2 pixel) {
@@ -86,8 +91,10 @@ void main() {
       tr = max(tr, max(length(rays[i] * dmin - tc), length(rays[i] * dmax - tc)));
 
     uint base = tile * kMaxLightsPerTile;
-    uint n_lights = frame.lighting.x;
-    for (uint i = 0u; i < n_lights; ++i) {
+    // Only the lights binned to this tile row (in index order).
+    uint row_end = row_lights[ty + 1u];
+    for (uint k = row_lights[ty]; k < row_end; ++k) {
+      uint i = row_lights[k];
       ivec4 r = light_bounds[i].tiles;
       if (int(tx) < r.x || int(tx) > r.z || int(ty) < r.y || int(ty) > r.w) continue;
       vec4 s = light_bounds[i].sphere;

@@ -39,8 +39,9 @@ class LightCullPass final : public Pass {
                                       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     const VkDescriptorBufferInfo counts{lb.tile_counts, 0, VK_WHOLE_SIZE};
     const VkDescriptorBufferInfo lists{lb.tile_lights, 0, VK_WHOLE_SIZE};
-    VkWriteDescriptorSet w[5];
-    for (uint32_t i = 0; i < 5; ++i) {
+    const VkDescriptorBufferInfo rows{lb.row_lights, 0, VK_WHOLE_SIZE};
+    VkWriteDescriptorSet w[6];
+    for (uint32_t i = 0; i < 6; ++i) {
       w[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
       w[i].dstSet = set;
       w[i].dstBinding = i;
@@ -54,7 +55,8 @@ class LightCullPass final : public Pass {
     w[gpu::kCullBindingDepth].pImageInfo = &depth;
     w[gpu::kCullBindingTileCounts].pBufferInfo = &counts;
     w[gpu::kCullBindingTileLights].pBufferInfo = &lists;
-    vkUpdateDescriptorSets(device_, 5, w, 0, nullptr);
+    w[gpu::kCullBindingRowLights].pBufferInfo = &rows;
+    vkUpdateDescriptorSets(device_, 6, w, 0, nullptr);
 
     // The previous frame's shading read these buffers: finish before they are rewritten.
     VkBufferMemoryBarrier2 before[2];
@@ -128,9 +130,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx
        VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
       {gpu::kCullBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
        VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+      {gpu::kCullBindingRowLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+       VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  li.bindingCount = 5;
+  li.bindingCount = 6;
   li.pBindings = bindings;
   VkDescriptorSetLayout set_layout;
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(ctx.device(), &li, nullptr, &set_layout),

@@ -48,6 +48,7 @@ struct LightCullBuffers {
   VkBuffer tile_counts = VK_NULL_HANDLE;      // uint per tile
   VkBuffer tile_lights = VK_NULL_HANDLE;      // uint per tile x kMaxLightsPerTile
   VkBuffer counts_readback = VK_NULL_HANDLE;  // host copy of tile_counts
+  VkBuffer row_lights = VK_NULL_HANDLE;       // lights binned by tile row (gpu_types.h)
   uint32_t tiles = 0;
 };
 

@@ -49,6 +49,9 @@ TS_CONST uint kCullBindingLightBounds = 1;  // buffer GpuLightBounds[]
 TS_CONST uint kCullBindingDepth = 2;        // sampler2D: the depth prepass
 TS_CONST uint kCullBindingTileCounts = 3;   // buffer uint[] (written)
 TS_CONST uint kCullBindingTileLights = 4;   // buffer uint[] (written)
+// The lights binned by tile row on the CPU: entries 0..rows are offsets into the same array,
+// row r's lights (sorted) are at [offset[r], offset[r + 1]).
+TS_CONST uint kCullBindingRowLights = 5;
 // ---- descriptor set 1: one material ---------------------------------------------------------
 // One set per material, bound when the material changes between draws: binding 0 is the
 // material itself as a uniform buffer range, binding 1 + k the bucket (sampler2DArray) holding
