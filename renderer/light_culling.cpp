@@ -65,8 +65,9 @@ TileFrustum MakeTileFrustum(const glm::mat4& proj, const TileGrid& g, uint32_t t
 }
 
 uint32_t SliceMask(float z0, float z1, float dmin, float scale) {
-  const int s0 = std::clamp(int(std::floor((z0 - dmin) * scale)), 0, 31);
-  const int s1 = std::clamp(int(std::floor((z1 - dmin) * scale)), 0, 31);
+  // Clamped as floats: (z - dmin) * scale can exceed the int range when dmax ~ dmin.
+  const int s0 = int(std::clamp(std::floor((z0 - dmin) * scale), 0.0f, 31.0f));
+  const int s1 = int(std::clamp(std::floor((z1 - dmin) * scale), 0.0f, 31.0f));
   if (z1 < dmin) return 0u;
   const uint32_t hi = s1 == 31 ? 0xffffffffu : ((2u << s1) - 1u);
   return hi & ~((1u << s0) - 1u);
@@ -131,6 +132,13 @@ gpu::GpuLightBounds BoundLight(const Light& light, const glm::mat4& view, const 
     py0 = std::min(py0, sy);
     py1 = std::max(py1, sy);
   }
+  // Clamped to just outside the frame before the integer conversion (huge spheres close to the
+  // near plane project far outside it).
+  const float w = float(grid.width), h = float(grid.height);
+  px0 = std::clamp(px0, -1.0f, w + 1.0f);
+  px1 = std::clamp(px1, -1.0f, w + 1.0f);
+  py0 = std::clamp(py0, -1.0f, h + 1.0f);
+  py1 = std::clamp(py1, -1.0f, h + 1.0f);
   const float ts = float(grid.tile_size);
   const int x0 = std::max(0, int(std::floor(px0 / ts))),
             x1 = std::min(tx_max, int(std::floor(px1 / ts)));
@@ -200,7 +208,7 @@ TileLightLists CullLightsReference(const std::vector<gpu::GpuLightBounds>& bound
           const float d = depth[size_t(y) * grid.width + x];
           if (d <= 0.0f) continue;
           const float z = ViewDepth(d, p22, p32);
-          mask |= 1u << std::min(31, int((z - dmin) * scale));
+          mask |= 1u << uint32_t(std::min(31.0f, (z - dmin) * scale));
         }
       const TileFrustum f = MakeTileFrustum(proj, grid, tx, ty);
       // The tile's bounding sphere between dmin and dmax, for the spot-light cone test.

@@ -407,10 +407,12 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles) {
   region.imageExtent = {targets.width, targets.height, 1};
   vkCmdCopyImageToBuffer(cmd, targets.depth.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                          host->handle(), 1, &region);
-  const VkBufferCopy counts{0, depth_bytes, count_bytes};
-  vkCmdCopyBuffer(cmd, tile_counts.handle(), host->handle(), 1, &counts);
-  const VkBufferCopy lists{0, depth_bytes + count_bytes, list_bytes};
-  vkCmdCopyBuffer(cmd, tile_lights.handle(), host->handle(), 1, &lists);
+  if (tiles > 0) {  // the lists exist only when the light-culling pass ran
+    const VkBufferCopy counts{0, depth_bytes, count_bytes};
+    vkCmdCopyBuffer(cmd, tile_counts.handle(), host->handle(), 1, &counts);
+    const VkBufferCopy lists{0, depth_bytes + count_bytes, list_bytes};
+    vkCmdCopyBuffer(cmd, tile_lights.handle(), host->handle(), 1, &lists);
+  }
   VkMemoryBarrier2 hb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
   hb.srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
   hb.srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT;
@@ -546,14 +548,15 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   // the synthetic ones, are local and culled per tile. A scene without lights gets a sun.
   std::vector<Light> global, local;
   if (s.scene_lights) {
+    // Point and spot lights without a range reach everywhere: they are global too.
     for (const Light& l : gs.lights())
-      (l.type == LightType::kDirectional ? global : local).push_back(l);
+      (l.type == LightType::kDirectional || l.range <= 0.0f ? global : local).push_back(l);
   }
   if (global.empty() && local.empty()) global.push_back(DefaultSun());
   if (global.size() > gpu::kMaxLights) {
     frame.settings.notes.push_back(
         {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", global.size(),
-                                      " directional lights are shaded")});
+                                      " directional or unbounded lights are shaded")});
     global.resize(gpu::kMaxLights);
   }
   if (s.synthetic_lights > 0) {
@@ -561,9 +564,27 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
         MakeSyntheticLights(scene.info().bounds, s.synthetic_lights, s.light_seed);
     local.insert(local.end(), synthetic.begin(), synthetic.end());
   }
-  if (local.size() > gpu::kMaxLocalLights) local.resize(gpu::kMaxLocalLights);
+  if (local.size() > gpu::kMaxLocalLights) {
+    frame.settings.notes.push_back(
+        {"synthetic_lights", absl::StrCat("only the first ", gpu::kMaxLocalLights, " of ",
+                                          local.size(), " point and spot lights are shaded")});
+    local.resize(gpu::kMaxLocalLights);
+  }
   const TileGrid grid{s.width, s.height, s.tile_size};
-  if (absl::Status st = m.EnsureLightBuffers(uint32_t(local.size()), grid.tiles()); !st.ok())
+  // Tile lists take tiles x 1 KiB; past 128 MiB (lavapipe's storage-buffer range) the frame
+  // shades every light instead, and says so.
+  constexpr uint64_t kMaxTileListBytes = 128ull << 20;
+  bool tiled = s.light_culling && !local.empty();
+  if (tiled && uint64_t(grid.tiles()) * gpu::kMaxLightsPerTile * 4 > kMaxTileListBytes) {
+    frame.settings.notes.push_back(
+        {"light_culling", absl::StrCat("not applied: ", grid.tiles(), " tiles of ", s.tile_size,
+                                       " px need more than 128 MiB of light lists; every light "
+                                       "is shaded at every pixel (use a larger tile_size)")});
+    frame.settings.effective.light_culling = false;
+    tiled = false;
+  }
+  if (absl::Status st = m.EnsureLightBuffers(uint32_t(local.size()), tiled ? grid.tiles() : 1);
+      !st.ok())
     return st;
   auto* gl = static_cast<gpu::GpuLight*>(m.lights_ubo.mapped());
   for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
@@ -578,7 +599,6 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   const std::vector<uint32_t> rows = BinLightsByRow(bounds, grid.tiles_y());
   if (absl::Status st = m.EnsureRowBuffer(rows.size()); !st.ok()) return st;
   std::memcpy(m.row_lights.mapped(), rows.data(), rows.size() * sizeof(uint32_t));
-  const bool tiled = s.light_culling && !local.empty();
   fu.counts =
       glm::uvec4(uint32_t(global.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
   fu.params = glm::vec4(0.0f, camera.znear, camera.zfar, 0.0f);
@@ -591,7 +611,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
 
   const DrawLists draws = m.BuildDrawLists(gs, fu.view, fu.view_proj, s.culling, frame.stats);
   const std::vector<PassId> pass_ids =
-      SelectPasses(s, {!draws.blend.empty(), uint32_t(local.size())});
+      SelectPasses(frame.settings.effective, {!draws.blend.empty(), uint32_t(local.size())});
   const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids);
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
@@ -707,7 +727,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     frame.stats.tile_overflows = ts.overflows;
   }
   if (capture) {
-    if (absl::Status st = m.Capture(capture, grid.tiles()); !st.ok()) return st;
+    if (absl::Status st = m.Capture(capture, tiled ? grid.tiles() : 0); !st.ok()) return st;
     capture->local_lights = std::move(local);
     capture->view = fu.view;
     capture->proj = fu.proj;

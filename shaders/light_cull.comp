@@ -36,8 +36,9 @@ float ViewDepth(float d) { return frame.depth_params.y / (d + frame.depth_params
 
 uint SliceMask(float z0, float z1, float dmin, float scale) {
   if (z1 < dmin) return 0u;
-  int s0 = clamp(int(floor((z0 - dmin) * scale)), 0, 31);
-  int s1 = clamp(int(floor((z1 - dmin) * scale)), 0, 31);
+  // Clamped as floats: (z - dmin) * scale can exceed the int range when dmax ~ dmin.
+  int s0 = int(clamp(floor((z0 - dmin) * scale), 0.0, 31.0));
+  int s1 = int(clamp(floor((z1 - dmin) * scale), 0.0, 31.0));
   uint hi = s1 == 31 ? 0xffffffffu : ((2u << uint(s1)) - 1u);
   return hi & ~((1u << uint(s0)) - 1u);
 }
@@ -71,7 +72,7 @@ void main() {
     for (int y = p0.y; y < p1.y; ++y)
       for (int x = p0.x; x < p1.x; ++x) {
         float d = texelFetch(u_depth, ivec2(x, y), 0).r;
-        if (d > 0.0) mask |= 1u << uint(min(31, int((ViewDepth(d) - dmin) * scale)));
+        if (d > 0.0) mask |= 1u << uint(min(31.0, (ViewDepth(d) - dmin) * scale));
       }
     // The tile frustum from all four corners; normals face the centre ray.
     vec3 rays[4] = vec3[4](CornerRay(vec2(p0)), CornerRay(vec2(p1.x, p0.y)), CornerRay(vec2(p1)),
