@@ -75,19 +75,27 @@ uint32_t SliceMask(float z0, float z1, float dmin, float scale) {
 
 }  // namespace
 
-std::vector<Light> MakeSyntheticLights(const Aabb& bounds, uint32_t count, uint32_t seed) {
+std::vector<Light> MakeSyntheticLights(const Aabb& bounds, const SyntheticLightParams& p) {
   std::vector<Light> lights;
   if (bounds.empty()) return lights;
-  lights.reserve(count);
+  lights.reserve(p.count);
   const glm::vec3 ext = bounds.extent();
   const float diag = glm::length(ext);
-  for (uint32_t i = 0; i < count; ++i) {
+  const float r0 = p.radius_min > 0.0f ? p.radius_min : 0.01f * diag;
+  const float r1 = std::max(r0, p.radius_max > 0.0f ? p.radius_max : 0.04f * diag);
+  const uint32_t seed = p.seed;
+  for (uint32_t i = 0; i < p.count; ++i) {
     Light l;
     l.name = "synthetic";
     l.type = LightType::kPoint;
     l.position =
         bounds.min + ext * glm::vec3(Random(seed, i, 0), Random(seed, i, 1), Random(seed, i, 2));
-    l.range = diag * (0.01f + 0.03f * Random(seed, i, 3));
+    l.range = r0 + (r1 - r0) * Random(seed, i, 3);
+    if (p.animated) {  // a horizontal circle, 0.5..1.5 rad/s either way, random phase
+      const float speed = (0.5f + Random(seed, i, 5)) * (Random(seed, i, 6) < 0.5f ? -1.0f : 1.0f);
+      const float angle = 6.2831853f * Random(seed, i, 7) + speed * p.time;
+      l.position += 0.5f * l.range * glm::vec3(std::cos(angle), 0.0f, std::sin(angle));
+    }
     l.color = glm::mix(glm::vec3(1.0f), Hue(Random(seed, i, 4)), 0.7f);
     l.intensity = 0.3f * l.range * l.range;
     lights.push_back(l);

@@ -18,10 +18,19 @@
 
 namespace tessera {
 
-// `count` point lights inside `bounds`, a deterministic function of (bounds, count, seed): light
-// i is the same whatever the count. Ranges between 1% and 4% of the bounds' diagonal, random
-// hues, intensity proportional to range^2 so each light makes a pool of similar brightness.
-std::vector<Light> MakeSyntheticLights(const Aabb& bounds, uint32_t count, uint32_t seed);
+struct SyntheticLightParams {
+  uint32_t count = 0;
+  uint32_t seed = 1;
+  float radius_min = 0.0f;  // world units; 0: 1% of the bounds' diagonal
+  float radius_max = 0.0f;  // 0: 4% of the diagonal (at least radius_min)
+  bool animated = false;    // each light circles its place, radius half its range
+  float time = 0.0f;        // seconds
+};
+
+// Point lights inside `bounds`, a deterministic function of (bounds, params): light i is the
+// same whatever the count. Random ranges in [radius_min, radius_max], random hues, intensity
+// proportional to range^2 so each light makes a pool of similar brightness.
+std::vector<Light> MakeSyntheticLights(const Aabb& bounds, const SyntheticLightParams& params);
 
 struct TileGrid {
   uint32_t width = 0, height = 0, tile_size = 16;

@@ -560,8 +560,9 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     global.resize(gpu::kMaxLights);
   }
   if (s.synthetic_lights > 0) {
-    std::vector<Light> synthetic =
-        MakeSyntheticLights(scene.info().bounds, s.synthetic_lights, s.light_seed);
+    std::vector<Light> synthetic = MakeSyntheticLights(
+        scene.info().bounds, {s.synthetic_lights, s.light_seed, s.light_radius_min,
+                              s.light_radius_max, s.lights_animated, s.light_time});
     local.insert(local.end(), synthetic.begin(), synthetic.end());
   }
   if (local.size() > gpu::kMaxLocalLights) {

@@ -88,6 +88,14 @@ absl::Status ValidateSettings(const Settings& s) {
   if (!Known(kCullingNames, s.culling))
     return bad("culling", static_cast<uint32_t>(s.culling), "a CullingMode");
   if (s.synthetic_lights > 65536) return bad("synthetic_lights", s.synthetic_lights, "0..65536");
+  if (!std::isfinite(s.light_radius_min) || s.light_radius_min < 0.0f || s.light_radius_min > 1e6f)
+    return bad("light_radius_min", s.light_radius_min, "0..1e6 world units, 0 = auto");
+  if (!std::isfinite(s.light_radius_max) || s.light_radius_max < 0.0f || s.light_radius_max > 1e6f)
+    return bad("light_radius_max", s.light_radius_max, "0..1e6 world units, 0 = auto");
+  if (s.light_radius_max > 0.0f && s.light_radius_max < s.light_radius_min)
+    return bad("light_radius_max", s.light_radius_max, ">= light_radius_min");
+  if (!std::isfinite(s.light_time) || std::abs(s.light_time) > 1e6f)
+    return bad("light_time", s.light_time, "-1e6..1e6 seconds");
   if (s.tile_size != 8 && s.tile_size != 16 && s.tile_size != 32)
     return bad("tile_size", s.tile_size, "8, 16 or 32");
   if (!Known(kExposureNames, s.exposure_mode))

@@ -36,7 +36,13 @@ struct Settings {
   uint32_t synthetic_lights = 0;  // random point lights added in the scene bounds, 0..65536
   uint32_t light_seed = 1;        // seed of the synthetic lights
   uint32_t tile_size = 16;        // light-culling tile, 8 | 16 | 32 pixels
-  bool light_culling = true;      // forward+ tile lists; false: every light for every pixel
+  // Range of the synthetic lights in world units, min..max (0: 1% / 4% of the scene diagonal).
+  float light_radius_min = 0.0f;
+  float light_radius_max = 0.0f;
+  bool lights_animated = false;  // synthetic lights circle around their place (see light_time)
+  float light_time = 0.0f;       // seconds; where animated lights are (deterministic)
+  bool light_culling = true;     // forward+ tile lists; false: every light for every pixel
+  bool tile_depth_mask = true;   // 2.5D depth mask per tile (false: min/max depth bounds only)
   bool shadows = false;
   bool ssao = false;
   bool bloom = false;

@@ -70,6 +70,11 @@ absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSet
   if (u.has_jpeg_quality()) s.jpeg_quality = u.jpeg_quality();
   if (u.has_jpeg_444()) s.jpeg_444 = u.jpeg_444();
   if (u.has_light_culling()) s.light_culling = u.light_culling();
+  if (u.has_light_radius_min()) s.light_radius_min = u.light_radius_min();
+  if (u.has_light_radius_max()) s.light_radius_max = u.light_radius_max();
+  if (u.has_lights_animated()) s.lights_animated = u.lights_animated();
+  if (u.has_light_time()) s.light_time = u.light_time();
+  if (u.has_tile_depth_mask()) s.tile_depth_mask = u.tile_depth_mask();
   if (absl::Status st = ValidateSettings(s); !st.ok()) return st;
   return s;
 }
@@ -156,6 +161,11 @@ void ToProto(const Settings& s, v1::RenderSettings* o) {
   o->set_jpeg_quality(s.jpeg_quality);
   o->set_jpeg_444(s.jpeg_444);
   o->set_light_culling(s.light_culling);
+  o->set_light_radius_min(s.light_radius_min);
+  o->set_light_radius_max(s.light_radius_max);
+  o->set_lights_animated(s.lights_animated);
+  o->set_light_time(s.light_time);
+  o->set_tile_depth_mask(s.tile_depth_mask);
 }
 
 void ToProto(const Aabb& box, v1::Aabb* out) {

@@ -27,6 +27,9 @@ const char kSettingsFlagsUsage[] = R"(settings (unset ones take the server's def
   --no-scene-lights   ignore the file's KHR_lights_punctual lights (--scene-lights: use them)
   --tile-size N       light-culling tile, 8|16|32 pixels
   --no-light-culling  shade every light at every pixel (brute force; --light-culling: tiles)
+  --light-radius MIN,MAX   synthetic light range in world units (default 1%..4% of the scene)
+  --animate-lights    synthetic lights circle around   --light-time SECONDS  where they are
+  --no-tile-depth-mask     cull with per-tile depth bounds only (no 2.5D mask)
   --shadows --ssao --bloom --ibl   turn effects on (--no-shadows etc.: off)
   --exposure EV       fixed exposure in stops (default 0)   --auto-exposure
   --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask
@@ -43,19 +46,22 @@ v1::Vec3 Vec3(float x, float y, float z) {
   return v;
 }
 
-v1::Vec3 ParseVec3(ArgReader& args) {
+// N comma-separated numbers (N = 2 or 3); unused components are 0.
+v1::Vec3 ParseNumbers(ArgReader& args, size_t n, const char* form) {
   const std::string flag = args.current();
   const std::string s = args.Value();
   std::vector<std::string> parts = absl::StrSplit(s, ',');
-  if (parts.size() != 3) args.Fail(absl::StrCat(flag, " wants X,Y,Z, got '", s, "'"));
-  float v[3];
-  for (int i = 0; i < 3; ++i) {
+  if (parts.size() != n) args.Fail(absl::StrCat(flag, " wants ", form, ", got '", s, "'"));
+  float v[3] = {0.0f, 0.0f, 0.0f};
+  for (size_t i = 0; i < n; ++i) {
     if (!absl::SimpleAtof(parts[i], &v[i]) || !std::isfinite(v[i])) {
       args.Fail(absl::StrCat(flag, ": not a number: '", parts[i], "'"));
     }
   }
   return Vec3(v[0], v[1], v[2]);
 }
+
+v1::Vec3 ParseVec3(ArgReader& args) { return ParseNumbers(args, 3, "X,Y,Z"); }
 
 // An enum setting by its lower-case name ("msaa" -> AA_MSAA).
 int ParseEnum(ArgReader& args, const google::protobuf::EnumDescriptor* type) {
@@ -78,6 +84,8 @@ bool ParseToggle(ArgReader& args, v1::RenderSettings* settings) {
       {"bloom", &v1::RenderSettings::set_bloom},
       {"ibl", &v1::RenderSettings::set_ibl},
       {"light-culling", &v1::RenderSettings::set_light_culling},
+      {"tile-depth-mask", &v1::RenderSettings::set_tile_depth_mask},
+      {"animate-lights", &v1::RenderSettings::set_lights_animated},
   };
   for (const auto& [name, set] : kToggles) {
     if (args.Is(absl::StrCat("--", name))) {
@@ -142,6 +150,12 @@ bool RenderFlags::ParseSettings(ArgReader& args) {
     s.set_light_seed(args.Uint());
   } else if (args.Is("--tile-size")) {
     s.set_tile_size(args.Uint());
+  } else if (args.Is("--light-radius")) {
+    const v1::Vec3 r = ParseNumbers(args, 2, "MIN,MAX");
+    s.set_light_radius_min(r.x());
+    s.set_light_radius_max(r.y());
+  } else if (args.Is("--light-time")) {
+    s.set_light_time(args.Float());
   } else if (ParseToggle(args, &s)) {
     // done
   } else if (args.Is("--exposure")) {

@@ -34,6 +34,9 @@ constexpr char kUsage[] = R"(usage: tessera-render [options]
   --lights N          N synthetic point lights in the scene bounds   --light-seed N
   --tile-size N       light-culling tile, 8|16|32 pixels
   --no-light-culling  shade every light at every pixel (brute force, for comparison)
+  --light-radius MIN,MAX   synthetic light range in world units (default 1%..4% of the scene)
+  --animate-lights    synthetic lights circle around   --light-time SECONDS  where they are
+  --no-tile-depth-mask     cull with per-tile depth bounds only (no 2.5D mask)
   --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
   --frames N          render N frames and report the last (default 1)
   --device NAME       pick a Vulkan device by (part of) its name
@@ -142,7 +145,18 @@ int main(int argc, char** argv) {
       settings.tile_size = ParseUint(arg, value());
     else if (arg == "--no-light-culling")
       settings.light_culling = false;
-    else if (arg == "--quality")
+    else if (arg == "--no-tile-depth-mask")
+      settings.tile_depth_mask = false;
+    else if (arg == "--animate-lights")
+      settings.lights_animated = true;
+    else if (arg == "--light-time")
+      settings.light_time = ParseFloat(arg, value());
+    else if (arg == "--light-radius") {
+      const std::vector<std::string> r = absl::StrSplit(value(), ',');
+      if (r.size() != 2) Fail("--light-radius wants MIN,MAX");
+      settings.light_radius_min = ParseFloat(arg, r[0]);
+      settings.light_radius_max = ParseFloat(arg, r[1]);
+    } else if (arg == "--quality")
       settings.jpeg_quality = ParseUint(arg, value());
     else if (arg == "--chroma") {
       const std::string c = value();

@@ -173,6 +173,15 @@ int main(int argc, char** argv) {
                     {"p95", tiled.stats.tile_lights_p95},
                     {"max", tiled.stats.tile_lights_max},
                     {"overflows", tiled.stats.tile_overflows}}}};
+    // The same with per-tile depth bounds only (no 2.5D mask), to measure what the mask buys.
+    s.tile_depth_mask = false;
+    const Measured bounds_only = Measure(**renderer, **scene, cam, s, warmup, frames);
+    s.tile_depth_mask = true;
+    r["tiled_depth_bounds_only"] = {{"light_cull_ms", bounds_only.light_cull},
+                                    {"forward_ms", bounds_only.forward},
+                                    {"frame_ms", bounds_only.frame},
+                                    {"lights_per_tile_avg", bounds_only.stats.tile_lights_avg},
+                                    {"lights_per_tile_max", bounds_only.stats.tile_lights_max}};
     if (n <= brute_max) {
       s.light_culling = false;
       const Measured brute = Measure(**renderer, **scene, cam, s, 0, 1);

@@ -57,10 +57,10 @@ TEST(SyntheticLights, DeterministicInsideBoundsAndStableUnderCount) {
   Aabb box;
   box.extend(glm::vec3(-3.0f, 0.0f, -2.0f));
   box.extend(glm::vec3(5.0f, 4.0f, 6.0f));
-  const std::vector<Light> a = MakeSyntheticLights(box, 100, 3);
-  const std::vector<Light> b = MakeSyntheticLights(box, 100, 3);
-  const std::vector<Light> more = MakeSyntheticLights(box, 300, 3);
-  const std::vector<Light> other = MakeSyntheticLights(box, 100, 4);
+  const std::vector<Light> a = MakeSyntheticLights(box, {100, 3});
+  const std::vector<Light> b = MakeSyntheticLights(box, {100, 3});
+  const std::vector<Light> more = MakeSyntheticLights(box, {300, 3});
+  const std::vector<Light> other = MakeSyntheticLights(box, {100, 4});
   ASSERT_EQ(a.size(), 100u);
   int differ = 0;
   for (size_t i = 0; i < a.size(); ++i) {
@@ -75,6 +75,30 @@ TEST(SyntheticLights, DeterministicInsideBoundsAndStableUnderCount) {
     EXPECT_EQ(a[i].type, LightType::kPoint);
   }
   EXPECT_GT(differ, 95) << "another seed must give other lights";
+}
+
+TEST(SyntheticLights, RadiusRangeAndAnimation) {
+  Aabb box;
+  box.extend(glm::vec3(0.0f));
+  box.extend(glm::vec3(10.0f));
+  for (const Light& l : MakeSyntheticLights(box, {500, 1, 0.25f, 0.5f})) {
+    EXPECT_GE(l.range, 0.25f);
+    EXPECT_LE(l.range, 0.5f);
+  }
+  SyntheticLightParams p{50, 2};
+  p.animated = true;
+  p.time = 1.0f;
+  const std::vector<Light> t1 = MakeSyntheticLights(box, p), t1b = MakeSyntheticLights(box, p);
+  p.time = 2.0f;
+  const std::vector<Light> t2 = MakeSyntheticLights(box, p);
+  p.animated = false;
+  const std::vector<Light> still = MakeSyntheticLights(box, p);
+  for (size_t i = 0; i < t1.size(); ++i) {
+    EXPECT_EQ(t1[i].position, t1b[i].position) << "deterministic for a time";
+    EXPECT_NE(t1[i].position, t2[i].position) << "moves with time";
+    // On a circle of half its range around the still position.
+    EXPECT_NEAR(glm::length(t1[i].position - still[i].position), 0.5f * still[i].range, 1e-4f);
+  }
 }
 
 TEST(TileStats, AverageMedianP95MaxAndOverflows) {
@@ -114,8 +138,49 @@ TEST(TileFrustum, CornersAreTheTilesOwn) {
   };
   // A small light on the corner ray at the wall touches exactly the four tiles around it.
   EXPECT_EQ(lists_for(corner_ray * 10.0f, 0.05f), (std::set<uint32_t>{5, 6, 9, 10}));
+  // With the tile rectangle opened to the whole grid, only the planes can reject: a sphere right
+  // of the vertical corner plane (0.6 > r = 0.5 from it) and straddling the horizontal one
+  // belongs to tiles 6 and 10 and no other.
+  {
+    Light l;
+    l.position = glm::vec3(glm::inverse(view) *
+                           glm::vec4(corner_ray * 10.0f + glm::vec3(0.6f, -0.3f, 0.0f), 1.0f));
+    l.range = 0.5f;
+    gpu::GpuLightBounds b = BoundLight(l, view, proj, cam.znear, grid);
+    b.tiles = glm::ivec4(0, 0, 3, 3);
+    const TileLightLists t = CullLightsReference({b}, depth, proj, grid);
+    std::set<uint32_t> tiles;
+    for (uint32_t i = 0; i < grid.tiles(); ++i)
+      if (t.counts[i] > 0) tiles.insert(i);
+    EXPECT_EQ(tiles, (std::set<uint32_t>{6, 10}));
+  }
   // Far in front of the wall (depth 2) the light misses the wall's depth range entirely.
   EXPECT_TRUE(lists_for(corner_ray * 2.0f, 0.5f).empty());
+}
+
+// A tile whose pixels are half at depth 5 and half at depth 50: a light floating at depth 25
+// passes the depth bounds but not the 2.5D mask; a light at depth 50 passes both.
+TEST(TileMask, RejectsLightsInTheDepthGap) {
+  const TileGrid grid{16, 16, 16};
+  Camera cam;
+  cam.eye = glm::vec3(0.0f);
+  cam.target = glm::vec3(0.0f, 0.0f, -1.0f);
+  const glm::mat4 view = ViewMatrix(cam), proj = ProjectionMatrix(cam, 1.0f);
+  std::vector<float> depth(16 * 16);
+  for (uint32_t y = 0; y < 16; ++y)
+    for (uint32_t x = 0; x < 16; ++x)
+      depth[y * 16 + x] = proj[3][2] / (x < 8 ? 5.0f : 50.0f) - proj[2][2];
+  auto culled = [&](float z) {
+    Light l;
+    l.position = glm::vec3(0.0f, 0.0f, -z);  // view == world here
+    l.range = 1.0f;
+    const TileLightLists t =
+        CullLightsReference({BoundLight(l, view, proj, cam.znear, grid)}, depth, proj, grid);
+    return t.counts[0] == 0;
+  };
+  EXPECT_TRUE(culled(25.0f));
+  EXPECT_FALSE(culled(50.0f));
+  EXPECT_FALSE(culled(5.0f));
 }
 
 // --- the GPU pass ------------------------------------------------------------------------
@@ -243,6 +308,37 @@ TEST(ForwardPlus, TiledImageEqualsBruteForce) {
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_LT(Psnr(a->image, b->image).value(), 45.0);
   EXPECT_EQ(SharedRenderer().validation_message_count(), 0u);
+}
+
+// Without the 2.5D mask lists can only grow (the mask only rejects), and the image is the same.
+TEST(ForwardPlus, DepthMaskOnlyRejects) {
+  // Large tiles hold depth discontinuities (object edges against the floor far behind), where
+  // lights floating in the gap are what the mask rejects.
+  Settings s = LightSettings(256, 144, 4000);
+  s.tile_size = 32;
+  FrameCapture with, without;
+  absl::StatusOr<Frame> a = SharedRenderer().Render(*DemoScene(), DemoCamera(), s, &with);
+  s.tile_depth_mask = false;
+  absl::StatusOr<Frame> b = SharedRenderer().Render(*DemoScene(), DemoCamera(), s, &without);
+  ASSERT_TRUE(a.ok() && b.ok());
+  TileLightLists la, lb;
+  la.counts = with.tile_counts;
+  la.lights = with.tile_lights;
+  lb.counts = without.tile_counts;
+  lb.lights = without.tile_lights;
+  uint64_t sum_a = 0, sum_b = 0;
+  for (uint32_t t = 0; t < with.tile_counts.size(); ++t) {
+    if ((with.tile_counts[t] | without.tile_counts[t]) & gpu::kTileOverflowBit) continue;
+    const std::vector<uint32_t> x = la.List(t), y = lb.List(t);
+    EXPECT_TRUE(std::includes(y.begin(), y.end(), x.begin(), x.end())) << "tile " << t;
+    sum_a += x.size();
+    sum_b += y.size();
+  }
+  // How many it rejects depends on the view: floors fill most tiles' depth slices, so here it may
+  // be none (TileMask.RejectsLightsInTheDepthGap shows a rejection; the reference tests hold
+  // the GPU's masked lists to the CPU's).
+  EXPECT_LE(sum_a, sum_b);
+  EXPECT_EQ(a->image.pixels, b->image.pixels);
 }
 
 TEST(ForwardPlus, FramesAreReproducibleBitForBit) {
