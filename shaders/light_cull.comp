@@ -4,8 +4,10 @@
 // (lavapipe runs a workgroup as a loop of SIMD-8 coroutines, where both are costly). The CPU
 // projected every light once into a tile rectangle (GpuLightBounds) and binned it into the tile
 // rows it covers, so a tile visits only its row's lights, starting with four integer compares.
-// Sponza 1280x720, 20000 lights, lavapipe: looping over every light per tile cost 248 ms; the
-// row bins cut that to the figure in README.md. Lights are visited in index order, so every list is sorted
+// Measured on lavapipe (2 cores), Sponza 1280x720, 16 px tiles, tessera-lights-bench: looping
+// over every light in every tile cost 55 ms at 4096 lights and 248 ms at 20000; with the row
+// bins it is 17 ms and 74 ms, so the bins stay. (Shared-memory variants were not tried: a
+// workgroup barrier on lavapipe switches between its SIMD-8 coroutines.) Lights are visited in index order, so every list is sorted
 // and frames are reproducible. renderer/light_culling.cpp has the same algorithm on the CPU;
 // keep the two in step.
 #include "common/gpu_types.h"

@@ -15,30 +15,12 @@
 #include "renderer/image_io.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
+#include "shared_renderer.h"
 
 namespace tessera {
 namespace {
 
-Renderer& SharedRenderer() {
-  static std::unique_ptr<Renderer> renderer = [] {
-    absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create({.validation = true});
-    if (!r.ok()) {
-      ADD_FAILURE() << "no Vulkan device: " << r.status();
-      std::abort();
-    }
-    return std::move(*r);
-  }();
-  return *renderer;
-}
-
-const SceneHandle& DemoScene() {
-  static SceneHandle scene = [] {
-    absl::StatusOr<SceneHandle> s = SharedRenderer().LoadScene(BuildDemoScene());
-    EXPECT_TRUE(s.ok()) << s.status();
-    return s.ok() ? *s : nullptr;
-  }();
-  return scene;
-}
+const SceneHandle& DemoScene() { return SharedDemoScene(); }
 
 Camera DemoCamera() { return FromSceneCamera(DemoScene()->info().cameras[0]); }
 

@@ -13,6 +13,7 @@
 
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
+#include "shared_renderer.h"
 
 namespace tessera {
 namespace {
@@ -20,32 +21,6 @@ namespace {
 std::string Env(const char* name, const char* fallback = "") {
   const char* v = std::getenv(name);
   return v ? v : fallback;
-}
-
-// One device for the whole binary: creating it is the slow part on lavapipe.
-Renderer& SharedRenderer() {
-  static std::unique_ptr<Renderer> renderer = [] {
-    absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create({.validation = true});
-    if (!r.ok()) {
-      ADD_FAILURE() << "no Vulkan device: " << r.status();
-      std::abort();
-    }
-    return std::move(*r);
-  }();
-  return *renderer;
-}
-
-// The demo scene on the shared renderer, built and uploaded once for every test that uses it.
-const SceneHandle& SharedDemoScene() {
-  static SceneHandle scene = [] {
-    absl::StatusOr<SceneHandle> s = SharedRenderer().LoadScene(BuildDemoScene());
-    if (!s.ok()) {
-      ADD_FAILURE() << "demo scene: " << s.status();
-      std::abort();
-    }
-    return *s;
-  }();
-  return scene;
 }
 
 void ExpectNoValidationMessages(const Renderer& r) {
