@@ -14,7 +14,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
-#include "bench_stats.h"
+#include "bench_util.h"
 #include "renderer/camera.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
@@ -29,12 +29,9 @@ using tessera::bench::Median;
 }
 
 glm::vec3 ParseVec3(const std::string& s) {
-  std::vector<std::string> p = absl::StrSplit(s, ',');
-  glm::vec3 v(0.0f);
-  if (p.size() != 3) Fail("want X,Y,Z: " + s);
-  for (int i = 0; i < 3; ++i)
-    if (!absl::SimpleAtof(p[i], &v[i])) Fail("not a number: " + p[i]);
-  return v;
+  const std::optional<glm::vec3> v = tessera::bench::ParseVec3(s);
+  if (!v) Fail("want X,Y,Z numbers: " + s);
+  return *v;
 }
 
 uint32_t ParseUint(const std::string& flag, const std::string& s) {

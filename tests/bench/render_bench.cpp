@@ -16,7 +16,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
-#include "bench_stats.h"
+#include "bench_util.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 
@@ -30,12 +30,9 @@ using tessera::bench::Median;
 }
 
 glm::vec3 ParseVec3(const std::string& s) {
-  std::vector<std::string> p = absl::StrSplit(s, ',');
-  glm::vec3 v;
-  if (p.size() != 3) Fail("want X,Y,Z: " + s);
-  for (int i = 0; i < 3; ++i)
-    if (!absl::SimpleAtof(p[i], &v[i])) Fail("not a number: " + p[i]);
-  return v;
+  const std::optional<glm::vec3> v = tessera::bench::ParseVec3(s);
+  if (!v) Fail("want X,Y,Z numbers: " + s);
+  return *v;
 }
 
 }  // namespace

@@ -32,7 +32,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
-#include "bench_stats.h"
+#include "bench_util.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "renderer/scene/gltf_import.h"
