@@ -603,7 +603,8 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   fu.counts =
       glm::uvec4(uint32_t(global.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
   fu.params = glm::vec4(0.0f, camera.znear, camera.zfar, 0.0f);
-  fu.lighting = glm::uvec4(uint32_t(local.size()), s.tile_size, grid.tiles_x(), tiled ? 1u : 0u);
+  fu.lighting = glm::uvec4(uint32_t(local.size()), s.tile_size, grid.tiles_x(),
+                           (tiled ? 1u : 0u) | (s.tile_depth_mask ? 2u : 0u));
   fu.depth_params = glm::vec4(fu.proj[2][2], fu.proj[3][2], float(grid.tiles_y()), 0.0f);
   std::memcpy(m.frame_ubo.mapped(), &fu, sizeof(fu));
   frame.stats.lights = uint32_t(global.size() + local.size());

@@ -152,7 +152,7 @@ void main() {
   uint tile_size = frame.lighting.y;
   uint tile = uint(gl_FragCoord.y) / tile_size * frame.lighting.z + uint(gl_FragCoord.x) / tile_size;
   // Blended surfaces are not in the prepass depth the lists were culled against: brute force.
-  bool tiled = frame.lighting.w != 0u && m.flags.x != kAlphaBlend;
+  bool tiled = (frame.lighting.w & 1u) != 0u && m.flags.x != kAlphaBlend;
   uint tile_count = tiled ? (tile_counts[tile] & ~kTileOverflowBit) : 0u;
   if (debug_view == kDebugLightHeatmap) {
     out_color = vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);

@@ -93,6 +93,7 @@ void main() {
     for (int i = 0; i < 4; ++i)
       tr = max(tr, max(length(rays[i] * dmin - tc), length(rays[i] * dmax - tc)));
 
+    bool use_mask = (frame.lighting.w & 2u) != 0u;
     uint base = tile * kMaxLightsPerTile;
     // Only the lights binned to this tile row (in index order).
     uint row_end = row_lights[ty + 1u];
@@ -106,7 +107,7 @@ void main() {
       if (dot(planes[0], s.xyz) < -s.w || dot(planes[1], s.xyz) < -s.w ||
           dot(planes[2], s.xyz) < -s.w || dot(planes[3], s.xyz) < -s.w)
         continue;
-      if ((SliceMask(zc - s.w, zc + s.w, dmin, scale) & mask) == 0u) continue;
+      if (use_mask && (SliceMask(zc - s.w, zc + s.w, dmin, scale) & mask) == 0u) continue;
       vec4 cone = light_bounds[i].cone;
       if (cone.w > -1.5) {  // spot: Wronski's cone test against the tile's sphere
         vec4 cone2 = light_bounds[i].cone2;

@@ -155,7 +155,8 @@ struct FrameUniforms {
   vec4 ambient_ground;   // rgb radiance from below
   uvec4 counts;          // x light count, y debug view (kDebug*), z width, w height
   vec4 params;           // x unused (exposure is the tonemap pass's push constant), y near, z far
-  uvec4 lighting;        // x local lights, y tile size px, z tiles per row, w 1 = tile lists
+  uvec4 lighting;        // x local lights, y tile size px, z tiles per row, w bits: 1 tile
+                         // lists, 2 2.5D depth mask in light culling
   vec4 depth_params;     // view depth of a depth-buffer value d: y / (d + x); z tiles per column
 };
 
