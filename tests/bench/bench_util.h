@@ -1,9 +1,12 @@
 #pragma once
 // Helpers shared by the benchmark programs: order statistics of timings, argument parsing.
+#include <errno.h>  // program_invocation_short_name
+
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <glm/glm.hpp>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -27,13 +30,19 @@ inline double Percentile(std::vector<double> v, double p) {
   return v[std::clamp<size_t>(rank, 1, v.size()) - 1];
 }
 
-// "X,Y,Z" -> a vector, or nullopt when it is not three numbers.
-inline std::optional<glm::vec3> ParseVec3(const std::string& s) {
+// Prints "PROGRAM: msg" and exits with status 2 (bad arguments or a failed run).
+[[noreturn]] inline void Fail(const std::string& msg) {
+  std::fprintf(stderr, "%s: %s\n", program_invocation_short_name, msg.c_str());
+  std::exit(2);
+}
+
+// "X,Y,Z" -> a vector; anything else fails.
+inline glm::vec3 ParseVec3(const std::string& s) {
   const std::vector<std::string> p = absl::StrSplit(s, ',');
   glm::vec3 v(0.0f);
-  if (p.size() != 3) return std::nullopt;
+  if (p.size() != 3) Fail("want X,Y,Z: " + s);
   for (int i = 0; i < 3; ++i)
-    if (!absl::SimpleAtof(p[i], &v[i])) return std::nullopt;
+    if (!absl::SimpleAtof(p[i], &v[i])) Fail("not a number: " + p[i]);
   return v;
 }
 

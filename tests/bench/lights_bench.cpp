@@ -21,18 +21,9 @@
 
 namespace {
 
+using tessera::bench::Fail;
 using tessera::bench::Median;
-
-[[noreturn]] void Fail(const std::string& msg) {
-  std::fprintf(stderr, "tessera-lights-bench: %s\n", msg.c_str());
-  std::exit(2);
-}
-
-glm::vec3 ParseVec3(const std::string& s) {
-  const std::optional<glm::vec3> v = tessera::bench::ParseVec3(s);
-  if (!v) Fail("want X,Y,Z numbers: " + s);
-  return *v;
-}
+using tessera::bench::ParseVec3;
 
 uint32_t ParseUint(const std::string& flag, const std::string& s) {
   uint32_t v = 0;

@@ -43,6 +43,7 @@
 
 namespace {
 
+using tessera::bench::Fail;
 using tessera::bench::Median;
 using tessera::bench::Percentile;
 
@@ -58,11 +59,6 @@ constexpr float kOrbitStepRadians = 0.02f;  // camera movement per event
 // waits this long so the server has taken the first (two events that arrive together are merged
 // into one frame: latest wins).
 constexpr auto kRestartGap = std::chrono::milliseconds(1);
-
-[[noreturn]] void Fail(const std::string& msg) {
-  std::fprintf(stderr, "tessera-stream-bench: %s\n", msg.c_str());
-  std::exit(2);
-}
 
 double MsBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
