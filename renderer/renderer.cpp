@@ -79,6 +79,15 @@ gpu::GpuLight ToGpu(const Light& l) {
   return g;
 }
 
+// Replaces `*out` with a new buffer (the old one is idle: every frame waits for its fence).
+absl::Status MakeBuffer(const vk::Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage,
+                        vk::MemoryUsage memory, const char* name, vk::Buffer* out) {
+  absl::StatusOr<vk::Buffer> b = vk::Buffer::Create(ctx, size, usage, memory, name);
+  if (!b.ok()) return b.status();
+  *out = std::move(*b);
+  return absl::OkStatus();
+}
+
 // The light a scene without lights gets: a warm sun from above and in front.
 Light DefaultSun() {
   Light sun;
@@ -250,11 +259,10 @@ absl::Status Renderer::Impl::Init() {
 absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
   if (entries <= row_capacity) return absl::OkStatus();
   const uint32_t cap = uint32_t(std::max<size_t>(entries, size_t(row_capacity) * 2));
-  absl::StatusOr<vk::Buffer> b =
-      vk::Buffer::Create(*ctx, VkDeviceSize(cap) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                         vk::MemoryUsage::kUpload, "row_lights");
-  if (!b.ok()) return b.status();
-  row_lights = std::move(*b);
+  if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(cap) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                  vk::MemoryUsage::kUpload, "row_lights", &row_lights);
+      !s.ok())
+    return s;
   row_capacity = cap;
   return absl::OkStatus();
 }
@@ -262,41 +270,36 @@ absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
 absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles) {
   lights = std::max(lights, 1u);
   tiles = std::max(tiles, 1u);
-  auto make = [this](VkDeviceSize size, VkBufferUsageFlags usage, vk::MemoryUsage mem,
-                     const char* name, vk::Buffer* out) -> absl::Status {
-    absl::StatusOr<vk::Buffer> b = vk::Buffer::Create(*ctx, size, usage, mem, name);
-    if (!b.ok()) return b.status();
-    *out = std::move(*b);
-    return absl::OkStatus();
-  };
   if (lights > light_capacity) {
     const uint32_t cap = std::max(lights, light_capacity * 2);
-    if (absl::Status s =
-            make(VkDeviceSize(cap) * sizeof(gpu::GpuLight), VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                 vk::MemoryUsage::kUpload, "local_lights", &local_lights);
+    if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLight),
+                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                                    "local_lights", &local_lights);
         !s.ok())
       return s;
-    if (absl::Status s = make(VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
-                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
-                              "light_bounds", &light_bounds);
+    if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
+                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                                    "light_bounds", &light_bounds);
         !s.ok())
       return s;
     light_capacity = cap;
   }
   if (tiles > tile_capacity) {
-    if (absl::Status s = make(VkDeviceSize(tiles) * 4,
-                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                              vk::MemoryUsage::kDeviceLocal, "tile_counts", &tile_counts);
-        !s.ok())
-      return s;
-    if (absl::Status s = make(VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
-                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                              vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights);
+    if (absl::Status s =
+            MakeBuffer(*ctx, VkDeviceSize(tiles) * 4,
+                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                       vk::MemoryUsage::kDeviceLocal, "tile_counts", &tile_counts);
         !s.ok())
       return s;
     if (absl::Status s =
-            make(VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                 vk::MemoryUsage::kReadback, "tile_counts_readback", &tile_counts_readback);
+            MakeBuffer(*ctx, VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
+                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                       vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights);
+        !s.ok())
+      return s;
+    if (absl::Status s =
+            MakeBuffer(*ctx, VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                       vk::MemoryUsage::kReadback, "tile_counts_readback", &tile_counts_readback);
         !s.ok())
       return s;
     tile_capacity = tiles;
@@ -590,16 +593,16 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   auto* gl = static_cast<gpu::GpuLight*>(m.lights_ubo.mapped());
   for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
   auto* ll = static_cast<gpu::GpuLight*>(m.local_lights.mapped());
-  std::vector<gpu::GpuLightBounds> bounds(local.size());
-  for (size_t i = 0; i < local.size(); ++i) {
-    ll[i] = ToGpu(local[i]);
-    bounds[i] = BoundLight(local[i], fu.view, fu.proj, camera.znear, grid);
-  }
-  if (!bounds.empty())
+  for (size_t i = 0; i < local.size(); ++i) ll[i] = ToGpu(local[i]);
+  if (tiled) {  // what the light-culling pass reads: each light projected once, binned by row
+    std::vector<gpu::GpuLightBounds> bounds(local.size());
+    for (size_t i = 0; i < local.size(); ++i)
+      bounds[i] = BoundLight(local[i], fu.view, fu.proj, camera.znear, grid);
     std::memcpy(m.light_bounds.mapped(), bounds.data(), bounds.size() * sizeof(bounds[0]));
-  const std::vector<uint32_t> rows = BinLightsByRow(bounds, grid.tiles_y());
-  if (absl::Status st = m.EnsureRowBuffer(rows.size()); !st.ok()) return st;
-  std::memcpy(m.row_lights.mapped(), rows.data(), rows.size() * sizeof(uint32_t));
+    const std::vector<uint32_t> rows = BinLightsByRow(bounds, grid.tiles_y());
+    if (absl::Status st = m.EnsureRowBuffer(rows.size()); !st.ok()) return st;
+    std::memcpy(m.row_lights.mapped(), rows.data(), rows.size() * sizeof(uint32_t));
+  }
   fu.counts =
       glm::uvec4(uint32_t(global.size()), static_cast<uint32_t>(s.debug_view), s.width, s.height);
   fu.params = glm::vec4(0.0f, camera.znear, camera.zfar, 0.0f);
