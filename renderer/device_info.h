@@ -24,6 +24,8 @@ struct DeviceInfo {
   uint32_t timestamp_valid_bits = 0;
   float max_anisotropy = 1.0f;  // 1 = anisotropic filtering off
   bool validation = false;      // validation layers active
+  bool sampler_minmax = false;  // min/max reduction samplers on R32F (the depth pyramid)
+  bool pipeline_statistics = false;  // pipelineStatisticsQuery
 };
 
 // A physical device as the chooser sees it.

@@ -6,8 +6,16 @@ namespace tessera {
 
 std::string_view PassName(PassId id) {
   switch (id) {
+    case PassId::kCull:
+      return "cull";
     case PassId::kDepthPrepass:
       return "depth_prepass";
+    case PassId::kHizBuild:
+      return "hiz_build";
+    case PassId::kCullLate:
+      return "cull_late";
+    case PassId::kDepthPrepassLate:
+      return "depth_prepass_late";
     case PassId::kLightCull:
       return "light_cull";
     case PassId::kForward:
@@ -28,8 +36,16 @@ std::vector<ResourceUse> PassUses(PassId id) {
   using R = Resource;
   using A = Access;
   switch (id) {
+    // The first culling phase does not read the pyramid, but its pipeline binds it.
+    case PassId::kCull:
+      return {{R::kHiz, A::kComputeRead}};
     case PassId::kDepthPrepass:
+    case PassId::kDepthPrepassLate:
       return {{R::kDepth, A::kDepthWrite}};
+    case PassId::kHizBuild:
+      return {{R::kDepth, A::kComputeRead}, {R::kHiz, A::kComputeWrite}};
+    case PassId::kCullLate:
+      return {{R::kHiz, A::kComputeRead}};
     case PassId::kLightCull:
       return {{R::kDepth, A::kComputeRead}};
     case PassId::kForward:
@@ -48,9 +64,19 @@ std::vector<ResourceUse> PassUses(PassId id) {
 
 std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& features) {
   std::vector<PassId> passes;
+  const bool gpu_culling = settings.culling == CullingMode::kGpuFrustum ||
+                           settings.culling == CullingMode::kGpuOcclusion;
+  if (gpu_culling) passes.push_back(PassId::kCull);
   // Depth first: forward shading then tests EQUAL-or-nearer against it and shades each pixel
   // once, which matters most on a CPU rasterizer where fragment work is the bill.
   passes.push_back(PassId::kDepthPrepass);
+  // Two-phase occlusion culling: what was visible last frame is drawn above; its depth becomes
+  // the pyramid that every other drawable is tested against, and what passes is drawn now.
+  if (settings.culling == CullingMode::kGpuOcclusion) {
+    passes.push_back(PassId::kHizBuild);
+    passes.push_back(PassId::kCullLate);
+    passes.push_back(PassId::kDepthPrepassLate);
+  }
   // Forward+: per-tile light lists, unless there is nothing to cull or brute force was asked.
   if (settings.light_culling && features.local_lights > 0) passes.push_back(PassId::kLightCull);
   passes.push_back(PassId::kForward);
@@ -62,7 +88,9 @@ std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& 
 }
 
 namespace {
-bool Writes(Access a) { return a == Access::kDepthWrite || a == Access::kColorWrite; }
+bool Writes(Access a) {
+  return a == Access::kDepthWrite || a == Access::kColorWrite || a == Access::kComputeWrite;
+}
 // Accesses that share a layout (depth test and depth write are both attachment-optimal).
 int LayoutClass(Access a) {
   switch (a) {
@@ -76,6 +104,8 @@ int LayoutClass(Access a) {
       return 3;
     case Access::kTransferSrc:
       return 4;
+    case Access::kComputeWrite:
+      return 5;
     case Access::kNone:
       return 0;
   }

@@ -12,9 +12,9 @@
 namespace tessera {
 
 // The frame's transient resources.
-enum class Resource : uint8_t { kDepth, kHdrColor, kLdrColor, kCount };
-// (The light-culling pass's buffers are its own: it ends with a buffer barrier to the fragment
-// stage that reads them.)
+enum class Resource : uint8_t { kDepth, kHdrColor, kLdrColor, kHiz, kCount };
+// (The culling passes' buffers are their own: each ends with a buffer barrier to the stage that
+// reads them: draw-indirect for the geometry-culling lists, fragment for the light lists.)
 
 // How a pass uses a resource.
 enum class Access : uint8_t {
@@ -24,6 +24,7 @@ enum class Access : uint8_t {
   kColorWrite,   // colour attachment
   kSampled,      // read in a fragment shader
   kComputeRead,  // read (sampled) in a compute shader
+  kComputeWrite,  // written (storage image) and read back in a compute shader, general layout
   kTransferSrc,  // copied from
 };
 
@@ -34,7 +35,11 @@ struct ResourceUse {
 
 // Every pass the renderer knows, in the only order they may run.
 enum class PassId : uint8_t {
+  kCull,          // gpu_frustum / gpu_occlusion: indirect draw lists from the drawables (compute)
   kDepthPrepass,  // depth of opaque + alpha-mask geometry, so shading runs once per pixel
+  kHizBuild,      // gpu_occlusion: the depth pyramid of what the first phase drew
+  kCullLate,      // gpu_occlusion: the other drawables against the pyramid
+  kDepthPrepassLate,  // gpu_occlusion: depth of the drawables that became visible
   kLightCull,     // forward+: per-tile light lists from the prepass depth (compute)
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
   kTransparent,   // blended materials, back to front, over the opaque result

@@ -35,6 +35,18 @@ static_assert(sizeof(GpuLightBounds) == 64);
 static_assert(offsetof(GpuLightBounds, tiles) == 16);
 static_assert(offsetof(GpuLightBounds, cone2) == 48);
 
+static_assert(sizeof(GpuCullItem) == 48);
+static_assert(offsetof(GpuCullItem, slot) == 16);
+static_assert(offsetof(GpuCullItem, flags) == 32);
+
+static_assert(sizeof(CullUniforms) == 64 + 6 * 16 + 4 * 16);
+static_assert(offsetof(CullUniforms, planes) == 64);
+static_assert(offsetof(CullUniforms, counts) == 160);
+static_assert(offsetof(CullUniforms, offsets) == 176);
+static_assert(offsetof(CullUniforms, hiz) == 192);
+static_assert(offsetof(CullUniforms, frame) == 208);
+static_assert(kDrawCommandWords * 4 == 20, "VkDrawIndexedIndirectCommand");
+
 static_assert(sizeof(FrameUniforms) == 4 * 64 + 7 * 16);
 static_assert(offsetof(FrameUniforms, lighting) == 336);
 static_assert(offsetof(FrameUniforms, depth_params) == 352);

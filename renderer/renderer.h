@@ -77,10 +77,21 @@ struct CpuTimings {
 };
 
 struct FrameStats {
-  uint32_t drawables = 0;            // in the scene
-  uint32_t drawables_culled = 0;     // rejected by culling
-  uint32_t draws = 0;                // draw calls over all passes
-  uint64_t triangles_submitted = 0;  // over all passes
+  // Geometry culling. A drawable is one node x primitive instance.
+  uint32_t drawables = 0;             // in the scene
+  uint32_t drawables_in_frustum = 0;  // passed the frustum test (all of them with culling none)
+  uint32_t drawables_drawn = 0;       // after frustum and occlusion culling: submitted
+  uint32_t drawables_culled = 0;      // drawables - drawables_drawn
+  uint32_t drawables_late = 0;        // gpu_occlusion: drawn by the second phase (newly visible)
+  uint32_t drawables_stale = 0;       // gpu_occlusion: drawn by the first phase, occluded now
+  uint32_t draws = 0;                 // indexed draws executed over all passes (indirect commands)
+  uint32_t indirect_draws = 0;        // vkCmdDrawIndexedIndirectCount calls recorded
+  uint64_t triangles_submitted = 0;   // over all passes
+  // Pipeline statistics queries over the geometry passes, where the device has them.
+  bool pipeline_statistics = false;
+  uint64_t primitives_in = 0;          // input-assembly primitives
+  uint64_t primitives_clipped = 0;     // primitives out of clipping (reach the rasterizer)
+  uint64_t fragment_invocations = 0;   // fragment-shader invocations
   uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
   uint32_t local_lights = 0;         // of which point and spot lights (scene + synthetic)
   // Forward+ (when the light-culling pass ran): lights per tile over all tiles.
@@ -93,6 +104,10 @@ struct FrameStats {
 
 // What tests need to check a frame's light culling against the CPU reference.
 struct FrameCapture {
+  // Set by the caller: also render every drawable's id (no culling) against the frame's depth.
+  bool want_ids = false;
+  std::vector<uint32_t> ids;      // width x height, drawable + 1 on top at each pixel (0: none)
+  std::vector<uint32_t> drawn;    // drawables the frame drew, ascending
   std::vector<float> depth;           // prepass depth, width x height, row-major
   std::vector<uint32_t> tile_counts;  // per tile (| overflow bit)
   std::vector<uint32_t> tile_lights;  // tile * 256 + k
@@ -131,6 +146,11 @@ class Renderer {
   // The same, also filling `capture` (tests; costs an extra copy and wait).
   absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings,
                                FrameCapture* capture);
+  // The same for one of several views of the scene: gpu_occlusion starts from what `view` saw
+  // in its last frame (a stream's session id, a job's id; 0 is the default view). Any view id
+  // is correct; reusing one per camera keeps the first culling phase accurate.
+  absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings,
+                               uint64_t view, FrameCapture* capture = nullptr);
 
   // Validation-layer messages so far (tests require zero).
   uint64_t validation_message_count() const;

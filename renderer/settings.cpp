@@ -141,11 +141,6 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
                                    " is not implemented yet; rendered with none"));
     e.aa = AaMode::kNone;
   }
-  if (e.culling == CullingMode::kGpuFrustum || e.culling == CullingMode::kGpuOcclusion) {
-    not_applied("culling", absl::StrCat(std::string(ToString(e.culling)),
-                                        " is not implemented yet; used cpu_frustum"));
-    e.culling = CullingMode::kCpuFrustum;
-  }
   if (e.shadows) {
     not_applied("shadows", "not implemented yet");
     e.shadows = false;

@@ -254,6 +254,15 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_tile_lights_p95(f.stats.tile_lights_p95);
   st->set_tile_lights_max(f.stats.tile_lights_max);
   st->set_tile_overflows(f.stats.tile_overflows);
+  st->set_drawables_in_frustum(f.stats.drawables_in_frustum);
+  st->set_drawables_drawn(f.stats.drawables_drawn);
+  st->set_drawables_late(f.stats.drawables_late);
+  st->set_drawables_stale(f.stats.drawables_stale);
+  st->set_indirect_draws(f.stats.indirect_draws);
+  st->set_pipeline_statistics(f.stats.pipeline_statistics);
+  st->set_primitives_in(f.stats.primitives_in);
+  st->set_primitives_clipped(f.stats.primitives_clipped);
+  st->set_fragment_invocations(f.stats.fragment_invocations);
 }
 
 void FillChoices(uint32_t max_samples, v1::SettingChoices* o) {

@@ -151,7 +151,7 @@ void RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
   std::optional<RenderWork> work = client->TakeWork();
   if (!work) return;
   const Clock::time_point start = Clock::now();
-  absl::StatusOr<Frame> frame = renderer_->Render(*work->scene, work->camera, work->settings);
+  absl::StatusOr<Frame> frame = renderer_->Render(*work->scene, work->camera, work->settings, work->view);
   if (!frame.ok()) {
     Log().warn("render: scene {} seq {}: {}", work->scene_id, work->sequence,
                frame.status().ToString());

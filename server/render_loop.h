@@ -55,6 +55,9 @@ struct RenderWork {
   uint64_t sequence = 0;
   uint64_t event_id = 0;
   std::string scene_id;
+  // The renderer view the frame belongs to: a stream's session id, so gpu_occlusion culling
+  // starts from what that session saw last frame (0 for unary renders).
+  uint64_t view = 0;
   Clock::time_point requested;  // the newest change or the request: start of queue wait
 };
 

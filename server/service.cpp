@@ -348,6 +348,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     RenderWork w;
     w.scene = lease_->get().scene;
     w.scene_id = lease_->get().id;
+    w.view = id_;
     w.settings = settings_;
     // Validated when the event arrived; framing depends only on the scene and aspect ratio.
     absl::StatusOr<Camera> camera = ResolveCamera(camera_, w.scene->info(), Aspect(settings_));

@@ -140,9 +140,13 @@ void PrintFrameTimings(const v1::Frame& frame) {
   for (const auto& [name, ms] : stages) absl::PrintF("%-20s %10.3f\n", name, ms);
 
   const v1::FrameStats& st = frame.stats();
-  absl::PrintF("\ndraws %u, triangles submitted %u, drawables %u (%u culled), lights %u\n",
-               st.draws(), st.triangles_submitted(), st.drawables(), st.drawables_culled(),
-               st.lights());
+  absl::PrintF("\ndraws %u (%u indirect), triangles submitted %u, lights %u\n", st.draws(),
+               st.indirect_draws(), st.triangles_submitted(), st.lights());
+  absl::PrintF("drawables %u: %u in the frustum, %u drawn (%u culled)\n", st.drawables(),
+               st.drawables_in_frustum(), st.drawables_drawn(), st.drawables_culled());
+  if (st.pipeline_statistics())
+    absl::PrintF("device counted %u primitives in, %u rasterized, %u fragment invocations\n",
+                 st.primitives_in(), st.primitives_clipped(), st.fragment_invocations());
   for (const v1::SettingNote& n : frame.notes())
     absl::PrintF("note: %s: %s\n", n.field(), n.message());
 }

@@ -235,8 +235,16 @@ int main(int argc, char** argv) {
                    {"readback", frame.cpu.readback_ms},
                    {"encode", frame.cpu.encode_ms}};
     j["stats"] = {{"draws", frame.stats.draws},
+                  {"indirect_draws", frame.stats.indirect_draws},
                   {"triangles_submitted", frame.stats.triangles_submitted},
+                  {"drawables", frame.stats.drawables},
+                  {"drawables_in_frustum", frame.stats.drawables_in_frustum},
+                  {"drawables_drawn", frame.stats.drawables_drawn},
                   {"drawables_culled", frame.stats.drawables_culled},
+                  {"drawables_late", frame.stats.drawables_late},
+                  {"drawables_stale", frame.stats.drawables_stale},
+                  {"primitives_in", frame.stats.primitives_in},
+                  {"fragment_invocations", frame.stats.fragment_invocations},
                   {"lights", frame.stats.lights},
                   {"local_lights", frame.stats.local_lights},
                   {"tile_lights_avg", frame.stats.tile_lights_avg},
@@ -273,19 +281,29 @@ int main(int argc, char** argv) {
     }
     std::printf("output   %s (%ux%u, %zu bytes)\n\n", out_path.c_str(), frame.image.width,
                 frame.image.height, bytes.size());
-    std::printf("%-16s %10s%s\n", "pass", "gpu ms",
+    std::printf("%-20s %10s%s\n", "pass", "gpu ms",
                 frame.timing == TimingSource::kPassWallClock
                     ? "   (CPU device: each pass submitted alone, timed by the wall clock)"
                     : "");
     for (const PassTiming& p : frame.passes)
-      std::printf("%-16s %10.3f\n", p.pass.c_str(), p.gpu_ms);
-    std::printf("%-16s %10.3f\n\n", "total", frame.gpu_total_ms);
-    std::printf("%-16s %10s\n", "cpu stage", "ms");
-    std::printf("%-16s %10.3f\n%-16s %10.3f\n%-16s %10.3f\n%-16s %10.3f\n", "record",
+      std::printf("%-20s %10.3f\n", p.pass.c_str(), p.gpu_ms);
+    std::printf("%-20s %10.3f\n\n", "total", frame.gpu_total_ms);
+    std::printf("%-20s %10s\n", "cpu stage", "ms");
+    std::printf("%-20s %10.3f\n%-20s %10.3f\n%-20s %10.3f\n%-20s %10.3f\n", "record",
                 frame.cpu.record_ms, "submit->fence", frame.cpu.submit_wait_ms, "readback",
                 frame.cpu.readback_ms, "encode", frame.cpu.encode_ms);
-    std::printf("\ndraws %u, triangles submitted %llu, lights %u\n", frame.stats.draws,
+    std::printf("\ndraws %u (%u indirect), triangles submitted %llu, lights %u\n",
+                frame.stats.draws, frame.stats.indirect_draws,
                 (unsigned long long)frame.stats.triangles_submitted, frame.stats.lights);
+    std::printf("drawables %u: %u in the frustum, %u drawn (%u late, %u stale)\n",
+                frame.stats.drawables, frame.stats.drawables_in_frustum,
+                frame.stats.drawables_drawn, frame.stats.drawables_late,
+                frame.stats.drawables_stale);
+    if (frame.stats.pipeline_statistics)
+      std::printf("device counted %llu primitives in, %llu rasterized, %llu fragment invocations\n",
+                  (unsigned long long)frame.stats.primitives_in,
+                  (unsigned long long)frame.stats.primitives_clipped,
+                  (unsigned long long)frame.stats.fragment_invocations);
     if (frame.stats.local_lights > 0 && frame.settings.effective.light_culling)
       std::printf("lights per %upx tile: avg %.1f, p50 %u, p95 %u, max %u, overflows %u\n",
                   frame.settings.effective.tile_size, frame.stats.tile_lights_avg,

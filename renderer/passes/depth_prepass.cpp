@@ -1,6 +1,9 @@
 // Depth prepass: depth of opaque and alpha-mask geometry. Opaque draws use a pipeline with no
-// fragment shader (the cheapest path on a CPU rasterizer); alpha-mask draws test the base
-// colour alpha so cut-out holes stay open for the shading pass that follows.
+// fragment shader (the cheapest path on a CPU rasterizer) and need no material, so the whole
+// opaque group is one indirect draw per cull mode; alpha-mask draws test the base colour alpha
+// so cut-out holes stay open for the shading pass that follows (one indirect draw per
+// material). With gpu_occlusion the pass runs twice: kDepthPrepass draws the first phase's
+// lists into a cleared depth, kDepthPrepassLate adds the second phase's.
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
 
@@ -10,30 +13,31 @@ namespace {
 
 class DepthPrepass final : public Pass {
  public:
-  DepthPrepass(vk::Pipeline opaque, vk::Pipeline mask)
-      : opaque_(std::move(opaque)), mask_(std::move(mask)) {}
-  PassId id() const override { return PassId::kDepthPrepass; }
+  DepthPrepass(PassId id, vk::Pipeline opaque, vk::Pipeline mask)
+      : id_(id), opaque_(std::move(opaque)), mask_(std::move(mask)) {}
+  PassId id() const override { return id_; }
 
   void Record(PassContext& ctx) override {
     VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     depth.imageView = ctx.targets->depth.view();
     depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-    depth.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+    const bool late = id_ == PassId::kDepthPrepassLate;
+    const uint32_t phase = late ? 1 : 0;
+    depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
     BeginRendering(ctx, nullptr, &depth);
-    if (!ctx.draws->opaque.empty()) {
+    if (!ctx.scene->batches().empty()) {
       BeginSceneDraw(ctx, opaque_.handle());
-      RecordDraws(ctx, ctx.draws->opaque, /*textured=*/false);
+      RecordBatches(ctx, phase);
     }
-    if (!ctx.draws->mask.empty()) {
-      BeginSceneDraw(ctx, mask_.handle());
-      RecordDraws(ctx, ctx.draws->mask);
-    }
+    BeginSceneDraw(ctx, mask_.handle());
+    RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
     vkCmdEndRendering(ctx.cmd);
   }
 
  private:
+  PassId id_;
   vk::Pipeline opaque_;
   vk::Pipeline mask_;
 };
@@ -41,7 +45,7 @@ class DepthPrepass final : public Pass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
-                                                         const SceneLayout& layout) {
+                                                         const SceneLayout& layout, PassId id) {
   vk::GraphicsPipelineDesc d;
   d.name = "depth_prepass.opaque";
   d.vertex_shader = "depth.vert";
@@ -57,7 +61,22 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
   d.fragment_shader = "depth_mask.frag";
   absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
   if (!mask.ok()) return mask.status();
-  return std::make_unique<DepthPrepass>(std::move(*opaque), std::move(*mask));
+  return std::make_unique<DepthPrepass>(id, std::move(*opaque), std::move(*mask));
+}
+
+absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const SceneLayout& layout) {
+  vk::GraphicsPipelineDesc d;
+  d.name = "drawable_ids";
+  d.vertex_shader = "id.vert";
+  d.fragment_shader = "id.frag";
+  d.layout = layout.pipeline_layout;
+  d.color_formats = {kIdFormat};
+  d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
+  d.depth_format = kDepthFormat;
+  d.depth_test = true;
+  d.depth_write = false;
+  d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;
+  return vk::CreateGraphicsPipeline(ctx, d);
 }
 
 }  // namespace tessera

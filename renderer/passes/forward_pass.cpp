@@ -3,6 +3,9 @@
 //    prepass depth with writes off, so each visible pixel is shaded once;
 //    Then the sky fills the pixels no surface covered (a full-screen triangle at the far plane);
 //  - transparent: blended materials sorted back to front, over the opaque result.
+// Draws are indirect: one vkCmdDrawIndexedIndirectCount per segment (render group x cull mode x
+// material; see DrawPlan) and culling phase. The material is a descriptor set per segment
+// because lavapipe cannot index samplers dynamically (shaders/common/gpu_types.h).
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
 
@@ -34,11 +37,12 @@ class ForwardPass final : public Pass {
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     BeginRendering(ctx, &color, &depth);
     BeginSceneDraw(ctx, pipeline_.handle());
+    const uint32_t phases = ctx.draws->phases;
     if (transparent) {
-      RecordDraws(ctx, ctx.draws->blend);
+      RecordSegments(ctx, AlphaMode::kBlend, 0, phases);
     } else {
-      RecordDraws(ctx, ctx.draws->opaque);
-      RecordDraws(ctx, ctx.draws->mask);
+      RecordSegments(ctx, AlphaMode::kOpaque, 0, phases);
+      RecordSegments(ctx, AlphaMode::kMask, 0, phases);
       // Debug views keep the plain background, so their values read cleanly.
       if (ctx.settings->debug_view == DebugView::kNone) {
         vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_.handle());

@@ -12,27 +12,16 @@ namespace {
 
 class LightCullPass final : public Pass {
  public:
-  LightCullPass(VkDevice device, VkDescriptorSetLayout set_layout, VkPipelineLayout layout,
-                vk::Pipeline pipeline, vk::Sampler sampler)
+  LightCullPass(VkDevice device, PassLayout layout, vk::Pipeline pipeline, vk::Sampler sampler)
       : device_(device),
-        set_layout_(set_layout),
-        layout_(layout),
+        layout_(std::move(layout)),
         pipeline_(std::move(pipeline)),
         sampler_(std::move(sampler)) {}
-  ~LightCullPass() override {
-    vkDestroyPipelineLayout(device_, layout_, nullptr);
-    vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
-  }
   PassId id() const override { return PassId::kLightCull; }
 
   void Record(PassContext& ctx) override {
     const LightCullBuffers& lb = *ctx.light_buffers;
-    VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-    ai.descriptorPool = ctx.frame_pool;
-    ai.descriptorSetCount = 1;
-    ai.pSetLayouts = &set_layout_;
-    VkDescriptorSet set;
-    VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
+    const VkDescriptorSet set = layout_.Allocate(ctx);
     const VkDescriptorBufferInfo frame{lb.frame_ubo, 0, VK_WHOLE_SIZE};
     const VkDescriptorBufferInfo bounds{lb.bounds, 0, VK_WHOLE_SIZE};
     const VkDescriptorImageInfo depth{sampler_.handle(), ctx.targets->depth.view(),
@@ -75,8 +64,8 @@ class LightCullPass final : public Pass {
     vk::CmdBarrier(ctx.cmd, nullptr, 0, before, 2);
 
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_, 0, 1, &set, 0,
-                            nullptr);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
+                            1, &set, 0, nullptr);
     vkCmdDispatch(ctx.cmd, (lb.tiles + gpu::kLightCullGroupSize - 1) / gpu::kLightCullGroupSize, 1,
                   1);
 
@@ -110,8 +99,7 @@ class LightCullPass final : public Pass {
 
  private:
   VkDevice device_;
-  VkDescriptorSetLayout set_layout_;
-  VkPipelineLayout layout_;
+  PassLayout layout_;
   vk::Pipeline pipeline_;
   vk::Sampler sampler_;
 };
@@ -119,7 +107,7 @@ class LightCullPass final : public Pass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx) {
-  const VkDescriptorSetLayoutBinding bindings[] = {
+  const std::vector<VkDescriptorSetLayoutBinding> bindings = {
       {gpu::kCullBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
        nullptr},
       {gpu::kCullBindingLightBounds, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
@@ -133,32 +121,17 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx
       {gpu::kCullBindingRowLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
        VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
   };
-  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  li.bindingCount = 6;
-  li.pBindings = bindings;
-  VkDescriptorSetLayout set_layout;
-  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(ctx.device(), &li, nullptr, &set_layout),
-                     "light cull set layout");
-  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  pli.setLayoutCount = 1;
-  pli.pSetLayouts = &set_layout;
-  VkPipelineLayout layout;
-  if (VkResult r = vkCreatePipelineLayout(ctx.device(), &pli, nullptr, &layout); r != VK_SUCCESS) {
-    vkDestroyDescriptorSetLayout(ctx.device(), set_layout, nullptr);
-    return absl::InternalError("light cull pipeline layout");
-  }
-  absl::StatusOr<vk::Pipeline> pipeline =
-      vk::CreateComputePipeline(ctx, "light_cull", "light_cull.comp", layout);
+  absl::StatusOr<PassLayout> layout = PassLayout::Create(ctx, bindings, {}, "light cull layout");
+  if (!layout.ok()) return layout.status();
+  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateComputePipeline(
+      ctx, "light_cull", "light_cull.comp", layout->pipeline_layout());
   VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
   si.magFilter = si.minFilter = VK_FILTER_NEAREST;
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
   absl::StatusOr<vk::Sampler> sampler = vk::Sampler::Create(ctx, si, "light_cull.depth_sampler");
-  if (!pipeline.ok() || !sampler.ok()) {
-    vkDestroyPipelineLayout(ctx.device(), layout, nullptr);
-    vkDestroyDescriptorSetLayout(ctx.device(), set_layout, nullptr);
-    return !pipeline.ok() ? pipeline.status() : sampler.status();
-  }
-  return std::make_unique<LightCullPass>(ctx.device(), set_layout, layout, std::move(*pipeline),
+  if (!pipeline.ok()) return pipeline.status();
+  if (!sampler.ok()) return sampler.status();
+  return std::make_unique<LightCullPass>(ctx.device(), std::move(*layout), std::move(*pipeline),
                                          std::move(*sampler));
 }
 

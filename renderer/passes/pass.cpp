@@ -1,6 +1,10 @@
 // Helpers shared by the passes: beginning a rendering over the frame, and drawing scene items.
 #include "renderer/passes/pass.h"
 
+#include <utility>
+
+#include "renderer/vk/vk_check.h"
+
 namespace tessera {
 
 void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* color,
@@ -29,25 +33,109 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
   vkCmdBindIndexBuffer(ctx.cmd, ctx.scene->indices().handle(), 0, VK_INDEX_TYPE_UINT32);
 }
 
-void RecordDraws(const PassContext& ctx, const std::vector<const DrawItem*>& items, bool textured) {
+absl::StatusOr<PassLayout> PassLayout::Create(
+    const vk::Context& ctx, const std::vector<VkDescriptorSetLayoutBinding>& bindings,
+    const std::vector<VkPushConstantRange>& push, const char* name) {
+  PassLayout l;
+  l.device_ = ctx.device();
+  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  li.bindingCount = static_cast<uint32_t>(bindings.size());
+  li.pBindings = bindings.data();
+  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(l.device_, &li, nullptr, &l.set_layout_), name);
+  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pli.setLayoutCount = 1;
+  pli.pSetLayouts = &l.set_layout_;
+  pli.pushConstantRangeCount = static_cast<uint32_t>(push.size());
+  pli.pPushConstantRanges = push.data();
+  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, &l.layout_), name);
+  return l;
+}
+
+PassLayout& PassLayout::operator=(PassLayout&& o) noexcept {
+  if (this != &o) {
+    Reset();
+    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
+    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
+    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
+  }
+  return *this;
+}
+
+void PassLayout::Reset() {
+  if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
+  if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+  layout_ = VK_NULL_HANDLE;
+  set_layout_ = VK_NULL_HANDLE;
+}
+
+VkDescriptorSet PassLayout::Allocate(const PassContext& ctx) const {
+  VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+  ai.descriptorPool = ctx.frame_pool;
+  ai.descriptorSetCount = 1;
+  ai.pSetLayouts = &set_layout_;
+  VkDescriptorSet set;
+  VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
+  return set;
+}
+
+namespace {
+
+// Binds what a segment needs that differs from the last one drawn.
+struct DrawState {
   int cull = -1;
   uint32_t material = UINT32_MAX;
-  for (const DrawItem* item : items) {
-    if (textured && item->material != material) {
-      const VkDescriptorSet set = ctx.scene->material_set(item->material);
+  void Apply(const PassContext& ctx, bool double_sided, uint32_t m, bool textured) {
+    if (textured && m != material) {
+      const VkDescriptorSet set = ctx.scene->material_set(m);
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout,
                               gpu::kMaterialSet, 1, &set, 0, nullptr);
-      material = item->material;
+      material = m;
     }
-    const int want = item->double_sided ? 0 : 1;
+    const int want = double_sided ? 0 : 1;
     if (want != cull) {
       vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
       cull = want;
     }
-    vkCmdDrawIndexed(ctx.cmd, item->index_count, 1, item->first_index, item->vertex_offset,
-                     item->drawable);
-    ctx.stats->draws++;
-    ctx.stats->triangles += item->index_count / 3;
+  }
+};
+
+void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t first_item,
+                  uint32_t capacity, uint32_t count_index) {
+  const DrawLists& d = *ctx.draws;
+  vkCmdDrawIndexedIndirectCount(ctx.cmd, d.commands, d.CommandOffset(phase, batch, first_item),
+                                d.counts, d.CountOffset(phase, count_index), capacity,
+                                sizeof(VkDrawIndexedIndirectCommand));
+  ctx.stats->indirect_draws++;
+}
+
+}  // namespace
+
+void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begin,
+                    uint32_t phase_end, bool textured) {
+  const std::vector<DrawSegment>& segments = ctx.scene->segments();
+  DrawState state;
+  auto draw = [&](uint32_t s) {
+    const DrawSegment& seg = segments[s];
+    state.Apply(ctx, seg.double_sided, seg.material, textured);
+    for (uint32_t p = phase_begin; p < phase_end; ++p)
+      DrawIndirect(ctx, p, false, seg.first_item, seg.item_count, s);
+  };
+  if (group == AlphaMode::kBlend) {
+    for (uint32_t s : ctx.draws->blend_order) draw(s);
+    return;
+  }
+  for (uint32_t s = 0; s < segments.size(); ++s)
+    if (segments[s].group == group) draw(s);
+}
+
+void RecordBatches(const PassContext& ctx, uint32_t phase) {
+  const std::vector<DrawBatch>& batches = ctx.scene->batches();
+  DrawState state;
+  const uint32_t segment_count = static_cast<uint32_t>(ctx.scene->segments().size());
+  for (uint32_t b = 0; b < batches.size(); ++b) {
+    state.Apply(ctx, batches[b].double_sided, 0, /*textured=*/false);
+    DrawIndirect(ctx, phase, true, batches[b].first_item, batches[b].item_count,
+                 segment_count + b);
   }
 }
 

@@ -26,4 +26,19 @@ glm::mat3 TextureRef::uv_transform() const {
   return t * r * sc;
 }
 
+void CountGeneratedScene(CpuScene& scene) {
+  SceneCounts& c = scene.counts;
+  c = SceneCounts{};
+  c.nodes = static_cast<uint32_t>(scene.drawables.size());
+  c.meshes = static_cast<uint32_t>(scene.meshes.size());
+  c.primitives = static_cast<uint32_t>(scene.primitives.size());
+  for (const Drawable& d : scene.drawables)
+    c.triangles += scene.primitives[d.primitive].index_count / 3;
+  c.materials = static_cast<uint32_t>(scene.materials.size());
+  c.textures = static_cast<uint32_t>(scene.textures.size());
+  c.images = static_cast<uint32_t>(scene.textures.size());
+  c.lights = static_cast<uint32_t>(scene.lights.size());
+  c.cameras = static_cast<uint32_t>(scene.cameras.size());
+}
+
 }  // namespace tessera

@@ -156,6 +156,11 @@ struct SceneCounts {
   uint32_t cameras = 0;     // cameras placed in the scene
 };
 
+struct CpuScene;
+// For scenes built in code (one node per drawable, one image per texture): fills `counts`
+// from the arrays.
+void CountGeneratedScene(CpuScene& scene);
+
 struct CpuScene {
   std::string name;
   std::vector<Vertex> vertices;

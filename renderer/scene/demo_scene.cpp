@@ -481,18 +481,7 @@ CpuScene BuildDemoScene() {
 
   for (const Drawable& d : scene.drawables) scene.bounds.extend(d.world_bounds);
 
-  SceneCounts& c = scene.counts;
-  c.nodes = static_cast<uint32_t>(scene.drawables.size());
-  c.meshes = static_cast<uint32_t>(scene.meshes.size());
-  c.primitives = static_cast<uint32_t>(scene.primitives.size());
-  for (const Drawable& d : scene.drawables) {
-    c.triangles += scene.primitives[d.primitive].index_count / 3;
-  }
-  c.materials = static_cast<uint32_t>(scene.materials.size());
-  c.textures = static_cast<uint32_t>(scene.textures.size());
-  c.images = static_cast<uint32_t>(scene.textures.size());  // one image per texture
-  c.lights = static_cast<uint32_t>(scene.lights.size());
-  c.cameras = static_cast<uint32_t>(scene.cameras.size());
+  CountGeneratedScene(scene);
   return scene;
 }
 

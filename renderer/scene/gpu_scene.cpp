@@ -6,6 +6,7 @@
 #include <bit>
 #include <cstring>
 #include <map>
+#include <tuple>
 
 #include "absl/strings/str_cat.h"
 #include "renderer/vk/vk_check.h"
@@ -26,6 +27,41 @@ uint32_t RoundPow2(uint32_t v, uint32_t max_size) {
 uint32_t MipCount(uint32_t w, uint32_t h) {
   return static_cast<uint32_t>(std::bit_width(std::max(w, h)));
 }
+
+}  // namespace
+
+DrawPlan PlanDraws(const std::vector<DrawItem>& draws) {
+  DrawPlan plan;
+  plan.order.resize(draws.size());
+  for (uint32_t i = 0; i < draws.size(); ++i) plan.order[i] = i;
+  auto key = [&](uint32_t i) {
+    const DrawItem& d = draws[i];
+    // Blended items keep drawable order; they are sorted per frame.
+    const bool blend = d.alpha == AlphaMode::kBlend;
+    return std::make_tuple(static_cast<uint32_t>(d.alpha), blend ? 0 : int(d.double_sided),
+                           blend ? 0u : d.material, d.drawable);
+  };
+  std::stable_sort(plan.order.begin(), plan.order.end(),
+                   [&](uint32_t a, uint32_t b) { return key(a) < key(b); });
+  for (uint32_t i = 0; i < plan.order.size(); ++i) {
+    const DrawItem& d = draws[plan.order[i]];
+    const bool blend = d.alpha == AlphaMode::kBlend;
+    if (blend || plan.segments.empty() || plan.segments.back().group != d.alpha ||
+        plan.segments.back().double_sided != d.double_sided ||
+        plan.segments.back().material != d.material) {
+      plan.segments.push_back({d.alpha, d.double_sided, d.material, i, 0});
+    }
+    plan.segments.back().item_count++;
+    if (d.alpha == AlphaMode::kOpaque) {
+      if (plan.batches.empty() || plan.batches.back().double_sided != d.double_sided)
+        plan.batches.push_back({d.double_sided, i, 0});
+      plan.batches.back().item_count++;
+    }
+  }
+  return plan;
+}
+
+namespace {
 
 absl::StatusOr<vk::Buffer> UploadBuffer(vk::Context& ctx, const void* data, size_t size,
                                         VkBufferUsageFlags usage, const std::string& name) {
@@ -333,6 +369,32 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
                           m.double_sided, d.world_bounds});
   }
   if (drawables.empty()) drawables.push_back(gpu::GpuDrawable{});  // keep the binding valid
+  gs->plan_ = PlanDraws(gs->draws_);
+  {
+    std::vector<DrawItem> ordered;
+    ordered.reserve(gs->draws_.size());
+    for (uint32_t i : gs->plan_.order) ordered.push_back(gs->draws_[i]);
+    gs->draws_ = std::move(ordered);
+  }
+  std::vector<gpu::GpuCullItem> items(std::max<size_t>(1, gs->draws_.size()));
+  for (const DrawSegment& seg : gs->plan_.segments) {
+    for (uint32_t i = seg.first_item; i < seg.first_item + seg.item_count; ++i) {
+      const DrawItem& d = gs->draws_[i];
+      gpu::GpuCullItem& c = items[i];
+      c.draw = glm::uvec4(d.first_index, d.index_count, static_cast<uint32_t>(d.vertex_offset),
+                          d.drawable);
+      c.slot = glm::uvec4(uint32_t(&seg - gs->plan_.segments.data()), seg.first_item, ~0u, 0u);
+      c.flags.x = i + 1 == seg.first_item + seg.item_count ? 1u : 0u;
+    }
+  }
+  for (uint32_t b = 0; b < gs->plan_.batches.size(); ++b) {
+    const DrawBatch& batch = gs->plan_.batches[b];
+    for (uint32_t i = batch.first_item; i < batch.first_item + batch.item_count; ++i) {
+      items[i].slot.z = b;
+      items[i].slot.w = batch.first_item;
+      if (i + 1 == batch.first_item + batch.item_count) items[i].flags.x |= 2u;
+    }
+  }
 
   st = assign(gs->materials_,
               UploadBuffer(ctx, materials.data(), materials.size() * sizeof(gpu::GpuMaterial),
@@ -341,6 +403,10 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
     st = assign(gs->drawables_,
                 UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
+  if (st.ok())
+    st = assign(gs->cull_items_,
+                UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),
+                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".cull_items"));
   if (!st.ok()) return st;
 
   // The same materials for uniform reads, one aligned range per material (set 1, binding 0).

@@ -2,6 +2,7 @@
 // The scene on the device: one vertex buffer, one index buffer, Drawable and Material storage
 // buffers, and the textures in sampler2DArray buckets by size and colour space.
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -45,6 +46,30 @@ struct DrawItem {
   Aabb world_bounds;
 };
 
+// How the draws are grouped for indirect drawing (pure data, unit-tested). Items are the
+// scene's draws in draw order: opaque, alpha-mask, blend; within a group single-sided before
+// double-sided, then by material, then by drawable. A segment is a run of items with one
+// pipeline state (group, cull mode, material) and becomes one vkCmdDrawIndexedIndirectCount; a
+// blended item is a segment of its own, because blending needs back-to-front order, which the
+// CPU sorts each frame. A batch is a run of opaque items with one cull mode: the depth prepass
+// reads no material, so it draws the whole opaque group with one indirect draw per cull mode.
+struct DrawSegment {
+  AlphaMode group = AlphaMode::kOpaque;
+  bool double_sided = false;
+  uint32_t material = 0;
+  uint32_t first_item = 0, item_count = 0;
+};
+struct DrawBatch {
+  bool double_sided = false;
+  uint32_t first_item = 0, item_count = 0;
+};
+struct DrawPlan {
+  std::vector<uint32_t> order;  // item i draws draws[order[i]]
+  std::vector<DrawSegment> segments;
+  std::vector<DrawBatch> batches;
+};
+DrawPlan PlanDraws(const std::vector<DrawItem>& draws);
+
 class GpuScene {
  public:
   // Uploads `scene` and waits for the copies. Errors: RESOURCE_EXHAUSTED when device memory
@@ -65,10 +90,25 @@ class GpuScene {
   // Descriptor set 1 of material `m`: the material as a uniform range and its textures' buckets.
   VkDescriptorSet material_set(uint32_t m) const { return material_sets_[m]; }
   VkSampler sampler() const { return sampler_.handle(); }
+  // The draws in item order (DrawPlan): draws()[i] is item i.
   const std::vector<DrawItem>& draws() const { return draws_; }
+  const std::vector<DrawSegment>& segments() const { return plan_.segments; }
+  const std::vector<DrawBatch>& batches() const { return plan_.batches; }
+  // GpuCullItem per item, what cull.comp reads.
+  const vk::Buffer& cull_items() const { return cull_items_; }
   const std::vector<Light>& lights() const { return lights_; }
   const Aabb& bounds() const { return bounds_; }
   uint64_t device_bytes() const { return device_bytes_; }
+
+  // gpu_occlusion: each view's visibility bits (one per item) from its last frame, double
+  // buffered: a frame reads bits[prev] and writes the other. Kept by the renderer, under its
+  // mutex; it drops the least recently used view past a small number of views.
+  struct ViewVisibility {
+    vk::Buffer bits[2];
+    uint32_t prev = 0;
+    uint64_t last_used = 0;
+  };
+  std::map<uint64_t, ViewVisibility>& views() const { return views_; }
 
  private:
   vk::Buffer vertices_, indices_, drawables_, materials_;
@@ -79,6 +119,9 @@ class GpuScene {
   VkDescriptorPool material_pool_ = VK_NULL_HANDLE;
   std::vector<VkDescriptorSet> material_sets_;
   std::vector<DrawItem> draws_;
+  DrawPlan plan_;
+  vk::Buffer cull_items_;
+  mutable std::map<uint64_t, ViewVisibility> views_;
   std::vector<Light> lights_;
   Aabb bounds_;
   uint64_t device_bytes_ = 0;

@@ -281,6 +281,8 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   enabled.drawIndirectFirstInstance = supported.drawIndirectFirstInstance;
   enabled.fragmentStoresAndAtomics = supported.fragmentStoresAndAtomics;
   enabled.shaderInt64 = supported.shaderInt64;
+  enabled.pipelineStatisticsQuery = supported.pipelineStatisticsQuery;
+  info.pipeline_statistics = supported.pipelineStatisticsQuery == VK_TRUE;
   VkPhysicalDeviceVulkan13Features f13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
   f13.dynamicRendering = VK_TRUE;
   f13.synchronization2 = VK_TRUE;
@@ -292,8 +294,20 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   VkPhysicalDeviceFeatures2 q{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   q.pNext = &f12_supported;
   vkGetPhysicalDeviceFeatures2(ctx->physical_, &q);
-  f12.drawIndirectCount = f12_supported.drawIndirectCount;
+  // Every scene draw is an indexed indirect draw with a GPU-written count.
+  if (!f12_supported.drawIndirectCount || !supported.drawIndirectFirstInstance) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        p.deviceName, " lacks drawIndirectCount or drawIndirectFirstInstance, which every draw uses"));
+  }
+  f12.drawIndirectCount = VK_TRUE;
   f12.samplerFilterMinmax = f12_supported.samplerFilterMinmax;
+  {
+    VkFormatProperties fp{};
+    vkGetPhysicalDeviceFormatProperties(ctx->physical_, VK_FORMAT_R32_SFLOAT, &fp);
+    info.sampler_minmax =
+        f12_supported.samplerFilterMinmax &&
+        (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT) != 0;
+  }
   f12.hostQueryReset = f12_supported.hostQueryReset;
   f12.scalarBlockLayout = f12_supported.scalarBlockLayout;
 

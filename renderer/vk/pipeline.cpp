@@ -60,14 +60,19 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
       {gpu::kAttrUv0, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv0)},
       {gpu::kAttrUv1, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv1)},
   };
+  std::vector<VkVertexInputAttributeDescription> used_attributes;
   VkPipelineVertexInputStateCreateInfo vertex_input{
       VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
   if (desc.scene_vertex_input) {
     vertex_input.vertexBindingDescriptionCount = 1;
     vertex_input.pVertexBindingDescriptions = &binding;
     // A depth-only pipeline reads positions alone: fewer attributes fetched per vertex.
-    vertex_input.vertexAttributeDescriptionCount = desc.fragment_shader.empty() ? 1 : 5;
-    vertex_input.pVertexAttributeDescriptions = attributes;
+    const uint32_t mask =
+        desc.attribute_mask ? desc.attribute_mask : (desc.fragment_shader.empty() ? 1u : 0x1fu);
+    for (const VkVertexInputAttributeDescription& a : attributes)
+      if (mask & (1u << a.location)) used_attributes.push_back(a);
+    vertex_input.vertexAttributeDescriptionCount = uint32_t(used_attributes.size());
+    vertex_input.pVertexAttributeDescriptions = used_attributes.data();
   }
 
   VkPipelineInputAssemblyStateCreateInfo input_assembly{

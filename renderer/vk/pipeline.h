@@ -47,6 +47,9 @@ struct GraphicsPipelineDesc {
   std::string fragment_shader;  // empty: depth-only pipeline
   VkPipelineLayout layout = VK_NULL_HANDLE;
   bool scene_vertex_input = true;  // bind the scene vertex layout (else no vertex input)
+  // Attributes bound, a bit per location (gpu::kAttr*); 0: all, or position alone for a
+  // depth-only pipeline.
+  uint32_t attribute_mask = 0;
   std::vector<VkFormat> color_formats;
   VkFormat depth_format = VK_FORMAT_UNDEFINED;
   bool depth_test = false;

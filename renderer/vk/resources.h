@@ -122,4 +122,9 @@ VkImageMemoryBarrier2 MakeImageBarrier(const Image& image, const ImageTransition
 void CmdBarrier(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images, uint32_t image_count,
                 const VkBufferMemoryBarrier2* buffers = nullptr, uint32_t buffer_count = 0);
 
+// A global memory dependency (for buffers: one barrier covers them all).
+void CmdMemoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 src_stage,
+                      VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
+                      VkAccessFlags2 dst_access);
+
 }  // namespace tessera::vk

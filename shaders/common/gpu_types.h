@@ -52,6 +52,37 @@ TS_CONST uint kCullBindingTileLights = 4;   // buffer uint[] (written)
 // The lights binned by tile row on the CPU: entries 0..rows are offsets into the same array,
 // row r's lights (sorted) are at [offset[r], offset[r + 1]).
 TS_CONST uint kCullBindingRowLights = 5;
+// ---- geometry culling (cull.comp, its own set 0) ----------------------------------------------
+// One workgroup walks the cull items in order, so the commands it appends come out in item
+// order: frames are reproducible and equal, pixel for pixel, whatever the mode.
+TS_CONST uint kCullGroupSize = 256;
+TS_CONST uint kCullBindingUniforms = 0;  // uniform CullUniforms
+TS_CONST uint kCullBindingItems = 1;     // buffer GpuCullItem[] (read)
+TS_CONST uint kCullBindingDrawables = 2; // buffer GpuDrawable[] (bounds; read)
+TS_CONST uint kCullBindingCommands = 3;  // buffer uint[] VkDrawIndexedIndirectCommand (written)
+TS_CONST uint kCullBindingCounts = 4;    // buffer uint[] draw counts + kCullStat* (written)
+TS_CONST uint kCullBindingBases = 5;     // buffer uint[] scratch: visible items before each range
+TS_CONST uint kCullBindingVisPrev = 6;   // buffer uint[] visibility bits of the last frame (read)
+TS_CONST uint kCullBindingVisNext = 7;   // buffer uint[] visibility bits of this frame (written)
+TS_CONST uint kCullBindingHiz = 8;       // sampler2D: the depth pyramid (texelFetch)
+// Phases of cull.comp (CullUniforms.counts.w).
+TS_CONST uint kCullPhaseFrustum = 0;  // gpu_frustum: draw what is in the frustum
+TS_CONST uint kCullPhaseEarly = 1;    // gpu_occlusion 1: what was visible last frame, in frustum
+TS_CONST uint kCullPhaseLate = 2;     // gpu_occlusion 2: the rest, tested against the pyramid
+// Statistics after the draw counts of a phase (counts buffer, per phase).
+TS_CONST uint kCullStatInFrustum = 0;  // items that passed the frustum test
+TS_CONST uint kCullStatVisible = 1;    // late phase: items that also passed the occlusion test
+// Late phase: items the first phase drew (visible last frame) that are occluded now: the most
+// that seeding the first phase with last frame's reprojected depth could have saved.
+TS_CONST uint kCullStatStale = 2;
+TS_CONST uint kCullStatCount = 4;
+TS_CONST uint kDrawCommandWords = 5;  // sizeof(VkDrawIndexedIndirectCommand) / 4
+// The depth pyramid (hiz_build.comp): level 0 is the depth at the power of two at or below half
+// the frame size, each texel the farthest (reverse Z: minimum) depth of the pixels it covers.
+TS_CONST uint kHizGroupSize = 8;  // 8x8 texels per workgroup
+TS_CONST uint kHizBindingSource = 0;  // sampler2D: the depth (level 0) or the pyramid (min sampler)
+TS_CONST uint kHizBindingDest = 1;    // image2D r32f: the level written
+
 // ---- descriptor set 1: one material ---------------------------------------------------------
 // One set per material, bound when the material changes between draws: binding 0 is the
 // material itself as a uniform buffer range, binding 1 + k the bucket (sampler2DArray) holding
@@ -125,6 +156,28 @@ struct GpuDrawable {
   vec4 sphere;         // world bounding sphere: xyz centre, w radius
   vec4 aabb_min;       // world AABB
   vec4 aabb_max;
+};
+
+// One drawable as geometry culling sees it, in the scene's item order: opaque, alpha-mask,
+// blend; within a group single-sided before double-sided, then by material. A "segment" is a run
+// of items drawn with one state (group, cull mode, material): one indirect draw; a "batch" a
+// run of opaque items with one cull mode (the depth prepass needs no material).
+struct GpuCullItem {
+  uvec4 draw;   // x first index, y index count, z vertex offset (int bits), w drawable
+  uvec4 slot;   // x segment, y segment's first item, z batch (~0u: none), w batch's first item
+  uvec4 flags;  // x: 1 last item of its segment, 2 last item of its batch; yzw unused
+};
+
+// Uniforms of cull.comp: the view the drawables are tested against (a parameter, so shadow
+// views can reuse the pass) and where the phase writes.
+struct CullUniforms {
+  mat4 view_proj;
+  vec4 planes[6];  // frustum planes (xyz normal, w distance), inside: dot(n, p) + w >= 0
+  uvec4 counts;    // x items, y segments, z batches, w phase (kCullPhase*)
+  uvec4 offsets;   // x this phase's first command (segments; batches follow after `items`),
+                   // y this phase's first count (segments, then batches, then kCullStat*)
+  uvec4 hiz;       // x level-0 width, y height, z levels, w unused
+  uvec4 frame;     // x frame width, y height (pixels of the depth the pyramid was built from)
 };
 
 // glTF KHR_lights_punctual, in world space.

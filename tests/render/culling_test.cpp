@@ -1,0 +1,221 @@
+// Geometry culling on the device (validation on): every mode keeps every truly visible drawable
+// and renders the same image as no culling, along camera paths through Sponza and through a
+// generated city where almost everything is hidden.
+//
+// "Truly visible" comes from a drawable-id image rendered without culling against the frame's
+// depth (FrameCapture::want_ids): the drawables whose id is on top somewhere.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "renderer/renderer.h"
+#include "renderer/scene/city_scene.h"
+#include "renderer/scene/gltf_import.h"
+#include "shared_renderer.h"
+
+namespace tessera {
+namespace {
+
+constexpr uint32_t kWidth = 320, kHeight = 180;
+
+std::string AssetsDir() {
+  const char* dir = std::getenv("TESSERA_ASSETS_DIR");
+  return dir ? dir : TESSERA_DEFAULT_ASSETS_DIR;
+}
+
+Settings Small(CullingMode mode) {
+  Settings s;
+  s.width = kWidth;
+  s.height = kHeight;
+  s.culling = mode;
+  return s;
+}
+
+std::set<uint32_t> TrulyVisible(const std::vector<uint32_t>& ids) {
+  std::set<uint32_t> out;
+  for (uint32_t id : ids)
+    if (id != 0) out.insert(id - 1);
+  return out;
+}
+
+// Sums over the frames [first_frame, end_frame) of a path (gpu_occlusion needs a frame or two
+// of history before its first phase is accurate).
+struct ModeResult {
+  uint32_t frames = 0;
+  uint64_t drawn = 0, in_frustum = 0, truly_visible = 0;
+  uint64_t triangles = 0;
+};
+
+// Renders the path once per mode (each mode its own view, so gpu_occlusion carries its history
+// from frame to frame) and checks every frame against the unculled one.
+std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>& path,
+                                  const std::string& what, size_t first_frame = 0,
+                                  size_t end_frame = SIZE_MAX) {
+  Renderer& r = SharedRenderer();
+  const CullingMode modes[] = {CullingMode::kNone, CullingMode::kCpuFrustum,
+                               CullingMode::kGpuFrustum, CullingMode::kGpuOcclusion};
+  std::vector<ModeResult> results(4);
+  for (size_t f = 0; f < path.size(); ++f) {
+    FrameCapture truth;
+    truth.want_ids = true;
+    absl::StatusOr<Frame> reference =
+        r.Render(scene, path[f], Small(CullingMode::kNone), /*view=*/1, &truth);
+    if (!reference.ok()) {
+      ADD_FAILURE() << reference.status();
+      return results;
+    }
+    const std::set<uint32_t> visible = TrulyVisible(truth.ids);
+    EXPECT_FALSE(visible.empty()) << what << " frame " << f << ": nothing visible";
+    for (size_t m = 0; m < 4; ++m) {
+      FrameCapture cap;
+      absl::StatusOr<Frame> frame = r.Render(scene, path[f], Small(modes[m]), 100 + m, &cap);
+      if (!frame.ok()) {
+        ADD_FAILURE() << frame.status();
+        return results;
+      }
+      const std::string where =
+          what + " frame " + std::to_string(f) + " " + std::string(ToString(modes[m]));
+      // Zero false negatives.
+      const std::set<uint32_t> drawn(cap.drawn.begin(), cap.drawn.end());
+      EXPECT_EQ(drawn.size(), cap.drawn.size()) << where << ": a drawable drawn twice";
+      std::vector<uint32_t> missing;
+      std::set_difference(visible.begin(), visible.end(), drawn.begin(), drawn.end(),
+                          std::back_inserter(missing));
+      EXPECT_TRUE(missing.empty()) << where << ": " << missing.size()
+                                   << " visible drawables culled, first " << missing[0];
+      // The same picture as no culling, pixel for pixel.
+      if (frame->image.pixels.size() != reference->image.pixels.size()) {
+        ADD_FAILURE() << where << ": image size";
+        continue;
+      }
+      size_t differing = 0;
+      for (size_t i = 0; i < frame->image.pixels.size(); i += 4)
+        differing += std::equal(frame->image.pixels.begin() + i,
+                                frame->image.pixels.begin() + i + 4,
+                                reference->image.pixels.begin() + i)
+                         ? 0
+                         : 1;
+      EXPECT_EQ(differing, 0u) << where << ": pixels differ from the unculled image";
+      // Statistics hold together.
+      const FrameStats& st = frame->stats;
+      EXPECT_EQ(st.drawables_drawn, cap.drawn.size()) << where;
+      EXPECT_LE(st.drawables_drawn, st.drawables_in_frustum) << where;
+      EXPECT_LE(st.drawables_in_frustum, st.drawables) << where;
+      EXPECT_EQ(st.drawables_culled, st.drawables - st.drawables_drawn) << where;
+      if (modes[m] != CullingMode::kGpuOcclusion) EXPECT_EQ(st.drawables_late, 0u) << where;
+      if (modes[m] == CullingMode::kNone) EXPECT_EQ(st.drawables_drawn, st.drawables) << where;
+      if (st.pipeline_statistics) {
+        // The device's own count of input primitives matches what the draw lists submitted
+        // (plus the sky's full-screen triangle).
+        EXPECT_EQ(st.primitives_in, st.triangles_submitted + 1) << where;
+      }
+      if (std::getenv("TESSERA_CULLING_VERBOSE"))
+        std::printf("%s: frustum %u drawn %u late %u stale %u visible %zu\n", where.c_str(),
+                    st.drawables_in_frustum, st.drawables_drawn, st.drawables_late,
+                    st.drawables_stale, visible.size());
+      if (f < first_frame || f >= end_frame) continue;
+      ModeResult& res = results[m];
+      res.frames++;
+      res.drawn += st.drawables_drawn;
+      res.in_frustum += st.drawables_in_frustum;
+      res.truly_visible += visible.size();
+      res.triangles += st.triangles_submitted;
+    }
+  }
+  EXPECT_EQ(r.validation_message_count(), 0u);
+  for (const std::string& m : r.validation_messages()) ADD_FAILURE() << m;
+  return results;
+}
+
+Camera LookAt(glm::vec3 eye, glm::vec3 target) {
+  Camera c;
+  c.eye = eye;
+  c.target = target;
+  c.yfov = 1.0f;
+  c.znear = 0.1f;
+  return c;
+}
+
+TEST(CullingTest, SponzaPathKeepsEveryVisibleDrawable) {
+  absl::StatusOr<GltfSource> src =
+      LoadGltfSourceFromDisk(AssetsDir() + "/Sponza/glTF/Sponza.gltf");
+  ASSERT_TRUE(src.ok()) << src.status();
+  absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(*src);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  // Down the atrium, a turn towards the arcade, a cut to the upper gallery, and back.
+  const std::vector<Camera> path = {
+      LookAt({9.0f, 1.6f, -0.4f}, {-5.0f, 3.5f, 0.3f}),
+      LookAt({6.0f, 1.6f, -0.2f}, {-8.0f, 3.0f, 0.5f}),
+      LookAt({3.0f, 1.6f, 0.0f}, {3.0f, 2.0f, 6.0f}),
+      LookAt({0.0f, 1.6f, 0.5f}, {0.0f, 2.0f, -6.0f}),
+      LookAt({-6.0f, 6.5f, 3.5f}, {8.0f, 5.0f, 3.5f}),
+      LookAt({-10.0f, 1.6f, 0.0f}, {10.0f, 1.6f, 0.0f}),
+  };
+  const std::vector<ModeResult> r = CheckPath(**scene, path, "sponza");
+  // Frustum culling removes something somewhere on this path.
+  EXPECT_LT(r[1].drawn, r[0].drawn);
+}
+
+TEST(CullingTest, CityPathKeepsEveryVisibleDrawableAndCullsTheHiddenOnes) {
+  CityParams params;
+  params.facade_detail = 1;
+  const CpuScene city = BuildCityScene(params);
+  ASSERT_GE(city.drawables.size(), 10000u);
+  absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(city);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  // Walk up a street at eye height (3 m a frame), turn into a crossing, then a cut to a view
+  // from above the roofs, and back down.
+  const float x = CityStreetX(params, 5);
+  const float z0 = CityStreetZ(params, 10), z1 = CityStreetZ(params, 9);
+  std::vector<Camera> path;
+  for (int i = 0; i < 6; ++i) {
+    const float z = z0 - 2.0f - 3.0f * float(i);
+    path.push_back(LookAt({x, 1.7f, z}, {x + 0.2f * float(i), 1.7f, z - 100.0f}));
+  }
+  for (int i = 0; i < 4; ++i) {
+    const float a = 0.4f * float(i);  // radians, turning left towards -x
+    path.push_back(LookAt({x, 1.7f, z1}, {x - 100.0f * std::sin(a), 1.7f, z1 - 100.0f * std::cos(a)}));
+  }
+  path.push_back(LookAt({x, 90.0f, z0 + 40.0f}, {x, 0.0f, z1 - 200.0f}));
+  path.push_back(LookAt({x, 1.7f, z0 - 2.0f}, {x, 1.7f, z0 - 100.0f}));
+  const std::vector<ModeResult> r = CheckPath(**scene, path, "city", /*first_frame=*/2, /*end_frame=*/10);
+  // At street level almost everything in the frustum is hidden. Over the walk and the turn
+  // (the third to the tenth frame: once the view has history, and before the cuts, which cost
+  // a frame each),
+  // occlusion culling draws a small fraction of what frustum culling keeps.
+  EXPECT_LT(r[3].drawn * 3, r[2].drawn) << "occlusion drew " << r[3].drawn << " of " << r[2].drawn;
+  EXPECT_LT(r[3].triangles * 3, r[0].triangles);
+}
+
+TEST(CullingTest, OcclusionStartsFreshForANewView) {
+  // A view's first frame has no history: the first phase draws nothing, the second everything
+  // visible; the next frame of the same view draws almost everything in the first phase.
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  Camera cam;
+  cam.eye = {0.0f, 3.0f, 9.0f};
+  cam.target = {0.0f, 0.5f, 0.0f};
+  absl::StatusOr<Frame> first = r.Render(*scene, cam, Small(CullingMode::kGpuOcclusion), 7777);
+  ASSERT_TRUE(first.ok()) << first.status();
+  EXPECT_GT(first->stats.drawables_drawn, 0u);
+  EXPECT_EQ(first->stats.drawables_late, first->stats.drawables_drawn);
+  absl::StatusOr<Frame> second = r.Render(*scene, cam, Small(CullingMode::kGpuOcclusion), 7777);
+  ASSERT_TRUE(second.ok()) << second.status();
+  EXPECT_EQ(second->stats.drawables_drawn, first->stats.drawables_drawn);
+  EXPECT_EQ(second->stats.drawables_late, 0u);
+  EXPECT_EQ(second->image.pixels, first->image.pixels);
+  // The passes of the two-phase frame are all reported.
+  std::vector<std::string> names;
+  for (const PassTiming& p : second->passes) names.push_back(p.pass);
+  for (const char* want : {"cull", "depth_prepass", "hiz_build", "cull_late", "depth_prepass_late"})
+    EXPECT_NE(std::find(names.begin(), names.end(), want), names.end()) << want;
+}
+
+}  // namespace
+}  // namespace tessera
