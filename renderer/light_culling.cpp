@@ -3,21 +3,15 @@
 #include <algorithm>
 #include <cmath>
 
+#include "renderer/scene/hash.h"
+
 namespace tessera {
 namespace {
 
-// A 32-bit integer hash (the "lowbias32" mix): light i's random numbers depend on (seed, i, k)
-// only, so a light does not change when the count does.
-uint32_t Hash(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352dU;
-  x ^= x >> 15;
-  x *= 0x846ca68bU;
-  x ^= x >> 16;
-  return x;
-}
+// Light i's random numbers depend on (seed, i, k) only, so a light does not change when the
+// count does.
 float Random(uint32_t seed, uint32_t i, uint32_t k) {
-  return float(Hash(Hash(seed * 0x9e3779b9U + i) + k) >> 8) * (1.0f / 16777216.0f);
+  return float(Lowbias32(Lowbias32(seed * 0x9e3779b9U + i) + k) >> 8) * (1.0f / 16777216.0f);
 }
 
 glm::vec3 Hue(float h) {

@@ -201,8 +201,10 @@ struct Renderer::Impl {
   absl::Status EndCopiesAndWait();
   absl::Status CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set,
                           FrameCapture* capture);
-  // none / cpu_frustum: the CPU writes phase 0's lists; returns the drawables in the frustum.
-  uint32_t WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
+  // none / cpu_frustum: the CPU writes phase 0's lists (and its in-frustum statistic).
+  void CountDrawn(const GpuScene& gs, const DrawLists& draws, const std::vector<PassId>& pass_ids,
+                  FrameStats& stats, std::vector<uint32_t>* drawn_out) const;
+  void WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
   absl::StatusOr<GpuScene::ViewVisibility*> Visibility(const GpuScene& scene, uint64_t view);
   VkDescriptorSet WriteSceneSet(const GpuScene& scene);
 };
@@ -400,7 +402,94 @@ absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuSc
   return &it->second;
 }
 
-uint32_t Renderer::Impl::WriteCpuLists(const GpuScene& scene, const DrawLists& lists,
+// What a frame drew, from the lists it executed (counts clamped to the list sizes, as the
+// draws clamp them to maxDrawCount): drawables, draws and triangles per pass, and the drawn
+// drawables when `drawn_out` is set.
+void Renderer::Impl::CountDrawn(const GpuScene& gs, const DrawLists& draws,
+                                const std::vector<PassId>& pass_ids, FrameStats& stats,
+                                std::vector<uint32_t>* drawn_out) const {
+  const uint32_t item_count = uint32_t(gs.draws().size());
+  const uint32_t segment_count = uint32_t(gs.segments().size());
+  const uint32_t list_count = segment_count + uint32_t(gs.batches().size());
+  const auto* commands = static_cast<const VkDrawIndexedIndirectCommand*>(draw_commands.mapped());
+  const auto* counts = static_cast<const uint32_t*>(draw_counts.mapped());
+  struct ListSums {
+    uint64_t triangles = 0;
+    uint32_t draws = 0;
+  };
+  auto sum_list = [&](uint32_t phase, bool batch, uint32_t first, uint32_t capacity,
+                      uint32_t count_index, std::vector<uint32_t>* drawn) {
+    ListSums r;
+    const uint32_t n = std::min(counts[draws.CountOffset(phase, count_index) / 4], capacity);
+    const VkDrawIndexedIndirectCommand* c =
+        commands + draws.CommandOffset(phase, batch, first) / sizeof(VkDrawIndexedIndirectCommand);
+    for (uint32_t k = 0; k < n; ++k) {
+      r.triangles += c[k].indexCount / 3;
+      if (drawn) drawn->push_back(c[k].firstInstance);
+    }
+    r.draws = n;
+    return r;
+  };
+  // Per phase and group: the segments' sums; per phase: the opaque batches'.
+  ListSums group_sums[2][3] = {};
+  ListSums batch_sums[2] = {};
+  std::vector<uint32_t> drawn;
+  uint32_t late = 0;
+  for (uint32_t p = 0; p < draws.phases; ++p) {
+    for (uint32_t i = 0; i < segment_count; ++i) {
+      const DrawSegment& seg = gs.segments()[i];
+      const ListSums r = sum_list(p, false, seg.first_item, seg.item_count, i, &drawn);
+      ListSums& g = group_sums[p][static_cast<uint32_t>(seg.group)];
+      g.triangles += r.triangles;
+      g.draws += r.draws;
+      if (p == 1) late += r.draws;
+    }
+    for (uint32_t b = 0; b < gs.batches().size(); ++b) {
+      const DrawBatch& batch = gs.batches()[b];
+      const ListSums r =
+          sum_list(p, true, batch.first_item, batch.item_count, segment_count + b, nullptr);
+      batch_sums[p].triangles += r.triangles;
+      batch_sums[p].draws += r.draws;
+    }
+  }
+  const uint32_t* stats0 = counts + draws.CountOffset(0, list_count) / 4;
+  stats.drawables_in_frustum = stats0[gpu::kCullStatInFrustum];
+  stats.drawables_drawn = uint32_t(drawn.size());
+  stats.drawables_culled = item_count - uint32_t(drawn.size());
+  stats.drawables_late = late;
+  if (draws.phases == 2) {
+    stats.drawables_stale = counts[draws.CountOffset(1, list_count) / 4 + gpu::kCullStatStale];
+  }
+  auto add = [&](const ListSums& r) {
+    stats.triangles_submitted += r.triangles;
+    stats.draws += r.draws;
+  };
+  for (PassId id : pass_ids) {
+    const uint32_t o = static_cast<uint32_t>(AlphaMode::kOpaque);
+    const uint32_t k = static_cast<uint32_t>(AlphaMode::kMask);
+    const uint32_t b = static_cast<uint32_t>(AlphaMode::kBlend);
+    if (id == PassId::kDepthPrepass || id == PassId::kDepthPrepassLate) {
+      const uint32_t p = id == PassId::kDepthPrepassLate ? 1 : 0;
+      add(batch_sums[p]);
+      add(group_sums[p][k]);
+    } else if (id == PassId::kForward || id == PassId::kTransparent) {
+      for (uint32_t p = 0; p < draws.phases; ++p) {
+        if (id == PassId::kForward) {
+          add(group_sums[p][o]);
+          add(group_sums[p][k]);
+        } else {
+          add(group_sums[p][b]);
+        }
+      }
+    }
+  }
+  if (drawn_out) {
+    std::sort(drawn.begin(), drawn.end());
+    *drawn_out = std::move(drawn);
+  }
+}
+
+void Renderer::Impl::WriteCpuLists(const GpuScene& scene, const DrawLists& lists,
                                        const Frustum* frustum) {
   const std::vector<DrawItem>& items = scene.draws();
   std::vector<uint8_t> visible(items.size(), 1);
@@ -430,7 +519,6 @@ uint32_t Renderer::Impl::WriteCpuLists(const GpuScene& scene, const DrawLists& l
   uint32_t* stats = counts + lists.CountOffset(0, segments + uint32_t(scene.batches().size())) / 4;
   std::fill(stats, stats + gpu::kCullStatCount, 0u);
   stats[gpu::kCullStatInFrustum] = in_frustum;
-  return in_frustum;
 }
 
 absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
@@ -617,22 +705,7 @@ absl::Status Renderer::Impl::CaptureIds(const GpuScene& scene, VkDescriptorSet s
   pc.stats = &unused;
   BeginRendering(pc, &c, &d);
   BeginSceneDraw(pc, id_pipeline.handle());
-  uint32_t material = UINT32_MAX;
-  int cull = -1;
-  for (const DrawItem& item : scene.draws()) {
-    if (item.material != material) {
-      const VkDescriptorSet set = scene.material_set(item.material);
-      vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, scene_layout.pipeline_layout,
-                              gpu::kMaterialSet, 1, &set, 0, nullptr);
-      material = item.material;
-    }
-    if (int want = item.double_sided ? 0 : 1; want != cull) {
-      vkCmdSetCullMode(cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
-      cull = want;
-    }
-    vkCmdDrawIndexed(cmd, item.index_count, 1, item.first_index, item.vertex_offset,
-                     item.drawable);
-  }
+  RecordAllDirect(pc);
   vkCmdEndRendering(cmd);
   VkImageMemoryBarrier2 to_src = vk::MakeImageBarrier(
       *ids, {color.stage, color.access, color.layout, src.stage, src.access, src.layout});
@@ -1047,87 +1120,8 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   frame.gpu_total_ms = per_pass_submit ? frame.cpu.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   if (visibility) visibility->prev ^= 1;  // this frame's bits are the next frame's history
 
-  // What was drawn, from the lists the frame executed (counts clamped to the list sizes, as
-  // the draws clamp them to maxDrawCount).
-  {
-    const auto* commands = static_cast<const VkDrawIndexedIndirectCommand*>(m.draw_commands.mapped());
-    const auto* counts = static_cast<const uint32_t*>(m.draw_counts.mapped());
-    struct ListSums {
-      uint64_t triangles = 0;
-      uint32_t draws = 0;
-    };
-    auto sum_list = [&](uint32_t phase, bool batch, uint32_t first, uint32_t capacity,
-                        uint32_t count_index, std::vector<uint32_t>* drawn) {
-      ListSums r;
-      const uint32_t n = std::min(counts[draws.CountOffset(phase, count_index) / 4], capacity);
-      const VkDrawIndexedIndirectCommand* c =
-          commands + draws.CommandOffset(phase, batch, first) / sizeof(VkDrawIndexedIndirectCommand);
-      for (uint32_t k = 0; k < n; ++k) {
-        r.triangles += c[k].indexCount / 3;
-        if (drawn) drawn->push_back(c[k].firstInstance);
-      }
-      r.draws = n;
-      return r;
-    };
-    // Per phase and group: the segments' sums; per phase: the opaque batches'.
-    ListSums group_sums[2][3] = {};
-    ListSums batch_sums[2] = {};
-    std::vector<uint32_t> drawn;
-    uint32_t late = 0;
-    for (uint32_t p = 0; p < draws.phases; ++p) {
-      for (uint32_t i = 0; i < segment_count; ++i) {
-        const DrawSegment& seg = gs.segments()[i];
-        const ListSums r = sum_list(p, false, seg.first_item, seg.item_count, i, &drawn);
-        ListSums& g = group_sums[p][static_cast<uint32_t>(seg.group)];
-        g.triangles += r.triangles;
-        g.draws += r.draws;
-        if (p == 1) late += r.draws;
-      }
-      for (uint32_t b = 0; b < gs.batches().size(); ++b) {
-        const DrawBatch& batch = gs.batches()[b];
-        const ListSums r =
-            sum_list(p, true, batch.first_item, batch.item_count, segment_count + b, nullptr);
-        batch_sums[p].triangles += r.triangles;
-        batch_sums[p].draws += r.draws;
-      }
-    }
-    const uint32_t* stats0 = counts + draws.CountOffset(0, list_count) / 4;
-    frame.stats.drawables_in_frustum = stats0[gpu::kCullStatInFrustum];
-    frame.stats.drawables_drawn = uint32_t(drawn.size());
-    frame.stats.drawables_culled = item_count - uint32_t(drawn.size());
-    frame.stats.drawables_late = late;
-    if (draws.phases == 2) {
-      frame.stats.drawables_stale = counts[draws.CountOffset(1, list_count) / 4 + gpu::kCullStatStale];
-    }
-    auto add = [&](const ListSums& r) {
-      frame.stats.triangles_submitted += r.triangles;
-      frame.stats.draws += r.draws;
-    };
-    for (PassId id : pass_ids) {
-      const uint32_t o = static_cast<uint32_t>(AlphaMode::kOpaque);
-      const uint32_t k = static_cast<uint32_t>(AlphaMode::kMask);
-      const uint32_t b = static_cast<uint32_t>(AlphaMode::kBlend);
-      if (id == PassId::kDepthPrepass || id == PassId::kDepthPrepassLate) {
-        const uint32_t p = id == PassId::kDepthPrepassLate ? 1 : 0;
-        add(batch_sums[p]);
-        add(group_sums[p][k]);
-      } else if (id == PassId::kForward || id == PassId::kTransparent) {
-        for (uint32_t p = 0; p < draws.phases; ++p) {
-          if (id == PassId::kForward) {
-            add(group_sums[p][o]);
-            add(group_sums[p][k]);
-          } else {
-            add(group_sums[p][b]);
-          }
-        }
-      }
-    }
-    frame.stats.indirect_draws = pass_stats.indirect_draws;
-    if (capture) {
-      std::sort(drawn.begin(), drawn.end());
-      capture->drawn = std::move(drawn);
-    }
-  }
+  m.CountDrawn(gs, draws, pass_ids, frame.stats, capture ? &capture->drawn : nullptr);
+  frame.stats.indirect_draws = pass_stats.indirect_draws;
   if (m.stat_queries) {
     frame.stats.pipeline_statistics = true;
     for (PassId id : pass_ids) {

@@ -96,6 +96,16 @@ bool Occluded(vec3 lo, vec3 hi) {
   return nearest < farthest;
 }
 
+// Writes item's draw (one instance, firstInstance = drawable) as command `index`.
+void WriteCommand(uint index, GpuCullItem item) {
+  const uint c = index * kDrawCommandWords;
+  commands[c + 0] = item.draw.y;  // indexCount
+  commands[c + 1] = 1u;           // instanceCount
+  commands[c + 2] = item.draw.x;  // firstIndex
+  commands[c + 3] = item.draw.z;  // vertexOffset
+  commands[c + 4] = item.draw.w;  // firstInstance = drawable
+}
+
 void main() {
   const uint n = cull.counts.x;
   const uint phase = cull.counts.w;
@@ -155,25 +165,11 @@ void main() {
     barrier();
     if (i < n) {
       const uint seg_base = bases[item.slot.x];
-      if (draw) {
-        uint c = (cmd_base + item.slot.y + (before - seg_base)) * kDrawCommandWords;
-        commands[c + 0] = item.draw.y;  // indexCount
-        commands[c + 1] = 1u;           // instanceCount
-        commands[c + 2] = item.draw.x;  // firstIndex
-        commands[c + 3] = item.draw.z;  // vertexOffset
-        commands[c + 4] = item.draw.w;  // firstInstance = drawable
-      }
+      if (draw) WriteCommand(cmd_base + item.slot.y + (before - seg_base), item);
       if ((item.flags.x & 1u) != 0) counts[count_base + item.slot.x] = before + flag - seg_base;
       if (item.slot.z != ~0u) {
         const uint batch_base = bases[cull.counts.y + item.slot.z];
-        if (draw) {
-          uint c = (cmd_base + n + item.slot.w + (before - batch_base)) * kDrawCommandWords;
-          commands[c + 0] = item.draw.y;
-          commands[c + 1] = 1u;
-          commands[c + 2] = item.draw.x;
-          commands[c + 3] = item.draw.z;
-          commands[c + 4] = item.draw.w;
-        }
+        if (draw) WriteCommand(cmd_base + n + item.slot.w + (before - batch_base), item);
         if ((item.flags.x & 2u) != 0)
           counts[count_base + cull.counts.y + item.slot.z] = before + flag - batch_base;
       }

@@ -128,6 +128,15 @@ void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begi
     if (segments[s].group == group) draw(s);
 }
 
+void RecordAllDirect(const PassContext& ctx) {
+  DrawState state;
+  for (const DrawItem& item : ctx.scene->draws()) {
+    state.Apply(ctx, item.double_sided, item.material, /*textured=*/true);
+    vkCmdDrawIndexed(ctx.cmd, item.index_count, 1, item.first_index, item.vertex_offset,
+                     item.drawable);
+  }
+}
+
 void RecordBatches(const PassContext& ctx, uint32_t phase) {
   const std::vector<DrawBatch>& batches = ctx.scene->batches();
   DrawState state;

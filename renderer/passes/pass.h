@@ -175,6 +175,8 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline);
 // blend group is drawn in DrawLists::blend_order.
 void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begin,
                     uint32_t phase_end, bool textured = true);
+// Draws every item of the scene, unculled, with direct draws (tests: the drawable-id image).
+void RecordAllDirect(const PassContext& ctx);
 // Draws the opaque group without materials: one indirect draw per batch (cull mode).
 void RecordBatches(const PassContext& ctx, uint32_t phase);
 

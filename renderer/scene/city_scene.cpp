@@ -5,6 +5,8 @@
 // draw count and the triangle count are what grow.
 #include "renderer/scene/city_scene.h"
 
+#include "renderer/scene/hash.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -64,18 +66,7 @@ float BlockMin(uint32_t blocks, float block, uint32_t b) {
   return StreetCentre(blocks, block, b) + 0.5f * kStreet;
 }
 
-// ---- deterministic randomness --------------------------------------------------------------
-
-// Integer hash (lowbias32): the same numbers on every platform and standard library, unlike
-// the std distributions.
-uint32_t Mix(uint32_t x) {
-  x ^= x >> 16;
-  x *= 0x7feb352du;
-  x ^= x >> 15;
-  x *= 0x846ca68bu;
-  x ^= x >> 16;
-  return x;
-}
+// ---- deterministic randomness (Lowbias32, renderer/scene/hash.h) ---------------------------
 
 // What each hash of a lot decides, so the decisions are independent of each other.
 enum Salt : uint32_t {
@@ -91,10 +82,10 @@ enum Salt : uint32_t {
 };
 
 uint32_t Hash(uint32_t seed, uint32_t x, uint32_t z, Salt salt) {
-  uint32_t h = Mix(seed + 0x9e3779b9u);
-  h = Mix(h ^ x);
-  h = Mix(h ^ (z * 0x85ebca6bu));
-  return Mix(h ^ (static_cast<uint32_t>(salt) * 0xc2b2ae35u));
+  uint32_t h = Lowbias32(seed + 0x9e3779b9u);
+  h = Lowbias32(h ^ x);
+  h = Lowbias32(h ^ (z * 0x85ebca6bu));
+  return Lowbias32(h ^ (static_cast<uint32_t>(salt) * 0xc2b2ae35u));
 }
 
 // Uniform in [0, 1): the top 24 bits, exact in a float.
