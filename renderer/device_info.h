@@ -18,6 +18,13 @@ struct DeviceInfo {
   std::string driver_info;           // e.g. "Mesa 22.3.6 (LLVM 15.0.6)"
   std::string api_version;           // "1.3.230"
   uint32_t max_samples = 1;          // largest MSAA count for colour + depth attachments
+  // Sample counts (bit n = 2^n samples) usable for every multisampled target: float and integer
+  // colour attachments, depth, and sampling them (lavapipe: 1 and 4).
+  uint32_t sample_counts = 1;
+  // vis_mlaa can run: fragment shaders read gl_PrimitiveID (geometryShader) and the device uses
+  // the standard sample locations the resolve pass assumes.
+  bool visibility_buffer = false;
+  bool depth_resolve_min = false;  // multisampled depth resolves to its farthest sample (MIN)
   uint32_t max_image_dimension = 0;  // maxImageDimension2D
   uint32_t max_array_layers = 0;
   float timestamp_period_ns = 1.0f;

@@ -12,7 +12,24 @@
 namespace tessera {
 
 // The frame's transient resources.
-enum class Resource : uint8_t { kDepth, kHdrColor, kLdrColor, kHiz, kCount };
+// kDepth is always single-sampled: with multisampling it is the resolve of kDepthMs (the
+// farthest sample where the device can), which light culling, the depth pyramid, TAA and the
+// transparent pass of vis_mlaa read.
+enum class Resource : uint8_t {
+  kDepth,
+  kHdrColor,   // the shaded frame (for msaa: the resolve of kHdrMs)
+  kLdrColor,   // tonemapped, sRGB
+  kHiz,
+  kDepthMs,    // msaa / vis_mlaa: multisampled depth
+  kHdrMs,      // msaa: multisampled colour
+  kVisMs,      // vis_mlaa: multisampled visibility ids (drawable | triangle per sample)
+  kVisId,      // vis_mlaa: per pixel the id of the triangle to shade
+  kVisCoverage,    // vis_mlaa: per pixel the coverage mask and mean position of its surface
+  kMaterialDepth,  // vis_mlaa: per pixel its surface's material as a depth value
+  kPostHdr,    // vis_mlaa (geometric AA) and taa output, tonemapped
+  kFxaaColor,  // fxaa output, read back
+  kCount
+};
 // (The culling passes' buffers are their own: each ends with a buffer barrier to the stage that
 // reads them: draw-indirect for the geometry-culling lists, fragment for the light lists.)
 
@@ -26,6 +43,7 @@ enum class Access : uint8_t {
   kComputeRead,  // read (sampled) in a compute shader
   kComputeWrite,  // written (storage image) and read back in a compute shader, general layout
   kTransferSrc,  // copied from
+  kDepthResolve,  // written by the multisample resolve of a depth attachment
 };
 
 struct ResourceUse {
@@ -37,20 +55,28 @@ struct ResourceUse {
 enum class PassId : uint8_t {
   kCull,          // gpu_frustum / gpu_occlusion: indirect draw lists from the drawables (compute)
   kDepthPrepass,  // depth of opaque + alpha-mask geometry, so shading runs once per pixel
+  kVisibility,    // vis_mlaa: multisampled ids + depth of opaque + alpha-mask geometry
   kHizBuild,      // gpu_occlusion: the depth pyramid of what the first phase drew
   kCullLate,      // gpu_occlusion: the other drawables against the pyramid
   kDepthPrepassLate,  // gpu_occlusion: depth of the drawables that became visible
+  kVisibilityLate,    // gpu_occlusion + vis_mlaa: their ids
   kLightCull,     // forward+: per-tile light lists from the prepass depth (compute)
+  kVisResolve,    // vis_mlaa: group each pixel's samples by surface, pick the one to shade
+  kVisShade,      // vis_mlaa: shade each pixel's surface, one draw per material
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
+  kGeometricAa,   // vis_mlaa: blend partly covered pixels with the neighbours the mask points to
   kTransparent,   // blended materials, back to front, over the opaque result
+  kTaa,           // taa: this frame blended with the reprojected history
   kTonemap,       // HDR -> exposure -> tonemap -> sRGB RGBA8
+  kFxaa,          // fxaa: one luma-based pass on the tonemapped image
   kReadback,      // RGBA8 image -> host buffer for the encoder
   kCount
 };
 
 std::string_view PassName(PassId id);
-// The resources a pass reads and writes.
-std::vector<ResourceUse> PassUses(PassId id);
+// The resources a pass reads and writes; they depend on the AA mode (multisampled targets, the
+// post-AA colour).
+std::vector<ResourceUse> PassUses(PassId id, AaMode aa = AaMode::kNone);
 
 // What the frame graph needs to know about the scene to pick passes.
 struct FrameFeatures {
@@ -71,6 +97,7 @@ struct Transition {
 // For each pass, the transitions to make before it runs. A transition is emitted when the
 // layout changes or either side writes (write-after-write and read-after-write hazards);
 // read-after-read in the same layout needs none.
-std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes);
+std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes,
+                                                     AaMode aa = AaMode::kNone);
 
 }  // namespace tessera

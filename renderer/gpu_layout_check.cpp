@@ -47,7 +47,8 @@ static_assert(offsetof(CullUniforms, hiz) == 192);
 static_assert(offsetof(CullUniforms, frame) == 208);
 static_assert(kDrawCommandWords * 4 == 20, "VkDrawIndexedIndirectCommand");
 
-static_assert(sizeof(FrameUniforms) == 4 * 64 + 7 * 16);
+static_assert(sizeof(FrameUniforms) == 4 * 64 + 8 * 16);
+static_assert(offsetof(FrameUniforms, aa) == 368);
 static_assert(offsetof(FrameUniforms, lighting) == 336);
 static_assert(offsetof(FrameUniforms, depth_params) == 352);
 static_assert(offsetof(FrameUniforms, inv_view_proj) == 192);

@@ -18,27 +18,6 @@
 namespace tessera {
 namespace {
 
-// Larger than any frame we render; also stops a tiny file from declaring gigapixels and
-// making us allocate them before the decoder finds out the data is missing.
-constexpr uint32_t kMaxImageSide = 16384;
-
-absl::Status ValidateImage(const RgbaImage& image, const char* what) {
-  if (image.width == 0 || image.height == 0) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(what, ": empty image (", image.width, "x", image.height, ")"));
-  }
-  if (image.width > kMaxImageSide || image.height > kMaxImageSide) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(what, ": image too large (", image.width, "x", image.height, ")"));
-  }
-  const uint64_t expected = uint64_t{image.width} * image.height * 4;
-  if (image.pixels.size() != expected) {
-    return absl::InvalidArgumentError(absl::StrCat(what, ": pixel buffer holds ",
-                                                   image.pixels.size(), " bytes, ", image.width,
-                                                   "x", image.height, " RGBA needs ", expected));
-  }
-  return absl::OkStatus();
-}
 
 // ---- TurboJPEG ---------------------------------------------------------------------------
 
@@ -365,6 +344,24 @@ absl::StatusOr<RgbaImage> DiffImage(const RgbaImage& a, const RgbaImage& b, floa
     out.pixels[i + 3] = 255;
   }
   return out;
+}
+
+absl::Status ValidateImage(const RgbaImage& image, const char* what) {
+  if (image.width == 0 || image.height == 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": empty image (", image.width, "x", image.height, ")"));
+  }
+  if (image.width > kMaxImageSide || image.height > kMaxImageSide) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ": image too large (", image.width, "x", image.height, ")"));
+  }
+  const uint64_t expected = uint64_t{image.width} * image.height * 4;
+  if (image.pixels.size() != expected) {
+    return absl::InvalidArgumentError(absl::StrCat(what, ": pixel buffer holds ",
+                                                   image.pixels.size(), " bytes, ", image.width,
+                                                   "x", image.height, " RGBA needs ", expected));
+  }
+  return absl::OkStatus();
 }
 
 }  // namespace tessera

@@ -30,6 +30,12 @@ absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image);
 // Decodes any PNG (gray, palette, 16-bit, with/without alpha) to RGBA8.
 absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png);
 
+// Larger than any frame we render; also stops a tiny file from declaring gigapixels.
+inline constexpr uint32_t kMaxImageSide = 16384;
+// INVALID_ARGUMENT naming `what` when the image is empty, larger than kMaxImageSide on a side,
+// or its pixel buffer does not hold width x height RGBA.
+absl::Status ValidateImage(const RgbaImage& image, const char* what);
+
 // Reads/writes a whole file. Errors name the path.
 absl::StatusOr<std::vector<uint8_t>> ReadFileBytes(const std::string& path);
 absl::Status WriteFileBytes(const std::string& path, std::span<const uint8_t> bytes);

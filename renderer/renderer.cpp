@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <map>
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
@@ -42,7 +43,30 @@ constexpr VkQueryPipelineStatisticFlags kPipelineStats =
 
 bool IsGeometryPass(PassId id) {
   return id == PassId::kDepthPrepass || id == PassId::kDepthPrepassLate ||
+         id == PassId::kVisibility || id == PassId::kVisibilityLate ||
          id == PassId::kForward || id == PassId::kTransparent;
+}
+
+// TAA's sub-pixel jitter: the Halton (2, 3) sequence over 16 frames, in pixels around the
+// pixel centre.
+glm::vec2 TaaJitter(uint32_t frame) {
+  auto halton = [](uint32_t i, uint32_t base) {
+    float f = 1.0f, r = 0.0f;
+    for (; i > 0; i /= base) {
+      f /= float(base);
+      r += f * float(i % base);
+    }
+    return r;
+  };
+  const uint32_t i = frame % 16 + 1;
+  return glm::vec2(halton(i, 2) - 0.5f, halton(i, 3) - 0.5f);
+}
+
+// vis_mlaa: the bits of a visibility id that hold the triangle. 12 bits of drawable + 1 and 20
+// of triangle while the drawables fit; past 4095 drawables the drawable takes the bits it needs.
+uint32_t VisTriangleBits(uint32_t drawables) {
+  const uint32_t drawable_bits = std::max(12u, uint32_t(std::bit_width(drawables)));
+  return 32 - drawable_bits;
 }
 
 struct AccessInfo {
@@ -83,6 +107,13 @@ AccessInfo ToVulkan(Access a) {
       return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
               VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
               VK_IMAGE_LAYOUT_GENERAL};
+    case Access::kDepthResolve:
+      // Depth resolves write in the colour-output stage with colour-attachment access.
+      return {kDepthStages | VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
+              VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
+                  VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT |
+                  VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
+              VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL};
   }
   return {};
 }
@@ -163,12 +194,24 @@ struct Renderer::Impl {
   vk::Pipeline id_pipeline;                   // FrameCapture::want_ids, made on first use
   uint64_t frame_counter = 0;
   FrameTargets targets;
+  // taa: each (scene, view)'s history, least recently used dropped past kMaxTaaViews.
+  struct TaaHistory {
+    vk::Image images[2];
+    bool written[2] = {false, false};
+    uint32_t current = 0;  // the image last written
+    uint32_t frames = 0;   // frames blended into it since the last reset (capped)
+    uint32_t jitter_index = 0;
+    glm::mat4 view_proj{0.0f};  // unjittered, of the last frame
+    uint64_t last_used = 0;
+  };
+  std::map<std::pair<uint64_t, uint64_t>, TaaHistory> taa_history;
 
   ~Impl() {
     if (!ctx) return;
     VkDevice d = ctx->device();
     vkDeviceWaitIdle(d);
     for (auto& p : passes) p.reset();
+    taa_history.clear();
     DestroyHizViews();
     targets = FrameTargets{};
     frame_ubo = vk::Buffer();
@@ -190,6 +233,9 @@ struct Renderer::Impl {
 
   absl::Status Init();
   absl::Status EnsureTargets(uint32_t width, uint32_t height);
+  // The targets the AA mode needs, at its sample count.
+  absl::Status EnsureAaTargets(const Settings& s);
+  absl::StatusOr<TaaHistory*> Taa(const GpuScene& scene, uint64_t view);
   absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
   absl::Status EnsureRowBuffer(size_t entries);
   absl::Status EnsureCullBuffers(uint32_t items, uint32_t lists);
@@ -269,6 +315,16 @@ absl::Status Renderer::Impl::Init() {
   if (absl::Status s = add(CreateTonemapPass(*ctx)); !s.ok()) return s;
   if (absl::Status s = add(CreateLightCullPass(*ctx)); !s.ok()) return s;
   if (absl::Status s = add(CreateReadbackPass()); !s.ok()) return s;
+  if (absl::Status s = add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibility)); !s.ok())
+    return s;
+  if (absl::Status s = add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate));
+      !s.ok())
+    return s;
+  if (absl::Status s = add(CreateVisResolvePass(*ctx, scene_layout)); !s.ok()) return s;
+  if (absl::Status s = add(CreateVisShadePass(*ctx, scene_layout)); !s.ok()) return s;
+  if (absl::Status s = add(CreateGeometricAaPass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateTaaPass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateFxaaPass(*ctx)); !s.ok()) return s;
 
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
@@ -293,15 +349,16 @@ absl::Status Renderer::Impl::Init() {
     VK_RETURN_IF_ERROR(vkCreateQueryPool(d, &si, nullptr, &stat_queries), "statistics pool");
   }
 
-  // Per frame: the scene set, light culling, two culling phases, a set per pyramid level.
+  // Per frame: the scene set, light culling, two culling phases, a set per pyramid level, the
+  // vis_mlaa and post passes' sets.
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 8},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 32},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 40},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 40},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 56},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 32},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  dpi.maxSets = 40;
+  dpi.maxSets = 56;
   dpi.poolSizeCount = 4;
   dpi.pPoolSizes = sizes;
   VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, &frame_pool), "descriptor pool");
@@ -594,7 +651,8 @@ absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
   absl::StatusOr<vk::Image> hdr = vk::Image::Create(*ctx, desc, "hdr_color");
   if (!hdr.ok()) return hdr.status();
   desc.format = kLdrFormat;
-  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
+               VK_IMAGE_USAGE_SAMPLED_BIT;  // fxaa reads it
   absl::StatusOr<vk::Image> ldr = vk::Image::Create(*ctx, desc, "ldr_color");
   if (!ldr.ok()) return ldr.status();
   absl::StatusOr<vk::Buffer> readback =
@@ -631,6 +689,90 @@ absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
   t.readback = std::move(*readback);
   targets = std::move(t);
   return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::EnsureAaTargets(const Settings& s) {
+  auto make = [&](vk::Image& image, VkFormat format, uint32_t samples, VkImageUsageFlags usage,
+                  const char* name) -> absl::Status {
+    if (image && image.desc().samples == static_cast<VkSampleCountFlagBits>(samples))
+      return absl::OkStatus();
+    vkDeviceWaitIdle(ctx->device());
+    vk::ImageDesc desc;
+    desc.width = targets.width;
+    desc.height = targets.height;
+    desc.format = format;
+    desc.samples = static_cast<VkSampleCountFlagBits>(samples);
+    desc.usage = usage;
+    absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, name);
+    if (!img.ok()) return img.status();
+    image = std::move(*img);
+    return absl::OkStatus();
+  };
+  constexpr VkImageUsageFlags kColor = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT;
+  constexpr VkImageUsageFlags kSampled = VK_IMAGE_USAGE_SAMPLED_BIT;
+  constexpr VkImageUsageFlags kDepth = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
+  const uint32_t n = s.samples;
+  absl::Status st;
+  switch (s.aa) {
+    case AaMode::kMsaa:
+      if (st.ok()) st = make(targets.depth_ms, kDepthFormat, n, kDepth, "depth_ms");
+      if (st.ok()) st = make(targets.hdr_ms, kHdrFormat, n, kColor, "hdr_ms");
+      break;
+    case AaMode::kVisMlaa:
+      if (st.ok()) st = make(targets.depth_ms, kDepthFormat, n, kDepth, "depth_ms");
+      if (st.ok()) st = make(targets.vis_ms, kIdFormat, n, kColor | kSampled, "visibility");
+      if (st.ok()) st = make(targets.vis_id, kIdFormat, 1, kColor | kSampled, "vis_id");
+      if (st.ok())
+        st = make(targets.vis_coverage, kIdFormat, 1, kColor | kSampled, "vis_coverage");
+      if (st.ok())
+        st = make(targets.material_depth, kMaterialDepthFormat, 1, kDepth, "material_depth");
+      if (st.ok()) st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled, "post_hdr");
+      break;
+    case AaMode::kTaa:
+      st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled, "post_hdr");
+      break;
+    case AaMode::kFxaa:
+      st = make(targets.fxaa, kLdrFormat, 1, kColor | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, "fxaa");
+      break;
+    case AaMode::kNone:
+      break;
+  }
+  targets.samples = (s.aa == AaMode::kMsaa || s.aa == AaMode::kVisMlaa) ? n : 1;
+  return st;
+}
+
+absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& scene,
+                                                                uint64_t view) {
+  constexpr size_t kMaxTaaViews = 8;
+  const std::pair<uint64_t, uint64_t> key{scene.serial(), view};
+  auto it = taa_history.find(key);
+  if (it != taa_history.end() && it->second.images[0].desc().width == targets.width &&
+      it->second.images[0].desc().height == targets.height) {
+    it->second.last_used = ++frame_counter;
+    return &it->second;
+  }
+  if (it != taa_history.end()) {
+    taa_history.erase(it);
+  } else if (taa_history.size() >= kMaxTaaViews) {
+    auto oldest = std::min_element(taa_history.begin(), taa_history.end(),
+                                   [](const auto& a, const auto& b) {
+                                     return a.second.last_used < b.second.last_used;
+                                   });
+    taa_history.erase(oldest);
+  }
+  TaaHistory h;
+  for (vk::Image& image : h.images) {
+    vk::ImageDesc desc;
+    desc.width = targets.width;
+    desc.height = targets.height;
+    desc.format = kHdrFormat;
+    desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+    absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, "taa_history");
+    if (!img.ok()) return img.status();
+    image = std::move(*img);
+  }
+  h.last_used = ++frame_counter;
+  return &taa_history.emplace(key, std::move(h)).first->second;
 }
 
 void Renderer::Impl::BeginOneTime() {
@@ -821,7 +963,9 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
 const DeviceInfo& Renderer::device_info() const { return impl_->ctx->info(); }
 
 DeviceCaps Renderer::caps() const {
-  return {impl_->ctx->info().max_samples, impl_->ctx->info().max_image_dimension};
+  const DeviceInfo& info = impl_->ctx->info();
+  return {info.max_samples, info.max_image_dimension, info.sample_counts,
+          info.visibility_buffer};
 }
 
 absl::StatusOr<SceneHandle> Renderer::LoadScene(const GltfSource& source) {
@@ -867,6 +1011,26 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   frame.settings = std::move(*resolved);
   const Settings& s = frame.settings.effective;
   if (absl::Status st = m.EnsureTargets(s.width, s.height); !st.ok()) return st;
+  // vis_mlaa: a visibility id holds the drawable and the triangle; a scene whose largest
+  // drawable has more triangles than the id leaves room for is drawn with msaa instead.
+  const uint32_t triangle_bits = VisTriangleBits(uint32_t(gs.draws().size()));
+  if (s.aa == AaMode::kVisMlaa) {
+    uint64_t most = 0;
+    for (const DrawItem& d : gs.draws()) most = std::max<uint64_t>(most, d.index_count / 3);
+    if (most > (uint64_t(1) << triangle_bits)) {
+      frame.settings.notes.push_back(
+          {"aa", absl::StrCat("not applied: vis_mlaa ids hold ", triangle_bits,
+                              " bits of triangle with ", gs.draws().size(),
+                              " drawables, and a drawable has ", most,
+                              " triangles; rendered with msaa")});
+      frame.settings.effective.aa = AaMode::kMsaa;
+      if (s.debug_view == DebugView::kAaMask) {
+        frame.settings.notes.push_back({"debug_view", "not applied: aa_mask needs vis_mlaa"});
+        frame.settings.effective.debug_view = DebugView::kNone;
+      }
+    }
+  }
+  if (absl::Status st = m.EnsureAaTargets(s); !st.ok()) return st;
 
   auto t_record = Clock::now();
   // Uniforms.
@@ -874,6 +1038,32 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   gpu::FrameUniforms fu{};
   fu.view = ViewMatrix(camera);
   fu.proj = ProjectionMatrix(camera, aspect);
+  const glm::mat4 unjittered_view_proj = fu.proj * fu.view;
+  // taa: this view's history, and this frame's jitter of the projection (sub-pixel).
+  TaaFrame taa;
+  if (s.aa == AaMode::kTaa) {
+    absl::StatusOr<Impl::TaaHistory*> h = m.Taa(gs, view);
+    if (!h.ok()) return h.status();
+    Impl::TaaHistory& history = **h;
+    const bool valid = history.written[history.current];
+    const bool still = valid && history.view_proj == unjittered_view_proj;
+    // A still camera averages every frame so far (converging on the jittered supersample); a
+    // moving one keeps at least a tenth of each new frame.
+    history.frames = !valid ? 0 : still ? std::min(history.frames + 1, 15u)
+                                        : std::min(history.frames, 9u);
+    taa.current_weight = 1.0f / float(history.frames + 1);
+    taa.history_valid = valid;
+    taa.reproject = history.view_proj * glm::inverse(unjittered_view_proj);
+    taa.history_read = &history.images[history.current];
+    taa.history_layout_undefined = !valid;
+    taa.history_write = &history.images[history.current ^ 1];
+    const glm::vec2 jitter = TaaJitter(history.jitter_index++);
+    fu.proj[2][0] += 2.0f * jitter.x / float(s.width);
+    fu.proj[2][1] += 2.0f * jitter.y / float(s.height);
+    history.current ^= 1;
+    history.written[history.current] = true;
+    history.view_proj = unjittered_view_proj;
+  }
   fu.view_proj = fu.proj * fu.view;
   fu.inv_view_proj = glm::inverse(fu.view_proj);
   fu.camera_position = glm::vec4(CameraPosition(camera), 1.0f);
@@ -941,6 +1131,8 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   fu.lighting = glm::uvec4(uint32_t(local.size()), s.tile_size, grid.tiles_x(),
                            (tiled ? 1u : 0u) | (s.tile_depth_mask ? 2u : 0u));
   fu.depth_params = glm::vec4(fu.proj[2][2], fu.proj[3][2], float(grid.tiles_y()), 0.0f);
+  const uint32_t frame_samples = m.targets.samples;
+  fu.aa = glm::uvec4(triangle_bits, frame_samples, 0u, 0u);
   std::memcpy(m.frame_ubo.mapped(), &fu, sizeof(fu));
   frame.stats.lights = uint32_t(global.size() + local.size());
   frame.stats.local_lights = uint32_t(local.size());
@@ -1010,7 +1202,51 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   }
   const std::vector<PassId> pass_ids =
       SelectPasses(frame.settings.effective, {!draws.blend_order.empty(), uint32_t(local.size())});
-  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids);
+  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids, s.aa);
+  for (PassId id : pass_ids) {
+    if (absl::Status st = m.passes[static_cast<size_t>(id)]->Prepare(*m.ctx, s); !st.ok())
+      return st;
+  }
+  // vis_mlaa: per material, the pixels its drawables in the frustum can cover.
+  VisFrame vis;
+  vis.triangle_bits = triangle_bits;
+  if (s.aa == AaMode::kVisMlaa) {
+    std::map<uint32_t, glm::ivec4> rects;  // material -> x0, y0, x1, y1 (exclusive)
+    const glm::ivec2 size(int(s.width), int(s.height));
+    for (const DrawItem& d : gs.draws()) {
+      if (d.alpha == AlphaMode::kBlend || !AabbIntersectsFrustum(d.world_bounds, frustum)) continue;
+      glm::vec2 lo(1e30f), hi(-1e30f);
+      bool behind = false;
+      for (int c = 0; c < 8; ++c) {
+        const glm::vec3 corner((c & 1) ? d.world_bounds.max.x : d.world_bounds.min.x,
+                               (c & 2) ? d.world_bounds.max.y : d.world_bounds.min.y,
+                               (c & 4) ? d.world_bounds.max.z : d.world_bounds.min.z);
+        const glm::vec4 clip = fu.view_proj * glm::vec4(corner, 1.0f);
+        if (clip.w <= 1e-6f) {
+          behind = true;
+          break;
+        }
+        const glm::vec2 pixel = (glm::vec2(clip) / clip.w * 0.5f + 0.5f) * glm::vec2(size);
+        lo = glm::min(lo, pixel);
+        hi = glm::max(hi, pixel);
+      }
+      glm::ivec4 r(0, 0, size.x, size.y);
+      if (!behind) {
+        r = glm::ivec4(glm::clamp(glm::ivec2(glm::floor(lo)) - 1, glm::ivec2(0), size),
+                       glm::clamp(glm::ivec2(glm::ceil(hi)) + 1, glm::ivec2(0), size));
+      }
+      auto [it, fresh] = rects.emplace(d.material, r);
+      if (!fresh) {
+        it->second = glm::ivec4(glm::min(glm::ivec2(it->second), glm::ivec2(r)),
+                                glm::max(glm::ivec2(it->second.z, it->second.w), glm::ivec2(r.z, r.w)));
+      }
+    }
+    for (const auto& [material, r] : rects) {
+      if (r.z <= r.x || r.w <= r.y) continue;
+      vis.materials.push_back(
+          {material, VkRect2D{{r.x, r.y}, {uint32_t(r.z - r.x), uint32_t(r.w - r.y)}}});
+    }
+  }
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
   const VkDescriptorSet scene_set = m.WriteSceneSet(gs);
@@ -1063,6 +1299,9 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   light_buffers.tiles = grid.tiles();
   pc.light_buffers = &light_buffers;
   pc.cull = &cull_buffers;
+  pc.vis = &vis;
+  pc.taa = &taa;
+  pc.samples = frame_samples;
   std::vector<double> pass_wall_ms;
   double record_ms = 0.0;
   auto t_chunk = t_record;

@@ -130,16 +130,37 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
                                 " (device maxImageDimension2D)"));
     e.height = caps.max_image_dimension;
   }
-  if (e.samples > caps.max_samples) {
-    note("samples",
-         absl::StrCat("clamped from ", e.samples, " to ", caps.max_samples, " (device maximum)"));
-    e.samples = caps.max_samples;
-  }
-  // Features that later issues build. Each is reported and falls back to the plain path.
-  if (e.aa != AaMode::kNone) {
+  // The sample count the device can do nearest below the request (above it when there is none
+  // below); the multisampled modes need at least 2.
+  const uint32_t counts = caps.sample_counts != 0 ? caps.sample_counts : (caps.max_samples * 2 - 1);
+  const bool multisampled = e.aa == AaMode::kMsaa || e.aa == AaMode::kVisMlaa;
+  const uint32_t usable = multisampled ? (counts & ~1u) : counts;
+  if (usable == 0) {
     not_applied("aa", absl::StrCat(std::string(ToString(e.aa)),
-                                   " is not implemented yet; rendered with none"));
+                                   " needs a multisampled target; the device has none"));
     e.aa = AaMode::kNone;
+  } else if ((usable & e.samples) == 0) {
+    uint32_t to = 0;
+    for (uint32_t c = e.samples; c >= 1 && to == 0; c >>= 1)
+      if (usable & c) to = c;
+    for (uint32_t c = e.samples; c <= 64 && to == 0; c <<= 1)
+      if (usable & c) to = c;
+    std::string why;
+    if (e.samples > caps.max_samples) {
+      why = " (device maximum)";
+    } else if (e.samples == 1) {
+      why = absl::StrCat(" (", std::string(ToString(e.aa)), " needs at least 2)");
+    } else {
+      why = absl::StrCat(" (the device has no ", e.samples, "x)");
+    }
+    note("samples", absl::StrCat(to > e.samples ? "raised from " : "clamped from ", e.samples,
+                                 " to ", to, why));
+    e.samples = to;
+  }
+  if (e.aa == AaMode::kVisMlaa && !caps.visibility_buffer) {
+    not_applied("aa", "vis_mlaa needs gl_PrimitiveID in fragment shaders (geometryShader) and "
+                      "standard sample locations; rendered with msaa");
+    e.aa = AaMode::kMsaa;
   }
   if (e.shadows) {
     not_applied("shadows", "not implemented yet");
@@ -161,7 +182,11 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     not_applied("exposure_mode", "auto exposure is not implemented yet; used fixed exposure_ev");
     e.exposure_mode = ExposureMode::kFixed;
   }
-  if (e.debug_view == DebugView::kCullingOverlay || e.debug_view == DebugView::kAaMask) {
+  if (e.debug_view == DebugView::kAaMask && e.aa != AaMode::kVisMlaa) {
+    not_applied("debug_view", "aa_mask shows vis_mlaa's coverage mask; aa is not vis_mlaa");
+    e.debug_view = DebugView::kNone;
+  }
+  if (e.debug_view == DebugView::kCullingOverlay) {
     not_applied("debug_view",
                 absl::StrCat(std::string(ToString(e.debug_view)), " is not implemented yet"));
     e.debug_view = DebugView::kNone;

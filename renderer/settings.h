@@ -58,6 +58,9 @@ struct Settings {
 struct DeviceCaps {
   uint32_t max_samples = 1;
   uint32_t max_image_dimension = 16384;
+  // Usable sample counts, bit n = 2^n samples; 0: every power of two up to max_samples.
+  uint32_t sample_counts = 0;
+  bool visibility_buffer = true;  // vis_mlaa can run (else it falls back to msaa)
 };
 
 // One field the renderer changed or could not honour.

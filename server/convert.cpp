@@ -265,10 +265,11 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_fragment_invocations(f.stats.fragment_invocations);
 }
 
-void FillChoices(uint32_t max_samples, v1::SettingChoices* o) {
+void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {
   for (int v = 1; v1::AaMode_IsValid(v); ++v)
     o->add_aa(std::string(ToString(static_cast<AaMode>(v - 1))));
-  for (uint32_t s = 1; s <= max_samples; s *= 2) o->add_samples(s);
+  for (uint32_t s = 1; s <= 64; s *= 2)
+    if (sample_counts & s) o->add_samples(s);
   for (int v = 1; v1::CullingMode_IsValid(v); ++v)
     o->add_culling(std::string(ToString(static_cast<CullingMode>(v - 1))));
   for (int v = 1; v1::ExposureMode_IsValid(v); ++v)

@@ -28,6 +28,6 @@ void CameraToProto(const Camera& camera, v1::Frame* out);
 void FrameToProto(const Frame& frame, v1::Frame* out);
 
 // Names accepted by each enum setting (lower case, as ToString in settings.h).
-void FillChoices(uint32_t max_samples, v1::SettingChoices* out);
+void FillChoices(uint32_t sample_counts, v1::SettingChoices* out);
 
 }  // namespace tessera::server

@@ -628,7 +628,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   r->set_active_sessions(state_->session_count());
   r->set_queue_depth(state_->loop->queue_depth());
   r->set_frames_rendered(state_->loop->frames_rendered());
-  FillChoices(caps.max_samples, r->mutable_choices());
+  FillChoices(caps.sample_counts != 0 ? caps.sample_counts : caps.max_samples * 2 - 1,
+              r->mutable_choices());
   ToProto(state_->default_settings, r->mutable_default_settings());
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();

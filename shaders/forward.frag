@@ -1,13 +1,10 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Forward PBR shading with the glTF 2.0 metallic-roughness BRDF (Appendix B of the spec):
-// GGX distribution, height-correlated Smith visibility, Schlick Fresnel, Lambert diffuse.
-// Global (directional) lights from the lights UBO, local lights from the tile lists (or all of
-// them, brute force), plus a hemisphere ambient with an analytic split-sum
-// specular term (IBL proper comes with the lighting issue).
+// Forward PBR shading of one rasterized surface (common/shading.glsl has the BRDF and lights).
 #include "common/scene.glsl"
 #include "common/sky.glsl"
 #include "common/textures.glsl"
+#include "common/shading.glsl"
 
 layout(location = 0) in vec3 v_world;
 layout(location = 1) in vec3 v_normal;
@@ -17,167 +14,8 @@ layout(location = 4) in vec2 v_uv1;
 
 layout(location = 0) out vec4 out_color;
 
-const float kPi = 3.14159265359;
-
-float DistributionGgx(float n_dot_h, float alpha) {
-  float a2 = alpha * alpha;
-  float f = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
-  return a2 / (kPi * f * f);
-}
-
-float VisibilitySmithGgxCorrelated(float n_dot_v, float n_dot_l, float alpha) {
-  float a2 = alpha * alpha;
-  float gv = n_dot_l * sqrt(n_dot_v * n_dot_v * (1.0 - a2) + a2);
-  float gl = n_dot_v * sqrt(n_dot_l * n_dot_l * (1.0 - a2) + a2);
-  float s = gv + gl;
-  return s > 0.0 ? 0.5 / s : 0.0;
-}
-
-vec3 FresnelSchlick(vec3 f0, float v_dot_h) {
-  return f0 + (1.0 - f0) * pow(1.0 - v_dot_h, 5.0);
-}
-
-// Karis' analytic fit of the split-sum environment BRDF.
-vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
-  const vec4 c0 = vec4(-1.0, -0.0275, -0.572, 0.022);
-  const vec4 c1 = vec4(1.0, 0.0425, 1.04, -0.04);
-  vec4 r = roughness * c0 + c1;
-  float a004 = min(r.x * r.x, exp2(-9.28 * n_dot_v)) * r.x + r.y;
-  vec2 ab = vec2(-1.04, 1.04) * a004 + r.zw;
-  return f0 * ab.x + ab.y;
-}
-
-
-// One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff).
-vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
-                float alpha) {
-  uint type = uint(light.direction_type.w);
-  vec3 l;
-  float attenuation = 1.0;
-  if (type == kLightDirectional) {
-    l = -light.direction_type.xyz;
-  } else {
-    vec3 to_light = light.position_range.xyz - p;
-    float d2 = max(dot(to_light, to_light), 1e-8);
-    l = to_light * inversesqrt(d2);
-    float range = light.position_range.w;
-    attenuation = 1.0 / d2;
-    if (range > 0.0) {
-      float r = d2 / (range * range);
-      attenuation *= clamp(1.0 - r * r, 0.0, 1.0);  // glTF: 1 - (d/range)^4
-    }
-    if (type == kLightSpot) {
-      float cd = dot(light.direction_type.xyz, -l);
-      float s = clamp(cd * light.spot.x + light.spot.y, 0.0, 1.0);
-      attenuation *= s * s;
-    }
-  }
-  float n_dot_l = dot(n, l);
-  if (n_dot_l <= 0.0 || attenuation <= 0.0) return vec3(0.0);
-  vec3 h = normalize(l + v);
-  float n_dot_h = max(dot(n, h), 0.0);
-  float v_dot_h = max(dot(v, h), 0.0);
-  vec3 f = FresnelSchlick(f0, v_dot_h);
-  vec3 diffuse = (1.0 - f) * c_diff / kPi;
-  vec3 specular = f * DistributionGgx(n_dot_h, alpha) *
-                  VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
-  vec3 radiance = light.color_intensity.rgb * light.color_intensity.a * attenuation;
-  return (diffuse + specular) * radiance * n_dot_l;
-}
-
-// Blue -> green -> yellow -> red as a tile's light count goes 0 -> 16 -> 32 -> 64+.
-vec3 Heat(uint count) {
-  float t = clamp(float(count) / 64.0, 0.0, 1.0);
-  vec3 c = t < 0.25 ? mix(vec3(0.0, 0.0, 0.4), vec3(0.0, 0.8, 0.0), t * 4.0)
-         : t < 0.5  ? mix(vec3(0.0, 0.8, 0.0), vec3(1.0, 1.0, 0.0), (t - 0.25) * 4.0)
-                    : mix(vec3(1.0, 1.0, 0.0), vec3(1.0, 0.0, 0.0), (t - 0.5) * 2.0);
-  return count == 0u ? vec3(0.02) : c;
-}
-
 void main() {
-  UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
-  GpuMaterial m = material;
-  vec4 base = m.base_color_factor;
-  if (HasTexture(m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, v_uv0, v_uv1, grads);
-  // The prepass discarded these too; without the same test here the shading pass would draw
-  // the cut-out surface over whatever is behind it (its depth is nearer).
-  if (m.flags.x == kAlphaMask && base.a < m.params2.x) discard;
-
-  float metallic = m.params.x;
-  float roughness = m.params.y;
-  if (HasTexture(m.metallic_roughness_tex)) {
-    vec4 mr = SampleTexture(u_metallic_roughness_tex, m.metallic_roughness_tex, v_uv0, v_uv1, grads);
-    roughness *= mr.g;
-    metallic *= mr.b;
-  }
-  roughness = clamp(roughness, 0.03, 1.0);
-  metallic = clamp(metallic, 0.0, 1.0);
-
-  // Back faces (drawn only for double-sided materials) use the flipped frame.
-  float side = gl_FrontFacing ? 1.0 : -1.0;
-  vec3 n = normalize(v_normal) * side;
-  if (HasTexture(m.normal_tex)) {
-    vec3 t = v_tangent.xyz * side;
-    t = normalize(t - n * dot(n, t));
-    vec3 b = cross(n, t) * v_tangent.w;
-    vec3 tn = SampleTexture(u_normal_tex, m.normal_tex, v_uv0, v_uv1, grads).xyz * 2.0 - 1.0;
-    tn.xy *= m.params.z;
-    n = normalize(mat3(t, b, n) * tn);
-  }
-  float ao = 1.0;
-  if (HasTexture(m.occlusion_tex)) {
-    ao = 1.0 + m.params.w * (SampleTexture(u_occlusion_tex, m.occlusion_tex, v_uv0, v_uv1, grads).r - 1.0);
-  }
-  vec3 emissive = m.emissive.rgb;
-  if (HasTexture(m.emissive_tex)) emissive *= SampleTexture(u_emissive_tex, m.emissive_tex, v_uv0, v_uv1, grads).rgb;
-
-  uint debug_view = frame.counts.y;
-  if (debug_view == kDebugNormals) { out_color = vec4(n * 0.5 + 0.5, 1.0); return; }
-  if (debug_view == kDebugBaseColor) { out_color = vec4(base.rgb, 1.0); return; }
-  if (debug_view == kDebugDepth) {
-    // Log-scaled view distance: near plane white, 10^4 near-plane distances black.
-    float dist = length(frame.camera_position.xyz - v_world);
-    float g = 1.0 - clamp(log2(dist / frame.params.y) / log2(1.0e4), 0.0, 1.0);
-    out_color = vec4(vec3(g), 1.0);
-    return;
-  }
-
-  vec3 v = normalize(frame.camera_position.xyz - v_world);
-  float n_dot_v = max(dot(n, v), 1e-4);
-  vec3 c_diff = mix(base.rgb, vec3(0.0), metallic);
-  vec3 f0 = mix(vec3(0.04), base.rgb, metallic);
-  float alpha = roughness * roughness;
-
-  // The tile this pixel belongs to, and its light list (built by the light-culling pass).
-  uint tile_size = frame.lighting.y;
-  uint tile = uint(gl_FragCoord.y) / tile_size * frame.lighting.z + uint(gl_FragCoord.x) / tile_size;
-  // Blended surfaces are not in the prepass depth the lists were culled against: brute force.
-  bool tiled = (frame.lighting.w & 1u) != 0u && m.flags.x != kAlphaBlend;
-  uint tile_count = tiled ? (tile_counts[tile] & ~kTileOverflowBit) : 0u;
-  if (debug_view == kDebugLightHeatmap) {
-    out_color = vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
-    return;
-  }
-
-  vec3 color = vec3(0.0);
-  for (uint i = 0u; i < frame.counts.x; ++i)  // global (directional) lights
-    color += ShadeLight(lights[i], v_world, n, v, n_dot_v, c_diff, f0, alpha);
-  if (tiled) {
-    uint base = tile * kMaxLightsPerTile;
-    for (uint k = 0u; k < tile_count; ++k)
-      color += ShadeLight(local_lights[tile_lights[base + k]], v_world, n, v, n_dot_v, c_diff, f0,
-                          alpha);
-  } else {  // brute force: every local light for every pixel
-    for (uint i = 0u; i < frame.lighting.x; ++i)
-      color += ShadeLight(local_lights[i], v_world, n, v, n_dot_v, c_diff, f0, alpha);
-  }
-
-  // Ambient: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
-  // reflection vector, blurred towards the average as roughness grows.
-  vec3 r = reflect(-v, n);
-  vec3 env = mix(Hemisphere(r), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb), roughness);
-  color += (Hemisphere(n) * c_diff + env * EnvBrdfApprox(f0, roughness, n_dot_v)) * ao;
-  color += emissive;
-
-  out_color = vec4(color, m.flags.x == kAlphaBlend ? base.a : 1.0);
+  SurfaceInput s = SurfaceInput(v_world, v_normal, v_tangent, v_uv0, v_uv1,
+                                ComputeUvGradients(v_uv0, v_uv1), gl_FrontFacing);
+  out_color = ShadeSurface(s, true);
 }

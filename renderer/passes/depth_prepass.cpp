@@ -3,49 +3,23 @@
 // opaque group is one indirect draw per cull mode; alpha-mask draws test the base colour alpha
 // so cut-out holes stay open for the shading pass that follows (one indirect draw per
 // material). With gpu_occlusion the pass runs twice: kDepthPrepass draws the first phase's
-// lists into a cleared depth, kDepthPrepassLate adds the second phase's.
+// lists into a cleared depth, kDepthPrepassLate adds the second phase's. With msaa it draws
+// into the multisampled depth and resolves it into the frame's depth.
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
+
+#include <map>
 
 namespace tessera {
 
 namespace {
 
-class DepthPrepass final : public Pass {
- public:
-  DepthPrepass(PassId id, vk::Pipeline opaque, vk::Pipeline mask)
-      : id_(id), opaque_(std::move(opaque)), mask_(std::move(mask)) {}
-  PassId id() const override { return id_; }
-
-  void Record(PassContext& ctx) override {
-    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    depth.imageView = ctx.targets->depth.view();
-    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-    const bool late = id_ == PassId::kDepthPrepassLate;
-    const uint32_t phase = late ? 1 : 0;
-    depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
-    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
-    BeginRendering(ctx, nullptr, &depth);
-    if (!ctx.scene->batches().empty()) {
-      BeginSceneDraw(ctx, opaque_.handle());
-      RecordBatches(ctx, phase);
-    }
-    BeginSceneDraw(ctx, mask_.handle());
-    RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
-    vkCmdEndRendering(ctx.cmd);
-  }
-
- private:
-  PassId id_;
-  vk::Pipeline opaque_;
-  vk::Pipeline mask_;
+struct PrepassPipelines {
+  vk::Pipeline opaque, mask;
 };
 
-}  // namespace
-
-absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
-                                                         const SceneLayout& layout, PassId id) {
+absl::StatusOr<PrepassPipelines> CreatePipelines(const vk::Context& ctx,
+                                                 const SceneLayout& layout, uint32_t samples) {
   vk::GraphicsPipelineDesc d;
   d.name = "depth_prepass.opaque";
   d.vertex_shader = "depth.vert";
@@ -54,6 +28,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
   d.depth_test = true;
   d.depth_write = true;
   d.depth_compare = VK_COMPARE_OP_GREATER;
+  d.samples = static_cast<VkSampleCountFlagBits>(samples);
   absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
   if (!opaque.ok()) return opaque.status();
   d.name = "depth_prepass.mask";
@@ -61,7 +36,68 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
   d.fragment_shader = "depth_mask.frag";
   absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
   if (!mask.ok()) return mask.status();
-  return std::make_unique<DepthPrepass>(id, std::move(*opaque), std::move(*mask));
+  return PrepassPipelines{std::move(*opaque), std::move(*mask)};
+}
+
+class DepthPrepass final : public Pass {
+ public:
+  DepthPrepass(PassId id, const SceneLayout& layout, PrepassPipelines single)
+      : id_(id), layout_(layout) {
+    pipelines_[1] = std::move(single);
+  }
+  PassId id() const override { return id_; }
+
+  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+    const uint32_t samples = s.aa == AaMode::kMsaa ? s.samples : 1;
+    if (pipelines_.count(samples)) return absl::OkStatus();
+    absl::StatusOr<PrepassPipelines> p = CreatePipelines(ctx, layout_, samples);
+    if (!p.ok()) return p.status();
+    pipelines_[samples] = std::move(*p);
+    return absl::OkStatus();
+  }
+
+  void Record(PassContext& ctx) override {
+    const uint32_t samples = ForwardSamples(ctx);
+    const PrepassPipelines& p = pipelines_.at(samples);
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = samples > 1 ? ctx.targets->depth_ms.view() : ctx.targets->depth.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    const bool late = id_ == PassId::kDepthPrepassLate;
+    const uint32_t phase = late ? 1 : 0;
+    depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
+    if (samples > 1) {
+      // Light culling and the depth pyramid read a single-sampled depth: the farthest sample
+      // where the device can (conservative for both), else sample 0.
+      depth.resolveMode = ctx.vk->info().depth_resolve_min ? VK_RESOLVE_MODE_MIN_BIT
+                                                           : VK_RESOLVE_MODE_SAMPLE_ZERO_BIT;
+      depth.resolveImageView = ctx.targets->depth.view();
+      depth.resolveImageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    }
+    BeginRendering(ctx, nullptr, &depth);
+    if (!ctx.scene->batches().empty()) {
+      BeginSceneDraw(ctx, p.opaque.handle());
+      RecordBatches(ctx, phase);
+    }
+    BeginSceneDraw(ctx, p.mask.handle());
+    RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
+    vkCmdEndRendering(ctx.cmd);
+  }
+
+ private:
+  PassId id_;
+  SceneLayout layout_;
+  std::map<uint32_t, PrepassPipelines> pipelines_;  // by sample count
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
+                                                         const SceneLayout& layout, PassId id) {
+  absl::StatusOr<PrepassPipelines> p = CreatePipelines(ctx, layout, 1);
+  if (!p.ok()) return p.status();
+  return std::make_unique<DepthPrepass>(id, layout, std::move(*p));
 }
 
 absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const SceneLayout& layout) {

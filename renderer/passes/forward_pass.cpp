@@ -9,6 +9,8 @@
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
 
+#include <map>
+
 namespace tessera {
 
 namespace {
@@ -16,51 +18,13 @@ namespace {
 // Linear HDR background behind the scene.
 constexpr VkClearColorValue kBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
-class ForwardPass final : public Pass {
- public:
-  ForwardPass(PassId id, vk::Pipeline pipeline, vk::Pipeline sky)
-      : id_(id), pipeline_(std::move(pipeline)), sky_(std::move(sky)) {}
-  PassId id() const override { return id_; }
-
-  void Record(PassContext& ctx) override {
-    const bool transparent = id_ == PassId::kTransparent;
-    VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    color.imageView = ctx.targets->hdr.view();
-    color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-    color.loadOp = transparent ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
-    color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    color.clearValue.color = kBackground;
-    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    depth.imageView = ctx.targets->depth.view();
-    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-    depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
-    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    BeginRendering(ctx, &color, &depth);
-    BeginSceneDraw(ctx, pipeline_.handle());
-    const uint32_t phases = ctx.draws->phases;
-    if (transparent) {
-      RecordSegments(ctx, AlphaMode::kBlend, 0, phases);
-    } else {
-      RecordSegments(ctx, AlphaMode::kOpaque, 0, phases);
-      RecordSegments(ctx, AlphaMode::kMask, 0, phases);
-      // Debug views keep the plain background, so their values read cleanly.
-      if (ctx.settings->debug_view == DebugView::kNone) {
-        vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_.handle());
-        vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
-        vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
-      }
-    }
-    vkCmdEndRendering(ctx.cmd);
-  }
-
- private:
-  PassId id_;
-  vk::Pipeline pipeline_;
-  vk::Pipeline sky_;  // forward only
+struct ForwardPipelines {
+  vk::Pipeline pipeline;
+  vk::Pipeline sky;  // forward only
 };
 
-absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,
-                                             PassId id) {
+absl::StatusOr<ForwardPipelines> CreatePipelines(const vk::Context& ctx, const SceneLayout& layout,
+                                                 PassId id, uint32_t samples) {
   const bool transparent = id == PassId::kTransparent;
   vk::GraphicsPipelineDesc d;
   d.name = transparent ? "transparent" : "forward";
@@ -73,9 +37,11 @@ absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const Scene
   d.depth_write = false;
   d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
+  d.samples = static_cast<VkSampleCountFlagBits>(samples);
   absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
   if (!pipeline.ok()) return pipeline.status();
-  vk::Pipeline sky;
+  ForwardPipelines p;
+  p.pipeline = std::move(*pipeline);
   if (!transparent) {
     // Far plane is depth 0: GREATER_OR_EQUAL passes only where the prepass left the clear value.
     d.name = "sky";
@@ -85,9 +51,81 @@ absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const Scene
     d.blend = vk::BlendMode::kNone;
     absl::StatusOr<vk::Pipeline> s = vk::CreateGraphicsPipeline(ctx, d);
     if (!s.ok()) return s.status();
-    sky = std::move(*s);
+    p.sky = std::move(*s);
   }
-  return std::make_unique<ForwardPass>(id, std::move(*pipeline), std::move(sky));
+  return p;
+}
+
+class ForwardPass final : public Pass {
+ public:
+  ForwardPass(PassId id, const SceneLayout& layout, ForwardPipelines single)
+      : id_(id), layout_(layout) {
+    pipelines_[1] = std::move(single);
+  }
+  PassId id() const override { return id_; }
+
+  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+    const uint32_t samples = s.aa == AaMode::kMsaa ? s.samples : 1;
+    if (pipelines_.count(samples)) return absl::OkStatus();
+    absl::StatusOr<ForwardPipelines> p = CreatePipelines(ctx, layout_, id_, samples);
+    if (!p.ok()) return p.status();
+    pipelines_[samples] = std::move(*p);
+    return absl::OkStatus();
+  }
+
+  void Record(PassContext& ctx) override {
+    const bool transparent = id_ == PassId::kTransparent;
+    const uint32_t samples = ForwardSamples(ctx);
+    const ForwardPipelines& p = pipelines_.at(samples);
+    const FrameTargets& t = *ctx.targets;
+    VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    // vis_mlaa draws blended surfaces over its anti-aliased result.
+    const vk::Image& single = transparent && ctx.settings->aa == AaMode::kVisMlaa ? t.post_hdr
+                                                                                  : t.hdr;
+    color.imageView = samples > 1 ? t.hdr_ms.view() : single.view();
+    color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    color.loadOp = transparent ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
+    color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    color.clearValue.color = kBackground;
+    if (samples > 1) {  // msaa: the samples stay for the transparent pass; each pass resolves
+      color.resolveMode = VK_RESOLVE_MODE_AVERAGE_BIT;
+      color.resolveImageView = t.hdr.view();
+      color.resolveImageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    }
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = samples > 1 ? t.depth_ms.view() : t.depth.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    BeginRendering(ctx, &color, &depth);
+    BeginSceneDraw(ctx, p.pipeline.handle());
+    const uint32_t phases = ctx.draws->phases;
+    if (transparent) {
+      RecordSegments(ctx, AlphaMode::kBlend, 0, phases);
+    } else {
+      RecordSegments(ctx, AlphaMode::kOpaque, 0, phases);
+      RecordSegments(ctx, AlphaMode::kMask, 0, phases);
+      // Debug views keep the plain background, so their values read cleanly.
+      if (ctx.settings->debug_view == DebugView::kNone) {
+        vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, p.sky.handle());
+        vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
+        vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
+      }
+    }
+    vkCmdEndRendering(ctx.cmd);
+  }
+
+ private:
+  PassId id_;
+  SceneLayout layout_;
+  std::map<uint32_t, ForwardPipelines> pipelines_;  // by sample count
+};
+
+absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,
+                                             PassId id) {
+  absl::StatusOr<ForwardPipelines> p = CreatePipelines(ctx, layout, id, 1);
+  if (!p.ok()) return p.status();
+  return std::make_unique<ForwardPass>(id, layout, std::move(*p));
 }
 
 }  // namespace

@@ -25,6 +25,7 @@ inline constexpr VkFormat kHdrFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 inline constexpr VkFormat kLdrFormat = VK_FORMAT_R8G8B8A8_SRGB;
 inline constexpr VkFormat kHizFormat = VK_FORMAT_R32_SFLOAT;
 inline constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
+inline constexpr VkFormat kMaterialDepthFormat = VK_FORMAT_D32_SFLOAT;
 
 struct FrameTargets {
   uint32_t width = 0, height = 0;
@@ -35,11 +36,29 @@ struct FrameTargets {
   std::vector<VkImageView> hiz_levels;  // one storage view per level (owned by the renderer)
   uint32_t hiz_width = 1, hiz_height = 1;
   vk::Buffer readback;  // width * height * 4 bytes, host visible
+  // Made when a frame first needs them (at `samples` for the multisampled ones).
+  uint32_t samples = 1;
+  vk::Image depth_ms, hdr_ms, vis_ms;
+  vk::Image vis_id, vis_coverage, material_depth;
+  vk::Image post_hdr;
+  vk::Image fxaa;
   const vk::Image& Get(Resource r) const {
-    return r == Resource::kDepth      ? depth
-           : r == Resource::kHdrColor ? hdr
-           : r == Resource::kHiz      ? hiz
-                                      : ldr;
+    switch (r) {
+      case Resource::kDepth: return depth;
+      case Resource::kHdrColor: return hdr;
+      case Resource::kLdrColor: return ldr;
+      case Resource::kHiz: return hiz;
+      case Resource::kDepthMs: return depth_ms;
+      case Resource::kHdrMs: return hdr_ms;
+      case Resource::kVisMs: return vis_ms;
+      case Resource::kVisId: return vis_id;
+      case Resource::kVisCoverage: return vis_coverage;
+      case Resource::kMaterialDepth: return material_depth;
+      case Resource::kPostHdr: return post_hdr;
+      case Resource::kFxaaColor: return fxaa;
+      case Resource::kCount: break;
+    }
+    return ldr;
   }
 };
 
@@ -89,6 +108,28 @@ struct LightCullBuffers {
 
 struct PassStats {
   uint32_t indirect_draws = 0;  // vkCmdDrawIndexedIndirectCount calls recorded
+  uint32_t material_draws = 0;  // vis_mlaa: full-screen material draws (one per material seen)
+};
+
+// vis_mlaa's shading: per material on screen, the pixel rectangle its drawables can cover
+// (from their projected bounds); the shading pass draws one rectangle per material.
+struct MaterialRect {
+  uint32_t material = 0;
+  VkRect2D rect{};
+};
+struct VisFrame {
+  std::vector<MaterialRect> materials;
+  uint32_t triangle_bits = 20;  // low bits of an id: triangle; high bits: drawable + 1
+};
+
+// taa: this frame's history images (per view, kept by the renderer) and how to blend.
+struct TaaFrame {
+  const vk::Image* history_read = nullptr;   // last frame's output (shader-read layout)
+  const vk::Image* history_write = nullptr;  // this frame's output (any layout)
+  bool history_layout_undefined = false;     // history_read was never written
+  glm::mat4 reproject{1.0f};  // this frame's unjittered clip -> last frame's
+  float current_weight = 1.0f;
+  bool history_valid = false;
 };
 
 // Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
@@ -113,6 +154,10 @@ struct PassContext {
   PassStats* stats = nullptr;
   const LightCullBuffers* light_buffers = nullptr;
   const CullBuffers* cull = nullptr;
+  const VisFrame* vis = nullptr;
+  const TaaFrame* taa = nullptr;
+  // The colour passes draw into; Settings::samples where multisampled.
+  uint32_t samples = 1;
 };
 
 // A pass's own descriptor set layout and pipeline layout (one set), destroyed together.
@@ -144,6 +189,13 @@ class Pass {
  public:
   virtual ~Pass() = default;
   virtual PassId id() const = 0;
+  // Before recording a frame with these settings: builds what the pass lacks for them (e.g.
+  // pipelines for a sample count it has not drawn at yet).
+  virtual absl::Status Prepare(const vk::Context& ctx, const Settings& settings) {
+    (void)ctx;
+    (void)settings;
+    return absl::OkStatus();
+  }
   // Records the pass. Its resources are already in the layouts PassUses(id()) declares.
   virtual void Record(PassContext& ctx) = 0;
 };
@@ -163,6 +215,51 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateReadbackPass();
 // Geometry culling: kCull (gpu_frustum, or the first gpu_occlusion phase) or kCullLate.
 absl::StatusOr<std::unique_ptr<Pass>> CreateCullPass(const vk::Context& ctx, PassId id);
 absl::StatusOr<std::unique_ptr<Pass>> CreateHizBuildPass(const vk::Context& ctx);
+// vis_mlaa: kVisibility or kVisibilityLate.
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisibilityPass(const vk::Context& ctx,
+                                                           const SceneLayout& layout, PassId id);
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ctx,
+                                                           const SceneLayout& layout);
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
+                                                         const SceneLayout& layout);
+absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx);
+absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx);
+absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx);
+// A full-screen post pass: one fragment shader reading combined image samplers (bindings 0..n-1,
+// in the order of `inputs`) with a push-constant block, writing `outputs` colour targets.
+// Shared by tonemap, geometric AA, TAA and FXAA.
+struct PostInput {
+  VkImageView view = VK_NULL_HANDLE;
+  VkSampler sampler = VK_NULL_HANDLE;
+  VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+};
+// The sample count of the forward path's targets: Settings::samples with msaa, else 1.
+inline uint32_t ForwardSamples(const PassContext& ctx) {
+  return ctx.settings->aa == AaMode::kMsaa ? ctx.samples : 1;
+}
+
+class FullscreenProgram {
+ public:
+  FullscreenProgram() = default;
+  static absl::StatusOr<FullscreenProgram> Create(const vk::Context& ctx, const char* name,
+                                                  const char* fragment_shader, uint32_t inputs,
+                                                  uint32_t push_size,
+                                                  std::vector<VkFormat> outputs);
+  // One full-screen triangle into `outputs` (cleared contents are not loaded: every pixel is
+  // written).
+  void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
+            const std::vector<VkImageView>& outputs, const void* push) const;
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  PassLayout layout_;
+  vk::Pipeline pipeline_;
+  uint32_t inputs_ = 0;
+  uint32_t push_size_ = 0;
+};
+// Samplers for post passes: nearest or bilinear, clamp to edge.
+absl::StatusOr<vk::Sampler> CreateClampSampler(const vk::Context& ctx, bool linear,
+                                               const char* name);
 
 // Begins dynamic rendering over the whole frame with these attachments (either may be null)
 // and sets the full-frame viewport and scissor.

@@ -14,7 +14,9 @@ class ReadbackPass final : public Pass {
     VkBufferImageCopy region{};
     region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
     region.imageExtent = {ctx.targets->width, ctx.targets->height, 1};
-    vkCmdCopyImageToBuffer(ctx.cmd, ctx.targets->ldr.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+    const vk::Image& image =
+        ctx.settings->aa == AaMode::kFxaa ? ctx.targets->fxaa : ctx.targets->ldr;
+    vkCmdCopyImageToBuffer(ctx.cmd, image.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                            ctx.targets->readback.handle(), 1, &region);
     VkBufferMemoryBarrier2 b{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
     b.srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;

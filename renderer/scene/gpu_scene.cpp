@@ -1,5 +1,7 @@
 #include "renderer/scene/gpu_scene.h"
 
+#include <atomic>
+
 #include <stb/stb_image_resize.h>
 
 #include <algorithm>
@@ -316,8 +318,12 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
                                                            VkDescriptorSetLayout material_layout) {
   auto gs = std::make_unique<GpuScene>();
   gs->device_ = ctx.device();
+  static std::atomic<uint64_t> next_serial{1};
+  gs->serial_ = next_serial++;
   const std::string& n = scene.name;
-  constexpr VkBufferUsageFlags kVertexUsage = VK_BUFFER_USAGE_VERTEX_BUFFER_BIT;
+  // vis_mlaa's resolve and shading passes read triangles from both buffers.
+  constexpr VkBufferUsageFlags kVertexUsage =
+      VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
   auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
     if (!src.ok()) return src.status();
     gs->device_bytes_ += src->size();
@@ -331,7 +337,8 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   if (st.ok())
     st = assign(gs->indices_,
                 UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
-                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT, n + ".indices"));
+                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                             n + ".indices"));
   if (!st.ok()) return st;
 
   const uint32_t max_size = std::min<uint32_t>(4096, ctx.info().max_image_dimension);
@@ -359,12 +366,13 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
     gpu::GpuDrawable g{};
     g.world = d.world;
     g.normal_matrix = glm::mat4(glm::transpose(glm::inverse(glm::mat3(d.world))));
-    g.ids = glm::uvec4(d.primitive, p.material, 0u, 0u);
+    const uint32_t material = scene.materials.empty() ? 0u : p.material;
+    g.ids = glm::uvec4(d.primitive, material, p.first_index, p.first_vertex);
     g.sphere = glm::vec4(d.world_bounds.center(), d.world_bounds.radius());
     g.aabb_min = glm::vec4(d.world_bounds.min, 0.0f);
     g.aabb_max = glm::vec4(d.world_bounds.max, 0.0f);
     drawables.push_back(g);
-    gs->draws_.push_back({i, scene.materials.empty() ? 0u : p.material, p.first_index,
+    gs->draws_.push_back({i, material, p.first_index,
                           p.index_count, static_cast<int32_t>(p.first_vertex), m.alpha_mode,
                           m.double_sided, d.world_bounds});
   }

@@ -99,6 +99,9 @@ class GpuScene {
   const std::vector<Light>& lights() const { return lights_; }
   const Aabb& bounds() const { return bounds_; }
   uint64_t device_bytes() const { return device_bytes_; }
+  // Unique per uploaded scene in this process (never reused, unlike the address): keys state
+  // the renderer keeps per scene and view, such as TAA history.
+  uint64_t serial() const { return serial_; }
 
   // gpu_occlusion: each view's visibility bits (one per item) from its last frame, double
   // buffered: a frame reads bits[prev] and writes the other. Kept by the renderer, under its
@@ -125,6 +128,7 @@ class GpuScene {
   std::vector<Light> lights_;
   Aabb bounds_;
   uint64_t device_bytes_ = 0;
+  uint64_t serial_ = 0;
 };
 
 }  // namespace tessera

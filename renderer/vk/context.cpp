@@ -266,6 +266,33 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
                    VK_API_VERSION_PATCH(p.apiVersion));
   info.max_samples =
       MaxSamples(p.limits.framebufferColorSampleCounts & p.limits.framebufferDepthSampleCounts);
+  {
+    VkPhysicalDeviceVulkan12Properties p12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_PROPERTIES};
+    VkPhysicalDeviceProperties2 pp{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+    pp.pNext = &p12;
+    vkGetPhysicalDeviceProperties2(ctx->physical_, &pp);
+    // Per format rather than the device-wide limits: lavapipe reports 1x in
+    // framebufferIntegerColorSampleCounts yet supports 4x R32_UINT attachments.
+    info.sample_counts = p.limits.framebufferColorSampleCounts &
+                         p.limits.framebufferDepthSampleCounts;
+    const std::pair<VkFormat, VkImageUsageFlags> targets[] = {
+        {VK_FORMAT_R16G16B16A16_SFLOAT, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT},
+        {VK_FORMAT_R32_UINT, VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT},
+        {VK_FORMAT_D32_SFLOAT, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT}};
+    for (const auto& [format, usage] : targets) {
+      VkImageFormatProperties fp{};
+      if (vkGetPhysicalDeviceImageFormatProperties(ctx->physical_, format, VK_IMAGE_TYPE_2D,
+                                                   VK_IMAGE_TILING_OPTIMAL, usage, 0,
+                                                   &fp) != VK_SUCCESS) {
+        fp.sampleCounts = VK_SAMPLE_COUNT_1_BIT;
+      }
+      info.sample_counts &= fp.sampleCounts;
+    }
+    info.sample_counts |= VK_SAMPLE_COUNT_1_BIT;
+    info.max_samples = MaxSamples(info.sample_counts);
+    info.depth_resolve_min = (p12.supportedDepthResolveModes & VK_RESOLVE_MODE_MIN_BIT) != 0;
+    info.visibility_buffer = supported.geometryShader && p.limits.standardSampleLocations;
+  }
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;
   info.timestamp_period_ns = p.limits.timestampPeriod;
@@ -282,6 +309,8 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   enabled.fragmentStoresAndAtomics = supported.fragmentStoresAndAtomics;
   enabled.shaderInt64 = supported.shaderInt64;
   enabled.pipelineStatisticsQuery = supported.pipelineStatisticsQuery;
+  enabled.geometryShader = supported.geometryShader;  // gl_PrimitiveID in fragment shaders
+  enabled.sampleRateShading = supported.sampleRateShading;
   info.pipeline_statistics = supported.pipelineStatisticsQuery == VK_TRUE;
   VkPhysicalDeviceVulkan13Features f13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
   f13.dynamicRendering = VK_TRUE;

@@ -102,6 +102,22 @@ TS_CONST uint kBindingOcclusionTex = 4;
 TS_CONST uint kBindingEmissiveTex = 5;
 TS_CONST uint kMaterialTextureSlots = 5;
 // The tonemap pass has its own set: binding 0 is the HDR colour as a sampler2D.
+// ---- vis_mlaa (shaders/common/vis.glsl) ------------------------------------------------------
+// A visibility id: (drawable + 1) << triangle_bits | triangle; 0 = no surface (the sky).
+// triangle_bits is 20 (12 bits of drawable) unless the scene has more than 4095 drawables; then
+// the drawable takes the bits it needs and the triangles the rest (FrameUniforms.aa.x).
+TS_CONST uint kVisDefaultTriangleBits = 20;
+TS_CONST uint kVisSet = 2;              // the vis passes' own descriptor set
+TS_CONST uint kVisBindingSamples = 0;   // resolve: usampler2DMS, the visibility ids
+TS_CONST uint kVisBindingId = 0;        // shade: usampler2D, the id to shade per pixel
+TS_CONST uint kVisBindingCoverage = 1;  // shade: usampler2D, mask + mean position per pixel
+TS_CONST uint kVisBindingIndices = 2;   // both: buffer uint[] the scene's index buffer
+TS_CONST uint kVisBindingVertices = 3;  // both: buffer float[] the scene's vertex buffer
+TS_CONST uint kVisBindingShadeSamples = 4;  // shade: usampler2DMS, the visibility ids
+TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
+// A material's surfaces are marked in the material-depth target by this depth (material + 1
+// times the scale, exact in D32); 0 marks the sky.
+TS_CONST float kMaterialDepthScale = 1.0f / 16777216.0f;
 
 // ---- enums (values match the C++ enums in renderer/settings.h and scene/cpu_scene.h) ---------
 TS_CONST uint kAlphaOpaque = 0;
@@ -152,7 +168,7 @@ struct GpuMaterial {
 struct GpuDrawable {
   mat4 world;
   mat4 normal_matrix;  // inverse transpose of world's upper 3x3, in a mat4 for layout
-  uvec4 ids;           // x primitive, y material, zw unused
+  uvec4 ids;           // x primitive, y material, z first index, w vertex offset (int bits)
   vec4 sphere;         // world bounding sphere: xyz centre, w radius
   vec4 aabb_min;       // world AABB
   vec4 aabb_max;
@@ -211,6 +227,7 @@ struct FrameUniforms {
   uvec4 lighting;        // x local lights, y tile size px, z tiles per row, w bits: 1 tile
                          // lists, 2 2.5D depth mask in light culling
   vec4 depth_params;     // view depth of a depth-buffer value d: y / (d + x); z tiles per column
+  uvec4 aa;              // vis_mlaa: x triangle bits of a visibility id, y samples; zw unused
 };
 
 #ifdef __cplusplus

@@ -14,14 +14,11 @@
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "shared_renderer.h"
+#include "tests/render/golden.h"
 
 namespace tessera {
 namespace {
 
-std::string Env(const char* name, const char* fallback = "") {
-  const char* v = std::getenv(name);
-  return v ? v : fallback;
-}
 
 void ExpectNoValidationMessages(const Renderer& r) {
   EXPECT_EQ(r.validation_message_count(), 0u);
@@ -45,35 +42,6 @@ Settings SmallSettings(uint32_t w, uint32_t h) {
   return s;
 }
 
-// Compares with tests/render/golden/<name>.png (or writes it when updating goldens).
-void CompareWithGolden(const std::string& name, const RgbaImage& image, double min_psnr) {
-  const std::string golden_path =
-      Env("TESSERA_GOLDEN_DIR", TESSERA_DEFAULT_GOLDEN_DIR) + "/" + name + ".png";
-  if (Env("TESSERA_UPDATE_GOLDENS") == "1") {
-    absl::StatusOr<std::vector<uint8_t>> png = EncodePng(image);
-    ASSERT_TRUE(png.ok()) << png.status();
-    ASSERT_TRUE(WriteFileBytes(golden_path, *png).ok());
-    GTEST_SKIP() << "wrote " << golden_path;
-  }
-  absl::StatusOr<std::vector<uint8_t>> bytes = ReadFileBytes(golden_path);
-  ASSERT_TRUE(bytes.ok()) << bytes.status() << " (run with TESSERA_UPDATE_GOLDENS=1)";
-  absl::StatusOr<RgbaImage> golden = DecodePng(*bytes);
-  ASSERT_TRUE(golden.ok()) << golden.status();
-  absl::StatusOr<double> psnr = Psnr(image, *golden);
-  ASSERT_TRUE(psnr.ok()) << psnr.status();
-  if (*psnr < min_psnr) {
-    const std::filesystem::path out_dir =
-        Env("TESSERA_TEST_OUTPUT_DIR", TESSERA_DEFAULT_OUTPUT_DIR);
-    std::filesystem::create_directories(out_dir);
-    const std::string actual = (out_dir / (name + ".actual.png")).string();
-    const std::string diff = (out_dir / (name + ".diff.png")).string();
-    if (auto png = EncodePng(image); png.ok()) (void)WriteFileBytes(actual, *png);
-    if (auto d = DiffImage(image, *golden); d.ok())
-      if (auto png = EncodePng(*d); png.ok()) (void)WriteFileBytes(diff, *png);
-    ADD_FAILURE() << name << ": PSNR " << *psnr << " dB < " << min_psnr << " dB; wrote " << actual
-                  << " and " << diff;
-  }
-}
 
 struct GoldenCase {
   const char* name;

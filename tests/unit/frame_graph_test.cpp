@@ -30,7 +30,8 @@ int IndexOf(const std::vector<PassId>& passes, PassId id) {
 }
 
 bool IsWrite(Access a) {
-  return a == Access::kDepthWrite || a == Access::kColorWrite || a == Access::kComputeWrite;
+  return a == Access::kDepthWrite || a == Access::kColorWrite || a == Access::kComputeWrite ||
+         a == Access::kDepthResolve;
 }
 bool IsRead(Access a) {
   return a == Access::kDepthTest || a == Access::kSampled || a == Access::kTransferSrc ||
@@ -46,9 +47,12 @@ std::vector<Settings> SettingsVariants() {
     out.push_back(s);
   }
   for (uint32_t c = 0; c < 4; ++c) {
-    Settings s;
-    s.culling = static_cast<CullingMode>(c);
-    out.push_back(s);
+    for (uint32_t aa = 0; aa < 5; ++aa) {
+      Settings s;
+      s.culling = static_cast<CullingMode>(c);
+      s.aa = static_cast<AaMode>(aa);
+      out.push_back(s);
+    }
   }
   Settings all;
   all.shadows = all.ssao = all.bloom = all.ibl = true;
@@ -59,14 +63,19 @@ std::vector<Settings> SettingsVariants() {
   return out;
 }
 
-// Every pass list SelectPasses produces for the variants above, with and without transparency.
-std::vector<std::vector<PassId>> AllPassLists() {
-  std::vector<std::vector<PassId>> lists;
+// Every pass list SelectPasses produces for the variants above, with and without transparency,
+// with the AA mode the resources depend on.
+struct PassList {
+  std::vector<PassId> passes;
+  AaMode aa = AaMode::kNone;
+};
+std::vector<PassList> AllPassLists() {
+  std::vector<PassList> lists;
   for (const Settings& s : SettingsVariants()) {
     for (bool transparent : {false, true}) {
       FrameFeatures f;
       f.has_transparent = transparent;
-      lists.push_back(SelectPasses(s, f));
+      lists.push_back({SelectPasses(s, f), s.aa});
     }
   }
   return lists;
@@ -107,10 +116,12 @@ TEST(PassTest, EveryPassDeclaresItsUses) {
 }
 
 TEST(SelectPassesTest, OrderIsFixed) {
-  for (const std::vector<PassId>& passes : AllPassLists()) {
+  for (const auto& [passes, aa] : AllPassLists()) {
     const std::string d = Describe(passes);
-    const int prepass = IndexOf(passes, PassId::kDepthPrepass);
-    const int forward = IndexOf(passes, PassId::kForward);
+    // vis_mlaa's visibility pass is its depth pass, its shading pass its forward pass.
+    const int prepass = std::max(IndexOf(passes, PassId::kDepthPrepass),
+                                 IndexOf(passes, PassId::kVisibility));
+    const int forward = std::max(IndexOf(passes, PassId::kForward), IndexOf(passes, PassId::kVisShade));
     const int transparent = IndexOf(passes, PassId::kTransparent);
     const int tonemap = IndexOf(passes, PassId::kTonemap);
     const int readback = IndexOf(passes, PassId::kReadback);
@@ -169,6 +180,34 @@ TEST(SelectPassesTest, CullingModes) {
   EXPECT_EQ(SelectPasses(s, {}), occlusion);
 }
 
+TEST(SelectPassesTest, AaModes) {
+  Settings s;
+  s.aa = AaMode::kVisMlaa;
+  const std::vector<PassId> vis = {PassId::kVisibility, PassId::kVisResolve, PassId::kVisShade,
+                                   PassId::kGeometricAa, PassId::kTonemap, PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, {}), vis);
+  s.aa = AaMode::kTaa;
+  const std::vector<PassId> taa = {PassId::kDepthPrepass, PassId::kForward, PassId::kTaa,
+                                   PassId::kTonemap, PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, {}), taa);
+  s.aa = AaMode::kFxaa;
+  const std::vector<PassId> fxaa = {PassId::kDepthPrepass, PassId::kForward, PassId::kTonemap,
+                                    PassId::kFxaa, PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, {}), fxaa);
+  // msaa: the same passes, on multisampled targets resolved into the frame's depth and colour.
+  s.aa = AaMode::kMsaa;
+  EXPECT_EQ(SelectPasses(s, {}), SelectPasses(Settings{}, {}));
+  const std::vector<ResourceUse> prepass = PassUses(PassId::kDepthPrepass, AaMode::kMsaa);
+  EXPECT_TRUE(std::any_of(prepass.begin(), prepass.end(), [](const ResourceUse& u) {
+    return u.resource == Resource::kDepth && u.access == Access::kDepthResolve;
+  }));
+  // Tonemapping reads what the last colour pass wrote.
+  EXPECT_EQ(PassUses(PassId::kTonemap, AaMode::kVisMlaa)[0].resource, Resource::kPostHdr);
+  EXPECT_EQ(PassUses(PassId::kTonemap, AaMode::kTaa)[0].resource, Resource::kPostHdr);
+  EXPECT_EQ(PassUses(PassId::kTonemap, AaMode::kMsaa)[0].resource, Resource::kHdrColor);
+  EXPECT_EQ(PassUses(PassId::kReadback, AaMode::kFxaa)[0].resource, Resource::kFxaaColor);
+}
+
 // ---------------------------------------------------------------------------------------------
 // PlanTransitions
 
@@ -202,17 +241,17 @@ TEST(PlanTransitionsTest, OcclusionCullingMovesDepthAndPyramid) {
 }
 
 TEST(PlanTransitionsTest, OnePlanEntryPerPass) {
-  for (const std::vector<PassId>& passes : AllPassLists())
-    EXPECT_EQ(PlanTransitions(passes).size(), passes.size()) << Describe(passes);
+  for (const auto& [passes, aa] : AllPassLists())
+    EXPECT_EQ(PlanTransitions(passes, aa).size(), passes.size()) << Describe(passes);
   EXPECT_TRUE(PlanTransitions({}).empty());
 }
 
 TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
-  for (const std::vector<PassId>& passes : AllPassLists()) {
-    const auto plan = PlanTransitions(passes);
+  for (const auto& [passes, aa] : AllPassLists()) {
+    const auto plan = PlanTransitions(passes, aa);
     std::array<bool, kResourceCount> used{};
     for (size_t i = 0; i < passes.size(); ++i) {
-      for (const ResourceUse& u : PassUses(passes[i])) {
+      for (const ResourceUse& u : PassUses(passes[i], aa)) {
         const size_t r = static_cast<size_t>(u.resource);
         if (used[r]) continue;
         used[r] = true;
@@ -253,9 +292,9 @@ TEST(PlanTransitionsTest, BarrierForWriteAfterWrite) {
 // Replays the plan on a state table: every transition starts from the resource's current
 // state, and once a pass's transitions are applied every declared use is in its access.
 TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
-  for (const std::vector<PassId>& passes : AllPassLists()) {
+  for (const auto& [passes, aa] : AllPassLists()) {
     const std::string d = Describe(passes);
-    const auto plan = PlanTransitions(passes);
+    const auto plan = PlanTransitions(passes, aa);
     ASSERT_EQ(plan.size(), passes.size());
     std::array<Access, kResourceCount> state;
     state.fill(Access::kNone);
@@ -269,13 +308,13 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
         EXPECT_TRUE(moved.insert(t.resource).second) << d << Name(passes[i]) << ": twice";
         state[r] = t.to;
       }
-      for (const ResourceUse& u : PassUses(passes[i])) {
+      for (const ResourceUse& u : PassUses(passes[i], aa)) {
         EXPECT_EQ(state[static_cast<size_t>(u.resource)], u.access)
             << d << "before " << Name(passes[i]) << " resource " << static_cast<int>(u.resource);
       }
       // Transitions only for what the pass uses.
       for (const Transition& t : plan[i]) {
-        const auto uses = PassUses(passes[i]);
+        const auto uses = PassUses(passes[i], aa);
         EXPECT_TRUE(std::any_of(uses.begin(), uses.end(),
                                 [&](const ResourceUse& u) { return u.resource == t.resource; }))
             << d << Name(passes[i]) << " transitions a resource it does not use";
@@ -285,10 +324,10 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
 }
 
 TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
-  for (const std::vector<PassId>& passes : AllPassLists()) {
+  for (const auto& [passes, aa] : AllPassLists()) {
     std::array<bool, kResourceCount> written{};
     for (PassId p : passes) {
-      for (const ResourceUse& u : PassUses(p)) {
+      for (const ResourceUse& u : PassUses(p, aa)) {
         const size_t r = static_cast<size_t>(u.resource);
         // The first culling phase binds the pyramid (one pipeline for both phases) but never
         // reads it: only the late phase tests occlusion.
@@ -298,7 +337,7 @@ TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
                                   << " before any pass wrote it";
         }
       }
-      for (const ResourceUse& u : PassUses(p))
+      for (const ResourceUse& u : PassUses(p, aa))
         if (IsWrite(u.access)) written[static_cast<size_t>(u.resource)] = true;
     }
   }
@@ -306,12 +345,12 @@ TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
 
 TEST(PlanTransitionsTest, EveryHazardHasABarrier) {
   // Whenever a use follows a write, or changes the access class, the plan has a transition.
-  for (const std::vector<PassId>& passes : AllPassLists()) {
-    const auto plan = PlanTransitions(passes);
+  for (const auto& [passes, aa] : AllPassLists()) {
+    const auto plan = PlanTransitions(passes, aa);
     std::array<Access, kResourceCount> last;
     last.fill(Access::kNone);
     for (size_t i = 0; i < passes.size(); ++i) {
-      for (const ResourceUse& u : PassUses(passes[i])) {
+      for (const ResourceUse& u : PassUses(passes[i], aa)) {
         const size_t r = static_cast<size_t>(u.resource);
         // Only read-after-read in the same access may skip the barrier.
         const bool same_read = last[r] == u.access && IsRead(u.access);

@@ -387,3 +387,48 @@ TEST(EnumNamesTest, InvalidValuesHaveNoValidName) {
 
 }  // namespace
 }  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// lavapipe: 1x and 4x only. The multisampled modes get the nearest count the device has (and at
+// least 2), with a note; vis_mlaa falls back to msaa where the device cannot run it.
+TEST(ResolveSettingsTest, SampleCountsTheDeviceHas) {
+  const DeviceCaps lavapipe{4, 16384, /*sample_counts=*/0b101, /*visibility_buffer=*/true};
+  Settings s;
+  s.aa = AaMode::kMsaa;
+  for (const auto& [asked, got] : std::vector<std::pair<uint32_t, uint32_t>>{
+           {1, 4}, {2, 4}, {4, 4}, {8, 4}}) {
+    s.samples = asked;
+    const absl::StatusOr<ResolvedSettings> r = ResolveSettings(s, lavapipe);
+    ASSERT_TRUE(r.ok()) << r.status();
+    EXPECT_EQ(r->effective.samples, got) << asked;
+    EXPECT_EQ(r->effective.aa, AaMode::kMsaa);
+    const SettingNote* note = FindNote(*r, "samples");
+    EXPECT_EQ(note != nullptr, asked != got) << asked;
+    if (note && asked < got) EXPECT_NE(note->message.find("raised"), std::string::npos);
+  }
+  s.aa = AaMode::kVisMlaa;
+  s.samples = 4;
+  DeviceCaps no_vis = lavapipe;
+  no_vis.visibility_buffer = false;
+  absl::StatusOr<ResolvedSettings> r = ResolveSettings(s, no_vis);
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->effective.aa, AaMode::kMsaa);
+  EXPECT_NE(FindNote(*r, "aa"), nullptr);
+  // A device without multisampling: the multisampled modes are not applied, and say so.
+  r = ResolveSettings(s, DeviceCaps{1, 16384, 0b1, true});
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->effective.aa, AaMode::kNone);
+  EXPECT_NE(FindNote(*r, "aa"), nullptr);
+  // aa_mask is vis_mlaa's view.
+  s.aa = AaMode::kFxaa;
+  s.debug_view = DebugView::kAaMask;
+  r = ResolveSettings(s, lavapipe);
+  ASSERT_TRUE(r.ok()) << r.status();
+  EXPECT_EQ(r->effective.debug_view, DebugView::kNone);
+  EXPECT_NE(FindNote(*r, "debug_view"), nullptr);
+}
+
+}  // namespace
+}  // namespace tessera

@@ -1,0 +1,244 @@
+// Full-screen post passes: tonemapping, and the anti-aliasing passes that work on whole images
+// (vis_mlaa's geometric AA, TAA, FXAA). Each is one fragment shader over a full-screen triangle
+// (shaders/fullscreen.vert) reading images through combined samplers.
+#include <cmath>
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "renderer/passes/pass.h"
+#include "renderer/vk/pipeline.h"
+#include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
+
+namespace tessera {
+
+absl::StatusOr<vk::Sampler> CreateClampSampler(const vk::Context& ctx, bool linear,
+                                               const char* name) {
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = si.minFilter = linear ? VK_FILTER_LINEAR : VK_FILTER_NEAREST;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  return vk::Sampler::Create(ctx, si, name);
+}
+
+absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& ctx,
+                                                            const char* name,
+                                                            const char* fragment_shader,
+                                                            uint32_t inputs, uint32_t push_size,
+                                                            std::vector<VkFormat> outputs) {
+  FullscreenProgram p;
+  p.device_ = ctx.device();
+  p.inputs_ = inputs;
+  p.push_size_ = push_size;
+  std::vector<VkDescriptorSetLayoutBinding> bindings;
+  for (uint32_t i = 0; i < inputs; ++i)
+    bindings.push_back({i, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                        VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+  std::vector<VkPushConstantRange> push;
+  if (push_size > 0) push.push_back({VK_SHADER_STAGE_FRAGMENT_BIT, 0, push_size});
+  absl::StatusOr<PassLayout> layout = PassLayout::Create(ctx, bindings, push, name);
+  if (!layout.ok()) return layout.status();
+  p.layout_ = std::move(*layout);
+  vk::GraphicsPipelineDesc d;
+  d.name = name;
+  d.vertex_shader = "fullscreen.vert";
+  d.fragment_shader = fragment_shader;
+  d.layout = p.layout_.pipeline_layout();
+  d.scene_vertex_input = false;
+  d.color_formats = std::move(outputs);
+  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
+  if (!pipeline.ok()) return pipeline.status();
+  p.pipeline_ = std::move(*pipeline);
+  return p;
+}
+
+void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
+                             const std::vector<VkImageView>& outputs, const void* push) const {
+  const VkDescriptorSet set = layout_.Allocate(ctx);
+  std::vector<VkDescriptorImageInfo> images;
+  images.reserve(inputs.size());
+  for (const PostInput& in : inputs) images.push_back({in.sampler, in.view, in.layout});
+  std::vector<VkWriteDescriptorSet> writes;
+  for (uint32_t i = 0; i < inputs_; ++i) {
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = set;
+    w.dstBinding = i;
+    w.descriptorCount = 1;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    w.pImageInfo = &images[i];
+    writes.push_back(w);
+  }
+  vkUpdateDescriptorSets(device_, uint32_t(writes.size()), writes.data(), 0, nullptr);
+
+  std::vector<VkRenderingAttachmentInfo> colors;
+  for (VkImageView v : outputs) {
+    VkRenderingAttachmentInfo c{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    c.imageView = v;
+    c.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    c.loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;  // every pixel is written
+    c.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    colors.push_back(c);
+  }
+  const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
+  VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+  ri.renderArea = full;
+  ri.layerCount = 1;
+  ri.colorAttachmentCount = uint32_t(colors.size());
+  ri.pColorAttachments = colors.data();
+  vkCmdBeginRendering(ctx.cmd, &ri);
+  const VkViewport viewport{0.0f, 0.0f, float(full.extent.width), float(full.extent.height),
+                            0.0f, 1.0f};
+  vkCmdSetViewport(ctx.cmd, 0, 1, &viewport);
+  vkCmdSetScissor(ctx.cmd, 0, 1, &full);
+  vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
+  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.pipeline_layout(), 0,
+                          1, &set, 0, nullptr);
+  vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
+  if (push_size_ > 0)
+    vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                       push_size_, push);
+  vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
+  vkCmdEndRendering(ctx.cmd);
+}
+
+namespace {
+
+// A pass made of one full-screen program and its samplers.
+class PostPass : public Pass {
+ public:
+  PostPass(FullscreenProgram program, vk::Sampler nearest, vk::Sampler linear)
+      : program_(std::move(program)), nearest_(std::move(nearest)), linear_(std::move(linear)) {}
+
+ protected:
+  PostInput Nearest(const vk::Image& image,
+                    VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL) const {
+    return {image.view(), nearest_.handle(), layout};
+  }
+  PostInput Linear(const vk::Image& image) const {
+    return {image.view(), linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  }
+  FullscreenProgram program_;
+  vk::Sampler nearest_, linear_;
+};
+
+template <typename T>
+absl::StatusOr<std::unique_ptr<Pass>> MakePost(const vk::Context& ctx, const char* name,
+                                               const char* fragment, uint32_t inputs,
+                                               uint32_t push_size, std::vector<VkFormat> outputs) {
+  absl::StatusOr<FullscreenProgram> program =
+      FullscreenProgram::Create(ctx, name, fragment, inputs, push_size, std::move(outputs));
+  if (!program.ok()) return program.status();
+  absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, name);
+  if (!nearest.ok()) return nearest.status();
+  absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, name);
+  if (!linear.ok()) return linear.status();
+  return std::unique_ptr<Pass>(new T(std::move(*program), std::move(*nearest), std::move(*linear)));
+}
+
+// Tonemap: HDR colour -> exposure -> Khronos PBR Neutral tonemapper -> sRGB RGBA8 (the
+// attachment's sRGB format does the encoding). PBR Neutral keeps base colours true under
+// neutral light, which is what product and sample-model renders are judged by. Debug views
+// pass through without tonemapping. Reads the post-AA colour when an AA pass made one.
+class TonemapPass final : public PostPass {
+ public:
+  using PostPass::PostPass;
+  PassId id() const override { return PassId::kTonemap; }
+  void Record(PassContext& ctx) override {
+    struct {
+      float exposure;        // linear multiplier, 2^exposure_ev
+      uint32_t passthrough;  // 1 for debug views
+    } push{std::exp2(ctx.settings->exposure_ev),
+           ctx.settings->debug_view != DebugView::kNone ? 1u : 0u};
+    const AaMode aa = ctx.settings->aa;
+    const bool post = aa == AaMode::kVisMlaa || aa == AaMode::kTaa;
+    program_.Draw(ctx, {Nearest(post ? ctx.targets->post_hdr : ctx.targets->hdr)},
+                  {ctx.targets->ldr.view()}, &push);
+  }
+};
+
+// vis_mlaa's geometric AA (shaders/geometric_aa.frag): pixels whose surface owns every sample
+// pass through; the others blend with the two neighbours their coverage points away from.
+class GeometricAaPass final : public PostPass {
+ public:
+  using PostPass::PostPass;
+  PassId id() const override { return PassId::kGeometricAa; }
+  void Record(PassContext& ctx) override {
+    const uint32_t push[3] = {ctx.samples,
+                              ctx.settings->debug_view == DebugView::kAaMask ? 1u : 0u,
+                              ctx.vis->triangle_bits};
+    program_.Draw(ctx,
+                  {Nearest(ctx.targets->hdr), Nearest(ctx.targets->vis_coverage),
+                   Nearest(ctx.targets->vis_id)},
+                  {ctx.targets->post_hdr.view()}, push);
+  }
+};
+
+// TAA (shaders/taa.frag): this frame with the reprojected history, clamped to the frame's
+// neighbourhood; writes the frame's post-AA colour and the next frame's history.
+class TaaPass final : public PostPass {
+ public:
+  using PostPass::PostPass;
+  PassId id() const override { return PassId::kTaa; }
+  void Record(PassContext& ctx) override {
+    const TaaFrame& taa = *ctx.taa;
+    // The history images live across frames, outside the frame graph: the one read was left in
+    // shader-read layout by the last frame (or is new), the one written is overwritten whole.
+    const VkImageLayout read = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    VkImageMemoryBarrier2 before[2] = {
+        vk::MakeImageBarrier(*taa.history_read,
+                             {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
+                              VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
+                              taa.history_layout_undefined ? VK_IMAGE_LAYOUT_UNDEFINED : read,
+                              VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+                              VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, read}),
+        vk::MakeImageBarrier(*taa.history_write,
+                             {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_NONE,
+                              VK_IMAGE_LAYOUT_UNDEFINED,
+                              VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
+                              VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
+                              VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL})};
+    vk::CmdBarrier(ctx.cmd, before, 2);
+    struct {
+      glm::mat4 reproject;
+      glm::vec4 params;
+    } push{taa.reproject, glm::vec4(taa.current_weight, taa.history_valid ? 1.0f : 0.0f,
+                                    1.0f / float(ctx.targets->width),
+                                    1.0f / float(ctx.targets->height))};
+    program_.Draw(ctx,
+                  {Nearest(ctx.targets->hdr), Nearest(ctx.targets->depth),
+                   Linear(*taa.history_read)},
+                  {ctx.targets->post_hdr.view(), taa.history_write->view()}, &push);
+    VkImageMemoryBarrier2 after = vk::MakeImageBarrier(
+        *taa.history_write,
+        {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
+         VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, read});
+    vk::CmdBarrier(ctx.cmd, &after, 1);
+  }
+};
+
+// FXAA (shaders/fxaa.frag) on the tonemapped image, read through a bilinear sampler.
+class FxaaPass final : public PostPass {
+ public:
+  using PostPass::PostPass;
+  PassId id() const override { return PassId::kFxaa; }
+  void Record(PassContext& ctx) override {
+    const glm::vec2 inv_size(1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height));
+    program_.Draw(ctx, {Linear(ctx.targets->ldr)}, {ctx.targets->fxaa.view()}, &inv_size);
+  }
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
+  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 1, 8, {kLdrFormat});
+}
+absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
+  return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3, 12, {kHdrFormat});
+}
+absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
+  return MakePost<TaaPass>(ctx, "taa", "taa.frag", 3, 80, {kHdrFormat, kHdrFormat});
+}
+absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx) {
+  return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, 8, {kLdrFormat});
+}
+
+}  // namespace tessera

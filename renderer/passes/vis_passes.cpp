@@ -1,0 +1,377 @@
+// vis_mlaa, the visibility-buffer geometric anti-aliasing (docs: README "Anti-aliasing"):
+//  - visibility: opaque and alpha-mask geometry into a multisampled R32_UINT target, each
+//    sample the id of its drawable and triangle, plus multisampled depth (resolved to the
+//    frame's single-sampled depth for light culling, the depth pyramid and transparency);
+//  - vis_resolve: per pixel, groups the samples by surface and picks the surface to shade, its
+//    coverage mask and mean sample position, and marks its material in a depth target;
+//  - vis_shade: one full-screen triangle per material on screen (scissored to the rectangle its
+//    drawables can cover) at that material's depth, EQUAL-tested, so each pixel is shaded once
+//    with its material bound as in the forward path; then the sky where no surface won.
+// The geometric AA pass that follows is a post pass (post_pass.cpp).
+#include "renderer/passes/pass.h"
+#include "renderer/vk/pipeline.h"
+#include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
+
+#include <map>
+
+namespace tessera {
+
+namespace {
+
+VkSampleCountFlagBits SampleBits(uint32_t samples) {
+  return static_cast<VkSampleCountFlagBits>(samples);
+}
+
+// The frame's multisampled depth resolved into its single-sampled depth: the farthest sample
+// where the device can (conservative for the depth pyramid and light culling), else sample 0.
+void SetDepthResolve(const PassContext& ctx, VkRenderingAttachmentInfo& depth) {
+  depth.resolveMode = ctx.vk->info().depth_resolve_min ? VK_RESOLVE_MODE_MIN_BIT
+                                                       : VK_RESOLVE_MODE_SAMPLE_ZERO_BIT;
+  depth.resolveImageView = ctx.targets->depth.view();
+  depth.resolveImageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+}
+
+class VisibilityPass final : public Pass {
+ public:
+  VisibilityPass(PassId id, const SceneLayout& layout) : id_(id), layout_(layout) {}
+  PassId id() const override { return id_; }
+
+  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+    if (s.aa != AaMode::kVisMlaa || pipelines_.count(s.samples)) return absl::OkStatus();
+    vk::GraphicsPipelineDesc d;
+    d.name = "visibility.opaque";
+    d.vertex_shader = "vis.vert";
+    d.fragment_shader = "vis.frag";
+    d.layout = layout_.pipeline_layout;
+    d.attribute_mask = 1u << gpu::kAttrPosition;
+    d.color_formats = {kIdFormat};
+    d.depth_format = kDepthFormat;
+    d.depth_test = true;
+    d.depth_write = true;
+    d.depth_compare = VK_COMPARE_OP_GREATER;
+    d.samples = SampleBits(s.samples);
+    absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
+    if (!opaque.ok()) return opaque.status();
+    d.name = "visibility.mask";
+    d.vertex_shader = "id.vert";
+    d.fragment_shader = "vis_mask.frag";
+    d.attribute_mask =
+        (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
+    absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
+    if (!mask.ok()) return mask.status();
+    pipelines_[s.samples] = {std::move(*opaque), std::move(*mask)};
+    return absl::OkStatus();
+  }
+
+  void Record(PassContext& ctx) override {
+    const bool late = id_ == PassId::kVisibilityLate;
+    const uint32_t phase = late ? 1 : 0;
+    const Pipelines& p = pipelines_.at(ctx.samples);
+    VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    color.imageView = ctx.targets->vis_ms.view();
+    color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    color.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
+    color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    color.clearValue.color.uint32[0] = 0;  // no surface
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = ctx.targets->depth_ms.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
+    SetDepthResolve(ctx, depth);
+    BeginRendering(ctx, &color, &depth);
+    if (!ctx.scene->batches().empty()) {
+      BeginSceneDraw(ctx, p.opaque.handle());
+      RecordBatches(ctx, phase);
+    }
+    BeginSceneDraw(ctx, p.mask.handle());
+    RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
+    vkCmdEndRendering(ctx.cmd);
+  }
+
+ private:
+  struct Pipelines {
+    vk::Pipeline opaque, mask;
+  };
+  PassId id_;
+  SceneLayout layout_;
+  std::map<uint32_t, Pipelines> pipelines_;  // by sample count
+};
+
+// The layout of the resolve and shading passes: the scene's sets 0 and 1 plus a set 2 of
+// their own (gpu::kVisSet), and a push constant for the shading pass's material depth.
+class VisLayout {
+ public:
+  static absl::StatusOr<VisLayout> Create(const vk::Context& ctx, const SceneLayout& scene,
+                                          bool resolve) {
+    VisLayout l;
+    l.device_ = ctx.device();
+    std::vector<VkDescriptorSetLayoutBinding> b;
+    if (resolve) {
+      b.push_back({gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                   VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+    } else {
+      b.push_back({gpu::kVisBindingId, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                   VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+      b.push_back({gpu::kVisBindingCoverage, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                   VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+      b.push_back({gpu::kVisBindingShadeSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                   VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+    }
+    b.push_back({gpu::kVisBindingIndices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+                 VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+    b.push_back({gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+                 VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+    VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    li.bindingCount = uint32_t(b.size());
+    li.pBindings = b.data();
+    VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(l.device_, &li, nullptr, &l.set_layout_),
+                       "vis set layout");
+    const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout,
+                                          l.set_layout_};
+    const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(float)};
+    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    pli.setLayoutCount = 3;
+    pli.pSetLayouts = sets;
+    pli.pushConstantRangeCount = resolve ? 0 : 1;
+    pli.pPushConstantRanges = &push;
+    VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, &l.layout_),
+                       "vis pipeline layout");
+    return l;
+  }
+  VisLayout() = default;
+  VisLayout(VisLayout&& o) noexcept { *this = std::move(o); }
+  VisLayout& operator=(VisLayout&& o) noexcept {
+    std::swap(device_, o.device_);
+    std::swap(set_layout_, o.set_layout_);
+    std::swap(layout_, o.layout_);
+    return *this;
+  }
+  ~VisLayout() {
+    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
+    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
+  }
+  VkPipelineLayout pipeline_layout() const { return layout_; }
+
+  // Set 2 for this frame: `images` at their bindings, and the scene's index and vertex buffers.
+  VkDescriptorSet Write(const PassContext& ctx,
+                        const std::vector<std::pair<uint32_t, VkDescriptorImageInfo>>& images) {
+    VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
+    ai.descriptorPool = ctx.frame_pool;
+    ai.descriptorSetCount = 1;
+    ai.pSetLayouts = &set_layout_;
+    VkDescriptorSet set;
+    VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
+    std::vector<VkWriteDescriptorSet> writes;
+    for (const auto& [binding, info] : images) {
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.dstSet = set;
+      w.dstBinding = binding;
+      w.descriptorCount = 1;
+      w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+      w.pImageInfo = &info;
+      writes.push_back(w);
+    }
+    const VkDescriptorBufferInfo buffers[] = {
+        {ctx.scene->indices().handle(), 0, VK_WHOLE_SIZE},
+        {ctx.scene->vertices().handle(), 0, VK_WHOLE_SIZE}};
+    for (uint32_t i = 0; i < 2; ++i) {
+      VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      w.dstSet = set;
+      w.dstBinding = gpu::kVisBindingIndices + i;
+      w.descriptorCount = 1;
+      w.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      w.pBufferInfo = &buffers[i];
+      writes.push_back(w);
+    }
+    vkUpdateDescriptorSets(device_, uint32_t(writes.size()), writes.data(), 0, nullptr);
+    return set;
+  }
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
+  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+};
+
+void BindVisSets(const PassContext& ctx, VkPipelineLayout layout, VkDescriptorSet vis_set) {
+  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &ctx.scene_set,
+                          0, nullptr);
+  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, gpu::kVisSet, 1,
+                          &vis_set, 0, nullptr);
+}
+
+class VisResolvePass final : public Pass {
+ public:
+  VisResolvePass(VisLayout layout, vk::Pipeline pipeline, vk::Sampler sampler)
+      : layout_(std::move(layout)), pipeline_(std::move(pipeline)), sampler_(std::move(sampler)) {}
+  PassId id() const override { return PassId::kVisResolve; }
+
+  void Record(PassContext& ctx) override {
+    const VkDescriptorSet set =
+        layout_.Write(ctx, {{gpu::kVisBindingSamples,
+                             {sampler_.handle(), ctx.targets->vis_ms.view(),
+                              VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}}});
+    VkRenderingAttachmentInfo colors[2];
+    const VkImageView views[2] = {ctx.targets->vis_id.view(), ctx.targets->vis_coverage.view()};
+    for (int i = 0; i < 2; ++i) {
+      colors[i] = {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+      colors[i].imageView = views[i];
+      colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+      colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;  // every pixel is written
+      colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    }
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = ctx.targets->material_depth.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
+    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
+    ri.renderArea = full;
+    ri.layerCount = 1;
+    ri.colorAttachmentCount = 2;
+    ri.pColorAttachments = colors;
+    ri.pDepthAttachment = &depth;
+    vkCmdBeginRendering(ctx.cmd, &ri);
+    const VkViewport viewport{0.0f, 0.0f, float(full.extent.width), float(full.extent.height),
+                              0.0f, 1.0f};
+    vkCmdSetViewport(ctx.cmd, 0, 1, &viewport);
+    vkCmdSetScissor(ctx.cmd, 0, 1, &full);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
+    BindVisSets(ctx, layout_.pipeline_layout(), set);
+    vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
+    vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
+    vkCmdEndRendering(ctx.cmd);
+  }
+
+ private:
+  VisLayout layout_;
+  vk::Pipeline pipeline_;
+  vk::Sampler sampler_;
+};
+
+// Linear HDR background of debug views (as the forward pass's clear).
+constexpr VkClearColorValue kDebugBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
+
+class VisShadePass final : public Pass {
+ public:
+  VisShadePass(VisLayout layout, vk::Pipeline pipeline, vk::Pipeline sky, vk::Sampler sampler)
+      : layout_(std::move(layout)),
+        pipeline_(std::move(pipeline)),
+        sky_(std::move(sky)),
+        sampler_(std::move(sampler)) {}
+  PassId id() const override { return PassId::kVisShade; }
+
+  void Record(PassContext& ctx) override {
+    const VkImageLayout read = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    const VkDescriptorSet set = layout_.Write(
+        ctx, {{gpu::kVisBindingId, {sampler_.handle(), ctx.targets->vis_id.view(), read}},
+              {gpu::kVisBindingCoverage,
+               {sampler_.handle(), ctx.targets->vis_coverage.view(), read}},
+              {gpu::kVisBindingShadeSamples, {sampler_.handle(), ctx.targets->vis_ms.view(), read}}});
+    VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    color.imageView = ctx.targets->hdr.view();
+    color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    color.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // debug views keep it where the sky would be
+    color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    color.clearValue.color = kDebugBackground;
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = ctx.targets->material_depth.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_NONE;
+    BeginRendering(ctx, &color, &depth);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
+    BindVisSets(ctx, layout_.pipeline_layout(), set);
+    vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
+    for (const MaterialRect& m : ctx.vis->materials) {
+      if (m.rect.extent.width == 0 || m.rect.extent.height == 0) continue;
+      const VkDescriptorSet material = ctx.scene->material_set(m.material);
+      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.pipeline_layout(),
+                              gpu::kMaterialSet, 1, &material, 0, nullptr);
+      const float z = float(m.material + 1) * gpu::kMaterialDepthScale;
+      vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_VERTEX_BIT, 0,
+                         sizeof(z), &z);
+      vkCmdSetScissor(ctx.cmd, 0, 1, &m.rect);
+      vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
+      ctx.stats->material_draws++;
+    }
+    if (ctx.settings->debug_view == DebugView::kNone) {  // the sky where no surface won
+      const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
+      vkCmdSetScissor(ctx.cmd, 0, 1, &full);
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_.handle());
+      vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
+    }
+    vkCmdEndRendering(ctx.cmd);
+  }
+
+ private:
+  VisLayout layout_;
+  vk::Pipeline pipeline_;
+  vk::Pipeline sky_;
+  vk::Sampler sampler_;
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisibilityPass(const vk::Context& ctx,
+                                                           const SceneLayout& layout, PassId id) {
+  (void)ctx;
+  return std::make_unique<VisibilityPass>(id, layout);
+}
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ctx,
+                                                           const SceneLayout& scene) {
+  absl::StatusOr<VisLayout> layout = VisLayout::Create(ctx, scene, /*resolve=*/true);
+  if (!layout.ok()) return layout.status();
+  vk::GraphicsPipelineDesc d;
+  d.name = "vis_resolve";
+  d.vertex_shader = "fullscreen.vert";
+  d.fragment_shader = "vis_resolve.frag";
+  d.layout = layout->pipeline_layout();
+  d.scene_vertex_input = false;
+  d.color_formats = {kIdFormat, kIdFormat};
+  d.depth_format = kMaterialDepthFormat;
+  d.depth_test = true;  // a depth write needs the test enabled; ALWAYS passes
+  d.depth_write = true;
+  d.depth_compare = VK_COMPARE_OP_ALWAYS;
+  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
+  if (!pipeline.ok()) return pipeline.status();
+  absl::StatusOr<vk::Sampler> sampler = CreateClampSampler(ctx, false, "vis_resolve");
+  if (!sampler.ok()) return sampler.status();
+  return std::make_unique<VisResolvePass>(std::move(*layout), std::move(*pipeline),
+                                          std::move(*sampler));
+}
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
+                                                         const SceneLayout& scene) {
+  absl::StatusOr<VisLayout> layout = VisLayout::Create(ctx, scene, /*resolve=*/false);
+  if (!layout.ok()) return layout.status();
+  vk::GraphicsPipelineDesc d;
+  d.name = "vis_shade";
+  d.vertex_shader = "vis_shade.vert";
+  d.fragment_shader = "vis_shade.frag";
+  d.layout = layout->pipeline_layout();
+  d.scene_vertex_input = false;
+  d.color_formats = {kHdrFormat};
+  d.depth_format = kMaterialDepthFormat;
+  d.depth_test = true;
+  d.depth_write = false;
+  d.depth_compare = VK_COMPARE_OP_EQUAL;
+  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
+  if (!pipeline.ok()) return pipeline.status();
+  d.name = "vis_shade.sky";  // full-screen triangle at depth 0: the pixels the sky won
+  d.vertex_shader = "fullscreen.vert";
+  d.fragment_shader = "sky.frag";
+  absl::StatusOr<vk::Pipeline> sky = vk::CreateGraphicsPipeline(ctx, d);
+  if (!sky.ok()) return sky.status();
+  absl::StatusOr<vk::Sampler> sampler = CreateClampSampler(ctx, false, "vis_shade");
+  if (!sampler.ok()) return sampler.status();
+  return std::make_unique<VisShadePass>(std::move(*layout), std::move(*pipeline),
+                                        std::move(*sky), std::move(*sampler));
+}
+
+}  // namespace tessera

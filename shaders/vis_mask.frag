@@ -1,0 +1,20 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// vis_mlaa visibility pass, alpha-mask geometry: the alpha test of the depth prepass, then the
+// sample's drawable and triangle.
+#include "common/scene.glsl"
+#include "common/textures.glsl"
+
+layout(location = 3) in vec2 v_uv0;
+layout(location = 4) in vec2 v_uv1;
+layout(location = 5) flat in uint v_drawable;
+layout(location = 0) out uint out_id;
+
+void main() {
+  UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
+  float alpha = material.base_color_factor.a;
+  GpuTextureRef t = material.base_color_tex;
+  if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, v_uv0, v_uv1, grads).a;
+  if (alpha < material.params2.x) discard;
+  out_id = ((v_drawable + 1u) << frame.aa.x) | uint(gl_PrimitiveID);
+}

@@ -1,0 +1,465 @@
+// Anti-aliasing on the Vulkan device (lavapipe in CI) with validation on. The edge scene
+// (renderer/scene/edge_scene.h) is scored against a supersampled reference: the same frame
+// without AA at 4x width and height, box-filtered down in linear light (16 samples a pixel).
+// Its edge mask, the pixels where the reference and the no-AA frame differ, is where AA has
+// work to do; everything else must come out as without AA. Each mode's figures are printed.
+//
+// vis_mlaa also has a golden image (tests/render/golden/vis_mlaa_demo.png): set
+// TESSERA_UPDATE_GOLDENS=1 to rewrite it (then look at it before committing it). On a mismatch
+// the actual image and an amplified diff are written to $TESSERA_TEST_OUTPUT_DIR.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "renderer/image_io.h"
+#include "tests/render/golden.h"
+#include "renderer/image_metrics.h"
+#include "renderer/renderer.h"
+#include "renderer/scene/city_scene.h"
+#include "renderer/scene/edge_scene.h"
+#include "shared_renderer.h"
+
+namespace tessera {
+namespace {
+
+
+void ExpectNoValidationMessages(const Renderer& r) {
+  EXPECT_EQ(r.validation_message_count(), 0u);
+  for (const std::string& m : r.validation_messages()) ADD_FAILURE() << "validation: " << m;
+}
+
+bool HasNote(const Frame& f, std::string_view field) {
+  for (const SettingNote& n : f.settings.notes)
+    if (n.field == field) return true;
+  return false;
+}
+
+// Every note of a frame, for failure messages.
+std::string Notes(const Frame& f) {
+  std::string out;
+  for (const SettingNote& n : f.settings.notes) out += " [" + n.field + ": " + n.message + "]";
+  return out.empty() ? " (no notes)" : out;
+}
+
+// As render_test.cpp: compares with tests/render/golden/<name>.png, or writes it when
+// TESSERA_UPDATE_GOLDENS=1 (the test is then reported as skipped).
+
+// The same tolerance as the other goldens: not bit-exact across driver builds, but any visible
+// change of geometry, shading or resolve fails.
+constexpr double kGoldenMinPsnr = 35.0;
+
+// ---------------------------------------------------------------------------------------------
+// The edge scene, its no-AA frame, its supersampled reference and its edge mask: made once per
+// binary (the 4x reference is the costly frame).
+
+struct EdgeData {
+  EdgeScene edges;
+  SceneHandle scene;
+  Camera camera;
+  RgbaImage none;       // aa none, base colour
+  RgbaImage reference;  // aa none at 4x width and height, DownsampleBox(.., 4)
+  std::vector<uint8_t> edge_mask;  // DifferenceMask(reference, none)
+  double none_edge_psnr = 0.0;
+  double none_coverage_mae = 0.0;
+};
+
+// The edge scene at its own size, with the base-colour debug view: a pixel's linear value is
+// the rendered coverage of the white shapes.
+Settings EdgeSettings(const EdgeScene& e, AaMode aa, uint32_t samples = 4,
+                      DebugView view = DebugView::kBaseColor) {
+  Settings s;
+  s.width = e.width;
+  s.height = e.height;
+  s.aa = aa;
+  s.samples = samples;
+  s.debug_view = view;
+  return s;
+}
+
+std::unique_ptr<EdgeData> MakeEdgeData() {
+  Renderer& r = SharedRenderer();
+  auto d = std::make_unique<EdgeData>();
+  d->edges = BuildEdgeScene();
+  const EdgeScene& e = d->edges;
+  absl::StatusOr<SceneHandle> scene = r.LoadScene(e.scene);
+  if (!scene.ok()) {
+    ADD_FAILURE() << "edge scene: " << scene.status();
+    return nullptr;
+  }
+  d->scene = *scene;
+  d->camera.eye = e.eye;
+  d->camera.target = e.target;
+  d->camera.yfov = e.yfov;
+  d->camera.znear = e.znear;
+
+  absl::StatusOr<Frame> none = r.Render(*d->scene, d->camera, EdgeSettings(e, AaMode::kNone));
+  Settings big = EdgeSettings(e, AaMode::kNone);
+  big.width *= 4;
+  big.height *= 4;
+  absl::StatusOr<Frame> big_frame = r.Render(*d->scene, d->camera, big);
+  if (!none.ok() || !big_frame.ok()) {
+    ADD_FAILURE() << "edge scene frames: " << none.status() << " / " << big_frame.status();
+    return nullptr;
+  }
+  absl::StatusOr<RgbaImage> reference = DownsampleBox(big_frame->image, 4);
+  if (!reference.ok()) {
+    ADD_FAILURE() << "reference: " << reference.status();
+    return nullptr;
+  }
+  d->none = std::move(none->image);
+  d->reference = std::move(*reference);
+  absl::StatusOr<std::vector<uint8_t>> mask = DifferenceMask(d->reference, d->none);
+  absl::StatusOr<double> psnr =
+      mask.ok() ? PsnrMasked(d->none, d->reference, *mask) : absl::StatusOr<double>(mask.status());
+  absl::StatusOr<CoverageError> coverage = MeasureCoverage(d->none, e.coverage);
+  if (!psnr.ok() || !coverage.ok()) {
+    ADD_FAILURE() << "edge metrics: " << psnr.status() << " / " << coverage.status();
+    return nullptr;
+  }
+  d->edge_mask = std::move(*mask);
+  d->none_edge_psnr = *psnr;
+  d->none_coverage_mae = coverage->edge_mae;
+  return d;
+}
+
+// nullptr when setting up failed (reported once, by the first test that asked).
+const EdgeData* SharedEdges() {
+  static const std::unique_ptr<EdgeData> data = MakeEdgeData();
+  return data.get();
+}
+
+// PSNR against the reference over the edge mask.
+double EdgePsnr(const EdgeData& d, const RgbaImage& image) {
+  absl::StatusOr<double> p = PsnrMasked(image, d.reference, d.edge_mask);
+  EXPECT_TRUE(p.ok()) << p.status();
+  return p.ok() ? *p : std::nan("");
+}
+
+// Mean absolute coverage error over the edge pixels, against the analytic coverage.
+double CoverageMae(const EdgeData& d, const RgbaImage& image) {
+  absl::StatusOr<CoverageError> c = MeasureCoverage(image, d.edges.coverage);
+  EXPECT_TRUE(c.ok()) << c.status();
+  return c.ok() ? c->edge_mae : std::nan("");
+}
+
+// Renders the edge scene; the mode must not have been changed (the assertions about a mode are
+// meaningless for another).
+absl::StatusOr<Frame> RenderEdges(const EdgeData& d, const Settings& s, uint64_t view = 0) {
+  absl::StatusOr<Frame> f = SharedRenderer().Render(*d.scene, d.camera, s, view);
+  if (f.ok()) {
+    EXPECT_EQ(f->settings.effective.aa, s.aa) << ToString(s.aa) << ":" << Notes(*f);
+    EXPECT_FALSE(HasNote(*f, "aa")) << ToString(s.aa) << ":" << Notes(*f);
+  }
+  return f;
+}
+
+// Each mode against the supersampled reference: vis_mlaa and msaa close most of the gap on the
+// edges, fxaa some of it; vis_mlaa leaves every other pixel as it was without AA.
+TEST(AaTest, EdgeScene) {
+  const EdgeData* d = SharedEdges();
+  ASSERT_NE(d, nullptr) << "edge scene set-up failed (see the first failure)";
+  Renderer& r = SharedRenderer();
+  const EdgeScene& e = d->edges;
+  const uint64_t edge_pixels = MaskCount(d->edge_mask);
+  ASSERT_GT(edge_pixels, 0u) << "the reference and the no-AA frame agree everywhere";
+  ASSERT_LT(edge_pixels, uint64_t(e.width) * e.height / 2) << "the edge mask selects most pixels";
+
+  absl::StatusOr<Frame> msaa = RenderEdges(*d, EdgeSettings(e, AaMode::kMsaa, 4));
+  absl::StatusOr<Frame> fxaa = RenderEdges(*d, EdgeSettings(e, AaMode::kFxaa));
+  absl::StatusOr<Frame> vis = RenderEdges(*d, EdgeSettings(e, AaMode::kVisMlaa, 4));
+  ASSERT_TRUE(msaa.ok()) << msaa.status();
+  ASSERT_TRUE(fxaa.ok()) << fxaa.status();
+  ASSERT_TRUE(vis.ok()) << vis.status();
+  ASSERT_EQ(vis->settings.effective.aa, AaMode::kVisMlaa) << Notes(*vis);
+
+  const double none_psnr = d->none_edge_psnr;
+  const double msaa_psnr = EdgePsnr(*d, msaa->image);
+  const double fxaa_psnr = EdgePsnr(*d, fxaa->image);
+  const double vis_psnr = EdgePsnr(*d, vis->image);
+  const double none_mae = d->none_coverage_mae;
+  const double msaa_mae = CoverageMae(*d, msaa->image);
+  const double fxaa_mae = CoverageMae(*d, fxaa->image);
+  const double vis_mae = CoverageMae(*d, vis->image);
+  const double reference_mae = CoverageMae(*d, d->reference);
+  absl::StatusOr<double> vis_rest = PsnrMasked(vis->image, d->none, InvertMask(d->edge_mask));
+  ASSERT_TRUE(vis_rest.ok()) << vis_rest.status();
+
+  std::printf("edge scene %ux%u, %llu edge pixels (reference: 4x4 supersampled)\n", e.width,
+              e.height, static_cast<unsigned long long>(edge_pixels));
+  std::printf("  %-9s samples  edge PSNR dB  coverage MAE\n", "mode");
+  std::printf("  %-9s %7u  %12.2f  %12.4f\n", "none", 1u, none_psnr, none_mae);
+  std::printf("  %-9s %7u  %12.2f  %12.4f\n", "msaa", msaa->settings.effective.samples, msaa_psnr,
+              msaa_mae);
+  std::printf("  %-9s %7u  %12.2f  %12.4f\n", "fxaa", 1u, fxaa_psnr, fxaa_mae);
+  std::printf("  %-9s %7u  %12.2f  %12.4f\n", "vis_mlaa", vis->settings.effective.samples,
+              vis_psnr, vis_mae);
+  std::printf("  %-9s %7u  %12s  %12.4f\n", "reference", 16u, "-", reference_mae);
+  std::printf("  vis_mlaa vs none off the edges: %.2f dB\n", *vis_rest);
+
+  EXPECT_GE(vis_psnr, none_psnr + 6.0) << "vis_mlaa " << vis_psnr << " dB, none " << none_psnr;
+  EXPECT_GT(vis_psnr, fxaa_psnr) << "vis_mlaa " << vis_psnr << " dB, fxaa " << fxaa_psnr;
+  EXPECT_GE(*vis_rest, 50.0) << "vis_mlaa changed pixels away from the edges";
+  EXPECT_GE(msaa_psnr, none_psnr + 6.0) << "msaa " << msaa_psnr << " dB, none " << none_psnr;
+  EXPECT_GT(fxaa_psnr, none_psnr) << "fxaa " << fxaa_psnr << " dB, none " << none_psnr;
+  EXPECT_LT(vis_mae, none_mae) << "vis_mlaa coverage MAE " << vis_mae << ", none " << none_mae;
+  // The analytic coverage is of the rasterizer's own pixel grid: a half-pixel offset or a
+  // mis-scaled layout would show here as an error of ~0.25 or more.
+  EXPECT_LT(reference_mae, 0.03) << "the reference's coverage MAE";
+  ExpectNoValidationMessages(r);
+}
+
+// TAA with a still camera accumulates its jittered frames towards the supersampled picture;
+// each view id has its own history, and a new one starts without any.
+TEST(AaTest, TaaStillCameraConverges) {
+  const EdgeData* d = SharedEdges();
+  ASSERT_NE(d, nullptr) << "edge scene set-up failed (see the first failure)";
+  Renderer& r = SharedRenderer();
+  constexpr uint64_t kView = 0x7aa0001, kFreshView = 0x7aa0002;
+  constexpr int kFrames = 24;
+  const Settings s = EdgeSettings(d->edges, AaMode::kTaa);
+  std::vector<double> psnr;
+  RgbaImage first;
+  for (int i = 0; i < kFrames; ++i) {
+    absl::StatusOr<Frame> f = RenderEdges(*d, s, kView);
+    ASSERT_TRUE(f.ok()) << "frame " << i + 1 << ": " << f.status();
+    psnr.push_back(EdgePsnr(*d, f->image));
+    if (i == 0) first = std::move(f->image);
+  }
+  std::printf("taa edge PSNR by frame (none %.2f dB):", d->none_edge_psnr);
+  for (int i : {1, 2, 4, 8, 16, 24}) std::printf(" %d: %.2f", i, psnr[size_t(i - 1)]);
+  std::printf("\n");
+  EXPECT_GE(psnr.back(), d->none_edge_psnr + 4.0)
+      << "frame " << kFrames << " " << psnr.back() << " dB, none " << d->none_edge_psnr;
+  EXPECT_GT(psnr.back(), psnr.front()) << "frame 1 " << psnr.front() << " dB";
+  EXPECT_NEAR(psnr.front(), d->none_edge_psnr, 3.0) << "frame 1 is one jittered frame";
+
+  // Another view id: no history, so its first frame is the first frame above (the same jitter).
+  absl::StatusOr<Frame> fresh = RenderEdges(*d, s, kFreshView);
+  ASSERT_TRUE(fresh.ok()) << fresh.status();
+  const double fresh_psnr = EdgePsnr(*d, fresh->image);
+  std::printf("taa new view, first frame: %.2f dB\n", fresh_psnr);
+  EXPECT_NEAR(fresh_psnr, d->none_edge_psnr, 3.0) << "a new view started from another's history";
+  EXPECT_EQ(fresh->image.pixels, first.pixels) << "a new view's first frame differs";
+
+  // The other view's frame left this view's history alone.
+  absl::StatusOr<Frame> again = RenderEdges(*d, s, kView);
+  ASSERT_TRUE(again.ok()) << again.status();
+  const double again_psnr = EdgePsnr(*d, again->image);
+  std::printf("taa first view again: %.2f dB\n", again_psnr);
+  EXPECT_GE(again_psnr, d->none_edge_psnr + 4.0) << "the first view lost its history";
+  ExpectNoValidationMessages(r);
+}
+
+// vis_mlaa on a lit scene (metals, a textured, a normal-mapped, an alpha-masked and a blended
+// object) against its golden; the shading is the same BRDF as without AA, so the frames differ
+// on the edges only.
+TEST(AaTest, VisMlaaGolden) {
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  Settings s;
+  s.width = 256;
+  s.height = 192;
+  s.aa = AaMode::kVisMlaa;
+  s.samples = 4;
+  absl::StatusOr<Frame> vis = r.Render(*scene, camera, s);
+  ASSERT_TRUE(vis.ok()) << vis.status();
+  ASSERT_EQ(vis->settings.effective.aa, AaMode::kVisMlaa) << Notes(*vis);
+  EXPECT_FALSE(HasNote(*vis, "aa")) << Notes(*vis);
+  s.aa = AaMode::kNone;
+  absl::StatusOr<Frame> none = r.Render(*scene, camera, s);
+  ASSERT_TRUE(none.ok()) << none.status();
+  absl::StatusOr<double> psnr = Psnr(vis->image, none->image);
+  ASSERT_TRUE(psnr.ok()) << psnr.status();
+  std::printf("demo 256x192: vis_mlaa vs none %.2f dB\n", *psnr);
+  EXPECT_GE(*psnr, 30.0) << "vis_mlaa shades differently from aa none";
+  ExpectNoValidationMessages(r);
+  CompareWithGolden("vis_mlaa_demo", vis->image, kGoldenMinPsnr);
+}
+
+// The aa_mask debug view: white where one surface owns every sample, darker on the edges; it
+// exists for vis_mlaa only, and asking for it otherwise is reported and renders normally.
+TEST(AaTest, AaMaskDebugView) {
+  const EdgeData* d = SharedEdges();
+  ASSERT_NE(d, nullptr) << "edge scene set-up failed (see the first failure)";
+  Renderer& r = SharedRenderer();
+  const EdgeScene& e = d->edges;
+  absl::StatusOr<Frame> f =
+      RenderEdges(*d, EdgeSettings(e, AaMode::kVisMlaa, 4, DebugView::kAaMask));
+  ASSERT_TRUE(f.ok()) << f.status();
+  ASSERT_EQ(f->settings.effective.debug_view, DebugView::kAaMask) << Notes(*f);
+  ASSERT_EQ(f->image.width, e.width);
+  ASSERT_EQ(f->image.height, e.height);
+
+  auto coverage = [&](uint32_t x, uint32_t y) { return e.coverage[size_t(y) * e.width + x]; };
+  auto darkest = [&](uint32_t x, uint32_t y) {
+    const uint8_t* p = &f->image.pixels[(size_t(y) * e.width + x) * 4];
+    return std::min({p[0], p[1], p[2]});
+  };
+  uint64_t interior = 0, interior_not_white = 0, edge = 0, edge_darker = 0;
+  uint64_t half = 0, half_darker = 0;  // coverage 0.4..0.6: every 4-sample pattern is split
+  std::string first_bad;
+  for (uint32_t y = 1; y + 1 < e.height; ++y) {
+    for (uint32_t x = 1; x + 1 < e.width; ++x) {
+      const float c = coverage(x, y);
+      if (c == 0.0f || c == 1.0f) {
+        bool same = true;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx)
+            same = same && coverage(uint32_t(int(x) + dx), uint32_t(int(y) + dy)) == c;
+        if (!same) continue;
+        ++interior;
+        if (darkest(x, y) != 255) {
+          if (interior_not_white == 0)
+            first_bad = "(" + std::to_string(x) + ", " + std::to_string(y) + ") = " +
+                        std::to_string(darkest(x, y));
+          ++interior_not_white;
+        }
+      } else {
+        ++edge;
+        edge_darker += darkest(x, y) < 255 ? 1 : 0;
+        if (c >= 0.4f && c <= 0.6f) {
+          ++half;
+          half_darker += darkest(x, y) < 255 ? 1 : 0;
+        }
+      }
+    }
+  }
+  std::printf("aa_mask: %llu interior pixels, %llu not white; %llu edge pixels, %llu darker; "
+              "%llu at coverage 0.4-0.6, %llu darker\n",
+              static_cast<unsigned long long>(interior),
+              static_cast<unsigned long long>(interior_not_white),
+              static_cast<unsigned long long>(edge), static_cast<unsigned long long>(edge_darker),
+              static_cast<unsigned long long>(half), static_cast<unsigned long long>(half_darker));
+  ASSERT_GT(interior, 0u);
+  EXPECT_EQ(interior_not_white, 0u) << "interior pixels are not white, first " << first_bad;
+  EXPECT_GT(edge_darker, 0u) << "no edge pixel shows partial coverage";
+  // An edge through the middle of a pixel splits its samples between two surfaces (a sample
+  // exactly on an edge may go either way, hence not all).
+  ASSERT_GT(half, 0u);
+  EXPECT_GE(double(half_darker), 0.95 * double(half)) << half_darker << " of " << half;
+
+  // Without vis_mlaa there is no mask: a note, and the frame aa none would give anyway.
+  absl::StatusOr<Frame> asked =
+      r.Render(*d->scene, d->camera, EdgeSettings(e, AaMode::kNone, 4, DebugView::kAaMask));
+  absl::StatusOr<Frame> plain =
+      r.Render(*d->scene, d->camera, EdgeSettings(e, AaMode::kNone, 4, DebugView::kNone));
+  ASSERT_TRUE(asked.ok()) << asked.status();
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_TRUE(HasNote(*asked, "debug_view")) << Notes(*asked);
+  EXPECT_EQ(asked->settings.effective.debug_view, DebugView::kNone);
+  EXPECT_EQ(asked->image.pixels, plain->image.pixels) << "aa_mask without vis_mlaa changed the frame";
+  ExpectNoValidationMessages(r);
+}
+
+// Past 4095 drawables the visibility id gives the drawable more bits: a city whose visible
+// buildings have indices beyond 4095 renders in vis_mlaa (no fallback) and matches the frame
+// without AA away from the edges. A wrapped id would shade another building's surface.
+TEST(AaTest, ManyDrawables) {
+  Renderer& r = SharedRenderer();
+  CityParams params;
+  params.blocks_x = 7;
+  params.blocks_z = 7;
+  params.buildings_per_side = 10;
+  params.facade_detail = 1;
+  const CpuScene city = BuildCityScene(params);
+  ASSERT_GT(city.drawables.size(), 4095u);
+  const auto cam = std::find_if(city.cameras.begin(), city.cameras.end(),
+                                [](const SceneCamera& c) { return c.name == "street"; });
+  ASSERT_NE(cam, city.cameras.end()) << "no street camera";
+  absl::StatusOr<SceneHandle> scene = r.LoadScene(city);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const Camera camera = FromSceneCamera(*cam);
+  Settings s;
+  s.width = 160;
+  s.height = 120;
+  s.aa = AaMode::kNone;
+  FrameCapture capture;
+  capture.want_ids = true;
+  absl::StatusOr<Frame> none = r.Render(**scene, camera, s, /*view=*/0, &capture);
+  ASSERT_TRUE(none.ok()) << none.status();
+  // The view must show drawables whose id + 1 does not fit 12 bits, or it tests nothing.
+  const uint64_t wide = uint64_t(std::count_if(capture.ids.begin(), capture.ids.end(),
+                                      [](uint32_t id) { return id > 4095u; }));
+  EXPECT_GT(wide, 0u) << "no pixel shows a drawable past index 4094";
+
+  s.aa = AaMode::kVisMlaa;
+  s.samples = 4;
+  absl::StatusOr<Frame> vis = r.Render(**scene, camera, s);
+  ASSERT_TRUE(vis.ok()) << vis.status();
+  EXPECT_FALSE(HasNote(*vis, "aa")) << Notes(*vis);
+  EXPECT_EQ(vis->settings.effective.aa, AaMode::kVisMlaa) << Notes(*vis);
+  absl::StatusOr<double> psnr = Psnr(vis->image, none->image);
+  ASSERT_TRUE(psnr.ok()) << psnr.status();
+  std::printf("city: %zu drawables, %llu of %zu pixels past 4094; vis_mlaa vs none %.2f dB\n",
+              city.drawables.size(), static_cast<unsigned long long>(wide), capture.ids.size(),
+              *psnr);
+  EXPECT_GE(*psnr, 25.0) << "vis_mlaa shades other surfaces than aa none";
+  ExpectNoValidationMessages(r);
+}
+
+// The same inputs give the same pixels in the post-process and resolve modes too.
+TEST(AaTest, Determinism) {
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  for (AaMode aa : {AaMode::kVisMlaa, AaMode::kFxaa}) {
+    Settings s;
+    s.width = 160;
+    s.height = 120;
+    s.aa = aa;
+    s.samples = 4;
+    absl::StatusOr<Frame> a = r.Render(*scene, camera, s);
+    absl::StatusOr<Frame> b = r.Render(*scene, camera, s);
+    ASSERT_TRUE(a.ok()) << a.status();
+    ASSERT_TRUE(b.ok()) << b.status();
+    EXPECT_EQ(a->settings.effective.aa, aa) << Notes(*a);
+    EXPECT_EQ(a->image.pixels, b->image.pixels) << ToString(aa) << ": two renders differ";
+  }
+  ExpectNoValidationMessages(r);
+}
+
+// Sample counts the device lacks are clamped to one it has, with a note; msaa with one sample
+// is raised to a multisampled count and still anti-aliases.
+TEST(AaTest, SampleCounts) {
+  const EdgeData* d = SharedEdges();
+  ASSERT_NE(d, nullptr) << "edge scene set-up failed (see the first failure)";
+  Renderer& r = SharedRenderer();
+  const uint32_t supported = r.device_info().sample_counts;
+  for (AaMode aa : {AaMode::kMsaa, AaMode::kVisMlaa}) {
+    for (uint32_t requested : {2u, 8u}) {
+      absl::StatusOr<Frame> f = RenderEdges(*d, EdgeSettings(d->edges, aa, requested));
+      ASSERT_TRUE(f.ok()) << f.status();
+      const uint32_t got = f->settings.effective.samples;
+      std::printf("%s samples %u -> %u%s\n", std::string(ToString(aa)).c_str(), requested, got,
+                  Notes(*f).c_str());
+      EXPECT_NE(got & supported, 0u) << ToString(aa) << " " << requested << " -> " << got
+                                     << ", device sample counts 0x" << std::hex << supported;
+      EXPECT_GT(got, 1u) << ToString(aa) << " needs a multisampled target";
+      EXPECT_EQ(HasNote(*f, "samples"), got != requested)
+          << ToString(aa) << " " << requested << " -> " << got << ":" << Notes(*f);
+    }
+  }
+  absl::StatusOr<Frame> one = RenderEdges(*d, EdgeSettings(d->edges, AaMode::kMsaa, 1));
+  ASSERT_TRUE(one.ok()) << one.status();
+  const double psnr = EdgePsnr(*d, one->image);
+  std::printf("msaa samples 1 -> %u: edge PSNR %.2f dB (none %.2f)\n",
+              one->settings.effective.samples, psnr, d->none_edge_psnr);
+  EXPECT_GT(one->settings.effective.samples, 1u);
+  EXPECT_TRUE(HasNote(*one, "samples")) << Notes(*one);
+  // 3 dB, not 6: the smallest multisampled count may be 2 on other devices (4 on lavapipe).
+  EXPECT_GE(psnr, d->none_edge_psnr + 3.0) << "msaa raised from 1 sample does not anti-alias";
+  ExpectNoValidationMessages(r);
+}
+
+}  // namespace
+}  // namespace tessera
