@@ -151,6 +151,50 @@ Light DefaultSun() {
   return sun;
 }
 
+// vis_mlaa: per material on screen, the pixel rectangle its drawables in the frustum can cover
+// (their projected bounds; the whole frame when a box reaches behind the eye).
+std::vector<MaterialRect> MaterialRects(const GpuScene& gs, const Frustum& frustum,
+                                        const glm::mat4& view_proj, uint32_t width,
+                                        uint32_t height) {
+  std::vector<MaterialRect> out;
+  std::map<uint32_t, glm::ivec4> rects;  // material -> x0, y0, x1, y1 (exclusive)
+  const glm::ivec2 size{int(width), int(height)};
+  for (const DrawItem& d : gs.draws()) {
+    if (d.alpha == AlphaMode::kBlend || !AabbIntersectsFrustum(d.world_bounds, frustum)) continue;
+    glm::vec2 lo(1e30f), hi(-1e30f);
+    bool behind = false;
+    for (int c = 0; c < 8; ++c) {
+      const glm::vec3 corner((c & 1) ? d.world_bounds.max.x : d.world_bounds.min.x,
+                             (c & 2) ? d.world_bounds.max.y : d.world_bounds.min.y,
+                             (c & 4) ? d.world_bounds.max.z : d.world_bounds.min.z);
+      const glm::vec4 clip = view_proj * glm::vec4(corner, 1.0f);
+      if (clip.w <= 1e-6f) {
+        behind = true;
+        break;
+      }
+      const glm::vec2 pixel = (glm::vec2(clip) / clip.w * 0.5f + 0.5f) * glm::vec2(size);
+      lo = glm::min(lo, pixel);
+      hi = glm::max(hi, pixel);
+    }
+    glm::ivec4 r(0, 0, size.x, size.y);
+    if (!behind) {
+      r = glm::ivec4(glm::clamp(glm::ivec2(glm::floor(lo)) - 1, glm::ivec2(0), size),
+                     glm::clamp(glm::ivec2(glm::ceil(hi)) + 1, glm::ivec2(0), size));
+    }
+    auto [it, fresh] = rects.emplace(d.material, r);
+    if (!fresh) {
+      it->second = glm::ivec4(glm::min(glm::ivec2(it->second), glm::ivec2(r)),
+                              glm::max(glm::ivec2(it->second.z, it->second.w), glm::ivec2(r.z, r.w)));
+    }
+  }
+  for (const auto& [material, r] : rects) {
+    if (r.z <= r.x || r.w <= r.y) continue;
+    out.push_back(
+        {material, VkRect2D{{r.x, r.y}, {uint32_t(r.z - r.x), uint32_t(r.w - r.y)}}});
+  }
+  return out;
+}
+
 }  // namespace
 
 Scene::~Scene() = default;
@@ -1015,8 +1059,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   // drawable has more triangles than the id leaves room for is drawn with msaa instead.
   const uint32_t triangle_bits = VisTriangleBits(uint32_t(gs.draws().size()));
   if (s.aa == AaMode::kVisMlaa) {
-    uint64_t most = 0;
-    for (const DrawItem& d : gs.draws()) most = std::max<uint64_t>(most, d.index_count / 3);
+    const uint32_t most = gs.max_draw_triangles();
     if (most > (uint64_t(1) << triangle_bits)) {
       frame.settings.notes.push_back(
           {"aa", absl::StrCat("not applied: vis_mlaa ids hold ", triangle_bits,
@@ -1055,7 +1098,6 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     taa.history_valid = valid;
     taa.reproject = history.view_proj * glm::inverse(unjittered_view_proj);
     taa.history_read = &history.images[history.current];
-    taa.history_layout_undefined = !valid;
     taa.history_write = &history.images[history.current ^ 1];
     const glm::vec2 jitter = TaaJitter(history.jitter_index++);
     fu.proj[2][0] += 2.0f * jitter.x / float(s.width);
@@ -1210,43 +1252,8 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   // vis_mlaa: per material, the pixels its drawables in the frustum can cover.
   VisFrame vis;
   vis.triangle_bits = triangle_bits;
-  if (s.aa == AaMode::kVisMlaa) {
-    std::map<uint32_t, glm::ivec4> rects;  // material -> x0, y0, x1, y1 (exclusive)
-    const glm::ivec2 size(int(s.width), int(s.height));
-    for (const DrawItem& d : gs.draws()) {
-      if (d.alpha == AlphaMode::kBlend || !AabbIntersectsFrustum(d.world_bounds, frustum)) continue;
-      glm::vec2 lo(1e30f), hi(-1e30f);
-      bool behind = false;
-      for (int c = 0; c < 8; ++c) {
-        const glm::vec3 corner((c & 1) ? d.world_bounds.max.x : d.world_bounds.min.x,
-                               (c & 2) ? d.world_bounds.max.y : d.world_bounds.min.y,
-                               (c & 4) ? d.world_bounds.max.z : d.world_bounds.min.z);
-        const glm::vec4 clip = fu.view_proj * glm::vec4(corner, 1.0f);
-        if (clip.w <= 1e-6f) {
-          behind = true;
-          break;
-        }
-        const glm::vec2 pixel = (glm::vec2(clip) / clip.w * 0.5f + 0.5f) * glm::vec2(size);
-        lo = glm::min(lo, pixel);
-        hi = glm::max(hi, pixel);
-      }
-      glm::ivec4 r(0, 0, size.x, size.y);
-      if (!behind) {
-        r = glm::ivec4(glm::clamp(glm::ivec2(glm::floor(lo)) - 1, glm::ivec2(0), size),
-                       glm::clamp(glm::ivec2(glm::ceil(hi)) + 1, glm::ivec2(0), size));
-      }
-      auto [it, fresh] = rects.emplace(d.material, r);
-      if (!fresh) {
-        it->second = glm::ivec4(glm::min(glm::ivec2(it->second), glm::ivec2(r)),
-                                glm::max(glm::ivec2(it->second.z, it->second.w), glm::ivec2(r.z, r.w)));
-      }
-    }
-    for (const auto& [material, r] : rects) {
-      if (r.z <= r.x || r.w <= r.y) continue;
-      vis.materials.push_back(
-          {material, VkRect2D{{r.x, r.y}, {uint32_t(r.z - r.x), uint32_t(r.w - r.y)}}});
-    }
-  }
+  if (s.aa == AaMode::kVisMlaa)
+    vis.materials = MaterialRects(gs, frustum, fu.view_proj, s.width, s.height);
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
   const VkDescriptorSet scene_set = m.WriteSceneSet(gs);

@@ -65,8 +65,7 @@ void main() {
   Triangle tri = LoadTriangle(id);
   vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, dir);
   // When the surface spans several triangles, the mean position can miss the nearest sample's
-  // triangle: take the first of the surface's other triangles that contains it. (A loop, so a
-  // CPU rasterizer skips it for blocks where every pixel hit its triangle.)
+  // triangle: take the first of the surface's other triangles that contains it.
   uint mask = CoverageMask(word);
   const float kInside = -1e-4;
   for (uint s = 0u; s < frame.aa.y && min(b.x, min(b.y, b.z)) < kInside; ++s) {

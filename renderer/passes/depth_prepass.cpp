@@ -8,8 +8,6 @@
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
 
-#include <map>
-
 namespace tessera {
 
 namespace {
@@ -41,19 +39,13 @@ absl::StatusOr<PrepassPipelines> CreatePipelines(const vk::Context& ctx,
 
 class DepthPrepass final : public Pass {
  public:
-  DepthPrepass(PassId id, const SceneLayout& layout, PrepassPipelines single)
-      : id_(id), layout_(layout) {
-    pipelines_[1] = std::move(single);
-  }
+  DepthPrepass(PassId id, const SceneLayout& layout) : id_(id), layout_(layout) {}
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    const uint32_t samples = s.aa == AaMode::kMsaa ? s.samples : 1;
-    if (pipelines_.count(samples)) return absl::OkStatus();
-    absl::StatusOr<PrepassPipelines> p = CreatePipelines(ctx, layout_, samples);
-    if (!p.ok()) return p.status();
-    pipelines_[samples] = std::move(*p);
-    return absl::OkStatus();
+    return pipelines_.Ensure(s.aa == AaMode::kMsaa ? s.samples : 1, [&](uint32_t samples) {
+      return CreatePipelines(ctx, layout_, samples);
+    });
   }
 
   void Record(PassContext& ctx) override {
@@ -67,37 +59,25 @@ class DepthPrepass final : public Pass {
     depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
-    if (samples > 1) {
-      // Light culling and the depth pyramid read a single-sampled depth: the farthest sample
-      // where the device can (conservative for both), else sample 0.
-      depth.resolveMode = ctx.vk->info().depth_resolve_min ? VK_RESOLVE_MODE_MIN_BIT
-                                                           : VK_RESOLVE_MODE_SAMPLE_ZERO_BIT;
-      depth.resolveImageView = ctx.targets->depth.view();
-      depth.resolveImageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-    }
+    if (samples > 1) ResolveDepthInto(ctx, depth);  // light culling, the pyramid read it
     BeginRendering(ctx, nullptr, &depth);
-    if (!ctx.scene->batches().empty()) {
-      BeginSceneDraw(ctx, p.opaque.handle());
-      RecordBatches(ctx, phase);
-    }
-    BeginSceneDraw(ctx, p.mask.handle());
-    RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
+    RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase);
     vkCmdEndRendering(ctx.cmd);
   }
 
  private:
   PassId id_;
   SceneLayout layout_;
-  std::map<uint32_t, PrepassPipelines> pipelines_;  // by sample count
+  PerSampleCount<PrepassPipelines> pipelines_;
 };
 
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateDepthPrepass(const vk::Context& ctx,
                                                          const SceneLayout& layout, PassId id) {
-  absl::StatusOr<PrepassPipelines> p = CreatePipelines(ctx, layout, 1);
-  if (!p.ok()) return p.status();
-  return std::make_unique<DepthPrepass>(id, layout, std::move(*p));
+  auto pass = std::make_unique<DepthPrepass>(id, layout);
+  if (absl::Status st = pass->Prepare(ctx, Settings{}); !st.ok()) return st;  // 1x, always used
+  return pass;
 }
 
 absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const SceneLayout& layout) {

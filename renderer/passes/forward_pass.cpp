@@ -9,8 +9,6 @@
 #include "renderer/passes/pass.h"
 #include "renderer/vk/pipeline.h"
 
-#include <map>
-
 namespace tessera {
 
 namespace {
@@ -58,19 +56,13 @@ absl::StatusOr<ForwardPipelines> CreatePipelines(const vk::Context& ctx, const S
 
 class ForwardPass final : public Pass {
  public:
-  ForwardPass(PassId id, const SceneLayout& layout, ForwardPipelines single)
-      : id_(id), layout_(layout) {
-    pipelines_[1] = std::move(single);
-  }
+  ForwardPass(PassId id, const SceneLayout& layout) : id_(id), layout_(layout) {}
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    const uint32_t samples = s.aa == AaMode::kMsaa ? s.samples : 1;
-    if (pipelines_.count(samples)) return absl::OkStatus();
-    absl::StatusOr<ForwardPipelines> p = CreatePipelines(ctx, layout_, id_, samples);
-    if (!p.ok()) return p.status();
-    pipelines_[samples] = std::move(*p);
-    return absl::OkStatus();
+    return pipelines_.Ensure(s.aa == AaMode::kMsaa ? s.samples : 1, [&](uint32_t samples) {
+      return CreatePipelines(ctx, layout_, id_, samples);
+    });
   }
 
   void Record(PassContext& ctx) override {
@@ -118,14 +110,14 @@ class ForwardPass final : public Pass {
  private:
   PassId id_;
   SceneLayout layout_;
-  std::map<uint32_t, ForwardPipelines> pipelines_;  // by sample count
+  PerSampleCount<ForwardPipelines> pipelines_;
 };
 
 absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,
                                              PassId id) {
-  absl::StatusOr<ForwardPipelines> p = CreatePipelines(ctx, layout, id, 1);
-  if (!p.ok()) return p.status();
-  return std::make_unique<ForwardPass>(id, layout, std::move(*p));
+  auto pass = std::make_unique<ForwardPass>(id, layout);
+  if (absl::Status st = pass->Prepare(ctx, Settings{}); !st.ok()) return st;  // 1x, always used
+  return pass;
 }
 
 }  // namespace

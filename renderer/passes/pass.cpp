@@ -9,12 +9,24 @@ namespace tessera {
 
 void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* color,
                     const VkRenderingAttachmentInfo* depth) {
+  BeginRendering(ctx, color, color ? 1 : 0, depth);
+}
+
+void ResolveDepthInto(const PassContext& ctx, VkRenderingAttachmentInfo& depth) {
+  depth.resolveMode = ctx.vk->info().depth_resolve_min ? VK_RESOLVE_MODE_MIN_BIT
+                                                       : VK_RESOLVE_MODE_SAMPLE_ZERO_BIT;
+  depth.resolveImageView = ctx.targets->depth.view();
+  depth.resolveImageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+}
+
+void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* colors,
+                    uint32_t color_count, const VkRenderingAttachmentInfo* depth) {
   const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
   VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
   ri.renderArea = full;
   ri.layerCount = 1;
-  ri.colorAttachmentCount = color ? 1 : 0;
-  ri.pColorAttachments = color;
+  ri.colorAttachmentCount = color_count;
+  ri.pColorAttachments = colors;
   ri.pDepthAttachment = depth;
   vkCmdBeginRendering(ctx.cmd, &ri);
   const VkViewport viewport{0.0f, 0.0f, float(full.extent.width), float(full.extent.height),
@@ -146,6 +158,16 @@ void RecordBatches(const PassContext& ctx, uint32_t phase) {
     DrawIndirect(ctx, phase, true, batches[b].first_item, batches[b].item_count,
                  segment_count + b);
   }
+}
+
+void RecordDepthGeometry(const PassContext& ctx, VkPipeline opaque, VkPipeline mask,
+                         uint32_t phase) {
+  if (!ctx.scene->batches().empty()) {
+    BeginSceneDraw(ctx, opaque);
+    RecordBatches(ctx, phase);
+  }
+  BeginSceneDraw(ctx, mask);
+  RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
 }
 
 }  // namespace tessera

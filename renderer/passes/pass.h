@@ -6,6 +6,7 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -126,10 +127,9 @@ struct VisFrame {
 struct TaaFrame {
   const vk::Image* history_read = nullptr;   // last frame's output (shader-read layout)
   const vk::Image* history_write = nullptr;  // this frame's output (any layout)
-  bool history_layout_undefined = false;     // history_read was never written
   glm::mat4 reproject{1.0f};  // this frame's unjittered clip -> last frame's
   float current_weight = 1.0f;
-  bool history_valid = false;
+  bool history_valid = false;  // history_read holds last frame (else it was never written)
 };
 
 // Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
@@ -257,6 +257,25 @@ class FullscreenProgram {
   uint32_t inputs_ = 0;
   uint32_t push_size_ = 0;
 };
+// What a pass builds per sample count (its pipelines), made on first use.
+template <typename T>
+class PerSampleCount {
+ public:
+  // Builds the entry for `samples` with make(samples) -> StatusOr<T> unless it exists.
+  template <typename Make>
+  absl::Status Ensure(uint32_t samples, Make make) {
+    if (by_samples_.count(samples)) return absl::OkStatus();
+    absl::StatusOr<T> made = make(samples);
+    if (!made.ok()) return made.status();
+    by_samples_.emplace(samples, std::move(*made));
+    return absl::OkStatus();
+  }
+  const T& at(uint32_t samples) const { return by_samples_.at(samples); }
+
+ private:
+  std::map<uint32_t, T> by_samples_;
+};
+
 // Samplers for post passes: nearest or bilinear, clamp to edge.
 absl::StatusOr<vk::Sampler> CreateClampSampler(const vk::Context& ctx, bool linear,
                                                const char* name);
@@ -265,6 +284,13 @@ absl::StatusOr<vk::Sampler> CreateClampSampler(const vk::Context& ctx, bool line
 // and sets the full-frame viewport and scissor.
 void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* color,
                     const VkRenderingAttachmentInfo* depth);
+// The same with `color_count` colour attachments.
+void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* colors,
+                    uint32_t color_count, const VkRenderingAttachmentInfo* depth);
+// Makes `depth` (a multisampled attachment) resolve into the frame's single-sampled depth: the
+// farthest sample where the device can (conservative for the depth pyramid and light culling),
+// else sample 0.
+void ResolveDepthInto(const PassContext& ctx, VkRenderingAttachmentInfo& depth);
 // Shared by the geometry passes: binds the pipeline, the frame's set and the scene buffers.
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline);
 // Draws the segments of `group` from the lists of phases [phase_begin, phase_end), binding each
@@ -276,6 +302,10 @@ void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begi
 void RecordAllDirect(const PassContext& ctx);
 // Draws the opaque group without materials: one indirect draw per batch (cull mode).
 void RecordBatches(const PassContext& ctx, uint32_t phase);
+// The depth prepass's and visibility pass's draws of a phase: the opaque batches with `opaque`,
+// then the alpha-mask segments (materials bound for the alpha test) with `mask`.
+void RecordDepthGeometry(const PassContext& ctx, VkPipeline opaque, VkPipeline mask,
+                         uint32_t phase);
 
 // The drawable-id pipeline (tests): writes drawable + 1 into an R32_UINT target where a surface
 // lies at the depth attachment's depth (GREATER_OR_EQUAL, no depth writes).

@@ -77,17 +77,7 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
     c.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     colors.push_back(c);
   }
-  const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
-  VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-  ri.renderArea = full;
-  ri.layerCount = 1;
-  ri.colorAttachmentCount = uint32_t(colors.size());
-  ri.pColorAttachments = colors.data();
-  vkCmdBeginRendering(ctx.cmd, &ri);
-  const VkViewport viewport{0.0f, 0.0f, float(full.extent.width), float(full.extent.height),
-                            0.0f, 1.0f};
-  vkCmdSetViewport(ctx.cmd, 0, 1, &viewport);
-  vkCmdSetScissor(ctx.cmd, 0, 1, &full);
+  BeginRendering(ctx, colors.data(), uint32_t(colors.size()), nullptr);
   vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
   vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.pipeline_layout(), 0,
                           1, &set, 0, nullptr);
@@ -186,7 +176,7 @@ class TaaPass final : public PostPass {
         vk::MakeImageBarrier(*taa.history_read,
                              {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
                               VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
-                              taa.history_layout_undefined ? VK_IMAGE_LAYOUT_UNDEFINED : read,
+                              taa.history_valid ? read : VK_IMAGE_LAYOUT_UNDEFINED,
                               VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
                               VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, read}),
         vk::MakeImageBarrier(*taa.history_write,

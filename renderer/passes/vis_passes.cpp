@@ -13,24 +13,11 @@
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
 
-#include <map>
 
 namespace tessera {
 
 namespace {
 
-VkSampleCountFlagBits SampleBits(uint32_t samples) {
-  return static_cast<VkSampleCountFlagBits>(samples);
-}
-
-// The frame's multisampled depth resolved into its single-sampled depth: the farthest sample
-// where the device can (conservative for the depth pyramid and light culling), else sample 0.
-void SetDepthResolve(const PassContext& ctx, VkRenderingAttachmentInfo& depth) {
-  depth.resolveMode = ctx.vk->info().depth_resolve_min ? VK_RESOLVE_MODE_MIN_BIT
-                                                       : VK_RESOLVE_MODE_SAMPLE_ZERO_BIT;
-  depth.resolveImageView = ctx.targets->depth.view();
-  depth.resolveImageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-}
 
 class VisibilityPass final : public Pass {
  public:
@@ -38,30 +25,8 @@ class VisibilityPass final : public Pass {
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    if (s.aa != AaMode::kVisMlaa || pipelines_.count(s.samples)) return absl::OkStatus();
-    vk::GraphicsPipelineDesc d;
-    d.name = "visibility.opaque";
-    d.vertex_shader = "vis.vert";
-    d.fragment_shader = "vis.frag";
-    d.layout = layout_.pipeline_layout;
-    d.attribute_mask = 1u << gpu::kAttrPosition;
-    d.color_formats = {kIdFormat};
-    d.depth_format = kDepthFormat;
-    d.depth_test = true;
-    d.depth_write = true;
-    d.depth_compare = VK_COMPARE_OP_GREATER;
-    d.samples = SampleBits(s.samples);
-    absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
-    if (!opaque.ok()) return opaque.status();
-    d.name = "visibility.mask";
-    d.vertex_shader = "id.vert";
-    d.fragment_shader = "vis_mask.frag";
-    d.attribute_mask =
-        (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
-    absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
-    if (!mask.ok()) return mask.status();
-    pipelines_[s.samples] = {std::move(*opaque), std::move(*mask)};
-    return absl::OkStatus();
+    if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
+    return pipelines_.Ensure(s.samples, [&](uint32_t samples) { return Create(ctx, samples); });
   }
 
   void Record(PassContext& ctx) override {
@@ -80,14 +45,9 @@ class VisibilityPass final : public Pass {
     depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
-    SetDepthResolve(ctx, depth);
+    ResolveDepthInto(ctx, depth);
     BeginRendering(ctx, &color, &depth);
-    if (!ctx.scene->batches().empty()) {
-      BeginSceneDraw(ctx, p.opaque.handle());
-      RecordBatches(ctx, phase);
-    }
-    BeginSceneDraw(ctx, p.mask.handle());
-    RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
+    RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase);
     vkCmdEndRendering(ctx.cmd);
   }
 
@@ -95,9 +55,34 @@ class VisibilityPass final : public Pass {
   struct Pipelines {
     vk::Pipeline opaque, mask;
   };
+  absl::StatusOr<Pipelines> Create(const vk::Context& ctx, uint32_t samples) const {
+    vk::GraphicsPipelineDesc d;
+    d.name = "visibility.opaque";
+    d.vertex_shader = "vis.vert";
+    d.fragment_shader = "vis.frag";
+    d.layout = layout_.pipeline_layout;
+    d.attribute_mask = 1u << gpu::kAttrPosition;
+    d.color_formats = {kIdFormat};
+    d.depth_format = kDepthFormat;
+    d.depth_test = true;
+    d.depth_write = true;
+    d.depth_compare = VK_COMPARE_OP_GREATER;
+    d.samples = static_cast<VkSampleCountFlagBits>(samples);
+    absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
+    if (!opaque.ok()) return opaque.status();
+    d.name = "visibility.mask";
+    d.vertex_shader = "id.vert";
+    d.fragment_shader = "vis_mask.frag";
+    d.attribute_mask =
+        (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
+    absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
+    if (!mask.ok()) return mask.status();
+    return Pipelines{std::move(*opaque), std::move(*mask)};
+  }
+
   PassId id_;
   SceneLayout layout_;
-  std::map<uint32_t, Pipelines> pipelines_;  // by sample count
+  PerSampleCount<Pipelines> pipelines_;
 };
 
 // The layout of the resolve and shading passes: the scene's sets 0 and 1 plus a set 2 of
@@ -228,18 +213,7 @@ class VisResolvePass final : public Pass {
     depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
-    VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
-    ri.renderArea = full;
-    ri.layerCount = 1;
-    ri.colorAttachmentCount = 2;
-    ri.pColorAttachments = colors;
-    ri.pDepthAttachment = &depth;
-    vkCmdBeginRendering(ctx.cmd, &ri);
-    const VkViewport viewport{0.0f, 0.0f, float(full.extent.width), float(full.extent.height),
-                              0.0f, 1.0f};
-    vkCmdSetViewport(ctx.cmd, 0, 1, &viewport);
-    vkCmdSetScissor(ctx.cmd, 0, 1, &full);
+    BeginRendering(ctx, colors, 2, &depth);
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
     BindVisSets(ctx, layout_.pipeline_layout(), set);
     vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);

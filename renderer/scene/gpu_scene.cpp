@@ -372,6 +372,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
     g.aabb_min = glm::vec4(d.world_bounds.min, 0.0f);
     g.aabb_max = glm::vec4(d.world_bounds.max, 0.0f);
     drawables.push_back(g);
+    gs->max_draw_triangles_ = std::max(gs->max_draw_triangles_, p.index_count / 3);
     gs->draws_.push_back({i, material, p.first_index,
                           p.index_count, static_cast<int32_t>(p.first_vertex), m.alpha_mode,
                           m.double_sided, d.world_bounds});

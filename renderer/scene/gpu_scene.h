@@ -102,6 +102,8 @@ class GpuScene {
   // Unique per uploaded scene in this process (never reused, unlike the address): keys state
   // the renderer keeps per scene and view, such as TAA history.
   uint64_t serial() const { return serial_; }
+  // Triangles of the largest draw (vis_mlaa: must fit an id's triangle field).
+  uint32_t max_draw_triangles() const { return max_draw_triangles_; }
 
   // gpu_occlusion: each view's visibility bits (one per item) from its last frame, double
   // buffered: a frame reads bits[prev] and writes the other. Kept by the renderer, under its
@@ -129,6 +131,7 @@ class GpuScene {
   Aabb bounds_;
   uint64_t device_bytes_ = 0;
   uint64_t serial_ = 0;
+  uint32_t max_draw_triangles_ = 0;
 };
 
 }  // namespace tessera
