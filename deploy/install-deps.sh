@@ -16,6 +16,8 @@ PACKAGES=(
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libabsl-dev
   # SHA-256 of uploaded files (scene ids)
   libssl-dev
+  # Prometheus metrics endpoint of tesserad (prometheus-cpp core + pull, civetweb HTTP)
+  prometheus-cpp-dev
   # image encoding, logging
   libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
   # tests and benchmarks

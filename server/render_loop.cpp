@@ -3,8 +3,10 @@
 #include <pthread.h>
 
 #include "absl/strings/str_cat.h"
+#include "renderer/image_resize.h"
 #include "renderer/log.h"
 #include "server/convert.h"
+#include "server/metrics.h"
 
 namespace tessera::server {
 namespace {
@@ -60,19 +62,21 @@ void ThreadPool::Run() {
   }
 }
 
-RenderLoop::RenderLoop(Renderer* renderer, uint32_t encoder_threads)
-    : renderer_(renderer), encoders_(std::make_unique<ThreadPool>("encode", encoder_threads)) {
+RenderLoop::RenderLoop(Renderer* renderer, const RenderLoopOptions& options)
+    : renderer_(renderer),
+      options_(options),
+      encoders_(std::make_unique<ThreadPool>("encode", options.encoder_threads)) {
   thread_ = std::thread([this] { Run(); });
   pthread_setname_np(thread_.native_handle(), "render");
 }
 
 RenderLoop::~RenderLoop() { Stop(); }
 
-void RenderLoop::Enqueue(std::shared_ptr<RenderClient> client) {
+void RenderLoop::Enqueue(std::shared_ptr<RenderClient> client, Priority priority) {
   {
     std::lock_guard lock(mu_);
     if (!stopping_) {
-      ready_.push_back(std::move(client));
+      (priority == Priority::kBackground ? background_ : ready_).push_back(std::move(client));
       cv_.notify_one();
       return;
     }
@@ -94,7 +98,17 @@ void RenderLoop::EnqueueAt(std::shared_ptr<RenderClient> client, Clock::time_poi
 
 uint32_t RenderLoop::queue_depth() const {
   std::lock_guard lock(mu_);
-  return static_cast<uint32_t>(ready_.size());
+  return static_cast<uint32_t>(ready_.size() + background_.size());
+}
+
+uint32_t RenderLoop::background_queue_depth() const {
+  std::lock_guard lock(mu_);
+  return static_cast<uint32_t>(background_.size());
+}
+
+uint32_t RenderLoop::frames_in_flight() const {
+  std::lock_guard lock(mu_);
+  return frames_in_flight_;
 }
 
 uint64_t RenderLoop::frames_rendered() const {
@@ -110,6 +124,8 @@ void RenderLoop::Stop() {
     if (stopping_ && !thread_.joinable()) return;
     stopping_ = true;
     abandoned.swap(ready_);
+    for (auto& c : background_) abandoned.push_back(std::move(c));
+    background_.clear();
     while (!timers_.empty()) {
       abandoned.push_back(timers_.top().second);
       timers_.pop();
@@ -132,15 +148,25 @@ void RenderLoop::Run() {
       timers_.pop();
     }
     if (stopping_) return;
-    if (ready_.empty()) {
+    if (ready_.empty() && background_.empty()) {
       if (timers_.empty())
         cv_.wait(lock);
       else
         cv_.wait_until(lock, timers_.top().first);
       continue;
     }
-    std::shared_ptr<RenderClient> client = std::move(ready_.front());
-    ready_.pop_front();
+    // Back-pressure from the encoders: a frame rendered now would only wait in their queue.
+    if (frames_in_flight_ >= std::max(1u, options_.max_frames_in_flight)) {
+      encoded_cv_.wait(lock, [this] {
+        return stopping_ || frames_in_flight_ < std::max(1u, options_.max_frames_in_flight);
+      });
+      continue;
+    }
+    // Background work only when no normal client waits: a viewer waits at most for the one
+    // background frame already being rendered.
+    auto& queue = ready_.empty() ? background_ : ready_;
+    std::shared_ptr<RenderClient> client = std::move(queue.front());
+    queue.pop_front();
     lock.unlock();
     RenderOne(client);
     lock.lock();
@@ -151,7 +177,8 @@ void RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
   std::optional<RenderWork> work = client->TakeWork();
   if (!work) return;
   const Clock::time_point start = Clock::now();
-  absl::StatusOr<Frame> frame = renderer_->Render(*work->scene, work->camera, work->settings, work->view);
+  absl::StatusOr<Frame> frame =
+      renderer_->Render(*work->scene, work->camera, work->settings, work->view);
   if (!frame.ok()) {
     Log().warn("render: scene {} seq {}: {}", work->scene_id, work->sequence,
                frame.status().ToString());
@@ -161,28 +188,77 @@ void RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
   {
     std::lock_guard lock(mu_);
     ++frames_rendered_;
+    ++frames_in_flight_;
   }
   const double queue_wait_ms = MsBetween(work->requested, start);
+  if (!options_.pipelined) {
+    EncodeAndDeliver(client, *work, *frame, queue_wait_ms);
+    return;
+  }
   // The encoder owns the pixels from here; the render thread goes on to the next client.
   auto shared_frame = std::make_shared<Frame>(*std::move(frame));
-  encoders_->Submit([client, work = std::move(*work), shared_frame, queue_wait_ms] {
-    absl::StatusOr<std::vector<uint8_t>> bytes = EncodeFrame(*shared_frame, work.format);
-    if (!bytes.ok()) {
-      client->Deliver(work, bytes.status());
+  encoders_->Submit([this, client, work = std::move(*work), shared_frame, queue_wait_ms] {
+    EncodeAndDeliver(client, work, *shared_frame, queue_wait_ms);
+  });
+}
+
+void RenderLoop::EncodeAndDeliver(const std::shared_ptr<RenderClient>& client,
+                                  const RenderWork& work, Frame& frame, double queue_wait_ms) {
+  auto done = [this] {
+    {
+      std::lock_guard lock(mu_);
+      --frames_in_flight_;
+    }
+    encoded_cv_.notify_one();
+  };
+  const uint32_t render_width = frame.image.width;
+  const uint32_t render_height = frame.image.height;
+  double upscale_ms = 0.0;
+  if (work.output_width != 0 && work.output_height != 0 &&
+      (work.output_width != render_width || work.output_height != render_height)) {
+    const Clock::time_point t0 = Clock::now();
+    absl::StatusOr<RgbaImage> upscaled =
+        ResizeBicubic(frame.image, work.output_width, work.output_height);
+    if (!upscaled.ok()) {
+      done();
+      client->Deliver(work, upscaled.status());
       return;
     }
-    v1::Frame out;
-    FrameToProto(*shared_frame, &out);
-    CameraToProto(work.camera, &out);
-    out.set_sequence(work.sequence);
-    out.set_event_id(work.event_id);
-    out.set_scene_id(work.scene_id);
-    out.set_encoding(work.format == ImageFormat::kPng ? v1::IMAGE_PNG : v1::IMAGE_JPEG);
-    out.set_data(bytes->data(), bytes->size());
-    out.mutable_cpu()->set_queue_wait_ms(queue_wait_ms);
-    out.mutable_cpu()->set_total_ms(MsBetween(work.requested, Clock::now()));
-    client->Deliver(work, std::move(out));
-  });
+    frame.image = *std::move(upscaled);
+    upscale_ms = MsBetween(t0, Clock::now());
+  }
+  absl::StatusOr<std::vector<uint8_t>> bytes = EncodeFrame(frame, work.format);
+  if (!bytes.ok()) {
+    done();
+    client->Deliver(work, bytes.status());
+    return;
+  }
+  v1::Frame out;
+  FrameToProto(frame, &out);
+  CameraToProto(work.camera, &out);
+  out.set_width(frame.image.width);
+  out.set_height(frame.image.height);
+  out.set_render_width(render_width);
+  out.set_render_height(render_height);
+  out.set_sequence(work.sequence);
+  out.set_event_id(work.event_id);
+  out.set_scene_id(work.scene_id);
+  out.set_profile(work.profile);
+  out.set_encoding(work.format == ImageFormat::kPng ? v1::IMAGE_PNG : v1::IMAGE_JPEG);
+  out.set_data(bytes->data(), bytes->size());
+  v1::CpuTimings* cpu = out.mutable_cpu();
+  cpu->set_queue_wait_ms(queue_wait_ms);
+  cpu->set_encode_ms(cpu->encode_ms() + upscale_ms);  // the upscale is part of encoding
+  cpu->set_total_ms(MsBetween(work.requested, Clock::now()));
+  if (options_.metrics) {
+    std::vector<std::pair<std::string, double>> passes;
+    passes.reserve(frame.passes.size());
+    for (const PassTiming& p : frame.passes) passes.emplace_back(p.pass, p.gpu_ms);
+    options_.metrics->FrameDone(work.kind, work.profile[0] ? work.profile : "full", passes,
+                                frame.gpu_total_ms, cpu->encode_ms(), cpu->total_ms());
+  }
+  done();
+  client->Deliver(work, std::move(out));
 }
 
 }  // namespace tessera::server

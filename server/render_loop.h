@@ -2,13 +2,17 @@
 // The render thread and the encoder pool.
 //
 // Anything that wants frames is a RenderClient: a unary Render request or a streaming session.
-// Clients with work wait in one FIFO ready queue; the render thread takes the front one, asks
+// Clients with work wait in a FIFO ready queue; the render thread takes the front one, asks
 // it for a snapshot of what to render (TakeWork), renders it, and hands the pixels to the
 // encoder pool, then moves to the next client. A client that still has work afterwards goes to
-// the back of the queue, so every client gets a turn: round-robin, nobody starves.
+// the back of the queue, so every client gets a turn: round-robin, nobody starves. Background
+// work (batch renders) has its own queue, served only when the normal one is empty.
 //
-// Encoding (JPEG/PNG) runs on the encoder pool, so the render thread renders the next frame
-// while the previous one is encoded.
+// Encoding (bicubic upscale for interactive frames, JPEG/PNG) runs on the encoder pool, so the
+// render thread renders frame N+1 while frame N is encoded. At most max_frames_in_flight
+// rendered frames wait for or run on the encoders; the render thread waits when that many are
+// out, which bounds the memory a slow encoder can pile up. With pipelined = false the render
+// thread encodes each frame itself (the benchmark's serial baseline).
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -26,6 +30,8 @@
 #include "tessera/v1/frame.pb.h"
 
 namespace tessera::server {
+
+class Metrics;
 
 using Clock = std::chrono::steady_clock;
 
@@ -59,6 +65,21 @@ struct RenderWork {
   // starts from what that session saw last frame (0 for unary renders).
   uint64_t view = 0;
   Clock::time_point requested;  // the newest change or the request: start of queue wait
+  // Interactive frames are rendered smaller and upscaled to this size before encoding (0: the
+  // rendered size).
+  uint32_t output_width = 0;
+  uint32_t output_height = 0;
+  const char* profile = "";      // Frame.profile ("full", "interactive"; "" for Render)
+  const char* kind = "render";   // metrics label: "stream", "render" or "background"
+};
+
+enum class Priority { kNormal, kBackground };
+
+struct RenderLoopOptions {
+  uint32_t encoder_threads = 0;       // 0: one per core
+  uint32_t max_frames_in_flight = 3;  // rendered frames out on the encoders at once
+  bool pipelined = true;              // false: encode on the render thread (serial baseline)
+  Metrics* metrics = nullptr;         // optional; outlives the loop
 };
 
 class RenderClient {
@@ -73,12 +94,12 @@ class RenderClient {
 
 class RenderLoop {
  public:
-  RenderLoop(Renderer* renderer, uint32_t encoder_threads);
+  RenderLoop(Renderer* renderer, const RenderLoopOptions& options);
   ~RenderLoop();  // Stop()
 
-  // Puts `client` at the back of the ready queue (callers avoid queueing one client twice).
-  // After Stop(), the client is failed with UNAVAILABLE instead (without TakeWork).
-  void Enqueue(std::shared_ptr<RenderClient> client);
+  // Puts `client` at the back of its priority's ready queue (callers avoid queueing one client
+  // twice). After Stop(), the client is failed with UNAVAILABLE instead (without TakeWork).
+  void Enqueue(std::shared_ptr<RenderClient> client, Priority priority = Priority::kNormal);
   // Enqueues `client` at `when` (continuous streaming at a target fps).
   void EnqueueAt(std::shared_ptr<RenderClient> client, Clock::time_point when);
 
@@ -86,18 +107,27 @@ class RenderLoop {
   // encoders, and joins the render thread. Idempotent.
   void Stop();
 
-  uint32_t queue_depth() const;
+  uint32_t queue_depth() const;             // normal + background clients waiting
+  uint32_t background_queue_depth() const;
+  uint32_t frames_in_flight() const;        // rendered, not yet encoded and delivered
   uint64_t frames_rendered() const;
+  const RenderLoopOptions& options() const { return options_; }
 
  private:
   void Run();
   void RenderOne(const std::shared_ptr<RenderClient>& client);
+  void EncodeAndDeliver(const std::shared_ptr<RenderClient>& client, const RenderWork& work,
+                        Frame& frame, double queue_wait_ms);
 
   Renderer* renderer_;
+  const RenderLoopOptions options_;
   std::mutex stop_mu_;
   mutable std::mutex mu_;
   std::condition_variable cv_;
   std::deque<std::shared_ptr<RenderClient>> ready_;
+  std::deque<std::shared_ptr<RenderClient>> background_;
+  std::condition_variable encoded_cv_;  // frames_in_flight_ went down
+  uint32_t frames_in_flight_ = 0;
   using Timed = std::pair<Clock::time_point, std::shared_ptr<RenderClient>>;
   struct Later {
     bool operator()(const Timed& a, const Timed& b) const { return a.first > b.first; }

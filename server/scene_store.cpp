@@ -6,9 +6,19 @@
 #include "absl/strings/str_cat.h"
 
 namespace tessera::server {
+namespace {
+
+void Touch(const StoredScene& s) {
+  s.last_used = std::chrono::steady_clock::now().time_since_epoch().count();
+}
+
+bool Evictable(const StoredScene& s) { return s.sessions.load() == 0; }
+
+}  // namespace
 
 void SceneStore::AddDemo(SceneHandle scene, v1::SceneInfo info) {
   auto s = std::make_shared<StoredScene>();
+  s->device_bytes = info.device_bytes();
   s->id = kDemoSceneId;
   s->scene = std::move(scene);
   info.set_scene_id(kDemoSceneId);
@@ -22,9 +32,33 @@ size_t SceneStore::UploadedLocked() const {
   return scenes_.size() + deleted_.size();  // deleted scenes in use still hold device memory
 }
 
+uint64_t SceneStore::UploadedBytesLocked() const {
+  uint64_t bytes = 0;
+  for (const auto& [id, s] : scenes_) bytes += s->device_bytes;
+  for (const auto& w : deleted_)
+    if (auto s = w.lock()) bytes += s->device_bytes;
+  return bytes;
+}
+
+bool SceneStore::EvictOneLocked() {
+  auto victim = scenes_.end();
+  for (auto it = scenes_.begin(); it != scenes_.end(); ++it)
+    if (Evictable(*it->second) &&
+        (victim == scenes_.end() || it->second->last_used < victim->second->last_used))
+      victim = it;
+  if (victim == scenes_.end()) return false;
+  if (on_evict_) on_evict_(*victim->second);
+  order_.erase(std::remove(order_.begin(), order_.end(), victim->first), order_.end());
+  scenes_.erase(victim);  // freed now unless a queued Render still holds its handle
+  ++evictions_;
+  return true;
+}
+
 absl::Status SceneStore::CheckRoom() const {
   std::lock_guard lock(mu_);
-  if (UploadedLocked() >= max_scenes_)
+  const bool any_evictable = std::any_of(scenes_.begin(), scenes_.end(),
+                                         [](const auto& kv) { return Evictable(*kv.second); });
+  if (UploadedLocked() >= max_scenes_ && !any_evictable)
     return absl::ResourceExhaustedError(absl::StrCat(
         "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",
         max_scenes_, "); delete one with DeleteScene"));
@@ -35,12 +69,29 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Add(const std::string& 
                                                              SceneHandle scene,
                                                              v1::SceneInfo info) {
   std::lock_guard lock(mu_);
-  if (auto it = scenes_.find(id); it != scenes_.end()) return it->second;  // same content
-  if (UploadedLocked() >= max_scenes_)
+  if (auto it = scenes_.find(id); it != scenes_.end()) {
+    Touch(*it->second);
+    return it->second;  // same content
+  }
+  const uint64_t bytes = info.device_bytes();
+  if (memory_budget_ != 0 && bytes > memory_budget_)
     return absl::ResourceExhaustedError(absl::StrCat(
-        "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",
-        max_scenes_, "); delete one with DeleteScene"));
+        "scene_memory_budget: the scene needs ", bytes, " bytes of device memory, more than the "
+        "whole budget (", memory_budget_, " bytes)"));
+  while (UploadedLocked() >= max_scenes_ ||
+         (memory_budget_ != 0 && UploadedBytesLocked() + bytes > memory_budget_)) {
+    if (EvictOneLocked()) continue;
+    if (UploadedLocked() >= max_scenes_)
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",
+          max_scenes_, ") and all are in use by sessions; delete one with DeleteScene"));
+    return absl::ResourceExhaustedError(absl::StrCat(
+        "scene_memory_budget: ", UploadedBytesLocked(), " bytes held by scenes in use + ", bytes,
+        " for this one exceed the budget (", memory_budget_, " bytes)"));
+  }
   auto s = std::make_shared<StoredScene>();
+  s->device_bytes = bytes;
+  Touch(*s);
   s->id = id;
   s->scene = std::move(scene);
   info.set_scene_id(id);
@@ -54,7 +105,9 @@ std::shared_ptr<StoredScene> SceneStore::FindExact(const std::string& id) const 
   std::lock_guard lock(mu_);
   if (id == kDemoSceneId) return demo_;
   auto it = scenes_.find(id);
-  return it == scenes_.end() ? nullptr : it->second;
+  if (it == scenes_.end()) return nullptr;
+  Touch(*it->second);
+  return it->second;
 }
 
 absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Find(const std::string& id) const {
@@ -66,7 +119,10 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Find(const std::string&
     auto it = scenes_.lower_bound(id);
     if (it != scenes_.end() && absl::StartsWith(it->first, id)) {
       auto next = std::next(it);
-      if (next == scenes_.end() || !absl::StartsWith(next->first, id)) return it->second;
+      if (next == scenes_.end() || !absl::StartsWith(next->first, id)) {
+        Touch(*it->second);
+        return it->second;
+      }
       return absl::InvalidArgumentError(
           absl::StrCat("scene_id: prefix \"", id, "\" matches more than one scene"));
     }
@@ -108,6 +164,11 @@ absl::StatusOr<uint32_t> SceneStore::Delete(const std::string& id) {
   std::erase_if(deleted_, [](const auto& w) { return w.expired(); });
   deleted_.push_back(s);
   return s->sessions.load();
+}
+
+uint64_t SceneStore::device_bytes() const {
+  std::lock_guard lock(mu_);
+  return UploadedBytesLocked() + (demo_ ? demo_->device_bytes : 0);
 }
 
 uint32_t SceneStore::count() const {

@@ -2,9 +2,15 @@
 // Content-addressed scenes on the device, shared by every request and session that names them.
 // A deleted scene leaves the index at once (new requests get NOT_FOUND) and is freed when the
 // last session holding it ends. Thread-safe.
+//
+// Two limits bound the uploaded scenes: a count (max_scenes) and the device memory they hold
+// (memory_budget, 0 = unlimited). When a new scene would exceed either, scenes no session
+// uses are evicted, least recently used first (a later request for one gets NOT_FOUND, and a
+// client re-uploads it: HasScene tells). Only when that is not enough is the upload refused.
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -25,6 +31,8 @@ struct StoredScene {
   v1::SceneInfo info;  // sessions/deleted are filled in when listed
   std::atomic<uint32_t> sessions{0};
   std::atomic<bool> deleted{false};
+  mutable std::atomic<int64_t> last_used{0};  // steady-clock ticks of the last Find
+  uint64_t device_bytes = 0;
 };
 
 // Held by a streaming session: counts it as a user of the scene for as long as it lives.
@@ -42,16 +50,22 @@ class SceneLease {
 
 class SceneStore {
  public:
-  explicit SceneStore(uint32_t max_scenes) : max_scenes_(max_scenes) {}
+  explicit SceneStore(uint32_t max_scenes, uint64_t memory_budget = 0)
+      : max_scenes_(max_scenes), memory_budget_(memory_budget) {}
+
+  // Called (under the store's lock: keep it short) for every scene evicted to make room.
+  void set_eviction_listener(std::function<void(const StoredScene&)> f) { on_evict_ = std::move(f); }
 
   // The built-in scene (not counted against max_scenes, cannot be deleted).
   void AddDemo(SceneHandle scene, v1::SceneInfo info);
 
-  // OK when another uploaded scene fits: RESOURCE_EXHAUSTED naming max_scenes otherwise.
-  // Checked before an upload is parsed; Add checks again.
+  // OK when another uploaded scene fits, counting scenes that could be evicted as room:
+  // RESOURCE_EXHAUSTED naming max_scenes otherwise. Checked before an upload is parsed; Add
+  // checks again (and checks the memory budget, which needs the scene's size).
   absl::Status CheckRoom() const;
 
-  // Inserts a scene, or returns the one already stored under `id` (same content).
+  // Inserts a scene, evicting unused ones if needed, or returns the one already stored under
+  // `id` (same content). RESOURCE_EXHAUSTED naming the limit when it cannot make room.
   absl::StatusOr<std::shared_ptr<StoredScene>> Add(const std::string& id, SceneHandle scene,
                                                    v1::SceneInfo info);
 
@@ -67,12 +81,22 @@ class SceneStore {
 
   // Scenes in memory: indexed ones plus deleted ones still held by sessions.
   uint32_t count() const;
+  // Device memory of the scenes in memory (the demo included).
+  uint64_t device_bytes() const;
+  uint64_t memory_budget() const { return memory_budget_; }
+  uint64_t evictions() const { return evictions_; }
 
   static void FillLiveFields(const StoredScene& s, v1::SceneInfo* out);
 
  private:
   size_t UploadedLocked() const;  // indexed + deleted-but-in-use uploaded scenes
+  uint64_t UploadedBytesLocked() const;
+  // Evicts the least recently used scene no session holds; false when there is none.
+  bool EvictOneLocked();
   const uint32_t max_scenes_;
+  const uint64_t memory_budget_;
+  std::function<void(const StoredScene&)> on_evict_;
+  uint64_t evictions_ = 0;
   mutable std::mutex mu_;
   std::shared_ptr<StoredScene> demo_;
   std::map<std::string, std::shared_ptr<StoredScene>> scenes_;  // uploaded, by id

@@ -4,16 +4,68 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include <condition_variable>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "renderer/scene/demo_scene.h"
+#include "server/auth.h"
 #include "server/convert.h"
+#include "server/metrics.h"
 #include "server/service.h"
 
 namespace tessera::server {
 
+namespace {
+
+absl::StatusOr<std::string> ReadPem(const std::string& path, const char* flag) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(flag, ": cannot read \"", path, "\""));
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (text.str().find("-----BEGIN ") == std::string::npos)
+    return absl::InvalidArgumentError(absl::StrCat(flag, ": \"", path, "\" is not a PEM file"));
+  return text.str();
+}
+
+absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> Credentials(const ServerOptions& o) {
+  if (o.tls_cert_file.empty() != o.tls_key_file.empty())
+    return absl::InvalidArgumentError("tls_cert / tls_key: give both, or neither");
+  if (o.tls_cert_file.empty()) {
+    if (!o.tls_client_ca_file.empty())
+      return absl::InvalidArgumentError("tls_client_ca: needs tls_cert and tls_key");
+    return grpc::InsecureServerCredentials();
+  }
+  absl::StatusOr<std::string> cert = ReadPem(o.tls_cert_file, "tls_cert");
+  if (!cert.ok()) return cert.status();
+  absl::StatusOr<std::string> key = ReadPem(o.tls_key_file, "tls_key");
+  if (!key.ok()) return key.status();
+  grpc::SslServerCredentialsOptions ssl(GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE);
+  if (!o.tls_client_ca_file.empty()) {
+    absl::StatusOr<std::string> ca = ReadPem(o.tls_client_ca_file, "tls_client_ca");
+    if (!ca.ok()) return ca.status();
+    ssl.pem_root_certs = *ca;
+    ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
+  }
+  ssl.pem_key_cert_pairs.push_back({*key, *cert});
+  return grpc::SslServerCredentials(ssl);
+}
+
+bool IsLoopback(const std::string& listen) {
+  const std::string host = listen.substr(0, listen.rfind(':'));
+  return host == "127.0.0.1" || host == "localhost" || host == "[::1]";
+}
+
+}  // namespace
+
 struct Server::Impl {
   ServerOptions options;
+  std::unique_ptr<Authenticator> auth;
+  std::unique_ptr<Metrics> metrics;
+  int metrics_port = 0;
   std::unique_ptr<Renderer> renderer;
   std::unique_ptr<SceneStore> store;
   std::unique_ptr<ThreadPool> loader;
@@ -25,6 +77,28 @@ struct Server::Impl {
   std::string host;
   std::mutex shutdown_mu;
   bool shut_down = false;
+
+  // Housekeeping: drops parked sessions past their grace period.
+  std::thread sweeper;
+  std::mutex sweeper_mu;
+  std::condition_variable sweeper_cv;
+  bool sweeper_stop = false;
+
+  void StopSweeper() {
+    {
+      std::lock_guard lock(sweeper_mu);
+      sweeper_stop = true;
+    }
+    sweeper_cv.notify_all();
+    if (sweeper.joinable()) sweeper.join();
+  }
+  ~Impl() {
+    StopSweeper();
+    // The metrics endpoint reads the loop, store and sessions: it goes first, once the loop's
+    // encoders (which report to it) are drained.
+    if (loop) loop->Stop();
+    metrics.reset();
+  }
 };
 
 absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
@@ -34,14 +108,34 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
       options.max_concurrent_uploads == 0)
     return absl::InvalidArgumentError(
         "limits: max_upload_files, max_sessions and max_concurrent_uploads must be > 0");
+  if (!(options.max_session_fps >= 1.0f && options.max_session_fps <= 1000.0f))
+    return absl::InvalidArgumentError("max_session_fps: must be 1..1000");
+  if (options.max_frames_in_flight == 0 || options.max_frames_in_flight > 16)
+    return absl::InvalidArgumentError("max_frames_in_flight: must be 1..16");
+  if (options.resume_grace_s > 86400)
+    return absl::InvalidArgumentError("resume_grace_s: must be 0..86400");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
+  absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = Credentials(options);
+  if (!credentials.ok()) return credentials.status();
+  if (options.token_file.empty()) {
+    impl->auth = std::make_unique<Authenticator>();
+  } else {
+    absl::StatusOr<std::unique_ptr<Authenticator>> auth =
+        Authenticator::FromFile(options.token_file);
+    if (!auth.ok()) return auth.status();
+    impl->auth = *std::move(auth);
+    if (options.tls_cert_file.empty() && !IsLoopback(options.listen))
+      Log().warn("bearer tokens without TLS on {}: tokens cross the network in clear text",
+                 options.listen);
+  }
   absl::StatusOr<std::unique_ptr<Renderer>> renderer =
       Renderer::Create(RendererOptions{options.device, options.validation});
   if (!renderer.ok()) return renderer.status();
   impl->renderer = *std::move(renderer);
 
-  impl->store = std::make_unique<SceneStore>(options.max_scenes);
+  impl->store =
+      std::make_unique<SceneStore>(options.max_scenes, options.scene_memory_budget_bytes);
   if (options.load_demo_scene) {
     const auto t0 = std::chrono::steady_clock::now();
     absl::StatusOr<SceneHandle> demo = impl->renderer->LoadScene(BuildDemoScene());
@@ -54,7 +148,31 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     impl->store->AddDemo(*std::move(demo), std::move(info));
   }
   impl->loader = std::make_unique<ThreadPool>("load", std::max(1u, options.loader_threads));
-  impl->loop = std::make_unique<RenderLoop>(impl->renderer.get(), options.encoder_threads);
+
+  Impl* raw = impl.get();
+  impl->metrics = std::make_unique<Metrics>([raw] {
+    MetricsGauges g;
+    g.sessions = raw->state.session_count();
+    g.parked_sessions = raw->state.parked_count();
+    g.queue_depth = raw->loop->queue_depth();
+    g.frames_in_flight = raw->loop->frames_in_flight();
+    g.uploads_in_progress = raw->state.uploads_in_progress;
+    g.scenes = raw->store->count();
+    g.scene_device_bytes = raw->store->device_bytes();
+    g.scene_memory_budget_bytes = raw->store->memory_budget();
+    g.pending_frame_bytes = raw->state.pending_frame_bytes;
+    return g;
+  });
+  impl->store->set_eviction_listener([raw](const StoredScene& s) {
+    Log().info("scene {} evicted (unused; {} bytes of device memory)", s.id, s.device_bytes);
+    raw->metrics->SceneEvicted();
+  });
+  RenderLoopOptions loop_options;
+  loop_options.encoder_threads = options.encoder_threads;
+  loop_options.max_frames_in_flight = options.max_frames_in_flight;
+  loop_options.pipelined = options.pipelined;
+  loop_options.metrics = impl->metrics.get();
+  impl->loop = std::make_unique<RenderLoop>(impl->renderer.get(), loop_options);
 
   ServiceState& st = impl->state;
   st.options = options;
@@ -62,12 +180,14 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   st.store = impl->store.get();
   st.loop = impl->loop.get();
   st.loader = impl->loader.get();
+  st.auth = impl->auth.get();
+  st.metrics = impl->metrics.get();
   impl->service = std::make_unique<RenderServiceImpl>(&st);
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(options.listen, grpc::InsecureServerCredentials(), &impl->port);
+  builder.AddListeningPort(options.listen, *credentials, &impl->port);
   builder.RegisterService(impl->service.get());
   // A chunk plus the message framing; anything larger is refused by gRPC itself.
   builder.SetMaxReceiveMessageSize(static_cast<int>(options.max_chunk_bytes) + (64 << 10));
@@ -79,7 +199,25 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   impl->host = options.listen.substr(0, options.listen.rfind(':'));
   if (impl->host.empty() || impl->host == "0.0.0.0" || impl->host == "[::]")
     impl->host = "127.0.0.1";
-  Log().info("tesserad {} listening on {}:{}", TESSERA_VERSION, impl->host, impl->port);
+  if (!options.metrics_listen.empty()) {
+    absl::StatusOr<int> port = impl->metrics->Serve(options.metrics_listen);
+    if (!port.ok()) {
+      impl->grpc_server->Shutdown();
+      return port.status();
+    }
+    impl->metrics_port = *port;
+    Log().info("metrics: http://{}:{}/metrics", impl->host, *port);
+  }
+  impl->sweeper = std::thread([raw] {
+    std::unique_lock lock(raw->sweeper_mu);
+    while (!raw->sweeper_cv.wait_for(lock, std::chrono::milliseconds(250),
+                                     [raw] { return raw->sweeper_stop; }))
+      raw->state.SweepParked();
+  });
+  Log().info("tesserad {} listening on {}:{}{}{}", TESSERA_VERSION, impl->host, impl->port,
+             options.tls_cert_file.empty() ? "" : " (TLS)",
+             impl->auth->enabled() ? absl::StrCat(", ", impl->auth->token_count(), " tokens")
+                                   : "");
   return std::unique_ptr<Server>(new Server(std::move(impl)));
 }
 
@@ -106,6 +244,7 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
   impl_->grpc_server->Shutdown(std::chrono::system_clock::now() + grace);
   impl_->grpc_server->Wait();
   impl_->loader.reset();
+  impl_->StopSweeper();
   Log().info(
       "stopped in {:.0f} ms",
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
@@ -122,7 +261,24 @@ ServerStats Server::stats() const {
   s.pending_frame_bytes = st.pending_frame_bytes;
   s.uploads_in_progress = st.uploads_in_progress;
   s.validation_messages = impl_->renderer->validation_message_count();
+  s.parked_sessions = st.parked_count();
+  s.frames_in_flight = impl_->loop->frames_in_flight();
+  s.scene_device_bytes = impl_->store->device_bytes();
+  s.scenes_evicted = impl_->store->evictions();
   return s;
 }
+
+absl::Status Server::ReloadTokens() {
+  absl::Status st = impl_->auth->Reload();
+  if (st.ok())
+    Log().info("tokens reloaded: {} tokens", impl_->auth->token_count());
+  else
+    Log().error("tokens not reloaded (the previous ones stay in use): {}", std::string(st.message()));
+  return st;
+}
+
+int Server::metrics_port() const { return impl_->metrics_port; }
+
+std::string Server::MetricsText() const { return impl_->metrics->Text(); }
 
 }  // namespace tessera::server

@@ -28,9 +28,26 @@ struct ServerOptions {
   uint32_t max_sessions = 64;              // concurrent Stream sessions
   uint32_t max_concurrent_uploads = 4;     // uploads receiving or parsing at once
 
-  uint32_t encoder_threads = 0;  // JPEG/PNG encoders; 0 = one per core
-  uint32_t loader_threads = 1;   // glTF parsers
-  bool load_demo_scene = true;   // scene "demo" (the built-in scene)
+  float max_session_fps = 60.0f;            // frames per second one Stream session may get
+  uint64_t scene_memory_budget_bytes = 0;  // device memory for uploaded scenes; 0 = unlimited
+  uint32_t resume_grace_s = 30;            // a broken stream's session waits this long; 0 = off
+
+  uint32_t encoder_threads = 0;       // JPEG/PNG encoders; 0 = one per core
+  uint32_t max_frames_in_flight = 3;  // rendered frames out on the encoders at once
+  bool pipelined = true;              // false: encode on the render thread (benchmarks)
+  uint32_t loader_threads = 1;        // glTF parsers
+  bool load_demo_scene = true;        // scene "demo" (the built-in scene)
+
+  // Security. TLS when both are set (PEM files); with a client CA, clients must present a
+  // certificate it signed (mTLS). With a token file every RenderService call needs
+  // "authorization: Bearer <token>" (the file format is in auth.h); health stays open.
+  std::string tls_cert_file;
+  std::string tls_key_file;
+  std::string tls_client_ca_file;
+  std::string token_file;
+
+  // Prometheus text metrics over HTTP at /metrics on host:port (port 0 picks one); empty: off.
+  std::string metrics_listen;
 };
 
 // Counters for tests, benchmarks and logs.
@@ -43,6 +60,10 @@ struct ServerStats {
   uint64_t pending_frame_bytes = 0;  // encoded bytes held for sessions (slots + writes)
   uint32_t uploads_in_progress = 0;
   uint64_t validation_messages = 0;  // Vulkan validation-layer messages (tests require 0)
+  uint32_t parked_sessions = 0;      // broken streams' sessions waiting for a resume
+  uint32_t frames_in_flight = 0;     // rendered frames being encoded
+  uint64_t scene_device_bytes = 0;   // device memory held by scenes
+  uint64_t scenes_evicted = 0;       // unused scenes evicted for room
 };
 
 class Server {
@@ -61,6 +82,11 @@ class Server {
   void Shutdown(std::chrono::milliseconds grace = std::chrono::milliseconds(3000));
 
   ServerStats stats() const;
+
+  // Re-reads the token file (SIGHUP). On error the old tokens stay in use.
+  absl::Status ReloadTokens();
+  int metrics_port() const;      // 0 when the metrics endpoint is off
+  std::string MetricsText() const;  // what /metrics serves
 
   struct Impl;
 

@@ -1,12 +1,17 @@
 #include "server/service.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
+
+#include <openssl/rand.h>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/convert.h"
+#include "server/metrics.h"
 #include "server/upload.h"
 
 namespace tessera::server {
@@ -32,6 +37,19 @@ float Aspect(const Settings& s) { return float(s.width) / float(s.height); }
 
 absl::Status Unavailable() { return absl::UnavailableError("server is shutting down"); }
 
+// A resume token: 128 bits from the OS's CSPRNG, so one cannot be guessed from another.
+std::string NewToken() {
+  unsigned char bytes[16];
+  if (RAND_bytes(bytes, sizeof bytes) != 1) std::abort();  // no entropy: nothing safe to do
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  for (unsigned char b : bytes) {
+    out.push_back(kHex[b >> 4]);
+    out.push_back(kHex[b & 15]);
+  }
+  return out;
+}
+
 }  // namespace
 
 grpc::Status ToGrpc(const absl::Status& s) {
@@ -48,6 +66,12 @@ class UnaryRender final : public RenderClient {
       : state_(state), ctx_(ctx), reactor_(reactor), response_(response), work_(std::move(work)) {}
 
   std::optional<RenderWork> TakeWork() override {
+    if (std::chrono::system_clock::now() >= ctx_->deadline()) {
+      Finish(absl::DeadlineExceededError(absl::StrCat(
+          "deadline: passed after ", static_cast<int>(MsSince(work_.requested)),
+          " ms in the render queue (", state_->loop->queue_depth(), " waiting); not rendered")));
+      return std::nullopt;
+    }
     if (ctx_->IsCancelled()) {
       Finish(absl::CancelledError("client cancelled the render"));
       return std::nullopt;
@@ -67,6 +91,7 @@ class UnaryRender final : public RenderClient {
     Log().info("Render scene={} {}x{} -> {} bytes, {} ({:.1f} ms) peer={}", work_.scene_id,
                work_.settings.width, work_.settings.height, response_->data().size(),
                status.ok() ? "OK" : status.ToString(), MsSince(work_.requested), Peer(ctx_));
+    state_->CountRpc("Render", ToGrpc(status));
     reactor_->Finish(ToGrpc(status));
   }
 
@@ -85,9 +110,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
   auto fail = [&](const absl::Status& st) {
     Log().info("Render scene={} -> {} peer={}", req->scene_id().substr(0, 80), st.ToString(),
                Peer(ctx));
+    state_->CountRpc("Render", ToGrpc(st));
     reactor->Finish(ToGrpc(st));
     return reactor;
   };
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok()) return fail(st);
   if (state_->shutting_down) return fail(Unavailable());
   absl::StatusOr<std::shared_ptr<StoredScene>> scene = state_->store->Find(req->scene_id());
   if (!scene.ok()) return fail(scene.status());
@@ -112,48 +139,73 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
   work.format = req->encoding() == v1::IMAGE_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;
   work.sequence = 1;
   work.requested = Clock::now();
+  work.kind = req->background() ? "background" : "render";
   state_->loop->Enqueue(
-      std::make_shared<UnaryRender>(state_, ctx, reactor, response, std::move(work)));
+      std::make_shared<UnaryRender>(state_, ctx, reactor, response, std::move(work)),
+      req->background() ? Priority::kBackground : Priority::kNormal);
   return reactor;
 }
 
 // ---------------------------------------------------------------------------------------------
 // Stream: a session. Everything that changes session state happens under mu_, which decides
 // what to do next (write, enqueue, finish); the gRPC calls and the render-loop calls happen
-// after unlocking, so reactions that run inline cannot deadlock.
+// after unlocking, so reactions that run inline cannot deadlock. Lock order: a session's mu_
+// may be held while taking ServiceState::sessions_mu (parking), never the other way round.
 
 class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>,
                             public RenderClient,
                             public std::enable_shared_from_this<StreamSession> {
  public:
-  StreamSession(ServiceState* state, grpc::CallbackServerContext* ctx)
-      : state_(state), ctx_(ctx), id_(state->next_session_id++), opened_at_(Clock::now()) {}
+  StreamSession(ServiceState* state, grpc::CallbackServerContext* ctx,
+                std::shared_ptr<const Principal> principal)
+      : state_(state), ctx_(ctx), principal_(std::move(principal)), opened_at_(Clock::now()) {
+    st_.id = state->next_session_id++;
+    st_.principal = principal_ ? principal_->name : "";
+    min_interval_ = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(1.0 / std::max(0.001f, state->options.max_session_fps)));
+  }
 
   // After construction by make_shared: the reactor keeps itself alive until OnDone.
   void Begin(const absl::Status& admission) {
     self_ = shared_from_this();
     if (!admission.ok()) {
-      Log().info("Stream session={} refused: {} peer={}", id_, admission.ToString(), Peer(ctx_));
+      Log().info("Stream session={} refused: {} peer={}", st_.id, admission.ToString(),
+                 Peer(ctx_));
       finished_ = true;  // nothing else runs before the reactor is returned
-      Finish(ToGrpc(admission));
+      FinishCounted(ToGrpc(admission));
       return;
     }
     StartRead(&event_);
   }
 
   void OnReadDone(bool ok) override {
+    // A resume takes the session from another stream (whose lock it needs) or the parked set:
+    // done before taking this session's lock. Only this thread reads events, so opened_ is not
+    // changed behind its back.
+    std::optional<absl::StatusOr<SessionState>> resumed;
+    if (ok && !opened_ && event_.has_open() && !event_.open().resume_token().empty())
+      resumed = state_->Resume(event_.open().resume_token(), st_.principal);
     Actions actions;
     bool read_more = false;
     {
       std::lock_guard lock(mu_);
       if (!ok) {
-        reading_done_ = true;  // the client half-closed (or went away: OnCancel says which)
+        // A half-close, or the call is cancelled (the client or its connection went away),
+        // which can show up here before OnCancel does.
+        if (ctx_->IsCancelled())
+          cancelled_ = true;
+        else
+          reading_done_ = true;
       } else if (!finished_) {
-        absl::Status st = opened_ ? ApplyUpdateLocked() : OpenLocked();
+        absl::Status st = resumed ? ResumeLocked(*std::move(resumed))
+                          : opened_ ? ApplyUpdateLocked()
+                                    : OpenLocked();
         if (!st.ok() && !error_) {
-          Log().info("Stream session={} event={}: {}", id_, event_.event_id(), st.ToString());
+          Log().info("Stream session={} event={}: {}", st_.id, event_.event_id(), st.ToString());
           error_ = st;
         }
+      } else if (resumed && resumed->ok()) {
+        state_->Park(*std::move(*resumed));  // this stream died meanwhile: put it back
       }
       actions = NextActionsLocked();
       read_more = ok && !error_ && !finished_;
@@ -192,15 +244,19 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     std::shared_ptr<StreamSession> keep = std::move(self_);
     {
       std::lock_guard lock(state_->sessions_mu);
-      state_->sessions.erase(keep);
+      if (state_->sessions.erase(keep) != 0)
+        state_->principal_sessions.Release(st_.principal);
+      if (auto it = state_->live_tokens.find(st_.token);
+          it != state_->live_tokens.end() && it->second.lock() == keep)
+        state_->live_tokens.erase(it);
     }
     {
       std::lock_guard lock(mu_);
       if (slot_) state_->pending_frame_bytes -= slot_->data().size();
       slot_.reset();
-      lease_.reset();  // a deleted scene is freed with its last session
+      st_.lease.reset();  // a deleted scene is freed with its last session
     }
-    Log().info("Stream session={} ended: {} frames sent, {} dropped, {:.1f} s, {}", id_,
+    Log().info("Stream session={} ended: {} frames sent, {} dropped, {:.1f} s, {}", st_.id,
                frames_sent_, frames_dropped_, MsSince(opened_at_) / 1000.0, end_status_);
   }
 
@@ -209,11 +265,13 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     std::optional<RenderWork> work;
     {
       std::lock_guard lock(mu_);
-      // The loop cannot say whether a ready entry or a timer brought us here: clear both; a
-      // stale duplicate entry only costs a TakeWork that finds nothing due.
+      // The loop cannot say whether a ready entry or a timer brought us here: clear the ready
+      // flag, and the timer once it is due; a stale duplicate entry only costs a TakeWork that
+      // finds nothing due.
+      const Clock::time_point now = Clock::now();
       in_ready_ = false;
-      timer_armed_ = false;
-      if (CanRenderLocked() && DueLocked(Clock::now())) work = MakeWorkLocked();
+      if (armed_at_ && now >= *armed_at_) armed_at_.reset();
+      if (DueLocked(now)) work = MakeWorkLocked(now);
       if (!work) actions = NextActionsLocked();
     }
     Perform(actions);
@@ -226,7 +284,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
       std::lock_guard lock(mu_);
       if (work.sequence == 0) {
         in_ready_ = false;  // dropped from the queue by a stopping render loop
-        timer_armed_ = false;
+        armed_at_.reset();
         stopping_ = true;
       } else {
         --in_pipeline_;
@@ -236,7 +294,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
           stopping_ = true;
         else if (!error_)
           error_ = frame.status();
-      } else if (!finished_ && !cancelled_) {
+      } else if (!finished_ && !cancelled_ && !handed_over_) {
         if (frame->sequence() < newest_delivered_) {
           Drop();  // a newer frame overtook it in the encoder pool
         } else {
@@ -246,7 +304,12 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
           }
           newest_delivered_ = frame->sequence();
           state_->pending_frame_bytes += frame->data().size();
-          frame->set_profile("full");
+          frame->set_session_token(st_.token);
+          if (!fps_note_.empty()) {
+            v1::SettingNote* note = frame->add_notes();
+            note->set_field("target_fps");
+            note->set_message(fps_note_);
+          }
           slot_ = *std::move(frame);
         }
       }
@@ -267,6 +330,28 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     Perform(actions);
   }
 
+  // Another stream resumes this session (its client reconnected before this stream noticed
+  // the old connection was gone): gives up the state and ends this stream with ABORTED.
+  std::optional<SessionState> Handover(const std::string& principal) {
+    Actions actions;
+    std::optional<SessionState> out;
+    {
+      std::lock_guard lock(mu_);
+      if (!opened_ || handed_over_ || parked_ || finished_ || st_.principal != principal)
+        return std::nullopt;
+      handed_over_ = true;
+      out = std::move(st_);
+      st_.id = out->id;  // for the log lines of this (ending) stream
+      st_.token = out->token;
+      if (slot_) state_->pending_frame_bytes -= slot_->data().size();
+      slot_.reset();
+      if (!error_) error_ = absl::AbortedError("session resumed by another stream");
+      actions = NextActionsLocked();
+    }
+    Perform(actions);
+    return out;
+  }
+
  private:
   struct Actions {
     bool write = false;
@@ -278,6 +363,24 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   void Drop() {
     ++frames_dropped_;
     ++state_->frames_dropped;
+    if (state_->metrics) state_->metrics->FrameDropped();
+  }
+
+  void FinishCounted(const grpc::Status& status) {
+    state_->CountRpc("Stream", status);
+    Finish(status);
+  }
+
+  absl::Status CheckTargetFpsLocked(float fps, const char* field) {
+    if (absl::Status st = CheckTargetFps(fps, field); !st.ok()) return st;
+    const float cap = state_->options.max_session_fps;
+    fps_note_.clear();
+    if (fps > cap) {
+      fps_note_ = absl::StrCat("lowered from ", fps, " to ", cap, " (the server's max_session_fps)");
+      fps = cap;
+    }
+    st_.target_fps = fps;
+    return absl::OkStatus();
   }
 
   absl::Status OpenLocked() {
@@ -291,79 +394,162 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     absl::StatusOr<Camera> camera =
         ResolveCamera(open.camera(), (*scene)->scene->info(), Aspect(*settings));
     if (!camera.ok()) return camera.status();
-    if (absl::Status st = CheckTargetFps(open.target_fps(), "open.target_fps"); !st.ok()) return st;
-    lease_ = std::make_unique<SceneLease>(*scene);
-    settings_ = *settings;
-    camera_ = open.camera();
-    target_fps_ = open.target_fps();
+    absl::StatusOr<InteractiveProfile> profile =
+        MergeProfile(InteractiveProfile{}, open.interactive(), "open.interactive");
+    if (!profile.ok()) return profile.status();
+    if (absl::Status st = CheckTargetFpsLocked(open.target_fps(), "open.target_fps"); !st.ok())
+      return st;
+    st_.lease = std::make_shared<SceneLease>(*scene);
+    st_.settings = *settings;
+    st_.camera = open.camera();
+    st_.profile = *profile;
+    st_.token = NewToken();
     next_due_ = Clock::now();  // the first tick is the first frame; the cadence starts there
     opened_ = true;
+    Register();
     MarkDirtyLocked();
-    Log().info("Stream session={} opened scene={} {}x{} fps={} peer={}", id_, (*scene)->id,
-               settings_.width, settings_.height, target_fps_, Peer(ctx_));
+    if (state_->metrics) state_->metrics->SessionOpened(false);
+    Log().info("Stream session={} opened scene={} {}x{} fps={} interactive={} peer={}", st_.id,
+               (*scene)->id, st_.settings.width, st_.settings.height, st_.target_fps,
+               st_.profile.enabled ? absl::StrCat(st_.profile.render_scale) : "off", Peer(ctx_));
     return absl::OkStatus();
+  }
+
+  absl::Status ResumeLocked(absl::StatusOr<SessionState> resumed) {
+    if (!resumed.ok()) return resumed.status();
+    const uint64_t fresh_id = st_.id;
+    st_ = *std::move(resumed);
+    newest_delivered_ = st_.sequence;
+    next_due_ = Clock::now();
+    opened_ = true;
+    force_full_ = true;  // a resumed viewer gets a full-quality frame at once
+    Register();
+    dirty_ = true;
+    dirty_since_ = Clock::now();
+    if (state_->metrics) state_->metrics->SessionOpened(true);
+    Log().info("Stream session={} resumed (stream {}) scene={} at frame {} peer={}", st_.id,
+               fresh_id, st_.lease->get().id, st_.sequence, Peer(ctx_));
+    return absl::OkStatus();
+  }
+
+  void Register() {
+    std::lock_guard lock(state_->sessions_mu);
+    state_->live_tokens[st_.token] = weak_from_this();
   }
 
   absl::Status ApplyUpdateLocked() {
     if (event_.has_open()) return absl::InvalidArgumentError("open: the session is already open");
-    Settings settings = settings_;
+    Settings settings = st_.settings;
     if (event_.has_settings()) {
-      absl::StatusOr<Settings> merged = MergeSettings(settings_, event_.settings());
+      absl::StatusOr<Settings> merged = MergeSettings(st_.settings, event_.settings());
       if (!merged.ok()) return merged.status();
       settings = *merged;
     }
+    std::optional<InteractiveProfile> profile;
+    if (event_.has_interactive()) {
+      absl::StatusOr<InteractiveProfile> merged =
+          MergeProfile(st_.profile, event_.interactive(), "interactive");
+      if (!merged.ok()) return merged.status();
+      profile = *merged;
+    }
     if (event_.has_camera()) {
       absl::StatusOr<Camera> camera =
-          ResolveCamera(event_.camera(), lease_->get().scene->info(), Aspect(settings));
+          ResolveCamera(event_.camera(), st_.lease->get().scene->info(), Aspect(settings));
       if (!camera.ok()) return camera.status();
-      camera_ = event_.camera();
+      st_.camera = event_.camera();
+      last_motion_ = Clock::now();
     }
     if (event_.has_target_fps()) {
-      if (absl::Status st = CheckTargetFps(event_.target_fps(), "target_fps"); !st.ok()) return st;
-      target_fps_ = event_.target_fps();
+      if (absl::Status st = CheckTargetFpsLocked(event_.target_fps(), "target_fps"); !st.ok())
+        return st;
       next_due_ = Clock::now();
     }
-    settings_ = settings;
+    st_.settings = settings;
+    if (profile) st_.profile = *profile;
     if (event_.has_settings() || event_.has_camera() || event_.refresh()) MarkDirtyLocked();
+    else if (event_.event_id() > st_.newest_event) st_.newest_event = event_.event_id();
     return absl::OkStatus();
   }
 
   void MarkDirtyLocked() {
     if (!dirty_) dirty_since_ = Clock::now();
     dirty_ = true;
-    newest_event_ = event_.event_id();
+    st_.newest_event = event_.event_id();
   }
 
   bool CanRenderLocked() const {
-    return opened_ && !finished_ && !cancelled_ && !stopping_ && !error_ && in_pipeline_ < 2 &&
-           !slot_;
+    return opened_ && !finished_ && !cancelled_ && !stopping_ && !error_ && !handed_over_ &&
+           !parked_ && in_pipeline_ < 2 && !slot_;
   }
-  bool ContinuousLocked() const { return target_fps_ > 0.0f && !reading_done_; }
-  bool DueLocked(Clock::time_point now) const {
-    return dirty_ || (ContinuousLocked() && now >= next_due_);
+  bool ContinuousLocked() const { return st_.target_fps > 0.0f && !reading_done_; }
+  // The camera moved within the rest time: frames use the interactive profile.
+  bool MovingLocked(Clock::time_point now) const {
+    return st_.profile.enabled && last_motion_ &&
+           now < *last_motion_ + std::chrono::milliseconds(st_.profile.rest_ms);
   }
 
-  RenderWork MakeWorkLocked() {
-    const Clock::time_point now = Clock::now();
+  // When the session next wants the render thread (never: nullopt). Something changed, the
+  // continuous cadence, or the full-quality frame after the camera rests; never sooner than
+  // the max_session_fps interval after the previous frame started.
+  std::optional<Clock::time_point> WakeLocked() const {
+    if (!CanRenderLocked()) return std::nullopt;
+    std::optional<Clock::time_point> t;
+    auto earliest = [&t](Clock::time_point x) { t = t ? std::min(*t, x) : x; };
+    if (dirty_) earliest(Clock::time_point::min());
+    if (ContinuousLocked()) earliest(next_due_);
+    if (need_refine_ && last_motion_)
+      earliest(*last_motion_ + std::chrono::milliseconds(st_.profile.rest_ms));
+    if (!t) return std::nullopt;
+    if (last_start_) return std::max(*t, *last_start_ + min_interval_);
+    return t;
+  }
+  bool DueLocked(Clock::time_point now) const {
+    std::optional<Clock::time_point> wake = WakeLocked();
+    return wake && *wake <= now;
+  }
+
+  RenderWork MakeWorkLocked(Clock::time_point now) {
     RenderWork w;
-    w.scene = lease_->get().scene;
-    w.scene_id = lease_->get().id;
-    w.view = id_;
-    w.settings = settings_;
+    w.scene = st_.lease->get().scene;
+    w.scene_id = st_.lease->get().id;
+    w.view = st_.id;
+    w.settings = st_.settings;
     // Validated when the event arrived; framing depends only on the scene and aspect ratio.
-    absl::StatusOr<Camera> camera = ResolveCamera(camera_, w.scene->info(), Aspect(settings_));
+    absl::StatusOr<Camera> camera =
+        ResolveCamera(st_.camera, w.scene->info(), Aspect(st_.settings));
     w.camera = camera.ok() ? *camera : Camera{};
     w.format = ImageFormat::kJpeg;
-    w.sequence = ++sequence_;
-    w.event_id = newest_event_;
-    w.requested = dirty_ ? dirty_since_ : std::min(now, next_due_);
+    w.kind = "stream";
+    const bool interactive = !force_full_ && MovingLocked(now) &&
+                             (st_.profile.render_scale < 1.0f ||
+                              st_.profile.jpeg_quality < st_.settings.jpeg_quality);
+    if (interactive) {
+      auto scaled = [&](uint32_t v) {
+        return std::max(1u, static_cast<uint32_t>(std::lround(v * st_.profile.render_scale)));
+      };
+      w.settings.width = scaled(st_.settings.width);
+      w.settings.height = scaled(st_.settings.height);
+      w.settings.jpeg_quality = std::min(st_.profile.jpeg_quality, st_.settings.jpeg_quality);
+      w.output_width = st_.settings.width;
+      w.output_height = st_.settings.height;
+      w.profile = "interactive";
+      need_refine_ = true;
+    } else {
+      w.profile = "full";
+      need_refine_ = false;
+    }
+    force_full_ = false;
+    w.sequence = ++st_.sequence;
+    w.event_id = st_.newest_event;
+    w.requested = dirty_ ? dirty_since_ : ContinuousLocked() ? std::min(now, next_due_) : now;
     dirty_ = false;
     if (ContinuousLocked()) {
       const auto period = std::chrono::duration_cast<Clock::duration>(
-          std::chrono::duration<double>(1.0 / target_fps_));
+          std::chrono::duration<double>(1.0 / st_.target_fps));
       // Keep the cadence, but never try to catch up on frames missed while busy.
       next_due_ = std::max(next_due_ + period, now);
     }
+    last_start_ = now;
     ++in_pipeline_;
     return w;
   }
@@ -378,20 +564,29 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
       writing_ = true;
       a.write = true;
     }
-    if (CanRenderLocked()) {
-      // A change jumps the queue even while a continuous session waits for its next tick.
-      if (!in_ready_ && DueLocked(Clock::now())) {
-        in_ready_ = true;
-        a.enqueue = true;
-      } else if (!in_ready_ && !timer_armed_ && ContinuousLocked()) {
-        timer_armed_ = true;
-        a.enqueue_at = next_due_;
+    const Clock::time_point now = Clock::now();
+    if (!in_ready_) {
+      if (std::optional<Clock::time_point> wake = WakeLocked()) {
+        if (*wake <= now) {
+          in_ready_ = true;  // a change jumps the queue even while a timer is armed
+          a.enqueue = true;
+        } else if (!armed_at_ || *wake < *armed_at_) {
+          armed_at_ = *wake;
+          a.enqueue_at = *wake;
+        }
       }
     }
     if (writing_) return a;  // never finish with a write outstanding
     const bool idle = in_pipeline_ == 0 && !slot_;
     std::optional<grpc::Status> finish;
     if (cancelled_) {
+      // The client vanished without closing: keep the session for a resume.
+      if (opened_ && !handed_over_ && !parked_ && !stopping_ && !error_ && !reading_done_ &&
+          state_->options.resume_grace_s > 0) {
+        parked_ = true;
+        st_.sequence = std::max(st_.sequence, newest_delivered_);
+        state_->Park(std::move(st_));
+      }
       finish = grpc::Status(grpc::StatusCode::CANCELLED, "client cancelled the stream");
     } else if (error_) {
       finish = ToGrpc(*error_);
@@ -413,30 +608,33 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     if (a.write) StartWrite(&writing_frame_);
     if (a.enqueue) state_->loop->Enqueue(shared_from_this());
     if (a.enqueue_at) state_->loop->EnqueueAt(shared_from_this(), *a.enqueue_at);
-    if (a.finish) Finish(*a.finish);
+    if (a.finish) FinishCounted(*a.finish);
   }
 
   ServiceState* const state_;
   grpc::CallbackServerContext* const ctx_;
-  const uint64_t id_;
+  const std::shared_ptr<const Principal> principal_;
   const Clock::time_point opened_at_;
+  Clock::duration min_interval_{};       // 1 / max_session_fps
   std::shared_ptr<StreamSession> self_;  // until OnDone
   v1::ClientEvent event_;                // read buffer (one read at a time)
 
   std::mutex mu_;
+  SessionState st_;  // moved out when parked or handed over
   bool opened_ = false;
-  std::unique_ptr<SceneLease> lease_;
-  Settings settings_;
-  v1::Camera camera_;
-  float target_fps_ = 0.0f;
-  uint64_t newest_event_ = 0;
+  bool parked_ = false;
+  bool handed_over_ = false;
+  std::string fps_note_;  // target_fps was lowered to the cap
   bool dirty_ = false;
   Clock::time_point dirty_since_;
   Clock::time_point next_due_;
-  bool in_ready_ = false;     // in the render loop's ready queue
-  bool timer_armed_ = false;  // a render-loop timer will bring it back (continuous mode)
-  int in_pipeline_ = 0;       // frames being rendered or encoded
-  uint64_t sequence_ = 0;
+  std::optional<Clock::time_point> last_motion_;  // the newest camera event
+  std::optional<Clock::time_point> last_start_;   // the newest frame's start (fps cap)
+  bool need_refine_ = false;  // the newest frame was interactive: a full one is owed
+  bool force_full_ = false;   // the next frame is full quality (resume)
+  bool in_ready_ = false;                      // in the render loop's ready queue
+  std::optional<Clock::time_point> armed_at_;  // the earliest render-loop timer set
+  int in_pipeline_ = 0;                        // frames being rendered or encoded
   uint64_t newest_delivered_ = 0;
   std::optional<v1::Frame> slot_;  // the newest encoded frame not yet written
   v1::Frame writing_frame_;        // owned by gRPC while writing_
@@ -453,9 +651,12 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
 
 grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>* RenderServiceImpl::Stream(
     grpc::CallbackServerContext* ctx) {
-  auto session = std::make_shared<StreamSession>(state_, ctx);
-  absl::Status admission = absl::OkStatus();
-  {
+  absl::StatusOr<std::shared_ptr<const Principal>> principal = state_->Authorize(ctx);
+  auto session = std::make_shared<StreamSession>(
+      state_, ctx, principal.ok() ? *principal : std::shared_ptr<const Principal>());
+  absl::Status admission = principal.status();
+  if (admission.ok()) {
+    const Principal& p = **principal;
     // Under the lock ShutdownSessions takes, so no session slips in after its snapshot.
     std::lock_guard lock(state_->sessions_mu);
     if (state_->shutting_down)
@@ -464,6 +665,10 @@ grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>* RenderServiceImpl::Stream(
       admission = absl::ResourceExhaustedError(absl::StrCat(
           "sessions: ", state_->sessions.size(), " open streams reach the max_sessions limit (",
           state_->options.max_sessions, ")"));
+    else if (!state_->principal_sessions.TryAcquire(p.name, p.max_sessions))
+      admission = absl::ResourceExhaustedError(absl::StrCat(
+          "sessions: token \"", p.name, "\" has its max_sessions (", p.max_sessions.value_or(0),
+          ") streams open"));
     else
       state_->sessions.insert(session);
   }
@@ -476,14 +681,126 @@ uint32_t ServiceState::session_count() const {
   return static_cast<uint32_t>(sessions.size());
 }
 
+uint32_t ServiceState::parked_count() const {
+  std::lock_guard lock(sessions_mu);
+  return static_cast<uint32_t>(parked.size());
+}
+
 void ServiceState::ShutdownSessions() {
   std::vector<std::shared_ptr<StreamSession>> open;
   {
     std::lock_guard lock(sessions_mu);
     shutting_down = true;
     open.assign(sessions.begin(), sessions.end());
+    parked.clear();
   }
   for (auto& s : open) s->Stop();
+}
+
+void ServiceState::Park(SessionState state) {
+  std::optional<SessionState> dropped;  // released after unlocking (it holds a scene lease)
+  std::lock_guard lock(sessions_mu);
+  if (shutting_down) return;
+  if (parked.size() >= options.max_sessions) {
+    auto oldest = std::min_element(parked.begin(), parked.end(), [](const auto& a, const auto& b) {
+      return a.second.expires < b.second.expires;
+    });
+    dropped = std::move(oldest->second.state);
+    parked.erase(oldest);
+  }
+  Log().info("Stream session={} parked for {} s (resume_token)", state.id, options.resume_grace_s);
+  const std::string token = state.token;
+  live_tokens.erase(token);
+  parked[token] = Parked{std::move(state),
+                         Clock::now() + std::chrono::seconds(options.resume_grace_s)};
+}
+
+absl::StatusOr<SessionState> ServiceState::Resume(const std::string& token,
+                                                  const std::string& principal) {
+  const absl::Status unknown = absl::NotFoundError(
+      "open.resume_token: no session to resume (unknown token, or its grace period is over)");
+  auto take_parked = [&]() -> std::optional<SessionState> {
+    std::lock_guard lock(sessions_mu);
+    auto it = parked.find(token);
+    if (it == parked.end() || it->second.state.principal != principal) return std::nullopt;
+    if (Clock::now() >= it->second.expires) {
+      parked.erase(it);
+      return std::nullopt;
+    }
+    SessionState out = std::move(it->second.state);
+    parked.erase(it);
+    return out;
+  };
+  if (std::optional<SessionState> s = take_parked()) return *std::move(s);
+  std::shared_ptr<StreamSession> live;
+  {
+    std::lock_guard lock(sessions_mu);
+    if (auto it = live_tokens.find(token); it != live_tokens.end()) live = it->second.lock();
+  }
+  if (live) {
+    if (std::optional<SessionState> s = live->Handover(principal)) return *std::move(s);
+    // It was being parked meanwhile.
+    if (std::optional<SessionState> s = take_parked()) return *std::move(s);
+  }
+  return unknown;
+}
+
+void ServiceState::SweepParked() {
+  std::vector<SessionState> expired;  // freed after unlocking
+  {
+    std::lock_guard lock(sessions_mu);
+    const Clock::time_point now = Clock::now();
+    for (auto it = parked.begin(); it != parked.end();) {
+      if (now >= it->second.expires) {
+        Log().info("Stream session={} not resumed within {} s: dropped", it->second.state.id,
+                   options.resume_grace_s);
+        expired.push_back(std::move(it->second.state));
+        it = parked.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+}
+
+absl::StatusOr<std::shared_ptr<const Principal>> ServiceState::Authorize(
+    grpc::CallbackServerContext* ctx) const {
+  std::string_view header;
+  const auto& md = ctx->client_metadata();
+  if (auto it = md.find("authorization"); it != md.end())
+    header = std::string_view(it->second.data(), it->second.size());
+  return auth->Authenticate(header);
+}
+
+void ServiceState::CountRpc(const char* method, const grpc::Status& status) const {
+  if (metrics) metrics->RpcFinished(method, static_cast<int>(status.error_code()));
+}
+
+absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
+                                                const v1::InteractiveProfile& u,
+                                                const std::string& field) {
+  InteractiveProfile p = base;
+  if (u.has_enabled()) p.enabled = u.enabled();
+  if (u.has_render_scale()) {
+    const float s = u.render_scale();
+    if (!std::isfinite(s) || s < 0.25f || s > 1.0f)
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".render_scale: ", s, " is out of range (0.25..1)"));
+    p.render_scale = s;
+  }
+  if (u.has_jpeg_quality()) {
+    if (u.jpeg_quality() < 1 || u.jpeg_quality() > 100)
+      return absl::InvalidArgumentError(absl::StrCat(field, ".jpeg_quality: ", u.jpeg_quality(),
+                                                     " is out of range (1..100)"));
+    p.jpeg_quality = u.jpeg_quality();
+  }
+  if (u.has_rest_ms()) {
+    if (u.rest_ms() > 60000)
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".rest_ms: ", u.rest_ms(), " is out of range (0..60000)"));
+    p.rest_ms = u.rest_ms();
+  }
+  return p;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -500,14 +817,24 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
                                 state->options.max_chunk_bytes}),
         started_(Clock::now()) {
     const uint32_t uploads = ++state_->uploads_in_progress;
+    absl::StatusOr<std::shared_ptr<const Principal>> principal = state_->Authorize(ctx);
     absl::Status admission = absl::OkStatus();
-    if (state_->shutting_down) {
+    if (!principal.ok()) {
+      admission = principal.status();
+    } else if (state_->shutting_down) {
       admission = Unavailable();
     } else if (uploads > state_->options.max_concurrent_uploads) {
       admission = absl::ResourceExhaustedError(
           absl::StrCat("uploads: more than the max_concurrent_uploads limit (",
                        state_->options.max_concurrent_uploads, ") at once; retry later"));
+    } else if (!state_->principal_uploads.TryAcquire((*principal)->name,
+                                                     (*principal)->max_uploads)) {
+      admission = absl::ResourceExhaustedError(
+          absl::StrCat("uploads: token \"", (*principal)->name, "\" has its max_uploads (",
+                       (*principal)->max_uploads.value_or(0), ") uploads in progress"));
     } else {
+      principal_ = (*principal)->name;
+      counted_ = true;
       admission = state_->store->CheckRoom();
     }
     if (!admission.ok()) {
@@ -550,12 +877,16 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
 
   void OnDone() override {
     --state_->uploads_in_progress;
+    if (counted_) state_->principal_uploads.Release(principal_);
     delete this;
   }
 
  private:
   void Load(const std::string& scene_id, const GltfSource& source) {
     if (state_->shutting_down) return Done(Unavailable());
+    if (std::chrono::system_clock::now() >= ctx_->deadline())
+      return Done(absl::DeadlineExceededError("deadline: passed before the scene was parsed"));
+    if (ctx_->IsCancelled()) return Done(absl::CancelledError("client cancelled the upload"));
     const Clock::time_point t0 = Clock::now();
     absl::StatusOr<CpuScene> cpu = ImportGltf(source);
     if (!cpu.ok()) return Done(cpu.status());
@@ -581,6 +912,12 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
                response_->scene_id().empty() ? assembler_.main_file() : response_->scene_id(),
                assembler_.file_count(), assembler_.received_bytes(), assembler_.declared_bytes(),
                st.ok() ? "OK" : st.ToString(), what, MsSince(started_), Peer(ctx_));
+    state_->CountRpc("UploadScene", ToGrpc(st));
+    if (state_->metrics)
+      state_->metrics->UploadFinished(!st.ok()                         ? "error"
+                                      : std::string_view(what) == "loaded" ? "loaded"
+                                                                           : "cached",
+                                      assembler_.received_bytes());
     Finish(ToGrpc(st));
   }
 
@@ -590,6 +927,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
   UploadAssembler assembler_;
   v1::UploadRequest request_;
   Clock::time_point started_;
+  std::string principal_;  // counted against its max_uploads while counted_
+  bool counted_ = false;
 };
 
 grpc::ServerReadReactor<v1::UploadRequest>* RenderServiceImpl::UploadScene(
@@ -600,9 +939,23 @@ grpc::ServerReadReactor<v1::UploadRequest>* RenderServiceImpl::UploadScene(
 // ---------------------------------------------------------------------------------------------
 // Small unary calls: answered on the gRPC thread from in-memory state.
 
+namespace {
+
+grpc::ServerUnaryReactor* Reply(const ServiceState* state, grpc::CallbackServerContext* ctx,
+                                const char* method, const absl::Status& status) {
+  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+  state->CountRpc(method, ToGrpc(status));
+  reactor->Finish(ToGrpc(status));
+  return reactor;
+}
+
+}  // namespace
+
 grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerContext* ctx,
                                                            const v1::GetServerInfoRequest*,
                                                            v1::ServerInfo* r) {
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok())
+    return Reply(state_, ctx, "GetServerInfo", st);
   const DeviceInfo& d = state_->renderer->device_info();
   const ServerOptions& o = state_->options;
   r->set_version(TESSERA_VERSION);
@@ -631,52 +984,58 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   FillChoices(caps.sample_counts != 0 ? caps.sample_counts : caps.max_samples * 2 - 1,
               r->mutable_choices());
   ToProto(state_->default_settings, r->mutable_default_settings());
+  l->set_max_session_fps(o.max_session_fps);
+  l->set_scene_memory_budget_bytes(o.scene_memory_budget_bytes);
+  l->set_resume_grace_s(o.resume_grace_s);
+  l->set_max_frames_in_flight(state_->loop->options().max_frames_in_flight);
+  r->set_parked_sessions(state_->parked_count());
+  r->set_background_queue_depth(state_->loop->background_queue_depth());
+  r->set_frames_in_flight(state_->loop->frames_in_flight());
+  r->set_scene_device_bytes(state_->store->device_bytes());
+  r->set_auth_required(state_->auth->enabled());
+  r->set_tls(!o.tls_cert_file.empty());
   Log().debug("GetServerInfo peer={}", Peer(ctx));
-  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-  reactor->Finish(grpc::Status::OK);
-  return reactor;
+  return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::HasScene(grpc::CallbackServerContext* ctx,
                                                       const v1::HasSceneRequest* req,
                                                       v1::HasSceneResponse* r) {
-  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-  if (req->scene_id().empty()) {
-    reactor->Finish(ToGrpc(absl::InvalidArgumentError("scene_id: is empty")));
-    return reactor;
-  }
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok())
+    return Reply(state_, ctx, "HasScene", st);
+  if (req->scene_id().empty())
+    return Reply(state_, ctx, "HasScene", absl::InvalidArgumentError("scene_id: is empty"));
   if (std::shared_ptr<StoredScene> s = state_->store->FindExact(req->scene_id())) {
     r->set_present(true);
     *r->mutable_info() = s->info;
     SceneStore::FillLiveFields(*s, r->mutable_info());
   }
   Log().info("HasScene {} -> {} peer={}", req->scene_id().substr(0, 80), r->present(), Peer(ctx));
-  reactor->Finish(grpc::Status::OK);
-  return reactor;
+  return Reply(state_, ctx, "HasScene", absl::OkStatus());
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::ListScenes(grpc::CallbackServerContext* ctx,
                                                         const v1::ListScenesRequest*,
                                                         v1::ListScenesResponse* r) {
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok())
+    return Reply(state_, ctx, "ListScenes", st);
   for (v1::SceneInfo& info : state_->store->List()) *r->add_scenes() = std::move(info);
   Log().info("ListScenes -> {} scenes peer={}", r->scenes_size(), Peer(ctx));
-  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-  reactor->Finish(grpc::Status::OK);
-  return reactor;
+  return Reply(state_, ctx, "ListScenes", absl::OkStatus());
 }
 
 grpc::ServerUnaryReactor* RenderServiceImpl::DeleteScene(grpc::CallbackServerContext* ctx,
                                                          const v1::DeleteSceneRequest* req,
                                                          v1::DeleteSceneResponse* r) {
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok())
+    return Reply(state_, ctx, "DeleteScene", st);
   absl::StatusOr<uint32_t> users = state_->store->Delete(req->scene_id());
   Log().info("DeleteScene {} -> {} peer={}", req->scene_id().substr(0, 80),
              users.ok() ? absl::StrCat("OK, ", *users, " sessions still using it")
                         : users.status().ToString(),
              Peer(ctx));
   if (users.ok()) r->set_sessions_still_using(*users);
-  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-  reactor->Finish(ToGrpc(users.status()));
-  return reactor;
+  return Reply(state_, ctx, "DeleteScene", users.status());
 }
 
 }  // namespace tessera::server

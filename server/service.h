@@ -4,11 +4,14 @@
 // thread on rendering, parsing or device uploads.
 #include <atomic>
 #include <chrono>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <set>
+#include <string>
 
 #include "renderer/renderer.h"
+#include "server/auth.h"
 #include "server/render_loop.h"
 #include "server/scene_store.h"
 #include "server/server.h"
@@ -17,6 +20,34 @@
 namespace tessera::server {
 
 class StreamSession;
+class Metrics;
+
+// Idle refinement of one session (v1::InteractiveProfile with its defaults applied).
+struct InteractiveProfile {
+  bool enabled = false;
+  float render_scale = 0.5f;
+  uint32_t jpeg_quality = 60;
+  uint32_t rest_ms = 250;
+};
+
+// `base` with the set fields of `update`; INVALID_ARGUMENT naming `field`.render_scale etc.
+absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
+                                                const v1::InteractiveProfile& update,
+                                                const std::string& field);
+
+// A session apart from its stream: what a resumed stream gets back.
+struct SessionState {
+  uint64_t id = 0;        // the session id, also its renderer view (TAA, occlusion history)
+  std::string token;      // resume token: 128 random bits, hex
+  std::string principal;  // who opened it: only they can resume it
+  std::shared_ptr<SceneLease> lease;
+  Settings settings;
+  v1::Camera camera;
+  float target_fps = 0.0f;
+  InteractiveProfile profile;
+  uint64_t sequence = 0;      // of the last frame made
+  uint64_t newest_event = 0;  // the newest event applied
+};
 
 // What the handlers share. Owned by the Server; outlives every call.
 struct ServiceState {
@@ -25,8 +56,12 @@ struct ServiceState {
   SceneStore* store = nullptr;
   RenderLoop* loop = nullptr;
   ThreadPool* loader = nullptr;
+  Authenticator* auth = nullptr;
+  Metrics* metrics = nullptr;  // may be null
   Clock::time_point started = Clock::now();
   Settings default_settings;
+  UsageCounter principal_sessions;  // open streams per principal (token limits)
+  UsageCounter principal_uploads;   // uploads in progress per principal
 
   std::atomic<bool> shutting_down{false};  // set under sessions_mu by ShutdownSessions
   std::atomic<uint32_t> uploads_in_progress{0};
@@ -37,10 +72,33 @@ struct ServiceState {
 
   mutable std::mutex sessions_mu;
   std::set<std::shared_ptr<StreamSession>> sessions;  // open Stream calls
+  std::map<std::string, std::weak_ptr<StreamSession>> live_tokens;  // token -> open stream
+  struct Parked {
+    SessionState state;
+    Clock::time_point expires;
+  };
+  std::map<std::string, Parked> parked;  // broken streams' sessions, by token
 
   uint32_t session_count() const;
+  uint32_t parked_count() const;
   // Ends every open stream with UNAVAILABLE after its in-flight frame.
   void ShutdownSessions();
+
+  // Keeps a broken stream's session for resume_grace_s (the oldest parked one goes when
+  // max_sessions are parked).
+  void Park(SessionState state);
+  // The session named by `token` for `principal`: a parked one, or an open one whose stream
+  // is then ended with ABORTED (its client has reconnected before the server noticed the old
+  // connection was gone). NOT_FOUND when unknown, expired or someone else's.
+  absl::StatusOr<SessionState> Resume(const std::string& token, const std::string& principal);
+  // Drops parked sessions past their grace period (their scene leases with them).
+  void SweepParked();
+
+  // The caller of a handler: the authenticated principal or UNAUTHENTICATED.
+  absl::StatusOr<std::shared_ptr<const Principal>> Authorize(
+      grpc::CallbackServerContext* ctx) const;
+  // Counts a finished call in the metrics.
+  void CountRpc(const char* method, const grpc::Status& status) const;
 };
 
 class RenderServiceImpl final : public v1::RenderService::CallbackService {

@@ -1,5 +1,6 @@
 // tesserad: the Tessera render daemon. Flags (or a --flagfile with one --flag=value per line)
-// set the address, the device and the limits; SIGTERM/SIGINT stop it cleanly.
+// set the address, the device and the limits; SIGTERM/SIGINT stop it cleanly; SIGHUP reloads
+// the token file.
 #include <signal.h>
 
 #include <cstdio>
@@ -26,7 +27,24 @@ ABSL_FLAG(uint32_t, max_chunk_bytes, 1u << 20, "limit: data bytes in one upload 
 ABSL_FLAG(uint32_t, max_scenes, 32, "limit: uploaded scenes in memory");
 ABSL_FLAG(uint32_t, max_sessions, 64, "limit: concurrent streaming sessions");
 ABSL_FLAG(uint32_t, max_concurrent_uploads, 4, "limit: uploads in progress at once");
+ABSL_FLAG(float, max_session_fps, 60.0f, "limit: frames per second one streaming session gets");
+ABSL_FLAG(uint64_t, scene_memory_budget_mb, 0,
+          "limit: device memory (MiB) for uploaded scenes; unused scenes are evicted least "
+          "recently used first (0: no budget)");
+ABSL_FLAG(uint32_t, resume_grace_s, 30,
+          "how long the session of a broken stream can be resumed with its token (0: never)");
 ABSL_FLAG(uint32_t, encoder_threads, 0, "JPEG/PNG encoder threads (0: one per core)");
+ABSL_FLAG(uint32_t, max_frames_in_flight, 3,
+          "rendered frames out on the encoders at once (the render thread waits beyond that)");
+ABSL_FLAG(std::string, tls_cert, "", "TLS: server certificate chain (PEM file)");
+ABSL_FLAG(std::string, tls_key, "", "TLS: server private key (PEM file)");
+ABSL_FLAG(std::string, tls_client_ca, "",
+          "mTLS: clients must present a certificate signed by this CA (PEM file)");
+ABSL_FLAG(std::string, token_file, "",
+          "bearer tokens, one per line: TOKEN NAME [max_sessions=N] [max_uploads=N]; every "
+          "call then needs 'authorization: Bearer TOKEN' (health stays open); SIGHUP reloads");
+ABSL_FLAG(std::string, metrics_listen, "",
+          "serve Prometheus metrics at http://HOST:PORT/metrics (empty: off)");
 ABSL_FLAG(uint32_t, shutdown_grace_ms, 3000,
           "on SIGTERM, how long open calls may take to finish before they are cancelled");
 ABSL_FLAG(std::string, port_file, "",
@@ -52,6 +70,7 @@ int main(int argc, char** argv) {
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGHUP);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   tessera::server::ServerOptions options;
@@ -65,6 +84,15 @@ int main(int argc, char** argv) {
   options.max_sessions = absl::GetFlag(FLAGS_max_sessions);
   options.max_concurrent_uploads = absl::GetFlag(FLAGS_max_concurrent_uploads);
   options.encoder_threads = absl::GetFlag(FLAGS_encoder_threads);
+  options.max_session_fps = absl::GetFlag(FLAGS_max_session_fps);
+  options.scene_memory_budget_bytes = absl::GetFlag(FLAGS_scene_memory_budget_mb) << 20;
+  options.resume_grace_s = absl::GetFlag(FLAGS_resume_grace_s);
+  options.max_frames_in_flight = absl::GetFlag(FLAGS_max_frames_in_flight);
+  options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
+  options.tls_key_file = absl::GetFlag(FLAGS_tls_key);
+  options.tls_client_ca_file = absl::GetFlag(FLAGS_tls_client_ca);
+  options.token_file = absl::GetFlag(FLAGS_token_file);
+  options.metrics_listen = absl::GetFlag(FLAGS_metrics_listen);
 
   auto server = tessera::server::Server::Start(options);
   if (!server.ok()) {
@@ -80,7 +108,14 @@ int main(int argc, char** argv) {
   tessera::Log().info("ready: try `tessera --server {} info`", (*server)->address());
 
   int sig = 0;
-  sigwait(&signals, &sig);
+  for (;;) {
+    sigwait(&signals, &sig);
+    if (sig != SIGHUP) break;
+    tessera::Log().info("SIGHUP received: reloading {}", options.token_file.empty()
+                                                             ? "nothing (no --token_file)"
+                                                             : options.token_file);
+    (void)(*server)->ReloadTokens();
+  }
   tessera::Log().info("{} received", sig == SIGTERM ? "SIGTERM" : "SIGINT");
   (*server)->Shutdown(std::chrono::milliseconds(absl::GetFlag(FLAGS_shutdown_grace_ms)));
   server->reset();

@@ -8,6 +8,11 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <tuple>
+
+#include <grpcpp/support/client_interceptor.h>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
@@ -157,12 +162,83 @@ int ReportError(const Invocation& inv, absl::string_view message) {
 // ---------------------------------------------------------------------------------------------
 // Connection
 
+namespace {
+
+absl::StatusOr<std::string> ReadFile(const std::string& path, const char* flag) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(flag, ": cannot read '", path, "'"));
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+// Adds "authorization: Bearer <token>" to every call of the channel. An interceptor rather
+// than call credentials, because gRPC sends call credentials only over TLS, and a token to a
+// daemon on loopback without TLS is a normal set-up.
+class BearerInterceptor final : public grpc::experimental::Interceptor {
+ public:
+  explicit BearerInterceptor(const std::string* header) : header_(header) {}
+  void Intercept(grpc::experimental::InterceptorBatchMethods* methods) override {
+    if (methods->QueryInterceptionHookPoint(
+            grpc::experimental::InterceptionHookPoints::PRE_SEND_INITIAL_METADATA))
+      methods->GetSendInitialMetadata()->insert({"authorization", *header_});
+    methods->Proceed();
+  }
+
+ private:
+  const std::string* header_;
+};
+
+class BearerInterceptorFactory final
+    : public grpc::experimental::ClientInterceptorFactoryInterface {
+ public:
+  explicit BearerInterceptorFactory(std::string token) : header_("Bearer " + token) {}
+  grpc::experimental::Interceptor* CreateClientInterceptor(
+      grpc::experimental::ClientRpcInfo*) override {
+    return new BearerInterceptor(&header_);
+  }
+
+ private:
+  const std::string header_;  // lives as long as the channel (which owns the factory)
+};
+
+}  // namespace
+
+absl::StatusOr<std::string> ReadTokenFile(const std::string& path) {
+  absl::StatusOr<std::string> text = ReadFile(path, "--token-file");
+  if (!text.ok()) return text.status();
+  std::string token(absl::StripAsciiWhitespace(text->substr(0, text->find('\n'))));
+  if (token.empty())
+    return absl::InvalidArgumentError(absl::StrCat("--token-file: '", path, "' has no token"));
+  return token;
+}
+
 std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
   grpc::ChannelArguments args;
   // Frames can be far larger than gRPC's 4 MiB default (a 4K PNG is ~30 MB).
   args.SetMaxReceiveMessageSize(-1);
-  std::shared_ptr<grpc::Channel> channel =
-      grpc::CreateCustomChannel(inv.global.server, grpc::InsecureChannelCredentials(), args);
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (inv.global.tls) {
+    grpc::SslCredentialsOptions ssl;
+    for (auto [path, flag, out] :
+         {std::tuple{&inv.global.tls_ca_file, "--tls-ca", &ssl.pem_root_certs},
+          std::tuple{&inv.global.tls_cert_file, "--tls-cert", &ssl.pem_cert_chain},
+          std::tuple{&inv.global.tls_key_file, "--tls-key", &ssl.pem_private_key}}) {
+      if (path->empty()) continue;
+      absl::StatusOr<std::string> pem = ReadFile(*path, flag);
+      if (!pem.ok()) {
+        ReportError(inv, pem.status().message());
+        return nullptr;
+      }
+      *out = *std::move(pem);
+    }
+    credentials = grpc::SslCredentials(ssl);
+  }
+  std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> hooks;
+  if (!inv.global.token.empty())
+    hooks.push_back(std::make_unique<BearerInterceptorFactory>(inv.global.token));
+  std::shared_ptr<grpc::Channel> channel = grpc::experimental::CreateCustomChannelWithInterceptors(
+      inv.global.server, credentials, args, std::move(hooks));
   const auto deadline = std::chrono::system_clock::now() +
                         std::chrono::duration_cast<std::chrono::system_clock::duration>(
                             std::chrono::duration<double>(inv.global.connect_timeout_s));
@@ -173,7 +249,11 @@ std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
     if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) {
       ReportError(inv, absl::StrCat("cannot connect to tesserad at ", inv.global.server,
                                     ": connection failed (is tesserad running there? set the "
-                                    "address with --server or $TESSERA_SERVER)"));
+                                    "address with --server or $TESSERA_SERVER",
+                                    inv.global.tls ? "; does it speak TLS with a certificate "
+                                                     "your --tls-ca trusts?"
+                                                   : "; does it need --tls?",
+                                    ")"));
       return nullptr;
     }
     if (!channel->WaitForStateChange(state, deadline)) {

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "google/protobuf/message.h"
 #include "tessera/v1/render_service.grpc.pb.h"
@@ -28,7 +29,15 @@ struct GlobalOptions {
   std::string server = "127.0.0.1:50051";
   bool json = false;
   double connect_timeout_s = 10;
+  std::string token;  // bearer token sent with every call ("" = none)
+  bool tls = false;
+  std::string tls_ca_file;    // trusted CA (PEM); empty: the system's roots
+  std::string tls_cert_file;  // client certificate for mTLS (PEM)
+  std::string tls_key_file;
 };
+
+// The first line of a token file, trimmed; INVALID_ARGUMENT naming the file when empty.
+absl::StatusOr<std::string> ReadTokenFile(const std::string& path);
 
 // What every command gets: the global options and the words after the command name, with the
 // global flags taken out.

@@ -31,6 +31,8 @@ struct StreamOptions {
   bool orbit = false;
   float fps = 0;
   std::string save_dir;
+  float interactive_scale = 0;  // > 0: enable the session's interactive profile at this scale
+  int rest_ms = -1;             // the profile's rest time; -1: the server's default
   RenderFlags flags;
 
   Pacing pacing() const {
@@ -55,6 +57,12 @@ StreamOptions ParseStreamOptions(const Invocation& inv) {
       if (!(o.fps > 0 && o.fps <= 240)) args.Fail("--fps wants a rate in (0, 240]");
     } else if (args.Is("--save")) {
       o.save_dir = args.Value();
+    } else if (args.Is("--interactive")) {
+      o.interactive_scale = args.Float();
+      if (!(o.interactive_scale >= 0.25f && o.interactive_scale <= 1.0f))
+        args.Fail("--interactive wants a render scale in [0.25, 1]");
+    } else if (args.Is("--rest-ms")) {
+      o.rest_ms = static_cast<int>(args.Uint());
     } else if (!o.flags.Parse(args)) {
       args.Unknown();
     }
@@ -86,6 +94,11 @@ class StreamEvents {
     open->set_scene_id(scene_id_);
     *open->mutable_settings() = options_.flags.settings();
     if (options_.pacing() == Pacing::kServerRate) open->set_target_fps(options_.fps);
+    if (options_.interactive_scale > 0) {
+      open->mutable_interactive()->set_enabled(true);
+      open->mutable_interactive()->set_render_scale(options_.interactive_scale);
+      if (options_.rest_ms >= 0) open->mutable_interactive()->set_rest_ms(options_.rest_ms);
+    }
     if (options_.orbit && orbit_) {
       *open->mutable_camera() = orbit_->CameraAt(step_++, options_.frames, options_.flags.camera());
     } else if (HasCameraFlags(options_.flags)) {
@@ -147,9 +160,14 @@ class LiveTable {
     for (int i = 0; i < f.passes_size(); ++i) {
       absl::StrAppendFormat(&row, " %*.2f", widths_[i], f.passes(i).gpu_ms());
     }
-    absl::StrAppendFormat(&row, " %9.2f %9.2f %9s %8.1f", f.gpu_total_ms(), f.cpu().total_ms(),
+    absl::StrAppendFormat(&row, " %9.2f %9.2f %9s %8.1f %s", f.gpu_total_ms(),
+                          f.cpu().total_ms(),
                           r.latency_ms ? absl::StrFormat("%.1f", *r.latency_ms) : "-",
-                          r.bytes / 1024.0);
+                          r.bytes / 1024.0,
+                          f.profile() == "interactive"
+                              ? absl::StrFormat("interactive %ux%u", f.render_width(),
+                                                f.render_height())
+                              : f.profile());
     if (in_place_) {
       std::printf("\r\033[K%s", row.c_str());
       line_open_ = true;
@@ -183,7 +201,8 @@ class LiveTable {
       widths_.push_back(std::max<int>(7, p.pass().size()));
       absl::StrAppendFormat(&header, " %*s", widths_.back(), p.pass());
     }
-    absl::StrAppendFormat(&header, " %9s %9s %9s %8s", "gpu ms", "cpu ms", "lat ms", "KiB");
+    absl::StrAppendFormat(&header, " %9s %9s %9s %8s %s", "gpu ms", "cpu ms", "lat ms", "KiB",
+                          "profile");
     std::printf("%s\n", header.c_str());
     header_printed_ = true;
   }
@@ -469,7 +488,8 @@ int RunStream(const Invocation& inv) {
 
 const Command kStreamCommand = {
     "stream", "a live session for N frames: per-pass timings and input-to-frame latency",
-    R"(usage: tessera stream [--scene ID] [--frames N] [--orbit] [--fps F] [--save DIR] [flags]
+    R"(usage: tessera stream [--scene ID] [--frames N] [--orbit] [--fps F] [--save DIR]
+                      [--interactive S [--rest-ms MS]] [flags]
 Opens a live session (Stream) and receives N frames, printing each frame's sequence number,
 the event it reflects, the GPU time of every pass, totals, latency and size (redrawn in place
 on a terminal), then a summary: fps, event-to-frame latency (median, p95: from sending an
@@ -483,6 +503,10 @@ event to the first frame reflecting it) and the median time of every pass.
                       without: the server renders continuously at up to F fps
                       (neither: one refresh event per received frame)
   --save DIR          write the frames to DIR/frame_000001.jpg, ...
+  --interactive S     idle refinement: while the camera moves, frames are rendered at scale S
+                      (0.25..1), upscaled and sent at a lower JPEG quality; once it rests, one
+                      full-quality frame follows (the "profile" column says which)
+  --rest-ms MS        with --interactive: how long the camera must rest (server default 250)
 )",
     /*render_flags=*/true, RunStream};
 

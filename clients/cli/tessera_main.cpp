@@ -21,6 +21,11 @@ constexpr char kGlobalUsage[] = R"(global flags (anywhere on the line):
   --server ADDR       tesserad's address (default: $TESSERA_SERVER, else 127.0.0.1:50051)
   --json              machine-readable output: one JSON document on stdout, nothing else
   --connect-timeout SEC   give up connecting after SEC seconds (default 10)
+  --token-file FILE   send the bearer token in FILE (first line) with every call; the
+                      token can also come from $TESSERA_TOKEN
+  --tls               connect with TLS, trusting the system's CA certificates
+  --tls-ca FILE       connect with TLS, trusting the CA certificate(s) in FILE (implies --tls)
+  --tls-cert FILE --tls-key FILE   client certificate and key for servers that require mTLS
   -h, --help          this text; `tessera COMMAND --help` for one command
 
 Exit status: 0 done, 1 the server (or the local system) failed the command, 2 a bad command
@@ -61,6 +66,7 @@ ParsedLine ParseLine(int argc, char** argv) {
   ParsedLine line;
   GlobalOptions& g = line.inv.global;
   if (const char* env = std::getenv("TESSERA_SERVER"); env && *env) g.server = env;
+  if (const char* env = std::getenv("TESSERA_TOKEN"); env && *env) g.token = env;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&](absl::string_view flag) -> std::string {
@@ -83,6 +89,20 @@ ParsedLine ParseLine(int argc, char** argv) {
         UsageError(line.inv.command,
                    absl::StrCat("--connect-timeout: not a positive number: '", v, "'"));
       }
+    } else if (is("--token-file")) {
+      const std::string path = value("--token-file");
+      absl::StatusOr<std::string> token = ReadTokenFile(path);
+      if (!token.ok()) UsageError(line.inv.command, token.status().message());
+      g.token = *token;
+    } else if (arg == "--tls") {
+      g.tls = true;
+    } else if (is("--tls-ca")) {
+      g.tls_ca_file = value("--tls-ca");
+      g.tls = true;
+    } else if (is("--tls-cert")) {
+      g.tls_cert_file = value("--tls-cert");
+    } else if (is("--tls-key")) {
+      g.tls_key_file = value("--tls-key");
     } else if (arg == "--help" || arg == "-h") {
       line.help = true;
     } else if (line.command == nullptr && arg == "help") {
@@ -101,6 +121,9 @@ ParsedLine ParseLine(int argc, char** argv) {
       line.inv.args.push_back(arg);
     }
   }
+  if (g.tls_cert_file.empty() != g.tls_key_file.empty())
+    UsageError(line.inv.command, "--tls-cert and --tls-key go together");
+  if (!g.tls_cert_file.empty()) g.tls = true;
   return line;
 }
 

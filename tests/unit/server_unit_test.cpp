@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <glm/glm.hpp>
@@ -13,6 +14,8 @@
 #include <initializer_list>
 #include <limits>
 #include <map>
+#include <optional>
+#include <thread>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -1030,24 +1033,84 @@ TEST(SceneStoreTest, AddingTheSameIdReturnsTheStoredEntry) {
   EXPECT_EQ(store.List().size(), 1u);
 }
 
-TEST(SceneStoreTest, MaxScenes) {
+TEST(SceneStoreTest, MaxScenesEvictsTheLeastRecentlyUsedUnusedScene) {
   SceneStore store(2);
-  store.AddDemo(nullptr, Info("demo"));  // not counted against the limit
+  std::vector<std::string> evicted;
+  store.set_eviction_listener([&](const StoredScene& s) { evicted.push_back(s.id); });
+  store.AddDemo(nullptr, Info("demo"));  // not counted against the limit, never evicted
   ASSERT_TRUE(store.CheckRoom().ok());
   ASSERT_TRUE(store.Add(IdOf("", '1'), nullptr, Info("1")).ok());
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));
   ASSERT_TRUE(store.Add(IdOf("", '2'), nullptr, Info("2")).ok());
-  EXPECT_TRUE(
-      IsError(store.CheckRoom(), absl::StatusCode::kResourceExhausted, {"max_scenes", "2"}));
-  EXPECT_TRUE(IsError(store.Add(IdOf("", '3'), nullptr, Info("3")).status(),
-                      absl::StatusCode::kResourceExhausted, {"max_scenes", "2"}));
-  EXPECT_EQ(store.count(), 3u);
-  EXPECT_TRUE(store.Find(IdOf("", '3')).status().code() == absl::StatusCode::kNotFound);
-  // Deleting one makes room again.
-  absl::StatusOr<uint32_t> deleted = store.Delete(IdOf("", '1'));
-  ASSERT_TRUE(deleted.ok()) << deleted.status();
-  EXPECT_EQ(*deleted, 0u);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  ASSERT_TRUE(store.Find(IdOf("", '1')).ok());  // 1 is now the more recently used
+  EXPECT_TRUE(store.CheckRoom().ok());           // 2 could be evicted
+  ASSERT_TRUE(store.Add(IdOf("", '3'), nullptr, Info("3")).ok());
+  EXPECT_EQ(evicted, std::vector<std::string>{IdOf("", '2')});
+  EXPECT_EQ(store.evictions(), 1u);
+  EXPECT_EQ(store.Find(IdOf("", '2')).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_TRUE(store.Find(IdOf("", '1')).ok());
+  EXPECT_EQ(store.count(), 3u);  // demo, 1, 3
+}
+
+TEST(SceneStoreTest, MaxScenesRefusesWhenEverySceneIsInUse) {
+  SceneStore store(2);
+  store.AddDemo(nullptr, Info("demo"));
+  auto one = store.Add(IdOf("", '1'), nullptr, Info("1"));
+  auto two = store.Add(IdOf("", '2'), nullptr, Info("2"));
+  ASSERT_TRUE(one.ok() && two.ok());
+  {
+    SceneLease l1(*one), l2(*two);
+    EXPECT_TRUE(
+        IsError(store.CheckRoom(), absl::StatusCode::kResourceExhausted, {"max_scenes", "2"}));
+    EXPECT_TRUE(IsError(store.Add(IdOf("", '3'), nullptr, Info("3")).status(),
+                        absl::StatusCode::kResourceExhausted, {"max_scenes", "2", "in use"}));
+    EXPECT_EQ(store.count(), 3u);
+    EXPECT_EQ(store.Find(IdOf("", '3')).status().code(), absl::StatusCode::kNotFound);
+    // Deleting one makes room again (it is freed when its lease ends).
+    absl::StatusOr<uint32_t> deleted = store.Delete(IdOf("", '1'));
+    ASSERT_TRUE(deleted.ok()) << deleted.status();
+    EXPECT_EQ(*deleted, 1u);
+  }
+  one->reset();  // the deleted scene's last holder: now it is freed
+  two->reset();
   EXPECT_TRUE(store.CheckRoom().ok());
   EXPECT_TRUE(store.Add(IdOf("", '3'), nullptr, Info("3")).ok());
+  EXPECT_EQ(store.evictions(), 0u);
+}
+
+v1::SceneInfo Sized(const std::string& name, uint64_t bytes) {
+  v1::SceneInfo info = Info(name);
+  info.set_device_bytes(bytes);
+  return info;
+}
+
+TEST(SceneStoreTest, MemoryBudgetEvictsUnusedScenesLeastRecentlyUsedFirst) {
+  SceneStore store(16, /*memory_budget=*/1000);
+  store.AddDemo(nullptr, Sized("demo", 50));  // outside the budget
+  auto a = store.Add(IdOf("", 'a'), nullptr, Sized("a", 400));
+  std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  auto b = store.Add(IdOf("", 'b'), nullptr, Sized("b", 400));
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(store.device_bytes(), 850u);
+  std::optional<SceneLease> hold_a(std::in_place, *a);  // a is in use: b must go instead
+  auto c = store.Add(IdOf("", 'c'), nullptr, Sized("c", 500));
+  ASSERT_TRUE(c.ok()) << c.status();
+  EXPECT_EQ(store.Find(IdOf("", 'b')).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(store.device_bytes(), 950u);
+  // a (in use) + c (in use) leave no room for 300 more.
+  std::optional<SceneLease> hold_c(std::in_place, *c);
+  EXPECT_TRUE(IsError(store.Add(IdOf("", 'd'), nullptr, Sized("d", 300)).status(),
+                      absl::StatusCode::kResourceExhausted, {"scene_memory_budget", "1000"}));
+  // Larger than the whole budget: refused without evicting anything.
+  hold_c.reset();
+  EXPECT_TRUE(IsError(store.Add(IdOf("", 'e'), nullptr, Sized("e", 1001)).status(),
+                      absl::StatusCode::kResourceExhausted, {"scene_memory_budget", "1001"}));
+  EXPECT_TRUE(store.Find(IdOf("", 'c')).ok());
+  // With c released, d fits after evicting c.
+  ASSERT_TRUE(store.Add(IdOf("", 'd'), nullptr, Sized("d", 300)).ok());
+  EXPECT_EQ(store.Find(IdOf("", 'c')).status().code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(store.evictions(), 2u);
 }
 
 TEST(SceneStoreTest, ListIsDemoThenLoadOrder) {
