@@ -17,11 +17,7 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
-#include <cstdlib>
-#include <glm/glm.hpp>
-#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -29,40 +25,26 @@
 #include <thread>
 #include <vector>
 
-#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "bench_stream.h"
 #include "bench_util.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/convert.h"
 #include "server/server.h"
-#include "tessera/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 
 namespace {
 
-using tessera::bench::Fail;
-using tessera::bench::Median;
-using tessera::bench::Percentile;
+using namespace tessera::bench;  // bench_util.h, bench_stream.h
 
 namespace v1 = tessera::v1;
-using Clock = std::chrono::steady_clock;
 
-constexpr uint32_t kChunkBytes = 1u << 20;  // the proto's (and the server's default) chunk limit
-constexpr double kLatencySlackMs = 10.0;    // latency budget = render + encode + this
+constexpr double kLatencySlackMs = 10.0;  // latency budget = render + encode + this
 constexpr double kTargetStreamFpsRatio = 0.9;
 constexpr double kTargetLatencyRatio = 1.0;
-constexpr float kOrbitStepRadians = 0.02f;  // camera movement per event
-// When the client finds the server with nothing left to render it sends two events; the second
-// waits this long so the server has taken the first (two events that arrive together are merged
-// into one frame: latest wins).
-constexpr auto kRestartGap = std::chrono::milliseconds(1);
-
-double MsBetween(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
 
 struct Options {
   std::vector<std::string> scenes = {"demo", "sponza"};
@@ -75,39 +57,6 @@ struct Options {
   uint32_t warmup = 3;   // frames, in every measurement
   uint32_t frames = 20;  // render-only frames
 };
-
-// Cameras on a circle around the scene centre, at the distance, height and near plane of the
-// server's default framing; both measurements use the same ones.
-struct Orbit {
-  glm::vec3 center{0.0f};
-  glm::vec3 offset{0.0f, 0.0f, 5.0f};  // eye - center at step 0
-  float znear = 0.05f;
-
-  v1::Camera At(uint64_t step) const {
-    const float a = kOrbitStepRadians * static_cast<float>(step % 100000);
-    const glm::vec3 o(offset.x * std::cos(a) + offset.z * std::sin(a), offset.y,
-                      -offset.x * std::sin(a) + offset.z * std::cos(a));
-    v1::Camera c;
-    v1::LookAt* l = c.mutable_look_at();
-    l->mutable_eye()->set_x(center.x + o.x);
-    l->mutable_eye()->set_y(center.y + o.y);
-    l->mutable_eye()->set_z(center.z + o.z);
-    l->mutable_target()->set_x(center.x);
-    l->mutable_target()->set_y(center.y);
-    l->mutable_target()->set_z(center.z);
-    c.set_znear(znear);
-    return c;
-  }
-};
-
-Orbit MakeOrbit(const tessera::SceneInfo& info, float aspect) {
-  const tessera::Camera framed = tessera::FrameBounds(info.bounds, tessera::Camera{}.yfov, aspect);
-  Orbit orbit;
-  orbit.center = framed.target;
-  orbit.offset = framed.eye - framed.target;
-  orbit.znear = framed.znear;
-  return orbit;
-}
 
 v1::RenderSettings WireSettings(const Options& o) {
   v1::RenderSettings s;
@@ -127,12 +76,6 @@ struct BenchScene {
   double encode_ms = 0.0;
 };
 
-std::string ScenePath(const std::string& key, const Options& o) {
-  if (key == "sponza") return o.assets + "/Sponza/glTF/Sponza.gltf";
-  if (absl::EndsWithIgnoreCase(key, ".gltf") || absl::EndsWithIgnoreCase(key, ".glb")) return key;
-  Fail("unknown scene \"" + key + "\" (demo, sponza, or a path to a .gltf/.glb)");
-}
-
 // (a) Render-only: the renderer alone, in this process.
 nlohmann::json MeasureRenderOnly(tessera::Renderer& renderer, const Options& o, BenchScene* b) {
   const auto t0 = Clock::now();
@@ -142,7 +85,7 @@ nlohmann::json MeasureRenderOnly(tessera::Renderer& renderer, const Options& o, 
   const double load_ms = MsBetween(t0, Clock::now());
   const tessera::SceneInfo& info = (*scene)->info();
   const float aspect = float(o.width) / float(o.height);
-  b->orbit = MakeOrbit(info, aspect);
+  b->orbit = MakeOrbit(info.bounds, aspect);
   // The server's defaults with this size: what the Stream session will render with.
   absl::StatusOr<tessera::Settings> settings =
       tessera::server::MergeSettings(tessera::Settings{}, WireSettings(o));
@@ -179,37 +122,9 @@ nlohmann::json MeasureRenderOnly(tessera::Renderer& renderer, const Options& o, 
 
 // Uploads a file set through UploadScene; returns the scene id the server answered.
 std::string Upload(v1::RenderService::Stub* stub, const BenchScene& b, double* upload_ms) {
-  const tessera::GltfSource& src = *b.source;
   const auto t0 = Clock::now();
-  grpc::ClientContext ctx;
-  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
   v1::SceneInfo info;
-  std::unique_ptr<grpc::ClientWriter<v1::UploadRequest>> writer = stub->UploadScene(&ctx, &info);
-  v1::UploadRequest request;
-  v1::UploadManifest* manifest = request.mutable_manifest();
-  manifest->set_main_file(src.main_file);
-  for (const auto& [name, data] : src.files) {
-    v1::UploadFile* f = manifest->add_files();
-    f->set_name(name);
-    f->set_size(data.size());
-    f->set_sha256(tessera::Sha256Hex(data.data(), data.size()));
-  }
-  bool ok = writer->Write(request);
-  uint32_t file_index = 0;
-  for (const auto& [name, data] : src.files) {
-    for (size_t offset = 0; ok && offset < data.size(); offset += kChunkBytes) {
-      const size_t n = std::min<size_t>(kChunkBytes, data.size() - offset);
-      v1::UploadRequest chunk_request;
-      v1::UploadChunk* chunk = chunk_request.mutable_chunk();
-      chunk->set_file_index(file_index);
-      chunk->set_offset(offset);
-      chunk->set_data(data.data() + offset, n);
-      ok = writer->Write(chunk_request);
-    }
-    ++file_index;
-  }
-  if (ok) writer->WritesDone();
-  const grpc::Status status = writer->Finish();
+  const grpc::Status status = UploadFileSet(stub, *b.source, &info);
   if (!status.ok()) Fail(b.key + ": UploadScene: " + status.error_message());
   if (info.scene_id() != b.local_scene_id)
     Fail(b.key + ": UploadScene answered scene id " + info.scene_id() + ", expected " +
@@ -387,20 +302,15 @@ nlohmann::json MeasureLatency(v1::RenderService::Stub* stub, const std::string& 
 
 int main(int argc, char** argv) {
   Options o;
-  if (const char* env = std::getenv("TESSERA_ASSETS_DIR"); env && *env)
-    o.assets = env;
-  else
-    o.assets = TESSERA_DEFAULT_ASSETS_DIR;
+  o.assets = AssetsDir();
   // --smoke sets small defaults first, so later flags can still change them.
-  for (int i = 1; i < argc; ++i) {
-    if (std::string(argv[i]) == "--smoke") {
-      o.scenes = {"demo"};
-      o.width = o.height = 64;
-      o.seconds = 1.0;
-      o.latency_samples = 3;
-      o.warmup = 1;
-      o.frames = 3;
-    }
+  if (HasFlag(argc, argv, "--smoke")) {
+    o.scenes = {"demo"};
+    o.width = o.height = 64;
+    o.seconds = 1.0;
+    o.latency_samples = 3;
+    o.warmup = 1;
+    o.frames = 3;
   }
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
@@ -445,13 +355,9 @@ int main(int argc, char** argv) {
     BenchScene b;
     b.key = key;
     if (key != "demo") {
-      const std::string path = ScenePath(key, o);
-      absl::StatusOr<tessera::GltfSource> source = tessera::LoadGltfSourceFromDisk(path);
-      if (!source.ok()) Fail(path + ": " + std::string(source.status().message()));
-      std::map<std::string, std::string> sha256;
-      for (const auto& [name, data] : source->files)
-        sha256[name] = tessera::Sha256Hex(data.data(), data.size());
-      b.local_scene_id = tessera::SceneId(sha256, source->main_file);
+      absl::StatusOr<tessera::GltfSource> source = ReadSceneFiles(key, o.assets);
+      if (!source.ok()) Fail(std::string(source.status().message()));
+      b.local_scene_id = LocalSceneId(*source);
       b.source = *std::move(source);
     }
     scenes.push_back(std::move(b));

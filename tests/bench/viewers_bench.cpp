@@ -39,11 +39,9 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
-#include <glm/glm.hpp>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -60,31 +58,22 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
+#include "bench_stream.h"
 #include "bench_util.h"
-#include "renderer/camera.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/server.h"
-#include "tessera/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 
 namespace {
 
 using nlohmann::json;
-using tessera::bench::Median;
-using tessera::bench::Percentile;
+using namespace tessera::bench;  // bench_util.h, bench_stream.h
 
 namespace v1 = tessera::v1;
-using Clock = std::chrono::steady_clock;
 
-constexpr uint32_t kChunkBytes = 1u << 20;  // the proto's (and the server's default) chunk limit
-constexpr float kMaxSessionFps = 1000.0f;   // the server's highest cap: never the limit here
+constexpr float kMaxSessionFps = 1000.0f;  // the server's highest cap: never the limit here
 constexpr uint32_t kMaxViewers = 64;
-constexpr float kOrbitStepRadians = 0.02f;  // camera movement per event
-constexpr uint64_t kStepsPerTurn = 314;     // 2 pi / kOrbitStepRadians: viewers' phases
-// When a viewer finds the server with nothing left to render for it, it sends two events; the
-// second waits this long so the server has taken the first (two events that arrive together
-// are merged into one frame: latest wins).
-constexpr auto kRestartGap = std::chrono::milliseconds(1);
+constexpr uint64_t kStepsPerTurn = 314;  // 2 pi / kOrbitStepRadians: viewers' phases
 constexpr auto kStreamDeadlineSlack = std::chrono::minutes(10);
 
 constexpr double kTargetPipelinedVsSerial = 1.3;
@@ -95,10 +84,6 @@ constexpr char kUsage[] =
     "usage: tessera-viewers-bench [--scenes demo,sponza|PATH.gltf,...] [--width N] [--height N]\n"
     "         [--viewers 1,2,4,8] [--modes pipelined,serial] [--seconds S] [--warmup-frames N]\n"
     "         [--encoder-threads N] [--assets DIR] [--device NAME] [--smoke]\n";
-
-double MsBetween(Clock::time_point a, Clock::time_point b) {
-  return std::chrono::duration<double, std::milli>(b - a).count();
-}
 
 [[noreturn]] void UsageError(const std::string& msg) {
   std::fprintf(stderr, "%s: %s\n%s", program_invocation_short_name, msg.c_str(), kUsage);
@@ -123,43 +108,6 @@ struct Options {
   uint32_t encoder_threads = 0;  // ServerOptions.encoder_threads (0: one per core)
 };
 
-// Cameras on a circle around the scene centre, at the distance, height and near plane of the
-// server's default framing (as tessera-stream-bench); `phase` puts a viewer elsewhere on it.
-struct Orbit {
-  glm::vec3 center{0.0f};
-  glm::vec3 offset{0.0f, 0.0f, 5.0f};  // eye - center at step 0
-  float znear = 0.05f;
-  uint64_t phase = 0;  // steps
-
-  v1::Camera At(uint64_t step) const {
-    const float a = kOrbitStepRadians * static_cast<float>((step + phase) % 100000);
-    const glm::vec3 o(offset.x * std::cos(a) + offset.z * std::sin(a), offset.y,
-                      -offset.x * std::sin(a) + offset.z * std::cos(a));
-    v1::Camera c;
-    v1::LookAt* l = c.mutable_look_at();
-    l->mutable_eye()->set_x(center.x + o.x);
-    l->mutable_eye()->set_y(center.y + o.y);
-    l->mutable_eye()->set_z(center.z + o.z);
-    l->mutable_target()->set_x(center.x);
-    l->mutable_target()->set_y(center.y);
-    l->mutable_target()->set_z(center.z);
-    c.set_znear(znear);
-    return c;
-  }
-};
-
-Orbit MakeOrbit(const v1::Aabb& bounds, float aspect) {
-  tessera::Aabb box;
-  box.min = glm::vec3(bounds.min().x(), bounds.min().y(), bounds.min().z());
-  box.max = glm::vec3(bounds.max().x(), bounds.max().y(), bounds.max().z());
-  const tessera::Camera framed = tessera::FrameBounds(box, tessera::Camera{}.yfov, aspect);
-  Orbit orbit;
-  orbit.center = framed.target;
-  orbit.offset = framed.eye - framed.target;
-  orbit.znear = framed.znear;
-  return orbit;
-}
-
 // A scene as the benchmark knows it: "demo" or a glTF file set read from disk (kept for the
 // upload to every mode's server).
 struct BenchScene {
@@ -173,22 +121,9 @@ absl::StatusOr<BenchScene> ReadScene(const std::string& key, const Options& o) {
   b.key = key;
   b.scene_id = "demo";
   if (key == "demo") return b;
-  std::string path;
-  if (key == "sponza")
-    path = o.assets + "/Sponza/glTF/Sponza.gltf";
-  else if (absl::EndsWithIgnoreCase(key, ".gltf") || absl::EndsWithIgnoreCase(key, ".glb"))
-    path = key;
-  else
-    return absl::InvalidArgumentError(
-        absl::StrCat("unknown scene \"", key, "\" (demo, sponza, or a path to a .gltf/.glb)"));
-  absl::StatusOr<tessera::GltfSource> source = tessera::LoadGltfSourceFromDisk(path);
-  if (!source.ok())
-    return absl::Status(source.status().code(),
-                        path + ": " + std::string(source.status().message()));
-  std::map<std::string, std::string> sha256;
-  for (const auto& [name, data] : source->files)
-    sha256[name] = tessera::Sha256Hex(data.data(), data.size());
-  b.scene_id = tessera::SceneId(sha256, source->main_file);
+  absl::StatusOr<tessera::GltfSource> source = ReadSceneFiles(key, o.assets);
+  if (!source.ok()) return source.status();
+  b.scene_id = LocalSceneId(*source);
   b.source = *std::move(source);
   return b;
 }
@@ -198,9 +133,9 @@ absl::StatusOr<BenchScene> ReadScene(const std::string& key, const Options& o) {
 absl::StatusOr<v1::SceneInfo> PutScene(v1::RenderService::Stub* stub, const BenchScene& b,
                                        double* upload_ms) {
   const auto t0 = Clock::now();
-  grpc::ClientContext ctx;
-  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
   if (!b.source) {
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(10));
     v1::HasSceneRequest request;
     request.set_scene_id(b.scene_id);
     v1::HasSceneResponse response;
@@ -210,34 +145,9 @@ absl::StatusOr<v1::SceneInfo> PutScene(v1::RenderService::Stub* stub, const Benc
     *upload_ms = 0.0;
     return response.info();
   }
-  const tessera::GltfSource& src = *b.source;
   v1::SceneInfo info;
-  std::unique_ptr<grpc::ClientWriter<v1::UploadRequest>> writer = stub->UploadScene(&ctx, &info);
-  v1::UploadRequest request;
-  v1::UploadManifest* manifest = request.mutable_manifest();
-  manifest->set_main_file(src.main_file);
-  for (const auto& [name, data] : src.files) {
-    v1::UploadFile* f = manifest->add_files();
-    f->set_name(name);
-    f->set_size(data.size());
-    f->set_sha256(tessera::Sha256Hex(data.data(), data.size()));
-  }
-  bool ok = writer->Write(request);
-  uint32_t file_index = 0;
-  for (const auto& [name, data] : src.files) {
-    for (size_t offset = 0; ok && offset < data.size(); offset += kChunkBytes) {
-      const size_t n = std::min<size_t>(kChunkBytes, data.size() - offset);
-      v1::UploadRequest chunk_request;
-      v1::UploadChunk* chunk = chunk_request.mutable_chunk();
-      chunk->set_file_index(file_index);
-      chunk->set_offset(offset);
-      chunk->set_data(data.data() + offset, n);
-      ok = writer->Write(chunk_request);
-    }
-    ++file_index;
-  }
-  if (ok) writer->WritesDone();
-  if (grpc::Status st = writer->Finish(); !st.ok()) return FromGrpc(b.key + ": UploadScene", st);
+  if (grpc::Status st = UploadFileSet(stub, *b.source, &info); !st.ok())
+    return FromGrpc(b.key + ": UploadScene", st);
   if (info.scene_id() != b.scene_id)
     return absl::InternalError(absl::StrCat(b.key, ": UploadScene answered scene id ",
                                             info.scene_id(), ", expected ", b.scene_id));
@@ -625,19 +535,14 @@ std::vector<uint32_t> ParseCounts(const std::string& flag, const std::string& s,
 
 Options ParseFlags(int argc, char** argv) {
   Options o;
-  if (const char* env = std::getenv("TESSERA_ASSETS_DIR"); env && *env)
-    o.assets = env;
-  else
-    o.assets = TESSERA_DEFAULT_ASSETS_DIR;
+  o.assets = AssetsDir();
   // --smoke sets small defaults first, so later flags can still change them.
-  for (int i = 1; i < argc; ++i) {
-    if (std::string(argv[i]) == "--smoke") {
-      o.scenes = {"demo"};
-      o.width = 96;
-      o.height = 64;
-      o.viewers = {1, 2};
-      o.seconds = 1.0;
-    }
+  if (HasFlag(argc, argv, "--smoke")) {
+    o.scenes = {"demo"};
+    o.width = 96;
+    o.height = 64;
+    o.viewers = {1, 2};
+    o.seconds = 1.0;
   }
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];

@@ -20,9 +20,9 @@
 
 #include "absl/strings/str_cat.h"
 #include "renderer/image_io.h"
-#include "renderer/scene/gltf_import.h"
 #include "tessera/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
+#include "tests/integration/client_helpers.h"
 
 namespace tessera {
 namespace {
@@ -30,95 +30,11 @@ namespace {
 namespace fs = std::filesystem;
 using server::Server;
 using server::ServerOptions;
-
-std::string AssetsDir() {
-  const char* env = std::getenv("TESSERA_ASSETS_DIR");
-  return env ? env : TESSERA_DEFAULT_ASSETS_DIR;
-}
-
-// --- client helpers ----------------------------------------------------------------------
-
-std::unique_ptr<v1::RenderService::Stub> Connect(const std::string& address,
-                                                 bool small_window = false) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(64 << 20);
-  // A fixed 64 KiB stream window, so a slow reader really pushes back on the server.
-  if (small_window) args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
-  return v1::RenderService::NewStub(
-      grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args));
-}
-
-struct UploadPart {
-  std::string name;
-  std::string bytes;
-};
-
-// Uploads files as given (no validation here: the server must do it).
-grpc::Status UploadRaw(v1::RenderService::Stub* stub, const std::vector<UploadPart>& files,
-                       v1::SceneInfo* info, const std::string& main_file = "",
-                       size_t chunk = 1 << 20, bool with_sha = true) {
-  grpc::ClientContext ctx;
-  auto writer = stub->UploadScene(&ctx, info);
-  v1::UploadRequest req;
-  v1::UploadManifest* m = req.mutable_manifest();
-  m->set_main_file(main_file);
-  for (const UploadPart& f : files) {
-    v1::UploadFile* uf = m->add_files();
-    uf->set_name(f.name);
-    uf->set_size(f.bytes.size());
-    if (with_sha) uf->set_sha256(Sha256Hex(f.bytes.data(), f.bytes.size()));
-  }
-  bool ok = writer->Write(req);
-  for (size_t i = 0; ok && i < files.size(); ++i) {
-    for (size_t off = 0; ok && off < files[i].bytes.size(); off += chunk) {
-      v1::UploadRequest c;
-      c.mutable_chunk()->set_file_index(static_cast<uint32_t>(i));
-      c.mutable_chunk()->set_offset(off);
-      c.mutable_chunk()->set_data(files[i].bytes.substr(off, chunk));
-      ok = writer->Write(c);
-    }
-  }
-  writer->WritesDone();
-  return writer->Finish();
-}
-
-std::vector<UploadPart> PartsFromDisk(const std::string& path) {
-  absl::StatusOr<GltfSource> src = LoadGltfSourceFromDisk(path);
-  EXPECT_TRUE(src.ok()) << src.status();
-  std::vector<UploadPart> parts;
-  if (!src.ok()) return parts;
-  for (const auto& [name, data] : src->files)
-    parts.push_back({name, std::string(data.begin(), data.end())});
-  return parts;
-}
-
-std::string MainName(const std::string& path) { return fs::path(path).filename().string(); }
-
-v1::RenderRequest DemoRequest(uint32_t w, uint32_t h) {
-  v1::RenderRequest req;
-  req.set_scene_id("demo");
-  req.mutable_settings()->set_width(w);
-  req.mutable_settings()->set_height(h);
-  return req;
-}
-
-void SetLookAt(v1::Camera* cam, float ex, float ey, float ez) {
-  v1::LookAt* l = cam->mutable_look_at();
-  l->mutable_eye()->set_x(ex);
-  l->mutable_eye()->set_y(ey);
-  l->mutable_eye()->set_z(ez);
-  l->mutable_target()->set_y(0.5f);
-}
-
-// Eye of camera event k in the stream tests: a circle, so every event is a new view.
-void OrbitEye(uint64_t k, v1::Camera* cam) {
-  const float a = 0.2f * float(k);
-  SetLookAt(cam, 6.0f * std::cos(a), 2.5f, 6.0f * std::sin(a));
-}
+using namespace test_client;  // client_helpers.h
 
 // --- fixture: one in-process server for the suite ----------------------------------------
 
-class ServerTest : public ::testing::Test {
+class ServerTest : public SharedServerTest<ServerTest> {
  protected:
   static void SetUpTestSuite() {
     ServerOptions o;
@@ -128,17 +44,6 @@ class ServerTest : public ::testing::Test {
     absl::StatusOr<std::unique_ptr<Server>> s = Server::Start(o);
     ASSERT_TRUE(s.ok()) << s.status();
     server_ = s->release();
-  }
-  static void TearDownTestSuite() {
-    if (!server_) return;
-    server_->Shutdown();
-    EXPECT_EQ(server_->stats().validation_messages, 0u);
-    delete server_;
-    server_ = nullptr;
-  }
-  void SetUp() override {
-    ASSERT_NE(server_, nullptr);
-    stub_ = Connect(server_->address());
   }
   void TearDown() override {
     // Every test leaves the server healthy: a plain render still works.
@@ -168,19 +73,7 @@ class ServerTest : public ::testing::Test {
     }
     return pred(server_->stats());
   }
-
-  static Server* server_;
-  std::unique_ptr<v1::RenderService::Stub> stub_;
 };
-Server* ServerTest::server_ = nullptr;
-
-#define EXPECT_CODE(status, code, text)                                         \
-  do {                                                                          \
-    const grpc::Status& st_ = (status);                                         \
-    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << st_.error_message(); \
-    EXPECT_NE(st_.error_message().find(text), std::string::npos)                \
-        << "message \"" << st_.error_message() << "\" should name " << text;    \
-  } while (0)
 
 // --- info, health, reflection ------------------------------------------------------------
 
@@ -608,32 +501,6 @@ TEST_F(ServerTest, ClientLeavingMidUploadLeavesNothingBehind) {
 
 // --- streams -------------------------------------------------------------------------------
 
-using StreamRW = grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>;
-
-v1::ClientEvent OpenEvent(const std::string& scene, uint32_t w, uint32_t h, float fps = 0) {
-  v1::ClientEvent e;
-  e.set_event_id(0);
-  e.mutable_open()->set_scene_id(scene);
-  e.mutable_open()->mutable_settings()->set_width(w);
-  e.mutable_open()->mutable_settings()->set_height(h);
-  e.mutable_open()->set_target_fps(fps);
-  OrbitEye(0, e.mutable_open()->mutable_camera());
-  return e;
-}
-
-v1::ClientEvent CameraEvent(uint64_t id) {
-  v1::ClientEvent e;
-  e.set_event_id(id);
-  OrbitEye(id, e.mutable_camera());
-  return e;
-}
-
-float EyeX(uint64_t k) {
-  v1::Camera c;
-  OrbitEye(k, &c);
-  return c.look_at().eye().x();
-}
-
 // 30 camera updates sent as fast as possible: frames come in order, each names the newest
 // event it reflects (its camera is that event's camera), and the last reflects event 30.
 TEST_F(ServerTest, StreamFramesNameTheNewestEventTheyReflect) {
@@ -705,7 +572,7 @@ TEST_F(ServerTest, StreamSettingsUpdatesMergeAndBadEventsEndTheStream) {
 // A reader much slower than the render rate gets fewer frames, each recent, while the frames
 // the server holds for it stay bounded.
 TEST_F(ServerTest, SlowReaderGetsRecentFramesAndServerMemoryStaysBounded) {
-  auto slow_stub = Connect(server_->address(), /*small_window=*/true);
+  auto slow_stub = Connect(server_->address(), {.small_window = true});
   grpc::ClientContext ctx;
   std::unique_ptr<StreamRW> rw = slow_stub->Stream(&ctx);
   ASSERT_TRUE(rw->Write(OpenEvent("demo", 320, 240)));

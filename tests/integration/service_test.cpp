@@ -25,10 +25,9 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "renderer/image_io.h"
-#include "renderer/scene/gltf_import.h"
 #include "server/server.h"
-#include "tessera/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
+#include "tests/integration/client_helpers.h"
 #include "tests/integration/test_certs.h"
 
 namespace tessera {
@@ -38,21 +37,8 @@ namespace fs = std::filesystem;
 using server::Server;
 using server::ServerOptions;
 using server::ServerStats;
-using StreamRW = grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>;
 using Clock = std::chrono::steady_clock;
-
-#define EXPECT_CODE(status, code, text)                                         \
-  do {                                                                          \
-    const grpc::Status& st_ = (status);                                         \
-    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << st_.error_message(); \
-    EXPECT_NE(st_.error_message().find(text), std::string::npos)                \
-        << "message \"" << st_.error_message() << "\" should name " << text;    \
-  } while (0)
-
-std::string AssetsDir() {
-  const char* env = std::getenv("TESSERA_ASSETS_DIR");
-  return env ? env : TESSERA_DEFAULT_ASSETS_DIR;
-}
+using namespace test_client;  // client_helpers.h
 
 ServerOptions BaseOptions() {
   ServerOptions o;
@@ -67,53 +53,6 @@ std::unique_ptr<Server> StartServer(const ServerOptions& o) {
   return s.ok() ? *std::move(s) : nullptr;
 }
 
-std::unique_ptr<v1::RenderService::Stub> Connect(
-    const std::string& address,
-    std::shared_ptr<grpc::ChannelCredentials> creds = grpc::InsecureChannelCredentials()) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(64 << 20);
-  return v1::RenderService::NewStub(grpc::CreateCustomChannel(address, creds, args));
-}
-
-// Waits (bounded) until `pred` holds on the server's stats.
-template <typename Pred>
-bool WaitFor(const Server& server, Pred pred, int ms = 10000) {
-  const auto end = Clock::now() + std::chrono::milliseconds(ms);
-  while (Clock::now() < end) {
-    if (pred(server.stats())) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return pred(server.stats());
-}
-
-void SetEye(v1::Camera* cam, uint64_t k) {
-  const float a = 0.2f * float(k);
-  v1::LookAt* l = cam->mutable_look_at();
-  l->mutable_eye()->set_x(6.0f * std::cos(a));
-  l->mutable_eye()->set_y(2.5f);
-  l->mutable_eye()->set_z(6.0f * std::sin(a));
-  l->mutable_target()->set_y(0.5f);
-}
-
-float EyeX(uint64_t k) { return 6.0f * std::cos(0.2f * float(k)); }
-
-v1::ClientEvent OpenEvent(uint32_t w, uint32_t h, float fps = 0) {
-  v1::ClientEvent e;
-  e.mutable_open()->set_scene_id("demo");
-  e.mutable_open()->mutable_settings()->set_width(w);
-  e.mutable_open()->mutable_settings()->set_height(h);
-  e.mutable_open()->set_target_fps(fps);
-  SetEye(e.mutable_open()->mutable_camera(), 0);
-  return e;
-}
-
-v1::ClientEvent CameraEvent(uint64_t id) {
-  v1::ClientEvent e;
-  e.set_event_id(id);
-  SetEye(e.mutable_camera(), id);
-  return e;
-}
-
 v1::ClientEvent ResumeEvent(const std::string& token) {
   v1::ClientEvent e;
   e.mutable_open()->set_resume_token(token);
@@ -125,57 +64,6 @@ bool ReadUntilEvent(StreamRW* rw, uint64_t event, v1::Frame* f) {
   while (rw->Read(f))
     if (f->event_id() >= event) return true;
   return false;
-}
-
-grpc::Status CloseStream(StreamRW* rw) {
-  rw->WritesDone();
-  v1::Frame f;
-  while (rw->Read(&f)) {
-  }
-  return rw->Finish();
-}
-
-v1::RenderRequest DemoRequest(uint32_t w, uint32_t h) {
-  v1::RenderRequest req;
-  req.set_scene_id("demo");
-  req.mutable_settings()->set_width(w);
-  req.mutable_settings()->set_height(h);
-  return req;
-}
-
-grpc::Status Upload(v1::RenderService::Stub* stub, const std::string& path, v1::SceneInfo* info,
-                    grpc::ClientContext* ctx) {
-  absl::StatusOr<GltfSource> src = LoadGltfSourceFromDisk(path);
-  EXPECT_TRUE(src.ok()) << src.status();
-  if (!src.ok()) return grpc::Status(grpc::StatusCode::INTERNAL, "read");
-  auto writer = stub->UploadScene(ctx, info);
-  v1::UploadRequest req;
-  req.mutable_manifest()->set_main_file(src->main_file);
-  std::vector<const std::vector<uint8_t>*> datas;
-  for (const auto& [name, data] : src->files) {
-    v1::UploadFile* f = req.mutable_manifest()->add_files();
-    f->set_name(name);
-    f->set_size(data.size());
-    datas.push_back(&data);
-  }
-  bool ok = writer->Write(req);
-  for (size_t i = 0; ok && i < datas.size(); ++i) {
-    for (size_t off = 0; ok && off < datas[i]->size(); off += 1 << 20) {
-      v1::UploadRequest c;
-      c.mutable_chunk()->set_file_index(static_cast<uint32_t>(i));
-      c.mutable_chunk()->set_offset(off);
-      c.mutable_chunk()->set_data(datas[i]->data() + off,
-                                  std::min<size_t>(1 << 20, datas[i]->size() - off));
-      ok = writer->Write(c);
-    }
-  }
-  writer->WritesDone();
-  return writer->Finish();
-}
-
-grpc::Status Upload(v1::RenderService::Stub* stub, const std::string& path, v1::SceneInfo* info) {
-  grpc::ClientContext ctx;
-  return Upload(stub, path, info, &ctx);
 }
 
 // GET http://127.0.0.1:port/path over a plain socket (HTTP/1.0: the server closes).
@@ -219,7 +107,7 @@ std::map<std::string, double> ParseMetrics(const std::string& text) {
 
 // --- one server for the session tests: resume grace 2 s, metrics on, one uploaded scene max --
 
-class ServiceTest : public ::testing::Test {
+class ServiceTest : public SharedServerTest<ServiceTest> {
  protected:
   static void SetUpTestSuite() {
     ServerOptions o = BaseOptions();
@@ -229,27 +117,13 @@ class ServiceTest : public ::testing::Test {
     o.metrics_listen = "127.0.0.1:0";
     server_ = StartServer(o).release();
   }
-  static void TearDownTestSuite() {
-    if (!server_) return;
-    server_->Shutdown();
-    EXPECT_EQ(server_->stats().validation_messages, 0u);
-    delete server_;
-    server_ = nullptr;
-  }
-  void SetUp() override {
-    ASSERT_NE(server_, nullptr);
-    stub_ = Connect(server_->address());
-  }
   void TearDown() override {
     grpc::ClientContext ctx;
     v1::Frame f;
     EXPECT_TRUE(stub_->Render(&ctx, DemoRequest(32, 24), &f).ok()) << "server still serves";
     EXPECT_EQ(server_->stats().validation_messages, 0u);
   }
-  static Server* server_;
-  std::unique_ptr<v1::RenderService::Stub> stub_;
 };
-Server* ServiceTest::server_ = nullptr;
 
 // A stream that breaks (the client vanishes without closing) leaves its session parked; a new
 // stream with the token gets it back, scene, settings, camera and sequence, and a full frame
@@ -260,7 +134,7 @@ TEST_F(ServiceTest, ResumeAfterABrokenStreamRestoresTheSessionWithAFullFrameAtOn
   {
     grpc::ClientContext ctx;
     auto rw = stub_->Stream(&ctx);
-    v1::ClientEvent open = OpenEvent(80, 60);
+    v1::ClientEvent open = OpenEvent("demo", 80, 60);
     open.mutable_open()->mutable_settings()->set_aa(v1::AA_FXAA);
     open.mutable_open()->mutable_settings()->set_jpeg_quality(77);
     ASSERT_TRUE(rw->Write(open));
@@ -307,7 +181,7 @@ TEST_F(ServiceTest, ResumeAfterABrokenStreamRestoresTheSessionWithAFullFrameAtOn
 TEST_F(ServiceTest, ResumingAnOpenSessionMovesItAndAbortsTheOldStream) {
   grpc::ClientContext old_ctx;
   auto old_rw = stub_->Stream(&old_ctx);
-  ASSERT_TRUE(old_rw->Write(OpenEvent(64, 48)));
+  ASSERT_TRUE(old_rw->Write(OpenEvent("demo", 64, 48)));
   ASSERT_TRUE(old_rw->Write(CameraEvent(5)));
   v1::Frame f;
   ASSERT_TRUE(ReadUntilEvent(old_rw.get(), 5, &f));
@@ -336,7 +210,7 @@ TEST_F(ServiceTest, UnknownAndExpiredTokensAreNotFound) {
   {
     grpc::ClientContext ctx;
     auto rw = stub_->Stream(&ctx);
-    ASSERT_TRUE(rw->Write(OpenEvent(32, 32)));
+    ASSERT_TRUE(rw->Write(OpenEvent("demo", 32, 32)));
     v1::Frame f;
     ASSERT_TRUE(rw->Read(&f));
     token = f.session_token();
@@ -357,7 +231,7 @@ TEST_F(ServiceTest, UnknownAndExpiredTokensAreNotFound) {
 TEST_F(ServiceTest, InteractiveFramesWhileMovingThenOneFullFrameAtRest) {
   grpc::ClientContext ctx;
   auto rw = stub_->Stream(&ctx);
-  v1::ClientEvent open = OpenEvent(128, 96);
+  v1::ClientEvent open = OpenEvent("demo", 128, 96);
   open.mutable_open()->mutable_interactive()->set_enabled(true);
   open.mutable_open()->mutable_interactive()->set_render_scale(0.5f);
   open.mutable_open()->mutable_interactive()->set_jpeg_quality(50);
@@ -459,10 +333,10 @@ TEST_F(ServiceTest, RenderPastItsDeadlineIsNotRendered) {
 // so, and the eviction is counted in the metrics.
 TEST_F(ServiceTest, LeastRecentlyUsedUnusedSceneIsEvicted) {
   v1::SceneInfo box, boxt;
-  grpc::Status st = Upload(stub_.get(), AssetsDir() + "/Box/glTF/Box.gltf", &box);
+  grpc::Status st = UploadFromDisk(stub_.get(), AssetsDir() + "/Box/glTF/Box.gltf", &box);
   ASSERT_TRUE(st.ok()) << st.error_message();
   const uint64_t evicted_before = server_->stats().scenes_evicted;
-  st = Upload(stub_.get(), AssetsDir() + "/BoxTextured/glTF/BoxTextured.gltf", &boxt);
+  st = UploadFromDisk(stub_.get(), AssetsDir() + "/BoxTextured/glTF/BoxTextured.gltf", &boxt);
   ASSERT_TRUE(st.ok()) << st.error_message();
   EXPECT_EQ(server_->stats().scenes_evicted, evicted_before + 1);
   grpc::ClientContext ctx;
@@ -555,7 +429,7 @@ TEST(FpsCap, TargetFpsAboveTheCapIsLoweredAndNoted) {
   auto stub = Connect(server->address());
   grpc::ClientContext ctx;
   auto rw = stub->Stream(&ctx);
-  ASSERT_TRUE(rw->Write(OpenEvent(32, 24, /*fps=*/120)));
+  ASSERT_TRUE(rw->Write(OpenEvent("demo", 32, 24, /*fps=*/120)));
   v1::Frame f;
   ASSERT_TRUE(rw->Read(&f));
   bool noted = false;
@@ -658,11 +532,12 @@ TEST(Security, TokensAreRequiredHealthStaysOpenLimitsHoldAndReloadWorks) {
               grpc::StatusCode::UNAUTHENTICATED);
     grpc::ClientContext stream_ctx;
     auto rw = stub->Stream(&stream_ctx);
-    rw->Write(OpenEvent(16, 16));
+    rw->Write(OpenEvent("demo", 16, 16));
     EXPECT_CODE(CloseStream(rw.get()), UNAUTHENTICATED, "bearer token");
     v1::SceneInfo scene;
     grpc::ClientContext up_ctx;
-    EXPECT_EQ(Upload(stub.get(), AssetsDir() + "/Box/glTF/Box.gltf", &scene, &up_ctx).error_code(),
+    EXPECT_EQ(UploadFromDisk(stub.get(), AssetsDir() + "/Box/glTF/Box.gltf", &scene, &up_ctx)
+                  .error_code(),
               grpc::StatusCode::UNAUTHENTICATED);
   }
   EXPECT_TRUE(HealthServing(server->address())) << "health needs no token";
@@ -681,24 +556,24 @@ TEST(Security, TokensAreRequiredHealthStaysOpenLimitsHoldAndReloadWorks) {
     grpc::ClientContext a;
     WithToken(&a, kViewerToken);
     auto first = stub->Stream(&a);
-    ASSERT_TRUE(first->Write(OpenEvent(16, 16)));
+    ASSERT_TRUE(first->Write(OpenEvent("demo", 16, 16)));
     ASSERT_TRUE(first->Read(&f));
     grpc::ClientContext b;
     WithToken(&b, kViewerToken);
     auto second = stub->Stream(&b);
-    second->Write(OpenEvent(16, 16));
+    second->Write(OpenEvent("demo", 16, 16));
     EXPECT_CODE(CloseStream(second.get()), RESOURCE_EXHAUSTED, "max_sessions");
     grpc::ClientContext c;  // another token is not limited by viewer's count
     WithToken(&c, kOpsToken);
     auto third = stub->Stream(&c);
-    ASSERT_TRUE(third->Write(OpenEvent(16, 16)));
+    ASSERT_TRUE(third->Write(OpenEvent("demo", 16, 16)));
     EXPECT_TRUE(third->Read(&f));
     EXPECT_TRUE(CloseStream(third.get()).ok());
     EXPECT_TRUE(CloseStream(first.get()).ok());
     v1::SceneInfo scene;
     grpc::ClientContext up;
     WithToken(&up, kViewerToken);
-    grpc::Status st = Upload(stub.get(), AssetsDir() + "/Box/glTF/Box.gltf", &scene, &up);
+    grpc::Status st = UploadFromDisk(stub.get(), AssetsDir() + "/Box/glTF/Box.gltf", &scene, &up);
     EXPECT_CODE(st, RESOURCE_EXHAUSTED, "max_uploads");
     EXPECT_EQ(st.error_message().find(kViewerToken), std::string::npos) << "no secret in errors";
   }
@@ -726,7 +601,7 @@ TEST(Security, TokensAreRequiredHealthStaysOpenLimitsHoldAndReloadWorks) {
     grpc::ClientContext ctx;
     WithToken(&ctx, kOpsToken);
     auto rw = stub->Stream(&ctx);
-    ASSERT_TRUE(rw->Write(OpenEvent(16, 16)));
+    ASSERT_TRUE(rw->Write(OpenEvent("demo", 16, 16)));
     ASSERT_TRUE(rw->Read(&f));
     const std::string session = f.session_token();
     grpc::ClientContext thief;
@@ -759,7 +634,7 @@ TEST(Security, TlsAndMutualTls) {
     return grpc::SslCredentials(ssl);
   };
   auto render = [](const std::string& address, std::shared_ptr<grpc::ChannelCredentials> c) {
-    auto stub = Connect(address, c);
+    auto stub = Connect(address, {.creds = c});
     grpc::ClientContext ctx;
     ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(20));
     v1::Frame f;

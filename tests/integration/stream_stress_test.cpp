@@ -11,7 +11,6 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <cmath>
 #include <condition_variable>
 #include <cstdint>
 #include <cstdlib>
@@ -32,6 +31,7 @@
 #include "absl/strings/string_view.h"
 #include "server/server.h"
 #include "tessera/v1/render_service.grpc.pb.h"
+#include "tests/integration/client_helpers.h"
 
 namespace tessera {
 namespace {
@@ -40,8 +40,8 @@ using server::Server;
 using server::ServerOptions;
 using server::ServerStats;
 using Clock = std::chrono::steady_clock;
-using StreamRW = grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>;
 using namespace std::chrono_literals;
+using namespace test_client;  // client_helpers.h
 
 int StressSeconds() {
   const char* env = std::getenv("TESSERA_STRESS_SECONDS");
@@ -61,29 +61,6 @@ uint64_t RssBytes() {
 }
 
 double Mib(uint64_t bytes) { return double(bytes) / (1024.0 * 1024.0); }
-
-// Its own channel and connection (a local subchannel pool: channels to the same address do
-// not share a TCP connection), so every client is a separate viewer.
-std::shared_ptr<grpc::Channel> NewChannel(const std::string& address) {
-  grpc::ChannelArguments args;
-  args.SetMaxReceiveMessageSize(64 << 20);
-  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-  return grpc::CreateCustomChannel(address, grpc::InsecureChannelCredentials(), args);
-}
-
-void SetLookAt(v1::Camera* cam, float ex, float ey, float ez) {
-  v1::LookAt* l = cam->mutable_look_at();
-  l->mutable_eye()->set_x(ex);
-  l->mutable_eye()->set_y(ey);
-  l->mutable_eye()->set_z(ez);
-  l->mutable_target()->set_y(0.5f);
-}
-
-// Eye of camera step k: a circle, so every event is a new view.
-void OrbitEye(uint64_t k, v1::Camera* cam) {
-  const float a = 0.2f * float(k);
-  SetLookAt(cam, 6.0f * std::cos(a), 2.5f, 6.0f * std::sin(a));
-}
 
 // Failures seen on client threads; the main thread asserts on them.
 class ErrorList {
@@ -181,7 +158,7 @@ class StressClient {
         errors_(errors),
         rng_(spec_.seed),
         size_(spec_.size),
-        channel_(NewChannel(address_)) {}
+        channel_(NewChannel(address_, {.own_connection = true})) {}
 
   ~StressClient() { Abandon(); }
 
@@ -375,7 +352,7 @@ class StressClient {
       return;
     }
     Close(/*cancel=*/true);
-    channel_ = NewChannel(address_);  // a reconnecting client: a new connection
+    channel_ = NewChannel(address_, {.own_connection = true});  // a reconnecting client
     Open(/*resume=*/true, token);
     // The resumed session sends its frame without any further event from us.
     std::unique_lock lock(mu_);
@@ -559,16 +536,6 @@ class StressClient {
   uint64_t interactive_frames_ = 0;
 };
 
-template <typename Pred>
-bool WaitForStats(const Server& server, Pred pred, std::chrono::milliseconds limit) {
-  const Clock::time_point until = Clock::now() + limit;
-  while (Clock::now() < until) {
-    if (pred(server.stats())) return true;
-    std::this_thread::sleep_for(20ms);
-  }
-  return pred(server.stats());
-}
-
 std::string StatsLine(const ServerStats& s) {
   return absl::StrCat(
       "{\"sessions\": ", s.sessions, ", \"parked_sessions\": ", s.parked_sessions,
@@ -653,15 +620,16 @@ TEST(StreamStress, EightViewersForAMinute) {
   EXPECT_EQ(errors.count(), 0u) << errors.Joined();
 
   // The server lets go of everything once the last stream is closed.
-  const bool drained = WaitForStats(
+  const bool drained = WaitFor(
       *server,
       [](const ServerStats& s) {
         return s.sessions == 0 && s.pending_frame_bytes == 0 && s.frames_in_flight == 0;
       },
-      10s);
+      /*ms=*/10000, /*poll_ms=*/20);
   EXPECT_TRUE(drained) << StatsLine(server->stats());
-  const bool unparked = WaitForStats(
-      *server, [](const ServerStats& s) { return s.parked_sessions == 0; }, 10s);
+  const bool unparked = WaitFor(
+      *server, [](const ServerStats& s) { return s.parked_sessions == 0; }, /*ms=*/10000,
+      /*poll_ms=*/20);
   EXPECT_TRUE(unparked) << StatsLine(server->stats());
   const ServerStats after = server->stats();
   std::cout << "{\"server_stats\": " << StatsLine(after) << "}" << std::endl;

@@ -1,0 +1,225 @@
+#pragma once
+// gRPC client helpers of the integration tests (server_test, service_test, stream_stress_test):
+// channels and stubs, the camera orbit of the stream tests and the events built on it, uploads
+// of file sets, closing a stream, waiting on the server's stats, and the fixture of a suite
+// that shares one in-process server.
+#include <grpcpp/grpcpp.h>
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "renderer/scene/gltf_import.h"
+#include "server/server.h"
+#include "tessera/scene_id.h"
+#include "tessera/v1/render_service.grpc.pb.h"
+
+// Expects `status` to have the grpc::StatusCode `code` and a message that names `text`.
+#define EXPECT_CODE(status, code, text)                                         \
+  do {                                                                          \
+    const grpc::Status& st_ = (status);                                         \
+    EXPECT_EQ(st_.error_code(), grpc::StatusCode::code) << st_.error_message(); \
+    EXPECT_NE(st_.error_message().find(text), std::string::npos)                \
+        << "message \"" << st_.error_message() << "\" should name " << text;    \
+  } while (0)
+
+namespace tessera::test_client {
+
+using StreamRW = grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>;
+
+inline std::string AssetsDir() {
+  const char* env = std::getenv("TESSERA_ASSETS_DIR");
+  return env ? env : TESSERA_DEFAULT_ASSETS_DIR;
+}
+
+// --- channels ------------------------------------------------------------------------------
+
+struct ConnectOptions {
+  std::shared_ptr<grpc::ChannelCredentials> creds = grpc::InsecureChannelCredentials();
+  // A fixed 64 KiB stream window (no BDP probing), so a slow reader really pushes back on the
+  // server.
+  bool small_window = false;
+  // A connection of its own (a local subchannel pool: channels to the same address would
+  // otherwise share one TCP connection), as a separate viewer has.
+  bool own_connection = false;
+};
+
+// A channel that takes frames up to 64 MiB.
+inline std::shared_ptr<grpc::Channel> NewChannel(const std::string& address,
+                                                 const ConnectOptions& o = {}) {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(64 << 20);
+  if (o.small_window) args.SetInt(GRPC_ARG_HTTP2_BDP_PROBE, 0);
+  if (o.own_connection) args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  return grpc::CreateCustomChannel(address, o.creds, args);
+}
+
+inline std::unique_ptr<v1::RenderService::Stub> Connect(const std::string& address,
+                                                        const ConnectOptions& o = {}) {
+  return v1::RenderService::NewStub(NewChannel(address, o));
+}
+
+// --- requests and stream events ------------------------------------------------------------
+
+inline v1::RenderRequest DemoRequest(uint32_t w, uint32_t h) {
+  v1::RenderRequest req;
+  req.set_scene_id("demo");
+  req.mutable_settings()->set_width(w);
+  req.mutable_settings()->set_height(h);
+  return req;
+}
+
+inline void SetLookAt(v1::Camera* cam, float ex, float ey, float ez) {
+  v1::LookAt* l = cam->mutable_look_at();
+  l->mutable_eye()->set_x(ex);
+  l->mutable_eye()->set_y(ey);
+  l->mutable_eye()->set_z(ez);
+  l->mutable_target()->set_y(0.5f);
+}
+
+// Eye of camera event (or step) k in the stream tests: a circle, so every event is a new view.
+inline void OrbitEye(uint64_t k, v1::Camera* cam) {
+  const float a = 0.2f * float(k);
+  SetLookAt(cam, 6.0f * std::cos(a), 2.5f, 6.0f * std::sin(a));
+}
+
+inline float EyeX(uint64_t k) {
+  v1::Camera c;
+  OrbitEye(k, &c);
+  return c.look_at().eye().x();
+}
+
+// Opens a session on `scene` at w x h (target_fps `fps`, 0: on events only), camera step 0.
+inline v1::ClientEvent OpenEvent(const std::string& scene, uint32_t w, uint32_t h, float fps = 0) {
+  v1::ClientEvent e;
+  e.set_event_id(0);
+  e.mutable_open()->set_scene_id(scene);
+  e.mutable_open()->mutable_settings()->set_width(w);
+  e.mutable_open()->mutable_settings()->set_height(h);
+  e.mutable_open()->set_target_fps(fps);
+  OrbitEye(0, e.mutable_open()->mutable_camera());
+  return e;
+}
+
+inline v1::ClientEvent CameraEvent(uint64_t id) {
+  v1::ClientEvent e;
+  e.set_event_id(id);
+  OrbitEye(id, e.mutable_camera());
+  return e;
+}
+
+// Half-closes, reads what the server still sends, and returns how the stream ended.
+inline grpc::Status CloseStream(StreamRW* rw) {
+  rw->WritesDone();
+  v1::Frame f;
+  while (rw->Read(&f)) {
+  }
+  return rw->Finish();
+}
+
+// --- uploads -------------------------------------------------------------------------------
+
+struct UploadPart {
+  std::string name;
+  std::string bytes;
+};
+
+// Uploads files as given (no validation here: the server must do it), in `chunk`-byte chunks,
+// on `ctx` (a fresh context when null).
+inline grpc::Status UploadRaw(v1::RenderService::Stub* stub, const std::vector<UploadPart>& files,
+                              v1::SceneInfo* info, const std::string& main_file = "",
+                              size_t chunk = 1 << 20, bool with_sha = true,
+                              grpc::ClientContext* ctx = nullptr) {
+  grpc::ClientContext own_ctx;
+  auto writer = stub->UploadScene(ctx ? ctx : &own_ctx, info);
+  v1::UploadRequest req;
+  v1::UploadManifest* m = req.mutable_manifest();
+  m->set_main_file(main_file);
+  for (const UploadPart& f : files) {
+    v1::UploadFile* uf = m->add_files();
+    uf->set_name(f.name);
+    uf->set_size(f.bytes.size());
+    if (with_sha) uf->set_sha256(Sha256Hex(f.bytes.data(), f.bytes.size()));
+  }
+  bool ok = writer->Write(req);
+  for (size_t i = 0; ok && i < files.size(); ++i) {
+    for (size_t off = 0; ok && off < files[i].bytes.size(); off += chunk) {
+      v1::UploadRequest c;
+      c.mutable_chunk()->set_file_index(static_cast<uint32_t>(i));
+      c.mutable_chunk()->set_offset(off);
+      c.mutable_chunk()->set_data(files[i].bytes.substr(off, chunk));
+      ok = writer->Write(c);
+    }
+  }
+  writer->WritesDone();
+  return writer->Finish();
+}
+
+// The glTF file set at `path` (the file and what it references); none, after a test failure,
+// when it cannot be read.
+inline std::vector<UploadPart> PartsFromDisk(const std::string& path) {
+  absl::StatusOr<GltfSource> src = LoadGltfSourceFromDisk(path);
+  EXPECT_TRUE(src.ok()) << src.status();
+  std::vector<UploadPart> parts;
+  if (!src.ok()) return parts;
+  for (const auto& [name, data] : src->files)
+    parts.push_back({name, std::string(data.begin(), data.end())});
+  return parts;
+}
+
+inline std::string MainName(const std::string& path) {
+  return std::filesystem::path(path).filename().string();
+}
+
+// Uploads the glTF file set at `path` (1 MiB chunks, no checksums) on `ctx` (a fresh context
+// when null).
+inline grpc::Status UploadFromDisk(v1::RenderService::Stub* stub, const std::string& path,
+                                   v1::SceneInfo* info, grpc::ClientContext* ctx = nullptr) {
+  const std::vector<UploadPart> parts = PartsFromDisk(path);
+  if (parts.empty()) return grpc::Status(grpc::StatusCode::INTERNAL, "read");
+  return UploadRaw(stub, parts, info, MainName(path), 1 << 20, /*with_sha=*/false, ctx);
+}
+
+// --- the server ----------------------------------------------------------------------------
+
+// Waits (bounded: `ms`, polling every `poll_ms`) until `pred` holds on the server's stats.
+template <typename Pred>
+bool WaitFor(const server::Server& server, Pred pred, int ms = 10000, int poll_ms = 10) {
+  const auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(ms);
+  while (std::chrono::steady_clock::now() < end) {
+    if (pred(server.stats())) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(poll_ms));
+  }
+  return pred(server.stats());
+}
+
+// The fixture of a suite that shares one in-process server: the suite's SetUpTestSuite starts
+// it into server_, every test gets stub_ on it, and the suite's end shuts it down and expects
+// no validation messages. `Suite` (the derived fixture) gives each suite a server_ of its own.
+template <typename Suite>
+class SharedServerTest : public ::testing::Test {
+ protected:
+  static void TearDownTestSuite() {
+    if (!server_) return;
+    server_->Shutdown();
+    EXPECT_EQ(server_->stats().validation_messages, 0u);
+    delete server_;
+    server_ = nullptr;
+  }
+  void SetUp() override {
+    ASSERT_NE(server_, nullptr);
+    stub_ = Connect(server_->address());
+  }
+
+  static inline server::Server* server_ = nullptr;
+  std::unique_ptr<v1::RenderService::Stub> stub_;
+};
+
+}  // namespace tessera::test_client
