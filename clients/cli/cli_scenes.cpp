@@ -29,13 +29,24 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
                HumanDuration(info.uptime_s()));
   absl::PrintF("device     %s (%s)\n", d.name(), d.type());
   absl::PrintF("driver     %s, %s, Vulkan %s\n", d.driver_name(), d.driver_info(), d.api_version());
-  absl::PrintF("load       %u scenes, %u sessions, queue depth %u, %u frames rendered\n",
-               info.scenes_loaded(), info.active_sessions(), info.queue_depth(),
-               info.frames_rendered());
+  absl::PrintF(
+      "load       %u scenes (%s on the device), %u sessions (+%u parked), queue depth %u "
+      "(%u background), %u frames in flight, %u frames rendered\n",
+      info.scenes_loaded(), HumanBytes(info.scene_device_bytes()), info.active_sessions(),
+      info.parked_sessions(), info.queue_depth(), info.background_queue_depth(),
+      info.frames_in_flight(), info.frames_rendered());
   absl::PrintF(
       "limits     %ux MSAA, frames up to %ux%u, %u scenes, %u sessions, %u synthetic lights\n",
       l.max_samples(), l.max_width(), l.max_height(), l.max_scenes(), l.max_sessions(),
       l.max_synthetic_lights());
+  absl::PrintF("streams    up to %g fps each, resumable for %u s, %u frames encoding at once\n",
+               l.max_session_fps(), l.resume_grace_s(), l.max_frames_in_flight());
+  if (l.scene_memory_budget_bytes() != 0)
+    absl::PrintF("memory     %s for uploaded scenes (unused ones evicted, least recently used "
+                 "first)\n",
+                 HumanBytes(l.scene_memory_budget_bytes()));
+  absl::PrintF("security   %s, %s\n", info.tls() ? "TLS" : "plaintext",
+               info.auth_required() ? "bearer tokens required" : "no tokens");
   absl::PrintF("uploads    up to %s in %u files, chunks up to %s\n",
                HumanBytes(l.max_upload_bytes()), l.max_upload_files(),
                HumanBytes(l.max_chunk_bytes()));

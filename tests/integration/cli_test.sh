@@ -66,6 +66,39 @@ grep -q "settings.width" "$work/err" || fail "message does not name settings.wid
 "$tessera" rm "$id" > /dev/null
 if "$tessera" scenes | grep -q "${id:0:12}"; then fail "rm left the scene"; fi
 
+# Idle refinement: an orbit with --interactive gets frames rendered at half size.
+"$tessera" --json stream --scene demo --frames 4 --orbit --width 96 --height 64 \
+  --interactive 0.5 > "$work/interactive.json"
+python3 - "$work/interactive.json" <<'PY' || fail "stream --interactive"
+import json, sys
+d = json.load(open(sys.argv[1]))
+moving = [f for f in d["frame_list"] if f["profile"] == "interactive"]
+assert moving, [f["profile"] for f in d["frame_list"]]
+assert all(f["render_width"] == 48 and f["width"] == 96 for f in moving), moving
+PY
+
+kill -TERM "$pid"
+wait "$pid" || fail "tesserad exited with $? after SIGTERM"
+pid=""
+
+# A daemon that requires a bearer token: refused without it (exit 1, UNAUTHENTICATED), served
+# with --token-file or $TESSERA_TOKEN.
+echo "cli-test-token-0123456789 cli" > "$work/tokens"
+echo "cli-test-token-0123456789" > "$work/token"
+rm -f "$work/port"
+"$tesserad" --listen=127.0.0.1:0 --port_file="$work/port" --log_level=warn \
+  --token_file="$work/tokens" &
+pid=$!
+for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.1; done
+[[ -s $work/port ]] || fail "tesserad with tokens did not start"
+export TESSERA_SERVER="127.0.0.1:$(cat "$work/port")"
+if "$tessera" info > /dev/null 2> "$work/err"; then fail "info without a token succeeded"; fi
+grep -q "UNAUTHENTICATED" "$work/err" || fail "no UNAUTHENTICATED in: $(cat "$work/err")"
+"$tessera" --token-file "$work/token" info | grep -q "bearer tokens required" ||
+  fail "info with --token-file"
+TESSERA_TOKEN=cli-test-token-0123456789 "$tessera" render --scene demo --width 32 --height 24 \
+  -o "$work/token.jpg" > /dev/null || fail "render with \$TESSERA_TOKEN"
+
 kill -TERM "$pid"
 wait "$pid" || fail "tesserad exited with $? after SIGTERM"
 pid=""
