@@ -132,6 +132,7 @@ void RenderLoop::Stop() {
     }
   }
   cv_.notify_all();
+  encoded_cv_.notify_all();
   if (thread_.joinable()) thread_.join();
   for (auto& c : abandoned)
     c->Deliver(RenderWork{}, absl::UnavailableError("server is shutting down"));

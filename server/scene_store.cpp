@@ -12,7 +12,11 @@ void Touch(const StoredScene& s) {
   s.last_used = std::chrono::steady_clock::now().time_since_epoch().count();
 }
 
-bool Evictable(const StoredScene& s) { return s.sessions.load() == 0; }
+// Nobody but the store holds it: no session (leases), no handler between Find and its lease,
+// no queued Render (which holds the scene handle).
+bool Evictable(const std::shared_ptr<StoredScene>& s) {
+  return s->sessions.load() == 0 && s.use_count() == 1 && s->scene.use_count() <= 1;
+}
 
 }  // namespace
 
@@ -43,7 +47,7 @@ uint64_t SceneStore::UploadedBytesLocked() const {
 bool SceneStore::EvictOneLocked() {
   auto victim = scenes_.end();
   for (auto it = scenes_.begin(); it != scenes_.end(); ++it)
-    if (Evictable(*it->second) &&
+    if (Evictable(it->second) &&
         (victim == scenes_.end() || it->second->last_used < victim->second->last_used))
       victim = it;
   if (victim == scenes_.end()) return false;
@@ -57,7 +61,7 @@ bool SceneStore::EvictOneLocked() {
 absl::Status SceneStore::CheckRoom() const {
   std::lock_guard lock(mu_);
   const bool any_evictable = std::any_of(scenes_.begin(), scenes_.end(),
-                                         [](const auto& kv) { return Evictable(*kv.second); });
+                                         [](const auto& kv) { return Evictable(kv.second); });
   if (UploadedLocked() >= max_scenes_ && !any_evictable)
     return absl::ResourceExhaustedError(absl::StrCat(
         "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",

@@ -39,7 +39,11 @@ struct StoredScene {
 class SceneLease {
  public:
   explicit SceneLease(std::shared_ptr<StoredScene> s) : scene_(std::move(s)) { ++scene_->sessions; }
-  ~SceneLease() { --scene_->sessions; }
+  ~SceneLease() {
+    // A scene watched until now counts as just used (LRU eviction).
+    scene_->last_used = std::chrono::steady_clock::now().time_since_epoch().count();
+    --scene_->sessions;
+  }
   SceneLease(const SceneLease&) = delete;
   SceneLease& operator=(const SceneLease&) = delete;
   const StoredScene& get() const { return *scene_; }

@@ -196,7 +196,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
           cancelled_ = true;
         else
           reading_done_ = true;
-      } else if (!finished_) {
+      } else if (!finished_ && !error_ && !handed_over_ && !parked_) {
         absl::Status st = resumed ? ResumeLocked(*std::move(resumed))
                           : opened_ ? ApplyUpdateLocked()
                                     : OpenLocked();
@@ -244,8 +244,9 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     std::shared_ptr<StreamSession> keep = std::move(self_);
     {
       std::lock_guard lock(state_->sessions_mu);
-      if (state_->sessions.erase(keep) != 0)
-        state_->principal_sessions.Release(st_.principal);
+      // principal_, not st_.principal: the state may have moved to a parked or resumed session.
+      if (state_->sessions.erase(keep) != 0 && principal_)
+        state_->principal_sessions.Release(principal_->name);
       if (auto it = state_->live_tokens.find(st_.token);
           it != state_->live_tokens.end() && it->second.lock() == keep)
         state_->live_tokens.erase(it);
@@ -439,6 +440,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
 
   absl::Status ApplyUpdateLocked() {
     if (event_.has_open()) return absl::InvalidArgumentError("open: the session is already open");
+    if (!st_.lease) return absl::OkStatus();  // the state has left (parked or handed over)
     Settings settings = st_.settings;
     if (event_.has_settings()) {
       absl::StatusOr<Settings> merged = MergeSettings(st_.settings, event_.settings());
@@ -592,7 +594,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
       finish = ToGrpc(*error_);
     } else if (stopping_ && idle) {
       finish = ToGrpc(Unavailable());
-    } else if (reading_done_ && idle && !dirty_) {
+    } else if (reading_done_ && idle && !dirty_ && !need_refine_) {
       finish = grpc::Status::OK;
     }
     if (finish) {
@@ -688,11 +690,12 @@ uint32_t ServiceState::parked_count() const {
 
 void ServiceState::ShutdownSessions() {
   std::vector<std::shared_ptr<StreamSession>> open;
+  std::map<std::string, Parked> dropped;  // scene leases released after unlocking
   {
     std::lock_guard lock(sessions_mu);
     shutting_down = true;
     open.assign(sessions.begin(), sessions.end());
-    parked.clear();
+    dropped.swap(parked);
   }
   for (auto& s : open) s->Stop();
 }
@@ -719,14 +722,13 @@ absl::StatusOr<SessionState> ServiceState::Resume(const std::string& token,
                                                   const std::string& principal) {
   const absl::Status unknown = absl::NotFoundError(
       "open.resume_token: no session to resume (unknown token, or its grace period is over)");
+  // Expired sessions are left to the sweeper (which frees them outside the lock).
   auto take_parked = [&]() -> std::optional<SessionState> {
     std::lock_guard lock(sessions_mu);
     auto it = parked.find(token);
-    if (it == parked.end() || it->second.state.principal != principal) return std::nullopt;
-    if (Clock::now() >= it->second.expires) {
-      parked.erase(it);
+    if (it == parked.end() || it->second.state.principal != principal ||
+        Clock::now() >= it->second.expires)
       return std::nullopt;
-    }
     SessionState out = std::move(it->second.state);
     parked.erase(it);
     return out;
@@ -816,12 +818,16 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
         assembler_(UploadLimits{state->options.max_upload_bytes, state->options.max_upload_files,
                                 state->options.max_chunk_bytes}),
         started_(Clock::now()) {
-    const uint32_t uploads = ++state_->uploads_in_progress;
+    // Unauthenticated calls are refused before they take an upload slot.
     absl::StatusOr<std::shared_ptr<const Principal>> principal = state_->Authorize(ctx);
-    absl::Status admission = absl::OkStatus();
     if (!principal.ok()) {
-      admission = principal.status();
-    } else if (state_->shutting_down) {
+      Done(principal.status());
+      return;
+    }
+    const uint32_t uploads = ++state_->uploads_in_progress;
+    in_progress_ = true;
+    absl::Status admission = absl::OkStatus();
+    if (state_->shutting_down) {
       admission = Unavailable();
     } else if (uploads > state_->options.max_concurrent_uploads) {
       admission = absl::ResourceExhaustedError(
@@ -876,7 +882,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
   }
 
   void OnDone() override {
-    --state_->uploads_in_progress;
+    if (in_progress_) --state_->uploads_in_progress;
     if (counted_) state_->principal_uploads.Release(principal_);
     delete this;
   }
@@ -929,6 +935,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
   Clock::time_point started_;
   std::string principal_;  // counted against its max_uploads while counted_
   bool counted_ = false;
+  bool in_progress_ = false;  // counted in uploads_in_progress
 };
 
 grpc::ServerReadReactor<v1::UploadRequest>* RenderServiceImpl::UploadScene(

@@ -322,6 +322,7 @@ Json SummaryJson(const Summary& s, const std::vector<FrameRecord>& records,
   Json frames = Json::array();
   for (const FrameRecord& r : records) {
     Json f = FrameJson(r.frame);
+    f.erase("session_token");  // it resumes (takes over) the session: not for logs
     f["bytes"] = r.bytes;
     f["received_ms"] = r.received_ms;
     f["latency_ms"] = r.latency_ms ? Json(*r.latency_ms) : nullptr;

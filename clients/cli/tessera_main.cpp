@@ -5,6 +5,7 @@
 #include <string>
 
 #include "absl/strings/numbers.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/string_view.h"
@@ -66,7 +67,8 @@ ParsedLine ParseLine(int argc, char** argv) {
   ParsedLine line;
   GlobalOptions& g = line.inv.global;
   if (const char* env = std::getenv("TESSERA_SERVER"); env && *env) g.server = env;
-  if (const char* env = std::getenv("TESSERA_TOKEN"); env && *env) g.token = env;
+  if (const char* env = std::getenv("TESSERA_TOKEN"); env && *env)
+    g.token = std::string(absl::StripAsciiWhitespace(env));
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&](absl::string_view flag) -> std::string {

@@ -280,6 +280,28 @@ TEST_F(ServiceTest, InteractiveFramesWhileMovingThenOneFullFrameAtRest) {
   EXPECT_TRUE(CloseStream(rw.get()).ok());
 }
 
+// A client that half-closes right after moving still gets the full-quality frame last.
+TEST_F(ServiceTest, HalfCloseAfterMovingStillEndsWithTheFullFrame) {
+  grpc::ClientContext ctx;
+  auto rw = stub_->Stream(&ctx);
+  v1::ClientEvent open = OpenEvent("demo", 96, 64);
+  open.mutable_open()->mutable_interactive()->set_enabled(true);
+  open.mutable_open()->mutable_interactive()->set_rest_ms(100);
+  ASSERT_TRUE(rw->Write(open));
+  v1::Frame f;
+  ASSERT_TRUE(rw->Read(&f));
+  ASSERT_TRUE(rw->Write(CameraEvent(1)));
+  ASSERT_TRUE(ReadUntilEvent(rw.get(), 1, &f));
+  EXPECT_EQ(f.profile(), "interactive");
+  rw->WritesDone();
+  v1::Frame last = f;
+  while (rw->Read(&f)) last = f;
+  EXPECT_TRUE(rw->Finish().ok());
+  EXPECT_EQ(last.profile(), "full");
+  EXPECT_EQ(last.event_id(), 1u);
+  EXPECT_EQ(last.render_width(), 96u);
+}
+
 // Background renders run only when no normal work waits: a normal render queued behind six
 // background ones is served next.
 TEST_F(ServiceTest, BackgroundRendersWaitForNormalOnes) {
@@ -569,7 +591,16 @@ TEST(Security, TokensAreRequiredHealthStaysOpenLimitsHoldAndReloadWorks) {
     ASSERT_TRUE(third->Write(OpenEvent("demo", 16, 16)));
     EXPECT_TRUE(third->Read(&f));
     EXPECT_TRUE(CloseStream(third.get()).ok());
-    EXPECT_TRUE(CloseStream(first.get()).ok());
+    // A stream that breaks gives its slot back (its session is parked, not open).
+    a.TryCancel();
+    first->Finish();
+    ASSERT_TRUE(WaitFor(*server, [](const ServerStats& s) { return s.sessions == 0; }));
+    grpc::ClientContext d;
+    WithToken(&d, kViewerToken);
+    auto fourth = stub->Stream(&d);
+    ASSERT_TRUE(fourth->Write(OpenEvent("demo", 16, 16)));
+    EXPECT_TRUE(fourth->Read(&f)) << "the token's max_sessions was given back";
+    EXPECT_TRUE(CloseStream(fourth.get()).ok());
     v1::SceneInfo scene;
     grpc::ClientContext up;
     WithToken(&up, kViewerToken);

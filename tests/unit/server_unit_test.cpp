@@ -1094,12 +1094,18 @@ TEST(SceneStoreTest, MemoryBudgetEvictsUnusedScenesLeastRecentlyUsedFirst) {
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(store.device_bytes(), 850u);
   std::optional<SceneLease> hold_a(std::in_place, *a);  // a is in use: b must go instead
+  a->reset();
+  // Held by someone between a Find and its lease: not evictable either.
+  EXPECT_TRUE(IsError(store.Add(IdOf("", 'x'), nullptr, Sized("x", 500)).status(),
+                      absl::StatusCode::kResourceExhausted, {"scene_memory_budget"}));
+  b->reset();
   auto c = store.Add(IdOf("", 'c'), nullptr, Sized("c", 500));
   ASSERT_TRUE(c.ok()) << c.status();
   EXPECT_EQ(store.Find(IdOf("", 'b')).status().code(), absl::StatusCode::kNotFound);
   EXPECT_EQ(store.device_bytes(), 950u);
   // a (in use) + c (in use) leave no room for 300 more.
   std::optional<SceneLease> hold_c(std::in_place, *c);
+  c->reset();
   EXPECT_TRUE(IsError(store.Add(IdOf("", 'd'), nullptr, Sized("d", 300)).status(),
                       absl::StatusCode::kResourceExhausted, {"scene_memory_budget", "1000"}));
   // Larger than the whole budget: refused without evicting anything.
