@@ -60,8 +60,10 @@ bool SceneStore::EvictOneLocked() {
 
 absl::Status SceneStore::CheckRoom() const {
   std::lock_guard lock(mu_);
+  // Lenient on purpose: a scene only briefly held (a request between Find and its lease) will
+  // be evictable by the time this upload is parsed; Add decides for real.
   const bool any_evictable = std::any_of(scenes_.begin(), scenes_.end(),
-                                         [](const auto& kv) { return Evictable(kv.second); });
+                                         [](const auto& kv) { return kv.second->sessions == 0; });
   if (UploadedLocked() >= max_scenes_ && !any_evictable)
     return absl::ResourceExhaustedError(absl::StrCat(
         "scenes: ", UploadedLocked(), " uploaded scenes in memory reach the max_scenes limit (",

@@ -872,6 +872,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
     if (std::shared_ptr<StoredScene> existing = state_->store->FindExact(scene_id)) {
       *response_ = existing->info;  // same content: nothing to parse
       SceneStore::FillLiveFields(*existing, response_);
+      existing.reset();  // not held while the client hears back (eviction)
       return Done(absl::OkStatus(), "already loaded");
     }
     // Parsing and the device upload can take seconds: off the gRPC thread.
@@ -910,6 +911,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
     if (!stored.ok()) return Done(stored.status());
     *response_ = (*stored)->info;
     SceneStore::FillLiveFields(**stored, response_);
+    stored->reset();  // before the client hears back: an unused scene is evictable at once
     Done(absl::OkStatus(), "loaded");
   }
 
