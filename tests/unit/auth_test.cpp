@@ -5,6 +5,7 @@
 #include "server/auth.h"
 
 #include <gtest/gtest.h>
+#include "tests/unit/status_matchers.h"
 #include <unistd.h>
 
 #include <atomic>
@@ -27,27 +28,7 @@ constexpr char kOpsToken[] = "s3cr3t-ops-token-0123456789";
 constexpr char kViewerToken[] = "viewer-token-abcdefghijklmno";
 constexpr char kSecret[] = "do-not-print-me-0123456789";  // the token on malformed lines
 
-// OK when `status` has `code`, its message contains every one of `needles` and none of
-// `secrets`.
-::testing::AssertionResult IsError(const absl::Status& status, absl::StatusCode code,
-                                   std::initializer_list<std::string_view> needles,
-                                   std::initializer_list<std::string_view> secrets = {}) {
-  if (status.code() != code)
-    return ::testing::AssertionFailure()
-           << "code " << absl::StatusCodeToString(status.code()) << ", want "
-           << absl::StatusCodeToString(code) << " (" << status << ")";
-  const std::string message(status.message());
-  for (std::string_view needle : needles) {
-    if (message.find(needle) == std::string::npos)
-      return ::testing::AssertionFailure()
-             << "message \"" << message << "\" does not name \"" << needle << "\"";
-  }
-  for (std::string_view secret : secrets) {
-    if (message.find(secret) != std::string::npos)
-      return ::testing::AssertionFailure() << "message \"" << message << "\" leaks a token";
-  }
-  return ::testing::AssertionSuccess();
-}
+using test::IsError;
 
 // A file under the test's temp dir, removed at the end of the test.
 class TempFile {

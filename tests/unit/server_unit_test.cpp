@@ -4,6 +4,7 @@
 // and deferred deletion. Every error check asserts the status code and that the message names
 // the field, file or limit a person has to fix.
 #include <gtest/gtest.h>
+#include "tests/unit/status_matchers.h"
 
 #include <algorithm>
 #include <chrono>
@@ -36,21 +37,7 @@ namespace {
 constexpr float kNan = std::numeric_limits<float>::quiet_NaN();
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-// OK when `status` has `code` and its message contains every one of `needles`.
-::testing::AssertionResult IsError(const absl::Status& status, absl::StatusCode code,
-                                   std::initializer_list<std::string_view> needles) {
-  if (status.code() != code)
-    return ::testing::AssertionFailure()
-           << "code " << absl::StatusCodeToString(status.code()) << ", want "
-           << absl::StatusCodeToString(code) << " (" << status << ")";
-  const std::string message(status.message());
-  for (std::string_view needle : needles) {
-    if (message.find(needle) == std::string::npos)
-      return ::testing::AssertionFailure()
-             << "message \"" << message << "\" does not name \"" << needle << "\"";
-  }
-  return ::testing::AssertionSuccess();
-}
+using test::IsError;
 
 std::vector<uint8_t> Bytes(std::string_view s) { return std::vector<uint8_t>(s.begin(), s.end()); }
 
