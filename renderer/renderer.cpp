@@ -1031,6 +1031,13 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   return SceneHandle(std::move(scene));
 }
 
+void Renderer::ForgetView(const Scene& scene, uint64_t view) {
+  std::lock_guard lock(impl_->mutex);
+  // Frames are synchronous (each Render waits for its fence), so nothing in flight uses them.
+  impl_->taa_history.erase({scene.gpu_->serial(), view});
+  scene.gpu_->views().erase(view);
+}
+
 absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
                                        const Settings& settings) {
   return Render(scene, camera, settings, nullptr);

@@ -152,6 +152,11 @@ class Renderer {
   absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings,
                                uint64_t view, FrameCapture* capture = nullptr);
 
+  // Drops what `view` remembers of `scene` (taa history, gpu_occlusion visibility), so its next
+  // frame starts from reset temporal state: how job frames stay deterministic whatever was
+  // rendered before, and how they give the memory back afterwards.
+  void ForgetView(const Scene& scene, uint64_t view);
+
   // Validation-layer messages so far (tests require zero).
   uint64_t validation_message_count() const;
   std::vector<std::string> validation_messages() const;

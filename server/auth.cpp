@@ -1,5 +1,7 @@
 #include "server/auth.h"
 
+#include <openssl/rand.h>
+
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
 
@@ -16,6 +18,19 @@
 #include "absl/strings/str_cat.h"
 
 namespace tessera::server {
+
+std::string RandomHex(size_t bytes) {
+  std::vector<unsigned char> raw(bytes);
+  if (RAND_bytes(raw.data(), static_cast<int>(raw.size())) != 1) std::abort();
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string out;
+  out.reserve(bytes * 2);
+  for (unsigned char b : raw) {
+    out.push_back(kHex[b >> 4]);
+    out.push_back(kHex[b & 15]);
+  }
+  return out;
+}
 namespace {
 
 // Debian's Abseil is built with its own string_view (ABSL_OPTION_USE_STD_STRING_VIEW 0), so

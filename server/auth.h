@@ -42,6 +42,10 @@
 
 namespace tessera::server {
 
+// `bytes` random bytes from the OS's CSPRNG as lower-case hex: ids and tokens nobody can guess
+// from another (resume tokens, job ids). Aborts when there is no entropy (nothing safe to do).
+std::string RandomHex(size_t bytes);
+
 inline constexpr size_t kMinTokenLength = 16;
 inline constexpr size_t kMaxTokenLength = 256;
 inline constexpr size_t kMaxPrincipalNameLength = 64;

@@ -1,3 +1,4 @@
+#include "server/proto_vec.h"
 #include "server/convert.h"
 
 #include <cmath>
@@ -21,18 +22,6 @@ absl::Status MergeEnum(int wire, IsValidFn is_valid, const char* field, Renderer
 template <typename RendererEnum>
 int WireEnum(RendererEnum v) {
   return static_cast<int>(v) + 1;
-}
-
-bool Finite(const v1::Vec3& v) {
-  return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
-}
-
-glm::vec3 Vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
-
-void SetVec(const glm::vec3& v, v1::Vec3* out) {
-  out->set_x(v.x);
-  out->set_y(v.y);
-  out->set_z(v.z);
 }
 
 absl::Status Bad(const std::string& field, const std::string& why) {

@@ -164,27 +164,51 @@ void RenderLoop::Run() {
       continue;
     }
     // Background work only when no normal client waits: a viewer waits at most for the one
-    // background frame already being rendered.
-    auto& queue = ready_.empty() ? background_ : ready_;
+    // background frame already being rendered. While viewers are active, background frames
+    // also keep to their share of the render thread.
+    const bool background = ready_.empty();
+    if (background && now < background_not_before_ &&
+        now - last_normal_ < std::chrono::milliseconds(500)) {
+      Clock::time_point until = background_not_before_;
+      if (!timers_.empty()) until = std::min(until, timers_.top().first);
+      cv_.wait_until(lock, until);
+      continue;
+    }
+    auto& queue = background ? background_ : ready_;
     std::shared_ptr<RenderClient> client = std::move(queue.front());
     queue.pop_front();
     lock.unlock();
-    RenderOne(client);
+    const Clock::time_point start = Clock::now();
+    const bool rendered = RenderOne(client);
+    const Clock::time_point end = Clock::now();
     lock.lock();
+    if (!rendered) continue;
+    if (!background) {
+      last_normal_ = end;
+    } else if (options_.background_share > 0.0 && options_.background_share < 1.0) {
+      const double rest = (1.0 - options_.background_share) / options_.background_share;
+      background_not_before_ =
+          end + std::chrono::duration_cast<Clock::duration>((end - start) * rest);
+    }
   }
 }
 
-void RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
+bool RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
   std::optional<RenderWork> work = client->TakeWork();
-  if (!work) return;
+  if (!work) return false;
   const Clock::time_point start = Clock::now();
-  absl::StatusOr<Frame> frame =
-      renderer_->Render(*work->scene, work->camera, work->settings, work->view);
+  if (work->fresh_view) renderer_->ForgetView(*work->scene, work->view);
+  absl::StatusOr<Frame> frame;
+  for (uint32_t i = 0; i < std::max(1u, work->accumulate); ++i) {
+    frame = renderer_->Render(*work->scene, work->camera, work->settings, work->view);
+    if (!frame.ok()) break;
+  }
+  if (work->fresh_view) renderer_->ForgetView(*work->scene, work->view);
   if (!frame.ok()) {
     Log().warn("render: scene {} seq {}: {}", work->scene_id, work->sequence,
                frame.status().ToString());
     client->Deliver(*work, frame.status());
-    return;
+    return true;
   }
   {
     std::lock_guard lock(mu_);
@@ -194,13 +218,14 @@ void RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
   const double queue_wait_ms = MsBetween(work->requested, start);
   if (!options_.pipelined) {
     EncodeAndDeliver(client, *work, *frame, queue_wait_ms);
-    return;
+    return true;
   }
   // The encoder owns the pixels from here; the render thread goes on to the next client.
   auto shared_frame = std::make_shared<Frame>(*std::move(frame));
   encoders_->Submit([this, client, work = std::move(*work), shared_frame, queue_wait_ms] {
     EncodeAndDeliver(client, work, *shared_frame, queue_wait_ms);
   });
+  return true;
 }
 
 void RenderLoop::EncodeAndDeliver(const std::shared_ptr<RenderClient>& client,

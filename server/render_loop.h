@@ -6,7 +6,8 @@
 // it for a snapshot of what to render (TakeWork), renders it, and hands the pixels to the
 // encoder pool, then moves to the next client. A client that still has work afterwards goes to
 // the back of the queue, so every client gets a turn: round-robin, nobody starves. Background
-// work (batch renders) has its own queue, served only when the normal one is empty.
+// work (batch renders, jobs) has its own queue, served only when the normal one is empty, and
+// while normal clients are active only up to background_share of the render thread's time.
 //
 // Encoding (bicubic upscale for interactive frames, JPEG/PNG) runs on the encoder pool, so the
 // render thread renders frame N+1 while frame N is encoded. At most max_frames_in_flight
@@ -70,7 +71,12 @@ struct RenderWork {
   uint32_t output_width = 0;
   uint32_t output_height = 0;
   const char* profile = "";      // Frame.profile ("full", "interactive"; "" for Render)
-  const char* kind = "render";   // metrics label: "stream", "render" or "background"
+  const char* kind = "render";   // metrics label: "stream", "render", "background" or "job"
+  // Job frames: the view starts from reset temporal state and is forgotten afterwards, and
+  // `accumulate` frames are rendered at the camera (taa converging from a reset history) of
+  // which the last is delivered. Deterministic: the same work gives the same pixels.
+  bool fresh_view = false;
+  uint32_t accumulate = 1;
 };
 
 enum class Priority { kNormal, kBackground };
@@ -80,6 +86,10 @@ struct RenderLoopOptions {
   uint32_t max_frames_in_flight = 3;  // rendered frames out on the encoders at once
   bool pipelined = true;              // false: encode on the render thread (serial baseline)
   Metrics* metrics = nullptr;         // optional; outlives the loop
+  // While normal clients are active (one was rendered in the last half second), background
+  // frames may take at most this share of the render thread, so a live viewer's frame rate
+  // drops by about this much while a job runs. 1: background runs whenever nothing else waits.
+  double background_share = 0.12;
 };
 
 class RenderClient {
@@ -115,7 +125,8 @@ class RenderLoop {
 
  private:
   void Run();
-  void RenderOne(const std::shared_ptr<RenderClient>& client);
+  // Renders one turn of `client`; false when it had nothing to render.
+  bool RenderOne(const std::shared_ptr<RenderClient>& client);
   void EncodeAndDeliver(const std::shared_ptr<RenderClient>& client, const RenderWork& work,
                         Frame& frame, double queue_wait_ms);
 
@@ -135,6 +146,8 @@ class RenderLoop {
   std::priority_queue<Timed, std::vector<Timed>, Later> timers_;
   bool stopping_ = false;
   uint64_t frames_rendered_ = 0;
+  Clock::time_point last_normal_{};         // when a normal frame last finished rendering
+  Clock::time_point background_not_before_{};  // background_share: the next background start
   std::unique_ptr<ThreadPool> encoders_;
   std::thread thread_;
 };

@@ -4,7 +4,13 @@
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
 
+#include <sys/stat.h>
+
+#include <cerrno>
 #include <condition_variable>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <thread>
@@ -14,6 +20,8 @@
 #include "renderer/scene/demo_scene.h"
 #include "server/auth.h"
 #include "server/convert.h"
+#include "server/job_journal.h"
+#include "server/jobs.h"
 #include "server/metrics.h"
 #include "server/service.h"
 
@@ -70,6 +78,8 @@ struct Server::Impl {
   std::unique_ptr<SceneStore> store;
   std::unique_ptr<ThreadPool> loader;
   std::unique_ptr<RenderLoop> loop;
+  std::unique_ptr<JobManager> jobs;
+  std::string temp_state_dir;  // jobs without --state_dir: removed at exit
   ServiceState state;
   std::unique_ptr<RenderServiceImpl> service;
   std::unique_ptr<grpc::Server> grpc_server;
@@ -98,6 +108,11 @@ struct Server::Impl {
     // encoders (which report to it) are drained.
     if (loop) loop->Stop();
     metrics.reset();
+    jobs.reset();
+    if (!temp_state_dir.empty()) {
+      std::error_code ec;
+      std::filesystem::remove_all(temp_state_dir, ec);
+    }
   }
 };
 
@@ -114,6 +129,10 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     return absl::InvalidArgumentError("max_frames_in_flight: must be 1..16");
   if (options.resume_grace_s > 86400)
     return absl::InvalidArgumentError("resume_grace_s: must be 0..86400");
+  if (options.max_jobs == 0 || options.max_job_frames == 0)
+    return absl::InvalidArgumentError("max_jobs, max_job_frames: must be > 0");
+  if (!(options.background_share > 0.0 && options.background_share <= 1.0))
+    return absl::InvalidArgumentError("background_share: must be in (0, 1]");
   auto impl = std::make_unique<Impl>();
   impl->options = options;
   absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = Credentials(options);
@@ -172,7 +191,37 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   loop_options.max_frames_in_flight = options.max_frames_in_flight;
   loop_options.pipelined = options.pipelined;
   loop_options.metrics = impl->metrics.get();
+  loop_options.background_share = options.background_share;
   impl->loop = std::make_unique<RenderLoop>(impl->renderer.get(), loop_options);
+
+  std::string state_dir = options.state_dir;
+  if (state_dir.empty()) {
+    const char* tmp = std::getenv("TMPDIR");
+    std::string templ = absl::StrCat(tmp && *tmp ? tmp : "/tmp", "/tesserad-jobs-XXXXXX");
+    if (::mkdtemp(templ.data()) == nullptr)
+      return absl::FailedPreconditionError(
+          absl::StrCat("jobs: cannot make a temporary directory ", templ, ": ",
+                       std::strerror(errno), " (or give --state_dir)"));
+    impl->temp_state_dir = state_dir = templ;
+  }
+  absl::StatusOr<std::unique_ptr<JobJournal>> journal = JobJournal::Open(state_dir);
+  if (!journal.ok()) return absl::Status(journal.status().code(),
+                                         absl::StrCat("state_dir: ", journal.status().message()));
+  if (!options.job_output_root.empty()) {
+    struct stat sb;
+    if (::stat(options.job_output_root.c_str(), &sb) != 0 || !S_ISDIR(sb.st_mode))
+      return absl::FailedPreconditionError(absl::StrCat(
+          "job_output_root: ", options.job_output_root, " is not a directory"));
+  }
+  JobManagerOptions job_options;
+  job_options.max_jobs = options.max_jobs;
+  job_options.max_job_frames = options.max_job_frames;
+  job_options.output_root = options.job_output_root;
+  job_options.persistent = !options.state_dir.empty();
+  job_options.max_scene_bytes = options.max_upload_bytes;
+  impl->jobs = std::make_unique<JobManager>(job_options, *std::move(journal),
+                                            impl->renderer.get(), impl->store.get(),
+                                            impl->loop.get(), impl->loader.get(), Settings{});
 
   ServiceState& st = impl->state;
   st.options = options;
@@ -182,7 +231,13 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   st.loader = impl->loader.get();
   st.auth = impl->auth.get();
   st.metrics = impl->metrics.get();
+  st.jobs = impl->jobs.get();
   impl->service = std::make_unique<RenderServiceImpl>(&st);
+  {
+    std::vector<std::string> lines;
+    impl->jobs->Restore(&lines);
+    for (const std::string& line : lines) Log().info("{}", line);
+  }
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -239,6 +294,7 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
   if (auto* health = impl_->grpc_server->GetHealthCheckService()) health->Shutdown();
   // Streams end with UNAVAILABLE after their in-flight frame; queued renders fail.
   impl_->state.ShutdownSessions();
+  impl_->jobs->Shutdown();  // watches end; running jobs stay in the journal
   impl_->loop->Stop();
   // Waits for every call to finish; calls still open at the deadline are cancelled.
   impl_->grpc_server->Shutdown(std::chrono::system_clock::now() + grace);
@@ -265,6 +321,7 @@ ServerStats Server::stats() const {
   s.frames_in_flight = impl_->loop->frames_in_flight();
   s.scene_device_bytes = impl_->store->device_bytes();
   s.scenes_evicted = impl_->store->evictions();
+  s.jobs_active = impl_->jobs->active();
   return s;
 }
 

@@ -48,6 +48,17 @@ struct ServerOptions {
 
   // Prometheus text metrics over HTTP at /metrics on host:port (port 0 picks one); empty: off.
   std::string metrics_listen;
+
+  // Jobs. With a state directory the job journal and the scenes jobs need are kept there, and
+  // a restarted daemon resumes unfinished jobs; without one they live in a temporary
+  // directory removed at exit. SERVER_DIR outputs go under job_output_root (empty: refused).
+  std::string state_dir;
+  std::string job_output_root;
+  uint32_t max_jobs = 64;            // jobs kept (queued, running, finished)
+  uint32_t max_job_frames = 100000;  // frames in one job
+  // While viewers are active, background frames (jobs, background renders) take at most this
+  // share of the render thread.
+  double background_share = 0.12;
 };
 
 // Counters for tests, benchmarks and logs.
@@ -64,6 +75,7 @@ struct ServerStats {
   uint32_t frames_in_flight = 0;     // rendered frames being encoded
   uint64_t scene_device_bytes = 0;   // device memory held by scenes
   uint64_t scenes_evicted = 0;       // unused scenes evicted for room
+  uint32_t jobs_active = 0;          // queued or running jobs
 };
 
 class Server {

@@ -4,20 +4,19 @@
 #include <cmath>
 #include <cstdlib>
 
-#include <openssl/rand.h>
 #include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/convert.h"
+#include "server/jobs.h"
 #include "server/metrics.h"
 #include "server/upload.h"
 
 namespace tessera::server {
 namespace {
 
-constexpr uint32_t kMaxQueuedRenders = 64;  // unary renders waiting for the render thread
 constexpr float kMaxTargetFps = 240.0f;
 
 double MsSince(Clock::time_point t) {
@@ -37,18 +36,6 @@ float Aspect(const Settings& s) { return float(s.width) / float(s.height); }
 
 absl::Status Unavailable() { return absl::UnavailableError("server is shutting down"); }
 
-// A resume token: 128 bits from the OS's CSPRNG, so one cannot be guessed from another.
-std::string NewToken() {
-  unsigned char bytes[16];
-  if (RAND_bytes(bytes, sizeof bytes) != 1) std::abort();  // no entropy: nothing safe to do
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out;
-  for (unsigned char b : bytes) {
-    out.push_back(kHex[b >> 4]);
-    out.push_back(kHex[b & 15]);
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -62,8 +49,14 @@ grpc::Status ToGrpc(const absl::Status& s) {
 class UnaryRender final : public RenderClient {
  public:
   UnaryRender(ServiceState* state, grpc::CallbackServerContext* ctx,
-              grpc::ServerUnaryReactor* reactor, v1::Frame* response, RenderWork work)
-      : state_(state), ctx_(ctx), reactor_(reactor), response_(response), work_(std::move(work)) {}
+              grpc::ServerUnaryReactor* reactor, v1::Frame* response, RenderWork work,
+              const char* method)
+      : state_(state),
+        ctx_(ctx),
+        reactor_(reactor),
+        response_(response),
+        work_(std::move(work)),
+        method_(method) {}
 
   std::optional<RenderWork> TakeWork() override {
     if (std::chrono::system_clock::now() >= ctx_->deadline()) {
@@ -88,10 +81,10 @@ class UnaryRender final : public RenderClient {
   void Finish(const absl::Status& status) {
     if (finished_.exchange(true)) return;
     --state_->unary_queued;
-    Log().info("Render scene={} {}x{} -> {} bytes, {} ({:.1f} ms) peer={}", work_.scene_id,
+    Log().info("{} scene={} {}x{} -> {} bytes, {} ({:.1f} ms) peer={}", method_, work_.scene_id,
                work_.settings.width, work_.settings.height, response_->data().size(),
                status.ok() ? "OK" : status.ToString(), MsSince(work_.requested), Peer(ctx_));
-    state_->CountRpc("Render", ToGrpc(status));
+    state_->CountRpc(method_, ToGrpc(status));
     reactor_->Finish(ToGrpc(status));
   }
 
@@ -100,8 +93,17 @@ class UnaryRender final : public RenderClient {
   grpc::ServerUnaryReactor* reactor_;
   v1::Frame* response_;
   RenderWork work_;
+  const char* method_;
   std::atomic<bool> finished_{false};
 };
+
+std::shared_ptr<RenderClient> MakeUnaryRender(ServiceState* state,
+                                              grpc::CallbackServerContext* ctx,
+                                              grpc::ServerUnaryReactor* reactor,
+                                              v1::Frame* response, RenderWork work,
+                                              const char* method) {
+  return std::make_shared<UnaryRender>(state, ctx, reactor, response, std::move(work), method);
+}
 
 grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext* ctx,
                                                     const v1::RenderRequest* req,
@@ -141,7 +143,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
   work.requested = Clock::now();
   work.kind = req->background() ? "background" : "render";
   state_->loop->Enqueue(
-      std::make_shared<UnaryRender>(state_, ctx, reactor, response, std::move(work)),
+      MakeUnaryRender(state_, ctx, reactor, response, std::move(work), "Render"),
       req->background() ? Priority::kBackground : Priority::kNormal);
   return reactor;
 }
@@ -404,7 +406,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     st_.settings = *settings;
     st_.camera = open.camera();
     st_.profile = *profile;
-    st_.token = NewToken();
+    st_.token = RandomHex(16);  // 128 bits
     next_due_ = Clock::now();  // the first tick is the first frame; the cadence starts there
     opened_ = true;
     Register();
@@ -873,6 +875,11 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
       *response_ = existing->info;  // same content: nothing to parse
       SceneStore::FillLiveFields(*existing, response_);
       existing.reset();  // not held while the client hears back (eviction)
+      if (state_->jobs && state_->jobs->options().persistent)
+        state_->loader->Submit([jobs = state_->jobs, scene_id,
+                                src = std::make_shared<GltfSource>(*std::move(source))] {
+          jobs->ArchiveScene(scene_id, *src);
+        });
       return Done(absl::OkStatus(), "already loaded");
     }
     // Parsing and the device upload can take seconds: off the gRPC thread.
@@ -894,24 +901,15 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
     if (std::chrono::system_clock::now() >= ctx_->deadline())
       return Done(absl::DeadlineExceededError("deadline: passed before the scene was parsed"));
     if (ctx_->IsCancelled()) return Done(absl::CancelledError("client cancelled the upload"));
-    const Clock::time_point t0 = Clock::now();
-    absl::StatusOr<CpuScene> cpu = ImportGltf(source);
-    if (!cpu.ok()) return Done(cpu.status());
-    absl::StatusOr<SceneHandle> gpu = state_->renderer->LoadScene(*cpu);
-    if (!gpu.ok()) return Done(gpu.status());
-    v1::SceneInfo info;
-    ToProto((*gpu)->info(), &info);
-    info.set_name(source.main_file);
-    uint64_t bytes = 0;
-    for (const auto& [name, data] : source.files) bytes += data.size();
-    info.set_upload_bytes(bytes);
-    info.set_load_ms(MsSince(t0));
     absl::StatusOr<std::shared_ptr<StoredScene>> stored =
-        state_->store->Add(scene_id, *std::move(gpu), std::move(info));
+        LoadIntoStore(state_->renderer, state_->store, scene_id, source);
     if (!stored.ok()) return Done(stored.status());
     *response_ = (*stored)->info;
     SceneStore::FillLiveFields(**stored, response_);
     stored->reset();  // before the client hears back: an unused scene is evictable at once
+    // A persistent daemon keeps the files for its jobs, before the client hears back, so a
+    // job submitted next finds them even if the scene is evicted meanwhile.
+    if (state_->jobs) state_->jobs->ArchiveScene(scene_id, source);
     Done(absl::OkStatus(), "loaded");
   }
 
@@ -948,8 +946,6 @@ grpc::ServerReadReactor<v1::UploadRequest>* RenderServiceImpl::UploadScene(
 // ---------------------------------------------------------------------------------------------
 // Small unary calls: answered on the gRPC thread from in-memory state.
 
-namespace {
-
 grpc::ServerUnaryReactor* Reply(const ServiceState* state, grpc::CallbackServerContext* ctx,
                                 const char* method, const absl::Status& status) {
   grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
@@ -957,8 +953,6 @@ grpc::ServerUnaryReactor* Reply(const ServiceState* state, grpc::CallbackServerC
   reactor->Finish(ToGrpc(status));
   return reactor;
 }
-
-}  // namespace
 
 grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerContext* ctx,
                                                            const v1::GetServerInfoRequest*,
@@ -1003,6 +997,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   r->set_scene_device_bytes(state_->store->device_bytes());
   r->set_auth_required(state_->auth->enabled());
   r->set_tls(!o.tls_cert_file.empty());
+  l->set_max_jobs(o.max_jobs);
+  l->set_max_job_frames(o.max_job_frames);
+  r->set_jobs_active(state_->jobs->active());
+  r->set_job_output_root(!o.job_output_root.empty());
+  r->set_jobs_persistent(!o.state_dir.empty());
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }
@@ -1044,6 +1043,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::DeleteScene(grpc::CallbackServerCon
                         : users.status().ToString(),
              Peer(ctx));
   if (users.ok()) r->set_sessions_still_using(*users);
+  if (users.ok() && state_->jobs && state_->jobs->options().persistent)
+    state_->loader->Submit([jobs = state_->jobs] { jobs->PruneArchive(); });
   return Reply(state_, ctx, "DeleteScene", users.status());
 }
 

@@ -21,6 +21,7 @@ namespace tessera::server {
 
 class StreamSession;
 class Metrics;
+class JobManager;
 
 // Idle refinement of one session (v1::InteractiveProfile with its defaults applied).
 struct InteractiveProfile {
@@ -58,6 +59,7 @@ struct ServiceState {
   ThreadPool* loader = nullptr;
   Authenticator* auth = nullptr;
   Metrics* metrics = nullptr;  // may be null
+  JobManager* jobs = nullptr;
   Clock::time_point started = Clock::now();
   Settings default_settings;
   UsageCounter principal_sessions;  // open streams per principal (token limits)
@@ -124,11 +126,47 @@ class RenderServiceImpl final : public v1::RenderService::CallbackService {
   grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>* Stream(
       grpc::CallbackServerContext* ctx) override;
 
+  // Jobs (job_service.cpp).
+  grpc::ServerUnaryReactor* SubmitJob(grpc::CallbackServerContext* ctx,
+                                      const v1::SubmitJobRequest* request,
+                                      v1::Job* response) override;
+  grpc::ServerWriteReactor<v1::JobProgress>* WatchJob(grpc::CallbackServerContext* ctx,
+                                                      const v1::WatchJobRequest* request) override;
+  grpc::ServerUnaryReactor* CancelJob(grpc::CallbackServerContext* ctx,
+                                      const v1::CancelJobRequest* request,
+                                      v1::Job* response) override;
+  grpc::ServerUnaryReactor* DeleteJob(grpc::CallbackServerContext* ctx,
+                                      const v1::DeleteJobRequest* request,
+                                      v1::DeleteJobResponse* response) override;
+  grpc::ServerUnaryReactor* ListJobs(grpc::CallbackServerContext* ctx,
+                                     const v1::ListJobsRequest* request,
+                                     v1::ListJobsResponse* response) override;
+  grpc::ServerWriteReactor<v1::JobFrame>* FetchJobFrames(
+      grpc::CallbackServerContext* ctx, const v1::FetchJobFramesRequest* request) override;
+  grpc::ServerUnaryReactor* RenderJobFrame(grpc::CallbackServerContext* ctx,
+                                           const v1::RenderJobFrameRequest* request,
+                                           v1::Frame* response) override;
+
  private:
   ServiceState* state_;
 };
 
+inline constexpr uint32_t kMaxQueuedRenders = 64;  // unary renders waiting for the render thread
+
 // absl::Status -> grpc::Status (same codes, same message).
 grpc::Status ToGrpc(const absl::Status& status);
+
+// Finishes a unary call with `status` from the handler's thread, counted under `method`.
+grpc::ServerUnaryReactor* Reply(const ServiceState* state, grpc::CallbackServerContext* ctx,
+                                const char* method, const absl::Status& status);
+
+// A unary call answered by one frame from the render loop (Render, RenderJobFrame): fails with
+// DEADLINE_EXCEEDED / CANCELLED instead of rendering when the call is gone; counted and logged
+// under `method`. The caller has counted it in state->unary_queued.
+std::shared_ptr<RenderClient> MakeUnaryRender(ServiceState* state,
+                                              grpc::CallbackServerContext* ctx,
+                                              grpc::ServerUnaryReactor* reactor,
+                                              v1::Frame* response, RenderWork work,
+                                              const char* method);
 
 }  // namespace tessera::server

@@ -45,6 +45,16 @@ ABSL_FLAG(std::string, token_file, "",
           "call then needs 'authorization: Bearer TOKEN' (health stays open); SIGHUP reloads");
 ABSL_FLAG(std::string, metrics_listen, "",
           "serve Prometheus metrics at http://HOST:PORT/metrics (empty: off)");
+ABSL_FLAG(std::string, state_dir, "",
+          "jobs: keep the job journal, returned frames and the scenes jobs need here, so a "
+          "restarted daemon resumes unfinished jobs (empty: a temporary directory, removed at exit)");
+ABSL_FLAG(std::string, job_output_root, "",
+          "jobs: SERVER_DIR outputs are written under this directory (empty: not offered)");
+ABSL_FLAG(uint32_t, max_jobs, 64, "limit: jobs kept (queued, running and finished)");
+ABSL_FLAG(uint32_t, max_job_frames, 100000, "limit: frames in one job");
+ABSL_FLAG(double, background_share, 0.12,
+          "while viewers are active, the share of the render thread jobs and background renders "
+          "may take (0..1]");
 ABSL_FLAG(uint32_t, shutdown_grace_ms, 3000,
           "on SIGTERM, how long open calls may take to finish before they are cancelled");
 ABSL_FLAG(std::string, port_file, "",
@@ -93,6 +103,11 @@ int main(int argc, char** argv) {
   options.tls_client_ca_file = absl::GetFlag(FLAGS_tls_client_ca);
   options.token_file = absl::GetFlag(FLAGS_token_file);
   options.metrics_listen = absl::GetFlag(FLAGS_metrics_listen);
+  options.state_dir = absl::GetFlag(FLAGS_state_dir);
+  options.job_output_root = absl::GetFlag(FLAGS_job_output_root);
+  options.max_jobs = absl::GetFlag(FLAGS_max_jobs);
+  options.max_job_frames = absl::GetFlag(FLAGS_max_job_frames);
+  options.background_share = absl::GetFlag(FLAGS_background_share);
 
   auto server = tessera::server::Server::Start(options);
   if (!server.ok()) {
