@@ -19,5 +19,11 @@ extern const Command kScenesCommand;
 extern const Command kRmCommand;
 extern const Command kRenderCommand;
 extern const Command kStreamCommand;
+extern const Command kJobCommand;
+
+// Uploads the glTF file set at `path` unless the server has it (progress on stderr, errors
+// reported); its scene id in `scene_id`. False on error.
+bool UploadSceneFile(const Invocation& inv, v1::RenderService::Stub* stub,
+                     const std::string& path, std::string* scene_id);
 
 }  // namespace tessera::cli

@@ -213,10 +213,12 @@ absl::StatusOr<std::string> ReadTokenFile(const std::string& path) {
   return token;
 }
 
-std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
+std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::string& target,
+                                           bool round_robin) {
   grpc::ChannelArguments args;
   // Frames can be far larger than gRPC's 4 MiB default (a 4K PNG is ~30 MB).
   args.SetMaxReceiveMessageSize(-1);
+  if (round_robin) args.SetLoadBalancingPolicyName("round_robin");
   std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
   if (inv.global.tls) {
     grpc::SslCredentialsOptions ssl;
@@ -237,8 +239,13 @@ std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
   std::vector<std::unique_ptr<grpc::experimental::ClientInterceptorFactoryInterface>> hooks;
   if (!inv.global.token.empty())
     hooks.push_back(std::make_unique<BearerInterceptorFactory>(inv.global.token));
-  std::shared_ptr<grpc::Channel> channel = grpc::experimental::CreateCustomChannelWithInterceptors(
-      inv.global.server, credentials, args, std::move(hooks));
+  return grpc::experimental::CreateCustomChannelWithInterceptors(target, credentials, args,
+                                                                 std::move(hooks));
+}
+
+std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
+  std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, inv.global.server, false);
+  if (!channel) return nullptr;
   const auto deadline = std::chrono::system_clock::now() +
                         std::chrono::duration_cast<std::chrono::system_clock::duration>(
                             std::chrono::duration<double>(inv.global.connect_timeout_s));

@@ -90,6 +90,11 @@ absl::string_view StatusCodeName(grpc::StatusCode code);
 // A channel to inv.global.server that is READY, or nullptr after printing why not (the address
 // and whether it refused or did not answer in time).
 std::shared_ptr<grpc::Channel> Connect(const Invocation& inv);
+// A channel to `target` with the global TLS and token options, not waited for (nullptr after
+// printing why when a TLS file cannot be read). round_robin: gRPC's client-side load
+// balancing over every address the target resolves to (an "ipv4:a,b" list or a dns:/// name).
+std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::string& target,
+                                           bool round_robin);
 std::unique_ptr<v1::RenderService::Stub> ConnectStub(const Invocation& inv);
 
 // A deadline `seconds` from now on `context`.

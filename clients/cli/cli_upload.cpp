@@ -258,6 +258,20 @@ Json ResultJson(const UploadResult& r) {
           {"info", ToJson(r.info)}};
 }
 
+}  // namespace
+
+bool UploadSceneFile(const Invocation& inv, v1::RenderService::Stub* stub,
+                     const std::string& path, std::string* scene_id) {
+  Uploader uploader(inv, stub);
+  UploadResult result;
+  Json error;
+  if (!uploader.Run(path, &result, &error)) return false;
+  *scene_id = result.scene_id;
+  return true;
+}
+
+namespace {
+
 int RunUpload(const Invocation& inv) {
   std::vector<std::string> paths;
   ArgReader args(inv);

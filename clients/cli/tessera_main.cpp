@@ -15,8 +15,9 @@
 namespace tessera::cli {
 namespace {
 
-constexpr const Command* kCommands[] = {&kInfoCommand, &kUploadCommand, &kScenesCommand,
-                                        &kRmCommand,   &kRenderCommand, &kStreamCommand};
+constexpr const Command* kCommands[] = {&kInfoCommand,   &kUploadCommand, &kScenesCommand,
+                                        &kRmCommand,     &kRenderCommand, &kStreamCommand,
+                                        &kJobCommand};
 
 constexpr char kGlobalUsage[] = R"(global flags (anywhere on the line):
   --server ADDR       tesserad's address (default: $TESSERA_SERVER, else 127.0.0.1:50051)
