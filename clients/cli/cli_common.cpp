@@ -345,9 +345,20 @@ void PrintJson(const Json& j) {
 std::string EnumShortName(const pb::EnumValueDescriptor* value) {
   if (value->number() == 0) return "unspecified";
   const std::string& name = value->name();
-  const size_t underscore = name.find('_');
-  return absl::AsciiStrToLower(underscore == std::string::npos ? name
-                                                               : name.substr(underscore + 1));
+  // The words every named value of the type starts with (AA_, JOB_OUTPUT_), at least the first.
+  size_t prefix = name.find('_') == std::string::npos ? 0 : name.find('_') + 1;
+  for (size_t end = name.find('_', prefix); end != std::string::npos;
+       end = name.find('_', end + 1)) {
+    const std::string longer = name.substr(0, end + 1);
+    bool shared = true;
+    for (int i = 0; i < value->type()->value_count() && shared; ++i) {
+      const pb::EnumValueDescriptor* v = value->type()->value(i);
+      shared = v->number() == 0 || (v->name().rfind(longer, 0) == 0 && v->name() != longer);
+    }
+    if (!shared) break;
+    prefix = end + 1;
+  }
+  return absl::AsciiStrToLower(name.substr(prefix));
 }
 
 int ParseEnumShortName(const pb::EnumDescriptor* type, absl::string_view name) {

@@ -120,8 +120,9 @@ void PrintJson(const Json& j);
 // enums as their lower-case setting names ("msaa"), bytes fields left out (callers give sizes).
 Json ToJson(const google::protobuf::Message& msg);
 
-// Lower-case name of an enum value without its type prefix: AA_MSAA -> "msaa",
-// CULLING_GPU_FRUSTUM -> "gpu_frustum", DEBUG_LIGHT_HEATMAP -> "light_heatmap". These are
+// Lower-case name of an enum value without the prefix all of its type's values share: AA_MSAA
+// -> "msaa", CULLING_GPU_FRUSTUM -> "gpu_frustum", DEBUG_LIGHT_HEATMAP -> "light_heatmap",
+// JOB_OUTPUT_SERVER_DIR -> "server_dir". These are
 // the names renderer/settings.h uses (ParseAaMode, ToString) and SettingChoices lists.
 std::string EnumShortName(const google::protobuf::EnumValueDescriptor* value);
 // The value of `type` whose short name is `name`, or -1. Value 0 (UNSPECIFIED) never matches.

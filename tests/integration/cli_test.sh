@@ -77,6 +77,49 @@ assert moving, [f["profile"] for f in d["frame_list"]]
 assert all(f["render_width"] == 48 and f["width"] == 96 for f in moving), moving
 PY
 
+# Jobs: submit (watched to the end, fetched into --out), list, a keyframe path, fetch, cancel
+# and rm, and the exit codes.
+"$tessera" --json job submit --scene demo --frames 0..3 --orbit --width 64 --height 48 --png \
+  --name cli-orbit --out "$work/job" > "$work/job.json"
+python3 - "$work/job.json" "$work/job" <<'PY' || fail "job submit --json"
+import json, os, sys
+d = json.load(open(sys.argv[1]))
+assert d["job"]["state"] == "succeeded", d["job"]
+assert d["job"]["spec"]["output"] == "return", d["job"]
+assert d["job"]["frames_done"] == 4, d["job"]
+assert len(d["frames"]) == 4 and len(d["files"]) == 4, d
+assert sorted(os.listdir(sys.argv[2])) == ["frame_%05d.png" % i for i in range(4)]
+PY
+job_id=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["job"]["job_id"])' \
+  "$work/job.json")
+"$tessera" job list | grep -q "$job_id.*succeeded.*cli-orbit" || fail "job list"
+cat > "$work/keys.json" <<'JSON'
+{"interpolation": "catmull_rom", "keyframes": [
+  {"frame": 0, "eye": [0, 1, 4], "target": [0, 0, 0]},
+  {"frame": 4, "eye": [4, 1, 0], "target": [0, 0, 0], "yfov": 0.6}]}
+JSON
+kid=$("$tessera" job submit --scene demo --frames 0..4:2 --keyframes "$work/keys.json" \
+  --width 64 --height 48 --pattern "k_%02d.jpg" --detach 2>/dev/null)
+[[ $kid =~ ^[0-9a-f]{16}$ ]] || fail "job submit --detach printed '$kid'"
+"$tessera" job watch "$kid" 2> /dev/null || fail "job watch of the keyframe job"
+"$tessera" job fetch "$kid" --out "$work/kf" 2> /dev/null || fail "job fetch"
+[[ -f $work/kf/k_00.jpg && -f $work/kf/k_02.jpg && -f $work/kf/k_04.jpg ]] ||
+  fail "job fetch wrote: $(ls "$work/kf")"
+big=$("$tessera" job submit --scene demo --frames 0..99999 --width 32 --height 32 --detach \
+  2>/dev/null)
+"$tessera" job cancel "$big" 2>&1 | grep -q "cancelled" || fail "job cancel"
+"$tessera" job rm "$big" 2> /dev/null || fail "job rm"
+if "$tessera" job list | grep -q "$big"; then fail "job rm left the job"; fi
+if "$tessera" job submit --scene demo --frames 9..1 2> "$work/err"; then
+  fail "a backwards frame range succeeded"
+fi
+grep -q "spec.frames.last" "$work/err" || fail "no spec.frames.last in: $(cat "$work/err")"
+set +e
+"$tessera" job submit --frames 0..1 --bogus-flag > /dev/null 2>&1
+rc=$?
+set -e
+[[ $rc -eq 2 ]] || fail "a bad job command line exited $rc, not 2"
+
 kill -TERM "$pid"
 wait "$pid" || fail "tesserad exited with $? after SIGTERM"
 pid=""

@@ -1,0 +1,65 @@
+#!/usr/bin/env bash
+# A render farm on loopback: three tesserad processes, a 60-frame job spread over them by
+# `tessera job submit --servers` (gRPC round_robin), one daemon killed (SIGKILL) mid-job. Every
+# frame must be there once, byte-identical to the same job run on a single daemon as a
+# server-side job (SubmitJob), and the killed daemon's frames must have been retried elsewhere.
+# Usage: farm_test.sh TESSERAD TESSERA
+set -euo pipefail
+tesserad=$1 tessera=$2
+work=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
+  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
+  rm -rf "$work"
+}
+trap cleanup EXIT
+fail() { echo "FAIL: $*" >&2; tail -n 5 "$work"/log* >&2 || true; exit 1; }
+
+ports=()
+for i in 0 1 2; do
+  "$tesserad" --listen=127.0.0.1:0 --port_file="$work/port$i" --log_level=warn 2> "$work/log$i" &
+  pids+=($!)
+done
+for i in 0 1 2; do
+  for _ in $(seq 600); do [[ -s $work/port$i ]] && break; sleep 0.1; done
+  [[ -s $work/port$i ]] || fail "tesserad $i did not start"
+  ports+=("127.0.0.1:$(cat "$work/port$i")")
+done
+servers=$(IFS=,; echo "${ports[*]}")
+
+# Slow enough frames (taa accumulates 4 renders each) that every daemon has calls in flight
+# when one is killed.
+job=(job submit --scene demo --frames 0..59 --orbit --width 320 --height 180 --aa taa
+     --taa-frames 4 --png)
+
+"$tessera" --json "${job[@]}" --servers "$servers" --out "$work/farm" > "$work/farm.json" &
+client=$!
+# Kill daemon 1 once a few frames exist: it has frames in flight then.
+for _ in $(seq 600); do
+  n=$( (find "$work/farm" -name '*.png' 2>/dev/null || true) | wc -l)
+  ((n >= 8)) && break
+  sleep 0.05
+done
+kill -KILL "${pids[1]}"
+wait "$client" || fail "the farm job failed: $(cat "$work/farm.json")"
+
+python3 - "$work/farm.json" "${ports[1]}" <<'PY' || fail "farm --json: $(cat "$work/farm.json")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["frames"] == 60, d
+assert d["retried"] >= 1, "no frame was retried after the kill: %s" % d
+assert sum(d["servers"].values()) == 60, d
+assert len(d["servers"]) >= 2, d
+PY
+[[ $(find "$work/farm" -name '*.png' | wc -l) -eq 60 ]] || fail "not 60 frames"
+[[ -z $(find "$work/farm" -name '*.part') ]] || fail "a partial file was left behind"
+
+# The same job as a server-side job on one surviving daemon.
+"$tessera" --server "${ports[0]}" "${job[@]}" --out "$work/single" > /dev/null 2>&1 ||
+  fail "the single-daemon job failed"
+for f in "$work"/single/*.png; do
+  cmp -s "$f" "$work/farm/$(basename "$f")" || fail "$(basename "$f") differs from the farm's"
+done
+[[ $(find "$work/single" -name '*.png' | wc -l) -eq 60 ]] || fail "single run: not 60 frames"
+echo "farm: 60 frames over 3 daemons with one killed, identical to one daemon's"
