@@ -284,40 +284,66 @@ grpc::ServerWriteReactor<v1::JobFrame>* RenderServiceImpl::FetchJobFrames(
 grpc::ServerUnaryReactor* RenderServiceImpl::RenderJobFrame(grpc::CallbackServerContext* ctx,
                                                             const v1::RenderJobFrameRequest* req,
                                                             v1::Frame* response) {
-  auto fail = [&](const absl::Status& st) {
+  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
+  ServiceState* state = state_;
+  auto fail = [state, ctx, req, reactor](const absl::Status& st) {
     Log().info("RenderJobFrame {} frame {} -> {} peer={}", req->spec().name().substr(0, 80),
                req->frame(), st.ToString(), ctx->peer());
-    return Reply(state_, ctx, "RenderJobFrame", st);
+    state->CountRpc("RenderJobFrame", ToGrpc(st));
+    reactor->Finish(ToGrpc(st));
   };
-  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok()) return fail(st);
-  if (state_->shutting_down) return fail(Unavailable());
-  const v1::JobSpec& spec = req->spec();
-  if (absl::Status st =
-          jobs::ValidateJobSpec(spec, {state_->jobs->options().max_job_frames});
-      !st.ok())
-    return fail(st);
-  if (!jobs::FrameIndex(spec.frames(), req->frame()))
-    return fail(absl::InvalidArgumentError(absl::StrCat(
-        "frame: ", req->frame(), " is not a frame of spec.frames (", spec.frames().first(), "..",
-        spec.frames().last(), " step ", std::max(1u, spec.frames().step()), ")")));
-  absl::StatusOr<std::shared_ptr<StoredScene>> scene = state_->store->Find(spec.scene_id());
-  if (!scene.ok())
-    return fail(absl::Status(scene.status().code(),
-                             absl::StrCat("spec.", scene.status().message())));
-  absl::StatusOr<RenderWork> work = JobFrameWork(spec, req->frame(), **scene,
-                                                 state_->default_settings,
-                                                 state_->jobs->NewView());
-  if (!work.ok()) return fail(work.status());
-  if (state_->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
-    --state_->unary_queued;
-    return fail(absl::ResourceExhaustedError(absl::StrCat(
-        "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
+  // Renders once the scene is there (at once, or after it is read back from the archive).
+  auto render = [state, ctx, req, reactor, response, fail](const StoredScene& scene) {
+    absl::StatusOr<RenderWork> work = JobFrameWork(req->spec(), req->frame(), scene,
+                                                   state->default_settings,
+                                                   state->jobs->NewView());
+    if (!work.ok()) return fail(work.status());
+    if (state->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
+      --state->unary_queued;
+      return fail(absl::ResourceExhaustedError(absl::StrCat(
+          "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
+    }
+    work->sequence = 1;
+    state->loop->Enqueue(
+        MakeUnaryRender(state, ctx, reactor, response, *std::move(work), "RenderJobFrame"),
+        Priority::kBackground);
+  };
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok()) {
+    fail(st);
+    return reactor;
   }
-  work->sequence = 1;
-  grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-  state_->loop->Enqueue(
-      MakeUnaryRender(state_, ctx, reactor, response, *std::move(work), "RenderJobFrame"),
-      Priority::kBackground);
+  if (state_->shutting_down) {
+    fail(Unavailable());
+    return reactor;
+  }
+  const v1::JobSpec& spec = req->spec();
+  absl::Status valid = jobs::ValidateJobSpec(spec, {state_->jobs->options().max_job_frames});
+  if (valid.ok() && !jobs::FrameIndex(spec.frames(), req->frame()))
+    valid = absl::InvalidArgumentError(absl::StrCat(
+        "frame: ", req->frame(), " is not a frame of spec.frames (", spec.frames().first(), "..",
+        spec.frames().last(), " step ", std::max(1u, spec.frames().step()), ")"));
+  if (!valid.ok()) {
+    fail(valid);
+    return reactor;
+  }
+  absl::StatusOr<std::shared_ptr<StoredScene>> scene = state_->store->Find(spec.scene_id());
+  if (scene.ok()) {
+    render(**scene);
+    return reactor;
+  }
+  // A persistent daemon that restarted (or evicted the scene) still has it archived: a farm
+  // client's frames keep working without a new upload.
+  JobManager* jobs = state_->jobs;
+  if (absl::IsNotFound(scene.status()) && jobs->options().persistent &&
+      JobJournal::ValidSceneId(spec.scene_id()) && jobs->journal().HasScene(spec.scene_id())) {
+    jobs->LoadArchived(spec.scene_id(),
+                       [render, fail](absl::StatusOr<std::shared_ptr<StoredScene>> s) {
+                         if (!s.ok()) return fail(s.status());
+                         render(**s);
+                       });
+    return reactor;
+  }
+  fail(absl::Status(scene.status().code(), absl::StrCat("spec.", scene.status().message())));
   return reactor;
 }
 

@@ -134,18 +134,19 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
   }
 
   // After restore: how many frames were found, and the job's state made consistent.
-  void FinishRestore(bool resume) {
+  // `failure`: why an unfinished job cannot go on here ("" when it can).
+  void FinishRestore(const std::string& failure) {
     std::unique_lock lock(mu_);
     const uint32_t done = static_cast<uint32_t>(done_.size());
     proto_.set_frames_done(done);
     if (Terminal(proto_.state())) return;
     proto_.set_frames_restored(done);
     proto_.set_state(v1::JOB_QUEUED);
-    if (!resume) {
-      EndLocked(lock, v1::JOB_FAILED, "the server restarted without --state_dir");
-      return;
+    if (!failure.empty()) {
+      EndLocked(lock, v1::JOB_FAILED, failure);
+    } else if (done == frames_.size()) {
+      EndLocked(lock, v1::JOB_SUCCEEDED, "");
     }
-    if (done == frames_.size()) EndLocked(lock, v1::JOB_SUCCEEDED, "");
   }
 
   // The scene is there: the job becomes runnable.
@@ -168,8 +169,10 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
 
   v1::Job Cancel() {
     std::unique_lock lock(mu_);
-    if (!Terminal(proto_.state())) EndLocked(lock, v1::JOB_CANCELLED, "");
-    std::lock_guard relock(mu_);
+    if (!Terminal(proto_.state())) {
+      EndLocked(lock, v1::JOB_CANCELLED, "");  // releases the lock
+      lock.lock();
+    }
     return SnapshotLocked();
   }
 
@@ -177,12 +180,15 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     std::unique_lock lock(mu_);
     v1::JobProgress first;
     *first.mutable_job() = SnapshotLocked();
-    const bool done = Terminal(proto_.state());
+    // Shutting down: CloseWatchers may have run already, so this one gets its end now.
+    const bool finished = Terminal(proto_.state());
+    const bool done = finished || m_->shutting_down();
     if (!done) watchers_.push_back(w);
     std::lock_guard notify(notify_mu_);
     lock.unlock();
     w->Push(first);
-    if (done) w->Close(absl::OkStatus());
+    if (done)
+      w->Close(finished ? absl::OkStatus() : absl::UnavailableError("server is shutting down"));
   }
 
   void CloseWatchers(const absl::Status& status) {
@@ -279,14 +285,17 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
       written = m_->journal().AppendFrame(id(), JobFrameRecord{number, data.size(), sha});
 
     lock.lock();
+    if (Terminal(proto_.state())) {
+      // Cancelled (or deleted) while the file was written: the job's end stands as it is.
+      status_[index] = kTodo;
+      return;
+    }
     if (!written.ok()) {
       status_[index] = kTodo;
       cursor_ = std::min(cursor_, index);
-      if (!Terminal(proto_.state()))
-        EndLocked(lock, v1::JOB_FAILED, absl::StrCat("frame ", number, ": ", written.message()));
+      EndLocked(lock, v1::JOB_FAILED, absl::StrCat("frame ", number, ": ", written.message()));
       return;
     }
-    if (status_[index] == kDone) return;
     status_[index] = kDone;
     done_[number] = {number, path, data.size(), sha};
     proto_.set_frames_done(static_cast<uint32_t>(done_.size()));
@@ -314,13 +323,17 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
   std::string FramePath(uint32_t frame) const {
     const v1::JobSpec& spec = proto_.spec();
     const std::string name = jobs::FrameFileName(spec, frame);
-    if (spec.output() == v1::JOB_OUTPUT_SERVER_DIR)
-      return JoinPath(JoinPath(m_->options().output_root, spec.output_dir()), name);
+    // The directory recorded at submission, so a daemon restarted with another root does
+    // not scatter one job's frames over two places.
+    if (spec.output() == v1::JOB_OUTPUT_SERVER_DIR) return JoinPath(proto_.output_path(), name);
     return JoinPath(m_->journal().FramesDir(id()), name);
   }
 
+  // What clients see: the spec without its camera list (it can hold 100000 cameras, and goes
+  // out with every progress event).
   v1::Job SnapshotLocked() const {
     v1::Job out = proto_;
+    out.mutable_spec()->clear_list();
     if (run_frames_ > 0 && !Terminal(proto_.state())) {
       const double per_frame = MsBetween(run_start_, Clock::now()) / run_frames_;
       out.set_mean_frame_ms(per_frame);
@@ -456,6 +469,8 @@ void JobManager::LoadArchived(
 }
 
 void JobManager::Restore(std::vector<std::string>* log) {
+  // Jobs restored as finished must not prune the archive of jobs not restored yet.
+  restoring_ = true;
   std::vector<std::string> warnings;
   std::vector<JobJournal::LoadedJob> loaded = journal_->LoadJobs(&warnings);
   for (std::string& w : warnings) log->push_back("jobs: " + w);
@@ -466,8 +481,8 @@ void JobManager::Restore(std::vector<std::string>* log) {
   for (JobJournal::LoadedJob& l : loaded) {
     const std::string id = l.job.job_id();
     absl::StatusOr<std::vector<uint32_t>> frames =
-        jobs::FrameNumbers(l.job.spec().frames(), UINT32_MAX);
-    if (!frames.ok() || jobs::ValidateJobSpec(l.job.spec(), {UINT32_MAX}).ok() == false) {
+        jobs::FrameNumbers(l.job.spec().frames(), kRestoreFrameCap);
+    if (!frames.ok() || !jobs::ValidateJobSpec(l.job.spec(), {kRestoreFrameCap}).ok()) {
       log->push_back(absl::StrCat("jobs: ", id, ": spec no longer valid, dropped"));
       continue;
     }
@@ -475,7 +490,10 @@ void JobManager::Restore(std::vector<std::string>* log) {
     auto job = std::make_shared<Job>(this, l.job, *std::move(frames),
                                      kJobViewBase | next_view_++);
     for (const JobFrameRecord& r : l.frames) job->MarkRestored(r);
-    job->FinishRestore(options_.persistent);
+    job->FinishRestore(l.job.spec().output() == v1::JOB_OUTPUT_SERVER_DIR &&
+                               options_.output_root.empty()
+                           ? "restored by a server without --job_output_root"
+                           : "");
     {
       std::lock_guard lock(mu_);
       jobs_[id] = job;
@@ -495,10 +513,12 @@ void JobManager::Restore(std::vector<std::string>* log) {
     }
     LoadArchived(scene_id, [job, scene_id](absl::StatusOr<std::shared_ptr<StoredScene>> s) {
       if (s.ok()) return job->Start(*std::move(s));
+      if (absl::IsUnavailable(s.status())) return;  // shutting down: resumed next start
       job->Fail(absl::StrCat("scene ", scene_id.substr(0, 16),
                              ": could not be restored: ", s.status().message()));
     });
   }
+  restoring_ = false;
   PruneArchive();
 }
 
@@ -587,6 +607,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
   } else {
     LoadArchived(scene_id, [job, scene_id](absl::StatusOr<std::shared_ptr<StoredScene>> s) {
       if (s.ok()) return job->Start(*std::move(s));
+      if (absl::IsUnavailable(s.status())) return;  // shutting down: resumed next start
       job->Fail(absl::StrCat("scene ", scene_id.substr(0, 16), ": ", s.status().message()));
     });
   }
@@ -664,24 +685,26 @@ v1::ImageEncoding JobManager::Encoding(const std::string& job_id) const {
 
 void JobManager::ArchiveScene(const std::string& scene_id, const GltfSource& source) {
   if (!options_.persistent || !JobJournal::ValidSceneId(scene_id)) return;
-  {
-    std::lock_guard lock(archive_mu_);
-    if (journal_->HasScene(scene_id)) return;
+  // The files are written outside the archive lock (SaveScene publishes them with one rename,
+  // and the scene is in the store by now, so a prune meanwhile keeps it).
+  if (journal_->HasScene(scene_id)) return;
   if (absl::Status st = journal_->SaveScene(scene_id, source); !st.ok())
-      Log().warn("scene {}: not archived for jobs: {}", scene_id.substr(0, 16), st.ToString());
-  }
+    Log().warn("scene {}: not archived for jobs: {}", scene_id.substr(0, 16), st.ToString());
   PruneArchive();  // evicted and deleted scenes go
 }
 
-void JobManager::JobEnded() { PruneArchive(); }
+void JobManager::JobEnded() {
+  if (!options_.persistent || restoring_ || shutting_down_) return;
+  loader_->Submit([this] { PruneArchive(); });  // file I/O off the render and encoder threads
+}
 
 // Archived scenes are kept while a scene is in the store or an unfinished job names it.
 void JobManager::PruneArchive() {
-  if (!options_.persistent) return;
+  if (!options_.persistent || restoring_ || shutting_down_) return;
+  std::lock_guard lock(archive_mu_);
   std::set<std::string> keep;
   for (const v1::Job& j : List())
     if (!Terminal(j.state())) keep.insert(j.scene_id());
-  std::lock_guard lock(archive_mu_);
   for (const std::string& id : journal_->ListScenes()) {
     if (keep.count(id) || store_->FindExact(id)) continue;
     if (absl::Status st = journal_->RemoveScene(id); !st.ok())

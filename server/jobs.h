@@ -55,6 +55,9 @@ class Job;
 
 // The renderer views of job frames: apart from stream session ids (which count from 1).
 inline constexpr uint64_t kJobViewBase = uint64_t(1) << 62;
+// A journalled job is restored if its range has at most this many frames (the limit may have
+// been lowered since it was submitted; a corrupt range must not allocate gigabytes).
+inline constexpr uint32_t kRestoreFrameCap = 1u << 24;
 
 class JobManager {
  public:
@@ -128,6 +131,7 @@ class JobManager {
   ThreadPool* loader_;
   const Settings default_settings_;
   std::atomic<bool> shutting_down_{false};
+  std::atomic<bool> restoring_{false};
   std::atomic<uint64_t> next_view_{1};
   mutable std::mutex mu_;
   std::map<std::string, std::shared_ptr<Job>> jobs_;  // by id

@@ -117,6 +117,7 @@ class GaugeCollectable : public prometheus::Collectable {
         static_cast<double>(g.scene_memory_budget_bytes));
     add("tessera_pending_frame_bytes", "Encoded frame bytes held for slow clients.",
         static_cast<double>(g.pending_frame_bytes));
+    add("tessera_jobs_active", "Render-farm jobs queued or running.", g.jobs_active);
     return families;
   }
 

@@ -39,6 +39,7 @@ struct MetricsGauges {
   uint64_t scene_device_bytes = 0;         // device memory held by scenes
   uint64_t scene_memory_budget_bytes = 0;  // 0 = unlimited
   uint64_t pending_frame_bytes = 0;        // encoded frames held for slow clients
+  uint32_t jobs_active = 0;                // queued or running render-farm jobs
 };
 
 // The canonical upper-case name of a gRPC status code ("OK", "INVALID_ARGUMENT", ...,

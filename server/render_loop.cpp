@@ -119,12 +119,14 @@ uint64_t RenderLoop::frames_rendered() const {
 void RenderLoop::Stop() {
   std::lock_guard stop_lock(stop_mu_);  // one Stop at a time: join once
   std::deque<std::shared_ptr<RenderClient>> abandoned;
+  std::optional<Accumulation> half;  // a frame half accumulated: its work fails
   {
     std::lock_guard lock(mu_);
     if (stopping_ && !thread_.joinable()) return;
     stopping_ = true;
     abandoned.swap(ready_);
     for (auto& c : background_) abandoned.push_back(std::move(c));
+    half.swap(accumulating_);
     background_.clear();
     while (!timers_.empty()) {
       abandoned.push_back(timers_.top().second);
@@ -136,6 +138,7 @@ void RenderLoop::Stop() {
   if (thread_.joinable()) thread_.join();
   for (auto& c : abandoned)
     c->Deliver(RenderWork{}, absl::UnavailableError("server is shutting down"));
+  if (half) half->client->Deliver(half->work, absl::UnavailableError("server is shutting down"));
   encoders_.reset();  // drains: frames already rendered are still encoded and delivered
 }
 
@@ -149,7 +152,7 @@ void RenderLoop::Run() {
       timers_.pop();
     }
     if (stopping_) return;
-    if (ready_.empty() && background_.empty()) {
+    if (ready_.empty() && background_.empty() && !accumulating_) {
       if (timers_.empty())
         cv_.wait(lock);
       else
@@ -174,12 +177,24 @@ void RenderLoop::Run() {
       cv_.wait_until(lock, until);
       continue;
     }
-    auto& queue = background ? background_ : ready_;
-    std::shared_ptr<RenderClient> client = std::move(queue.front());
-    queue.pop_front();
+    std::optional<Accumulation> resume;
+    std::shared_ptr<RenderClient> client;
+    if (background && accumulating_) {
+      resume = std::move(accumulating_);
+      accumulating_.reset();
+    } else {
+      auto& queue = background ? background_ : ready_;
+      client = std::move(queue.front());
+      queue.pop_front();
+    }
     lock.unlock();
     const Clock::time_point start = Clock::now();
-    const bool rendered = RenderOne(client);
+    bool rendered = true;
+    if (resume) {
+      Accumulate(*std::move(resume), true);
+    } else {
+      rendered = RenderOne(client, background);
+    }
     const Clock::time_point end = Clock::now();
     lock.lock();
     if (!rendered) continue;
@@ -193,22 +208,39 @@ void RenderLoop::Run() {
   }
 }
 
-bool RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
+bool RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client, bool background) {
   std::optional<RenderWork> work = client->TakeWork();
   if (!work) return false;
-  const Clock::time_point start = Clock::now();
   if (work->fresh_view) renderer_->ForgetView(*work->scene, work->view);
+  Accumulate(Accumulation{client, *std::move(work), 0, Clock::now()}, background);
+  return true;
+}
+
+void RenderLoop::Accumulate(Accumulation acc, bool background) {
+  const std::shared_ptr<RenderClient>& client = acc.client;
+  const RenderWork* work = &acc.work;
+  const uint32_t total = std::max(1u, work->accumulate);
   absl::StatusOr<Frame> frame;
-  for (uint32_t i = 0; i < std::max(1u, work->accumulate); ++i) {
+  for (;;) {
     frame = renderer_->Render(*work->scene, work->camera, work->settings, work->view);
-    if (!frame.ok()) break;
+    ++acc.rendered;
+    if (!frame.ok() || acc.rendered >= total) break;
+    // A viewer's frame does not wait behind a whole accumulation: the rest of it waits.
+    if (background) {
+      std::lock_guard lock(mu_);
+      if (!ready_.empty() && !stopping_) {
+        accumulating_ = std::move(acc);
+        return;
+      }
+    }
   }
+  const Clock::time_point start = acc.started;
   if (work->fresh_view) renderer_->ForgetView(*work->scene, work->view);
   if (!frame.ok()) {
     Log().warn("render: scene {} seq {}: {}", work->scene_id, work->sequence,
                frame.status().ToString());
     client->Deliver(*work, frame.status());
-    return true;
+    return;
   }
   {
     std::lock_guard lock(mu_);
@@ -218,14 +250,13 @@ bool RenderLoop::RenderOne(const std::shared_ptr<RenderClient>& client) {
   const double queue_wait_ms = MsBetween(work->requested, start);
   if (!options_.pipelined) {
     EncodeAndDeliver(client, *work, *frame, queue_wait_ms);
-    return true;
+    return;
   }
   // The encoder owns the pixels from here; the render thread goes on to the next client.
   auto shared_frame = std::make_shared<Frame>(*std::move(frame));
-  encoders_->Submit([this, client, work = std::move(*work), shared_frame, queue_wait_ms] {
+  encoders_->Submit([this, client, work = acc.work, shared_frame, queue_wait_ms] {
     EncodeAndDeliver(client, work, *shared_frame, queue_wait_ms);
   });
-  return true;
 }
 
 void RenderLoop::EncodeAndDeliver(const std::shared_ptr<RenderClient>& client,

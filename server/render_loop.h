@@ -125,8 +125,19 @@ class RenderLoop {
 
  private:
   void Run();
+  // A frame accumulated over several renders (RenderWork::accumulate) that gave way to normal
+  // work between renders: it goes on before any other background work.
+  struct Accumulation {
+    std::shared_ptr<RenderClient> client;
+    RenderWork work;
+    uint32_t rendered = 0;
+    Clock::time_point started;
+  };
   // Renders one turn of `client`; false when it had nothing to render.
-  bool RenderOne(const std::shared_ptr<RenderClient>& client);
+  bool RenderOne(const std::shared_ptr<RenderClient>& client, bool background);
+  // Renders the rest of `acc` (or until normal work waits, for background work), then hands
+  // the frame to the encoders.
+  void Accumulate(Accumulation acc, bool background);
   void EncodeAndDeliver(const std::shared_ptr<RenderClient>& client, const RenderWork& work,
                         Frame& frame, double queue_wait_ms);
 
@@ -137,6 +148,7 @@ class RenderLoop {
   std::condition_variable cv_;
   std::deque<std::shared_ptr<RenderClient>> ready_;
   std::deque<std::shared_ptr<RenderClient>> background_;
+  std::optional<Accumulation> accumulating_;
   std::condition_variable encoded_cv_;  // frames_in_flight_ went down
   uint32_t frames_in_flight_ = 0;
   using Timed = std::pair<Clock::time_point, std::shared_ptr<RenderClient>>;

@@ -6,6 +6,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <condition_variable>
 #include <cstdlib>
@@ -108,6 +109,7 @@ struct Server::Impl {
     // encoders (which report to it) are drained.
     if (loop) loop->Stop();
     metrics.reset();
+    loader.reset();  // queued scene loads call into the jobs
     jobs.reset();
     if (!temp_state_dir.empty()) {
       std::error_code ec;
@@ -180,6 +182,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     g.scene_device_bytes = raw->store->device_bytes();
     g.scene_memory_budget_bytes = raw->store->memory_budget();
     g.pending_frame_bytes = raw->state.pending_frame_bytes;
+    g.jobs_active = raw->jobs ? raw->jobs->active() : 0;
     return g;
   });
   impl->store->set_eviction_listener([raw](const StoredScene& s) {
@@ -221,7 +224,8 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   job_options.max_scene_bytes = options.max_upload_bytes;
   impl->jobs = std::make_unique<JobManager>(job_options, *std::move(journal),
                                             impl->renderer.get(), impl->store.get(),
-                                            impl->loop.get(), impl->loader.get(), Settings{});
+                                            impl->loop.get(), impl->loader.get(),
+                                            impl->state.default_settings);
 
   ServiceState& st = impl->state;
   st.options = options;
@@ -244,8 +248,10 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   grpc::ServerBuilder builder;
   builder.AddListeningPort(options.listen, *credentials, &impl->port);
   builder.RegisterService(impl->service.get());
-  // A chunk plus the message framing; anything larger is refused by gRPC itself.
-  builder.SetMaxReceiveMessageSize(static_cast<int>(options.max_chunk_bytes) + (64 << 10));
+  // A chunk plus the message framing, or a job spec with an explicit camera per frame (about
+  // 60 bytes each); anything larger is refused by gRPC itself.
+  builder.SetMaxReceiveMessageSize(
+      std::max(static_cast<int>(options.max_chunk_bytes) + (64 << 10), 16 << 20));
   builder.SetMaxSendMessageSize(256 << 20);  // a 16384^2 PNG frame
   impl->grpc_server = builder.BuildAndStart();
   if (!impl->grpc_server || impl->port == 0)

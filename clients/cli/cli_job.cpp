@@ -13,6 +13,7 @@
 #include <cmath>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -287,9 +288,17 @@ absl::StatusOr<v1::JobSpec> BuildSpec(v1::RenderService::Stub* stub, const Submi
                                        spec.mutable_list());
         !st.ok())
       return st;
-  } else if (o.flags.has_look_at() || o.flags.has_placement() || c.has_yfov() || c.has_znear() ||
-             c.has_zfar()) {
-    // One camera for every frame.
+  } else if (c.has_look_at()) {
+    // One camera for every frame: a path with one key holds it.
+    v1::CameraPath* path = spec.mutable_path();
+    v1::CameraKeyframe* key = path->add_keyframes();
+    key->set_frame(spec.frames().first());
+    *key->mutable_look_at() = c.look_at();
+    if (c.has_yfov()) key->set_yfov(c.yfov());
+    if (c.has_znear()) path->set_znear(c.znear());
+    if (c.has_zfar()) path->set_zfar(c.zfar());
+  } else if (o.flags.has_placement() || c.has_yfov() || c.has_znear() || c.has_zfar()) {
+    // A scene camera or a framing for every frame (only a look-at can be a path key).
     const uint32_t n = jobs::FrameCount(spec.frames());
     if (n > 100000) return absl::InvalidArgumentError("--frames: too many frames for one camera");
     for (uint32_t i = 0; i < n; ++i) *spec.mutable_list()->add_cameras() = c;
@@ -473,8 +482,12 @@ absl::Status ResolveServers(const std::string& servers, std::string* lb_target,
   return absl::OkStatus();
 }
 
-bool Retryable(grpc::StatusCode code) {
-  switch (code) {
+// Worth trying again, on another daemon: it failed, was killed, was busy, or (a daemon that
+// came back, or a new one behind a DNS name) does not have the scene.
+bool Retryable(const grpc::Status& st) {
+  if (st.error_code() == grpc::StatusCode::NOT_FOUND)
+    return st.error_message().find("scene_id") != std::string::npos;
+  switch (st.error_code()) {
     case grpc::StatusCode::UNAVAILABLE:
     case grpc::StatusCode::DEADLINE_EXCEEDED:
     case grpc::StatusCode::RESOURCE_EXHAUSTED:
@@ -528,11 +541,12 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
   struct Pending {
     uint32_t frame;
     uint32_t attempts;
+    Clock::time_point not_before{};  // retries wait out their backoff
   };
   std::mutex mu;
   std::condition_variable cv;
   std::deque<Pending> queue;
-  for (uint32_t f : *frames) queue.push_back({f, 0});
+  for (uint32_t f : *frames) queue.push_back({f, 0, {}});
   std::set<uint32_t> written;
   std::map<std::string, uint32_t> by_server;
   std::vector<double> frame_ms;
@@ -553,6 +567,7 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
       queue.pop_front();
       ++busy;
       lock.unlock();
+      std::this_thread::sleep_until(p.not_before);
       v1::RenderJobFrameRequest request;
       *request.mutable_spec() = *spec;
       request.set_frame(p.frame);
@@ -573,10 +588,13 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
         written.insert(p.frame);
         ++by_server[context.peer()];
         frame_ms.push_back(ms);
-      } else if (Retryable(st.error_code()) && p.attempts + 1 < std::max(1u, o.retries) &&
-                 error.empty()) {
+      } else if (Retryable(st) && p.attempts + 1 < std::max(1u, o.retries) && error.empty()) {
         ++retried;
-        queue.push_back({p.frame, p.attempts + 1});
+        // Back off (100 ms doubling, up to 3.2 s, with jitter) so a daemon that fails fast
+        // while shutting down cannot use up a frame's tries before round_robin moves on.
+        const int backoff_ms = (100 << std::min(p.attempts, 5u)) * (75 + std::rand() % 50) / 100;
+        queue.push_back({p.frame, p.attempts + 1,
+                         Clock::now() + std::chrono::milliseconds(backoff_ms)});
         bar.Clear();
         absl::FPrintF(stderr, "tessera: job: frame %u failed on %s (%s: %s); retrying\n",
                       p.frame, context.peer(), StatusCodeName(st.error_code()),

@@ -45,6 +45,11 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
     absl::PrintF("memory     %s for uploaded scenes (unused ones evicted, least recently used "
                  "first)\n",
                  HumanBytes(l.scene_memory_budget_bytes()));
+  absl::PrintF("jobs       %u active, up to %u kept and %u frames each, %s, %s\n",
+               info.jobs_active(), l.max_jobs(), l.max_job_frames(),
+               info.jobs_persistent() ? "resumed after a restart (--state_dir)"
+                                      : "not kept over a restart",
+               info.job_output_root() ? "server-side output on" : "no server-side output");
   absl::PrintF("security   %s, %s\n", info.tls() ? "TLS" : "plaintext",
                info.auth_required() ? "bearer tokens required" : "no tokens");
   absl::PrintF("uploads    up to %s in %u files, chunks up to %s\n",

@@ -227,6 +227,18 @@ TEST_F(JobTest, SubmitWatchFetchAndTheSamePixelsAsRenderJobFrame) {
   EXPECT_EQ(frames.size(), 2u);
   FetchAll(stub_.get(), job.job_id(), &st, {99});
   EXPECT_CODE(st, NOT_FOUND, "frame 99");
+
+  // Cancelling a finished job returns it unchanged (twice: nothing hangs).
+  for (int i = 0; i < 2; ++i) {
+    grpc::ClientContext ctx;
+    ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+    v1::CancelJobRequest r;
+    r.set_job_id(job.job_id());
+    v1::Job j;
+    ASSERT_TRUE(stub_->CancelJob(&ctx, r, &j).ok());
+    EXPECT_EQ(j.state(), v1::JOB_SUCCEEDED);
+    EXPECT_FALSE(j.spec().has_list()) << "responses leave the camera list out";
+  }
 }
 
 // taa history and occlusion history start from reset for every job frame: the bytes do not

@@ -254,6 +254,7 @@ TEST(MetricsTest, EveryMetricHasHelpAndType) {
       {"tessera_scene_device_bytes", "gauge"},
       {"tessera_scene_memory_budget_bytes", "gauge"},
       {"tessera_pending_frame_bytes", "gauge"},
+      {"tessera_jobs_active", "gauge"},
   };
   metrics.RpcFinished("Render", 0);
   const std::string after_rpc = metrics.Text();
@@ -359,6 +360,7 @@ TEST(MetricsTest, GaugesAreReadWhenCollected) {
   g.scene_device_bytes = 3'000'000'000ull;  // beyond 32 bits
   g.scene_memory_budget_bytes = 0;
   g.pending_frame_bytes = 123456;
+  g.jobs_active = 2;
   fake.Set(g);
   std::string text = metrics.Text();
   EXPECT_EQ(Sample(text, "tessera_sessions"), 3) << text;
@@ -370,6 +372,7 @@ TEST(MetricsTest, GaugesAreReadWhenCollected) {
   EXPECT_EQ(Sample(text, "tessera_scene_device_bytes"), 3e9);
   EXPECT_EQ(Sample(text, "tessera_scene_memory_budget_bytes"), 0);
   EXPECT_EQ(Sample(text, "tessera_pending_frame_bytes"), 123456);
+  EXPECT_EQ(Sample(text, "tessera_jobs_active"), 2);
 
   g.sessions = 0;
   g.queue_depth = 17;
