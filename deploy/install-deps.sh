@@ -20,8 +20,8 @@ PACKAGES=(
   prometheus-cpp-dev
   # image encoding, logging
   libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
-  # tests and benchmarks
-  libgtest-dev libgmock-dev libbenchmark-dev
+  # tests and benchmarks; deploy/validate.sh (YAML, systemd unit)
+  libgtest-dev libgmock-dev libbenchmark-dev python3-yaml systemd
 )
 
 missing=()

@@ -377,7 +377,9 @@ print(" ".join(w for w in m.group(1).split() if not w.startswith("-")) if m else
 PY
 )
 [[ -n $pkgs ]] || fail "docker: no apt-get install in the runtime stage"
-if command -v apt-cache >/dev/null && [[ -r /etc/debian_version && $(cut -d. -f1 /etc/debian_version) == 12 ]]; then
+# Package lists present (a machine whose lists were cleaned cannot say; skipped then).
+if command -v apt-cache >/dev/null && [[ -r /etc/debian_version && $(cut -d. -f1 /etc/debian_version) == 12 ]] &&
+  apt-cache show --no-all-versions libc6 >/dev/null 2>&1; then
   # shellcheck disable=SC2086
   # (One call for all; it says nothing about missing ones when others are found, so count.)
   found=$(apt-cache show --no-all-versions $pkgs 2>/dev/null | grep -c '^Package:' || true)

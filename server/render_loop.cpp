@@ -166,11 +166,15 @@ void RenderLoop::Run() {
       });
       continue;
     }
-    // Background work only when no normal client waits: a viewer waits at most for the one
-    // background frame already being rendered. While viewers are active, background frames
-    // also keep to their share of the render thread.
-    const bool background = ready_.empty();
-    if (background && now < background_not_before_ &&
+    // Background work keeps to its share of the render thread while viewers are active: when
+    // no normal client waits it may go only once its share allows, and when viewers keep the
+    // thread busy (a render-bound stream is always waiting) it still gets its share, so a job
+    // beside a busy viewer progresses instead of starving. A viewer waits at most for the one
+    // background render already under way.
+    const bool background_waiting = !background_.empty() || accumulating_.has_value();
+    const bool share_due = options_.background_share < 1.0 && now >= background_not_before_;
+    const bool background = ready_.empty() || (background_waiting && share_due);
+    if (background && ready_.empty() && now < background_not_before_ &&
         now - last_normal_ < std::chrono::milliseconds(500)) {
       Clock::time_point until = background_not_before_;
       if (!timers_.empty()) until = std::min(until, timers_.top().first);

@@ -6,8 +6,9 @@
 // it for a snapshot of what to render (TakeWork), renders it, and hands the pixels to the
 // encoder pool, then moves to the next client. A client that still has work afterwards goes to
 // the back of the queue, so every client gets a turn: round-robin, nobody starves. Background
-// work (batch renders, jobs) has its own queue, served only when the normal one is empty, and
-// while normal clients are active only up to background_share of the render thread's time.
+// work (batch renders, jobs) has its own queue, served when the normal one is empty, and while
+// normal clients are active at background_share of the render thread's time (no more when the
+// thread has idle moments, no less when viewers keep it busy).
 //
 // Encoding (bicubic upscale for interactive frames, JPEG/PNG) runs on the encoder pool, so the
 // render thread renders frame N+1 while frame N is encoded. At most max_frames_in_flight
@@ -87,8 +88,10 @@ struct RenderLoopOptions {
   bool pipelined = true;              // false: encode on the render thread (serial baseline)
   Metrics* metrics = nullptr;         // optional; outlives the loop
   // While normal clients are active (one was rendered in the last half second), background
-  // frames may take at most this share of the render thread, so a live viewer's frame rate
-  // drops by about this much while a job runs. 1: background runs whenever nothing else waits.
+  // frames take this share of the render thread: at most this much when viewers leave the
+  // thread idle at times, and at least this much when they keep it busy. A live viewer's frame
+  // rate drops by about this much while a job runs. 1: background runs whenever nothing else
+  // waits (and never ahead of normal work).
   double background_share = 0.12;
 };
 

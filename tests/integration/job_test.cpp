@@ -5,6 +5,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
@@ -267,6 +268,34 @@ TEST_F(JobTest, FramesDoNotDependOnWhatWasRenderedBefore) {
   spec.set_taa_frames(1);
   ASSERT_TRUE(RenderJobFrame(stub_.get(), spec, 2, &c).ok());
   EXPECT_NE(a.data(), c.data());
+}
+
+// Beside a viewer that keeps the render thread busy (a continuous stream it cannot render as
+// fast as it asks), a job still gets its share and finishes, and the viewer keeps streaming.
+TEST_F(JobTest, AJobProgressesBesideARenderBoundViewer) {
+  Start(BaseOptions());
+  grpc::ClientContext stream_ctx;
+  std::unique_ptr<StreamRW> stream = stub_->Stream(&stream_ctx);
+  v1::ClientEvent open = OpenEvent("demo", 960, 540, 60);
+  open.mutable_open()->mutable_settings()->set_aa(v1::AA_MSAA);
+  ASSERT_TRUE(stream->Write(open));
+  std::atomic<int> viewer_frames{0};
+  std::thread reader([&] {
+    v1::Frame f;
+    while (stream->Read(&f)) ++viewer_frames;
+  });
+  while (viewer_frames < 3) std::this_thread::sleep_for(std::chrono::milliseconds(5));
+
+  v1::Job job;
+  ASSERT_TRUE(Submit(stub_.get(), OrbitSpec("demo", 3, 64, 48), &job).ok());
+  const int before = viewer_frames;
+  const Watched w = WatchToEnd(stub_.get(), job.job_id());
+  ASSERT_TRUE(w.status.ok()) << w.status.error_message();
+  EXPECT_EQ(w.events.back().job().state(), v1::JOB_SUCCEEDED) << "the job must not starve";
+  EXPECT_GT(viewer_frames.load(), before) << "the viewer kept getting frames meanwhile";
+  stream_ctx.TryCancel();
+  reader.join();
+  stream->Finish();
 }
 
 TEST_F(JobTest, BadSpecsAreRefusedNamingTheirField) {
