@@ -72,17 +72,29 @@ absl::Status Prefixed(const absl::Status& s, const std::string& prefix) {
 
 }  // namespace
 
+namespace {
+
+// The concrete camera of `frame` in a scene, for frames of the given settings.
+absl::StatusOr<Camera> JobCamera(const v1::JobSpec& spec, uint32_t frame, const SceneInfo& scene,
+                                 const Settings& settings) {
+  absl::StatusOr<v1::Camera> wire = jobs::CameraAtFrame(spec, frame);
+  if (!wire.ok()) return wire.status();
+  absl::StatusOr<Camera> camera =
+      ResolveCamera(*wire, scene, float(settings.width) / float(settings.height));
+  if (!camera.ok())
+    return Prefixed(camera.status(), absl::StrCat("spec: the camera of frame ", frame, ": "));
+  return camera;
+}
+
+}  // namespace
+
 absl::StatusOr<RenderWork> JobFrameWork(const v1::JobSpec& spec, uint32_t frame,
                                         const StoredScene& scene, const Settings& defaults,
                                         uint64_t view) {
   absl::StatusOr<Settings> settings = MergeSettings(defaults, spec.settings());
   if (!settings.ok()) return Prefixed(settings.status(), "spec.");
-  absl::StatusOr<v1::Camera> wire = jobs::CameraAtFrame(spec, frame);
-  if (!wire.ok()) return wire.status();
-  absl::StatusOr<Camera> camera = ResolveCamera(
-      *wire, scene.scene->info(), float(settings->width) / float(settings->height));
-  if (!camera.ok())
-    return Prefixed(camera.status(), absl::StrCat("spec: the camera of frame ", frame, ": "));
+  absl::StatusOr<Camera> camera = JobCamera(spec, frame, scene.scene->info(), *settings);
+  if (!camera.ok()) return camera.status();
   RenderWork w;
   w.scene = scene.scene;
   w.scene_id = scene.id;
@@ -564,15 +576,14 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
   } else {
     return Prefixed(found.status(), "spec.");
   }
-  // Every frame's camera and the settings are checked now, not when the frame comes up.
+  // The settings and every frame's camera are checked now, not when the frame comes up.
+  absl::StatusOr<Settings> settings = MergeSettings(default_settings_, spec.settings());
+  if (!settings.ok()) return Prefixed(settings.status(), "spec.");
   if (scene) {
     for (uint32_t f : *frames) {
-      absl::StatusOr<RenderWork> work = JobFrameWork(spec, f, *scene, default_settings_, 0);
-      if (!work.ok()) return work.status();
+      if (absl::Status st = JobCamera(spec, f, scene->scene->info(), *settings).status(); !st.ok())
+        return st;
     }
-  } else if (absl::StatusOr<Settings> s = MergeSettings(default_settings_, spec.settings());
-             !s.ok()) {
-    return Prefixed(s.status(), "spec.");
   }
   std::string output_path;
   if (spec.output() == v1::JOB_OUTPUT_SERVER_DIR) {
