@@ -189,6 +189,22 @@ inline grpc::Status UploadFromDisk(v1::RenderService::Stub* stub, const std::str
 
 // --- the server ----------------------------------------------------------------------------
 
+// An in-process server's options for a test: port 0 on loopback, validation layers as
+// TESSERA_VALIDATION says.
+inline server::ServerOptions BaseOptions() {
+  server::ServerOptions o;
+  o.listen = "127.0.0.1:0";
+  o.validation = std::getenv("TESSERA_VALIDATION") != nullptr;
+  return o;
+}
+
+// Starts it (a failed start is a test failure and nullptr).
+inline std::unique_ptr<server::Server> StartServer(const server::ServerOptions& o) {
+  absl::StatusOr<std::unique_ptr<server::Server>> s = server::Server::Start(o);
+  EXPECT_TRUE(s.ok()) << s.status();
+  return s.ok() ? *std::move(s) : nullptr;
+}
+
 // Waits (bounded: `ms`, polling every `poll_ms`) until `pred` holds on the server's stats.
 template <typename Pred>
 bool WaitFor(const server::Server& server, Pred pred, int ms = 10000, int poll_ms = 10) {

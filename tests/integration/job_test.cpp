@@ -48,19 +48,6 @@ class TempDir {
   std::string path_;
 };
 
-ServerOptions BaseOptions() {
-  ServerOptions o;
-  o.listen = "127.0.0.1:0";
-  o.validation = std::getenv("TESSERA_VALIDATION") != nullptr;
-  return o;
-}
-
-std::unique_ptr<Server> StartServer(const ServerOptions& o) {
-  absl::StatusOr<std::unique_ptr<Server>> s = Server::Start(o);
-  EXPECT_TRUE(s.ok()) << s.status();
-  return s.ok() ? *std::move(s) : nullptr;
-}
-
 // An orbit of `n` frames at w x h (explicit cameras: the job and the test agree on them).
 v1::JobSpec OrbitSpec(const std::string& scene, uint32_t n, uint32_t w, uint32_t h) {
   v1::JobSpec spec;

@@ -40,19 +40,6 @@ using server::ServerStats;
 using Clock = std::chrono::steady_clock;
 using namespace test_client;  // client_helpers.h
 
-ServerOptions BaseOptions() {
-  ServerOptions o;
-  o.listen = "127.0.0.1:0";
-  o.validation = std::getenv("TESSERA_VALIDATION") != nullptr;
-  return o;
-}
-
-std::unique_ptr<Server> StartServer(const ServerOptions& o) {
-  absl::StatusOr<std::unique_ptr<Server>> s = Server::Start(o);
-  EXPECT_TRUE(s.ok()) << s.status();
-  return s.ok() ? *std::move(s) : nullptr;
-}
-
 v1::ClientEvent ResumeEvent(const std::string& token) {
   v1::ClientEvent e;
   e.mutable_open()->set_resume_token(token);
