@@ -27,6 +27,7 @@ namespace tessera {
 namespace {
 
 using gltf_internal::Invalid;
+using gltf_internal::OverLimit;
 using gltf_internal::Quote;
 
 #define RETURN_IF_ERROR(expr)                             \
@@ -35,6 +36,11 @@ using gltf_internal::Quote;
   } while (false)
 
 constexpr size_t kMaxWarnings = 100;  // hostile files must not grow the warning list forever
+// Bound on unbounded material parameters (emissive strength, normal scale, UV transforms):
+// far past any real asset, far below where float products overflow in a shader.
+constexpr float kMaxFactor = 1e6f;
+// Candela or lux: the sun is 1e5 lux.
+constexpr float kMaxLightIntensity = 1e9f;
 
 // double -> float outside the float range is undefined behaviour; clamp instead.
 float ToFloat(double d) {
@@ -51,7 +57,8 @@ struct LoadContext {
   const ImportLimits* limits = nullptr;
   std::map<std::string, std::string> alias;  // tinygltf-decoded URI -> key in source->files
   std::vector<bool> image_needed;            // referenced by some texture
-  std::string error;                         // first error raised inside a callback
+  uint64_t decoded_bytes = 0;                // RGBA8 bytes of the images decoded so far
+  absl::Status error;                        // first error raised inside a callback
 };
 
 bool FsFileExists(const std::string& path, void* user) {
@@ -80,20 +87,100 @@ bool FsWriteWholeFile(std::string* err, const std::string&, const std::vector<un
   return false;
 }
 
-std::string CheckImageSize(int w, int h, const ImportLimits& lim) {
-  if (w <= 0 || h <= 0 || uint32_t(w) > lim.max_image_dimension ||
-      uint32_t(h) > lim.max_image_dimension) {
-    return absl::StrCat(w, "x", h, " exceeds the maximum dimension ", lim.max_image_dimension);
+// The header's size against the limits: before the decode allocates, and again after it (the
+// decoder may disagree with its own header).
+absl::Status CheckImageSize(int64_t w, int64_t h, const ImportLimits& lim,
+                            uint64_t already_decoded) {
+  if (w <= 0 || h <= 0) return absl::InvalidArgumentError(absl::StrCat(w, "x", h, " has no pixels"));
+  if (uint64_t(w) > lim.max_image_dimension || uint64_t(h) > lim.max_image_dimension) {
+    return absl::ResourceExhaustedError(absl::StrCat(
+        w, "x", h, " exceeds the max_image_dimension limit (", lim.max_image_dimension, ")"));
   }
-  if (uint64_t(w) * uint64_t(h) > lim.max_image_pixels) {
-    return absl::StrCat(w, "x", h, " exceeds the maximum of ", lim.max_image_pixels, " pixels");
+  const uint64_t bytes = uint64_t(w) * uint64_t(h) * 4;
+  if (bytes > lim.max_image_bytes) {
+    return absl::ResourceExhaustedError(absl::StrCat(w, "x", h, " decodes to ", bytes,
+                                                     " bytes, over the max_image_bytes limit (",
+                                                     lim.max_image_bytes, ")"));
   }
-  return "";
+  if (already_decoded + bytes > lim.max_total_image_bytes) {
+    return absl::ResourceExhaustedError(
+        absl::StrCat(w, "x", h, " brings the decoded images to ", already_decoded + bytes,
+                     " bytes, over the max_total_image_bytes limit (", lim.max_total_image_bytes,
+                     ")"));
+  }
+  return absl::OkStatus();
 }
 
-std::string DecodeFailure() {
+uint32_t Be32(const uint8_t* p) {
+  return uint32_t(p[0]) << 24 | uint32_t(p[1]) << 16 | uint32_t(p[2]) << 8 | uint32_t(p[3]);
+}
+uint32_t Be16(const uint8_t* p) { return uint32_t(p[0]) << 8 | uint32_t(p[1]); }
+
+// Width and height from a PNG's IHDR or a JPEG's SOF marker, read without a decoder, so that
+// the size is checked before stb_image allocates anything (stb refuses some huge sizes itself,
+// but then reports only "unknown image type"). False for other formats, or when the header is
+// cut short or declares no size (stb then has its say).
+bool ReadImageHeader(const uint8_t* d, size_t n, uint32_t* w, uint32_t* h) {
+  static constexpr uint8_t kPng[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
+  if (n >= 24 && std::memcmp(d, kPng, 8) == 0 && std::memcmp(d + 12, "IHDR", 4) == 0) {
+    *w = Be32(d + 16);
+    *h = Be32(d + 20);
+    return *w > 0 && *h > 0;
+  }
+  if (n < 4 || d[0] != 0xFF || d[1] != 0xD8) return false;
+  for (size_t i = 2; i + 4 <= n;) {
+    if (d[i] != 0xFF) return false;
+    const uint8_t marker = d[i + 1];
+    if (marker == 0xFF) {  // fill byte
+      ++i;
+      continue;
+    }
+    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD8)) {  // markers without a length
+      i += 2;
+      continue;
+    }
+    if (marker == 0xD9 || marker == 0xDA) return false;  // end of image, start of scan
+    const size_t length = Be16(d + i + 2);
+    if (length < 2) return false;
+    // SOF0..SOF15, except DHT (C4), JPG (C8) and DAC (CC): length, precision, height, width.
+    if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC) {
+      if (i + 9 > n) return false;
+      *h = Be16(d + i + 5);
+      *w = Be16(d + i + 7);
+      return *w > 0 && *h > 0;
+    }
+    i += 2 + length;
+  }
+  return false;
+}
+
+absl::Status DecodeFailure() {
   const char* why = stbi_failure_reason();  // NULL when stb_image gave no reason
-  return absl::StrCat("cannot decode: ", why != nullptr ? why : "unknown error");
+  return absl::InvalidArgumentError(
+      absl::StrCat("cannot decode: ", why != nullptr ? why : "unknown error"));
+}
+
+absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
+                                         const ImportLimits& limits, uint64_t already_decoded) {
+  if (bytes == nullptr || size == 0) return absl::InvalidArgumentError("no image data");
+  if (size > size_t(std::numeric_limits<int>::max())) {
+    return absl::InvalidArgumentError(absl::StrCat(size, " bytes of image data are too many"));
+  }
+  uint32_t header_w = 0, header_h = 0;
+  if (ReadImageHeader(bytes, size, &header_w, &header_h)) {
+    if (absl::Status st = CheckImageSize(header_w, header_h, limits, already_decoded); !st.ok())
+      return st;
+  }
+  int w = 0, h = 0, comp = 0;
+  if (!stbi_info_from_memory(bytes, int(size), &w, &h, &comp)) return DecodeFailure();
+  if (absl::Status st = CheckImageSize(w, h, limits, already_decoded); !st.ok()) return st;
+  std::unique_ptr<stbi_uc, void (*)(void*)> pixels(
+      stbi_load_from_memory(bytes, int(size), &w, &h, &comp, 4), &stbi_image_free);
+  if (pixels == nullptr) return DecodeFailure();
+  if (absl::Status st = CheckImageSize(w, h, limits, already_decoded); !st.ok()) return st;
+  DecodedImage out{.width = uint32_t(w), .height = uint32_t(h)};
+  out.rgba8.assign(pixels.get(), pixels.get() + size_t(w) * size_t(h) * 4);
+  return out;
 }
 
 // Decodes every image a texture uses to RGBA8, after checking the size its header declares.
@@ -103,34 +190,25 @@ bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::s
   if (index < 0 || size_t(index) >= ctx->image_needed.size() || !ctx->image_needed[index]) {
     return true;  // no texture uses it: skip the decode
   }
-  int w = 0, h = 0, comp = 0;
-  std::string problem;
-  stbi_uc* pixels = nullptr;
-  if (bytes == nullptr || size <= 0) {
-    problem = "no image data";
-  } else if (!stbi_info_from_memory(bytes, size, &w, &h, &comp)) {
-    problem = DecodeFailure();
-  } else if (problem = CheckImageSize(w, h, *ctx->limits); problem.empty()) {
-    pixels = stbi_load_from_memory(bytes, size, &w, &h, &comp, 4);
-    if (pixels == nullptr) problem = DecodeFailure();
-    if (pixels != nullptr) problem = CheckImageSize(w, h, *ctx->limits);
-  }
-  if (problem.empty()) {
-    image->width = w;
-    image->height = h;
+  absl::StatusOr<DecodedImage> decoded =
+      DecodeImage(bytes, size_t(std::max(size, 0)), *ctx->limits, ctx->decoded_bytes);
+  if (decoded.ok()) {
+    ctx->decoded_bytes += decoded->rgba8.size();
+    image->width = int(decoded->width);
+    image->height = int(decoded->height);
     image->component = 4;
     image->bits = 8;
     image->pixel_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE;
-    image->image.assign(pixels, pixels + size_t(w) * size_t(h) * 4);
+    image->image = std::move(decoded->rgba8);
+    return true;
   }
-  stbi_image_free(pixels);
-  if (problem.empty()) return true;
   const std::string& name = image->name.empty() ? image->uri : image->name;
-  if (ctx->error.empty()) {
-    ctx->error = absl::StrCat(ctx->source->main_file, ": images[", index, "] (", Quote(name),
-                              "): ", problem);
+  if (ctx->error.ok()) {
+    ctx->error = absl::Status(decoded.status().code(),
+                              absl::StrCat(ctx->source->main_file, ": images[", index, "] (",
+                                           Quote(name), "): ", decoded.status().message()));
   }
-  if (err) *err += ctx->error;
+  if (err) err->append(std::string(ctx->error.message()));
   return false;
 }
 
@@ -316,6 +394,12 @@ class Converter {
     return Invalid(file_, field, what...);
   }
 
+  // "<field>: <what> <value> exceeds the <limit> limit (<max>)" as RESOURCE_EXHAUSTED.
+  absl::Status OverMax(absl::string_view field, absl::string_view what, uint64_t value,
+                       absl::string_view limit, uint64_t max) const {
+    return OverLimit(file_, field, what, " ", value, " exceeds the ", limit, " limit (", max, ")");
+  }
+
   // "<field>: <what> index <i> out of range (<count> <what>s)" unless 0 <= index < count.
   absl::Status CheckIndex(absl::string_view field, int64_t index, size_t count,
                           const char* what) const {
@@ -341,6 +425,10 @@ class Converter {
     if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset) {
       return Err(bv_field, "byteOffset + byteLength exceeds buffers[", bv.buffer, "] (", have,
                  " bytes)");
+    }
+    if (a.count > limits_.max_accessor_elements) {
+      return OverMax(field + ".count", "element count", a.count, "max_accessor_elements",
+                     limits_.max_accessor_elements);
     }
     AccessorView v;
     v.component_size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
@@ -398,7 +486,7 @@ class Converter {
                                                 const std::string& path, uint64_t n) {
     std::vector<uint32_t> idx;
     if (p.indices < 0) {
-      if (n > max_indices_) return Err(path, "vertex count exceeds the index limit");
+      if (n > max_indices_) return OverMax(path, "vertex count", n, "max_indices", max_indices_);
       for (uint64_t i = 0; i < n; ++i) idx.push_back(uint32_t(i));
       return idx;
     }
@@ -411,7 +499,8 @@ class Converter {
          iv->component_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT)) {
       return Err(field, "indices must be unsigned byte/short/int scalars");
     }
-    if (iv->count > max_indices_) return Err(field, "index count exceeds the limit");
+    if (iv->count > max_indices_)
+      return OverMax(field, "index count", iv->count, "max_indices", max_indices_);
     idx.resize(iv->count);
     for (uint64_t i = 0; i < iv->count; ++i) {
       idx[i] = ReadUint(*iv, i);
@@ -437,7 +526,7 @@ class Converter {
     if (!pos.ok()) return pos.status();
     if (pos->data == nullptr) return Err(path + ".attributes", "POSITION is required");
     const uint64_t n = pos->count;
-    if (n > max_vertices_) return Err(path, "vertex count ", n, " exceeds the limit");
+    if (n > max_vertices_) return OverMax(path, "vertex count", n, "max_vertices", max_vertices_);
     absl::StatusOr<std::vector<uint32_t>> idx = Indices(p, path, n);
     if (!idx.ok()) return idx.status();
     if (mode == TINYGLTF_MODE_TRIANGLES && idx->size() % 3 != 0) {
@@ -445,7 +534,8 @@ class Converter {
     }
     if (mode != TINYGLTF_MODE_TRIANGLES && idx->size() > 2 &&
         (idx->size() - 2) * 3 > max_indices_) {
-      return Err(path, "index count exceeds the limit");
+      return OverMax(path, "triangle-list index count", (idx->size() - 2) * 3, "max_indices",
+                     max_indices_);
     }
     std::vector<uint32_t> tri = ToTriangleList(mode, std::move(*idx));
 
@@ -459,9 +549,13 @@ class Converter {
     const bool has_normals = nrm.data != nullptr;
     const bool has_tangents = has_normals && tng.data != nullptr;  // spec: else ignore them
     const uint64_t out_vertices = has_normals ? n : tri.size();    // flat: a vertex per corner
-    if (s_.vertices.size() + out_vertices > max_vertices_ ||
-        s_.indices.size() + tri.size() > max_indices_) {
-      return Err(path, "the scene exceeds the vertex or index limit");
+    if (s_.vertices.size() + out_vertices > max_vertices_) {
+      return OverMax(path, "the scene's vertex count", s_.vertices.size() + out_vertices,
+                     "max_vertices", max_vertices_);
+    }
+    if (s_.indices.size() + tri.size() > max_indices_) {
+      return OverMax(path, "the scene's index count", s_.indices.size() + tri.size(),
+                     "max_indices", max_indices_);
     }
     auto finite_uv = [](glm::vec4 u) {
       return std::isfinite(u.x) && std::isfinite(u.y) ? glm::vec2(u) : glm::vec2(0.0f);
@@ -603,7 +697,9 @@ class Converter {
       const tinygltf::Value& x = it->second;
       ReadNumbers(x, "offset", 2, &out->offset.x);
       ReadNumbers(x, "scale", 2, &out->scale.x);
-      out->rotation = ToFloat(NumberOr(x, "rotation", 0.0));
+      out->offset = glm::clamp(out->offset, -kMaxFactor, kMaxFactor);
+      out->scale = glm::clamp(out->scale, -kMaxFactor, kMaxFactor);
+      out->rotation = std::clamp(ToFloat(NumberOr(x, "rotation", 0.0)), -kMaxFactor, kMaxFactor);
       if (x.IsObject() && x.Has("texCoord")) out->texcoord = texcoord(NumberOr(x, "texCoord", -1));
     }
     absl::StatusOr<int32_t> t = TextureFor(info.index, srgb);
@@ -617,19 +713,22 @@ class Converter {
     const tinygltf::PbrMetallicRoughness& pbr = gm.pbrMetallicRoughness;
     const std::string path = absl::StrCat("materials[", index, "]");
     Material m{.name = gm.name};
+    // Factors are clamped to the ranges the glTF spec gives them (and NaN becomes 0), so no
+    // shader multiplies by an infinity.
     for (size_t i = 0; pbr.baseColorFactor.size() == 4 && i < 4; ++i) {
-      m.base_color_factor[int(i)] = ToFloat(pbr.baseColorFactor[i]);
+      m.base_color_factor[int(i)] = std::clamp(ToFloat(pbr.baseColorFactor[i]), 0.0f, 1.0f);
     }
     for (size_t i = 0; gm.emissiveFactor.size() == 3 && i < 3; ++i) {
-      m.emissive_factor[int(i)] = ToFloat(gm.emissiveFactor[i]);
+      m.emissive_factor[int(i)] = std::clamp(ToFloat(gm.emissiveFactor[i]), 0.0f, 1.0f);
     }
     m.metallic_factor = std::clamp(ToFloat(pbr.metallicFactor), 0.0f, 1.0f);
     m.roughness_factor = std::clamp(ToFloat(pbr.roughnessFactor), 0.0f, 1.0f);
     if (const auto it = gm.extensions.find("KHR_materials_emissive_strength");
         it != gm.extensions.end()) {
-      m.emissive_strength = std::max(0.0f, ToFloat(NumberOr(it->second, "emissiveStrength", 1)));
+      m.emissive_strength =
+          std::clamp(ToFloat(NumberOr(it->second, "emissiveStrength", 1)), 0.0f, kMaxFactor);
     }
-    m.normal_scale = ToFloat(gm.normalTexture.scale);
+    m.normal_scale = std::clamp(ToFloat(gm.normalTexture.scale), -kMaxFactor, kMaxFactor);
     m.occlusion_strength = std::clamp(ToFloat(gm.occlusionTexture.strength), 0.0f, 1.0f);
     if (gm.alphaMode == "MASK") {
       m.alpha_mode = AlphaMode::kMask;
@@ -638,7 +737,7 @@ class Converter {
     } else if (gm.alphaMode != "OPAQUE") {
       Warn(absl::StrCat(path, ".alphaMode: unknown '", Quote(gm.alphaMode), "'; using OPAQUE"));
     }
-    m.alpha_cutoff = std::max(0.0f, ToFloat(gm.alphaCutoff));
+    m.alpha_cutoff = std::clamp(ToFloat(gm.alphaCutoff), 0.0f, 1.0f);
     m.double_sided = gm.doubleSided;
     const std::string pbr_path = path + ".pbrMetallicRoughness";
     RETURN_IF_ERROR(
@@ -683,6 +782,19 @@ class Converter {
         return Err(absl::StrCat("nodes[", n, "]"), "node hierarchy contains a cycle");
       }
       for (int w : walk) state[w] = 2;
+    }
+    // Depth (a root is 1) bounds the traversal; each node's is its parent's plus one.
+    std::vector<uint32_t> depth(count, 0);
+    for (size_t i = 0; i < count; ++i) {
+      walk.clear();
+      int n = int(i);
+      for (; n >= 0 && depth[n] == 0; n = parent_[n]) walk.push_back(n);
+      uint32_t d = n >= 0 ? depth[n] : 0;
+      for (auto w = walk.rbegin(); w != walk.rend(); ++w) depth[*w] = ++d;
+      if (depth[i] > limits_.max_node_depth) {
+        return OverLimit(file_, absl::StrCat("nodes[", i, "]"), "node depth ", depth[i],
+                         " exceeds the max_node_depth limit (", limits_.max_node_depth, ")");
+      }
     }
     return absl::OkStatus();
   }
@@ -730,14 +842,20 @@ class Converter {
       if (!mesh.ok()) return mesh.status();
       for (uint32_t prim : s_.meshes[*mesh].primitives) {
         if (s_.drawables.size() >= limits_.max_drawables) {
-          return Err(path, "more than ", limits_.max_drawables, " drawables");
+          return OverMax(path, "drawable count", s_.drawables.size() + 1, "max_drawables",
+                         limits_.max_drawables);
         }
         const Primitive& p = s_.primitives[prim];
+        const Aabb world_bounds = p.bounds.transformed(world);
+        // Finite positions times a finite transform can still overflow float.
+        if (!Finite(world_bounds.min) || !Finite(world_bounds.max)) {
+          return Err(path, "mesh ", *mesh, " placed by this node has non-finite world bounds");
+        }
         s_.drawables.push_back(Drawable{.world = world,
                                         .primitive = prim,
                                         .mesh = *mesh,
                                         .node = uint32_t(index),
-                                        .world_bounds = p.bounds.transformed(world)});
+                                        .world_bounds = world_bounds});
         s_.bounds.extend(s_.drawables.back().world_bounds);
         s_.counts.triangles += p.index_count / 3;
       }
@@ -746,7 +864,11 @@ class Converter {
       RETURN_IF_ERROR(CheckIndex(path + ".camera", n.camera, m_.cameras.size(), "camera"));
       const tinygltf::Camera& gc = m_.cameras[n.camera];
       const tinygltf::PerspectiveCamera& p = gc.perspective;
-      if (gc.type == "perspective") {
+      if (gc.type == "perspective" &&
+          !(std::isfinite(p.yfov) && std::isfinite(p.aspectRatio) && std::isfinite(p.znear) &&
+            std::isfinite(p.zfar))) {
+        Warn(absl::StrCat(path, ": camera ", n.camera, " has non-finite parameters; skipped"));
+      } else if (gc.type == "perspective") {
         SceneCamera cam{.name = gc.name, .world = world};
         if (p.yfov > 0.0 && p.yfov < 3.14) cam.yfov = ToFloat(p.yfov);
         if (p.aspectRatio > 0.0) cam.aspect = ToFloat(p.aspectRatio);
@@ -765,6 +887,15 @@ class Converter {
                  m_.lights.size(), " lights)");
     }
     const tinygltf::Light& gl = m_.lights[size_t(li)];
+    const std::string light_field =
+        absl::StrCat("extensions.KHR_lights_punctual.lights[", size_t(li), "]");
+    // Light parameters reach the shaders as floats multiplied together: refuse what float
+    // cannot hold, and clamp the rest to what a real light has.
+    auto fits = [](double v) { return std::abs(v) <= double(std::numeric_limits<float>::max()); };
+    bool fit = fits(gl.intensity) && fits(gl.range) && fits(gl.spot.innerConeAngle) &&
+               fits(gl.spot.outerConeAngle);
+    for (double c : gl.color) fit = fit && fits(c);
+    if (!fit) return Err(light_field, "color, intensity, range or cone angle is too large for float");
     Light l{.name = gl.name};
     if (gl.type == "directional") {
       l.type = LightType::kDirectional;
@@ -774,8 +905,9 @@ class Converter {
       Warn(absl::StrCat(path, ": light type '", Quote(gl.type), "' is not supported; skipped"));
       return absl::OkStatus();
     }
-    for (size_t i = 0; gl.color.size() == 3 && i < 3; ++i) l.color[int(i)] = ToFloat(gl.color[i]);
-    l.intensity = std::max(0.0f, ToFloat(gl.intensity));
+    for (size_t i = 0; gl.color.size() == 3 && i < 3; ++i)
+      l.color[int(i)] = std::clamp(ToFloat(gl.color[i]), 0.0f, 1.0f);  // linear RGB, spec: 0..1
+    l.intensity = std::clamp(ToFloat(gl.intensity), 0.0f, kMaxLightIntensity);
     l.range = std::max(0.0f, ToFloat(gl.range));
     l.inner_cone_angle = std::max(0.0f, ToFloat(gl.spot.innerConeAngle));
     l.outer_cone_angle = std::max(l.inner_cone_angle, ToFloat(gl.spot.outerConeAngle));
@@ -801,7 +933,7 @@ class Converter {
 
 absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits& limits) {
   const std::string& file = source.main_file;
-  absl::StatusOr<gltf_internal::PreScanResult> pre = gltf_internal::PreScanGltf(source);
+  absl::StatusOr<gltf_internal::PreScanResult> pre = gltf_internal::PreScanGltf(source, limits);
   if (!pre.ok()) return pre.status();
   const std::vector<uint8_t>& bytes = *pre->bytes;
   const absl::string_view text = pre->text;
@@ -829,7 +961,7 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
   } catch (const std::exception& e) {
     err = e.what();
   }
-  if (!ctx.error.empty()) return absl::InvalidArgumentError(ctx.error);
+  if (!ctx.error.ok()) return ctx.error;
   if (!ok) {
     while (!err.empty() && err.back() == '\n') err.pop_back();
     return Invalid(file, "tinygltf", Quote(err.empty() ? "cannot parse" : err));
@@ -847,6 +979,11 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
   }
   if (scene.warnings.size() >= kMaxWarnings) scene.warnings.push_back("more warnings omitted");
   return scene;
+}
+
+absl::StatusOr<DecodedImage> DecodeTextureImage(const uint8_t* bytes, size_t size,
+                                                const ImportLimits& limits) {
+  return DecodeImage(bytes, size, limits, 0);
 }
 
 #undef RETURN_IF_ERROR

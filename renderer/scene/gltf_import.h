@@ -8,6 +8,7 @@
 
 #include "absl/status/statusor.h"
 #include "renderer/scene/cpu_scene.h"
+#include "renderer/scene/import_limits.h"
 
 namespace tessera {
 
@@ -18,22 +19,29 @@ struct GltfSource {
   std::map<std::string, std::vector<uint8_t>> files;
 };
 
-struct ImportLimits {
-  uint64_t max_vertices = 1u << 26;  // after expansion to the scene vertex buffer
-  uint64_t max_indices = 1u << 28;
-  uint32_t max_image_dimension = 16384;    // per side; larger images are an error
-  uint64_t max_image_pixels = 1ull << 26;  // per image
-  uint32_t max_drawables = 1u << 20;
-};
-
 // Parses, validates and converts `source` into a CpuScene (default scene, or scene 0).
 // Errors are INVALID_ARGUMENT with a message naming the file and the glTF field, e.g.
-// "Box.gltf: accessors[2]: byteOffset + count*stride exceeds bufferViews[1]".
+// "Box.gltf: accessors[2]: byteOffset + count*stride exceeds bufferViews[1]", or
+// RESOURCE_EXHAUSTED naming the limit in `limits` (import_limits.h) the asset exceeds.
 absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits& limits = {});
 
 // Builds a GltfSource from a file on disk: the .gltf/.glb itself plus every buffer and image
 // URI it names that resolves to a file in the same directory tree. For trusted local tools
 // (render tool, CLI uploads); the importer itself never touches the file system.
 absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& path);
+
+// A decoded texture image: RGBA8, width x height.
+struct DecodedImage {
+  uint32_t width = 0;
+  uint32_t height = 0;
+  std::vector<uint8_t> rgba8;
+};
+
+// Decodes an image the way the importer does (stb_image: PNG, JPEG, BMP, GIF, ...) to RGBA8.
+// The header is read first, so a size over limits.max_image_dimension or max_image_bytes is
+// refused (RESOURCE_EXHAUSTED naming the limit) before any pixel memory is allocated; data
+// that does not decode is INVALID_ARGUMENT. Messages do not name the image: the caller does.
+absl::StatusOr<DecodedImage> DecodeTextureImage(const uint8_t* bytes, size_t size,
+                                                const ImportLimits& limits);
 
 }  // namespace tessera

@@ -24,7 +24,6 @@ using nlohmann::json;
     if (absl::Status st_ = (expr); !st_.ok()) return st_; \
   } while (false)
 
-constexpr int kMaxJsonDepth = 64;   // tinygltf walks extras/extensions recursively
 constexpr size_t kMaxQuoted = 120;  // longest string quoted in a message
 
 bool IsSupportedExtension(const std::string& name) {
@@ -114,8 +113,8 @@ absl::Status ParseGlb(const std::string& file, const std::vector<uint8_t>& d, Gl
 }
 
 // tinygltf recurses over arrays/objects in extras; a deep document would overflow the stack.
-bool JsonTooDeep(absl::string_view text) {
-  int depth = 0;
+bool JsonTooDeep(absl::string_view text, uint32_t max_depth) {
+  uint32_t depth = 0;
   bool in_string = false;
   for (size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
@@ -124,9 +123,9 @@ bool JsonTooDeep(absl::string_view text) {
       if (c == '"') in_string = false;
     } else if (c == '"') {
       in_string = true;
-    } else if ((c == '[' || c == '{') && ++depth > kMaxJsonDepth) {
+    } else if ((c == '[' || c == '{') && ++depth > max_depth) {
       return true;
-    } else if (c == ']' || c == '}') {
+    } else if ((c == ']' || c == '}') && depth > 0) {
       --depth;
     }
   }
@@ -159,11 +158,14 @@ bool JsonUint(const json* v, uint64_t* out) {
 
 class PreScan {
  public:
-  PreScan(const GltfSource& src, const GlbChunks* glb, PreScanResult* result)
-      : file_(src.main_file), src_(src), glb_(glb), result_(result) {}
+  PreScan(const GltfSource& src, const GlbChunks* glb, const ImportLimits& limits,
+          PreScanResult* result)
+      : file_(src.main_file), src_(src), glb_(glb), limits_(limits), result_(result) {}
 
   absl::Status Run(const json& j) {
     if (!j.is_object()) return Invalid(file_, "JSON", "the top level is not an object");
+    RETURN_IF_ERROR(Counts(j));
+    RETURN_IF_ERROR(Accessors(j));
     for (const char* list : {"extensionsRequired", "extensionsUsed"}) {
       const json* exts = Member(j, list);
       for (size_t i = 0; exts && exts->is_array() && i < exts->size(); ++i) {
@@ -196,6 +198,87 @@ class PreScan {
   }
 
  private:
+  // The counts tinygltf would allocate for, before it parses anything.
+  absl::Status Counts(const json& j) {
+    auto check = [&](const char* field, uint64_t count, const char* what, const char* limit,
+                     uint64_t max) {
+      if (count <= max) return absl::OkStatus();
+      return OverLimit(file_, field, count, " ", what, " exceed the ", limit, " limit (", max, ")");
+    };
+    RETURN_IF_ERROR(check("nodes", ArraySize(j, "nodes"), "nodes", "max_nodes", limits_.max_nodes));
+    RETURN_IF_ERROR(
+        check("meshes", ArraySize(j, "meshes"), "meshes", "max_meshes", limits_.max_meshes));
+    RETURN_IF_ERROR(check("textures", ArraySize(j, "textures"), "textures", "max_textures",
+                          limits_.max_textures));
+    uint64_t primitives = 0;
+    for (size_t m = 0; m < ArraySize(j, "meshes"); ++m)
+      primitives += ArraySize(j["meshes"][m], "primitives");
+    RETURN_IF_ERROR(check("meshes[].primitives", primitives, "primitives", "max_primitives",
+                          limits_.max_primitives));
+    const json* ext = Member(j, "extensions");
+    const json* lights = ext ? Member(*ext, "KHR_lights_punctual") : nullptr;
+    RETURN_IF_ERROR(check("extensions.KHR_lights_punctual.lights",
+                          lights ? ArraySize(*lights, "lights") : 0, "lights", "max_lights",
+                          limits_.max_lights));
+    return absl::OkStatus();
+  }
+
+  // Accessor sizes, from count, type and componentType (malformed ones are tinygltf's and the
+  // converter's to reject; only what they would allocate is bounded here).
+  absl::Status Accessors(const json& j) {
+    for (size_t i = 0; i < ArraySize(j, "accessors"); ++i) {
+      const json& a = j["accessors"][i];
+      const std::string field = absl::StrCat("accessors[", i, "]");
+      uint64_t count = 0, component_type = 0;
+      if (!JsonUint(Member(a, "count"), &count)) continue;
+      if (count > limits_.max_accessor_elements) {
+        return OverLimit(file_, field + ".count", count,
+                         " elements exceed the max_accessor_elements limit (",
+                         limits_.max_accessor_elements, ")");
+      }
+      const json* type = Member(a, "type");
+      if (!JsonUint(Member(a, "componentType"), &component_type) || type == nullptr ||
+          !type->is_string()) {
+        continue;
+      }
+      const uint64_t element =
+          ComponentBytes(component_type) * TypeComponents(type->get_ref<const std::string&>());
+      uint64_t bytes = 0;
+      if (__builtin_mul_overflow(count, element, &bytes) || bytes > limits_.max_accessor_bytes) {
+        return OverLimit(file_, field, count, " elements of ", element,
+                         " bytes exceed the max_accessor_bytes limit (",
+                         limits_.max_accessor_bytes, ")");
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  static uint64_t ComponentBytes(uint64_t component_type) {
+    switch (component_type) {
+      case 5120:  // BYTE
+      case 5121:  // UNSIGNED_BYTE
+        return 1;
+      case 5122:  // SHORT
+      case 5123:  // UNSIGNED_SHORT
+        return 2;
+      case 5125:  // UNSIGNED_INT
+      case 5126:  // FLOAT
+        return 4;
+      default:
+        return 0;
+    }
+  }
+
+  static uint64_t TypeComponents(const std::string& type) {
+    if (type == "SCALAR") return 1;
+    if (type == "VEC2") return 2;
+    if (type == "VEC3") return 3;
+    if (type == "VEC4" || type == "MAT2") return 4;
+    if (type == "MAT3") return 9;
+    if (type == "MAT4") return 16;
+    return 0;
+  }
+
   // Maps an external URI to its key in the file set, or explains why it cannot be used.
   absl::StatusOr<std::string> Resolve(const std::string& field, const std::string& uri) {
     const std::string key = PercentDecode(uri);
@@ -313,6 +396,7 @@ class PreScan {
   const std::string& file_;
   const GltfSource& src_;
   const GlbChunks* glb_;
+  const ImportLimits& limits_;
   PreScanResult* result_;
   std::vector<uint64_t> buffer_lengths_;
 };
@@ -324,7 +408,7 @@ std::string Quote(absl::string_view s) {
   return s.size() <= kMaxQuoted ? std::string(s) : absl::StrCat(s.substr(0, kMaxQuoted), "...");
 }
 
-absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source) {
+absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const ImportLimits& limits) {
   const std::string& file = source.main_file;
   const auto main = source.files.find(file);
   if (main == source.files.end()) return Invalid(Quote(file), "main file", "not in the file set");
@@ -339,11 +423,18 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source) {
   } else if (bytes.size() > std::numeric_limits<uint32_t>::max()) {
     return Invalid(file, "file", "4 GiB or larger");
   }
-  if (JsonTooDeep(text)) return Invalid(file, "JSON", "nested deeper than ", kMaxJsonDepth);
+  if (text.size() > limits.max_json_bytes) {
+    return OverLimit(file, "JSON", text.size(), " bytes exceed the max_json_bytes limit (",
+                     limits.max_json_bytes, ")");
+  }
+  if (JsonTooDeep(text, limits.max_json_depth)) {
+    return OverLimit(file, "JSON", "nested deeper than the max_json_depth limit (",
+                     limits.max_json_depth, ")");
+  }
   PreScanResult result{.is_glb = is_glb, .bytes = &bytes, .text = text};
   try {
     const json j = json::parse(text.begin(), text.end());
-    RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, &result).Run(j));
+    RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, limits, &result).Run(j));
   } catch (const std::exception& e) {  // nlohmann reports parse and type errors by throwing
     return Invalid(file, "JSON", Quote(e.what()));
   }

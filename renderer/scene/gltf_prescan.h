@@ -25,6 +25,13 @@ absl::Status Invalid(absl::string_view file, absl::string_view field, const Args
   return absl::InvalidArgumentError(absl::StrCat(file, ": ", field, ": ", what...));
 }
 
+// "<file>: <field>: <what>" as RESOURCE_EXHAUSTED, for an asset over one of the ImportLimits
+// (`what` names the limit).
+template <typename... Args>
+absl::Status OverLimit(absl::string_view file, absl::string_view field, const Args&... what) {
+  return absl::ResourceExhaustedError(absl::StrCat(file, ": ", field, ": ", what...));
+}
+
 // What the pre-scan found, for the tinygltf load that follows. `bytes` and `text` point into
 // the GltfSource that was scanned and live as long as it does.
 struct PreScanResult {
@@ -36,7 +43,10 @@ struct PreScanResult {
   std::vector<std::string> warnings;            // unsupported extensionsUsed, in order
 };
 
-// Checks source before tinygltf sees it; INVALID_ARGUMENT "<file>: <field>: <what>" if unsafe.
-absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source);
+// Checks source before tinygltf sees it; INVALID_ARGUMENT "<file>: <field>: <what>" if unsafe,
+// RESOURCE_EXHAUSTED naming the limit if it is over one of `limits` that the JSON alone tells
+// (JSON size and depth, counts of nodes, meshes, primitives, textures and lights, accessor
+// sizes).
+absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const ImportLimits& limits);
 
 }  // namespace tessera::gltf_internal

@@ -5,6 +5,7 @@
 #include <stb/stb_image_resize.h>
 
 #include <algorithm>
+#include <cmath>
 #include <bit>
 #include <cstring>
 #include <map>
@@ -365,7 +366,13 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
     const Material& m = scene.materials.empty() ? Material{} : scene.materials[p.material];
     gpu::GpuDrawable g{};
     g.world = d.world;
-    g.normal_matrix = glm::mat4(glm::transpose(glm::inverse(glm::mat3(d.world))));
+    // A node scaled to zero (legal glTF, used to hide things) has no inverse: such a drawable
+    // covers no pixels, but its matrix must not put NaNs in the buffer.
+    const glm::mat3 normal = glm::transpose(glm::inverse(glm::mat3(d.world)));
+    const bool finite = std::isfinite(normal[0][0] + normal[0][1] + normal[0][2] + normal[1][0] +
+                                      normal[1][1] + normal[1][2] + normal[2][0] + normal[2][1] +
+                                      normal[2][2]);
+    g.normal_matrix = glm::mat4(finite ? normal : glm::mat3(1.0f));
     const uint32_t material = scene.materials.empty() ? 0u : p.material;
     g.ids = glm::uvec4(d.primitive, material, p.first_index, p.first_vertex);
     g.sphere = glm::vec4(d.world_bounds.center(), d.world_bounds.radius());

@@ -15,9 +15,12 @@
 #include <fstream>
 #include <functional>
 #include <map>
+#include <set>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
+
+#include "absl/strings/str_cat.h"
 
 namespace tessera {
 namespace {
@@ -357,13 +360,23 @@ GltfSource Edited(GltfSource src, const std::function<void(json&)>& edit) {
   return src;
 }
 
-void ExpectInvalid(const absl::StatusOr<CpuScene>& r, const std::vector<std::string>& needles) {
+void ExpectError(const absl::StatusOr<CpuScene>& r, absl::StatusCode code,
+                 const std::vector<std::string>& needles) {
   ASSERT_FALSE(r.ok());
-  EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument) << r.status();
+  EXPECT_EQ(r.status().code(), code) << r.status();
   for (const std::string& n : needles) {
     EXPECT_NE(r.status().message().find(n), absl::string_view::npos)
         << "'" << n << "' not in: " << r.status().message();
   }
+}
+
+void ExpectInvalid(const absl::StatusOr<CpuScene>& r, const std::vector<std::string>& needles) {
+  ExpectError(r, absl::StatusCode::kInvalidArgument, needles);
+}
+
+// Over one of the ImportLimits: RESOURCE_EXHAUSTED naming it.
+void ExpectOverLimit(const absl::StatusOr<CpuScene>& r, const std::vector<std::string>& needles) {
+  ExpectError(r, absl::StatusCode::kResourceExhausted, needles);
 }
 
 // A minimal PNG header (signature + IHDR + IEND); stb_image reads dimensions from IHDR.
@@ -539,12 +552,17 @@ TEST(GltfImportMalformed, TruncatedGlb) {
 TEST(GltfImportMalformed, BadJson) {
   for (const std::string& text :
        std::vector<std::string>{"{\"asset\": {\"version\": \"2.0\"", "not json", "[1, 2]", "{}",
-                                std::string(100000, '[')}) {
+                                "{\"x\": 1e400}"}) {
     GltfSource src;
     src.main_file = "bad.gltf";
     src.files["bad.gltf"].assign(text.begin(), text.end());
     ExpectInvalid(ImportGltf(src), {"bad.gltf"});
   }
+  // Too deep for tinygltf's recursion: refused before any parser runs.
+  GltfSource deep;
+  deep.main_file = "deep.gltf";
+  deep.files["deep.gltf"].assign(100000, '[');
+  ExpectOverLimit(ImportGltf(deep), {"deep.gltf: JSON: ", "max_json_depth limit (64)"});
 }
 
 TEST(GltfImportMalformed, MissingBufferFile) {
@@ -559,11 +577,18 @@ TEST(GltfImportMalformed, AccessorAndBufferViewOutOfRange) {
   const GltfSource box = Source("Box/glTF/Box.gltf");
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["accessors"][2]["count"] = 1000000; })),
                 {"Box.gltf: accessors[2]", "exceeds bufferViews[1].byteLength (576)"});
-  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["accessors"][2]["count"] = 4000000000u; })),
-                {"accessors[2]"});
-  ExpectInvalid(
-      ImportGltf(Edited(box, [](json& j) { j["accessors"][2]["count"] = 0x7fffffffffffffffull; })),
-      {"accessors[2]", "overflow"});
+  ExpectOverLimit(
+      ImportGltf(Edited(box, [](json& j) { j["accessors"][2]["count"] = 4000000000u; })),
+      {"accessors[2].count", "4000000000 elements exceed the max_accessor_elements limit"});
+  // With the limits lifted the size overflows 64 bits, which is over any limit.
+  ImportLimits unlimited;
+  unlimited.max_accessor_elements = unlimited.max_accessor_bytes = UINT64_MAX;
+  ExpectOverLimit(ImportGltf(Edited(box,
+                                    [](json& j) {
+                                      j["accessors"][2]["count"] = 0x7fffffffffffffffull;
+                                    }),
+                             unlimited),
+                  {"accessors[2]", "max_accessor_bytes limit"});
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["accessors"][2]["byteOffset"] = 300; })),
                 {"accessors[2]"});
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["bufferViews"][0]["byteLength"] = 1000; })),
@@ -610,24 +635,123 @@ TEST(GltfImportMalformed, AbsurdDeclaredSizes) {
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["buffers"][0]["byteLength"] = 1e15; })),
                 {"buffers[0].byteLength"});
   GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");
+  // A 33-byte file that claims 10^10 pixels is refused from its header.
   textured.files["CesiumLogoFlat.png"] = PngHeader(100000, 100000);
-  ExpectInvalid(ImportGltf(textured), {"images[0]", "CesiumLogoFlat.png"});
-  // Within stb_image's own limits but over ours (the real image is 256x256).
-  const GltfSource real = Source("BoxTextured/glTF/BoxTextured.gltf");
-  ImportLimits limits;
-  limits.max_image_dimension = 128;
-  ExpectInvalid(ImportGltf(real, limits), {"images[0]", "256x256", "maximum dimension 128"});
-  limits = {};
-  limits.max_image_pixels = 1000;
-  ExpectInvalid(ImportGltf(real, limits), {"images[0]", "1000 pixels"});
-  limits = {};
-  limits.max_vertices = 10;
-  ExpectInvalid(ImportGltf(real, limits), {"meshes[0].primitives[0]", "limit"});
-  limits = {};
-  limits.max_drawables = 0;
-  ExpectInvalid(ImportGltf(real, limits), {"nodes[1]", "drawables"});
+  ExpectOverLimit(ImportGltf(textured), {"images[0]", "CesiumLogoFlat.png", "100000x100000",
+                                         "max_image_dimension limit (16384)"});
+  textured.files["CesiumLogoFlat.png"] = PngHeader(16000, 16000);  // 1 GiB as RGBA8
+  ExpectOverLimit(ImportGltf(textured), {"images[0]", "max_image_bytes limit"});
   textured.files["CesiumLogoFlat.png"] = {1, 2, 3, 4, 5};
   ExpectInvalid(ImportGltf(textured), {"images[0]", "cannot decode"});
+}
+
+// One asset per limit that is just over it; every limit in ImportLimitFields() must have one.
+TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
+  REQUIRE_ASSETS();
+  const GltfSource box = Source("Box/glTF/Box.gltf");  // 2 nodes (depth 2), 1 mesh, 24 vertices
+  const GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");  // a 256x256 image
+  const GltfSource lit = Edited(box, [](json& j) {
+    j["extensionsUsed"] = {"KHR_lights_punctual"};
+    j["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}}, {{"type", "point"}}};
+  });
+  struct Case {
+    const char* limit;
+    uint64_t value;
+    const GltfSource* source;
+    std::vector<std::string> needles;
+  };
+  const std::vector<Case> cases = {
+      {"max_json_bytes", 100, &box, {"Box.gltf: JSON: ", "bytes exceed the max_json_bytes limit (100)"}},
+      {"max_json_depth", 3, &box, {"JSON", "nested deeper than the max_json_depth limit (3)"}},
+      {"max_nodes", 1, &box, {"nodes: 2 nodes exceed the max_nodes limit (1)"}},
+      {"max_node_depth", 1, &box, {"nodes[1]: node depth 2 exceeds the max_node_depth limit (1)"}},
+      {"max_meshes", 0, &box, {"meshes: 1 meshes exceed the max_meshes limit (0)"}},
+      {"max_primitives", 0, &box, {"1 primitives exceed the max_primitives limit (0)"}},
+      {"max_accessor_elements", 20, &box, {"accessors[", "max_accessor_elements limit (20)"}},
+      {"max_accessor_bytes", 100, &box, {"accessors[", "max_accessor_bytes limit (100)"}},
+      {"max_vertices", 10, &box, {"meshes[0].primitives[0]", "max_vertices limit (10)"}},
+      {"max_indices", 10, &box, {"accessors[0]: index count 36 exceeds the max_indices limit (10)"}},
+      {"max_image_dimension", 128, &textured,
+       {"images[0]", "256x256 exceeds the max_image_dimension limit (128)"}},
+      {"max_image_bytes", 1000, &textured,
+       {"images[0]", "decodes to 262144 bytes, over the max_image_bytes limit (1000)"}},
+      {"max_total_image_bytes", 1000, &textured, {"images[0]", "max_total_image_bytes limit"}},
+      {"max_textures", 0, &textured, {"textures: 1 textures exceed the max_textures limit (0)"}},
+      {"max_lights", 1, &lit, {"KHR_lights_punctual.lights", "max_lights limit (1)"}},
+      {"max_drawables", 0, &box, {"nodes[1]", "max_drawables limit (0)"}},
+  };
+  std::set<std::string> tested;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.limit);
+    ImportLimits limits;
+    ASSERT_EQ(ParseImportLimits(absl::StrCat(c.limit, "=", c.value), &limits), "");
+    ExpectOverLimit(ImportGltf(*c.source, limits), c.needles);
+    EXPECT_TRUE(ImportGltf(*c.source).ok()) << "the default limits must take it";
+    tested.insert(c.limit);
+  }
+  for (const ImportLimitField& f : ImportLimitFields())
+    EXPECT_TRUE(tested.count(f.name)) << f.name << " has no test case";
+}
+
+TEST(GltfImportLimits, ParseNamesWhatIsWrong) {
+  ImportLimits limits;
+  EXPECT_EQ(ParseImportLimits("max_nodes=5, max_json_bytes=1000000", &limits), "");
+  EXPECT_EQ(limits.max_nodes, 5u);
+  EXPECT_EQ(limits.max_json_bytes, 1000000u);
+  EXPECT_EQ(ParseImportLimits("", &limits), "");
+  EXPECT_EQ(limits.max_nodes, 5u);
+  EXPECT_EQ(ParseImportLimits("max_nodez=5", &limits), "unknown limit 'max_nodez'");
+  EXPECT_EQ(ParseImportLimits("max_nodes=-1", &limits),
+            "max_nodes: '-1' is not a non-negative integer");
+  EXPECT_EQ(ParseImportLimits("max_nodes=4294967296", &limits),
+            "max_nodes: 4294967296 is larger than 4294967295");
+  EXPECT_EQ(ParseImportLimits("max_nodes", &limits), "'max_nodes' is not name=value");
+  // Nothing applied from a spec with an error.
+  EXPECT_NE(ParseImportLimits("max_meshes=1,bogus=2", &limits), "");
+  EXPECT_EQ(limits.max_meshes, ImportLimits{}.max_meshes);
+}
+
+// Numbers too large for float reach neither the scene nor the GPU.
+TEST(GltfImportMalformed, NonFiniteNumbers) {
+  REQUIRE_ASSETS();
+  const GltfSource box = Source("Box/glTF/Box.gltf");
+  // JSON cannot spell infinity, and a number past double's range ("1e400") is a JSON error
+  // (BadJson), so what reaches the converter is a finite double, possibly past float's range.
+  auto light = [](double intensity) {
+    return [intensity](json& j) {
+      j["extensionsUsed"] = {"KHR_lights_punctual"};
+      j["extensions"]["KHR_lights_punctual"]["lights"] = {
+          {{"type", "point"}, {"intensity", intensity}}};
+      j["nodes"][1]["extensions"]["KHR_lights_punctual"]["light"] = 0;
+    };
+  };
+  ExpectInvalid(ImportGltf(Edited(box, light(1e300))),
+                {"KHR_lights_punctual.lights[0]", "too large for float"});
+  // A float, but far past any real light: clamped.
+  absl::StatusOr<CpuScene> bright = ImportGltf(Edited(box, light(3e38)));
+  ASSERT_TRUE(bright.ok()) << bright.status();
+  ASSERT_EQ(bright->lights.size(), 1u);
+  EXPECT_LE(bright->lights[0].intensity, 1e9f);
+  // Finite numbers whose product is not: the world bounds overflow.
+  ExpectInvalid(ImportGltf(Edited(box,
+                                  [](json& j) {
+                                    j["nodes"][0]["matrix"] = {3e38, 0, 0, 0, 0, 3e38, 0, 0,
+                                                               0, 0, 3e38, 0, 3e38, 3e38, 3e38, 1};
+                                  })),
+                {"nodes[1]", "non-finite world bounds"});
+  // Unbounded material factors are clamped, not passed on as huge numbers.
+  absl::StatusOr<CpuScene> clamped = ImportGltf(Edited(box, [](json& j) {
+    j["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = {5, -1, 1e30, 1};
+    j["materials"][0]["emissiveFactor"] = {1e30, 0, 0};
+    j["materials"][0]["alphaCutoff"] = 1e30;
+  }));
+  ASSERT_TRUE(clamped.ok()) << clamped.status();
+  const Material& m = clamped->materials[0];
+  EXPECT_EQ(m.base_color_factor, glm::vec4(1, 0, 1, 1));
+  EXPECT_EQ(m.emissive_factor, glm::vec3(1, 0, 0));
+  EXPECT_EQ(m.alpha_cutoff, 1.0f);
+  // A node scaled to zero is legal (it hides its mesh).
+  EXPECT_TRUE(ImportGltf(Edited(box, [](json& j) { j["nodes"][1]["scale"] = {0, 0, 0}; })).ok());
 }
 
 TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
