@@ -22,6 +22,8 @@ PACKAGES=(
   libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
   # tests and benchmarks; deploy/validate.sh (YAML, systemd unit)
   libgtest-dev libgmock-dev libbenchmark-dev python3-yaml systemd
+  # fuzzing (tests/fuzz/run.sh): clang with libFuzzer and the sanitizer runtimes
+  clang libclang-rt-14-dev
 )
 
 missing=()

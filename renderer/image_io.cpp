@@ -106,6 +106,7 @@ struct PngReadState {
   size_t size = 0;
   size_t pos = 0;
   bool too_large = false;
+  uint64_t max_pixels = 0;
   RgbaImage image;
   std::vector<png_bytep> rows;
 };
@@ -137,7 +138,8 @@ bool DecodePngImpl(PngReadState* st) {
   png_uint_32 width = 0, height = 0;
   int bit_depth = 0, color_type = 0, interlace = 0;
   png_get_IHDR(png, info, &width, &height, &bit_depth, &color_type, &interlace, nullptr, nullptr);
-  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide) {
+  if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide ||
+      uint64_t{width} * height > st->max_pixels) {
     st->too_large = true;
     png_error(png, "PNG dimensions out of range");
   }
@@ -203,7 +205,7 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
   return out;
 }
 
-absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg) {
+absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max_pixels) {
   if (jpeg.empty()) return absl::InvalidArgumentError("DecodeJpeg: empty input");
   if (jpeg.size() > std::numeric_limits<unsigned long>::max()) {
     return absl::InvalidArgumentError("DecodeJpeg: input too large");
@@ -218,7 +220,8 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg) {
     return absl::InvalidArgumentError(absl::StrCat("DecodeJpeg: bad header: ", TjError(tj.get())));
   }
   if (width <= 0 || height <= 0 || static_cast<uint32_t>(width) > kMaxImageSide ||
-      static_cast<uint32_t>(height) > kMaxImageSide) {
+      static_cast<uint32_t>(height) > kMaxImageSide ||
+      uint64_t(width) * uint64_t(height) > max_pixels) {
     return absl::InvalidArgumentError(
         absl::StrCat("DecodeJpeg: dimensions out of range (", width, "x", height, ")"));
   }
@@ -251,7 +254,7 @@ absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image) {
   return std::move(st.out);
 }
 
-absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png) {
+absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png, uint64_t max_pixels) {
   if (png.empty()) return absl::InvalidArgumentError("DecodePng: empty input");
   if (png.size() < 8 || png_sig_cmp(png.data(), 0, 8) != 0) {
     return absl::InvalidArgumentError("DecodePng: not a PNG (bad signature)");
@@ -259,6 +262,7 @@ absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png) {
   PngReadState st;
   st.data = png.data();
   st.size = png.size();
+  st.max_pixels = max_pixels;
   if (!DecodePngImpl(&st)) {
     return absl::InvalidArgumentError(absl::StrCat("DecodePng: ", st.error.message));
   }

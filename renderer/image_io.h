@@ -22,16 +22,19 @@ enum class ChromaSubsampling { k420, k444 };
 // Encodes RGBA8 (alpha ignored) as baseline JPEG. quality 1..100; INVALID_ARGUMENT otherwise.
 absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
                                                 ChromaSubsampling subsampling);
-// Decodes a JPEG to RGBA8 (alpha 255).
-absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg);
+// Larger than any frame we render; also stops a tiny file from declaring gigapixels.
+inline constexpr uint32_t kMaxImageSide = 16384;
+
+// Decodes a JPEG to RGBA8 (alpha 255). The header's size is checked (each side at most
+// kMaxImageSide, at most `max_pixels` in all) before the pixels are allocated.
+absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg,
+                                     uint64_t max_pixels = uint64_t{kMaxImageSide} * kMaxImageSide);
 
 // Encodes RGBA8 as a lossless 8-bit RGBA PNG.
 absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image);
-// Decodes any PNG (gray, palette, 16-bit, with/without alpha) to RGBA8.
-absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png);
-
-// Larger than any frame we render; also stops a tiny file from declaring gigapixels.
-inline constexpr uint32_t kMaxImageSide = 16384;
+// Decodes any PNG (gray, palette, 16-bit, with/without alpha) to RGBA8; sizes as DecodeJpeg.
+absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png,
+                                    uint64_t max_pixels = uint64_t{kMaxImageSide} * kMaxImageSide);
 // INVALID_ARGUMENT naming `what` when the image is empty, larger than kMaxImageSide on a side,
 // or its pixel buffer does not hold width x height RGBA.
 absl::Status ValidateImage(const RgbaImage& image, const char* what);

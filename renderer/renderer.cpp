@@ -1031,6 +1031,15 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   return SceneHandle(std::move(scene));
 }
 
+uint64_t Renderer::EstimateDeviceBytes(const CpuScene& scene) const {
+  const vk::Context& ctx = *impl_->ctx;
+  return tessera::EstimateDeviceBytes(
+      scene, std::min<uint32_t>(kMaxTextureSide, ctx.info().max_image_dimension),
+      ctx.limits().minUniformBufferOffsetAlignment);
+}
+
+uint64_t Renderer::DeviceMemoryBytes() { return vk::AllocatedDeviceBytes(); }
+
 void Renderer::ForgetView(const Scene& scene, uint64_t view) {
   std::lock_guard lock(impl_->mutex);
   // Frames are synchronous (each Render waits for its fence), so nothing in flight uses them.

@@ -140,6 +140,11 @@ class Renderer {
   absl::StatusOr<SceneHandle> LoadScene(const GltfSource& source);
   // Uploads an already-built CPU scene (e.g. BuildDemoScene()).
   absl::StatusOr<SceneHandle> LoadScene(const CpuScene& scene);
+  // The device memory LoadScene(scene) will hold (SceneInfo::device_bytes), computed on the CPU
+  // from the same layout, so an upload can be refused before it allocates.
+  uint64_t EstimateDeviceBytes(const CpuScene& scene) const;
+  // Device memory held by this process's renderers now: scenes, render targets, histories.
+  static uint64_t DeviceMemoryBytes();
 
   // Renders one frame. INVALID_ARGUMENT for bad settings/camera (naming the field).
   absl::StatusOr<Frame> Render(const Scene& scene, const Camera& camera, const Settings& settings);

@@ -5,6 +5,8 @@
 #include <glm/gtc/type_ptr.hpp>
 
 #include "absl/strings/str_cat.h"
+#include "google/protobuf/descriptor.h"
+#include "google/protobuf/message.h"
 
 namespace tessera::server {
 namespace {
@@ -257,7 +259,8 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
 void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {
   for (int v = 1; v1::AaMode_IsValid(v); ++v)
     o->add_aa(std::string(ToString(static_cast<AaMode>(v - 1))));
-  for (uint32_t s = 1; s <= 64; s *= 2)
+  // Up to 8: what ValidateSettings accepts (a GPU may offer 16 or more).
+  for (uint32_t s = 1; s <= 8; s *= 2)
     if (sample_counts & s) o->add_samples(s);
   for (int v = 1; v1::CullingMode_IsValid(v); ++v)
     o->add_culling(std::string(ToString(static_cast<CullingMode>(v - 1))));
@@ -266,6 +269,49 @@ void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {
   for (int v = 1; v1::DebugView_IsValid(v); ++v)
     o->add_debug_view(std::string(ToString(static_cast<DebugView>(v - 1))));
   for (uint32_t t : {8u, 16u, 32u}) o->add_tile_size(t);
+}
+
+absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
+                                                const v1::InteractiveProfile& u,
+                                                const std::string& field) {
+  InteractiveProfile p = base;
+  if (u.has_enabled()) p.enabled = u.enabled();
+  if (u.has_render_scale()) {
+    const float s = u.render_scale();
+    if (!std::isfinite(s) || s < 0.25f || s > 1.0f)
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".render_scale: ", s, " is out of range (0.25..1)"));
+    p.render_scale = s;
+  }
+  if (u.has_jpeg_quality()) {
+    if (u.jpeg_quality() < 1 || u.jpeg_quality() > 100)
+      return absl::InvalidArgumentError(absl::StrCat(field, ".jpeg_quality: ", u.jpeg_quality(),
+                                                     " is out of range (1..100)"));
+    p.jpeg_quality = u.jpeg_quality();
+  }
+  if (u.has_rest_ms()) {
+    if (u.rest_ms() > 60000)
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".rest_ms: ", u.rest_ms(), " is out of range (0..60000)"));
+    p.rest_ms = u.rest_ms();
+  }
+  return p;
+}
+
+void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out) {
+  // By name, so a limit added to ImportLimitFields() without its proto field shows up in the
+  // unit test (a missing field is skipped here, never a crash).
+  const google::protobuf::Descriptor* d = out->GetDescriptor();
+  const google::protobuf::Reflection* r = out->GetReflection();
+  for (const ImportLimitField& f : ImportLimitFields()) {
+    const google::protobuf::FieldDescriptor* field = d->FindFieldByName(f.name);
+    if (field == nullptr) continue;
+    if (field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64) {
+      r->SetUInt64(out, field, f.Get(limits));
+    } else if (field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT32) {
+      r->SetUInt32(out, field, uint32_t(f.Get(limits)));
+    }
+  }
 }
 
 }  // namespace tessera::server

@@ -2,6 +2,9 @@
 // Translation between the wire (tessera.v1 messages) and the renderer's structs. Everything a
 // client sends passes through here first: enum values, ranges and non-finite numbers are
 // checked and errors name the proto field ("settings.width", "camera.look_at.eye").
+#include <cstdint>
+#include <string>
+
 #include "absl/status/statusor.h"
 #include "renderer/camera.h"
 #include "renderer/renderer.h"
@@ -9,6 +12,19 @@
 #include "tessera/v1/render_service.pb.h"
 
 namespace tessera::server {
+
+// Idle refinement of one session (v1::InteractiveProfile with its defaults applied).
+struct InteractiveProfile {
+  bool enabled = false;
+  float render_scale = 0.5f;
+  uint32_t jpeg_quality = 60;
+  uint32_t rest_ms = 250;
+};
+
+// `base` with the set fields of `update`; INVALID_ARGUMENT naming `field`.render_scale etc.
+absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
+                                                const v1::InteractiveProfile& update,
+                                                const std::string& field);
 
 // `base` with every field set in `update` replaced. INVALID_ARGUMENT naming the field for an
 // unknown enum value or an out-of-range result (ValidateSettings).
@@ -26,6 +42,9 @@ void ToProto(const Aabb& box, v1::Aabb* out);
 void CameraToProto(const Camera& camera, v1::Frame* out);
 // Everything of `frame` except sequence, event_id, scene_id, data, encoding and queue wait.
 void FrameToProto(const Frame& frame, v1::Frame* out);
+
+// Every limit of `limits` into the proto field of the same name.
+void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out);
 
 // Names accepted by each enum setting (lower case, as ToString in settings.h).
 void FillChoices(uint32_t sample_counts, v1::SettingChoices* out);

@@ -426,10 +426,19 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
 
 absl::StatusOr<std::shared_ptr<StoredScene>> LoadIntoStore(Renderer* renderer, SceneStore* store,
                                                            const std::string& scene_id,
-                                                           const GltfSource& source) {
+                                                           const GltfSource& source,
+                                                           const SceneLimits& limits) {
   const Clock::time_point t0 = Clock::now();
-  absl::StatusOr<CpuScene> cpu = ImportGltf(source);
+  absl::StatusOr<CpuScene> cpu = ImportGltf(source, limits.import);
   if (!cpu.ok()) return cpu.status();
+  if (limits.max_device_bytes != 0) {
+    const uint64_t bytes = renderer->EstimateDeviceBytes(*cpu);
+    if (bytes > limits.max_device_bytes)
+      return absl::ResourceExhaustedError(absl::StrCat(
+          source.main_file, ": the scene needs ", bytes,
+          " bytes of device memory, over the max_scene_device_bytes limit (",
+          limits.max_device_bytes, ")"));
+  }
   absl::StatusOr<SceneHandle> gpu = renderer->LoadScene(*cpu);
   if (!gpu.ok()) return gpu.status();
   v1::SceneInfo info;
@@ -476,7 +485,7 @@ void JobManager::LoadArchived(
     if (std::shared_ptr<StoredScene> s = store_->FindExact(scene_id)) return done(s);
     absl::StatusOr<GltfSource> source = journal_->LoadScene(scene_id, options_.max_scene_bytes);
     if (!source.ok()) return done(source.status());
-    done(LoadIntoStore(renderer_, store_, scene_id, *source));
+    done(LoadIntoStore(renderer_, store_, scene_id, *source, options_.scene_limits));
   });
 }
 

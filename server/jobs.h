@@ -33,12 +33,20 @@ namespace tessera::server {
 
 class Metrics;
 
+// What one scene may hold: the importer's limits, and the device memory of the upload (its
+// CPU estimate, checked before anything is allocated; 0 = unlimited).
+struct SceneLimits {
+  ImportLimits import;
+  uint64_t max_device_bytes = 0;
+};
+
 struct JobManagerOptions {
   uint32_t max_jobs = 64;           // jobs kept: queued, running and finished
   uint32_t max_job_frames = 100000;  // frames in one job
   std::string output_root;           // SERVER_DIR outputs go under it; empty: not offered
   bool persistent = false;           // the journal is --state_dir (restored on restart)
   uint64_t max_scene_bytes = 1ull << 30;  // reading an archived scene back
+  SceneLimits scene_limits;               // importing it
 };
 
 // Where a watcher's messages go (the WatchJob reactor). Push is called with events in order;
@@ -140,10 +148,12 @@ class JobManager {
 };
 
 // Parses, imports and uploads a scene and adds it to the store under `scene_id` (uploads and
-// archived scenes take this one path).
+// archived scenes take this one path). RESOURCE_EXHAUSTED naming the limit when the scene is
+// over one of `limits`.
 absl::StatusOr<std::shared_ptr<StoredScene>> LoadIntoStore(Renderer* renderer, SceneStore* store,
                                                            const std::string& scene_id,
-                                                           const GltfSource& source);
+                                                           const GltfSource& source,
+                                                           const SceneLimits& limits);
 
 // Builds the render work of frame `frame` of `spec` against a stored scene (the settings
 // merged over `defaults`, the camera resolved): what a job turn and RenderJobFrame render, so

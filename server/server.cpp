@@ -222,6 +222,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   job_options.output_root = options.job_output_root;
   job_options.persistent = !options.state_dir.empty();
   job_options.max_scene_bytes = options.max_upload_bytes;
+  job_options.scene_limits = {options.import_limits, options.max_scene_device_bytes};
   impl->jobs = std::make_unique<JobManager>(job_options, *std::move(journal),
                                             impl->renderer.get(), impl->store.get(),
                                             impl->loop.get(), impl->loader.get(),

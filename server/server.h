@@ -12,6 +12,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "renderer/scene/import_limits.h"
 
 namespace tessera::server {
 
@@ -27,6 +28,10 @@ struct ServerOptions {
   uint32_t max_scenes = 32;                // uploaded scenes in memory (demo not counted)
   uint32_t max_sessions = 64;              // concurrent Stream sessions
   uint32_t max_concurrent_uploads = 4;     // uploads receiving or parsing at once
+  // What one uploaded glTF asset may hold (import_limits.h), and the device memory one scene
+  // may take (0 = unlimited): RESOURCE_EXHAUSTED naming the limit, before allocating.
+  ImportLimits import_limits;
+  uint64_t max_scene_device_bytes = 4ull << 30;
 
   float max_session_fps = 60.0f;            // frames per second one Stream session may get
   uint64_t scene_memory_budget_bytes = 0;  // device memory for uploaded scenes; 0 = unlimited

@@ -780,32 +780,6 @@ void ServiceState::CountRpc(const char* method, const grpc::Status& status) cons
   if (metrics) metrics->RpcFinished(method, static_cast<int>(status.error_code()));
 }
 
-absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
-                                                const v1::InteractiveProfile& u,
-                                                const std::string& field) {
-  InteractiveProfile p = base;
-  if (u.has_enabled()) p.enabled = u.enabled();
-  if (u.has_render_scale()) {
-    const float s = u.render_scale();
-    if (!std::isfinite(s) || s < 0.25f || s > 1.0f)
-      return absl::InvalidArgumentError(
-          absl::StrCat(field, ".render_scale: ", s, " is out of range (0.25..1)"));
-    p.render_scale = s;
-  }
-  if (u.has_jpeg_quality()) {
-    if (u.jpeg_quality() < 1 || u.jpeg_quality() > 100)
-      return absl::InvalidArgumentError(absl::StrCat(field, ".jpeg_quality: ", u.jpeg_quality(),
-                                                     " is out of range (1..100)"));
-    p.jpeg_quality = u.jpeg_quality();
-  }
-  if (u.has_rest_ms()) {
-    if (u.rest_ms() > 60000)
-      return absl::InvalidArgumentError(
-          absl::StrCat(field, ".rest_ms: ", u.rest_ms(), " is out of range (0..60000)"));
-    p.rest_ms = u.rest_ms();
-  }
-  return p;
-}
 
 // ---------------------------------------------------------------------------------------------
 // UploadScene: chunks are assembled on the gRPC thread (cheap checks and copies); parsing and
@@ -902,7 +876,8 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
       return Done(absl::DeadlineExceededError("deadline: passed before the scene was parsed"));
     if (ctx_->IsCancelled()) return Done(absl::CancelledError("client cancelled the upload"));
     absl::StatusOr<std::shared_ptr<StoredScene>> stored =
-        LoadIntoStore(state_->renderer, state_->store, scene_id, source);
+        LoadIntoStore(state_->renderer, state_->store, scene_id, source,
+                      {state_->options.import_limits, state_->options.max_scene_device_bytes});
     if (!stored.ok()) return Done(stored.status());
     *response_ = (*stored)->info;
     SceneStore::FillLiveFields(**stored, response_);
@@ -970,7 +945,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   dev->set_api_version(d.api_version);
   v1::Limits* l = r->mutable_limits();
   const DeviceCaps caps = state_->renderer->caps();
-  l->set_max_samples(caps.max_samples);
+  l->set_max_samples(std::min(caps.max_samples, 8u));  // as SettingChoices.samples
   l->set_max_width(std::min(caps.max_image_dimension, 16384u));
   l->set_max_height(std::min(caps.max_image_dimension, 16384u));
   l->set_max_upload_bytes(o.max_upload_bytes);
@@ -999,9 +974,12 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   r->set_tls(!o.tls_cert_file.empty());
   l->set_max_jobs(o.max_jobs);
   l->set_max_job_frames(o.max_job_frames);
+  ImportLimitsToProto(o.import_limits, l->mutable_scene_import());
+  l->set_max_scene_device_bytes(o.max_scene_device_bytes);
   r->set_jobs_active(state_->jobs->active());
   r->set_job_output_root(!o.job_output_root.empty());
   r->set_jobs_persistent(!o.state_dir.empty());
+  r->set_device_memory_bytes(Renderer::DeviceMemoryBytes());
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }

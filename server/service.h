@@ -12,6 +12,7 @@
 
 #include "renderer/renderer.h"
 #include "server/auth.h"
+#include "server/convert.h"
 #include "server/render_loop.h"
 #include "server/scene_store.h"
 #include "server/server.h"
@@ -22,19 +23,6 @@ namespace tessera::server {
 class StreamSession;
 class Metrics;
 class JobManager;
-
-// Idle refinement of one session (v1::InteractiveProfile with its defaults applied).
-struct InteractiveProfile {
-  bool enabled = false;
-  float render_scale = 0.5f;
-  uint32_t jpeg_quality = 60;
-  uint32_t rest_ms = 250;
-};
-
-// `base` with the set fields of `update`; INVALID_ARGUMENT naming `field`.render_scale etc.
-absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
-                                                const v1::InteractiveProfile& update,
-                                                const std::string& field);
 
 // A session apart from its stream: what a resumed stream gets back.
 struct SessionState {

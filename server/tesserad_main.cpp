@@ -31,6 +31,15 @@ ABSL_FLAG(float, max_session_fps, 60.0f, "limit: frames per second one streaming
 ABSL_FLAG(uint64_t, scene_memory_budget_mb, 0,
           "limit: device memory (MiB) for uploaded scenes; unused scenes are evicted least "
           "recently used first (0: no budget)");
+ABSL_FLAG(std::string, import_limits, "",
+          "limits of one uploaded glTF asset, as name=value,... (e.g. max_nodes=10000,"
+          "max_image_dimension=8192); names: max_json_bytes, max_json_depth, max_nodes, "
+          "max_node_depth, max_meshes, max_primitives, max_accessor_elements, "
+          "max_accessor_bytes, max_vertices, max_indices, max_image_dimension, max_image_bytes, "
+          "max_total_image_bytes, max_textures, max_lights, max_drawables (defaults in "
+          "`tessera info`)");
+ABSL_FLAG(uint64_t, max_scene_device_mb, 4096,
+          "limit: device memory (MiB) one scene may take, estimated before its upload (0: none)");
 ABSL_FLAG(uint32_t, resume_grace_s, 30,
           "how long the session of a broken stream can be resumed with its token (0: never)");
 ABSL_FLAG(uint32_t, encoder_threads, 0, "JPEG/PNG encoder threads (0: one per core)");
@@ -97,6 +106,13 @@ int main(int argc, char** argv) {
   options.max_session_fps = absl::GetFlag(FLAGS_max_session_fps);
   options.scene_memory_budget_bytes = absl::GetFlag(FLAGS_scene_memory_budget_mb) << 20;
   options.resume_grace_s = absl::GetFlag(FLAGS_resume_grace_s);
+  if (const std::string problem =
+          tessera::ParseImportLimits(absl::GetFlag(FLAGS_import_limits), &options.import_limits);
+      !problem.empty()) {
+    std::fprintf(stderr, "tesserad: --import_limits: %s\n", problem.c_str());
+    return 2;
+  }
+  options.max_scene_device_bytes = absl::GetFlag(FLAGS_max_scene_device_mb) << 20;
   options.max_frames_in_flight = absl::GetFlag(FLAGS_max_frames_in_flight);
   options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
   options.tls_key_file = absl::GetFlag(FLAGS_tls_key);

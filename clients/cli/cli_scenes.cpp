@@ -4,9 +4,12 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_join.h"
 #include "clients/cli/cli_commands.h"
 #include "clients/cli/cli_format.h"
+#include "google/protobuf/descriptor.h"
+#include "google/protobuf/message.h"
 
 namespace tessera::cli {
 namespace {
@@ -19,6 +22,24 @@ void NoArguments(const Invocation& inv) {
 
 std::string JoinNumbers(const google::protobuf::RepeatedField<uint32_t>& v) {
   return absl::StrJoin(v, "|");
+}
+
+// "json_bytes 64.0 MiB, json_depth 64, nodes 262144, ..." in the proto's field order.
+std::string ImportLimitsSummary(const v1::ImportLimits& limits) {
+  const google::protobuf::Descriptor* d = limits.GetDescriptor();
+  const google::protobuf::Reflection* r = limits.GetReflection();
+  std::vector<std::string> items;
+  for (int i = 0; i < d->field_count(); ++i) {
+    const google::protobuf::FieldDescriptor* f = d->field(i);
+    const uint64_t v = f->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64
+                           ? r->GetUInt64(limits, f)
+                           : r->GetUInt32(limits, f);
+    std::string name = f->name();
+    if (absl::StartsWith(name, "max_")) name = name.substr(4);
+    items.push_back(absl::StrCat(name, " ", absl::EndsWith(name, "_bytes") ? HumanBytes(v)
+                                                                            : absl::StrCat(v)));
+  }
+  return absl::StrJoin(items, ", ");
 }
 
 void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
@@ -41,6 +62,10 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
       l.max_synthetic_lights());
   absl::PrintF("streams    up to %g fps each, resumable for %u s, %u frames encoding at once\n",
                l.max_session_fps(), l.resume_grace_s(), l.max_frames_in_flight());
+  absl::PrintF("memory     %s on the device in all, up to %s per scene\n",
+               HumanBytes(info.device_memory_bytes()),
+               l.max_scene_device_bytes() != 0 ? HumanBytes(l.max_scene_device_bytes())
+                                               : std::string("any size"));
   if (l.scene_memory_budget_bytes() != 0)
     absl::PrintF("memory     %s for uploaded scenes (unused ones evicted, least recently used "
                  "first)\n",
@@ -55,6 +80,7 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
   absl::PrintF("uploads    up to %s in %u files, chunks up to %s\n",
                HumanBytes(l.max_upload_bytes()), l.max_upload_files(),
                HumanBytes(l.max_chunk_bytes()));
+  absl::PrintF("assets     %s\n", WrapList(ImportLimitsSummary(l.scene_import()), 11));
   absl::PrintF("choices    aa        %s\n", absl::StrJoin(c.aa(), "|"));
   absl::PrintF("           samples   %s\n", JoinNumbers(c.samples()));
   absl::PrintF("           culling   %s\n", absl::StrJoin(c.culling(), "|"));

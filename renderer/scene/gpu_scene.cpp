@@ -311,6 +311,21 @@ TextureBucketPlan PlanTextureBuckets(const std::vector<Texture>& textures, uint3
   return plan;
 }
 
+uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
+                             uint64_t uniform_align) {
+  // The same sizes Upload passes to UploadBuffer and counts for its texture buckets.
+  const uint64_t materials = std::max<size_t>(1, scene.materials.size());
+  const uint64_t drawables = std::max<size_t>(1, scene.drawables.size());
+  const uint64_t align = std::max<uint64_t>(16, uniform_align);
+  const uint64_t stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
+  uint64_t bytes = scene.vertices.size() * sizeof(Vertex) + scene.indices.size() * sizeof(uint32_t) +
+                   materials * (sizeof(gpu::GpuMaterial) + stride) +
+                   drawables * (sizeof(gpu::GpuDrawable) + sizeof(gpu::GpuCullItem));
+  for (const TextureBucketPlan::Bucket& b : PlanTextureBuckets(scene.textures, max_texture_size).buckets)
+    bytes += uint64_t(b.width) * b.height * 4 * b.layers * 4 / 3;
+  return bytes;
+}
+
 GpuScene::~GpuScene() {
   if (material_pool_) vkDestroyDescriptorPool(device_, material_pool_, nullptr);
 }
@@ -342,7 +357,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
                              n + ".indices"));
   if (!st.ok()) return st;
 
-  const uint32_t max_size = std::min<uint32_t>(4096, ctx.info().max_image_dimension);
+  const uint32_t max_size = std::min<uint32_t>(kMaxTextureSide, ctx.info().max_image_dimension);
   const TextureBucketPlan plan = PlanTextureBuckets(scene.textures, max_size);
   for (const auto& b : plan.buckets) {
     if (b.layers > ctx.info().max_array_layers) {

@@ -34,6 +34,15 @@ struct TextureBucketPlan {
 // the fewest layers is merged into the same-colour-space bucket closest in area.
 TextureBucketPlan PlanTextureBuckets(const std::vector<Texture>& textures, uint32_t max_size);
 
+// Textures larger than this on a side are downscaled into their bucket.
+inline constexpr uint32_t kMaxTextureSide = 4096;
+
+// What GpuScene::Upload(scene) will count as device_bytes(): buffers at their requested sizes
+// and texture buckets with their mip chains. `uniform_align` is the device's
+// minUniformBufferOffsetAlignment, `max_texture_size` the bucket side limit Upload uses.
+uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
+                             uint64_t uniform_align);
+
 // One draw: a drawable and what state it needs.
 struct DrawItem {
   uint32_t drawable = 0;  // index into the Drawable buffer; becomes firstInstance

@@ -1,11 +1,15 @@
 #include "renderer/vk/resources.h"
 
+#include <atomic>
+
 #include "absl/strings/str_cat.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
 
 namespace {
+
+std::atomic<uint64_t> g_allocated_bytes{0};
 
 absl::StatusOr<VkDeviceMemory> Allocate(const Context& ctx, const VkMemoryRequirements& req,
                                         VkMemoryPropertyFlags required,
@@ -24,10 +28,13 @@ absl::StatusOr<VkDeviceMemory> Allocate(const Context& ctx, const VkMemoryRequir
   if (r != VK_SUCCESS) {
     return VkStatus(r, absl::StrCat(name, ": allocating ", req.size, " bytes").c_str());
   }
+  g_allocated_bytes += req.size;
   return memory;
 }
 
 }  // namespace
+
+uint64_t AllocatedDeviceBytes() { return g_allocated_bytes.load(); }
 
 absl::StatusOr<Buffer> Buffer::Create(const Context& ctx, VkDeviceSize size,
                                       VkBufferUsageFlags usage, MemoryUsage memory,
@@ -60,6 +67,7 @@ absl::StatusOr<Buffer> Buffer::Create(const Context& ctx, VkDeviceSize size,
   absl::StatusOr<VkDeviceMemory> mem = Allocate(ctx, req, required, preferred, name, &flags);
   if (!mem.ok()) return mem.status();
   b.memory_ = *mem;
+  b.memory_bytes_ = req.size;
   VK_CHECK(vkBindBufferMemory(b.device_, b.buffer_, b.memory_, 0));
   if (memory != MemoryUsage::kDeviceLocal) {
     VK_CHECK(vkMapMemory(b.device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_));
@@ -74,6 +82,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
     buffer_ = std::exchange(o.buffer_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    memory_bytes_ = std::exchange(o.memory_bytes_, 0);
     size_ = std::exchange(o.size_, 0);
     mapped_ = std::exchange(o.mapped_, nullptr);
     coherent_ = o.coherent_;
@@ -93,6 +102,7 @@ void Buffer::Reset() {
   if (device_ == VK_NULL_HANDLE) return;
   if (buffer_) vkDestroyBuffer(device_, buffer_, nullptr);
   if (memory_) vkFreeMemory(device_, memory_, nullptr);  // unmaps implicitly
+  g_allocated_bytes -= std::exchange(memory_bytes_, 0);
   buffer_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
   mapped_ = nullptr;
@@ -132,6 +142,7 @@ absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
       Allocate(ctx, req, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, name, nullptr);
   if (!mem.ok()) return mem.status();
   img.memory_ = *mem;
+  img.memory_bytes_ = req.size;
   VK_CHECK(vkBindImageMemory(img.device_, img.image_, img.memory_, 0));
 
   VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
@@ -151,6 +162,7 @@ Image& Image::operator=(Image&& o) noexcept {
     image_ = std::exchange(o.image_, VK_NULL_HANDLE);
     view_ = std::exchange(o.view_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
+    memory_bytes_ = std::exchange(o.memory_bytes_, 0);
     desc_ = o.desc_;
   }
   return *this;
@@ -161,6 +173,7 @@ void Image::Reset() {
   if (view_) vkDestroyImageView(device_, view_, nullptr);
   if (image_) vkDestroyImage(device_, image_, nullptr);
   if (memory_) vkFreeMemory(device_, memory_, nullptr);
+  g_allocated_bytes -= std::exchange(memory_bytes_, 0);
   view_ = VK_NULL_HANDLE;
   image_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;

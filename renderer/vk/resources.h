@@ -46,6 +46,7 @@ class Buffer {
   VkBuffer buffer_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkDeviceSize size_ = 0;
+  VkDeviceSize memory_bytes_ = 0;  // what the allocation holds (>= size_)
   void* mapped_ = nullptr;
   bool coherent_ = true;
 };
@@ -84,6 +85,7 @@ class Image {
   VkImage image_ = VK_NULL_HANDLE;
   VkImageView view_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
+  VkDeviceSize memory_bytes_ = 0;
   ImageDesc desc_;
 };
 
@@ -106,6 +108,9 @@ class Sampler {
 };
 
 bool IsDepthFormat(VkFormat format);
+
+// Device memory held by every Buffer and Image of this process now, in bytes (all devices).
+uint64_t AllocatedDeviceBytes();
 
 // A whole-image layout transition with synchronization2 scopes.
 struct ImageTransition {

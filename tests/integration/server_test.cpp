@@ -18,6 +18,8 @@
 #include <map>
 #include <thread>
 
+#include <nlohmann/json.hpp>
+
 #include "absl/strings/str_cat.h"
 #include "renderer/image_io.h"
 #include "tessera/scene_id.h"
@@ -729,6 +731,59 @@ TEST_F(ServerTest, SessionLimitIsResourceExhausted) {
     EXPECT_TRUE(s->Finish().ok());
   }
   EXPECT_TRUE(WaitFor([](const server::ServerStats& s) { return s.sessions == 0; }));
+}
+
+// --- import limits ---------------------------------------------------------------------------
+
+// Limits set on the server are reported by GetServerInfo and enforced on uploads with
+// RESOURCE_EXHAUSTED naming them; the server goes on serving.
+TEST(ImportLimits, ReportedAndEnforcedNamingTheLimit) {
+  ServerOptions o = BaseOptions();
+  ASSERT_EQ(ParseImportLimits("max_nodes=1,max_image_dimension=128", &o.import_limits), "");
+  auto server = StartServer(o);
+  ASSERT_NE(server, nullptr);
+  auto stub = Connect(server->address());
+  grpc::ClientContext ctx;
+  v1::ServerInfo info;
+  ASSERT_TRUE(stub->GetServerInfo(&ctx, {}, &info).ok());
+  const v1::ImportLimits& l = info.limits().scene_import();
+  EXPECT_EQ(l.max_nodes(), 1u);
+  EXPECT_EQ(l.max_image_dimension(), 128u);
+  EXPECT_EQ(l.max_json_depth(), ImportLimits{}.max_json_depth);
+  EXPECT_EQ(l.max_total_image_bytes(), ImportLimits{}.max_total_image_bytes);
+  EXPECT_EQ(info.limits().max_scene_device_bytes(), o.max_scene_device_bytes);
+  EXPECT_GT(info.device_memory_bytes(), 0u);  // the demo scene and the renderer's own buffers
+
+  v1::SceneInfo scene;
+  EXPECT_CODE(UploadFromDisk(stub.get(), AssetsDir() + "/Box/glTF/Box.gltf", &scene),
+              RESOURCE_EXHAUSTED, "Box.gltf: nodes: 2 nodes exceed the max_nodes limit (1)");
+  EXPECT_CODE(UploadFromDisk(stub.get(), AssetsDir() + "/SimpleMeshes/glTF/SimpleMeshes.gltf",
+                             &scene),
+              RESOURCE_EXHAUSTED, "max_nodes limit (1)");
+  // One node, but a 256x256 texture: the image limit.
+  std::vector<UploadPart> textured =
+      PartsFromDisk(AssetsDir() + "/BoxTextured/glTF/BoxTextured.gltf");
+  for (UploadPart& p : textured) {
+    if (p.name != "BoxTextured.gltf") continue;
+    nlohmann::json j = nlohmann::json::parse(p.bytes);
+    j["nodes"] = {j["nodes"][1]};
+    j["scenes"][0]["nodes"] = {0};
+    p.bytes = j.dump();
+  }
+  EXPECT_CODE(UploadRaw(stub.get(), textured, &scene, "BoxTextured.gltf"), RESOURCE_EXHAUSTED,
+              "256x256 exceeds the max_image_dimension limit (128)");
+  // A scene's device memory, refused from the CPU estimate before the upload.
+  ServerOptions small = BaseOptions();
+  small.max_scene_device_bytes = 1000;
+  auto server2 = StartServer(small);
+  ASSERT_NE(server2, nullptr);
+  auto stub2 = Connect(server2->address());
+  EXPECT_CODE(UploadFromDisk(stub2.get(), AssetsDir() + "/Box/glTF/Box.gltf", &scene),
+              RESOURCE_EXHAUSTED, "over the max_scene_device_bytes limit (1000)");
+  EXPECT_EQ(server2->stats().scenes, 1u);  // only the demo scene
+  grpc::ClientContext rctx;
+  v1::Frame f;
+  EXPECT_TRUE(stub->Render(&rctx, DemoRequest(32, 24), &f).ok());
 }
 
 // --- the tesserad binary: SIGTERM during a stream ------------------------------------------

@@ -225,6 +225,33 @@ namespace {
 
 // A scene handle may be the last thing holding the device (a daemon drops a scene after the
 // renderer during shutdown): it must free its buffers on a live device.
+// The CPU estimate that lets the server refuse an upload before it allocates is exactly what
+// the upload then holds, and the process-wide device memory counter follows scenes in and out.
+TEST(RenderTest, DeviceBytesEstimateMatchesTheUpload) {
+  Renderer& renderer = SharedRenderer();  // created (and its own buffers allocated) first
+  for (const char* asset : {"BoxTextured/glTF/BoxTextured.gltf", "DamagedHelmet/glTF-Binary/DamagedHelmet.glb",
+                            "TextureTransformTest/glTF/TextureTransformTest.gltf"}) {
+    SCOPED_TRACE(asset);
+    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(
+        Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/" + asset);
+    ASSERT_TRUE(source.ok()) << source.status();
+    absl::StatusOr<CpuScene> cpu = ImportGltf(*source);
+    ASSERT_TRUE(cpu.ok()) << cpu.status();
+    const uint64_t before = Renderer::DeviceMemoryBytes();
+    absl::StatusOr<SceneHandle> scene = renderer.LoadScene(*cpu);
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    EXPECT_EQ(renderer.EstimateDeviceBytes(*cpu), (*scene)->info().device_bytes);
+    // Allocations are rounded up to the device's alignment, never below the requested size.
+    EXPECT_GE(Renderer::DeviceMemoryBytes() - before, (*scene)->info().device_bytes);
+    scene->reset();
+    EXPECT_EQ(Renderer::DeviceMemoryBytes(), before);
+  }
+  const CpuScene demo = BuildDemoScene();
+  absl::StatusOr<SceneHandle> scene = renderer.LoadScene(demo);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(renderer.EstimateDeviceBytes(demo), (*scene)->info().device_bytes);
+}
+
 TEST(RenderTest, SceneMayOutliveTheRenderer) {
   absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create({.validation = true});
   ASSERT_TRUE(r.ok()) << r.status();

@@ -26,6 +26,9 @@
 #include "renderer/camera.h"
 #include "renderer/renderer.h"
 #include "renderer/settings.h"
+#include "absl/strings/str_cat.h"
+#include "google/protobuf/descriptor.h"
+#include "google/protobuf/message.h"
 #include "server/convert.h"
 #include "server/scene_store.h"
 #include "server/upload.h"
@@ -1205,6 +1208,35 @@ TEST(SceneStoreTest, DeleteWhileLeasedKeepsTheSceneUntilTheLeaseEnds) {
   list = store.List();
   ASSERT_EQ(list.size(), 1u);
   EXPECT_EQ(list[0].scene_id(), "demo");
+}
+
+}  // namespace
+}  // namespace tessera::server
+
+namespace tessera::server {
+namespace {
+
+// GetServerInfo reports every import limit: each ImportLimitField has a proto field of the
+// same name that carries its value.
+TEST(ImportLimitsProto, EveryLimitHasItsFieldAndValue) {
+  ImportLimits limits;
+  uint64_t next = 1000;
+  for (const ImportLimitField& f : ImportLimitFields()) {
+    ASSERT_EQ(ParseImportLimits(absl::StrCat(f.name, "=", ++next), &limits), "") << f.name;
+  }
+  v1::ImportLimits proto;
+  ImportLimitsToProto(limits, &proto);
+  const google::protobuf::Descriptor* d = proto.GetDescriptor();
+  const google::protobuf::Reflection* r = proto.GetReflection();
+  EXPECT_EQ(size_t(d->field_count()), ImportLimitFields().size());
+  for (const ImportLimitField& f : ImportLimitFields()) {
+    const google::protobuf::FieldDescriptor* field = d->FindFieldByName(f.name);
+    ASSERT_NE(field, nullptr) << f.name << " is missing from tessera.v1.ImportLimits";
+    const uint64_t value = field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64
+                               ? r->GetUInt64(proto, field)
+                               : r->GetUInt32(proto, field);
+    EXPECT_EQ(value, f.Get(limits)) << f.name;
+  }
 }
 
 }  // namespace

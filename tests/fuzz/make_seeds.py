@@ -1,0 +1,244 @@
+#!/usr/bin/env python3
+"""Writes the fuzz targets' seed corpora (tests/fuzz/corpus/{gltf,image,request}).
+
+The seeds are committed; run this again only to change them:
+    tests/fuzz/make_seeds.py [--assets ../shared/assets]
+glTF seeds are small sample assets packed as file sets (file_set.h) plus hand-made edge cases;
+image seeds are small PNG/JPEG files behind a decoder-selector byte (fuzz_image.cpp), with PNG
+variants made here (grey, palette, 16-bit, alpha); request seeds are text-format messages
+encoded with `protoc --encode` behind a request-selector byte (fuzz_request.cpp).
+"""
+import argparse
+import json
+import os
+import struct
+import subprocess
+import sys
+import zlib
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+
+
+def write(kind, name, data):
+    path = os.path.join(HERE, "corpus", kind, name)
+    with open(path, "wb") as f:
+        f.write(data)
+
+
+def pack(files):
+    """file_set.h: "TSFS", then (u16 name length, name, u32 size, data); the first is main."""
+    out = bytearray(b"TSFS")
+    for name, data in files:
+        n = name.encode()
+        out += struct.pack("<H", len(n)) + n + struct.pack("<I", len(data)) + data
+    return bytes(out)
+
+
+def gltf_file_set(path):
+    """The .gltf and every file its buffers and images name (the main file first)."""
+    base = os.path.dirname(path)
+    with open(path, "rb") as f:
+        main = f.read()
+    files = [(os.path.basename(path), main)]
+    doc = json.loads(main)
+    for item in doc.get("buffers", []) + doc.get("images", []):
+        uri = item.get("uri")
+        if uri and not uri.startswith("data:"):
+            with open(os.path.join(base, uri), "rb") as f:
+                files.append((uri, f.read()))
+    return files
+
+
+def gltf_seeds(assets):
+    for rel in ["Box/glTF/Box.gltf", "BoxTextured/glTF/BoxTextured.gltf",
+                "TextureTransformTest/glTF/TextureTransformTest.gltf",
+                "SimpleMeshes/glTF/SimpleMeshes.gltf", "TextureCoordinateTest/glTF/TextureCoordinateTest.gltf"]:
+        name = os.path.basename(rel).replace(".gltf", "")
+        write("gltf", name + ".tsfs", pack(gltf_file_set(os.path.join(assets, rel))))
+    for rel in ["Box/glTF-Binary/Box.glb", "BoxTextured/glTF-Binary/BoxTextured.glb",
+                "OrientationTest/glTF-Binary/OrientationTest.glb", "Box/glTF-Embedded/Box.gltf"]:
+        with open(os.path.join(assets, rel), "rb") as f:
+            write("gltf", os.path.basename(rel).replace(".", "_"), f.read())
+    # Hand-made: features the samples lack (lights, cameras, strips, sparse, KHR extensions,
+    # a deep hierarchy), each a small valid-looking asset the fuzzer can break.
+    tri = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<3H", 0, 1, 2) + b"\0\0"
+    buffer = {"byteLength": len(tri)}
+    views = [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+             {"buffer": 0, "byteOffset": 36, "byteLength": 6}]
+    accessors = [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                  "min": [0, 0, 0], "max": [1, 1, 0]},
+                 {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]
+    doc = {
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_texture_transform",
+                           "KHR_materials_emissive_strength"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "point", "color": [1, 0.5, 0.2], "intensity": 10, "range": 5},
+            {"type": "spot", "intensity": 3, "spot": {"innerConeAngle": 0.2, "outerConeAngle": 0.6}},
+            {"type": "directional", "intensity": 2}]}},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"children": [1, 2, 3, 4], "rotation": [0, 0.38, 0, 0.92]},
+                  {"mesh": 0, "scale": [2, 2, 2]},
+                  {"camera": 0, "translation": [0, 0, 3]},
+                  {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [1, 1, 1]},
+                  {"extensions": {"KHR_lights_punctual": {"light": 1}}, "children": [5]},
+                  {"mesh": 1, "matrix": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]}],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1, "zfar": 100}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]},
+                   {"primitives": [{"attributes": {"POSITION": 0}, "mode": 5},
+                                   {"attributes": {"POSITION": 0}, "mode": 6, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [1, 0.5, 0.5, 1],
+                                                "metallicFactor": 0.2},
+                       "emissiveFactor": [1, 1, 0],
+                       "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 4}},
+                       "alphaMode": "MASK", "alphaCutoff": 0.4, "doubleSided": True}],
+        "buffers": [dict(buffer, uri="tri.bin")],
+        "bufferViews": views,
+        "accessors": accessors,
+    }
+    write("gltf", "features.tsfs", pack([("features.gltf", json.dumps(doc).encode()), ("tri.bin", tri)]))
+    # The same triangle as a .glb with the buffer in the BIN chunk.
+    glb_doc = dict(doc, buffers=[buffer])
+    js = json.dumps(glb_doc).encode()
+    js += b" " * (-len(js) % 4)
+    body = struct.pack("<I", len(js)) + b"JSON" + js + struct.pack("<I", len(tri)) + b"BIN\0" + tri
+    write("gltf", "features_glb", b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
+    # A data: URI buffer and a sparse accessor (refused, but its path is worth covering).
+    import base64
+    embedded = dict(doc, buffers=[dict(buffer, uri="data:application/octet-stream;base64," +
+                                       base64.b64encode(tri).decode())])
+    embedded["accessors"] = accessors + [{"bufferView": 0, "componentType": 5126, "count": 3,
+                                          "type": "VEC3", "sparse": {"count": 1,
+                                          "indices": {"bufferView": 1, "componentType": 5123},
+                                          "values": {"bufferView": 0}}}]
+    write("gltf", "embedded_sparse.gltf", json.dumps(embedded).encode())
+    # A chain of nodes 40 deep.
+    chain = dict(doc)
+    chain["nodes"] = [{"children": [i + 1], "translation": [0.1, 0, 0]} for i in range(39)] + [{"mesh": 0}]
+    chain["scenes"] = [{"nodes": [0]}]
+    write("gltf", "deep_chain.tsfs", pack([("chain.gltf", json.dumps(chain).encode()), ("tri.bin", tri)]))
+
+
+def png(width, height, color_type, bit_depth, rows, palette=None):
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    raw = b"".join(b"\0" + r for r in rows)
+    out = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, bit_depth,
+                                                             color_type, 0, 0, 0))
+    if palette:
+        out += chunk(b"PLTE", palette)
+    return out + chunk(b"IDAT", zlib.compress(raw)) + chunk(b"IEND", b"")
+
+
+def image_seeds(assets):
+    generated = {
+        "grey8.png": png(4, 3, 0, 8, [bytes([x * 60 for x in range(4)])] * 3),
+        "grey_alpha.png": png(2, 2, 4, 8, [b"\x10\xff\x80\x40"] * 2),
+        "palette.png": png(3, 2, 3, 8, [b"\0\1\2"] * 2, palette=b"\xff\0\0\0\xff\0\0\0\xff"),
+        "rgb16.png": png(2, 2, 2, 16, [b"\xff\xff\0\0\x12\x34" * 2] * 2),
+        "rgba8.png": png(2, 1, 6, 8, [b"\1\2\3\4\5\6\7\x08"]),
+    }
+    files = list(generated.items())
+    for rel in ["TextureTransformTest/glTF/Arrow.png", "Sponza/glTF/white.png",
+                "Sponza/glTF/16885566240357350108.jpg"]:
+        with open(os.path.join(assets, rel), "rb") as f:
+            files.append((os.path.basename(rel), f.read()))
+    for name, data in files:
+        write("image", "stb_" + name, b"\0" + data)  # as the importer decodes
+        if name.endswith(".png"):
+            write("image", "libpng_" + name, b"\1" + data)
+        else:
+            write("image", "turbojpeg_" + name, b"\2" + data)
+
+
+def encode(message, text):
+    proto = os.path.join(ROOT, "proto")
+    files = [os.path.join("tessera/v1", f) for f in ("render_service.proto", "job.proto")]
+    return subprocess.run(["protoc", "--proto_path=" + proto, "--encode=tessera.v1." + message]
+                          + files, input=text.encode(), capture_output=True, check=True).stdout
+
+
+def varint(n):
+    out = bytearray()
+    while True:
+        b = n & 0x7F
+        n >>= 7
+        out.append(b | (0x80 if n else 0))
+        if not n:
+            return bytes(out)
+
+
+def request_seeds(assets):
+    # 0: an upload stream of Box.gltf + Box0.bin in two chunks each.
+    files = gltf_file_set(os.path.join(assets, "Box/glTF/Box.gltf"))
+    stream = []
+    manifest = "manifest { main_file: \"Box.gltf\" " + " ".join(
+        'files { name: "%s" size: %d }' % (n, len(d)) for n, d in files) + " }"
+    stream.append(encode("UploadRequest", manifest))
+    for i, (name, data) in enumerate(files):
+        half = len(data) // 2
+        for off, part in ((0, data[:half]), (half, data[half:])):
+            escaped = "".join("\\%03o" % b for b in part)
+            stream.append(encode("UploadRequest", 'chunk { file_index: %d offset: %d data: "%s" }'
+                                 % (i, off, escaped)))
+    write("request", "upload_box", b"\0" + b"".join(varint(len(m)) + m for m in stream))
+    write("request", "upload_manifest_only", b"\0" + varint(len(stream[0])) + stream[0])
+    # 1: render requests.
+    look = "look_at { eye { x: 1 y: 2 z: 3 } target { } up { y: 1 } }"
+    renders = {
+        "render_lookat": 'scene_id: "demo" camera { %s yfov: 0.9 znear: 0.1 zfar: 50 } '
+                         'settings { width: 64 height: 48 aa: AA_MSAA samples: 4 culling: CULLING_GPU_OCCLUSION }' % look,
+        "render_matrix": 'scene_id: "demo" camera { view_matrix { m: [1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,-5,1] } } '
+                         'settings { width: 32 height: 32 aa: AA_TAA synthetic_lights: 64 tile_size: 8 '
+                         'exposure_mode: EXPOSURE_FIXED exposure_ev: 1.5 debug_view: DEBUG_NORMALS jpeg_quality: 70 }',
+        "render_frame": 'scene_id: "demo" camera { frame { direction { x: 1 y: 0.5 z: 0.2 } } } '
+                        'settings { aa: AA_VIS_MLAA samples: 4 light_radius_min: 0.5 light_radius_max: 2 }',
+        "render_scene_camera": 'camera { scene_camera: 0 } settings { aa: AA_FXAA jpeg_444: true }',
+    }
+    for name, text in renders.items():
+        write("request", name, b"\1" + encode("RenderRequest", text))
+    # 2: stream events.
+    events = {
+        "event_open": 'event_id: 1 open { scene_id: "demo" camera { %s } settings { width: 320 height: 240 } '
+                      'target_fps: 30 interactive { enabled: true render_scale: 0.5 jpeg_quality: 50 rest_ms: 200 } }' % look,
+        "event_update": 'event_id: 7 camera { %s } settings { aa: AA_TAA } target_fps: 60 refresh: true '
+                        'interactive { render_scale: 0.25 }' % look,
+    }
+    for name, text in events.items():
+        write("request", name, b"\2" + encode("ClientEvent", text))
+    # 3, 4: jobs.
+    key = lambda f, x: 'keyframes { frame: %d look_at { eye { x: %g y: 1 z: 4 } target { } } yfov: 0.7 }' % (f, x)
+    jobs = {
+        "job_path": 'spec { name: "orbit" scene_id: "demo" settings { width: 64 height: 48 } '
+                    'path { %s %s %s interpolation: INTERPOLATION_CATMULL_ROM znear: 0.1 } '
+                    'frames { first: 0 last: 30 step: 2 } encoding: IMAGE_PNG '
+                    'output: JOB_OUTPUT_SERVER_DIR output_dir: "renders/a" name_pattern: "f_%%04d.png" }'
+                    % (key(0, -2), key(10, 0), key(30, 2)),
+        "job_list": 'spec { scene_id: "demo" list { cameras { %s } cameras { frame { } } } '
+                    'frames { first: 5 last: 6 } taa_frames: 4 settings { aa: AA_TAA } }' % look,
+        "job_frames_only": 'spec { scene_id: "demo" frames { first: 0 last: 1000 step: 7 } }',
+    }
+    for name, text in jobs.items():
+        write("request", name, b"\3" + encode("SubmitJobRequest", text))
+    write("request", "job_frame", b"\4" + encode(
+        "RenderJobFrameRequest", jobs["job_path"].replace("spec {", "frame: 12 spec {", 1)))
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--assets", default=os.path.join(os.path.dirname(ROOT), "shared", "assets"))
+    args = parser.parse_args()
+    for kind in ("gltf", "image", "request"):
+        os.makedirs(os.path.join(HERE, "corpus", kind), exist_ok=True)
+    gltf_seeds(args.assets)
+    image_seeds(args.assets)
+    request_seeds(args.assets)
+    for kind in ("gltf", "image", "request"):
+        d = os.path.join(HERE, "corpus", kind)
+        print(kind, len(os.listdir(d)), "seeds,", sum(os.path.getsize(os.path.join(d, f)) for f in os.listdir(d)), "bytes")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
