@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
-# Installs dependencies, builds the untrusted-input code (glTF import, image codecs) with the
-# asan preset (ASan + UBSan) and runs its tests, then builds everything with the default preset
-# (RelWithDebInfo) and runs every test with ctest. Used by .ci/run.
+# Installs dependencies, then
+#  1. builds with the asan preset (ASan + UBSan, LeakSanitizer on) and runs every test labelled
+#     `asan`: the parsers of client input (glTF, images, requests, with the fuzz regression
+#     cases) and every RPC handler (the in-process server, service and job tests);
+#  2. fuzzes each libFuzzer target for $FUZZ_SECONDS (30) on its corpus (tests/fuzz/run.sh);
+#  3. builds everything with the default preset (RelWithDebInfo) and runs every test with ctest.
+# Used by .ci/run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -9,13 +13,20 @@ cd "$(dirname "$0")/.."
 jobs=$(nproc)
 export TESSERA_ASSETS_DIR="${TESSERA_ASSETS_DIR:-$PWD/../shared/assets}"
 
-# Parsers of untrusted input under sanitizers, malformed inputs included.
+# 1. Under sanitizers. A leak, an ASan report or a UBSan report fails the test that hit it.
 cmake --preset asan
-cmake --build --preset asan -j "$jobs" --target scene_tests image_tests
-./build/asan/tests/image_tests
-./build/asan/tests/scene_tests
+cmake --build --preset asan -j "$jobs" --target scene_tests image_tests renderer_unit_tests \
+  server_unit_tests server_integration_tests service_integration_tests job_integration_tests \
+  fuzz_gltf fuzz_image fuzz_request tesserad tessera-test-dying-client
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 \
+  LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0" \
+  UBSAN_OPTIONS=print_stacktrace=1 \
+  ctest --preset asan -L asan -j "$jobs"
 
-# Everything, with Vulkan validation layers on for the render tests.
+# 2. Fuzzing, bounded.
+FUZZ_SECONDS="${FUZZ_SECONDS:-30}" tests/fuzz/run.sh
+
+# 3. Everything, with Vulkan validation layers on for the render tests.
 cmake --preset default
 cmake --build --preset default -j "$jobs"
 ctest --preset default -j "$jobs"

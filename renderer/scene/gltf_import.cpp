@@ -4,7 +4,6 @@
 // before it is dereferenced.
 #include "renderer/scene/gltf_import.h"
 
-#include <stb/stb_image.h>
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -16,11 +15,13 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <span>
 #include <utility>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "renderer/image_io.h"
 #include "renderer/scene/gltf_prescan.h"
 
 namespace tessera {
@@ -50,7 +51,10 @@ float ToFloat(double d) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// tinygltf callbacks: files come only from the file set, images decode with stb_image.
+// tinygltf callbacks: files come only from the file set; images decode with libpng and
+// TurboJPEG (image_io.h), the decoders the frames use. Not stb_image: fuzzing found that the
+// Debian 12 build writes past a Huffman table on a crafted JPEG (tests/fuzz/regressions/image),
+// and glTF 2.0 allows only PNG and JPEG images anyway.
 
 struct LoadContext {
   const GltfSource* source = nullptr;
@@ -117,9 +121,8 @@ uint32_t Be32(const uint8_t* p) {
 uint32_t Be16(const uint8_t* p) { return uint32_t(p[0]) << 8 | uint32_t(p[1]); }
 
 // Width and height from a PNG's IHDR or a JPEG's SOF marker, read without a decoder, so that
-// the size is checked before stb_image allocates anything (stb refuses some huge sizes itself,
-// but then reports only "unknown image type"). False for other formats, or when the header is
-// cut short or declares no size (stb then has its say).
+// the size is checked before anything is allocated. False when the header is cut short or
+// declares no size.
 bool ReadImageHeader(const uint8_t* d, size_t n, uint32_t* w, uint32_t* h) {
   static constexpr uint8_t kPng[8] = {0x89, 'P', 'N', 'G', 0x0D, 0x0A, 0x1A, 0x0A};
   if (n >= 24 && std::memcmp(d, kPng, 8) == 0 && std::memcmp(d + 12, "IHDR", 4) == 0) {
@@ -154,33 +157,36 @@ bool ReadImageHeader(const uint8_t* d, size_t n, uint32_t* w, uint32_t* h) {
   return false;
 }
 
-absl::Status DecodeFailure() {
-  const char* why = stbi_failure_reason();  // NULL when stb_image gave no reason
-  return absl::InvalidArgumentError(
-      absl::StrCat("cannot decode: ", why != nullptr ? why : "unknown error"));
-}
+bool IsPng(const uint8_t* d, size_t n) { return n >= 8 && std::memcmp(d, "\x89PNG\r\n\x1a\n", 8) == 0; }
+bool IsJpeg(const uint8_t* d, size_t n) { return n >= 3 && d[0] == 0xFF && d[1] == 0xD8 && d[2] == 0xFF; }
 
 absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
                                          const ImportLimits& limits, uint64_t already_decoded) {
   if (bytes == nullptr || size == 0) return absl::InvalidArgumentError("no image data");
-  if (size > size_t(std::numeric_limits<int>::max())) {
-    return absl::InvalidArgumentError(absl::StrCat(size, " bytes of image data are too many"));
+  const bool png = IsPng(bytes, size);
+  if (!png && !IsJpeg(bytes, size)) {
+    return absl::InvalidArgumentError(
+        "not a PNG or JPEG image (the image types glTF 2.0 allows)");
   }
-  uint32_t header_w = 0, header_h = 0;
-  if (ReadImageHeader(bytes, size, &header_w, &header_h)) {
-    if (absl::Status st = CheckImageSize(header_w, header_h, limits, already_decoded); !st.ok())
-      return st;
+  uint32_t w = 0, h = 0;
+  if (!ReadImageHeader(bytes, size, &w, &h)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cannot decode: the ", png ? "PNG" : "JPEG", " header is cut short or "
+                     "declares no size"));
   }
-  int w = 0, h = 0, comp = 0;
-  if (!stbi_info_from_memory(bytes, int(size), &w, &h, &comp)) return DecodeFailure();
   if (absl::Status st = CheckImageSize(w, h, limits, already_decoded); !st.ok()) return st;
-  std::unique_ptr<stbi_uc, void (*)(void*)> pixels(
-      stbi_load_from_memory(bytes, int(size), &w, &h, &comp, 4), &stbi_image_free);
-  if (pixels == nullptr) return DecodeFailure();
-  if (absl::Status st = CheckImageSize(w, h, limits, already_decoded); !st.ok()) return st;
-  DecodedImage out{.width = uint32_t(w), .height = uint32_t(h)};
-  out.rgba8.assign(pixels.get(), pixels.get() + size_t(w) * size_t(h) * 4);
-  return out;
+  const std::span<const uint8_t> file(bytes, size);
+  const uint64_t max_pixels = uint64_t(w) * h;  // what the header promised, and was checked
+  absl::StatusOr<RgbaImage> image = png ? DecodePng(file, max_pixels) : DecodeJpeg(file, max_pixels);
+  if (!image.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat("cannot decode: ", image.status().message()));
+  }
+  if (image->width != w || image->height != h) {
+    return absl::InvalidArgumentError(absl::StrCat("cannot decode: the header says ", w, "x", h,
+                                                   ", the data ", image->width, "x",
+                                                   image->height));
+  }
+  return DecodedImage{.width = w, .height = h, .rgba8 = std::move(image->pixels)};
 }
 
 // Decodes every image a texture uses to RGBA8, after checking the size its header declares.

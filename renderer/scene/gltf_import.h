@@ -37,10 +37,11 @@ struct DecodedImage {
   std::vector<uint8_t> rgba8;
 };
 
-// Decodes an image the way the importer does (stb_image: PNG, JPEG, BMP, GIF, ...) to RGBA8.
-// The header is read first, so a size over limits.max_image_dimension or max_image_bytes is
-// refused (RESOURCE_EXHAUSTED naming the limit) before any pixel memory is allocated; data
-// that does not decode is INVALID_ARGUMENT. Messages do not name the image: the caller does.
+// Decodes a texture image the way the importer does: PNG (libpng) or JPEG (TurboJPEG), the
+// types glTF 2.0 allows, to RGBA8. The header is read first, so a size over
+// limits.max_image_dimension or max_image_bytes is refused (RESOURCE_EXHAUSTED naming the
+// limit) before any pixel memory is allocated; anything else that does not decode is
+// INVALID_ARGUMENT. Messages do not name the image: the caller does.
 absl::StatusOr<DecodedImage> DecodeTextureImage(const uint8_t* bytes, size_t size,
                                                 const ImportLimits& limits);
 

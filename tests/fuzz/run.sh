@@ -28,10 +28,12 @@ for t in "${targets[@]}"; do
   artifacts="build/fuzz/artifacts/$t"
   mkdir -p "$work" "$artifacts"
   echo "== $t: ${seconds} s"
-  # -rss_limit_mb: the targets' own limits keep a sane input far below it, so reaching it is a
-  # bug (an allocation the limits missed). -timeout: no single input may take 10 s.
-  if ! ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
-      "build/fuzz/tests/fuzz/$t" -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 \
+  # -rss_limit_mb, -malloc_limit_mb: the targets' own limits keep any input far below them,
+  # so reaching one is a bug (an allocation the limits missed, like libpng's chunk buffer before
+  # it was capped). -timeout: no single input may take 10 s.
+  if ! ASAN_OPTIONS=detect_leaks=1 \
+      "build/fuzz/tests/fuzz/$t" -max_total_time="$seconds" -rss_limit_mb=2048 \
+      -malloc_limit_mb=512 -timeout=10 \
       -max_len=131072 -print_final_stats=1 -artifact_prefix="$artifacts/" ${dict[$t]:-} \
       "$work" "tests/fuzz/corpus/$k" "tests/fuzz/regressions/$k" 2>"$artifacts/log.txt"; then
     echo "$t FAILED: the input is in $artifacts/ (log: $artifacts/log.txt)"

@@ -642,7 +642,7 @@ TEST(GltfImportMalformed, AbsurdDeclaredSizes) {
   textured.files["CesiumLogoFlat.png"] = PngHeader(16000, 16000);  // 1 GiB as RGBA8
   ExpectOverLimit(ImportGltf(textured), {"images[0]", "max_image_bytes limit"});
   textured.files["CesiumLogoFlat.png"] = {1, 2, 3, 4, 5};
-  ExpectInvalid(ImportGltf(textured), {"images[0]", "cannot decode"});
+  ExpectInvalid(ImportGltf(textured), {"images[0]", "not a PNG or JPEG image"});
 }
 
 // One asset per limit that is just over it; every limit in ImportLimitFields() must have one.
