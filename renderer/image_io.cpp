@@ -266,10 +266,11 @@ absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png, uint64_t max_p
   // libpng allocates a chunk's declared length before reading it (png_set_chunk_malloc_max
   // does not stop that in Debian 12's 1.6.39): a 900-byte file declaring a 1 GiB chunk cost a
   // 1 GiB malloc (found by fuzzing). A chunk cannot be longer than the file that holds it.
-  for (size_t at = 8; png.size() - at >= 12;) {
+  // (A chunk is its length, type, data and CRC: 12 bytes more than its length.)
+  for (size_t at = 8; png.size() - at >= 8;) {
     const uint8_t* c = png.data() + at;
     const uint64_t length = uint64_t(c[0]) << 24 | uint64_t(c[1]) << 16 | uint64_t(c[2]) << 8 | c[3];
-    if (length > png.size() - at - 12) {
+    if (12 + length > png.size() - at) {
       return absl::InvalidArgumentError(absl::StrCat("DecodePng: the chunk at byte ", at,
                                                      " declares ", length,
                                                      " bytes, past the end of the file"));

@@ -3,6 +3,8 @@
 // the token file.
 #include <signal.h>
 
+#include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <string>
 
@@ -112,7 +114,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "tesserad: --import_limits: %s\n", problem.c_str());
     return 2;
   }
-  options.max_scene_device_bytes = absl::GetFlag(FLAGS_max_scene_device_mb) << 20;
+  options.max_scene_device_bytes =
+      std::min<uint64_t>(absl::GetFlag(FLAGS_max_scene_device_mb), UINT64_MAX >> 20) << 20;
   options.max_frames_in_flight = absl::GetFlag(FLAGS_max_frames_in_flight);
   options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
   options.tls_key_file = absl::GetFlag(FLAGS_tls_key);

@@ -100,15 +100,16 @@ absl::Status CheckImageSize(int64_t w, int64_t h, const ImportLimits& lim,
     return absl::ResourceExhaustedError(absl::StrCat(
         w, "x", h, " exceeds the max_image_dimension limit (", lim.max_image_dimension, ")"));
   }
-  const uint64_t bytes = uint64_t(w) * uint64_t(h) * 4;
-  if (bytes > lim.max_image_bytes) {
+  uint64_t bytes = 0, total = 0;
+  if (__builtin_mul_overflow(uint64_t(w) * uint64_t(h), uint64_t{4}, &bytes) ||
+      bytes > lim.max_image_bytes) {
     return absl::ResourceExhaustedError(absl::StrCat(w, "x", h, " decodes to ", bytes,
                                                      " bytes, over the max_image_bytes limit (",
                                                      lim.max_image_bytes, ")"));
   }
-  if (already_decoded + bytes > lim.max_total_image_bytes) {
+  if (__builtin_add_overflow(already_decoded, bytes, &total) || total > lim.max_total_image_bytes) {
     return absl::ResourceExhaustedError(
-        absl::StrCat(w, "x", h, " brings the decoded images to ", already_decoded + bytes,
+        absl::StrCat(w, "x", h, " brings the decoded images to ", total,
                      " bytes, over the max_total_image_bytes limit (", lim.max_total_image_bytes,
                      ")"));
   }
@@ -367,9 +368,17 @@ class Converter {
     if (!m_.scenes.empty()) {
       const int scene = std::max(m_.defaultScene, 0);
       roots = m_.scenes[scene].nodes;
+      // Each node is then visited once: roots are distinct and have no parent (glTF requires
+      // both), so neither the traversal nor the lights and cameras it places can multiply.
+      const std::string field = absl::StrCat("scenes[", scene, "].nodes");
+      std::vector<bool> seen(m_.nodes.size(), false);
       for (int r : roots) {
-        RETURN_IF_ERROR(
-            CheckIndex(absl::StrCat("scenes[", scene, "].nodes"), r, m_.nodes.size(), "node"));
+        RETURN_IF_ERROR(CheckIndex(field, r, m_.nodes.size(), "node"));
+        if (seen[r]) return Err(field, "nodes[", r, "] is listed twice");
+        if (parent_[r] >= 0) {
+          return Err(field, "nodes[", r, "] is not a root (it is a child of nodes[", parent_[r], "])");
+        }
+        seen[r] = true;
       }
     } else {
       for (size_t i = 0; i < m_.nodes.size(); ++i) {

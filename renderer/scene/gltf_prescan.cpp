@@ -112,8 +112,16 @@ absl::Status ParseGlb(const std::string& file, const std::vector<uint8_t>& d, Gl
   return absl::OkStatus();
 }
 
-// tinygltf recurses over arrays/objects in extras; a deep document would overflow the stack.
-bool JsonTooDeep(absl::string_view text, uint32_t max_depth) {
+// One pass over the JSON text before any parser: how deep it nests (tinygltf recurses over
+// arrays and objects in extras, so a deep document would overflow the stack) and about how many
+// values it holds (every value but the first follows a ',' or opens an array or object), which
+// bounds what nlohmann and tinygltf build from it.
+struct JsonShape {
+  uint32_t depth = 0;
+  uint64_t values = 0;
+};
+JsonShape ScanJson(absl::string_view text, uint32_t max_depth) {
+  JsonShape shape;
   uint32_t depth = 0;
   bool in_string = false;
   for (size_t i = 0; i < text.size(); ++i) {
@@ -123,13 +131,17 @@ bool JsonTooDeep(absl::string_view text, uint32_t max_depth) {
       if (c == '"') in_string = false;
     } else if (c == '"') {
       in_string = true;
-    } else if ((c == '[' || c == '{') && ++depth > max_depth) {
-      return true;
+    } else if (c == '[' || c == '{') {
+      ++shape.values;
+      shape.depth = std::max(shape.depth, ++depth);
+      if (depth > max_depth) return shape;  // refused anyway; stop counting
+    } else if (c == ',') {
+      ++shape.values;
     } else if ((c == ']' || c == '}') && depth > 0) {
       --depth;
     }
   }
-  return false;
+  return shape;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -210,6 +222,8 @@ class PreScan {
         check("meshes", ArraySize(j, "meshes"), "meshes", "max_meshes", limits_.max_meshes));
     RETURN_IF_ERROR(check("textures", ArraySize(j, "textures"), "textures", "max_textures",
                           limits_.max_textures));
+    RETURN_IF_ERROR(check("materials", ArraySize(j, "materials"), "materials", "max_materials",
+                          limits_.max_materials));
     uint64_t primitives = 0;
     for (size_t m = 0; m < ArraySize(j, "meshes"); ++m)
       primitives += ArraySize(j["meshes"][m], "primitives");
@@ -335,13 +349,29 @@ class PreScan {
         }
       } else if (glb_ == nullptr) {
         return Invalid(file_, field, "uri is missing (only allowed in a .glb)");
+      } else if (i != 0) {
+        return Invalid(file_, field, "uri is missing (only buffers[0] may use the GLB BIN chunk)");
       } else if (length > glb_->bin_size) {
         return Invalid(file_, field, "byteLength (", length, ") exceeds the GLB BIN chunk (",
                        glb_->bin_size, " bytes)");
       }
       buffer_lengths_.push_back(length);
+      // tinygltf copies every buffer: buffers naming the same file (or the BIN chunk) must not
+      // multiply the memory an upload costs.
+      if (__builtin_add_overflow(copied_bytes_, length, &copied_bytes_) ||
+          copied_bytes_ > FileSetBytes()) {
+        return Invalid(file_, "buffers", "their byteLengths add up to more than the ",
+                       FileSetBytes(), " bytes of the file set");
+      }
     }
     return absl::OkStatus();
+  }
+
+  // What every file of the set holds together: no asset needs to copy more than that.
+  uint64_t FileSetBytes() const {
+    uint64_t total = 0;
+    for (const auto& [name, data] : src_.files) total += data.size();
+    return total;
   }
 
   // tinygltf hands an image's bufferView to the image loader without any range check.
@@ -377,7 +407,15 @@ class PreScan {
       const std::string field = absl::StrCat("images[", i, "]");
       uint64_t view = 0;
       if (const json* uri = Member(im, "uri")) {
-        RETURN_IF_ERROR(Uri(field + ".uri", *uri).status());
+        absl::StatusOr<size_t> have = Uri(field + ".uri", *uri);
+        if (!have.ok()) return have.status();
+        // tinygltf reads an image's file once per image that names it.
+        if (*have != std::string::npos &&
+            (__builtin_add_overflow(copied_bytes_, uint64_t(*have), &copied_bytes_) ||
+             copied_bytes_ > 2 * FileSetBytes())) {
+          return Invalid(file_, field + ".uri", "images and buffers copy more than twice the ",
+                         FileSetBytes(), " bytes of the file set");
+        }
       } else if (const json* bv = Member(im, "bufferView");
                  bv && (!JsonUint(bv, &view) || view >= views)) {
         return Invalid(file_, field + ".bufferView", "out of range (", views, " bufferViews)");
@@ -399,6 +437,7 @@ class PreScan {
   const ImportLimits& limits_;
   PreScanResult* result_;
   std::vector<uint64_t> buffer_lengths_;
+  uint64_t copied_bytes_ = 0;  // what tinygltf will copy out of the file set
 };
 
 }  // namespace
@@ -427,9 +466,14 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
     return OverLimit(file, "JSON", text.size(), " bytes exceed the max_json_bytes limit (",
                      limits.max_json_bytes, ")");
   }
-  if (JsonTooDeep(text, limits.max_json_depth)) {
+  const JsonShape shape = ScanJson(text, limits.max_json_depth);
+  if (shape.depth > limits.max_json_depth) {
     return OverLimit(file, "JSON", "nested deeper than the max_json_depth limit (",
                      limits.max_json_depth, ")");
+  }
+  if (shape.values > limits.max_json_values) {
+    return OverLimit(file, "JSON", "about ", shape.values,
+                     " values exceed the max_json_values limit (", limits.max_json_values, ")");
   }
   PreScanResult result{.is_glb = is_glb, .bytes = &bytes, .text = text};
   try {

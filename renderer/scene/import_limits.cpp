@@ -16,6 +16,7 @@ const std::vector<ImportLimitField>& ImportLimitFields() {
   static const std::vector<ImportLimitField> fields = {
       u64("max_json_bytes", &L::max_json_bytes),
       u32("max_json_depth", &L::max_json_depth),
+      u64("max_json_values", &L::max_json_values),
       u32("max_nodes", &L::max_nodes),
       u32("max_node_depth", &L::max_node_depth),
       u32("max_meshes", &L::max_meshes),
@@ -28,6 +29,7 @@ const std::vector<ImportLimitField>& ImportLimitFields() {
       u64("max_image_bytes", &L::max_image_bytes),
       u64("max_total_image_bytes", &L::max_total_image_bytes),
       u32("max_textures", &L::max_textures),
+      u32("max_materials", &L::max_materials),
       u32("max_lights", &L::max_lights),
       u32("max_drawables", &L::max_drawables),
   };

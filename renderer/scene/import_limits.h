@@ -15,6 +15,7 @@ namespace tessera {
 struct ImportLimits {
   uint64_t max_json_bytes = 64ull << 20;  // the JSON text (.gltf, or a .glb's JSON chunk)
   uint32_t max_json_depth = 64;           // nesting of arrays/objects (tinygltf recurses)
+  uint64_t max_json_values = 1ull << 20;  // values in the JSON (what tinygltf builds grows with it)
   uint32_t max_nodes = 1u << 18;
   uint32_t max_node_depth = 256;  // root = depth 1
   uint32_t max_meshes = 1u << 16;
@@ -27,6 +28,7 @@ struct ImportLimits {
   uint64_t max_image_bytes = 256ull << 20;         // one decoded image (RGBA8)
   uint64_t max_total_image_bytes = 1ull << 30;     // all decoded images together
   uint32_t max_textures = 4096;
+  uint32_t max_materials = 16384;
   uint32_t max_lights = 4096;                      // KHR_lights_punctual lights
   uint32_t max_drawables = 1u << 20;               // mesh primitives placed by nodes
 };

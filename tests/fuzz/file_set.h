@@ -5,7 +5,7 @@
 //   the first record is the main file. A record cut short ends the set.
 //   Anything else is one main file, "fuzz.glb" when it starts with "glTF", else "fuzz.gltf".
 //
-// tests/fuzz/pack_file_set.py writes the first form from a .gltf on disk (seed corpus).
+// tests/fuzz/make_seeds.py writes the first form from a .gltf on disk (seed corpus).
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
@@ -14,6 +14,21 @@
 #include "renderer/scene/gltf_import.h"
 
 namespace tessera::fuzz {
+
+// The server's import limits, tightened where a fuzzer needs to stay fast and far below its
+// memory limits (run.sh: -malloc_limit_mb=512, -rss_limit_mb=2048).
+inline ImportLimits FuzzImportLimits() {
+  ImportLimits limits;
+  limits.max_vertices = 1u << 20;
+  limits.max_indices = 1u << 22;
+  limits.max_accessor_elements = 1u << 20;
+  limits.max_accessor_bytes = 64u << 20;
+  limits.max_image_dimension = 4096;
+  limits.max_image_bytes = 64u << 20;
+  limits.max_total_image_bytes = 128u << 20;
+  limits.max_drawables = 1u << 16;
+  return limits;
+}
 
 inline GltfSource UnpackFileSet(const uint8_t* data, size_t size) {
   GltfSource src;

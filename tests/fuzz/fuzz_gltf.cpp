@@ -1,7 +1,6 @@
 // libFuzzer target: glTF/GLB import from an in-memory file set (file_set.h), the whole path an
 // upload takes on the server (pre-scan, tinygltf, image decoding, validation, CPU scene
-// building), without the device upload. The limits are the server's defaults except where a
-// fuzzer needs tighter bounds to stay fast and within its memory limit (-rss_limit_mb).
+// building), without the device upload, under FuzzImportLimits() (file_set.h).
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -10,15 +9,7 @@
 #include "tests/fuzz/file_set.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  tessera::ImportLimits limits;
-  limits.max_vertices = 1u << 20;
-  limits.max_indices = 1u << 22;
-  limits.max_accessor_elements = 1u << 20;
-  limits.max_accessor_bytes = 64u << 20;
-  limits.max_image_dimension = 4096;
-  limits.max_image_bytes = 64u << 20;
-  limits.max_total_image_bytes = 128u << 20;
-  limits.max_drawables = 1u << 16;
+  const tessera::ImportLimits limits = tessera::fuzz::FuzzImportLimits();
   const tessera::GltfSource source = tessera::fuzz::UnpackFileSet(data, size);
   absl::StatusOr<tessera::CpuScene> scene = tessera::ImportGltf(source, limits);
   if (scene.ok()) {

@@ -1,5 +1,6 @@
 // libFuzzer target: image decoding. The first byte picks the decoder, the rest is the file:
-//   0: as the glTF importer decodes textures (our PNG/JPEG header check, then stb_image, RGBA8)
+//   0: as the glTF importer decodes textures (DecodeTextureImage: header check, then libpng or
+//      TurboJPEG, RGBA8)
 //   1: DecodePng (libpng; the CLI reads PNG frames and golden images with it)
 //   2: DecodeJpeg (TurboJPEG; the CLI and tests decode JPEG frames with it)
 // A decoded image must be as large as it says, and within the limits it was decoded under.

@@ -19,6 +19,7 @@
 #include "server/convert.h"
 #include "server/job_spec.h"
 #include "server/upload.h"
+#include "tests/fuzz/file_set.h"
 #include "tessera/v1/job.pb.h"
 #include "tessera/v1/render_service.pb.h"
 
@@ -64,7 +65,7 @@ void Upload(const uint8_t* data, size_t size) {
   v1::UploadRequest request;
   uint32_t length = 0;
   bool first = true;
-  while (in.ReadVarint32(&length)) {
+  while (in.ReadVarint32(&length) && length <= (1u << 20)) {
     const auto limit = in.PushLimit(int(length));
     const bool parsed = request.ParseFromCodedStream(&in) && in.ConsumedEntireMessage();
     in.PopLimit(limit);
@@ -79,11 +80,7 @@ void Upload(const uint8_t* data, size_t size) {
   absl::StatusOr<GltfSource> source = assembler.Finish(&scene_id);
   if (!source.ok()) return;
   if (scene_id.size() != 64 || source->files.count(source->main_file) == 0) __builtin_trap();
-  ImportLimits limits;
-  limits.max_vertices = 1u << 18;
-  limits.max_indices = 1u << 20;
-  limits.max_image_bytes = 16u << 20;
-  (void)ImportGltf(*source, limits);
+  (void)ImportGltf(*source, fuzz::FuzzImportLimits());
 }
 
 void Job(const v1::JobSpec& spec, const uint32_t* only_frame) {

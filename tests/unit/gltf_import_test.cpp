@@ -663,6 +663,8 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
   const std::vector<Case> cases = {
       {"max_json_bytes", 100, &box, {"Box.gltf: JSON: ", "bytes exceed the max_json_bytes limit (100)"}},
       {"max_json_depth", 3, &box, {"JSON", "nested deeper than the max_json_depth limit (3)"}},
+      {"max_json_values", 50, &box, {"JSON", "values exceed the max_json_values limit (50)"}},
+      {"max_materials", 0, &box, {"materials: 1 materials exceed the max_materials limit (0)"}},
       {"max_nodes", 1, &box, {"nodes: 2 nodes exceed the max_nodes limit (1)"}},
       {"max_node_depth", 1, &box, {"nodes[1]: node depth 2 exceeds the max_node_depth limit (1)"}},
       {"max_meshes", 0, &box, {"meshes: 1 meshes exceed the max_meshes limit (0)"}},
@@ -754,6 +756,24 @@ TEST(GltfImportMalformed, NonFiniteNumbers) {
   EXPECT_TRUE(ImportGltf(Edited(box, [](json& j) { j["nodes"][1]["scale"] = {0, 0, 0}; })).ok());
 }
 
+// tinygltf copies every buffer and every image file it is pointed at: pointing many entries at
+// one file must not multiply what an upload costs.
+TEST(GltfImportMalformed, CopiesBoundedByTheFileSet) {
+  REQUIRE_ASSETS();
+  const GltfSource box = Source("Box/glTF/Box.gltf");
+  ExpectInvalid(ImportGltf(Edited(box,
+                                  [](json& j) {
+                                    for (int i = 0; i < 8; ++i) j["buffers"].push_back(j["buffers"][0]);
+                                  })),
+                {"buffers", "add up to more than the", "bytes of the file set"});
+  const GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");
+  ExpectInvalid(ImportGltf(Edited(textured,
+                                  [](json& j) {
+                                    for (int i = 0; i < 8; ++i) j["images"].push_back(j["images"][0]);
+                                  })),
+                {"images[", "copy more than twice the"});
+}
+
 TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");
@@ -769,6 +789,11 @@ TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
 TEST(GltfImportMalformed, NodeHierarchy) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");
+  // A root listed twice, or a child listed as a root, would be placed more than once.
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["scenes"][0]["nodes"] = {0, 0}; })),
+                {"scenes[0].nodes", "nodes[0] is listed twice"});
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["scenes"][0]["nodes"] = {0, 1}; })),
+                {"scenes[0].nodes", "nodes[1] is not a root (it is a child of nodes[0])"});
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["nodes"][1]["children"] = {0}; })),
                 {"nodes[", "cycle"});
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["nodes"][1]["children"] = {1}; })),

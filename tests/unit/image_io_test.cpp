@@ -355,6 +355,40 @@ TEST(ImageIo, PngRejectsAbsurdDimensions) {
   EXPECT_EQ(img.status().message().find("CRC"), std::string::npos) << img.status();
 }
 
+// A chunk that declares more bytes than the file holds is refused before libpng sees it (libpng
+// allocates the declared length first), also when the file ends inside the chunk's header.
+TEST(ImageIo, PngChunkLongerThanTheFileIsRefused) {
+  auto png = EncodePng(Noise(4, 4));
+  ASSERT_TRUE(png.ok());
+  const std::vector<uint8_t> good = *png;
+  const size_t after_ihdr = 8 + 12 + 13;  // signature, IHDR chunk
+  for (const size_t keep : {size_t{8}, size_t{10}, size_t{40}}) {
+    std::vector<uint8_t> bytes(good.begin(), good.begin() + after_ihdr);
+    const std::vector<uint8_t> ztxt = {0x40, 0x00, 0x00, 0x00, 'z', 'T', 'X', 't'};  // 1 GiB
+    bytes.insert(bytes.end(), ztxt.begin(), ztxt.end());
+    bytes.resize(after_ihdr + keep, 'x');
+    SCOPED_TRACE(keep);
+    auto img = DecodePng(bytes);
+    ASSERT_FALSE(img.ok());
+    EXPECT_EQ(img.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(img.status().message().find("past the end of the file"), std::string::npos)
+        << img.status();
+  }
+  EXPECT_TRUE(DecodePng(good).ok());
+}
+
+// The pixel bound is checked from the header, before the pixels are allocated.
+TEST(ImageIo, DecodersHonourMaxPixels) {
+  const RgbaImage image = Noise(64, 32);
+  auto png = EncodePng(image);
+  auto jpeg = EncodeJpeg(image, 90, ChromaSubsampling::k444);
+  ASSERT_TRUE(png.ok() && jpeg.ok());
+  EXPECT_TRUE(DecodePng(*png, 64 * 32).ok());
+  EXPECT_TRUE(DecodeJpeg(*jpeg, 64 * 32).ok());
+  EXPECT_EQ(DecodePng(*png, 64 * 32 - 1).status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(DecodeJpeg(*jpeg, 64 * 32 - 1).status().code(), absl::StatusCode::kInvalidArgument);
+}
+
 // ---- Metrics -------------------------------------------------------------------------------
 
 TEST(ImageIo, PsnrIdenticalIsInfinite) {

@@ -1232,6 +1232,8 @@ TEST(ImportLimitsProto, EveryLimitHasItsFieldAndValue) {
   for (const ImportLimitField& f : ImportLimitFields()) {
     const google::protobuf::FieldDescriptor* field = d->FindFieldByName(f.name);
     ASSERT_NE(field, nullptr) << f.name << " is missing from tessera.v1.ImportLimits";
+    EXPECT_EQ(field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64, f.is_64bit)
+        << f.name << ": the proto field and the limit differ in width";
     const uint64_t value = field->cpp_type() == google::protobuf::FieldDescriptor::CPPTYPE_UINT64
                                ? r->GetUInt64(proto, field)
                                : r->GetUInt32(proto, field);
