@@ -119,7 +119,8 @@ const std::string kUnknownScene(64, '0');  // a content hash no upload has
 
 constexpr char kUsage[] =
     "usage: tessera-soak --tesserad PATH [--duration S] [--warmup S] [--sample-every S]\n"
-    "         [--clients N] [--seed N] [--assets DIR] [--device NAME] [--out FILE] [--smoke]\n";
+    "         [--clients N] [--seed N] [--assets DIR] [--device NAME] [--out FILE] [--smoke]\n"
+    "         [--aa MODE]   (every render and stream uses this AA mode instead of a random one)\n";
 
 [[noreturn]] void UsageError(const std::string& msg) {
   std::fprintf(stderr, "%s: %s\n%s", program_invocation_short_name, msg.c_str(), kUsage);
@@ -142,6 +143,7 @@ std::shared_ptr<grpc::Channel> NewChannel(const std::string& address) {
 
 struct Options {
   std::string tesserad, assets, device, out;
+  std::string aa;  // empty: each render and settings change picks an AA mode at random
   double duration_s = 600.0;
   double warmup_s = 60.0;
   double sample_every_s = 5.0;
@@ -871,6 +873,8 @@ Options ParseFlags(int argc, char** argv) {
       o.device = value();
     } else if (arg == "--out") {
       o.out = value();
+    } else if (arg == "--aa") {
+      o.aa = value();
     } else {
       UsageError("unknown option " + arg);
     }
@@ -922,6 +926,14 @@ int RunSoak(const Options& o) {
   absl::StatusOr<Choices> choices = ChoicesFrom(info.choices());
   if (!choices.ok()) return cannot_start(std::string(choices.status().message()));
   shared.choices = *std::move(choices);
+  if (!o.aa.empty()) {
+    v1::AaMode mode;
+    if (!v1::AaMode_Parse("AA_" + absl::AsciiStrToUpper(o.aa), &mode) ||
+        std::find(shared.choices.aa.begin(), shared.choices.aa.end(), mode) ==
+            shared.choices.aa.end())
+      return cannot_start(absl::StrCat("--aa ", o.aa, ": not one of the server's AA modes"));
+    shared.choices.aa = {mode};
+  }
   shared.limits = info.limits();
 
   // The run: the workers, and this thread sampling on schedule until the end.
@@ -984,6 +996,7 @@ int RunSoak(const Options& o) {
   for (const Sample& s : samples) series.push_back(s.Json());
   const json out = {
       {"seed", o.seed},
+      {"aa", o.aa.empty() ? "random" : o.aa},
       {"duration_s", o.duration_s},
       {"warmup_s", o.warmup_s},
       {"sample_every_s", o.sample_every_s},
