@@ -211,9 +211,10 @@ bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::s
   }
   const std::string& name = image->name.empty() ? image->uri : image->name;
   if (ctx->error.ok()) {
+    const std::string named = name.empty() ? "" : absl::StrCat(" (", Quote(name), ")");
     ctx->error = absl::Status(decoded.status().code(),
-                              absl::StrCat(ctx->source->main_file, ": images[", index, "] (",
-                                           Quote(name), "): ", decoded.status().message()));
+                              absl::StrCat(ctx->source->main_file, ": images[", index, "]", named,
+                                           ": ", decoded.status().message()));
   }
   if (err) err->append(std::string(ctx->error.message()));
   return false;
