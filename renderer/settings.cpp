@@ -83,7 +83,7 @@ absl::Status ValidateSettings(const Settings& s) {
   if (s.width < 1 || s.width > 16384) return bad("width", s.width, "1..16384");
   if (s.height < 1 || s.height > 16384) return bad("height", s.height, "1..16384");
   if (!Known(kAaNames, s.aa)) return bad("aa", static_cast<uint32_t>(s.aa), "an AaMode");
-  if (s.samples != 1 && s.samples != 2 && s.samples != 4 && s.samples != 8)
+  if (s.samples == 0 || s.samples > kMaxSamples || (s.samples & (s.samples - 1)) != 0)
     return bad("samples", s.samples, "1, 2, 4 or 8");
   if (!Known(kCullingNames, s.culling))
     return bad("culling", static_cast<uint32_t>(s.culling), "a CullingMode");

@@ -54,6 +54,9 @@ struct Settings {
   bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
 };
 
+// The most samples `samples` may ask for (1, 2, 4 or 8); a device may offer more.
+inline constexpr uint32_t kMaxSamples = 8;
+
 // What the device can do, for clamping.
 struct DeviceCaps {
   uint32_t max_samples = 1;

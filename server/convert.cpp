@@ -259,8 +259,8 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
 void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {
   for (int v = 1; v1::AaMode_IsValid(v); ++v)
     o->add_aa(std::string(ToString(static_cast<AaMode>(v - 1))));
-  // Up to 8: what ValidateSettings accepts (a GPU may offer 16 or more).
-  for (uint32_t s = 1; s <= 8; s *= 2)
+  // Up to kMaxSamples, what ValidateSettings accepts (a GPU may offer 16 or more).
+  for (uint32_t s = 1; s <= kMaxSamples; s *= 2)
     if (sample_counts & s) o->add_samples(s);
   for (int v = 1; v1::CullingMode_IsValid(v); ++v)
     o->add_culling(std::string(ToString(static_cast<CullingMode>(v - 1))));

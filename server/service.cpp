@@ -945,7 +945,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   dev->set_api_version(d.api_version);
   v1::Limits* l = r->mutable_limits();
   const DeviceCaps caps = state_->renderer->caps();
-  l->set_max_samples(std::min(caps.max_samples, 8u));  // as SettingChoices.samples
+  l->set_max_samples(std::min(caps.max_samples, kMaxSamples));  // as SettingChoices.samples
   l->set_max_width(std::min(caps.max_image_dimension, 16384u));
   l->set_max_height(std::min(caps.max_image_dimension, 16384u));
   l->set_max_upload_bytes(o.max_upload_bytes);

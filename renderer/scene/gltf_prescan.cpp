@@ -172,7 +172,12 @@ class PreScan {
  public:
   PreScan(const GltfSource& src, const GlbChunks* glb, const ImportLimits& limits,
           PreScanResult* result)
-      : file_(src.main_file), src_(src), glb_(glb), limits_(limits), result_(result) {}
+      : file_(src.main_file),
+        src_(src),
+        glb_(glb),
+        limits_(limits),
+        result_(result),
+        file_set_bytes_(FileSetBytes(src)) {}
 
   absl::Status Run(const json& j) {
     if (!j.is_object()) return Invalid(file_, "JSON", "the top level is not an object");
@@ -359,18 +364,18 @@ class PreScan {
       // tinygltf copies every buffer: buffers naming the same file (or the BIN chunk) must not
       // multiply the memory an upload costs.
       if (__builtin_add_overflow(copied_bytes_, length, &copied_bytes_) ||
-          copied_bytes_ > FileSetBytes()) {
+          copied_bytes_ > file_set_bytes_) {
         return Invalid(file_, "buffers", "their byteLengths add up to more than the ",
-                       FileSetBytes(), " bytes of the file set");
+                       file_set_bytes_, " bytes of the file set");
       }
     }
     return absl::OkStatus();
   }
 
   // What every file of the set holds together: no asset needs to copy more than that.
-  uint64_t FileSetBytes() const {
+  static uint64_t FileSetBytes(const GltfSource& src) {
     uint64_t total = 0;
-    for (const auto& [name, data] : src_.files) total += data.size();
+    for (const auto& [name, data] : src.files) total += data.size();
     return total;
   }
 
@@ -412,9 +417,9 @@ class PreScan {
         // tinygltf reads an image's file once per image that names it.
         if (*have != std::string::npos &&
             (__builtin_add_overflow(copied_bytes_, uint64_t(*have), &copied_bytes_) ||
-             copied_bytes_ > 2 * FileSetBytes())) {
+             copied_bytes_ > 2 * file_set_bytes_)) {
           return Invalid(file_, field + ".uri", "images and buffers copy more than twice the ",
-                         FileSetBytes(), " bytes of the file set");
+                         file_set_bytes_, " bytes of the file set");
         }
       } else if (const json* bv = Member(im, "bufferView");
                  bv && (!JsonUint(bv, &view) || view >= views)) {
@@ -437,6 +442,7 @@ class PreScan {
   const ImportLimits& limits_;
   PreScanResult* result_;
   std::vector<uint64_t> buffer_lengths_;
+  const uint64_t file_set_bytes_;
   uint64_t copied_bytes_ = 0;  // what tinygltf will copy out of the file set
 };
 

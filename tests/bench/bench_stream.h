@@ -80,6 +80,12 @@ inline Orbit MakeOrbit(const v1::Aabb& bounds, float aspect) {
   return MakeOrbit(box, aspect);
 }
 
+// tests/CMakeLists.txt defines this for every test program; the fallback (the assets next to
+// the repository, as the top-level CMakeLists.txt has them) keeps a stand-alone compile working.
+#ifndef TESSERA_DEFAULT_ASSETS_DIR
+#define TESSERA_DEFAULT_ASSETS_DIR "../shared/assets"
+#endif
+
 // The assets folder: TESSERA_ASSETS_DIR, else the build's default.
 inline std::string AssetsDir() {
   if (const char* env = std::getenv("TESSERA_ASSETS_DIR"); env && *env) return env;

@@ -46,12 +46,6 @@
 //   tessera-job-bench --viewer-scene sponza --daemons 1,2 --frames 60
 //   tessera-job-bench --smoke               # demo, 160x90, 6 frames, 1 and 2 daemons, 1 s (ctest)
 
-// tests/CMakeLists.txt defines this for every test program; the fallback (the assets next to
-// the repository, as the top-level CMakeLists.txt has them) keeps a stand-alone compile working.
-#ifndef TESSERA_DEFAULT_ASSETS_DIR
-#define TESSERA_DEFAULT_ASSETS_DIR "../shared/assets"
-#endif
-
 #include <errno.h>  // program_invocation_short_name
 #include <grpcpp/grpcpp.h>
 #include <unistd.h>

@@ -40,12 +40,6 @@
 //   ./build/default/tests/tessera-soak --tesserad ./build/default/server/tesserad
 //   ./build/default/tests/tessera-soak --tesserad ./build/default/server/tesserad --smoke
 
-// tests/CMakeLists.txt defines this for every test program; the fallback (the assets next to
-// the repository, as the top-level CMakeLists.txt has them) keeps a stand-alone compile working.
-#ifndef TESSERA_DEFAULT_ASSETS_DIR
-#define TESSERA_DEFAULT_ASSETS_DIR "../shared/assets"
-#endif
-
 #include <errno.h>  // program_invocation_short_name
 #include <grpcpp/grpcpp.h>
 #include <unistd.h>

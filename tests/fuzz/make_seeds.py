@@ -146,7 +146,7 @@ def image_seeds(assets):
         with open(os.path.join(assets, rel), "rb") as f:
             files.append((os.path.basename(rel), f.read()))
     for name, data in files:
-        write("image", "stb_" + name, b"\0" + data)  # as the importer decodes
+        write("image", "texture_" + name, b"\0" + data)  # as the importer decodes textures
         if name.endswith(".png"):
             write("image", "libpng_" + name, b"\1" + data)
         else:
