@@ -20,6 +20,7 @@ extern const Command kRmCommand;
 extern const Command kRenderCommand;
 extern const Command kStreamCommand;
 extern const Command kJobCommand;
+extern const Command kBenchCommand;
 
 // Uploads the glTF file set at `path` unless the server has it (progress on stderr, errors
 // reported); its scene id in `scene_id`. False on error.

@@ -87,7 +87,58 @@ void ArgReader::Unknown() const {
   Fail(absl::StrCat("unknown option '", flag_, "'"));
 }
 
+// ---------------------------------------------------------------------------------------------
+// --json output and errors
+
+namespace {
+
+// What this run has written for --json. Process-wide, like stdout itself.
+struct JsonOutput {
+  bool on = false;
+  bool printed = false;  // a document is on stdout
+  Json first_error;      // ErrorJson of the first error reported; null before
+};
+
+JsonOutput& Output() {
+  static JsonOutput output;
+  return output;
+}
+
+void RememberError(absl::string_view code, absl::string_view message) {
+  if (Output().first_error.is_null()) Output().first_error = ErrorJson(code, message);
+}
+
+}  // namespace
+
+std::string ErrnoCodeName(int error_number) {
+  return absl::StatusCodeToString(absl::ErrnoToStatusCode(error_number));
+}
+
+Json ErrorJson(absl::string_view code, absl::string_view message) {
+  return {{"code", std::string(code)}, {"message", std::string(message)}};
+}
+
+Json ErrorJson(const grpc::Status& status) {
+  return ErrorJson(StatusCodeName(status.error_code()), status.error_message());
+}
+
+Json FirstError() { return Output().first_error; }
+
+void SetJsonOutput(bool json) { Output().on = json; }
+
+int FinishOutput(int exit_code) {
+  const JsonOutput& o = Output();
+  if (o.on && !o.printed && exit_code != 0) {
+    PrintJson({{"error", !o.first_error.is_null()
+                             ? o.first_error
+                             : ErrorJson("UNKNOWN", absl::StrCat("exit status ", exit_code))}});
+  }
+  return exit_code;
+}
+
 void UsageError(absl::string_view command, absl::string_view message) {
+  RememberError("USAGE", message);
+  if (Output().on && !Output().printed) PrintJson({{"error", Output().first_error}});
   if (command.empty()) {
     std::fprintf(stderr, "tessera: %.*s\n", int(message.size()), message.data());
   } else {
@@ -150,13 +201,19 @@ int ReportRpcError(const Invocation& inv, const grpc::Status& status) {
   }
   std::fprintf(stderr, "tessera: %s: %s: %s\n", inv.command.c_str(),
                std::string(StatusCodeName(status.error_code())).c_str(), message.c_str());
+  RememberError(StatusCodeName(status.error_code()), message);
   return kExitError;
 }
 
-int ReportError(const Invocation& inv, absl::string_view message) {
+int ReportError(const Invocation& inv, absl::string_view message, absl::string_view code) {
   std::fprintf(stderr, "tessera: %s: %.*s\n", inv.command.c_str(), int(message.size()),
                message.data());
+  RememberError(code, message);
   return kExitError;
+}
+
+int ReportError(const Invocation& inv, const absl::Status& status) {
+  return ReportError(inv, status.message(), absl::StatusCodeToString(status.code()));
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -229,7 +286,7 @@ std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::str
       if (path->empty()) continue;
       absl::StatusOr<std::string> pem = ReadFile(*path, flag);
       if (!pem.ok()) {
-        ReportError(inv, pem.status().message());
+        ReportError(inv, pem.status());
         return nullptr;
       }
       *out = *std::move(pem);
@@ -254,18 +311,22 @@ std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
     // A refused connection or an unresolvable name shows up as TRANSIENT_FAILURE at once;
     // gRPC would keep retrying with backoff, but the user wants to hear about it now.
     if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) {
-      ReportError(inv, absl::StrCat("cannot connect to tesserad at ", inv.global.server,
-                                    ": connection failed (is tesserad running there? set the "
-                                    "address with --server or $TESSERA_SERVER",
-                                    inv.global.tls ? "; does it speak TLS with a certificate "
-                                                     "your --tls-ca trusts?"
-                                                   : "; does it need --tls?",
-                                    ")"));
+      ReportError(inv,
+                  absl::StrCat("cannot connect to tesserad at ", inv.global.server,
+                               ": connection failed (is tesserad running there? set the "
+                               "address with --server or $TESSERA_SERVER",
+                               inv.global.tls ? "; does it speak TLS with a certificate "
+                                                "your --tls-ca trusts?"
+                                              : "; does it need --tls?",
+                               ")"),
+                  "UNAVAILABLE");
       return nullptr;
     }
     if (!channel->WaitForStateChange(state, deadline)) {
-      ReportError(inv, absl::StrFormat("cannot connect to tesserad at %s: no answer within %g s",
-                                       inv.global.server, inv.global.connect_timeout_s));
+      ReportError(inv,
+                  absl::StrFormat("cannot connect to tesserad at %s: no answer within %g s",
+                                  inv.global.server, inv.global.connect_timeout_s),
+                  "DEADLINE_EXCEEDED");
       return nullptr;
     }
     state = channel->GetState(/*try_to_connect=*/true);
@@ -337,6 +398,7 @@ bool StdoutIsTty() { return isatty(STDOUT_FILENO) == 1; }
 bool StderrIsTty() { return isatty(STDERR_FILENO) == 1; }
 
 void PrintJson(const Json& j) {
+  Output().printed = true;
   const std::string text = j.dump(2);
   std::fwrite(text.data(), 1, text.size(), stdout);
   std::fputc('\n', stdout);

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "google/protobuf/message.h"
@@ -19,10 +20,14 @@ namespace tessera::cli {
 // JSON output keeps the order fields are added in (proto field order), not alphabetical.
 using Json = nlohmann::ordered_json;
 
-// Exit codes: 1 when the server (or the local machine) failed the command, 2 for a command
-// line that could not be understood.
+// Exit codes (the table is in tessera --help and the README): 0 done; 1 the server (or the
+// local machine) failed the command; 2 a command line that could not be understood (nothing
+// was sent); 3 the work ran but did not succeed (a job that ended failed or cancelled); 130
+// interrupted by Ctrl-C (128 + SIGINT, what a shell reports for a killed command).
 inline constexpr int kExitError = 1;
 inline constexpr int kExitUsage = 2;
+inline constexpr int kExitJobFailed = 3;
+inline constexpr int kExitInterrupted = 130;
 
 // Flags valid before or after the command name.
 struct GlobalOptions {
@@ -76,14 +81,39 @@ class ArgReader {
   std::string inline_value_;
 };
 
-// "tessera: COMMAND: MESSAGE" on stderr, then exit(kExitUsage).
+// "tessera: COMMAND: MESSAGE" on stderr (with --json, the error document on stdout), then
+// exit(kExitUsage).
 [[noreturn]] void UsageError(absl::string_view command, absl::string_view message);
 
+// Errors go to stderr as one human-readable line, and are remembered for --json (see
+// FinishOutput): the first one reported becomes the error document of a command that prints
+// none of its own.
+//
 // "tessera: COMMAND: CODE_NAME: message" on stderr; returns kExitError so callers can
 // `return ReportRpcError(...)`.
 int ReportRpcError(const Invocation& inv, const grpc::Status& status);
-// "tessera: COMMAND: message" on stderr; returns kExitError.
-int ReportError(const Invocation& inv, absl::string_view message);
+// "tessera: COMMAND: message" on stderr; returns kExitError. `code` is the error's name in
+// --json output: a gRPC status code name (UNAVAILABLE, NOT_FOUND, ...).
+int ReportError(const Invocation& inv, absl::string_view message,
+                absl::string_view code = "UNKNOWN");
+// The same with the status's message and code.
+int ReportError(const Invocation& inv, const absl::Status& status);
+
+// The status code name of a failed system call's errno ("NOT_FOUND" for ENOENT, ...).
+std::string ErrnoCodeName(int error_number);
+
+// {"code": "NOT_FOUND", "message": "..."}: how --json output names an error.
+Json ErrorJson(absl::string_view code, absl::string_view message);
+Json ErrorJson(const grpc::Status& status);
+// The first error reported so far (ErrorJson), or null.
+Json FirstError();
+
+// --json output: exactly one JSON document on stdout per run, whatever happens. main() turns
+// it on before parsing the command line (so usage errors are documents too) and passes the
+// command's exit code through FinishOutput, which prints {"error": FirstError()} when the
+// command failed without printing a document of its own.
+void SetJsonOutput(bool json);
+int FinishOutput(int exit_code);
 
 absl::string_view StatusCodeName(grpc::StatusCode code);
 
@@ -113,7 +143,7 @@ grpc::Status ResolveSceneId(v1::RenderService::Stub* stub, const std::string& id
 // Output helpers.
 bool StdoutIsTty();
 bool StderrIsTty();
-// Prints `j` as the one JSON document on stdout.
+// Prints `j` as the one JSON document on stdout (at most once per run; see SetJsonOutput).
 void PrintJson(const Json& j);
 
 // Every field of `msg` as JSON with proto field names: numbers as numbers (also 64-bit ones),

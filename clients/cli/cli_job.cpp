@@ -33,6 +33,7 @@
 #include "absl/strings/str_split.h"
 #include "clients/cli/cli_commands.h"
 #include "clients/cli/cli_format.h"
+#include "clients/cli/cli_progress.h"
 #include "clients/cli/cli_render_flags.h"
 #include "clients/cli/cli_stream_parts.h"
 #include "server/job_spec.h"
@@ -47,41 +48,10 @@ double SecondsSince(Clock::time_point t) {
   return std::chrono::duration<double>(Clock::now() - t).count();
 }
 
-// "frames 45/120 [#####-----] 37%  ETA 1m 05s  312 ms/frame" on stderr, redrawn in place at
-// most ten times a second; silent when stderr is not a terminal.
-class FrameBar {
- public:
-  explicit FrameBar(std::string label) : label_(std::move(label)), enabled_(StderrIsTty()) {}
-  ~FrameBar() { Clear(); }
-  void Update(uint32_t done, uint32_t total, double eta_s, double ms_per_frame,
-              const std::string& extra = "", bool force = false) {
-    if (!enabled_) return;
-    const Clock::time_point now = Clock::now();
-    if (!force && now - last_ < std::chrono::milliseconds(100)) return;
-    last_ = now;
-    constexpr int kWidth = 24;
-    const double f = total ? std::min(1.0, double(done) / total) : 1.0;
-    const int filled = static_cast<int>(f * kWidth);
-    std::string line = absl::StrFormat("\r\033[K%s %u/%u [%s%s] %3.0f%%", label_, done, total,
-                                       std::string(filled, '#'), std::string(kWidth - filled, '-'),
-                                       f * 100);
-    if (eta_s > 0) absl::StrAppend(&line, "  ETA ", HumanDuration(eta_s));
-    if (ms_per_frame > 0) absl::StrAppend(&line, absl::StrFormat("  %.0f ms/frame", ms_per_frame));
-    if (!extra.empty()) absl::StrAppend(&line, "  ", extra);
-    std::fputs(line.c_str(), stderr);
-    drawn_ = true;
-  }
-  void Clear() {
-    if (drawn_) std::fputs("\r\033[K", stderr);
-    drawn_ = false;
-  }
-
- private:
-  std::string label_;
-  bool enabled_;
-  bool drawn_ = false;
-  Clock::time_point last_{};
-};
+// "312 ms/frame" for a progress bar's note; "" before the first frame.
+std::string MsPerFrame(double ms) {
+  return ms > 0 ? absl::StrFormat("%.0f ms/frame", ms) : std::string();
+}
 
 // "0..119", "0..119:2", "7".
 bool ParseFrameRange(const std::string& text, v1::FrameRange* out) {
@@ -342,7 +312,8 @@ bool MakeOutDir(const Invocation& inv, const std::string& dir) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec || !std::filesystem::is_directory(dir)) {
-    ReportError(inv, absl::StrCat("--out ", dir, ": cannot create the directory: ", ec.message()));
+    ReportError(inv, absl::StrCat("--out ", dir, ": cannot create the directory: ", ec.message()),
+                ErrnoCodeName(ec.value()));
     return false;
   }
   return true;
@@ -355,13 +326,15 @@ grpc::Status Watch(v1::RenderService::Stub* stub, const std::string& job_id, v1:
   v1::WatchJobRequest request;
   request.set_job_id(job_id);
   std::unique_ptr<grpc::ClientReader<v1::JobProgress>> reader = stub->WatchJob(&context, request);
-  FrameBar bar(absl::StrCat("job ", job_id.substr(0, 8)));
+  ProgressBar bar(absl::StrCat("job ", job_id.substr(0, 8)), 0);
   v1::JobProgress p;
   while (reader->Read(&p)) {
     *final_job = p.job();
     if (p.has_frame() && frames) frames->push_back(FrameEventJson(p.frame()));
-    bar.Update(p.job().frames_done(), p.job().frames_total(), p.job().eta_s(),
-               p.job().mean_frame_ms(), "", !p.has_frame());
+    bar.set_total(p.job().frames_total());
+    bar.set_eta(p.job().eta_s());  // the server's: it knows about restored frames and the queue
+    bar.set_note(MsPerFrame(p.job().mean_frame_ms()));
+    bar.Update(p.job().frames_done(), /*force=*/!p.has_frame());
   }
   bar.Clear();
   return reader->Finish();
@@ -376,7 +349,7 @@ grpc::Status Fetch(const Invocation& inv, v1::RenderService::Stub* stub, const v
   for (uint32_t f : wanted) request.add_frames(f);
   std::unique_ptr<grpc::ClientReader<v1::JobFrame>> reader =
       stub->FetchJobFrames(&context, request);
-  FrameBar bar("fetch");
+  ProgressBar bar("fetch", wanted.empty() ? job.frames_done() : wanted.size());
   v1::JobFrame frame;
   uint32_t n = 0;
   while (reader->Read(&frame)) {
@@ -394,7 +367,7 @@ grpc::Status Fetch(const Invocation& inv, v1::RenderService::Stub* stub, const v
       return grpc::Status(grpc::StatusCode::INTERNAL, error);
     }
     if (files) files->push_back((std::filesystem::path(dir) / name).string());
-    bar.Update(++n, job.frames_done(), 0, 0);
+    bar.Update(++n);
   }
   bar.Clear();
   (void)inv;
@@ -505,7 +478,7 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
   std::string lb_target;
   std::vector<std::string> addresses;
   if (absl::Status st = ResolveServers(o.servers, &lb_target, &addresses); !st.ok())
-    return ReportError(inv, st.message());
+    return ReportError(inv, st);
   // The scene on every daemon (content-addressed: a daemon that has it is skipped).
   std::string scene_id = o.scene;
   std::unique_ptr<v1::RenderService::Stub> first_stub;
@@ -522,16 +495,18 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
       grpc::Status st = ResolveSceneId(stub.get(), o.scene, &resolved, nullptr, &found);
       if (!st.ok()) return ReportRpcError(one, st);
       if (!found)
-        return ReportError(one, absl::StrCat("scene ", o.scene, " is not on ", address,
-                                             " (give --scene-file to upload it everywhere)"));
+        return ReportError(one,
+                           absl::StrCat("scene ", o.scene, " is not on ", address,
+                                        " (give --scene-file to upload it everywhere)"),
+                           "NOT_FOUND");
       scene_id = resolved;
     }
     if (!first_stub) first_stub = std::move(stub);
   }
   absl::StatusOr<v1::JobSpec> spec = BuildSpec(first_stub.get(), o, scene_id);
-  if (!spec.ok()) return ReportError(inv, spec.status().message());
+  if (!spec.ok()) return ReportError(inv, spec.status());
   absl::StatusOr<std::vector<uint32_t>> frames = jobs::FrameNumbers(spec->frames(), 100000);
-  if (!frames.ok()) return ReportError(inv, frames.status().message());
+  if (!frames.ok()) return ReportError(inv, frames.status());
   if (!MakeOutDir(inv, o.out)) return kExitError;
 
   std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, lb_target, /*round_robin=*/true);
@@ -553,8 +528,9 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
   uint32_t retried = 0;
   uint32_t busy = 0;
   std::string fatal;
+  grpc::StatusCode fatal_code = grpc::StatusCode::OK;
   const Clock::time_point start = Clock::now();
-  FrameBar bar(absl::StrCat("farm x", addresses.size()));
+  ProgressBar bar(absl::StrCat("farm x", addresses.size()), frames->size());
   const uint32_t parallel =
       o.parallel ? o.parallel : std::max<uint32_t>(2, 2 * uint32_t(addresses.size()));
 
@@ -600,14 +576,14 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
                       p.frame, context.peer(), StatusCodeName(st.error_code()),
                       st.error_message());
       } else if (fatal.empty()) {
+        fatal_code = st.error_code();
         fatal = absl::StrCat("frame ", p.frame, ": ", StatusCodeName(st.error_code()), ": ",
                              st.error_message());
       }
-      const double elapsed = SecondsSince(start);
-      const double per = written.empty() ? 0 : elapsed / written.size();
-      bar.Update(uint32_t(written.size()), uint32_t(frames->size()),
-                 per * double(frames->size() - written.size()), frame_ms.empty() ? 0 : Median(frame_ms),
-                 retried ? absl::StrCat(retried, " retried") : "");
+      std::string note = MsPerFrame(Median(frame_ms));
+      if (retried) absl::StrAppend(&note, "  ", retried, " retried");
+      bar.set_note(std::move(note));
+      bar.Update(written.size());
       cv.notify_all();
     }
   };
@@ -616,7 +592,7 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
   for (std::thread& t : threads) t.join();
   bar.Clear();
   const double seconds = SecondsSince(start);
-  if (!fatal.empty()) return ReportError(inv, fatal);
+  if (!fatal.empty()) return ReportError(inv, fatal, StatusCodeName(fatal_code));
 
   if (inv.global.json) {
     Json servers = Json::object();
@@ -649,7 +625,7 @@ int RunSubmit(const Invocation& inv) {
     return ReportRpcError(inv, st);
   }
   absl::StatusOr<v1::JobSpec> spec = BuildSpec(stub.get(), o, scene_id);
-  if (!spec.ok()) return ReportError(inv, spec.status().message());
+  if (!spec.ok()) return ReportError(inv, spec.status());
   if (!o.out.empty() && !MakeOutDir(inv, o.out)) return kExitError;
 
   v1::Job job;
@@ -688,7 +664,7 @@ int RunSubmit(const Invocation& inv) {
       absl::FPrintF(stderr, "frames are on the server in %s\n", final_job.output_path());
     absl::PrintF("%s\n", final_job.job_id());
   }
-  return final_job.state() == v1::JOB_SUCCEEDED ? 0 : kExitError;
+  return final_job.state() == v1::JOB_SUCCEEDED ? 0 : kExitJobFailed;
 }
 
 // The job id argument of watch/cancel/fetch/rm.
@@ -728,7 +704,7 @@ int RunWatch(const Invocation& inv) {
   } else {
     PrintJobLine(job);
   }
-  return job.state() == v1::JOB_SUCCEEDED ? 0 : kExitError;
+  return job.state() == v1::JOB_SUCCEEDED ? 0 : kExitJobFailed;
 }
 
 int RunCancel(const Invocation& inv) {
@@ -895,9 +871,15 @@ Frames are deterministic: the same job gives the same pixels on any daemon with 
   --parallel N        with --servers: frames in flight (default 2 per daemon)
   --retries N         with --servers: tries per frame (default 5)
   --frame-timeout SEC with --servers: deadline of one frame (default 600)
-Exit status: 0 when every frame is done, 1 when the job failed or was cancelled.
---json: {"job": Job, "frames": [per-frame events], "files": [...]}; with --servers
-{"frames", "out", "seconds", "frame_ms_median", "retried", "servers": {peer: frames}}.
+watch: a progress bar with an ETA on stderr (a terminal) until the job ends.
+Exit status of submit and watch: 0 when every frame is done, 3 when the job ended failed or
+cancelled (its Job, with the error, is still printed), 1 when the server could not be asked.
+--json (one document on stdout, also on failure: {"error": {"code", "message"}}):
+  submit, watch   {"job": Job, "frames": [per-frame events], "files": [...]} (submit --detach
+                  and cancel: {"job": Job}); submit --servers: {"frames", "out", "seconds",
+                  "frame_ms_median", "retried", "servers": {peer: frames}}
+  list            [Job, ...]            fetch   {"job": Job, "files": [...]}
+  rm              {"deleted": JOB}
 )",
                              true, RunJob};
 

@@ -1,7 +1,6 @@
 // tessera render: one frame to a file (Render), with its per-pass timings.
 #include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <string>
 
 #include "absl/strings/ascii.h"
@@ -47,18 +46,14 @@ RenderOptions ParseRenderOptions(const Invocation& inv) {
   return o;
 }
 
-bool WriteFile(const std::string& path, const std::string& bytes, std::string* error) {
+// The status names the file and the system's reason (its code from errno).
+absl::Status WriteFile(const std::string& path, const std::string& bytes) {
   FILE* f = std::fopen(path.c_str(), "wb");
-  if (!f) {
-    *error = absl::StrCat(path, ": cannot create: ", std::strerror(errno));
-    return false;
-  }
+  if (!f) return absl::ErrnoToStatus(errno, absl::StrCat(path, ": cannot create"));
   const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
-  if (std::fclose(f) != 0 || !ok) {
-    *error = absl::StrCat(path, ": write failed: ", std::strerror(errno));
-    return false;
-  }
-  return true;
+  if (std::fclose(f) != 0 || !ok)
+    return absl::ErrnoToStatus(errno, absl::StrCat(path, ": write failed"));
+  return absl::OkStatus();
 }
 
 int RunRender(const Invocation& inv) {
@@ -81,8 +76,7 @@ int RunRender(const Invocation& inv) {
   grpc::Status status = stub->Render(&context, request, &frame);
   if (!status.ok()) return ReportRpcError(inv, status);
 
-  std::string error;
-  if (!WriteFile(o.out, frame.data(), &error)) return ReportError(inv, error);
+  if (absl::Status st = WriteFile(o.out, frame.data()); !st.ok()) return ReportError(inv, st);
 
   if (inv.global.json) {
     PrintJson({{"output", o.out}, {"frame", FrameJson(frame)}});
@@ -104,7 +98,8 @@ const Command kRenderCommand = {
     R"(usage: tessera render [--scene ID] [camera flags] [settings flags] [-o FILE]
 Renders one frame on the server (Render) and writes it to FILE; prints the camera, the
 effective settings, the GPU time of every pass, the CPU stages and any setting notes.
---json: the output path and the Frame (without the image; its size as "bytes").
+--json: the output path and the Frame (without the image; its size as "bytes"); on failure
+{"error": {"code", "message"}}.
   --scene ID          a scene id (or a unique prefix of 8+ characters) or "demo" (the default)
   -o, --out FILE      output image, .jpg/.jpeg (JPEG) or .png (PNG) (default: tessera.jpg)
   --timeout SEC       give up after SEC seconds (default 600)

@@ -24,10 +24,14 @@ class RenderFlags {
   const v1::Camera& camera() const { return camera_; }
   // Only the fields named on the command line are set; the server fills in the rest.
   const v1::RenderSettings& settings() const { return settings_; }
+  // For commands that vary settings on top of the command line (bench).
+  v1::RenderSettings* mutable_settings() { return &settings_; }
   // --eye/--target/--up were given.
   bool has_look_at() const { return eye_set_ || target_set_; }
-  // --camera N or --frame was given.
+  // A placement was given: --camera N, --frame, or (after Finish) --eye/--target.
   bool has_placement() const { return camera_.placement_case() != v1::Camera::PLACEMENT_NOT_SET; }
+  // --camera N or --frame was given: a placement other than a look-at.
+  bool has_fixed_placement() const { return has_placement() && !has_look_at(); }
 
  private:
   bool ParseCamera(ArgReader& args);

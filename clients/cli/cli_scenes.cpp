@@ -166,6 +166,7 @@ int RunRm(const Invocation& inv) {
     if (!status.ok()) {
       // Go on with the other ids: each one is independent.
       rc = ReportRpcError(inv, status);
+      if (inv.global.json) out.push_back({{"scene_id", id}, {"error", ErrorJson(status)}});
       continue;
     }
     const uint32_t still = response.sessions_still_using();
@@ -188,7 +189,8 @@ int RunRm(const Invocation& inv) {
 const Command kInfoCommand = {"info", "what the server is, what it can do and how busy it is",
                               R"(usage: tessera info
 Prints the server's version, device, driver, limits, setting choices and defaults, uptime,
-scenes, sessions and queue depth (GetServerInfo). --json: the whole ServerInfo.
+scenes, sessions and queue depth (GetServerInfo). --json: the whole ServerInfo (plus
+"server": the address asked).
 )",
                               false, RunInfo};
 
@@ -196,7 +198,7 @@ const Command kScenesCommand = {"scenes", "list the scenes on the server",
                                 R"(usage: tessera scenes
 Lists the scenes on the server: id (first 12 characters; a unique prefix of 8+ works where a
 scene id is wanted), name, triangles, device memory, streaming sessions using it, and whether it is
-deleted but still in use. --json: every SceneInfo in full.
+deleted but still in use. --json: {"scenes": [SceneInfo, ...]}, every field.
 )",
                                 false, RunScenes};
 
@@ -204,6 +206,9 @@ const Command kRmCommand = {"rm", "delete scenes from the server",
                             R"(usage: tessera rm ID...
 Deletes scenes (DeleteScene). ID is a full scene id or a unique prefix of 8+ characters.
 Sessions still rendering a scene keep it until they end; the output says how many there are.
+Every ID is tried; the exit status is 1 if any of them failed.
+--json: an array with one object per ID: {"scene_id", "sessions_still_using"}, or
+{"scene_id": ID as given, "error": {"code", "message"}}.
 )",
                             false, RunRm};
 

@@ -1,6 +1,6 @@
 #pragma once
-// The moving parts of `tessera stream`: the orbit camera path, the event writer thread and the
-// event-to-frame latency bookkeeping.
+// The moving parts of a live session (`tessera stream`, `tessera bench`): the orbit camera
+// path, the event writer thread and the event-to-frame latency bookkeeping.
 #include <grpcpp/grpcpp.h>
 
 #include <atomic>

@@ -12,6 +12,7 @@
 #include "absl/strings/str_format.h"
 #include "clients/cli/cli_commands.h"
 #include "clients/cli/cli_format.h"
+#include "clients/cli/cli_progress.h"
 #include "renderer/scene/gltf_import.h"
 #include "tessera/scene_id.h"
 
@@ -46,55 +47,6 @@ absl::StatusOr<LocalScene> ReadLocalScene(const std::string& path) {
   scene.scene_id = SceneId(scene.sha256, scene.source.main_file);
   return scene;
 }
-
-// One line on stderr, redrawn in place at most ten times a second. Silent when stderr is not
-// a terminal, so logs and pipes do not fill with carriage returns.
-class ProgressBar {
- public:
-  ProgressBar(std::string label, uint64_t total)
-      : label_(std::move(label)), total_(total), enabled_(StderrIsTty()), start_(Clock::now()) {
-    // The line must fit a terminal, or every redraw would start a new line.
-    constexpr size_t kMaxLabel = 32;
-    if (label_.size() > kMaxLabel) label_ = "..." + label_.substr(label_.size() - kMaxLabel + 3);
-  }
-  ~ProgressBar() { Clear(); }
-
-  void Update(uint64_t done, bool force = false) {
-    if (!enabled_) return;
-    const Clock::time_point now = Clock::now();
-    if (!force && now - last_draw_ < std::chrono::milliseconds(100)) return;
-    last_draw_ = now;
-    constexpr int kWidth = 30;
-    const double fraction = total_ ? std::min(1.0, double(done) / double(total_)) : 1.0;
-    const int filled = static_cast<int>(fraction * kWidth);
-    const double seconds = std::max(1e-6, SecondsSince(start_));
-    std::fprintf(stderr, "\r\033[K%s [%s%s] %3.0f%% %s / %s  %.1f MiB/s", label_.c_str(),
-                 std::string(filled, '#').c_str(), std::string(kWidth - filled, '-').c_str(),
-                 fraction * 100, HumanBytes(done).c_str(), HumanBytes(total_).c_str(),
-                 done / seconds / (1024.0 * 1024.0));
-    drawn_ = true;
-  }
-
-  // Replaces the bar with a status line (e.g. while the server parses the upload).
-  void Say(const std::string& text) {
-    if (!enabled_) return;
-    std::fprintf(stderr, "\r\033[K%s %s", label_.c_str(), text.c_str());
-    drawn_ = true;
-  }
-
-  void Clear() {
-    if (drawn_) std::fputs("\r\033[K", stderr);
-    drawn_ = false;
-  }
-
- private:
-  std::string label_;
-  uint64_t total_;
-  bool enabled_;
-  bool drawn_ = false;
-  Clock::time_point start_;
-  Clock::time_point last_draw_{};
-};
 
 // What happened to one file on the command line.
 struct UploadResult {
@@ -141,7 +93,8 @@ void SendFiles(grpc::ClientWriter<v1::UploadRequest>* writer, const LocalScene& 
 
 grpc::Status Upload(v1::RenderService::Stub* stub, const LocalScene& scene,
                     const std::string& label, uint32_t chunk_bytes, v1::SceneInfo* info) {
-  ProgressBar bar(std::filesystem::path(label).filename().string(), scene.total_bytes);
+  ProgressBar bar(std::filesystem::path(label).filename().string(), scene.total_bytes,
+                  ProgressBar::Unit::kBytes);
   // No deadline: a large upload on a slow link takes as long as it takes (Ctrl-C stops it).
   grpc::ClientContext context;
   std::unique_ptr<grpc::ClientWriter<v1::UploadRequest>> writer = stub->UploadScene(&context, info);
@@ -179,9 +132,8 @@ class Uploader {
     result->path = path;
     absl::StatusOr<LocalScene> scene = ReadLocalScene(path);
     if (!scene.ok()) {
-      *error = {{"code", absl::StatusCodeToString(scene.status().code())},
-                {"message", std::string(scene.status().message())}};
-      ReportError(inv_, scene.status().message());
+      *error = ErrorJson(absl::StatusCodeToString(scene.status().code()), scene.status().message());
+      ReportError(inv_, scene.status());
       return false;
     }
     result->scene_id = scene->scene_id;
@@ -201,10 +153,10 @@ class Uploader {
       result->uploaded = true;
     }
     if (!status.ok()) {
-      *error = {{"code", std::string(StatusCodeName(status.error_code()))},
-                {"message", status.error_message()}};
-      ReportRpcError(inv_, grpc::Status(status.error_code(),
-                                        absl::StrCat(path, ": ", status.error_message())));
+      const grpc::Status named(status.error_code(),
+                               absl::StrCat(path, ": ", status.error_message()));
+      *error = ErrorJson(named);
+      ReportRpcError(inv_, named);
       return false;
     }
     if (result->info.scene_id() != scene->scene_id) {
@@ -314,8 +266,9 @@ The scene id is the content hash, computed locally first: a scene the server alr
 not sent again. A progress bar shows on stderr when it is a terminal.
 
 Output: the details of each scene on stderr, and its id alone on stdout, one line per FILE,
-so `id=$(tessera upload scene.glb)` captures it. --json: a JSON array with one object per
-FILE (file, scene_id, uploaded, seconds, info: the SceneInfo; or file and error).
+so `id=$(tessera upload scene.glb)` captures it. Every FILE is tried; the exit status is 1
+if any of them failed. --json: a JSON array with one object per FILE (file, scene_id,
+uploaded, seconds, info: the SceneInfo; or file and error: {"code", "message"}).
 )",
                                 false, RunUpload};
 

@@ -15,13 +15,16 @@
 namespace tessera::cli {
 namespace {
 
-constexpr const Command* kCommands[] = {&kInfoCommand,   &kUploadCommand, &kScenesCommand,
-                                        &kRmCommand,     &kRenderCommand, &kStreamCommand,
-                                        &kJobCommand};
+constexpr const Command* kCommands[] = {&kInfoCommand, &kUploadCommand, &kScenesCommand,
+                                        &kRmCommand,   &kRenderCommand, &kStreamCommand,
+                                        &kJobCommand,  &kBenchCommand};
 
 constexpr char kGlobalUsage[] = R"(global flags (anywhere on the line):
   --server ADDR       tesserad's address (default: $TESSERA_SERVER, else 127.0.0.1:50051)
-  --json              machine-readable output: one JSON document on stdout, nothing else
+  --json              machine-readable output: exactly one JSON document on stdout, also on
+                      failure: {"error": {"code": "NOT_FOUND", "message": "..."}} (code: the
+                      gRPC status name, or USAGE for a bad command line); progress and errors
+                      go to stderr
   --connect-timeout SEC   give up connecting after SEC seconds (default 10)
   --token-file FILE   send the bearer token in FILE (first line) with every call; the
                       token can also come from $TESSERA_TOKEN
@@ -30,8 +33,13 @@ constexpr char kGlobalUsage[] = R"(global flags (anywhere on the line):
   --tls-cert FILE --tls-key FILE   client certificate and key for servers that require mTLS
   -h, --help          this text; `tessera COMMAND --help` for one command
 
-Exit status: 0 done, 1 the server (or the local system) failed the command, 2 a bad command
-line. Server errors print the gRPC status code and message, e.g.
+exit status:
+  0    done
+  1    the server (or the local system) failed the command; bench: a configuration failed
+  2    a bad command line (nothing was sent)
+  3    job submit / job watch: the job ended failed or cancelled
+  130  interrupted (Ctrl-C) in stream or bench, after printing what was measured
+Errors print the gRPC status code and message on stderr, e.g.
   tessera: render: NOT_FOUND: scene_id: no scene "abc"
 )";
 
@@ -67,6 +75,10 @@ struct ParsedLine {
 ParsedLine ParseLine(int argc, char** argv) {
   ParsedLine line;
   GlobalOptions& g = line.inv.global;
+  // --json anywhere on the line applies to errors found before it is reached, too.
+  for (int i = 1; i < argc; ++i) {
+    if (absl::string_view(argv[i]) == "--json") SetJsonOutput(true);
+  }
   if (const char* env = std::getenv("TESSERA_SERVER"); env && *env) g.server = env;
   if (const char* env = std::getenv("TESSERA_TOKEN"); env && *env)
     g.token = std::string(absl::StripAsciiWhitespace(env));
@@ -145,8 +157,8 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (line.command == nullptr) {
-    PrintMainUsage(stderr);  // a usage error: nothing on stdout
-    return kExitUsage;
+    PrintMainUsage(stderr);  // a usage error: nothing on stdout but the --json error
+    UsageError("", "which command? (see tessera --help)");
   }
-  return line.command->run(line.inv);
+  return FinishOutput(line.command->run(line.inv));
 }

@@ -12,6 +12,13 @@ cleanup() {
 }
 trap cleanup EXIT
 fail() { echo "FAIL: $*" >&2; exit 1; }
+# Runs tessera with stdout in $work/out and stderr in $work/err; its exit status in $rc.
+run() { set +e; "$tessera" "$@" > "$work/out" 2> "$work/err"; rc=$?; set -e; }
+# Checks that $work/out is exactly one JSON document d for which the Python expression $1 holds.
+json_is() {
+  python3 -c 'import json, sys; d = json.load(open(sys.argv[1])); assert eval(sys.argv[2]), d' \
+    "$work/out" "$1" || fail "$2: $(head -c 600 "$work/out")"
+}
 
 "$tesserad" --listen=127.0.0.1:0 --port_file="$work/port" --log_level=warn &
 pid=$!
@@ -52,6 +59,70 @@ import json, sys
 d = json.load(open(sys.argv[1]))
 assert d["frames"] == 3, d
 PY
+
+# bench: one table row per configuration, and with --json the full figures of each.
+"$tessera" bench --suite lights --width 64 --height 48 --frames 3 --warmup 1 > "$work/bench.txt"
+python3 - "$work/bench.txt" <<'PY' || fail "bench table: $(cat "$work/bench.txt")"
+import sys
+lines = open(sys.argv[1]).read().splitlines()
+assert lines[0].startswith("tesserad ") and ", device " in lines[0], lines[0]
+assert any(l.startswith("timing ") for l in lines), lines
+head = next(i for i, l in enumerate(lines) if l.startswith("config"))
+assert "fps" in lines[head] and "lat p95" in lines[head], lines[head]
+rows = [l.split() for l in lines[head + 1:head + 5]]
+assert [r[:2] for r in rows] == [["lights", n] for n in ("0", "64", "256", "1024")], rows
+assert all(float(r[2]) > 0 for r in rows), rows  # fps
+PY
+"$tessera" --json bench --suite aa --width 64 --height 48 --frames 3 --warmup 1 > "$work/out"
+python3 - "$work/out" "$work/info.json" <<'PY' || fail "bench --json: $(head -c 600 "$work/out")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+offered = json.load(open(sys.argv[2]))["choices"]["aa"]
+assert d["device"]["name"] and d["suite"] == "aa" and d["failed"] == 0, d
+assert [r["config"] for r in d["results"]] == ["aa " + m for m in offered], d["results"]
+for r in d["results"]:
+    assert r["ok"] and r["frames"] == 3 and r["fps"] > 0 and r["bytes_median"] > 0, r
+    assert r["settings"]["aa"] == r["setting"]["aa"], r
+    assert r["gpu_total_median_ms"] > 0 and r["pass_median_ms"], r
+    lat = r["latency_ms"]
+    assert lat["events"] == 3 and 0 < lat["median"] <= lat["p95"], lat
+    assert r["timing_source"] in ("gpu_timestamps", "pass_wall_clock"), r
+PY
+# A configuration that fails is reported in its row; the others still run; exit 1.
+run bench --suite culling --samples 3 --width 64 --height 48 --frames 2 --warmup 0
+[[ $rc -eq 1 ]] || fail "bench with failing configurations exited $rc"
+[[ $(grep -c "FAILED  INVALID_ARGUMENT: settings.samples" "$work/out") -eq 4 ]] ||
+  fail "bench rows: $(cat "$work/out")"
+run --json bench --suite culling --samples 3 --width 64 --height 48 --frames 2
+[[ $rc -eq 1 ]] || fail "bench --json with failing configurations exited $rc"
+json_is 'd["failed"] == 4 and all(r["error"]["code"] == "INVALID_ARGUMENT" for r in d["results"])' \
+  "bench --json failed rows"
+
+# --json: one JSON document on stdout on every path, errors included; the exit codes.
+run --json scenes
+[[ $rc -eq 0 ]] || fail "scenes --json exited $rc"
+json_is 'any(s["scene_id"] == "demo" for s in d["scenes"])' "scenes --json"
+run --json render --scene no-such-scene -o "$work/x.jpg"
+[[ $rc -eq 1 ]] || fail "render --json of an unknown scene exited $rc"
+json_is 'd["error"]["code"] == "NOT_FOUND" and "no-such-scene" in d["error"]["message"]' \
+  "render --json error"
+grep -q "NOT_FOUND" "$work/err" || fail "render --json error not on stderr: $(cat "$work/err")"
+run --json rm no-such-scene
+[[ $rc -eq 1 ]] || fail "rm --json of an unknown scene exited $rc"
+json_is 'd[0]["scene_id"] == "no-such-scene" and d[0]["error"]["code"] == "NOT_FOUND"' \
+  "rm --json error"
+run --json stream --scene no-such-scene --frames 2
+[[ $rc -eq 1 ]] || fail "stream --json of an unknown scene exited $rc"
+json_is 'd["error"]["code"] == "NOT_FOUND"' "stream --json error"
+run --json render --bogus-flag
+[[ $rc -eq 2 ]] || fail "a bad render command line exited $rc, not 2"
+json_is 'd["error"]["code"] == "USAGE" and "--bogus-flag" in d["error"]["message"]' "usage --json"
+run --json no-such-command
+[[ $rc -eq 2 ]] || fail "an unknown command exited $rc, not 2"
+json_is 'd["error"]["code"] == "USAGE"' "unknown command --json"
+run --json --server 127.0.0.1:1 info
+[[ $rc -eq 1 ]] || fail "info against a closed port exited $rc"
+json_is 'd["error"]["code"] == "UNAVAILABLE"' "connect failure --json"
 
 # Errors: non-zero exit and the server's code and message.
 if "$tessera" render --scene no-such-scene -o "$work/x.jpg" 2> "$work/err"; then
@@ -108,6 +179,10 @@ kid=$("$tessera" job submit --scene demo --frames 0..4:2 --keyframes "$work/keys
 big=$("$tessera" job submit --scene demo --frames 0..99999 --width 32 --height 32 --detach \
   2>/dev/null)
 "$tessera" job cancel "$big" 2>&1 | grep -q "cancelled" || fail "job cancel"
+# A job that ended cancelled: exit 3 from watch, with the Job in the --json document.
+run --json job watch "$big"
+[[ $rc -eq 3 ]] || fail "job watch of a cancelled job exited $rc, not 3"
+json_is 'd["job"]["state"] == "cancelled"' "job watch --json of a cancelled job"
 "$tessera" job rm "$big" 2> /dev/null || fail "job rm"
 if "$tessera" job list | grep -q "$big"; then fail "job rm left the job"; fi
 if "$tessera" job submit --scene demo --frames 9..1 2> "$work/err"; then

@@ -1,0 +1,115 @@
+#pragma once
+// One live session (Stream) from the open event to Finish, as `tessera stream` and `tessera
+// bench` run it: the events it sends, the frames it receives (kept without their images) and
+// the figures of a run (medians, latency percentiles).
+#include <grpcpp/grpcpp.h>
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "clients/cli/cli_common.h"
+#include "clients/cli/cli_render_flags.h"
+#include "clients/cli/cli_stream_parts.h"
+#include "tessera/v1/render_service.grpc.pb.h"
+
+namespace tessera::cli {
+
+// How the CLI asks for frames.
+enum class Pacing {
+  kPerFrame,    // one event (camera move or refresh) per received frame
+  kSteadyRate,  // --orbit --fps F: a camera move every 1/F s, whatever the frames do
+  kServerRate,  // --fps F alone: the session renders continuously at F fps
+};
+
+// What a session asks for.
+struct SessionOptions {
+  std::string scene = "demo";
+  uint32_t frames = 10;  // frames to receive; with orbit, one turn takes this many moves
+  bool orbit = false;
+  float fps = 0;
+  float interactive_scale = 0;  // > 0: enable the session's interactive profile at this scale
+  int rest_ms = -1;             // the profile's rest time; -1: the server's default
+  RenderFlags flags;
+
+  Pacing pacing() const {
+    if (fps <= 0) return Pacing::kPerFrame;
+    return orbit ? Pacing::kSteadyRate : Pacing::kServerRate;
+  }
+};
+
+// One received frame, without its image.
+struct FrameRecord {
+  v1::Frame frame;
+  uint64_t bytes = 0;                // of the encoded image (not kept)
+  double received_ms = 0;            // since the open event was sent
+  std::optional<double> latency_ms;  // of the newest event this frame answered first
+};
+
+// The orbit path when `o.orbit` is set: around the scene bounds (HasScene), or through the
+// explicit --eye/--target. nullopt when the scene could not be described (the first frame's
+// camera is used then). Also resolves a scene id prefix into `scene_id`.
+grpc::Status PlanOrbit(v1::RenderService::Stub* stub, const SessionOptions& o,
+                       std::string* scene_id, std::optional<Orbit>* orbit);
+
+// The session from open to Finish.
+class Session {
+ public:
+  // Called on the reading thread for every counted frame, in order, `index` from 1, with the
+  // image still in record.frame.data() (it is dropped afterwards).
+  using FrameHandler = std::function<void(const FrameRecord& record, uint32_t index)>;
+
+  Session(const SessionOptions& o, FrameHandler on_frame) : o_(o), on_frame_(std::move(on_frame)) {}
+
+  // Runs the session until o.frames frames arrived or the call ended; the call's status.
+  grpc::Status Run(v1::RenderService::Stub* stub, const std::string& scene_id,
+                   std::optional<Orbit> orbit);
+
+  const std::vector<FrameRecord>& records() const { return records_; }
+  // (event id, ms from sending it to the first frame reflecting it), in id order.
+  const std::vector<std::pair<uint64_t, double>>& latencies() const { return latencies_; }
+  uint32_t extra_frames() const { return extra_frames_; }
+
+ private:
+  class Events;
+  void ReadFrames(grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>* stream, EventWriter* writer,
+                  Events* events);
+
+  const SessionOptions& o_;
+  FrameHandler on_frame_;
+  LatencyTracker latency_;
+  Clock::time_point start_;
+  std::vector<FrameRecord> records_;
+  std::vector<std::pair<uint64_t, double>> latencies_;
+  uint32_t extra_frames_ = 0;
+};
+
+// The figures of a run, computed once from its records.
+struct Summary {
+  uint32_t frames = 0;
+  uint32_t extra_frames = 0;  // arrived after the half-close, not counted
+  double seconds = 0;         // open event sent -> last frame received
+  double fps = 0;             // between the first and the last frame
+  uint64_t dropped = 0;       // sequence numbers never received
+  std::optional<double> first_frame_ms;
+  std::vector<double> latencies_ms;                            // events after the open event
+  std::vector<std::pair<std::string, double>> pass_median_ms;  // in pass order
+  double gpu_total_median_ms = 0;
+  double cpu_total_median_ms = 0;
+  double bytes_median = 0;
+};
+
+// The figures of `records` (received in order). `latencies` as Session::latencies(); the
+// open event's (id 1) is first_frame_ms, not a latency sample.
+Summary Summarize(const std::vector<FrameRecord>& records,
+                  const std::vector<std::pair<uint64_t, double>>& latencies);
+
+// {"median", "p95", "events", "samples"} of a run's latencies (ms), for --json.
+Json LatencyJson(const Summary& s);
+// [{"pass", "median_ms"}, ...] in pass order, for --json.
+Json PassMediansJson(const Summary& s);
+
+}  // namespace tessera::cli
