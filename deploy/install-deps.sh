@@ -24,7 +24,14 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev python3-yaml systemd
   # fuzzing (tests/fuzz/run.sh): clang with libFuzzer and the sanitizer runtimes
   clang libclang-rt-14-dev
+  # the web viewer's browser tests (tests/web): headless Chromium, driven by playwright-core
+  chromium
 )
+# The web gateway (clients/web) runs on Node.js with npm. A newer Node already on the machine
+# (e.g. from NodeSource) is kept; otherwise Debian's is installed.
+if ! command -v node >/dev/null || ! command -v npm >/dev/null; then
+  PACKAGES+=(nodejs npm)
+fi
 
 missing=()
 for p in "${PACKAGES[@]}"; do

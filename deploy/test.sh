@@ -4,7 +4,8 @@
 #     `asan`: the parsers of client input (glTF, images, requests, with the fuzz regression
 #     cases) and every RPC handler (the in-process server, service and job tests);
 #  2. fuzzes each libFuzzer target for $FUZZ_SECONDS (30) on its corpus (tests/fuzz/run.sh);
-#  3. builds everything with the default preset (RelWithDebInfo) and runs every test with ctest.
+#  3. builds everything with the default preset (RelWithDebInfo) and runs every test with ctest,
+#     the web viewer's too (its Node packages come from clients/web/package-lock.json, `npm ci`).
 # Used by .ci/run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,6 +28,7 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 \
 FUZZ_SECONDS="${FUZZ_SECONDS:-30}" tests/fuzz/run.sh
 
 # 3. Everything, with Vulkan validation layers on for the render tests.
+(cd clients/web && npm ci --no-audit --no-fund --loglevel=error)
 cmake --preset default
 cmake --build --preset default -j "$jobs"
 ctest --preset default -j "$jobs"

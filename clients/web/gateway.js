@@ -1,0 +1,224 @@
+#!/usr/bin/env node
+// tessera-web: serves the browser viewer and bridges each page's WebSocket to tesserad's gRPC
+// API. Flags and the protocol: README.md.
+import fs from 'node:fs';
+import http from 'node:http';
+import path from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { WebSocketServer } from 'ws';
+import { loadProto, makeClient, callMetadata } from './lib/rpc.js';
+import { Connection, UploadBudget } from './lib/connection.js';
+import { ParkedStreams } from './lib/streams.js';
+import { loadStatic, serveStatic } from './lib/static.js';
+
+const HERE = path.dirname(fileURLToPath(import.meta.url));
+const VERSION = JSON.parse(fs.readFileSync(path.join(HERE, 'package.json'), 'utf8')).version;
+
+const USAGE = `usage: node gateway.js [flags]
+  --listen HOST:PORT    where the page is served (default $TESSERA_WEB_LISTEN, else 127.0.0.1:8080;
+                        port 0 picks a free one)
+  --server HOST:PORT    tesserad (default $TESSERA_SERVER, else 127.0.0.1:50051)
+  --token-file FILE     bearer token for tesserad, first line of FILE (or $TESSERA_TOKEN)
+  --tls                 talk TLS to tesserad, trusting the system's CAs
+  --tls-ca FILE         talk TLS to tesserad, trusting the CA certificate(s) in FILE
+  --allow-origin URL    also accept pages from this origin (repeatable; the gateway's own
+                        origin is always accepted)
+  --max-upload-mb N     bytes one upload may hold in the gateway (default: tesserad's limit)
+  --port-file FILE      write the bound port to FILE once listening
+  --proto-dir DIR       the proto files (default ../../proto from this file)
+  --public-dir DIR      the page's files (default public/ next to this file)
+  -h, --help            this text
+`;
+
+function usageError(message) {
+  process.stderr.write(`tessera-web: ${message}\n${USAGE}`);
+  process.exit(2);
+}
+
+function parseFlags(argv) {
+  const o = {
+    listen: process.env.TESSERA_WEB_LISTEN || '127.0.0.1:8080',
+    server: process.env.TESSERA_SERVER || '127.0.0.1:50051',
+    token: (process.env.TESSERA_TOKEN || '').trim(),
+    tls: false,
+    tlsCaFile: '',
+    allowOrigins: [],
+    maxUploadMb: 0,
+    portFile: '',
+    protoDir: path.resolve(HERE, '../../proto'),
+    publicDir: path.join(HERE, 'public'),
+  };
+  for (let i = 0; i < argv.length; i++) {
+    const arg = argv[i];
+    const [flag, inline] = arg.includes('=') ? [arg.slice(0, arg.indexOf('=')), arg.slice(arg.indexOf('=') + 1)] : [arg, undefined];
+    const value = () => {
+      if (inline !== undefined) return inline;
+      if (i + 1 >= argv.length) usageError(`${flag} needs a value`);
+      return argv[++i];
+    };
+    switch (flag) {
+      case '--listen': o.listen = value(); break;
+      case '--server': o.server = value(); break;
+      case '--token-file': {
+        const file = value();
+        try {
+          o.token = fs.readFileSync(file, 'utf8').split('\n')[0].trim();
+        } catch (e) {
+          usageError(`--token-file: cannot read ${file}: ${e.code ?? e.message}`);
+        }
+        if (!o.token) usageError(`--token-file: ${file} is empty`);
+        break;
+      }
+      case '--tls': o.tls = true; break;
+      case '--tls-ca': o.tlsCaFile = value(); o.tls = true; break;
+      case '--allow-origin': o.allowOrigins.push(value().replace(/\/$/, '')); break;
+      case '--max-upload-mb': {
+        const v = value();
+        o.maxUploadMb = Number(v);
+        if (!(o.maxUploadMb > 0)) usageError(`--max-upload-mb: not a positive number: '${v}'`);
+        break;
+      }
+      case '--port-file': o.portFile = value(); break;
+      case '--proto-dir': o.protoDir = path.resolve(value()); break;
+      case '--public-dir': o.publicDir = path.resolve(value()); break;
+      case '-h': case '--help': process.stdout.write(USAGE); process.exit(0); break;
+      default: usageError(`unknown flag '${arg}'`);
+    }
+  }
+  const m = /^(.*):(\d+)$/.exec(o.listen);
+  if (!m || Number(m[2]) > 65535) usageError(`--listen: wants HOST:PORT, not '${o.listen}'`);
+  o.host = m[1].replace(/^\[(.*)\]$/, '$1');
+  o.port = Number(m[2]);
+  return o;
+}
+
+function log(message) {
+  process.stderr.write(`${new Date().toISOString()} tessera-web: ${message}\n`);
+}
+
+const opts = parseFlags(process.argv.slice(2));
+let proto, files;
+try {
+  proto = loadProto(opts.protoDir);
+  files = loadStatic(opts.publicDir);
+} catch (e) {
+  usageError(e.message);
+}
+const client = makeClient(proto.api, opts.server, opts);
+const metadata = () => callMetadata(opts);
+
+// tesserad's limits, fetched when an upload needs them and kept for a minute.
+let limitsCache = { at: 0, value: null };
+function limits() {
+  if (limitsCache.value && Date.now() - limitsCache.at < 60_000) return Promise.resolve(limitsCache.value);
+  return new Promise((resolve, reject) => {
+    client.GetServerInfo({}, metadata(), { deadline: Date.now() + 10_000 }, (err, info) => {
+      if (err) return reject(err);
+      limitsCache = { at: Date.now(), value: info.limits ?? {} };
+      resolve(limitsCache.value);
+    });
+  });
+}
+
+// Two uploads of the largest size may be held at once over all pages (the default upload
+// limit is tesserad's own).
+const maxUploadBytes = opts.maxUploadMb ? opts.maxUploadMb * 1024 * 1024 : Infinity;
+const uploadBudget = new UploadBudget(Number.isFinite(maxUploadBytes) ? 2 * maxUploadBytes : 0);
+
+// Sessions of pages that left, kept as long as tesserad would keep them (resume_grace_s).
+const parked = new ParkedStreams({
+  graceMs: () => 1000 * (limitsCache.value?.resume_grace_s ?? 30),
+  max: 256,
+  log,
+});
+limits().catch(() => {}); // learn resume_grace_s early; errors show up where they matter
+
+function healthz(res) {
+  client.GetServerInfo({}, metadata(), { deadline: Date.now() + 3000 }, (err, info) => {
+    const body = err ? { ok: false, server: opts.server, error: err.details ?? err.message }
+                     : { ok: true, server: opts.server, version: info.version, device: info.device?.name };
+    res.writeHead(err ? 503 : 200, { 'Content-Type': 'application/json', 'Cache-Control': 'no-store' });
+    res.end(`${JSON.stringify(body)}\n`);
+  });
+}
+
+const server = http.createServer((req, res) => {
+  if (new URL(req.url, 'http://x').pathname === '/healthz') return healthz(res);
+  if (!serveStatic(files, req, res)) res.writeHead(404, { 'Content-Type': 'text/plain' }).end('not found\n');
+});
+
+// A page from another site must not drive tesserad through a viewer's browser: WebSockets are
+// not bound by the same-origin policy, so the Origin header is checked. Clients that are not
+// browsers send none.
+function originAllowed(req) {
+  const origin = req.headers.origin;
+  if (origin === undefined) return true;
+  try {
+    const url = new URL(origin);
+    if (url.host === req.headers.host) return true;
+  } catch {
+    return false;
+  }
+  return opts.allowOrigins.includes(origin);
+}
+
+const wss = new WebSocketServer({
+  server,
+  path: '/ws',
+  maxPayload: 2 * 1024 * 1024, // an upload chunk (<= 1 MiB) and its header
+  verifyClient: ({ req }, done) => {
+    if (originAllowed(req)) return done(true);
+    log(`refused a WebSocket from origin ${req.headers.origin}`);
+    done(false, 403, 'origin not allowed');
+  },
+});
+
+let pages = 0;
+wss.on('connection', (ws, req) => {
+  pages++;
+  const peer = `${req.socket.remoteAddress}:${req.socket.remotePort}`;
+  log(`page connected from ${peer} (${pages} open)`);
+  ws.isAlive = true;
+  ws.on('pong', () => { ws.isAlive = true; });
+  ws.on('close', () => { pages--; log(`page ${peer} left (${pages} open)`); });
+  new Connection(ws, {
+    client, definition: proto.definition, metadata, limits,
+    maxUploadBytes, parked, uploadBudget: Number.isFinite(maxUploadBytes) ? uploadBudget : { take: () => true, give: () => {} },
+    log, version: VERSION, server: opts.server,
+  });
+});
+
+// Pages that vanished without closing (a sleeping laptop) are dropped after a missed ping.
+const pinger = setInterval(() => {
+  for (const ws of wss.clients) {
+    if (!ws.isAlive) { ws.terminate(); continue; }
+    ws.isAlive = false;
+    ws.ping();
+  }
+}, 30_000);
+
+server.on('error', (err) => {
+  log(`cannot listen on ${opts.listen}: ${err.message}`);
+  process.exit(1);
+});
+server.listen(opts.port, opts.host, () => {
+  const { port } = server.address();
+  if (opts.portFile) fs.writeFileSync(opts.portFile, `${port}\n`);
+  const shown = opts.host.includes(':') ? `[${opts.host}]` : opts.host;
+  log(`serving the viewer on http://${shown}:${port}/ for tesserad at ${opts.server}`);
+});
+
+function shutdown(signal) {
+  log(`${signal}: closing`);
+  clearInterval(pinger);
+  parked.dropAll();
+  for (const ws of wss.clients) ws.close(1001, 'gateway shutting down');
+  wss.close();
+  server.close(() => {
+    client.close();
+    process.exit(0);
+  });
+  setTimeout(() => process.exit(0), 2000);
+}
+process.on('SIGINT', () => shutdown('SIGINT'));
+process.on('SIGTERM', () => shutdown('SIGTERM'));

@@ -1,0 +1,448 @@
+// One browser page: a WebSocket whose requests become tesserad calls (README.md, "The
+// WebSocket protocol"). Everything the page sends is untrusted: a malformed message gets an
+// error reply naming what is wrong, and nothing a page does reaches another page's calls.
+import crypto from 'node:crypto';
+import { encodeBinary, decodeBinary } from './wire.js';
+import { LatestSender } from './latest.js';
+import { describeError, settingsSchema } from './rpc.js';
+import { BridgedStream } from './streams.js';
+
+// Per page, at once. A viewer needs one stream, one upload and a few renders.
+const MAX_STREAMS = 4;
+const MAX_RENDERS = 8;
+const MAX_UPLOADS = 2;
+const MAX_NAME_BYTES = 1024; // UploadFile.name
+const RENDER_DEADLINE_MS = 120_000;
+const PROGRESS_INTERVAL_MS = 100;
+// An upload whose page stops sending chunks gives its memory back after this long.
+const UPLOAD_IDLE_MS = 60_000;
+// Chunks held while an upload waits for the server's limits (normally milliseconds).
+const EARLY_CHUNK_BYTES = 64 << 20;
+
+class RequestError extends Error {
+  constructor(code, message) {
+    super(message);
+    this.code = code;
+  }
+}
+const invalid = (message) => new RequestError('INVALID_ARGUMENT', message);
+
+/** The Frame as JSON, without its image: what a binary frame message's header carries. */
+export function frameHeader(frame) {
+  const { data, ...rest } = frame;
+  return { ...rest, bytes: data ? data.length : 0 };
+}
+
+/** Uploads held in the gateway's memory across all pages, bounded. */
+export class UploadBudget {
+  constructor(bytes) {
+    this.limit = bytes;
+    this.used = 0;
+  }
+  take(n) {
+    if (this.used + n > this.limit) return false;
+    this.used += n;
+    return true;
+  }
+  give(n) {
+    this.used = Math.max(0, this.used - n);
+  }
+}
+
+export class Connection {
+  /**
+   * @param ws       the page's WebSocket (ws library)
+   * @param ctx      { client, definition, metadata(), limits(): Promise<Limits>,
+   *                   maxUploadBytes, uploadBudget, parked (ParkedStreams), log, version,
+   *                   server }
+   */
+  constructor(ws, ctx) {
+    this.ws = ws;
+    this.ctx = ctx;
+    this.streams = new Map(); // id -> { stream: BridgedStream, sender: LatestSender }
+    this.renders = new Map(); // id -> call
+    this.uploads = new Map(); // id -> upload state
+    this.closed = false;
+    ws.on('message', (data, isBinary) => this.onMessage(data, isBinary));
+    ws.on('close', () => this.onClose());
+    ws.on('error', (err) => ctx.log(`websocket error: ${err.message}`));
+    this.sendJson({ type: 'hello', gateway: ctx.version, server: ctx.server });
+  }
+
+  // ---- sending ----------------------------------------------------------------------------
+
+  sendJson(message) {
+    if (this.closed || this.ws.readyState !== this.ws.OPEN) return;
+    this.ws.send(JSON.stringify(message));
+  }
+
+  reply(id, result) {
+    this.sendJson({ id, ok: true, result });
+  }
+
+  fail(id, err, code) {
+    const error = describeError(err, err instanceof RequestError ? err.code : code);
+    if (id === undefined) this.sendJson({ type: 'error', error });
+    else this.sendJson({ id, ok: false, error });
+  }
+
+  // ---- receiving --------------------------------------------------------------------------
+
+  onMessage(data, isBinary) {
+    if (isBinary) {
+      this.onChunk(data);
+      return;
+    }
+    let msg;
+    try {
+      msg = JSON.parse(data.toString('utf8'));
+    } catch (e) {
+      this.fail(undefined, invalid(`message is not JSON: ${e.message}`));
+      return;
+    }
+    if (msg === null || typeof msg !== 'object' || Array.isArray(msg)) {
+      this.fail(undefined, invalid('message is not a JSON object'));
+      return;
+    }
+    const { id, op } = msg;
+    if (!Number.isSafeInteger(id) || id <= 0) {
+      this.fail(undefined, invalid('id: wants a positive integer'));
+      return;
+    }
+    if (this.streams.has(id) || this.renders.has(id) || this.uploads.has(id)) {
+      this.fail(id, invalid(`id: ${id} is still in use by another request`));
+      return;
+    }
+    if (typeof op !== 'string' || !Object.hasOwn(this.handlers, op)) {
+      this.fail(id, invalid(`op: unknown operation '${String(op).slice(0, 40)}'`));
+      return;
+    }
+    // Run synchronously: a binary chunk right behind an `upload` (often in the same TCP read)
+    // must find the upload registered.
+    try {
+      const result = this.handlers[op].call(this, id, msg);
+      if (result instanceof Promise) result.catch((err) => this.fail(id, err));
+    } catch (err) {
+      this.fail(id, err);
+    }
+  }
+
+  handlers = {
+    info: this.info,
+    scenes: this.scenes,
+    delete: this.deleteScene,
+    render: this.render,
+    open: this.open,
+    event: this.event,
+    close: this.closeStream,
+    upload: this.upload,
+    cancel: this.cancel,
+  };
+
+  /** A unary call as a promise (rejects with the gRPC error). */
+  unary(method, request, deadlineMs = 30_000) {
+    return new Promise((resolve, reject) => {
+      this.ctx.client[method](
+        request,
+        this.ctx.metadata(),
+        { deadline: Date.now() + deadlineMs },
+        (err, response) => (err ? reject(err) : resolve(response)),
+      );
+    });
+  }
+
+  /** Serializes `message` as `type` to check it, so a malformed one fails alone (the call lives on). */
+  check(method, message, what) {
+    if (message === null || typeof message !== 'object' || Array.isArray(message)) {
+      throw invalid(`${what}: wants an object`);
+    }
+    try {
+      this.ctx.client[method].requestSerialize(message);
+    } catch (e) {
+      throw invalid(`${what}: ${e.message}`);
+    }
+  }
+
+  // ---- unary calls ------------------------------------------------------------------------
+
+  async info(id) {
+    const info = await this.unary('GetServerInfo', {});
+    this.reply(id, { info, schema: settingsSchema(this.ctx.definition, info.choices ?? {}) });
+  }
+
+  async scenes(id) {
+    this.reply(id, await this.unary('ListScenes', {}));
+  }
+
+  async deleteScene(id, msg) {
+    if (typeof msg.scene_id !== 'string' || !msg.scene_id) throw invalid('scene_id: wants a scene id');
+    this.reply(id, await this.unary('DeleteScene', { scene_id: msg.scene_id }));
+  }
+
+  render(id, msg) {
+    const request = msg.request ?? {};
+    this.check('Render', request, 'request');
+    if (this.renders.size >= MAX_RENDERS) {
+      throw new RequestError('RESOURCE_EXHAUSTED', `renders: at most ${MAX_RENDERS} at once per page`);
+    }
+    const call = this.ctx.client.Render(
+      request,
+      this.ctx.metadata(),
+      { deadline: Date.now() + RENDER_DEADLINE_MS },
+      (err, frame) => {
+        this.renders.delete(id);
+        if (err) return this.fail(id, err);
+        const header = frameHeader(frame);
+        if (!this.closed && this.ws.readyState === this.ws.OPEN) {
+          this.ws.send(encodeBinary({ id, frame: header }, frame.data));
+        }
+        this.reply(id, { frame: header });
+      },
+    );
+    this.renders.set(id, call);
+  }
+
+  // ---- streams ----------------------------------------------------------------------------
+
+  open(id, msg) {
+    if (this.streams.size >= MAX_STREAMS) {
+      throw new RequestError('RESOURCE_EXHAUSTED', `streams: at most ${MAX_STREAMS} at once per page`);
+    }
+    const first = { event_id: msg.event_id ?? 0, open: msg.open ?? {} };
+    this.check('Stream', first, 'open');
+    // A page coming back takes over the stream it left here; other tokens go to tesserad.
+    const token = first.open.resume_token;
+    let stream = token ? this.ctx.parked.take(token) : null;
+    const resumed = stream !== null;
+    if (!stream) stream = new BridgedStream(this.ctx.client.Stream(this.ctx.metadata()));
+    const sender = new LatestSender((data, done) => {
+      if (this.closed || this.ws.readyState !== this.ws.OPEN) return done(new Error('closed'));
+      this.ws.send(data, done);
+    });
+    this.streams.set(id, { stream, sender });
+    stream.attach({
+      frame: (frame) => sender.push(encodeBinary({ stream: id, frame: frameHeader(frame) }, frame.data)),
+      end: (status) => {
+        this.streams.delete(id);
+        const ok = status.code === 0;
+        this.sendJson({ type: 'stream_end', stream: id, ok, ...(ok ? {} : { error: describeError(status) }) });
+      },
+    });
+    // A resumed session gets a full frame at once, as after tesserad's own resume.
+    stream.call.write(resumed ? { event_id: first.event_id, refresh: true } : first);
+    this.reply(id, { stream: id, resumed });
+  }
+
+  event(id, msg) {
+    const entry = this.streams.get(msg.stream);
+    if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${msg.stream}`);
+    const event = msg.event ?? {};
+    this.check('Stream', event, 'event');
+    if (event.open !== undefined && event.open !== null) {
+      throw invalid('event.open: only the first event opens a session');
+    }
+    entry.stream.call.write(event);
+  }
+
+  closeStream(id, msg) {
+    const entry = this.streams.get(msg.stream);
+    if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${msg.stream}`);
+    entry.stream.call.end();
+    this.reply(id, {});
+  }
+
+  cancel(id, msg) {
+    const target = msg.target;
+    this.streams.get(target)?.stream.call.cancel();
+    this.renders.get(target)?.cancel();
+    const upload = this.uploads.get(target);
+    if (upload) this.endUpload(upload, new RequestError('CANCELLED', 'upload cancelled'));
+    this.reply(id, {});
+  }
+
+  // ---- uploads ----------------------------------------------------------------------------
+
+  async upload(id, msg) {
+    if (this.uploads.size >= MAX_UPLOADS) {
+      throw new RequestError('RESOURCE_EXHAUSTED', `uploads: at most ${MAX_UPLOADS} at once per page`);
+    }
+    // Claim the id now: chunks may arrive while the limits are fetched.
+    const upload = { id, phase: 'waiting', files: [], total: 0, received: 0, budget: 0, early: [] };
+    this.uploads.set(id, upload);
+    try {
+      const limits = await this.ctx.limits();
+      this.startUpload(upload, msg, limits);
+    } catch (err) {
+      this.endUpload(upload, err);
+      return;
+    }
+    for (const chunk of upload.early.splice(0)) this.onUploadChunk(upload, chunk);
+  }
+
+  startUpload(upload, msg, limits) {
+    const { files, main_file: mainFile } = msg;
+    const maxFiles = limits.max_upload_files || 1024;
+    const maxBytes = Math.min(limits.max_upload_bytes || Infinity, this.ctx.maxUploadBytes);
+    if (!Array.isArray(files) || files.length === 0) throw invalid('files: wants a list of {name, size}');
+    if (files.length > maxFiles) {
+      throw new RequestError('RESOURCE_EXHAUSTED', `files: ${files.length} files exceed the server's max_upload_files limit (${maxFiles})`);
+    }
+    const names = new Set();
+    files.forEach((f, i) => {
+      if (f === null || typeof f !== 'object') throw invalid(`files[${i}]: wants {name, size}`);
+      if (typeof f.name !== 'string' || !f.name || Buffer.byteLength(f.name) > MAX_NAME_BYTES) {
+        throw invalid(`files[${i}].name: wants a non-empty name of at most ${MAX_NAME_BYTES} bytes`);
+      }
+      if (names.has(f.name)) throw invalid(`files[${i}].name: '${f.name}' appears twice`);
+      names.add(f.name);
+      if (!Number.isSafeInteger(f.size) || f.size < 0) throw invalid(`files[${i}].size (${f.name}): wants a byte count`);
+      upload.total += f.size;
+      upload.files.push({ name: f.name, size: f.size, received: 0, pieces: [], hash: crypto.createHash('sha256') });
+    });
+    if (mainFile !== undefined && (typeof mainFile !== 'string' || !names.has(mainFile))) {
+      throw invalid(`main_file: '${String(mainFile).slice(0, 80)}' is not one of the files`);
+    }
+    upload.mainFile = mainFile ?? '';
+    if (upload.total > maxBytes) {
+      throw new RequestError('RESOURCE_EXHAUSTED', `files: ${upload.total} bytes exceed the upload limit (${maxBytes} bytes)`);
+    }
+    if (!this.ctx.uploadBudget.take(upload.total)) {
+      throw new RequestError('RESOURCE_EXHAUSTED', 'upload: the gateway is holding other uploads now; try again shortly');
+    }
+    upload.budget = upload.total;
+    upload.phase = 'receiving';
+    upload.maxChunk = Math.max(1, Math.min(limits.max_chunk_bytes || 1 << 20, 1 << 20));
+    upload.lastProgress = 0;
+    this.armIdleTimer(upload);
+    if (upload.total === upload.received) this.sendUpload(upload);
+  }
+
+  armIdleTimer(upload) {
+    clearTimeout(upload.idleTimer);
+    upload.idleTimer = setTimeout(() => {
+      if (upload.phase !== 'receiving') return;
+      this.endUpload(upload, new RequestError('DEADLINE_EXCEEDED',
+        `upload: no data for ${UPLOAD_IDLE_MS / 1000} s (${upload.received} of ${upload.total} bytes came)`));
+    }, UPLOAD_IDLE_MS);
+  }
+
+  onChunk(data) {
+    let header, payload;
+    try {
+      ({ header, payload } = decodeBinary(data));
+    } catch (err) {
+      this.fail(undefined, invalid(err.message));
+      return;
+    }
+    const upload = this.uploads.get(header.upload);
+    // Chunks of an upload that already ended (failed or cancelled) are still on the wire.
+    if (!upload) return;
+    if (upload.phase === 'waiting') {
+      upload.earlyBytes = (upload.earlyBytes ?? 0) + payload.length;
+      if (upload.earlyBytes > EARLY_CHUNK_BYTES) {
+        this.endUpload(upload, invalid('upload: chunks sent faster than the upload was accepted'));
+      } else {
+        upload.early.push({ header, payload });
+      }
+    } else this.onUploadChunk(upload, { header, payload });
+  }
+
+  onUploadChunk(upload, { header, payload }) {
+    if (upload.phase !== 'receiving') return;
+    const file = upload.files[header.file];
+    let problem = null;
+    if (!Number.isSafeInteger(header.file) || !file) problem = `file: no file ${header.file} in this upload`;
+    else if (header.offset !== file.received) problem = `offset: ${file.name} continues at ${file.received}, not ${header.offset}`;
+    else if (payload.length === 0) problem = `chunk of ${file.name} is empty`;
+    else if (file.received + payload.length > file.size) problem = `${file.name}: more bytes than its declared size (${file.size})`;
+    if (problem) {
+      this.endUpload(upload, invalid(problem));
+      return;
+    }
+    file.pieces.push(payload);
+    file.hash.update(payload);
+    file.received += payload.length;
+    upload.received += payload.length;
+    this.armIdleTimer(upload);
+    this.progress(upload, 'receiving', upload.received);
+    if (upload.received === upload.total) this.sendUpload(upload);
+  }
+
+  progress(upload, phase, done, force = false) {
+    const now = Date.now();
+    if (!force && done !== upload.total && now - upload.lastProgress < PROGRESS_INTERVAL_MS) return;
+    upload.lastProgress = now;
+    this.sendJson({ type: 'progress', id: upload.id, phase, done, total: upload.total });
+  }
+
+  /** Streams the received files to UploadScene, with their SHA-256 so tesserad checks them. */
+  async sendUpload(upload) {
+    upload.phase = 'sending';
+    const call = this.ctx.client.UploadScene(this.ctx.metadata(), (err, info) => {
+      upload.call = null;
+      if (err) this.endUpload(upload, err);
+      else this.endUpload(upload, null, info);
+    });
+    upload.call = call;
+    // Waits for grpc-js to take more when its buffer is full; endUpload wakes a waiting write
+    // (a cancelled call may never drain).
+    const write = (message) =>
+      new Promise((resolve) => {
+        if (call.write(message)) return resolve();
+        upload.wake = resolve;
+        call.once('drain', resolve);
+      });
+    await write({
+      manifest: {
+        files: upload.files.map((f) => ({ name: f.name, size: f.size, sha256: f.hash.digest('hex') })),
+        main_file: upload.mainFile,
+      },
+    });
+    let sent = 0;
+    for (let index = 0; index < upload.files.length; index++) {
+      const file = upload.files[index];
+      const data = Buffer.concat(file.pieces);
+      file.pieces = [];
+      for (let offset = 0; offset < data.length; offset += upload.maxChunk) {
+        if (upload.phase !== 'sending') return; // failed or cancelled meanwhile
+        const piece = data.subarray(offset, offset + upload.maxChunk);
+        await write({ chunk: { file_index: index, offset, data: piece } });
+        sent += piece.length;
+        this.progress(upload, 'sending', sent);
+      }
+    }
+    if (upload.phase !== 'sending') return;
+    upload.phase = 'loading';
+    this.progress(upload, 'loading', upload.total, true);
+    call.end();
+  }
+
+  endUpload(upload, err, info) {
+    if (upload.phase === 'done') return;
+    upload.phase = 'done';
+    clearTimeout(upload.idleTimer);
+    this.uploads.delete(upload.id);
+    this.ctx.uploadBudget.give(upload.budget);
+    upload.budget = 0;
+    for (const f of upload.files) f.pieces = [];
+    if (upload.call) upload.call.cancel();
+    upload.wake?.();
+    if (err) this.fail(upload.id, err);
+    else this.reply(upload.id, info);
+  }
+
+  // ---- teardown ---------------------------------------------------------------------------
+
+  onClose() {
+    this.closed = true;
+    // The page may come back: its sessions wait in the parked set (or end, if they cannot).
+    for (const { stream, sender } of this.streams.values()) {
+      sender.close();
+      this.ctx.parked.park(stream);
+    }
+    for (const call of this.renders.values()) call.cancel();
+    for (const upload of [...this.uploads.values()]) this.endUpload(upload, new Error('page closed'));
+    this.streams.clear();
+    this.renders.clear();
+  }
+}

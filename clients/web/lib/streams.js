@@ -1,0 +1,93 @@
+// A tesserad Stream as the gateway holds it, and the streams of pages that went away.
+//
+// A page's WebSocket can drop (a network blip, a laptop lid, a reload) while its session with
+// tesserad is fine. The gateway then keeps the gRPC stream for the server's resume grace
+// period; a page that comes back with the session token (Frame.session_token) takes it over
+// and gets a full frame at once, as tesserad's own resume does. (tesserad parks sessions only
+// when its client vanishes: a grpc-js client that cancels half-closes first, which tesserad
+// rightly reads as a clean end. So the gateway parks on its side.)
+
+/** One gRPC Stream call; frames and the end go to whichever page is attached. */
+export class BridgedStream {
+  constructor(call) {
+    this.call = call;
+    this.token = '';
+    this.sink = null; // { frame(frame), end(status) }
+    this.ended = false;
+    this.onEnded = null; // set while parked
+    call.on('data', (frame) => {
+      if (frame.session_token) this.token = frame.session_token;
+      this.sink?.frame(frame);
+    });
+    call.on('error', () => {}); // reported by 'status'
+    call.on('status', (status) => {
+      this.ended = true;
+      this.sink?.end(status);
+      this.onEnded?.();
+    });
+  }
+
+  attach(sink) {
+    this.sink = sink;
+  }
+
+  detach() {
+    this.sink = null;
+  }
+}
+
+/** Streams whose page left, by session token, each until its grace period ends. */
+export class ParkedStreams {
+  constructor({ graceMs, max, log }) {
+    this.graceMs = graceMs;
+    this.max = max;
+    this.log = log;
+    this.byToken = new Map(); // token -> { stream, timer }
+  }
+
+  get size() {
+    return this.byToken.size;
+  }
+
+  /** Keeps `stream` for a resume; a stream without a token yet (no frame) cannot be resumed. */
+  park(stream) {
+    stream.detach();
+    if (stream.ended) return;
+    if (!stream.token || this.graceMs() <= 0) {
+      stream.call.cancel();
+      return;
+    }
+    if (this.byToken.size >= this.max) {
+      const [oldest] = this.byToken.keys(); // Map keeps insertion order
+      this.drop(oldest, 'the gateway holds too many parked sessions');
+    }
+    const timer = setTimeout(() => this.drop(stream.token, 'its grace period ended'), this.graceMs());
+    timer.unref?.();
+    stream.onEnded = () => {
+      clearTimeout(timer);
+      this.byToken.delete(stream.token);
+    };
+    this.byToken.set(stream.token, { stream, timer });
+  }
+
+  /** The parked stream with this token, taken out of the set; null if none. */
+  take(token) {
+    const entry = this.byToken.get(token);
+    if (!entry) return null;
+    clearTimeout(entry.timer);
+    this.byToken.delete(token);
+    entry.stream.onEnded = null;
+    return entry.stream;
+  }
+
+  drop(token, why) {
+    const stream = this.take(token);
+    if (!stream) return;
+    this.log?.(`parked session dropped: ${why}`);
+    stream.call.cancel();
+  }
+
+  dropAll() {
+    for (const token of [...this.byToken.keys()]) this.drop(token, 'the gateway is stopping');
+  }
+}
