@@ -9,9 +9,12 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <utility>
+#include <vector>
 
 #include "absl/status/status.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
 
 namespace tessera::gltf_internal {
@@ -181,6 +184,7 @@ class PreScan {
 
   absl::Status Run(const json& j) {
     if (!j.is_object()) return Invalid(file_, "JSON", "the top level is not an object");
+    RETURN_IF_ERROR(Asset(j));
     RETURN_IF_ERROR(Counts(j));
     RETURN_IF_ERROR(Accessors(j));
     for (const char* list : {"extensionsRequired", "extensionsUsed"}) {
@@ -367,6 +371,34 @@ class PreScan {
           copied_bytes_ > file_set_bytes_) {
         return Invalid(file_, "buffers", "their byteLengths add up to more than the ",
                        file_set_bytes_, " bytes of the file set");
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  // glTF 2.0 only: a 1.0 file (a different schema) must not be read as if it were 2.0. The spec
+  // says a loader refuses a major version it does not know, and a minVersion above its own.
+  absl::Status Asset(const json& j) {
+    const json* asset = Member(j, "asset");
+    if (asset == nullptr || !asset->is_object()) {
+      return Invalid(file_, "asset", "missing (a glTF file names its version in asset.version)");
+    }
+    for (const char* key : {"version", "minVersion"}) {
+      const json* v = Member(*asset, key);
+      if (v == nullptr && std::strcmp(key, "minVersion") == 0) continue;
+      const std::string field = absl::StrCat("asset.", key);
+      if (v == nullptr || !v->is_string()) return Invalid(file_, field, "missing or not a string");
+      const std::string text = v->get<std::string>();
+      const std::vector<absl::string_view> parts = absl::StrSplit(text, '.');
+      int major = 0, minor = 0;
+      if (parts.size() != 2 || !absl::SimpleAtoi(parts[0], &major) ||
+          !absl::SimpleAtoi(parts[1], &minor)) {
+        return Invalid(file_, field, "'", Quote(text), "' is not a MAJOR.MINOR version");
+      }
+      const bool supported = std::strcmp(key, "version") == 0 ? major == 2
+                                                              : major == 2 && minor == 0;
+      if (!supported) {
+        return Invalid(file_, field, "'", Quote(text), "' is not supported (glTF 2.0 only)");
       }
     }
     return absl::OkStatus();

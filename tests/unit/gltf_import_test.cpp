@@ -786,6 +786,27 @@ TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
               })).ok());
 }
 
+TEST(GltfImportMalformed, AssetVersion) {
+  REQUIRE_ASSETS();
+  const GltfSource box = Source("Box/glTF/Box.gltf");
+  // A glTF 1.0 file has another schema: refused, not half-read as 2.0.
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["asset"]["version"] = "1.0"; })),
+                {"asset.version", "'1.0' is not supported (glTF 2.0 only)"});
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["asset"]["version"] = "3.0"; })),
+                {"asset.version", "'3.0' is not supported"});
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["asset"]["version"] = 2; })),
+                {"asset.version", "missing or not a string"});
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["asset"]["version"] = "2"; })),
+                {"asset.version", "'2' is not a MAJOR.MINOR version"});
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["asset"]["minVersion"] = "2.1"; })),
+                {"asset.minVersion", "'2.1' is not supported"});
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j.erase("asset"); })),
+                {"asset", "missing"});
+  // A later 2.x minor version is read: the spec keeps them compatible.
+  EXPECT_TRUE(ImportGltf(Edited(box, [](json& j) { j["asset"]["version"] = "2.1"; })).ok());
+  EXPECT_TRUE(ImportGltf(Edited(box, [](json& j) { j["asset"]["minVersion"] = "2.0"; })).ok());
+}
+
 TEST(GltfImportMalformed, NodeHierarchy) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");
