@@ -5,20 +5,24 @@
 #
 # Extra arguments go to tesserad (e.g. ./deploy/run.sh --listen=0.0.0.0:50051 --max_scenes=8;
 # see ./build/default/server/tesserad --help), except --web=HOST:PORT, where the viewer is
-# served (default 127.0.0.1:8080), and --no-web.
+# served (default 127.0.0.1:8080), and --no-web. With tesserad's --token_file, give the gateway
+# its token in $TESSERA_TOKEN (it inherits the environment).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 listen=127.0.0.1:50051
 web=127.0.0.1:8080
 args=()
-for a in "$@"; do
-  case "$a" in
-    --web=*) web="${a#--web=}" ;;
+while (($#)); do
+  case "$1" in
+    --web=*) web="${1#--web=}" ;;
+    --web) web="${2:?--web needs HOST:PORT}"; shift ;;
     --no-web) web="" ;;
-    --listen=*) listen="${a#--listen=}"; args+=("$a") ;;
-    *) args+=("$a") ;;
+    --listen=*) listen="${1#--listen=}"; args+=("$1") ;;
+    --listen) listen="${2:?--listen needs HOST:PORT}"; args+=("--listen=$2"); shift ;;
+    *) args+=("$1") ;;
   esac
+  shift
 done
 
 ./deploy/install-deps.sh
@@ -41,7 +45,7 @@ stop() {
 }
 trap stop INT TERM EXIT
 
-./build/default/server/tesserad --listen="${listen}" "${args[@]}" &
+./build/default/server/tesserad --listen="${listen}" ${args[@]+"${args[@]}"} &
 pids+=($!)
 # tesserad's address as a client dials it (a wildcard listen address is dialled on loopback).
 dial=${listen/0.0.0.0/127.0.0.1}

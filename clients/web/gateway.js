@@ -23,7 +23,11 @@ const USAGE = `usage: node gateway.js [flags]
   --tls-ca FILE         talk TLS to tesserad, trusting the CA certificate(s) in FILE
   --allow-origin URL    also accept pages from this origin (repeatable; the gateway's own
                         origin is always accepted)
-  --max-upload-mb N     bytes one upload may hold in the gateway (default: tesserad's limit)
+  --allow-host NAME     also answer requests for this host name (repeatable); when listening on
+                        loopback, only loopback names are answered otherwise (DNS rebinding)
+  --max-upload-mb N     MiB one upload may hold in the gateway (default 512, or tesserad's
+                        limit when lower)
+  --upload-budget-mb N  MiB all uploads may hold in the gateway together (default 1024)
   --port-file FILE      write the bound port to FILE once listening
   --proto-dir DIR       the proto files (default ../../proto from this file)
   --public-dir DIR      the page's files (default public/ next to this file)
@@ -43,7 +47,9 @@ function parseFlags(argv) {
     tls: false,
     tlsCaFile: '',
     allowOrigins: [],
-    maxUploadMb: 0,
+    allowHosts: [],
+    maxUploadMb: 512,
+    uploadBudgetMb: 1024,
     portFile: '',
     protoDir: path.resolve(HERE, '../../proto'),
     publicDir: path.join(HERE, 'public'),
@@ -72,10 +78,14 @@ function parseFlags(argv) {
       case '--tls': o.tls = true; break;
       case '--tls-ca': o.tlsCaFile = value(); o.tls = true; break;
       case '--allow-origin': o.allowOrigins.push(value().replace(/\/$/, '')); break;
-      case '--max-upload-mb': {
+      case '--allow-host': o.allowHosts.push(value().toLowerCase()); break;
+      case '--max-upload-mb':
+      case '--upload-budget-mb': {
         const v = value();
-        o.maxUploadMb = Number(v);
-        if (!(o.maxUploadMb > 0)) usageError(`--max-upload-mb: not a positive number: '${v}'`);
+        const n = Number(v);
+        if (!(n > 0)) usageError(`${flag}: not a positive number: '${v}'`);
+        if (flag === '--max-upload-mb') o.maxUploadMb = n;
+        else o.uploadBudgetMb = n;
         break;
       }
       case '--port-file': o.portFile = value(); break;
@@ -120,15 +130,16 @@ function limits() {
   });
 }
 
-// Two uploads of the largest size may be held at once over all pages (the default upload
-// limit is tesserad's own).
-const maxUploadBytes = opts.maxUploadMb ? opts.maxUploadMb * 1024 * 1024 : Infinity;
-const uploadBudget = new UploadBudget(Number.isFinite(maxUploadBytes) ? 2 * maxUploadBytes : 0);
+// What uploads may hold in the gateway: one upload, and all of them together.
+const maxUploadBytes = opts.maxUploadMb * 1024 * 1024;
+const uploadBudget = new UploadBudget(Math.max(opts.uploadBudgetMb, opts.maxUploadMb) * 1024 * 1024);
 
 // Sessions of pages that left, kept as long as tesserad would keep them (resume_grace_s).
+// At most a quarter of tesserad's sessions wait here for pages to come back, so parked
+// sessions never crowd out live ones.
 const parked = new ParkedStreams({
   graceMs: () => 1000 * (limitsCache.value?.resume_grace_s ?? 30),
-  max: 256,
+  max: () => Math.max(1, Math.floor((limitsCache.value?.max_sessions || 64) / 4)),
   log,
 });
 limits().catch(() => {}); // learn resume_grace_s early; errors show up where they matter
@@ -142,9 +153,37 @@ function healthz(res) {
   });
 }
 
+// DNS rebinding: a site can make its own name resolve to 127.0.0.1 and then talk to a gateway
+// on loopback as "same origin". On loopback, only requests for loopback names are answered.
+const LOOPBACK_NAMES = ['localhost', '127.0.0.1', '[::1]', '::1'];
+const loopbackListen = ['localhost', '::1'].includes(opts.host) || opts.host.startsWith('127.');
+function hostAllowed(req) {
+  const host = String(req.headers.host ?? '').toLowerCase();
+  const name = host.startsWith('[') ? host.slice(0, host.indexOf(']') + 1) : host.replace(/:\d+$/, '');
+  if (opts.allowHosts.includes(name)) return true;
+  if (!loopbackListen) return opts.allowHosts.length === 0;
+  return LOOPBACK_NAMES.includes(name) || name === opts.host.toLowerCase();
+}
+
 const server = http.createServer((req, res) => {
-  if (new URL(req.url, 'http://x').pathname === '/healthz') return healthz(res);
-  if (!serveStatic(files, req, res)) res.writeHead(404, { 'Content-Type': 'text/plain' }).end('not found\n');
+  try {
+    if (!hostAllowed(req)) {
+      res.writeHead(421, { 'Content-Type': 'text/plain' }).end('host not served here\n');
+      return;
+    }
+    let pathname;
+    try {
+      pathname = new URL(req.url, 'http://x').pathname;
+    } catch {
+      res.writeHead(400, { 'Content-Type': 'text/plain' }).end('bad request target\n');
+      return;
+    }
+    if (pathname === '/healthz') return healthz(res);
+    if (!serveStatic(files, pathname, req, res)) res.writeHead(404, { 'Content-Type': 'text/plain' }).end('not found\n');
+  } catch (err) {
+    log(`HTTP request failed: ${err.stack ?? err}`);
+    if (!res.headersSent) res.writeHead(500).end();
+  }
 });
 
 // A page from another site must not drive tesserad through a viewer's browser: WebSockets are
@@ -167,13 +206,17 @@ const wss = new WebSocketServer({
   path: '/ws',
   maxPayload: 2 * 1024 * 1024, // an upload chunk (<= 1 MiB) and its header
   verifyClient: ({ req }, done) => {
+    if (!hostAllowed(req)) return done(false, 421, 'host not served here');
     if (originAllowed(req)) return done(true);
     log(`refused a WebSocket from origin ${req.headers.origin}`);
     done(false, 403, 'origin not allowed');
   },
 });
 
+wss.on('error', () => {}); // listen errors are reported by the HTTP server's handler
+
 let pages = 0;
+let stopping = false;
 wss.on('connection', (ws, req) => {
   pages++;
   const peer = `${req.socket.remoteAddress}:${req.socket.remotePort}`;
@@ -183,7 +226,7 @@ wss.on('connection', (ws, req) => {
   ws.on('close', () => { pages--; log(`page ${peer} left (${pages} open)`); });
   new Connection(ws, {
     client, definition: proto.definition, metadata, limits,
-    maxUploadBytes, parked, uploadBudget: Number.isFinite(maxUploadBytes) ? uploadBudget : { take: () => true, give: () => {} },
+    maxUploadBytes, parked, uploadBudget, stopping: () => stopping,
     log, version: VERSION, server: opts.server,
   });
 });
@@ -208,17 +251,18 @@ server.listen(opts.port, opts.host, () => {
   log(`serving the viewer on http://${shown}:${port}/ for tesserad at ${opts.server}`);
 });
 
+// On SIGTERM (a rolling restart) the gRPC calls are not ended: the process exits, its
+// connection to tesserad drops, and tesserad parks every session, so the pages resume them
+// through another gateway. Ending them would read to tesserad as a clean end.
 function shutdown(signal) {
-  log(`${signal}: closing`);
+  if (stopping) return;
+  stopping = true;
+  log(`${signal}: closing (sessions stay with tesserad for their resume grace period)`);
   clearInterval(pinger);
-  parked.dropAll();
   for (const ws of wss.clients) ws.close(1001, 'gateway shutting down');
   wss.close();
-  server.close(() => {
-    client.close();
-    process.exit(0);
-  });
-  setTimeout(() => process.exit(0), 2000);
+  server.close();
+  setTimeout(() => process.exit(0), 300);
 }
 process.on('SIGINT', () => shutdown('SIGINT'));
 process.on('SIGTERM', () => shutdown('SIGTERM'));

@@ -13,11 +13,13 @@ const MAX_RENDERS = 8;
 const MAX_UPLOADS = 2;
 const MAX_NAME_BYTES = 1024; // UploadFile.name
 const RENDER_DEADLINE_MS = 120_000;
+// Renders are refused while this much waits unsent to the page (a page that does not read).
+const RENDER_BUFFER_BYTES = 16 << 20;
 const PROGRESS_INTERVAL_MS = 100;
 // An upload whose page stops sending chunks gives its memory back after this long.
 const UPLOAD_IDLE_MS = 60_000;
 // Chunks held while an upload waits for the server's limits (normally milliseconds).
-const EARLY_CHUNK_BYTES = 64 << 20;
+const EARLY_CHUNK_BYTES = 8 << 20;
 
 class RequestError extends Error {
   constructor(code, message) {
@@ -26,6 +28,17 @@ class RequestError extends Error {
   }
 }
 const invalid = (message) => new RequestError('INVALID_ARGUMENT', message);
+
+/** An untrusted value, quoted for a message: never throws, never long. */
+function show(value) {
+  let text;
+  try {
+    text = JSON.stringify(value) ?? typeof value;
+  } catch {
+    text = typeof value;
+  }
+  return text.length > 60 ? `${text.slice(0, 57)}...` : text;
+}
 
 /** The Frame as JSON, without its image: what a binary frame message's header carries. */
 export function frameHeader(frame) {
@@ -53,8 +66,8 @@ export class Connection {
   /**
    * @param ws       the page's WebSocket (ws library)
    * @param ctx      { client, definition, metadata(), limits(): Promise<Limits>,
-   *                   maxUploadBytes, uploadBudget, parked (ParkedStreams), log, version,
-   *                   server }
+   *                   maxUploadBytes, uploadBudget, parked (ParkedStreams), stopping(),
+   *                   log, version, server }
    */
   constructor(ws, ctx) {
     this.ws = ws;
@@ -64,7 +77,7 @@ export class Connection {
     this.uploads = new Map(); // id -> upload state
     this.closed = false;
     ws.on('message', (data, isBinary) => this.onMessage(data, isBinary));
-    ws.on('close', () => this.onClose());
+    ws.on('close', (code) => this.onClose(code));
     ws.on('error', (err) => ctx.log(`websocket error: ${err.message}`));
     this.sendJson({ type: 'hello', gateway: ctx.version, server: ctx.server });
   }
@@ -88,11 +101,19 @@ export class Connection {
 
   // ---- receiving --------------------------------------------------------------------------
 
+  // Nothing a page sends may throw out of here: an exception escaping a ws listener would end
+  // the process, and every other page with it.
   onMessage(data, isBinary) {
-    if (isBinary) {
-      this.onChunk(data);
-      return;
+    try {
+      if (isBinary) this.onChunk(data);
+      else this.onText(data);
+    } catch (err) {
+      this.ctx.log(`message handling failed: ${err.stack ?? err}`);
+      this.fail(undefined, invalid('message could not be handled'));
     }
+  }
+
+  onText(data) {
     let msg;
     try {
       msg = JSON.parse(data.toString('utf8'));
@@ -114,7 +135,7 @@ export class Connection {
       return;
     }
     if (typeof op !== 'string' || !Object.hasOwn(this.handlers, op)) {
-      this.fail(id, invalid(`op: unknown operation '${String(op).slice(0, 40)}'`));
+      this.fail(id, invalid(`op: unknown operation ${show(op)}`));
       return;
     }
     // Run synchronously: a binary chunk right behind an `upload` (often in the same TCP read)
@@ -182,6 +203,9 @@ export class Connection {
   render(id, msg) {
     const request = msg.request ?? {};
     this.check('Render', request, 'request');
+    if (this.ws.bufferedAmount > RENDER_BUFFER_BYTES) {
+      throw new RequestError('RESOURCE_EXHAUSTED', 'render: the page is not reading its earlier frames');
+    }
     if (this.renders.size >= MAX_RENDERS) {
       throw new RequestError('RESOURCE_EXHAUSTED', `renders: at most ${MAX_RENDERS} at once per page`);
     }
@@ -205,7 +229,10 @@ export class Connection {
   // ---- streams ----------------------------------------------------------------------------
 
   open(id, msg) {
-    if (this.streams.size >= MAX_STREAMS) {
+    // Streams being closed (their last frame still to come) count only against a looser cap,
+    // so a page switching scenes quickly is not refused.
+    const open = [...this.streams.values()].filter((s) => !s.closing).length;
+    if (open >= MAX_STREAMS || this.streams.size >= 2 * MAX_STREAMS) {
       throw new RequestError('RESOURCE_EXHAUSTED', `streams: at most ${MAX_STREAMS} at once per page`);
     }
     const first = { event_id: msg.event_id ?? 0, open: msg.open ?? {} };
@@ -235,7 +262,7 @@ export class Connection {
 
   event(id, msg) {
     const entry = this.streams.get(msg.stream);
-    if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${msg.stream}`);
+    if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${show(msg.stream)}`);
     const event = msg.event ?? {};
     this.check('Stream', event, 'event');
     if (event.open !== undefined && event.open !== null) {
@@ -246,8 +273,11 @@ export class Connection {
 
   closeStream(id, msg) {
     const entry = this.streams.get(msg.stream);
-    if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${msg.stream}`);
-    entry.stream.call.end();
+    if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${show(msg.stream)}`);
+    if (!entry.closing) {
+      entry.closing = true;
+      entry.stream.call.end();
+    }
     this.reply(id, {});
   }
 
@@ -271,6 +301,7 @@ export class Connection {
     this.uploads.set(id, upload);
     try {
       const limits = await this.ctx.limits();
+      if (upload.phase !== 'waiting') return; // cancelled, failed or the page left meanwhile
       this.startUpload(upload, msg, limits);
     } catch (err) {
       this.endUpload(upload, err);
@@ -300,7 +331,7 @@ export class Connection {
       upload.files.push({ name: f.name, size: f.size, received: 0, pieces: [], hash: crypto.createHash('sha256') });
     });
     if (mainFile !== undefined && (typeof mainFile !== 'string' || !names.has(mainFile))) {
-      throw invalid(`main_file: '${String(mainFile).slice(0, 80)}' is not one of the files`);
+      throw invalid(`main_file: ${show(mainFile)} is not one of the files`);
     }
     upload.mainFile = mainFile ?? '';
     if (upload.total > maxBytes) {
@@ -334,6 +365,10 @@ export class Connection {
       this.fail(undefined, invalid(err.message));
       return;
     }
+    if (!Number.isSafeInteger(header.upload)) {
+      this.fail(undefined, invalid(`upload: not an upload id: ${show(header.upload)}`));
+      return;
+    }
     const upload = this.uploads.get(header.upload);
     // Chunks of an upload that already ended (failed or cancelled) are still on the wire.
     if (!upload) return;
@@ -349,10 +384,11 @@ export class Connection {
 
   onUploadChunk(upload, { header, payload }) {
     if (upload.phase !== 'receiving') return;
-    const file = upload.files[header.file];
+    // Index only with a number: a key that is an object runs its toString.
+    const file = Number.isSafeInteger(header.file) ? upload.files[header.file] : undefined;
     let problem = null;
-    if (!Number.isSafeInteger(header.file) || !file) problem = `file: no file ${header.file} in this upload`;
-    else if (header.offset !== file.received) problem = `offset: ${file.name} continues at ${file.received}, not ${header.offset}`;
+    if (!file) problem = `file: no file ${show(header.file)} in this upload`;
+    else if (header.offset !== file.received) problem = `offset: ${file.name} continues at ${file.received}, not ${show(header.offset)}`;
     else if (payload.length === 0) problem = `chunk of ${file.name} is empty`;
     else if (file.received + payload.length > file.size) problem = `${file.name}: more bytes than its declared size (${file.size})`;
     if (problem) {
@@ -398,17 +434,22 @@ export class Connection {
         main_file: upload.mainFile,
       },
     });
+    // The pieces as they came from the page (each under 2 MiB), cut to tesserad's chunk size:
+    // no second copy of the upload.
     let sent = 0;
     for (let index = 0; index < upload.files.length; index++) {
       const file = upload.files[index];
-      const data = Buffer.concat(file.pieces);
-      file.pieces = [];
-      for (let offset = 0; offset < data.length; offset += upload.maxChunk) {
-        if (upload.phase !== 'sending') return; // failed or cancelled meanwhile
-        const piece = data.subarray(offset, offset + upload.maxChunk);
-        await write({ chunk: { file_index: index, offset, data: piece } });
-        sent += piece.length;
-        this.progress(upload, 'sending', sent);
+      let offset = 0;
+      while (file.pieces.length > 0) {
+        const whole = file.pieces.shift();
+        for (let at = 0; at < whole.length; at += upload.maxChunk) {
+          if (upload.phase !== 'sending') return; // failed or cancelled meanwhile
+          const piece = whole.subarray(at, at + upload.maxChunk);
+          await write({ chunk: { file_index: index, offset, data: piece } });
+          offset += piece.length;
+          sent += piece.length;
+          this.progress(upload, 'sending', sent);
+        }
       }
     }
     if (upload.phase !== 'sending') return;
@@ -425,6 +466,7 @@ export class Connection {
     this.ctx.uploadBudget.give(upload.budget);
     upload.budget = 0;
     for (const f of upload.files) f.pieces = [];
+    upload.early = [];
     if (upload.call) upload.call.cancel();
     upload.wake?.();
     if (err) this.fail(upload.id, err);
@@ -433,12 +475,17 @@ export class Connection {
 
   // ---- teardown ---------------------------------------------------------------------------
 
-  onClose() {
+  onClose(code) {
     this.closed = true;
-    // The page may come back: its sessions wait in the parked set (or end, if they cannot).
+    // A page whose link broke (1006: no close handshake) may come back: its sessions wait in
+    // the parked set. A page that closed (a tab closed, a reload: 1000/1001) ends them now, so
+    // they do not hold tesserad's sessions for nothing. While the gateway stops, the calls are
+    // left to drop with its connection, and tesserad parks them itself.
     for (const { stream, sender } of this.streams.values()) {
       sender.close();
-      this.ctx.parked.park(stream);
+      if (this.ctx.stopping()) continue;
+      if (code === 1006) this.ctx.parked.park(stream);
+      else stream.call.cancel();
     }
     for (const call of this.renders.values()) call.cancel();
     for (const upload of [...this.uploads.values()]) this.endUpload(upload, new Error('page closed'));

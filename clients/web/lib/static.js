@@ -41,9 +41,8 @@ export function loadStatic(dir) {
   return files;
 }
 
-/** Answers GET/HEAD for one of `files`; false when the path is not one of them. */
-export function serveStatic(files, req, res) {
-  const pathname = new URL(req.url, 'http://x').pathname;
+/** Answers GET/HEAD for one of `files`; false when `pathname` is not one of them. */
+export function serveStatic(files, pathname, req, res) {
   const file = files.get(pathname);
   if (!file) return false;
   if (req.method !== 'GET' && req.method !== 'HEAD') {

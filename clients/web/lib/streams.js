@@ -36,7 +36,10 @@ export class BridgedStream {
   }
 }
 
-/** Streams whose page left, by session token, each until its grace period ends. */
+/**
+ * Streams whose page left, by session token, each until its grace period ends.
+ * graceMs() and max() are read when a stream is parked (they follow tesserad's limits).
+ */
 export class ParkedStreams {
   constructor({ graceMs, max, log }) {
     this.graceMs = graceMs;
@@ -57,7 +60,7 @@ export class ParkedStreams {
       stream.call.cancel();
       return;
     }
-    if (this.byToken.size >= this.max) {
+    if (this.byToken.size >= this.max()) {
       const [oldest] = this.byToken.keys(); // Map keeps insertion order
       this.drop(oldest, 'the gateway holds too many parked sessions');
     }
@@ -85,9 +88,5 @@ export class ParkedStreams {
     if (!stream) return;
     this.log?.(`parked session dropped: ${why}`);
     stream.call.cancel();
-  }
-
-  dropAll() {
-    for (const token of [...this.byToken.keys()]) this.drop(token, 'the gateway is stopping');
   }
 }

@@ -199,7 +199,14 @@ function freshOpen() {
     target_fps: 0,
   };
   // No camera on a new scene: the server frames its bounds and the first frame says how.
-  if (state.camera && !state.cameraInitAfter) open.camera = { look_at: state.camera.lookAt() };
+  if (state.camera && !state.cameraInitAfter) {
+    open.camera = { look_at: state.camera.lookAt() };
+  } else {
+    // A re-frame still pending (its event went to a stream that died) is this open's job now:
+    // its frames carry event id 0, so wait for any frame rather than for that event.
+    state.camera = null;
+    state.cameraInitAfter = 0;
+  }
   if (state.interactive) open.interactive = { ...state.interactive };
   return open;
 }

@@ -231,8 +231,17 @@ test('malformed messages get errors and leave the page and other pages working',
   assert.match(errors[1], /not a JSON object/);
   assert.match(errors[2], /id: wants a positive integer/);
   assert.match(errors[3], /shorter than its 4-byte header/);
+  // Values of the wrong type where the gateway quotes or indexes them.
+  page.sendRaw(JSON.stringify({ id: 7, op: { toString: 1 } }));
+  const upId = 8;
+  const up = page.request('upload', { files: [{ name: 'a.glb', size: 100 }] }, upId);
+  page.sendRaw(binaryMessage({ upload: { toString: 1 }, file: 0, offset: 0 }, Buffer.alloc(4)));
+  page.sendRaw(binaryMessage({ upload: upId, file: { toString: 1 }, offset: { valueOf: 1 } }, Buffer.alloc(4)));
+  const upFailed = await up;
+  assert.match(upFailed.error.message, /file: no file \{"toString":1\} in this upload/);
+  await page.waitFor(() => page.messages.some((m) => m.type === 'error' && /not an upload id/.test(m.error.message)), 'upload id error');
   const unknownOp = await page.request('explode');
-  assert.match(unknownOp.error.message, /op: unknown operation 'explode'/);
+  assert.match(unknownOp.error.message, /op: unknown operation "explode"/);
   const badRender = await page.request('render', { request: { scene_id: 5, camera: 'x' } });
   assert.equal(badRender.error.code, 'INVALID_ARGUMENT');
   assert.ok((await page.request('info')).ok);
@@ -268,6 +277,39 @@ test('a page that leaves: its session waits out the resume grace period, then en
     await gw.stop();
     await server.stop();
   }
+});
+
+test('a page that closes ends its session at once; one whose link breaks keeps it', async () => {
+  const watcher = await PageClient.connect(gateway.wsUrl);
+  const sessions = async () => (await watcher.request('info')).result.info.active_sessions;
+  const base = await sessions();
+  const page = await PageClient.connect(gateway.wsUrl);
+  await openAndGetToken(page);
+  assert.equal(await sessions(), base + 1);
+  page.close(); // a tab closed or reloaded: close handshake, code 1000
+  let now = base + 1;
+  for (let i = 0; i < 50 && now !== base; i++) {
+    await new Promise((r) => setTimeout(r, 100));
+    now = await sessions();
+  }
+  assert.equal(now, base, 'a closed page left its session behind');
+  watcher.close();
+});
+
+test('raw HTTP: an unparsable target is 400, a foreign Host 421, and the gateway lives on', async () => {
+  const raw = (text) => new Promise((resolve, reject) => {
+    const sock = net.connect(gateway.port, '127.0.0.1', () => sock.end(text));
+    let out = '';
+    sock.on('data', (d) => { out += d; });
+    sock.on('end', () => resolve(out));
+    sock.on('error', reject);
+  });
+  assert.match(await raw('GET //[ HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n\r\n'), /^HTTP\/1\.1 400/);
+  // DNS rebinding: a page of evil.example resolved to 127.0.0.1 sends its own name as Host.
+  assert.match(await raw('GET / HTTP/1.1\r\nHost: evil.example:8080\r\nConnection: close\r\n\r\n'), /^HTTP\/1\.1 421/);
+  await assert.rejects(PageClient.connect(gateway.wsUrl, { headers: { host: 'evil.example' } }), /HTTP 421/);
+  assert.match(await raw('GET / HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n'), /^HTTP\/1\.1 200/);
+  assert.equal((await fetch(new URL('/healthz', gateway.url))).status, 200);
 });
 
 test('pages from another origin are refused; the page and /healthz are served, nothing else', async () => {

@@ -35,7 +35,7 @@ test('a slow socket gets the newest frame next, and the ones in between are drop
   assert.equal(s.sent, 2);
 });
 
-test('after an error or close nothing more is sent', () => {
+test('an error drops the waiting frame; after close nothing more is sent', () => {
   const sock = fakeSocket();
   const s = new LatestSender(sock.send);
   s.push(1);
