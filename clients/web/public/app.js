@@ -8,6 +8,8 @@
 // Nothing is global except window.tessera (the hooks the headless-browser tests read).
 
 import { Connection } from './protocol.js';
+import { el } from './dom.js';
+import { SettingsPanel, validNumber } from './settings.js';
 import { OrbitCamera, PointerGestures, flyVector, isFlyKey, wheelFactor } from './camera.js';
 import {
   FpsMeter, LatencyTracker, TimingChart, TimingHistory, statsRows,
@@ -35,7 +37,6 @@ const ui = {
 const RESIZE_DEBOUNCE_MS = 150;
 const RETRY_MIN_MS = 500;    // stream retries: 0.5 s doubling to 5 s (as the socket's)
 const RETRY_MAX_MS = 5000;
-const HIDDEN_SETTINGS = new Set(['width', 'height']);  // the viewport drives them
 
 // ---------------------------------------------------------------------------------------------
 // State
@@ -133,13 +134,6 @@ function guard(fn, context = 'The page hit a problem') {
 function setStatus(text, kind = 'busy') {
   ui.status.textContent = text;
   ui.status.dataset.state = kind;
-}
-
-function el(tag, text, className) {
-  const node = document.createElement(tag);
-  if (text !== undefined) node.textContent = text;
-  if (className) node.className = className;
-  return node;
 }
 
 const isTransient = (code) => code === 'UNAVAILABLE' || code === 'CANCELLED';
@@ -625,193 +619,12 @@ function applyRenderSize() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Settings panel, built from the gateway's schema of RenderSettings
-
-const LABELS = {
-  aa: 'Anti-aliasing', samples: 'Samples', culling: 'Culling', scene_lights: "Scene's lights",
-  synthetic_lights: 'Synthetic lights', light_seed: 'Light seed', tile_size: 'Tile size (px)',
-  shadows: 'Shadows', ssao: 'SSAO', bloom: 'Bloom', ibl: 'IBL', exposure_mode: 'Exposure',
-  exposure_ev: 'Exposure (EV)', debug_view: 'Debug view', jpeg_quality: 'JPEG quality',
-  jpeg_444: 'JPEG 4:4:4 chroma', light_culling: 'Light culling (forward+)',
-  light_radius_min: 'Light radius min', light_radius_max: 'Light radius max',
-  lights_animated: 'Animate lights', light_time: 'Light time (s)', tile_depth_mask: 'Tile depth mask',
-};
-
-/** Ranges of the numeric fields, from the comments in settings.proto. */
-function numericRange(name, info) {
-  switch (name) {
-    case 'synthetic_lights': return { min: 0, max: Number(info?.limits?.max_synthetic_lights) || 65536 };
-    case 'jpeg_quality': return { min: 1, max: 100 };
-    case 'exposure_ev': return { min: -20, max: 20 };
-    case 'light_seed': return { min: 0, max: 4294967295 };
-    case 'light_radius_min':
-    case 'light_radius_max': return { min: 0, max: 1e6 };
-    case 'light_time': return { min: -1e6, max: 1e6 };
-    default: return {};
-  }
-}
-
-/** "AA_VIS_MLAA" -> "vis_mlaa": the prefix the enum's values share, removed; lower case. */
-function enumLabel(value, allValues = []) {
-  const names = allValues.filter((v) => !v.endsWith('_UNSPECIFIED'));
-  let prefix = '';
-  if (names.length > 1) {
-    const parts = names.map((n) => n.split('_'));
-    let i = 0;
-    while (parts.every((p) => p.length > i + 1 && p[i] === parts[0][i])) i++;
-    prefix = i > 0 ? `${parts[0].slice(0, i).join('_')}_` : '';
-  } else if (value.includes('_')) {
-    prefix = value.slice(0, value.indexOf('_') + 1);
-  }
-  return (value.startsWith(prefix) ? value.slice(prefix.length) : value).toLowerCase();
-}
-
-/** Float32 values from the wire without their binary noise (0.30000001 -> 0.3). */
-const tidy = (v) => (Number.isFinite(v) ? Number(v.toPrecision(6)) : v);
-
-class SettingsPanel {
-  /** `onChange(name, value)` is called with each valid change the user makes. */
-  constructor(root, notesList, onChange) {
-    this.root = root;
-    this.notesList = notesList;
-    this.onChange = onChange;
-    this.controls = new Map();  // field name -> {element, row, read(), write(value)}
-  }
-
-  /** One control per schema field (width/height excepted), showing the server's defaults. */
-  build(schema, info) {
-    this.controls.clear();
-    const rows = [];
-    for (const field of schema) {
-      if (HIDDEN_SETTINGS.has(field.name)) continue;
-      const control = this.#control(field, info);
-      if (!control) continue;
-      control.element.id = `setting-${field.name}`;
-      const label = el('label', LABELS[field.name] ?? field.name.replace(/_/g, ' '));
-      label.htmlFor = control.element.id;
-      control.row = el('div', undefined, 'field');
-      control.row.append(label, control.element);
-      rows.push(control.row);
-      this.controls.set(field.name, control);
-      const initial = info?.default_settings?.[field.name];
-      if (initial !== undefined) control.write(initial);
-      control.element.addEventListener('change', guard(() => {
-        const value = control.read();
-        if (value !== undefined) this.onChange(field.name, value);  // else the control says why
-      }, 'Could not apply the setting'));
-    }
-    if (rows.length === 0) rows.push(el('p', 'The server offers no settings.', 'note'));
-    this.root.replaceChildren(...rows);
-  }
-
-  #control(field, info) {
-    if (field.type === 'enum') {
-      const values = field.values ?? [];
-      const offered = field.choices?.length
-        ? field.choices : values.filter((v) => !v.endsWith('_UNSPECIFIED'));
-      return selectControl(offered.map((v) => [v, enumLabel(v, values)]), String);
-    }
-    if (field.type === 'bool') {
-      const input = el('input');
-      input.type = 'checkbox';
-      const write = (v) => { input.checked = Boolean(v); };
-      return { element: input, read: () => input.checked, write };
-    }
-    const integer = /int/.test(field.type);  // uint32 (and any other integer type)
-    if (!integer && !/float|double/.test(field.type)) return null;  // unknown: no control
-    // Numbers the server offers as a list (samples, tile_size) get a select.
-    const listed = field.choices?.length ? field.choices : info?.choices?.[field.name] ?? [];
-    const choices = listed.map(Number).filter(Number.isFinite);
-    if (choices.length > 0) return selectControl(choices.map((n) => [String(n), String(n)]), Number);
-    return numberControl(numericRange(field.name, info), integer, field.type.startsWith('u'));
-  }
-
-  /**
-   * Shows a frame's effective settings, except in controls the user is editing (a number
-   * being typed) or changed after the event this frame reflects; and the frame's notes.
-   */
-  reflect(frame, pendingFields) {
-    const settings = frame.settings ?? {};
-    const eventId = Number(frame.event_id ?? 0);
-    for (const [name, control] of this.controls) {
-      if (!(name in settings)) continue;
-      const pending = pendingFields.get(name);
-      if (pending !== undefined && eventId < pending) continue;
-      pendingFields.delete(name);
-      if (document.activeElement === control.element && control.element.type === 'number') continue;
-      control.write(settings[name]);
-    }
-    const notes = frame.notes ?? [];
-    const noted = new Set(notes.map((n) => n.field));
-    for (const [name, { row }] of this.controls) row.classList.toggle('clamped', noted.has(name));
-    this.notesList.replaceChildren(...notes.map((n) => el('li', `${n.field}: ${n.message}`)));
-    this.notesList.hidden = notes.length === 0;
-  }
-}
-
-/** A <select> of [value, label] options; a value the server reports that is not listed is added. */
-function selectControl(options, parse) {
-  const select = el('select');
-  for (const [value, label] of options) select.append(new Option(label, value));
-  return {
-    element: select,
-    read: () => parse(select.value),
-    write(v) {
-      const value = String(v);
-      if (![...select.options].some((o) => o.value === value)) {
-        select.append(new Option(enumLabel(value), value));
-      }
-      select.value = value;
-    },
-  };
-}
-
-/**
- * The value of a number input when it is a number in [min, max] (whole when `integer`);
- * else undefined, with the input marked invalid and the reason shown.
- */
-function validNumber(input, { min = -Infinity, max = Infinity }, integer) {
-  const v = Number(input.value);
-  let problem = '';
-  if (input.value.trim() === '' || !Number.isFinite(v)) problem = 'Enter a number.';
-  else if (integer && !Number.isInteger(v)) problem = 'Enter a whole number.';
-  else if (v < min) problem = `Enter ${min} or more.`;
-  else if (v > max) problem = `Enter ${max} or less.`;
-  input.setCustomValidity(problem);
-  input.setAttribute('aria-invalid', String(problem !== ''));
-  if (problem) {
-    input.reportValidity();
-    return undefined;
-  }
-  return v;
-}
-
-/**
- * A number input that refuses (and marks) values out of range, or not whole when `integer`;
- * `unsigned` types start at 0.
- */
-function numberControl({ min, max }, integer, unsigned = false) {
-  if (unsigned && min === undefined) min = 0;
-  const input = el('input');
-  input.type = 'number';
-  if (min !== undefined) input.min = String(min);
-  if (max !== undefined) input.max = String(max);
-  input.step = integer ? '1' : 'any';
-  return {
-    element: input,
-    read: () => validNumber(input, { min, max }, integer),
-    write(v) {
-      input.value = String(tidy(Number(v)));
-      input.setCustomValidity('');
-      input.setAttribute('aria-invalid', 'false');
-    },
-  };
-}
+// Settings
 
 const panel = new SettingsPanel(ui.settings, ui.notes, (name, value) => {
   state.userSettings[name] = value;
   sendEvent({ settings: { [name]: value } });
-});
+}, guard);
 
 /** The interactive-profile group: every change sends the whole profile. */
 function onInteractiveChanged() {
