@@ -4,6 +4,9 @@
 
 namespace tessera {
 
+// What a pass uses apart from ssao's result.
+static std::vector<ResourceUse> PassUsesWithoutAo(PassId id, AaMode aa);
+
 std::string_view PassName(PassId id) {
   switch (id) {
     case PassId::kCull:
@@ -18,6 +21,10 @@ std::string_view PassName(PassId id) {
       return "depth_prepass_late";
     case PassId::kLightCull:
       return "light_cull";
+    case PassId::kShadows:
+      return "shadows";
+    case PassId::kSsao:
+      return "ssao";
     case PassId::kForward:
       return "forward";
     case PassId::kTransparent:
@@ -46,7 +53,15 @@ std::string_view PassName(PassId id) {
   return "invalid";
 }
 
-std::vector<ResourceUse> PassUses(PassId id, AaMode aa) {
+std::vector<ResourceUse> PassUses(PassId id, AaMode aa, bool ssao) {
+  std::vector<ResourceUse> uses = PassUsesWithoutAo(id, aa);
+  const bool shades = id == PassId::kForward || id == PassId::kVisShade ||
+                      id == PassId::kTransparent || id == PassId::kTonemap;
+  if (ssao && shades) uses.push_back({Resource::kAo, Access::kSampled});
+  return uses;
+}
+
+static std::vector<ResourceUse> PassUsesWithoutAo(PassId id, AaMode aa) {
   using R = Resource;
   using A = Access;
   const bool msaa = aa == AaMode::kMsaa;
@@ -72,6 +87,10 @@ std::vector<ResourceUse> PassUses(PassId id, AaMode aa) {
       return {{R::kHiz, A::kComputeRead}};
     case PassId::kLightCull:
       return {{R::kDepth, A::kComputeRead}};
+    case PassId::kShadows:
+      return {};
+    case PassId::kSsao:
+      return {{R::kDepth, A::kSampled}, {R::kAo, A::kColorWrite}, {R::kAoTemp, A::kColorWrite}};
     case PassId::kVisResolve:
       return {{R::kVisMs, A::kSampled},
               {R::kVisId, A::kColorWrite},
@@ -132,6 +151,9 @@ std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& 
   }
   // Forward+: per-tile light lists, unless there is nothing to cull or brute force was asked.
   if (settings.light_culling && features.local_lights > 0) passes.push_back(PassId::kLightCull);
+  // Shadow maps and ambient obscurance, before the shading that reads them.
+  if (settings.shadows) passes.push_back(PassId::kShadows);
+  if (settings.ssao) passes.push_back(PassId::kSsao);
   if (vis) {
     passes.push_back(PassId::kVisResolve);
     passes.push_back(PassId::kVisShade);
@@ -177,12 +199,12 @@ int LayoutClass(Access a) {
 }  // namespace
 
 std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes,
-                                                     AaMode aa) {
+                                                     AaMode aa, bool ssao) {
   std::array<Access, static_cast<size_t>(Resource::kCount)> state;
   state.fill(Access::kNone);
   std::vector<std::vector<Transition>> plan(passes.size());
   for (size_t i = 0; i < passes.size(); ++i) {
-    for (const ResourceUse& use : PassUses(passes[i], aa)) {
+    for (const ResourceUse& use : PassUses(passes[i], aa, ssao)) {
       Access& current = state[static_cast<size_t>(use.resource)];
       const bool layout_change = LayoutClass(current) != LayoutClass(use.access);
       if (layout_change || Writes(current) || Writes(use.access)) {

@@ -28,6 +28,8 @@ enum class Resource : uint8_t {
   kMaterialDepth,  // vis_mlaa: per pixel its surface's material as a depth value
   kPostHdr,    // vis_mlaa (geometric AA) and taa output, tonemapped
   kFxaaColor,  // fxaa output, read back
+  kAo,         // ssao: visibility (r) and view depth (g), half (or full) resolution
+  kAoTemp,     // ssao: the blur's intermediate
   kCount
 };
 // (The culling passes' buffers are their own: each ends with a buffer barrier to the stage that
@@ -61,6 +63,8 @@ enum class PassId : uint8_t {
   kDepthPrepassLate,  // gpu_occlusion: depth of the drawables that became visible
   kVisibilityLate,    // gpu_occlusion + vis_mlaa: their ids
   kLightCull,     // forward+: per-tile light lists from the prepass depth (compute)
+  kShadows,       // shadows: the atlas faces whose view changed (the atlas is not a frame target)
+  kSsao,          // ssao: obscurance from the depth, then a bilateral blur (two directions)
   kVisResolve,    // vis_mlaa: group each pixel's samples by surface, pick the one to shade
   kVisShade,      // vis_mlaa: shade each pixel's surface, one draw per material
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
@@ -75,8 +79,9 @@ enum class PassId : uint8_t {
 
 std::string_view PassName(PassId id);
 // The resources a pass reads and writes; they depend on the AA mode (multisampled targets, the
-// post-AA colour).
-std::vector<ResourceUse> PassUses(PassId id, AaMode aa = AaMode::kNone);
+// post-AA colour) and on whether ssao runs (the shading passes then read its result).
+// kShadows uses none: its atlas lives across frames, outside the graph.
+std::vector<ResourceUse> PassUses(PassId id, AaMode aa = AaMode::kNone, bool ssao = false);
 
 // What the frame graph needs to know about the scene to pick passes.
 struct FrameFeatures {
@@ -98,6 +103,7 @@ struct Transition {
 // layout changes or either side writes (write-after-write and read-after-write hazards);
 // read-after-read in the same layout needs none.
 std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes,
-                                                     AaMode aa = AaMode::kNone);
+                                                     AaMode aa = AaMode::kNone,
+                                                     bool ssao = false);
 
 }  // namespace tessera

@@ -56,6 +56,12 @@ static_assert(offsetof(FrameUniforms, camera_position) == 256);
 static_assert(offsetof(FrameUniforms, counts) == 304);
 static_assert(offsetof(FrameUniforms, params) == 320);
 
+static_assert(sizeof(GpuShadowView) == 80);
+static_assert(offsetof(ShadowUniforms, cascade_spheres) == 32);
+static_assert(offsetof(ShadowUniforms, views) == 96);
+static_assert(sizeof(ShadowUniforms) == 96 + kMaxShadowViews * 80);
+static_assert(sizeof(ShadowUniforms) <= 16384, "must fit the smallest maxUniformBufferRange");
+
 }  // namespace tessera::gpu
 
 namespace tessera {

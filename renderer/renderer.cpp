@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/frame_graph.h"
 #include "renderer/light_culling.h"
+#include "renderer/shadows.h"
 #include "renderer/passes/pass.h"
 #include "renderer/scene/gpu_scene.h"
 #include "renderer/vk/context.h"
@@ -249,6 +250,17 @@ struct Renderer::Impl {
     uint64_t last_used = 0;
   };
   std::map<std::pair<uint64_t, uint64_t>, TaaHistory> taa_history;
+  // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
+  // they hold (ShadowAtlas), the uniforms the shading reads, and a 1x1 stand-in bound while
+  // shadows are off.
+  vk::Image shadow_atlas;
+  vk::Image shadow_placeholder;
+  std::unique_ptr<ShadowAtlas> shadow_faces;
+  bool shadow_atlas_written = false;  // false: its contents (and layout) are undefined
+  vk::Buffer shadow_ubo;
+  vk::Sampler shadow_sampler;  // comparison, bilinear
+  vk::Sampler linear_sampler;  // ssao visibility
+  vk::Image ao_placeholder;    // 1x1, shader-read layout: what the shading reads without ssao
 
   ~Impl() {
     if (!ctx) return;
@@ -256,6 +268,12 @@ struct Renderer::Impl {
     vkDeviceWaitIdle(d);
     for (auto& p : passes) p.reset();
     taa_history.clear();
+    shadow_atlas = vk::Image();
+    shadow_placeholder = vk::Image();
+    shadow_ubo = vk::Buffer();
+    shadow_sampler = vk::Sampler();
+    linear_sampler = vk::Sampler();
+    ao_placeholder = vk::Image();
     DestroyHizViews();
     targets = FrameTargets{};
     frame_ubo = vk::Buffer();
@@ -276,6 +294,17 @@ struct Renderer::Impl {
   }
 
   absl::Status Init();
+  absl::Status InitShadows();
+  absl::Status EnsureShadowAtlas(uint32_t size);
+  absl::Status EnsureAo(uint32_t width, uint32_t height);
+  // shadows: places this frame's shadow views in the atlas, fills shadow_ubo's views, marks the
+  // shadowed lights in `gl` / `ll` (the light buffers, in the order of `global` / `local`) and
+  // lists the faces to render in `out`.
+  absl::Status PrepareShadows(const GpuScene& gs, const Camera& camera, float aspect,
+                              uint64_t view, const Settings& s, const glm::mat4& view_proj,
+                              const std::vector<Light>& global, const std::vector<Light>& local,
+                              gpu::GpuLight* gl, gpu::GpuLight* ll, Frame& frame,
+                              ShadowFrame* out);
   absl::Status EnsureTargets(uint32_t width, uint32_t height);
   // The targets the AA mode needs, at its sample count.
   absl::Status EnsureAaTargets(const Settings& s);
@@ -296,7 +325,8 @@ struct Renderer::Impl {
                   FrameStats& stats, std::vector<uint32_t>* drawn_out) const;
   void WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
   absl::StatusOr<GpuScene::ViewVisibility*> Visibility(const GpuScene& scene, uint64_t view);
-  VkDescriptorSet WriteSceneSet(const GpuScene& scene);
+  // The frame's set 0; binds the shadow atlas when `shadows` (else the 1x1 stand-in).
+  VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao);
 };
 
 absl::Status Renderer::Impl::Init() {
@@ -315,6 +345,12 @@ absl::Status Renderer::Impl::Init() {
       {gpu::kBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
        nullptr},
       {gpu::kBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingShadows, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingShadowAtlas, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingAo, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
        nullptr},
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
@@ -369,6 +405,8 @@ absl::Status Renderer::Impl::Init() {
   if (absl::Status s = add(CreateGeometricAaPass(*ctx)); !s.ok()) return s;
   if (absl::Status s = add(CreateTaaPass(*ctx)); !s.ok()) return s;
   if (absl::Status s = add(CreateFxaaPass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateShadowPass(*ctx, scene_layout)); !s.ok()) return s;
+  if (absl::Status s = add(CreateSsaoPass(*ctx)); !s.ok()) return s;
 
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
@@ -395,14 +433,15 @@ absl::Status Renderer::Impl::Init() {
 
   // Per frame: the scene set, light culling, two culling phases, a set per pyramid level, the
   // vis_mlaa and post passes' sets.
+  // Shadows and ssao: two more images and a uniform buffer in the scene set, three ssao sets.
   const VkDescriptorPoolSize sizes[] = {
-      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 8},
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 40},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 56},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 72},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 32},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  dpi.maxSets = 56;
+  dpi.maxSets = 64;
   dpi.poolSizeCount = 4;
   dpi.pPoolSizes = sizes;
   VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, &frame_pool), "descriptor pool");
@@ -433,7 +472,228 @@ absl::Status Renderer::Impl::Init() {
     return s;
   std::memset(no_visibility.mapped(), 0, 4);
   if (absl::Status s = EnsureCullBuffers(1, 1); !s.ok()) return s;
+  if (absl::Status s = InitShadows(); !s.ok()) return s;
   return EnsureLightBuffers(1, 1);
+}
+
+absl::Status Renderer::Impl::InitShadows() {
+  if (absl::Status s = MakeBuffer(*ctx, sizeof(gpu::ShadowUniforms),
+                                  VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                                  "shadow_uniforms", &shadow_ubo);
+      !s.ok())
+    return s;
+  std::memset(shadow_ubo.mapped(), 0, sizeof(gpu::ShadowUniforms));
+  // The hardware shadow sampler: bilinear comparison taps (the PCF's 4 taps each weigh 2x2
+  // texels). Standard Z: lit where the reference is nearer than (or at) the stored depth.
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = si.minFilter = VK_FILTER_LINEAR;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  si.compareEnable = VK_TRUE;
+  si.compareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
+  absl::StatusOr<vk::Sampler> ss = vk::Sampler::Create(*ctx, si, "shadow_compare");
+  if (!ss.ok()) return ss.status();
+  shadow_sampler = std::move(*ss);
+  absl::StatusOr<vk::Sampler> ls = CreateClampSampler(*ctx, true, "ao_linear");
+  if (!ls.ok()) return ls.status();
+  linear_sampler = std::move(*ls);
+  // What the scene set binds while shadows are off: a 1x1 atlas in shader-read layout.
+  vk::ImageDesc desc;
+  desc.format = kShadowFormat;
+  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  absl::StatusOr<vk::Image> placeholder = vk::Image::Create(*ctx, desc, "shadow_placeholder");
+  if (!placeholder.ok()) return placeholder.status();
+  shadow_placeholder = std::move(*placeholder);
+  // And without ssao, a 1x1 AO image (its contents are never read: the shaders test a flag).
+  desc.format = kAoFormat;
+  desc.usage = VK_IMAGE_USAGE_SAMPLED_BIT;
+  absl::StatusOr<vk::Image> ao = vk::Image::Create(*ctx, desc, "ao_placeholder");
+  if (!ao.ok()) return ao.status();
+  ao_placeholder = std::move(*ao);
+  BeginOneTime();
+  VkImageMemoryBarrier2 b[2];
+  for (int i = 0; i < 2; ++i) {
+    b[i] = vk::MakeImageBarrier(
+        i == 0 ? shadow_placeholder : ao_placeholder,
+        {VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_UNDEFINED,
+         VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  }
+  vk::CmdBarrier(cmd, b, 2);
+  return EndCopiesAndWait();
+}
+
+absl::Status Renderer::Impl::EnsureShadowAtlas(uint32_t size) {
+  if (shadow_atlas && shadow_atlas.desc().width == size) return absl::OkStatus();
+  vkDeviceWaitIdle(ctx->device());
+  shadow_atlas = vk::Image();
+  vk::ImageDesc desc;
+  desc.width = desc.height = size;
+  desc.format = kShadowFormat;
+  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  absl::StatusOr<vk::Image> atlas = vk::Image::Create(*ctx, desc, "shadow_atlas");
+  if (!atlas.ok()) return atlas.status();
+  shadow_atlas = std::move(*atlas);
+  shadow_faces = std::make_unique<ShadowAtlas>(size);
+  shadow_atlas_written = false;
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::PrepareShadows(const GpuScene& gs, const Camera& camera,
+                                            float aspect, uint64_t view, const Settings& s,
+                                            const glm::mat4& view_proj,
+                                            const std::vector<Light>& global,
+                                            const std::vector<Light>& local, gpu::GpuLight* gl,
+                                            gpu::GpuLight* ll, Frame& frame, ShadowFrame* out) {
+  auto& su = *static_cast<gpu::ShadowUniforms*>(shadow_ubo.mapped());
+  if (absl::Status st = EnsureShadowAtlas(s.shadow_atlas_size); !st.ok()) return st;
+  ShadowAtlas& atlas = *shadow_faces;
+  out->atlas = &shadow_atlas;
+  out->atlas_new = !shadow_atlas_written;
+  if (out->atlas_new) atlas.Clear();
+  atlas.BeginFrame();
+  const uint32_t evictions_before = atlas.evictions();
+  const uint32_t size = s.shadow_atlas_size;
+  const std::vector<DrawItem>& items = gs.draws();
+  FrameStats& stats = frame.stats;
+  uint32_t views = 0;
+  // Places one face; lists it for rendering unless the atlas already holds exactly it.
+  auto add_face = [&](uint64_t key, uint32_t res, const glm::mat4& face_view_proj, float texel,
+                      bool perspective) {
+    uint64_t content = HashBytes(&face_view_proj, sizeof(face_view_proj), gs.serial());
+    content = HashBytes(&res, sizeof(res), content);
+    std::optional<ShadowAtlas::Placement> placed = atlas.Acquire(key, res, content);
+    if (!placed) return false;
+    gpu::GpuShadowView& v = su.views[views++];
+    v.world_to_atlas = AtlasTransform(placed->rect, size) * face_view_proj;
+    v.params = glm::vec4(texel, perspective ? 1.0f : 0.0f, 0.0f, 0.0f);
+    if (placed->cached && s.shadow_cache) return true;
+    ShadowFace face{placed->rect.x, placed->rect.y, placed->rect.size, face_view_proj, {}};
+    // The face's own culling: every item in its frustum (all of them with culling none).
+    // Blended surfaces cast no shadow.
+    const Frustum frustum = FrustumFromViewProj(face_view_proj);
+    for (uint32_t i = 0; i < items.size(); ++i) {
+      if (items[i].alpha == AlphaMode::kBlend) continue;
+      if (s.culling != CullingMode::kNone &&
+          !AabbIntersectsFrustum(items[i].world_bounds, frustum))
+        continue;
+      face.items.push_back(i);
+    }
+    out->faces.push_back(std::move(face));
+    return true;
+  };
+  auto key_of = [&](uint64_t kind, uint64_t a, uint64_t b) {
+    const uint64_t k[4] = {kind, gs.serial(), a, b};
+    return HashBytes(k, sizeof(k));
+  };
+
+  // The sun: the first directional light, in cascades that follow this view's camera (so the
+  // key carries the view: two viewers of one scene do not overwrite each other's cascades).
+  uint32_t cascades = 0;
+  for (size_t i = 0; i < global.size(); ++i) {
+    if (global[i].type != LightType::kDirectional) continue;
+    const glm::vec3 eye = CameraPosition(camera);
+    float distance = 0.0f;
+    const Aabb& b = gs.bounds();
+    for (int c = 0; c < 8; ++c) {
+      const glm::vec3 corner((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y,
+                             (c & 4) ? b.max.z : b.min.z);
+      distance = std::max(distance, glm::length(corner - eye));
+    }
+    if (camera.zfar > 0.0f) distance = std::min(distance, camera.zfar);
+    distance = std::max(distance, camera.znear * 2.0f);
+    CascadeParams cp;
+    cp.count = kMaxCascades;
+    cp.resolution = size / 4;
+    const std::vector<Cascade> cs =
+        ComputeCascades(camera, aspect, global[i].direction, b, distance, cp);
+    bool placed = true;
+    for (uint32_t c = 0; c < cs.size() && placed; ++c)
+      placed = add_face(key_of(1, view, c), cp.resolution, cs[c].view_proj, cs[c].texel_world,
+                        false);
+    if (!placed) {  // an atlas too small for them: the sun stays unshadowed
+      views = 0;
+      out->faces.clear();
+      frame.settings.notes.push_back(
+          {"shadows", "the sun's cascades did not fit the shadow atlas; the sun is unshadowed"});
+      break;
+    }
+    for (uint32_t c = 0; c < cs.size(); ++c)
+      su.cascade_spheres[c] = glm::vec4(cs[c].center, cs[c].radius);
+    cascades = uint32_t(cs.size());
+    gl[i].spot.z = 1.0f;  // views 0 .. cascades - 1
+    gl[i].spot.w = float(cascades);
+    ++stats.shadowed_lights;
+    break;
+  }
+
+  // Point and spot lights: the most important ones in view. A spot has one view, a point
+  // light six (its unrolled cubemap); a light whose faces do not fit even at half size stays
+  // unshadowed.
+  const glm::vec3 eye = CameraPosition(camera);
+  const std::vector<uint32_t> chosen =
+      ChooseShadowedLights(local, FrustumFromViewProj(view_proj), eye, s.shadow_lights);
+  uint32_t dropped = 0;
+  for (uint32_t li : chosen) {
+    const Light& l = local[li];
+    const bool spot = l.type == LightType::kSpot;
+    const uint32_t faces = spot ? 1 : kCubeFaces;
+    bool placed = false;
+    for (uint32_t res = size / (spot ? 8 : 16); res >= 64 && !placed; res /= 2) {
+      const uint32_t first = views;
+      const size_t rendered = out->faces.size();
+      placed = true;
+      const float border = float(res) / float(res - 2 * kShadowBorderTexels);
+      const float tan_half =
+          spot ? std::tan(std::min(l.outer_cone_angle, glm::radians(89.0f))) * border : border;
+      for (uint32_t f = 0; f < faces && placed; ++f) {
+        const glm::mat4 vp = spot ? SpotViewProj(l, res, gs.bounds())
+                                  : PointFaceViewProj(l, f, res, gs.bounds());
+        placed = add_face(key_of(2, li, f), res, vp, 2.0f * tan_half / float(res), true);
+      }
+      if (!placed) {
+        views = first;
+        out->faces.resize(rendered);
+        continue;
+      }
+      ll[li].spot.z = float(first + 1);
+      ll[li].spot.w = float(faces);
+      ++stats.shadowed_lights;
+    }
+    if (!placed) ++dropped;
+  }
+  if (dropped > 0) {
+    frame.settings.notes.push_back(
+        {"shadow_lights", absl::StrCat(dropped, " of ", chosen.size(),
+                                       " lights did not fit the shadow atlas and are unshadowed "
+                                       "(use a larger shadow_atlas_size)")});
+  }
+  su.counts = glm::uvec4(views, cascades, 0u, gpu::kShadowsOn);
+  su.atlas = glm::vec4(float(size), 1.0f / float(size), 1.5f, 0.0f);
+  stats.shadow_views = views;
+  stats.shadow_faces_rendered = uint32_t(out->faces.size());
+  for (const ShadowFace& f : out->faces) stats.shadow_draws += uint32_t(f.items.size());
+  stats.shadow_evictions = atlas.evictions() - evictions_before;
+  // Until this frame's submit succeeds the atlas is not known to hold what the faces say.
+  if (!out->faces.empty()) shadow_atlas_written = false;
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::EnsureAo(uint32_t width, uint32_t height) {
+  if (targets.ao && targets.ao.desc().width == width && targets.ao.desc().height == height)
+    return absl::OkStatus();
+  vkDeviceWaitIdle(ctx->device());
+  vk::ImageDesc desc;
+  desc.width = width;
+  desc.height = height;
+  desc.format = kAoFormat;
+  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  absl::StatusOr<vk::Image> ao = vk::Image::Create(*ctx, desc, "ao");
+  if (!ao.ok()) return ao.status();
+  absl::StatusOr<vk::Image> temp = vk::Image::Create(*ctx, desc, "ao_temp");
+  if (!temp.ok()) return temp.status();
+  targets.ao = std::move(*ao);
+  targets.ao_temp = std::move(*temp);
+  return absl::OkStatus();
 }
 
 absl::Status Renderer::Impl::EnsureCullBuffers(uint32_t items, uint32_t lists) {
@@ -955,7 +1215,7 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles) {
   return absl::OkStatus();
 }
 
-VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
+VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao) {
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   ai.descriptorPool = frame_pool;
   ai.descriptorSetCount = 1;
@@ -986,6 +1246,27 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene) {
     w.pBufferInfo = &buffers[i];
     writes.push_back(w);
   }
+  const VkDescriptorBufferInfo shadow_info{shadow_ubo.handle(), 0, VK_WHOLE_SIZE};
+  const vk::Image& atlas = shadows && shadow_atlas ? shadow_atlas : shadow_placeholder;
+  const VkDescriptorImageInfo images[] = {
+      {shadow_sampler.handle(), atlas.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+      {linear_sampler.handle(), (ssao ? targets.ao : ao_placeholder).view(),
+       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.dstSet = set;
+  w.descriptorCount = 1;
+  w.dstBinding = gpu::kBindingShadows;
+  w.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+  w.pBufferInfo = &shadow_info;
+  writes.push_back(w);
+  w.pBufferInfo = nullptr;
+  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  w.dstBinding = gpu::kBindingShadowAtlas;
+  w.pImageInfo = &images[0];
+  writes.push_back(w);
+  w.dstBinding = gpu::kBindingAo;
+  w.pImageInfo = &images[1];
+  writes.push_back(w);
   vkUpdateDescriptorSets(ctx->device(), static_cast<uint32_t>(writes.size()), writes.data(), 0,
                          nullptr);
   return set;
@@ -1174,6 +1455,32 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
   auto* ll = static_cast<gpu::GpuLight*>(m.local_lights.mapped());
   for (size_t i = 0; i < local.size(); ++i) ll[i] = ToGpu(local[i]);
+  // Shadows and ssao: what the shading passes read besides the lights.
+  auto& su = *static_cast<gpu::ShadowUniforms*>(m.shadow_ubo.mapped());
+  su.counts = glm::uvec4(0u);
+  ShadowFrame shadow_frame;
+  if (s.shadows) {
+    if (absl::Status st = m.PrepareShadows(gs, camera, aspect, view, s, fu.proj * fu.view, global,
+                                           local, gl, ll, frame, &shadow_frame);
+        !st.ok())
+      return st;
+  }
+  SsaoFrame ssao;
+  {
+    const uint32_t div = s.ssao_half_res ? 2 : 1;
+    if (s.ssao) {
+      if (absl::Status st =
+              m.EnsureAo(std::max(1u, s.width / div), std::max(1u, s.height / div));
+          !st.ok())
+        return st;
+      const Aabb& b = gs.bounds();
+      const float diagonal = b.empty() ? 1.0f : glm::length(b.max - b.min);
+      const float radius = s.ssao_radius > 0.0f ? s.ssao_radius : 0.015f * diagonal;
+      ssao.proj = glm::vec4(fu.proj[0][0], fu.proj[1][1], fu.proj[2][2], fu.proj[3][2]);
+      ssao.params = glm::vec4(radius, s.ssao_strength, 0.01f * radius, 0.0f);
+      su.counts.w |= gpu::kSsaoOn;
+    }
+  }
   if (tiled) {  // what the light-culling pass reads: each light projected once, binned by row
     std::vector<gpu::GpuLightBounds> bounds(local.size());
     for (size_t i = 0; i < local.size(); ++i)
@@ -1260,7 +1567,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   }
   const std::vector<PassId> pass_ids =
       SelectPasses(frame.settings.effective, {!draws.blend_order.empty(), uint32_t(local.size())});
-  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids, s.aa);
+  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids, s.aa, s.ssao);
   for (PassId id : pass_ids) {
     if (absl::Status st = m.passes[static_cast<size_t>(id)]->Prepare(*m.ctx, s); !st.ok())
       return st;
@@ -1272,7 +1579,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     vis.materials = MaterialRects(gs, frustum, fu.view_proj, s.width, s.height);
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
-  const VkDescriptorSet scene_set = m.WriteSceneSet(gs);
+  const VkDescriptorSet scene_set = m.WriteSceneSet(gs, s.shadows, s.ssao);
   // Lavapipe records a timestamp when its rasterizer threads reach it in their tiles, so a
   // pass rasterized in one batch reads ~0 ms and its work lands before the next pass's start
   // stamp (the frame total stays right). On CPU devices each pass is therefore submitted on its
@@ -1324,6 +1631,10 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   pc.cull = &cull_buffers;
   pc.vis = &vis;
   pc.taa = &taa;
+  pc.shadows = &shadow_frame;
+  pc.shadow_atlas_view = s.shadows ? &m.shadow_atlas : &m.shadow_placeholder;
+  pc.ao_view = s.ssao ? &m.targets.ao : &m.ao_placeholder;
+  pc.ssao = &ssao;
   pc.samples = frame_samples;
   std::vector<double> pass_wall_ms;
   double record_ms = 0.0;
@@ -1381,6 +1692,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   }
   frame.gpu_total_ms = per_pass_submit ? frame.cpu.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   if (visibility) visibility->prev ^= 1;  // this frame's bits are the next frame's history
+  if (s.shadows) m.shadow_atlas_written = true;  // the faces listed were rendered
 
   m.CountDrawn(gs, draws, pass_ids, frame.stats, capture ? &capture->drawn : nullptr);
   frame.stats.indirect_draws = pass_stats.indirect_draws;

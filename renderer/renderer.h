@@ -100,6 +100,14 @@ struct FrameStats {
   uint32_t tile_lights_p95 = 0;
   uint32_t tile_lights_max = 0;
   uint32_t tile_overflows = 0;  // tiles with more than kMaxLightsPerTile (256) lights
+  // Shadows: lights with shadow maps (the sun counts once), the maps (views) in the atlas this
+  // frame, how many of them were rendered (the rest were cached), their draws, and the faces
+  // evicted from the atlas to make room.
+  uint32_t shadowed_lights = 0;
+  uint32_t shadow_views = 0;
+  uint32_t shadow_faces_rendered = 0;
+  uint32_t shadow_draws = 0;
+  uint32_t shadow_evictions = 0;
 };
 
 // What tests need to check a frame's light culling against the CPU reference.

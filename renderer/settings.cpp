@@ -1,6 +1,7 @@
 #include "renderer/settings.h"
 
 #include <array>
+#include <bit>
 #include <cmath>
 #include <utility>
 
@@ -24,14 +25,18 @@ constexpr std::array<std::pair<CullingMode, std::string_view>, 4> kCullingNames{
      {CullingMode::kGpuOcclusion, "gpu_occlusion"}}};
 constexpr std::array<std::pair<ExposureMode, std::string_view>, 2> kExposureNames{
     {{ExposureMode::kFixed, "fixed"}, {ExposureMode::kAuto, "auto"}}};
-constexpr std::array<std::pair<DebugView, std::string_view>, 7> kDebugNames{
+constexpr std::array<std::pair<DebugView, std::string_view>, 11> kDebugNames{
     {{DebugView::kNone, "none"},
      {DebugView::kNormals, "normals"},
      {DebugView::kDepth, "depth"},
      {DebugView::kBaseColor, "base_color"},
      {DebugView::kLightHeatmap, "light_heatmap"},
      {DebugView::kCullingOverlay, "culling_overlay"},
-     {DebugView::kAaMask, "aa_mask"}}};
+     {DebugView::kAaMask, "aa_mask"},
+     {DebugView::kShadowAtlas, "shadow_atlas"},
+     {DebugView::kCascades, "cascades"},
+     {DebugView::kSsao, "ssao"},
+     {DebugView::kBloom, "bloom"}}};
 
 template <typename E, size_t N>
 std::string_view NameOf(const std::array<std::pair<E, std::string_view>, N>& table, E v) {
@@ -98,6 +103,16 @@ absl::Status ValidateSettings(const Settings& s) {
     return bad("light_time", s.light_time, "-1e6..1e6 seconds");
   if (s.tile_size != 8 && s.tile_size != 16 && s.tile_size != 32)
     return bad("tile_size", s.tile_size, "8, 16 or 32");
+  if (s.shadow_atlas_size < 512 || s.shadow_atlas_size > 8192 ||
+      (s.shadow_atlas_size & (s.shadow_atlas_size - 1)) != 0)
+    return bad("shadow_atlas_size", s.shadow_atlas_size, "a power of two, 512..8192");
+  if (s.shadow_lights > 32) return bad("shadow_lights", s.shadow_lights, "0..32");
+  if (!std::isfinite(s.ssao_radius) || s.ssao_radius < 0.0f || s.ssao_radius > 1e6f)
+    return bad("ssao_radius", s.ssao_radius, "0..1e6 world units, 0 = auto");
+  if (!std::isfinite(s.ssao_strength) || s.ssao_strength < 0.0f || s.ssao_strength > 4.0f)
+    return bad("ssao_strength", s.ssao_strength, "0..4");
+  if (!std::isfinite(s.bloom_strength) || s.bloom_strength < 0.0f || s.bloom_strength > 1.0f)
+    return bad("bloom_strength", s.bloom_strength, "0..1");
   if (!Known(kExposureNames, s.exposure_mode))
     return bad("exposure_mode", static_cast<uint32_t>(s.exposure_mode), "an ExposureMode");
   if (!std::isfinite(s.exposure_ev) || s.exposure_ev < -20.0f || s.exposure_ev > 20.0f)
@@ -162,13 +177,11 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
                       "standard sample locations; rendered with msaa");
     e.aa = AaMode::kMsaa;
   }
-  if (e.shadows) {
-    not_applied("shadows", "not implemented yet");
-    e.shadows = false;
-  }
-  if (e.ssao) {
-    not_applied("ssao", "not implemented yet");
-    e.ssao = false;
+  if (e.shadows && e.shadow_atlas_size > caps.max_image_dimension) {
+    note("shadow_atlas_size",
+         absl::StrCat("clamped from ", e.shadow_atlas_size, " to ",
+                      std::bit_floor(caps.max_image_dimension), " (device maxImageDimension2D)"));
+    e.shadow_atlas_size = std::bit_floor(caps.max_image_dimension);
   }
   if (e.bloom) {
     not_applied("bloom", "not implemented yet");
@@ -185,6 +198,21 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
   if (e.debug_view == DebugView::kAaMask && e.aa != AaMode::kVisMlaa) {
     not_applied("debug_view", "aa_mask shows vis_mlaa's coverage mask; aa is not vis_mlaa");
     e.debug_view = DebugView::kNone;
+  }
+  struct Needs {
+    DebugView view;
+    bool on;
+    const char* what;
+  };
+  for (const Needs& n : {Needs{DebugView::kShadowAtlas, e.shadows, "shadows"},
+                         Needs{DebugView::kCascades, e.shadows, "shadows"},
+                         Needs{DebugView::kSsao, e.ssao, "ssao"},
+                         Needs{DebugView::kBloom, e.bloom, "bloom"}}) {
+    if (e.debug_view == n.view && !n.on) {
+      not_applied("debug_view", absl::StrCat(std::string(ToString(n.view)), " needs ", n.what,
+                                             " on"));
+      e.debug_view = DebugView::kNone;
+    }
   }
   if (e.debug_view == DebugView::kCullingOverlay) {
     not_applied("debug_view",

@@ -15,7 +15,7 @@ namespace tessera {
 enum class AaMode : uint32_t { kNone = 0, kMsaa, kFxaa, kTaa, kVisMlaa };
 enum class CullingMode : uint32_t { kNone = 0, kCpuFrustum, kGpuFrustum, kGpuOcclusion };
 enum class ExposureMode : uint32_t { kFixed = 0, kAuto };
-// Values of the first four match kDebug* in shaders/common/gpu_types.h.
+// Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
   kNone = 0,
   kNormals,
@@ -23,7 +23,11 @@ enum class DebugView : uint32_t {
   kBaseColor,
   kLightHeatmap,
   kCullingOverlay,
-  kAaMask
+  kAaMask,
+  kShadowAtlas,  // the shadow atlas's depths (needs shadows)
+  kCascades,     // surfaces tinted by the sun cascade that covers them (needs shadows)
+  kSsao,         // the blurred ambient obscurance (needs ssao)
+  kBloom         // the bloom added to the frame (needs bloom)
 };
 
 struct Settings {
@@ -43,9 +47,21 @@ struct Settings {
   float light_time = 0.0f;       // seconds; where animated lights are (deterministic)
   bool light_culling = true;     // forward+ tile lists; false: every light for every pixel
   bool tile_depth_mask = true;   // 2.5D depth mask per tile (false: min/max depth bounds only)
+  // Shadows: the sun's cascades and the `shadow_lights` most important point and spot lights,
+  // in one depth atlas of shadow_atlas_size^2 texels (a power of two, 512..8192; clamped to the
+  // device). With shadow_cache, a map is re-rendered only when its view changed.
   bool shadows = false;
+  uint32_t shadow_atlas_size = 4096;
+  uint32_t shadow_lights = 16;  // 0..32
+  bool shadow_cache = true;
+  // SSAO (SAO): radius in world units (0: 1.5% of the scene diagonal), strength 0..4, computed
+  // at half resolution (false: full, for comparison).
   bool ssao = false;
+  float ssao_radius = 0.0f;
+  float ssao_strength = 1.0f;
+  bool ssao_half_res = true;
   bool bloom = false;
+  float bloom_strength = 0.05f;  // 0..1: share of the bloom added to the frame
   bool ibl = false;
   ExposureMode exposure_mode = ExposureMode::kFixed;
   float exposure_ev = 0.0f;  // fixed exposure in stops, -20..20 (0 = x1)

@@ -66,6 +66,13 @@ absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSet
   if (u.has_lights_animated()) s.lights_animated = u.lights_animated();
   if (u.has_light_time()) s.light_time = u.light_time();
   if (u.has_tile_depth_mask()) s.tile_depth_mask = u.tile_depth_mask();
+  if (u.has_shadow_atlas_size()) s.shadow_atlas_size = u.shadow_atlas_size();
+  if (u.has_shadow_lights()) s.shadow_lights = u.shadow_lights();
+  if (u.has_shadow_cache()) s.shadow_cache = u.shadow_cache();
+  if (u.has_ssao_radius()) s.ssao_radius = u.ssao_radius();
+  if (u.has_ssao_strength()) s.ssao_strength = u.ssao_strength();
+  if (u.has_ssao_half_res()) s.ssao_half_res = u.ssao_half_res();
+  if (u.has_bloom_strength()) s.bloom_strength = u.bloom_strength();
   if (absl::Status st = ValidateSettings(s); !st.ok()) return st;
   return s;
 }
@@ -157,6 +164,13 @@ void ToProto(const Settings& s, v1::RenderSettings* o) {
   o->set_lights_animated(s.lights_animated);
   o->set_light_time(s.light_time);
   o->set_tile_depth_mask(s.tile_depth_mask);
+  o->set_shadow_atlas_size(s.shadow_atlas_size);
+  o->set_shadow_lights(s.shadow_lights);
+  o->set_shadow_cache(s.shadow_cache);
+  o->set_ssao_radius(s.ssao_radius);
+  o->set_ssao_strength(s.ssao_strength);
+  o->set_ssao_half_res(s.ssao_half_res);
+  o->set_bloom_strength(s.bloom_strength);
 }
 
 void ToProto(const Aabb& box, v1::Aabb* out) {
@@ -254,6 +268,11 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_primitives_in(f.stats.primitives_in);
   st->set_primitives_clipped(f.stats.primitives_clipped);
   st->set_fragment_invocations(f.stats.fragment_invocations);
+  st->set_shadowed_lights(f.stats.shadowed_lights);
+  st->set_shadow_views(f.stats.shadow_views);
+  st->set_shadow_faces_rendered(f.stats.shadow_faces_rendered);
+  st->set_shadow_draws(f.stats.shadow_draws);
+  st->set_shadow_evictions(f.stats.shadow_evictions);
 }
 
 void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {

@@ -4,6 +4,7 @@
 #include "common/scene.glsl"
 #include "common/sky.glsl"
 #include "common/textures.glsl"
+#include "common/shadows.glsl"
 #include "common/shading.glsl"
 
 layout(location = 0) in vec3 v_world;

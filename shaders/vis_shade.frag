@@ -9,6 +9,7 @@
 #include "common/scene.glsl"
 #include "common/sky.glsl"
 #include "common/textures.glsl"
+#include "common/shadows.glsl"
 #include "common/shading.glsl"
 #include "common/vis.glsl"
 

@@ -31,8 +31,15 @@ const char kSettingsFlagsUsage[] = R"(settings (unset ones take the server's def
   --animate-lights    synthetic lights circle around   --light-time SECONDS  where they are
   --no-tile-depth-mask     cull with per-tile depth bounds only (no 2.5D mask)
   --shadows --ssao --bloom --ibl   turn effects on (--no-shadows etc.: off)
+  --shadow-atlas N    shadow atlas side, a power of two 512..8192 (default 4096)
+  --shadow-lights N   point/spot lights with shadows besides the sun, 0..32 (default 16)
+  --no-shadow-cache   re-render every shadow map every frame (for comparison)
+  --ssao-radius R     SSAO radius in world units (default 1.5% of the scene diagonal)
+  --ssao-strength S   0..4 (default 1)        --ssao-full-res  SSAO at full resolution
+  --bloom-strength S  0..1 (default 0.05)
   --exposure EV       fixed exposure in stops (default 0)   --auto-exposure
-  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask
+  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask|
+                      shadow_atlas|cascades|ssao|bloom
   --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
 )";
 
@@ -86,6 +93,7 @@ bool ParseToggle(ArgReader& args, v1::RenderSettings* settings) {
       {"light-culling", &v1::RenderSettings::set_light_culling},
       {"tile-depth-mask", &v1::RenderSettings::set_tile_depth_mask},
       {"animate-lights", &v1::RenderSettings::set_lights_animated},
+      {"shadow-cache", &v1::RenderSettings::set_shadow_cache},
   };
   for (const auto& [name, set] : kToggles) {
     if (args.Is(absl::StrCat("--", name))) {
@@ -158,6 +166,18 @@ bool RenderFlags::ParseSettings(ArgReader& args) {
     s.set_light_time(args.Float());
   } else if (ParseToggle(args, &s)) {
     // done
+  } else if (args.Is("--shadow-atlas")) {
+    s.set_shadow_atlas_size(args.Uint());
+  } else if (args.Is("--shadow-lights")) {
+    s.set_shadow_lights(args.Uint());
+  } else if (args.Is("--ssao-radius")) {
+    s.set_ssao_radius(args.Float());
+  } else if (args.Is("--ssao-strength")) {
+    s.set_ssao_strength(args.Float());
+  } else if (args.Is("--ssao-full-res")) {
+    s.set_ssao_half_res(false);
+  } else if (args.Is("--bloom-strength")) {
+    s.set_bloom_strength(args.Float());
   } else if (args.Is("--exposure")) {
     s.set_exposure_mode(v1::EXPOSURE_FIXED);
     s.set_exposure_ev(args.Float());

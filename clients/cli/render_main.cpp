@@ -29,7 +29,11 @@ constexpr char kUsage[] = R"(usage: tessera-render [options]
   --aa MODE           none|msaa|fxaa|taa|vis_mlaa          --samples N   1|2|4|8
   --culling MODE      none|cpu_frustum|gpu_frustum|gpu_occlusion
   --exposure EV       exposure in stops (default 0)
-  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask
+  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask|
+                      shadow_atlas|cascades|ssao|bloom
+  --shadows           sun cascades + point/spot shadow maps   --shadow-atlas N (512..8192)
+  --shadow-lights N   shadowed point/spot lights, 0..32 (default 16)   --no-shadow-cache
+  --ssao              ambient obscurance   --ssao-radius R   --ssao-strength S   --ssao-full-res
   --no-scene-lights   ignore the file's KHR_lights_punctual lights
   --lights N          N synthetic point lights in the scene bounds   --light-seed N
   --tile-size N       light-culling tile, 8|16|32 pixels
@@ -135,6 +139,22 @@ int main(int argc, char** argv) {
       settings.exposure_ev = ParseFloat(arg, value());
     else if (arg == "--debug")
       settings.debug_view = OrFail(ParseDebugView(value()));
+    else if (arg == "--shadows")
+      settings.shadows = true;
+    else if (arg == "--shadow-atlas")
+      settings.shadow_atlas_size = ParseUint(arg, value());
+    else if (arg == "--shadow-lights")
+      settings.shadow_lights = ParseUint(arg, value());
+    else if (arg == "--no-shadow-cache")
+      settings.shadow_cache = false;
+    else if (arg == "--ssao")
+      settings.ssao = true;
+    else if (arg == "--ssao-radius")
+      settings.ssao_radius = ParseFloat(arg, value());
+    else if (arg == "--ssao-strength")
+      settings.ssao_strength = ParseFloat(arg, value());
+    else if (arg == "--ssao-full-res")
+      settings.ssao_half_res = false;
     else if (arg == "--no-scene-lights")
       settings.scene_lights = false;
     else if (arg == "--lights")

@@ -20,8 +20,10 @@ void ResolveDepthInto(const PassContext& ctx, VkRenderingAttachmentInfo& depth) 
 }
 
 void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* colors,
-                    uint32_t color_count, const VkRenderingAttachmentInfo* depth) {
-  const VkRect2D full{{0, 0}, {ctx.targets->width, ctx.targets->height}};
+                    uint32_t color_count, const VkRenderingAttachmentInfo* depth,
+                    VkExtent2D extent) {
+  if (extent.width == 0) extent = {ctx.targets->width, ctx.targets->height};
+  const VkRect2D full{{0, 0}, extent};
   VkRenderingInfo ri{VK_STRUCTURE_TYPE_RENDERING_INFO};
   ri.renderArea = full;
   ri.layerCount = 1;

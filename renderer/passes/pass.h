@@ -27,6 +27,8 @@ inline constexpr VkFormat kLdrFormat = VK_FORMAT_R8G8B8A8_SRGB;
 inline constexpr VkFormat kHizFormat = VK_FORMAT_R32_SFLOAT;
 inline constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
 inline constexpr VkFormat kMaterialDepthFormat = VK_FORMAT_D32_SFLOAT;
+inline constexpr VkFormat kShadowFormat = VK_FORMAT_D16_UNORM;  // the shadow atlas (16-bit)
+inline constexpr VkFormat kAoFormat = VK_FORMAT_R16G16_SFLOAT;  // ssao: visibility + depth
 
 struct FrameTargets {
   uint32_t width = 0, height = 0;
@@ -43,6 +45,7 @@ struct FrameTargets {
   vk::Image vis_id, vis_coverage, material_depth;
   vk::Image post_hdr;
   vk::Image fxaa;
+  vk::Image ao, ao_temp;  // ssao's size, made when ssao first runs
   const vk::Image& Get(Resource r) const {
     switch (r) {
       case Resource::kDepth: return depth;
@@ -57,6 +60,8 @@ struct FrameTargets {
       case Resource::kMaterialDepth: return material_depth;
       case Resource::kPostHdr: return post_hdr;
       case Resource::kFxaaColor: return fxaa;
+      case Resource::kAo: return ao;
+      case Resource::kAoTemp: return ao_temp;
       case Resource::kCount: break;
     }
     return ldr;
@@ -141,6 +146,25 @@ struct SceneLayout {
   VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
 };
 
+// shadows: the atlas (kept by the renderer across frames, outside the frame graph: it is in
+// shader-read layout between frames) and the faces this frame renders into it.
+struct ShadowFace {
+  uint32_t x = 0, y = 0, size = 0;  // texels of the atlas
+  glm::mat4 view_proj{1.0f};        // world -> the face's clip space
+  std::vector<uint32_t> items;      // the scene's draw items in the face's frustum
+};
+struct ShadowFrame {
+  const vk::Image* atlas = nullptr;
+  bool atlas_new = false;  // never written: cleared whole, from the undefined layout
+  std::vector<ShadowFace> faces;
+};
+
+// ssao's parameters (shaders/ssao.frag).
+struct SsaoFrame {
+  glm::vec4 proj{0.0f};    // proj00, proj11, p22, p32
+  glm::vec4 params{0.0f};  // radius (world), strength, bias, unused
+};
+
 struct PassContext {
   VkCommandBuffer cmd = VK_NULL_HANDLE;
   const vk::Context* vk = nullptr;
@@ -156,6 +180,12 @@ struct PassContext {
   const CullBuffers* cull = nullptr;
   const VisFrame* vis = nullptr;
   const TaaFrame* taa = nullptr;
+  const ShadowFrame* shadows = nullptr;
+  const SsaoFrame* ssao = nullptr;
+  // The atlas the shading reads (the real one, or a 1x1 stand-in without shadows), in
+  // shader-read layout outside the shadow pass; the tonemap pass shows it as a debug view.
+  const vk::Image* shadow_atlas_view = nullptr;
+  const vk::Image* ao_view = nullptr;  // ssao's result, or a 1x1 stand-in (shader-read layout)
   // The colour passes draw into; Settings::samples where multisampled.
   uint32_t samples = 1;
 };
@@ -225,6 +255,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx);
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx);
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx);
+// shadows: renders ShadowFrame::faces into the atlas.
+absl::StatusOr<std::unique_ptr<Pass>> CreateShadowPass(const vk::Context& ctx,
+                                                       const SceneLayout& layout);
+// ssao: obscurance at the size of FrameTargets::ao, blurred in place through ao_temp.
+absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx);
 // A full-screen post pass: one fragment shader reading combined image samplers (bindings 0..n-1,
 // in the order of `inputs`) with a push-constant block, writing `outputs` colour targets.
 // Shared by tonemap, geometric AA, TAA and FXAA.
@@ -247,8 +282,10 @@ class FullscreenProgram {
                                                   std::vector<VkFormat> outputs);
   // One full-screen triangle into `outputs` (cleared contents are not loaded: every pixel is
   // written).
+  // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's).
   void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
-            const std::vector<VkImageView>& outputs, const void* push) const;
+            const std::vector<VkImageView>& outputs, const void* push,
+            VkExtent2D extent = {0, 0}) const;
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
@@ -284,9 +321,10 @@ absl::StatusOr<vk::Sampler> CreateClampSampler(const vk::Context& ctx, bool line
 // and sets the full-frame viewport and scissor.
 void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* color,
                     const VkRenderingAttachmentInfo* depth);
-// The same with `color_count` colour attachments.
+// The same with `color_count` colour attachments, over `extent` (0 x 0: the frame's size).
 void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* colors,
-                    uint32_t color_count, const VkRenderingAttachmentInfo* depth);
+                    uint32_t color_count, const VkRenderingAttachmentInfo* depth,
+                    VkExtent2D extent = {0, 0});
 // Makes `depth` (a multisampled attachment) resolve into the frame's single-sampled depth: the
 // farthest sample where the device can (conservative for the depth pyramid and light culling),
 // else sample 0.

@@ -51,7 +51,8 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
 }
 
 void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
-                             const std::vector<VkImageView>& outputs, const void* push) const {
+                             const std::vector<VkImageView>& outputs, const void* push,
+                             VkExtent2D extent) const {
   const VkDescriptorSet set = layout_.Allocate(ctx);
   std::vector<VkDescriptorImageInfo> images;
   images.reserve(inputs.size());
@@ -77,7 +78,7 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
     c.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     colors.push_back(c);
   }
-  BeginRendering(ctx, colors.data(), uint32_t(colors.size()), nullptr);
+  BeginRendering(ctx, colors.data(), uint32_t(colors.size()), nullptr, extent);
   vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
   vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.pipeline_layout(), 0,
                           1, &set, 0, nullptr);
@@ -135,11 +136,18 @@ class TonemapPass final : public PostPass {
     struct {
       float exposure;        // linear multiplier, 2^exposure_ev
       uint32_t passthrough;  // 1 for debug views
+      uint32_t debug_view;
+      uint32_t unused;
     } push{std::exp2(ctx.settings->exposure_ev),
-           ctx.settings->debug_view != DebugView::kNone ? 1u : 0u};
+           ctx.settings->debug_view != DebugView::kNone ? 1u : 0u,
+           static_cast<uint32_t>(ctx.settings->debug_view), 0u};
     const AaMode aa = ctx.settings->aa;
     const bool post = aa == AaMode::kVisMlaa || aa == AaMode::kTaa;
-    program_.Draw(ctx, {Nearest(post ? ctx.targets->post_hdr : ctx.targets->hdr)},
+    // The atlas is in shader-read layout outside the shadow pass, ao in the frame graph's
+    // sampled state (1x1 stand-ins without shadows, ssao).
+    program_.Draw(ctx,
+                  {Nearest(post ? ctx.targets->post_hdr : ctx.targets->hdr),
+                   Linear(*ctx.ao_view), Nearest(*ctx.shadow_atlas_view)},
                   {ctx.targets->ldr.view()}, &push);
   }
 };
@@ -219,7 +227,7 @@ class FxaaPass final : public PostPass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
-  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 1, 8, {kLdrFormat});
+  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 3, 16, {kLdrFormat});
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
   return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3, 12, {kHdrFormat});

@@ -87,6 +87,11 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
   raster.cullMode = VK_CULL_MODE_NONE;                 // dynamic
   raster.frontFace = VK_FRONT_FACE_COUNTER_CLOCKWISE;  // glTF winding; projection flips Y
   raster.lineWidth = 1.0f;
+  if (desc.depth_bias_constant != 0.0f || desc.depth_bias_slope != 0.0f) {
+    raster.depthBiasEnable = VK_TRUE;
+    raster.depthBiasConstantFactor = desc.depth_bias_constant;
+    raster.depthBiasSlopeFactor = desc.depth_bias_slope;
+  }
   VkPipelineMultisampleStateCreateInfo multisample{
       VK_STRUCTURE_TYPE_PIPELINE_MULTISAMPLE_STATE_CREATE_INFO};
   multisample.rasterizationSamples = desc.samples;

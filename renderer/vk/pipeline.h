@@ -56,6 +56,9 @@ struct GraphicsPipelineDesc {
   bool depth_write = false;
   VkCompareOp depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reverse-Z
   BlendMode blend = BlendMode::kNone;
+  // Rasterizer depth bias (shadow maps): constant in depth units, slope-scaled.
+  float depth_bias_constant = 0.0f;
+  float depth_bias_slope = 0.0f;
   VkSampleCountFlagBits samples = VK_SAMPLE_COUNT_1_BIT;
 };
 

@@ -43,6 +43,19 @@ TS_CONST uint kBindingMaterials = 3;    // buffer GpuMaterial[]
 TS_CONST uint kBindingLocalLights = 4;  // buffer GpuLight[] (point and spot lights)
 TS_CONST uint kBindingTileCounts = 5;   // buffer uint[] lights per tile (| kTileOverflowBit)
 TS_CONST uint kBindingTileLights = 6;   // buffer uint[] tile * kMaxLightsPerTile + k -> light
+TS_CONST uint kBindingShadows = 7;      // uniform ShadowUniforms (views of the shadow atlas)
+TS_CONST uint kBindingShadowAtlas = 8;  // sampler2DShadow: the shadow atlas (LESS_OR_EQUAL)
+TS_CONST uint kBindingAo = 9;           // sampler2D: SSAO visibility (r), bilinear
+// ---- shadows (shaders/common/shadows.glsl, renderer/shadows.h) --------------------------------
+// Every shadow map of a frame is a "view" in one atlas: the sun's cascades first, then per
+// shadowed local light one view (spot) or six (point: +X, -X, +Y, -Y, +Z, -Z). A light finds its
+// views through GpuLight.shadow: x first view + 1 (0: unshadowed), y view count.
+// 4 cascades + 32 point lights x 6 faces; 196 x 80 B + the header stay inside 16 KiB.
+TS_CONST uint kMaxShadowedLights = 32;
+TS_CONST uint kMaxShadowViews = 4 + kMaxShadowedLights * 6;
+// ShadowUniforms.counts.w bits.
+TS_CONST uint kShadowsOn = 1u;
+TS_CONST uint kSsaoOn = 2u;
 // ---- the light-culling compute pass (its own set 0) ------------------------------------------
 TS_CONST uint kCullBindingFrame = 0;        // uniform FrameUniforms
 TS_CONST uint kCullBindingLightBounds = 1;  // buffer GpuLightBounds[]
@@ -133,6 +146,12 @@ TS_CONST uint kDebugNormals = 1;
 TS_CONST uint kDebugDepth = 2;
 TS_CONST uint kDebugBaseColor = 3;
 TS_CONST uint kDebugLightHeatmap = 4;
+TS_CONST uint kDebugCullingOverlay = 5;
+TS_CONST uint kDebugAaMask = 6;
+TS_CONST uint kDebugShadowAtlas = 7;  // the tonemap pass shows the atlas
+TS_CONST uint kDebugCascades = 8;     // surfaces tinted by the sun cascade that shadows them
+TS_CONST uint kDebugSsao = 9;         // the tonemap pass shows the blurred AO
+TS_CONST uint kDebugBloom = 10;       // the tonemap pass shows the bloom
 
 // Vertex attribute locations of the single scene vertex buffer (see scene::Vertex).
 TS_CONST uint kAttrPosition = 0;
@@ -201,7 +220,22 @@ struct GpuLight {
   vec4 position_range;   // xyz position, w range (0 = infinite)
   vec4 color_intensity;  // rgb linear colour, a intensity (candela for point/spot, lux for sun)
   vec4 direction_type;   // xyz direction the light points to, w type (kLight*)
-  vec4 spot;             // x angle scale, y angle offset (glTF spot falloff), zw unused
+  vec4 spot;             // x angle scale, y angle offset (glTF spot falloff),
+                         // z first shadow view + 1 (0: unshadowed), w shadow view count
+};
+
+// One shadow map in the atlas (renderer/shadows.h has the conventions).
+struct GpuShadowView {
+  mat4 world_to_atlas;  // world -> (atlas uv, depth) after the divide by w
+  vec4 params;          // x world size of a texel (orthographic) or of a texel at distance 1
+                        // (perspective), y 1 for perspective, zw unused
+};
+
+struct ShadowUniforms {
+  uvec4 counts;  // x views, y sun cascades, z unused, w kShadowsOn | kSsaoOn
+  vec4 atlas;    // x atlas size in texels, y 1 / size, z normal offset in texels, w unused
+  vec4 cascade_spheres[4];  // world xyz centre, w radius (the sphere the cascade covers)
+  GpuShadowView views[kMaxShadowViews];
 };
 
 // What the light-culling pass needs of a local light, prepared on the CPU (each light is

@@ -2,9 +2,10 @@
 // evaluation, BRDF and light lists): the glTF 2.0 metallic-roughness BRDF (Appendix B of the
 // spec): GGX distribution, height-correlated Smith visibility, Schlick Fresnel, Lambert diffuse.
 // Global (directional) lights from the lights UBO, local lights from the tile lists (or all of
-// them, brute force), plus a hemisphere ambient with an analytic split-sum specular term (IBL
-// proper comes with the lighting issue). Needs scene.glsl, sky.glsl and textures.glsl (the
-// material in set 1); fragment shaders only (the tile comes from gl_FragCoord).
+// them, brute force), shadowed through the shadow atlas (shadows.glsl), plus a hemisphere
+// ambient with an analytic split-sum specular term, darkened by SSAO. Needs scene.glsl, sky.glsl,
+// textures.glsl (the material in set 1) and shadows.glsl; fragment shaders only (the tile and
+// the AO texel come from gl_FragCoord).
 #ifndef TESSERA_SHADING_GLSL
 #define TESSERA_SHADING_GLSL
 
@@ -50,9 +51,12 @@ vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
 }
 
 
-// One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff).
-vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
-                float alpha) {
+layout(set = 0, binding = kBindingAo) uniform sampler2D u_ao;
+
+// One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff),
+// times its shadow. `ng` is the unperturbed surface normal (the shadow lookup's normal offset).
+vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff,
+                vec3 f0, float alpha) {
   uint type = uint(light.direction_type.w);
   vec3 l;
   float attenuation = 1.0;
@@ -76,6 +80,10 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 v, float n_dot_v, vec3 c_di
   }
   float n_dot_l = dot(n, l);
   if (n_dot_l <= 0.0 || attenuation <= 0.0) return vec3(0.0);
+  if (light.spot.z > 0.0) {
+    attenuation *= ShadowFactor(light, p, ng);
+    if (attenuation <= 0.0) return vec3(0.0);
+  }
   vec3 h = normalize(l + v);
   float n_dot_h = max(dot(n, h), 0.0);
   float v_dot_h = max(dot(v, h), 0.0);
@@ -119,6 +127,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   // Back faces (drawn only for double-sided materials) use the flipped frame.
   float side = s.front_facing ? 1.0 : -1.0;
   vec3 n = normalize(s.normal) * side;
+  vec3 ng = n;
   if (HasTexture(m.normal_tex)) {
     vec3 t = s.tangent.xyz * side;
     t = normalize(t - n * dot(n, t));
@@ -162,23 +171,32 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
 
   vec3 color = vec3(0.0);
   for (uint i = 0u; i < frame.counts.x; ++i)  // global (directional) lights
-    color += ShadeLight(lights[i], s.world, n, v, n_dot_v, c_diff, f0, alpha);
+    color += ShadeLight(lights[i], s.world, n, ng, v, n_dot_v, c_diff, f0, alpha);
   if (tiled) {
     uint base = tile * kMaxLightsPerTile;
     for (uint k = 0u; k < tile_count; ++k)
-      color += ShadeLight(local_lights[tile_lights[base + k]], s.world, n, v, n_dot_v, c_diff, f0,
-                          alpha);
+      color += ShadeLight(local_lights[tile_lights[base + k]], s.world, n, ng, v, n_dot_v, c_diff,
+                          f0, alpha);
   } else {  // brute force: every local light for every pixel
     for (uint i = 0u; i < frame.lighting.x; ++i)
-      color += ShadeLight(local_lights[i], s.world, n, v, n_dot_v, c_diff, f0, alpha);
+      color += ShadeLight(local_lights[i], s.world, n, ng, v, n_dot_v, c_diff, f0, alpha);
   }
 
   // Ambient: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
   // reflection vector, blurred towards the average as roughness grows.
   vec3 r = reflect(-v, n);
   vec3 env = mix(Hemisphere(r), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb), roughness);
+  // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
+  // not in the depth it was computed from.
+  if ((shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
+    ao *= texture(u_ao, gl_FragCoord.xy / vec2(frame.counts.zw)).r;
   color += (Hemisphere(n) * c_diff + env * EnvBrdfApprox(f0, roughness, n_dot_v)) * ao;
   color += emissive;
+  if (debug_view == kDebugCascades) {
+    // Lit colour, tinted by the cascade; darker where the sun is shadowed.
+    float lum = dot(color, vec3(0.2126, 0.7152, 0.0722));
+    return vec4(CascadeColor(s.world) * (0.25 + 0.75 * clamp(lum, 0.0, 1.0)), 1.0);
+  }
 
   return vec4(color, m.flags.x == kAlphaBlend ? base.a : 1.0);
 }

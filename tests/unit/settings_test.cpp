@@ -49,6 +49,12 @@ TEST(ValidateSettingsTest, RangeLimitsAreInclusive) {
       [](Settings& s) { s.exposure_ev = 20.0f; },
       [](Settings& s) { s.jpeg_quality = 1; },
       [](Settings& s) { s.jpeg_quality = 100; },
+      [](Settings& s) { s.shadow_atlas_size = 512; },
+      [](Settings& s) { s.shadow_atlas_size = 8192; },
+      [](Settings& s) { s.shadow_lights = 0; },
+      [](Settings& s) { s.shadow_lights = 32; },
+      [](Settings& s) { s.ssao_strength = 4.0f; },
+      [](Settings& s) { s.bloom_strength = 1.0f; },
   };
   for (size_t i = 0; i < edits.size(); ++i) {
     Settings s;
@@ -83,6 +89,14 @@ TEST(ValidateSettingsTest, OutOfRangeFieldsAreNamed) {
       {"culling", [](Settings& s) { s.culling = Invalid<CullingMode>(); }},
       {"exposure_mode", [](Settings& s) { s.exposure_mode = Invalid<ExposureMode>(); }},
       {"debug_view", [](Settings& s) { s.debug_view = Invalid<DebugView>(); }},
+      {"shadow_atlas_size", [](Settings& s) { s.shadow_atlas_size = 256; }},
+      {"shadow_atlas_size", [](Settings& s) { s.shadow_atlas_size = 3000; }},
+      {"shadow_atlas_size", [](Settings& s) { s.shadow_atlas_size = 16384; }},
+      {"shadow_lights", [](Settings& s) { s.shadow_lights = 33; }},
+      {"ssao_radius", [](Settings& s) { s.ssao_radius = -1.0f; }},
+      {"ssao_radius", [](Settings& s) { s.ssao_radius = std::nanf(""); }},
+      {"ssao_strength", [](Settings& s) { s.ssao_strength = 4.5f; }},
+      {"bloom_strength", [](Settings& s) { s.bloom_strength = -0.1f; }},
   };
   for (const Case& c : cases) {
     Settings s;
@@ -137,6 +151,13 @@ const std::vector<Field>& AllFields() {
       TESSERA_FIELD(debug_view),
       TESSERA_FIELD(jpeg_quality),
       TESSERA_FIELD(jpeg_444),
+      TESSERA_FIELD(shadow_atlas_size),
+      TESSERA_FIELD(shadow_lights),
+      TESSERA_FIELD(shadow_cache),
+      TESSERA_FIELD(ssao_radius),
+      TESSERA_FIELD(ssao_strength),
+      TESSERA_FIELD(ssao_half_res),
+      TESSERA_FIELD(bloom_strength),
   };
   return fields;
 }
@@ -267,9 +288,29 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
   add("ibl", [](Settings& s) { s.ibl = true; });
   add("exposure auto", [](Settings& s) { s.exposure_mode = ExposureMode::kAuto; });
   add("exposure_ev", [](Settings& s) { s.exposure_ev = -3.5f; });
-  for (uint32_t v = 0; v < 7; ++v)
+  for (uint32_t v = 0; v < 11; ++v) {
     add("debug_view " + std::to_string(v),
         [v](Settings& s) { s.debug_view = static_cast<DebugView>(v); });
+    add("debug_view with effects " + std::to_string(v), [v](Settings& s) {
+      s.debug_view = static_cast<DebugView>(v);
+      s.shadows = s.ssao = s.bloom = true;
+    });
+  }
+  add("shadow atlas 8192", [](Settings& s) {
+    s.shadows = true;
+    s.shadow_atlas_size = 8192;
+  });
+  add("shadow lights 32, no cache", [](Settings& s) {
+    s.shadows = true;
+    s.shadow_lights = 32;
+    s.shadow_cache = false;
+  });
+  add("ssao full res", [](Settings& s) {
+    s.ssao = true;
+    s.ssao_half_res = false;
+    s.ssao_radius = 0.5f;
+    s.ssao_strength = 2.0f;
+  });
   add("jpeg_quality", [](Settings& s) { s.jpeg_quality = 37; });
   add("jpeg_444", [](Settings& s) { s.jpeg_444 = true; });
   add("everything", [](Settings& s) {
