@@ -35,10 +35,11 @@ vec3 PbrNeutral(vec3 color) {
 void main() {
   vec2 size = vec2(textureSize(u_hdr, 0));
   if (push.debug_view == kDebugShadowAtlas) {
-    // The atlas as a square at the left, full height: near the light dark, far white.
+    // The atlas as a square at the left, full height: near the light dark, far and empty
+    // white. The power spreads the perspective maps' depths, which crowd near 1.
     vec2 uv = gl_FragCoord.xy / size.y;
-    float d = uv.x <= 1.0 ? textureLod(u_atlas, uv, 0.0).r : 0.0;
-    out_color = vec4(vec3(d * d), 1.0);
+    float d = uv.x <= 1.0 ? pow(textureLod(u_atlas, uv, 0.0).r, 32.0) : 0.0;
+    out_color = vec4(vec3(d), 1.0);
     return;
   }
   if (push.debug_view == kDebugSsao) {
