@@ -617,8 +617,10 @@ absl::Status Renderer::Impl::PrepareShadows(const GpuScene& gs, const Camera& ca
           {"shadows", "the sun's cascades did not fit the shadow atlas; the sun is unshadowed"});
       break;
     }
+    // The spheres the shader picks cascades by, less the normal offset's 1.5 texels (and half a
+    // texel of snapping): an offset lookup then stays inside the map's filter border.
     for (uint32_t c = 0; c < cs.size(); ++c)
-      su.cascade_spheres[c] = glm::vec4(cs[c].center, cs[c].radius);
+      su.cascade_spheres[c] = glm::vec4(cs[c].center, cs[c].radius - 2.0f * cs[c].texel_world);
     cascades = uint32_t(cs.size());
     gl[i].spot.z = 1.0f;  // views 0 .. cascades - 1
     gl[i].spot.w = float(cascades);
@@ -638,7 +640,7 @@ absl::Status Renderer::Impl::PrepareShadows(const GpuScene& gs, const Camera& ca
     const bool spot = l.type == LightType::kSpot;
     const uint32_t faces = spot ? 1 : kCubeFaces;
     bool placed = false;
-    for (uint32_t res = size / (spot ? 8 : 16); res >= 64 && !placed; res /= 2) {
+    for (uint32_t res = std::max(size / (spot ? 8 : 16), 64u); res >= 64 && !placed; res /= 2) {
       const uint32_t first = views;
       const size_t rendered = out->faces.size();
       placed = true;
@@ -650,7 +652,8 @@ absl::Status Renderer::Impl::PrepareShadows(const GpuScene& gs, const Camera& ca
                                   : PointFaceViewProj(l, f, res, gs.bounds());
         placed = add_face(key_of(2, li, f), res, vp, 2.0f * tan_half / float(res), true);
       }
-      if (!placed) {
+      if (!placed) {  // give back the faces placed: they were never rendered
+        for (uint32_t f = 0; f < faces; ++f) atlas.Release(key_of(2, li, f));
         views = first;
         out->faces.resize(rendered);
         continue;

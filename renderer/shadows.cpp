@@ -249,6 +249,14 @@ ShadowAtlas::ShadowAtlas(uint32_t size, uint32_t min_face)
 
 void ShadowAtlas::BeginFrame() { ++frame_; }
 
+void ShadowAtlas::Release(uint64_t key) {
+  const auto held =
+      std::find_if(held_.begin(), held_.end(), [key](const auto& h) { return h.first == key; });
+  if (held == held_.end()) return;
+  Free(held->second.rect, held->second.level);
+  held_.erase(held);
+}
+
 void ShadowAtlas::Clear() {
   free_.assign(levels_, {});
   free_[0].push_back(AtlasRect{0, 0, size_});

@@ -124,6 +124,10 @@ class ShadowAtlas {
   // block of that size (the caller may ask again smaller, or leave the light unshadowed).
   std::optional<Placement> Acquire(uint64_t key, uint32_t size, uint64_t content);
 
+  // Gives face `key` back (a light whose other faces did not fit: its placed faces must not stay
+  // marked as holding contents that were never rendered). No-op for an unknown key.
+  void Release(uint64_t key);
+
   // Forgets every face (after a failed frame, or when the atlas image is recreated).
   void Clear();
 

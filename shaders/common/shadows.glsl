@@ -57,23 +57,28 @@ float ShadowFactor(GpuLight light, vec3 p, vec3 ng) {
   if (first == 0u || (shadow.counts.w & kShadowsOn) == 0u) return 1.0;
   uint view = first - 1u;
   uint type = uint(light.direction_type.w);
-  float distance = 1.0;
+  // The lookup point moves first, then picks its cascade or face: a face picked from the
+  // unmoved point could send the filter past its border into a neighbouring map. A light's
+  // views share their texel size (a cubemap's faces are one size), so view `first` gives it.
+  GpuShadowView v = shadow.views[view];
+  float texel = v.params.x;
+  if (type != kLightDirectional) {
+    vec3 d = p - light.position_range.xyz;
+    texel *= type == kLightPoint ? max(abs(d.x), max(abs(d.y), abs(d.z)))
+                                 : max(dot(d, light.direction_type.xyz), 0.0);
+  }
+  vec3 q = p + ng * (texel * shadow.atlas.z);
   if (type == kLightDirectional) {
-    uint c = SunCascade(p);
+    uint c = SunCascade(q);
     if (c >= shadow.counts.y) return 1.0;  // beyond the shadow distance: lit
     view += c;
-  } else {
-    vec3 d = p - light.position_range.xyz;
-    if (type == kLightPoint) {
-      view += CubeFace(d);
-      distance = max(abs(d.x), max(abs(d.y), abs(d.z)));
-    } else {
-      distance = max(dot(d, light.direction_type.xyz), 0.0);
-    }
+    // Cascades differ in texel size: the offset is the chosen cascade's.
+    q = p + ng * (shadow.views[view].params.x * shadow.atlas.z);
+  } else if (type == kLightPoint) {
+    view += CubeFace(q - light.position_range.xyz);
   }
-  GpuShadowView v = shadow.views[view];
-  float texel = v.params.x * (v.params.y > 0.5 ? distance : 1.0);
-  vec4 c = v.world_to_atlas * vec4(p + ng * (texel * shadow.atlas.z), 1.0);
+  v = shadow.views[view];
+  vec4 c = v.world_to_atlas * vec4(q, 1.0);
   vec3 tc = c.xyz / c.w;
   if (tc.z >= 1.0) return 1.0;  // past the map's far plane
   return ShadowPcf(vec3(tc.xy * shadow.atlas.x, tc.z));

@@ -221,12 +221,16 @@ TEST(ShadowCacheTest, FacesAreCulled) {
 TEST(ShadowTest, SmallAtlasSaysWhatIsUnshadowed) {
   const SceneHandle& scene = SharedDemoScene();
   Settings s = Lit(true, false);
-  s.shadow_atlas_size = 512;  // point-light faces would be 32 texels: too small to place
+  s.shadow_atlas_size = 512;  // the cascades take a quarter; 64-texel faces fill the rest
+  s.synthetic_lights = 40;
+  s.shadow_lights = 32;
   const Frame f = RenderOrDie(*scene, BackCamera(), s);
   bool noted = false;
   for (const SettingNote& n : f.settings.notes) noted |= n.field == "shadow_lights";
   EXPECT_TRUE(noted);
-  EXPECT_EQ(f.stats.shadowed_lights, 2u);  // the sun and the spot light
+  // 3/4 of 512^2 holds 48 faces of 64^2: 8 cubemaps, or 7 and the spot light.
+  EXPECT_GE(f.stats.shadowed_lights, 1u + 5u);
+  EXPECT_LE(f.stats.shadowed_lights, 1u + 9u);
   ExpectNoValidationMessages(SharedRenderer());
 }
 

@@ -778,6 +778,24 @@ TEST(ShadowAtlasTest, ClearForgetsEverything) {
   EXPECT_EQ(atlas.evictions(), 0u);
 }
 
+// A released face is forgotten: its space is free at once, and asking for it again is not a
+// cache hit (its contents were never rendered).
+TEST(ShadowAtlasTest, ReleaseFreesAndForgets) {
+  ShadowAtlas atlas(512, 64);
+  atlas.BeginFrame();
+  ASSERT_TRUE(atlas.Acquire(1, 256, 7));
+  atlas.Release(1);
+  atlas.Release(99);  // unknown: nothing happens
+  EXPECT_EQ(atlas.faces(), 0u);
+  const auto whole = atlas.Acquire(2, 512, 0);  // the same frame: all space is back
+  ASSERT_TRUE(whole);
+  atlas.BeginFrame();
+  atlas.Release(2);
+  const auto again = atlas.Acquire(1, 256, 7);
+  ASSERT_TRUE(again);
+  EXPECT_FALSE(again->cached);
+}
+
 TEST(ShadowAtlasTest, PlacementIsDeterministic) {
   auto run = [] {
     ShadowAtlas atlas(1024, 32);
