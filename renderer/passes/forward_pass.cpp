@@ -21,8 +21,13 @@ struct ForwardPipelines {
   vk::Pipeline sky;  // forward only
 };
 
+// Pipelines per key = samples | kEffectsKey when shadows or ssao are on (shading.glsl's
+// specialization constant 0).
+constexpr uint32_t kEffectsKey = 0x100;
+
 absl::StatusOr<ForwardPipelines> CreatePipelines(const vk::Context& ctx, const SceneLayout& layout,
-                                                 PassId id, uint32_t samples) {
+                                                 PassId id, uint32_t key) {
+  const uint32_t samples = key & ~kEffectsKey;
   const bool transparent = id == PassId::kTransparent;
   vk::GraphicsPipelineDesc d;
   d.name = transparent ? "transparent" : "forward";
@@ -36,8 +41,10 @@ absl::StatusOr<ForwardPipelines> CreatePipelines(const vk::Context& ctx, const S
   d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
   d.samples = static_cast<VkSampleCountFlagBits>(samples);
+  d.fragment_constants = {(key & kEffectsKey) ? 1u : 0u};
   absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
   if (!pipeline.ok()) return pipeline.status();
+  d.fragment_constants.clear();
   ForwardPipelines p;
   p.pipeline = std::move(*pipeline);
   if (!transparent) {
@@ -60,15 +67,17 @@ class ForwardPass final : public Pass {
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    return pipelines_.Ensure(s.aa == AaMode::kMsaa ? s.samples : 1, [&](uint32_t samples) {
-      return CreatePipelines(ctx, layout_, id_, samples);
-    });
+    return pipelines_.Ensure(Key(s, s.aa == AaMode::kMsaa ? s.samples : 1),
+                             [&](uint32_t key) { return CreatePipelines(ctx, layout_, id_, key); });
+  }
+  static uint32_t Key(const Settings& s, uint32_t samples) {
+    return samples | (s.shadows || s.ssao ? kEffectsKey : 0u);
   }
 
   void Record(PassContext& ctx) override {
     const bool transparent = id_ == PassId::kTransparent;
     const uint32_t samples = ForwardSamples(ctx);
-    const ForwardPipelines& p = pipelines_.at(samples);
+    const ForwardPipelines& p = pipelines_.at(Key(*ctx.settings, samples));
     const FrameTargets& t = *ctx.targets;
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     // vis_mlaa draws blended surfaces over its anti-aliased result.

@@ -232,9 +232,12 @@ constexpr VkClearColorValue kDebugBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
 class VisShadePass final : public Pass {
  public:
-  VisShadePass(VisLayout layout, vk::Pipeline pipeline, vk::Pipeline sky, vk::Sampler sampler)
+  // `effects`: built with shading.glsl's shadows and SSAO (specialization constant 0).
+  VisShadePass(VisLayout layout, vk::Pipeline pipeline, vk::Pipeline effects, vk::Pipeline sky,
+               vk::Sampler sampler)
       : layout_(std::move(layout)),
         pipeline_(std::move(pipeline)),
+        effects_(std::move(effects)),
         sky_(std::move(sky)),
         sampler_(std::move(sampler)) {}
   PassId id() const override { return PassId::kVisShade; }
@@ -258,7 +261,9 @@ class VisShadePass final : public Pass {
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_NONE;
     BeginRendering(ctx, &color, &depth);
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
+    const bool effects = ctx.settings->shadows || ctx.settings->ssao;
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
+                      (effects ? effects_ : pipeline_).handle());
     BindVisSets(ctx, layout_.pipeline_layout(), set);
     vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
     for (const MaterialRect& m : ctx.vis->materials) {
@@ -284,7 +289,7 @@ class VisShadePass final : public Pass {
 
  private:
   VisLayout layout_;
-  vk::Pipeline pipeline_;
+  vk::Pipeline pipeline_, effects_;
   vk::Pipeline sky_;
   vk::Sampler sampler_;
 };
@@ -337,6 +342,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
   d.depth_compare = VK_COMPARE_OP_EQUAL;
   absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
   if (!pipeline.ok()) return pipeline.status();
+  d.name = "vis_shade.effects";
+  d.fragment_constants = {1u};
+  absl::StatusOr<vk::Pipeline> effects = vk::CreateGraphicsPipeline(ctx, d);
+  if (!effects.ok()) return effects.status();
+  d.fragment_constants.clear();
   d.name = "vis_shade.sky";  // full-screen triangle at depth 0: the pixels the sky won
   d.vertex_shader = "fullscreen.vert";
   d.fragment_shader = "sky.frag";
@@ -345,7 +355,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
   absl::StatusOr<vk::Sampler> sampler = CreateClampSampler(ctx, false, "vis_shade");
   if (!sampler.ok()) return sampler.status();
   return std::make_unique<VisShadePass>(std::move(*layout), std::move(*pipeline),
-                                        std::move(*sky), std::move(*sampler));
+                                        std::move(*effects), std::move(*sky),
+                                        std::move(*sampler));
 }
 
 }  // namespace tessera

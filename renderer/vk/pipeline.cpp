@@ -45,10 +45,21 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
   stage.module = vs.get();
   stage.pName = "main";
   stages.push_back(stage);
+  std::vector<VkSpecializationMapEntry> entries;
+  VkSpecializationInfo spec{};
   if (!desc.fragment_shader.empty()) {
     if (absl::Status s = fs.Load(desc.fragment_shader); !s.ok()) return s;
     stage.stage = VK_SHADER_STAGE_FRAGMENT_BIT;
     stage.module = fs.get();
+    if (!desc.fragment_constants.empty()) {
+      for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i)
+        entries.push_back({i, i * 4, 4});
+      spec.mapEntryCount = uint32_t(entries.size());
+      spec.pMapEntries = entries.data();
+      spec.dataSize = desc.fragment_constants.size() * 4;
+      spec.pData = desc.fragment_constants.data();
+      stage.pSpecializationInfo = &spec;
+    }
     stages.push_back(stage);
   }
 

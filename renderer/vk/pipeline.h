@@ -56,6 +56,8 @@ struct GraphicsPipelineDesc {
   bool depth_write = false;
   VkCompareOp depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reverse-Z
   BlendMode blend = BlendMode::kNone;
+  // The fragment shader's specialization constants, constant_id i = fragment_constants[i].
+  std::vector<uint32_t> fragment_constants;
   // Rasterizer depth bias (shadow maps): constant in depth units, slope-scaled.
   float depth_bias_constant = 0.0f;
   float depth_bias_slope = 0.0f;

@@ -52,11 +52,18 @@ vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
 
 
 layout(set = 0, binding = kBindingAo) uniform sampler2D u_ao;
+// Pipelines are built with and without shadows and SSAO (constant 0): lavapipe runs the code of
+// an untaken branch at a cost (each doubled the shading pass of frames without them), so frames
+// without the effects use a pipeline that has none of their code.
+layout(constant_id = 0) const bool kLightingEffects = false;
 
 // One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff),
 // times its shadow. `ng` is the unperturbed surface normal (the shadow lookup's normal offset).
+// `with_shadows` is a literal at every call: the shader compiler folds the shadow code away from
+// the loops of frames without shadows (on lavapipe, an untaken branch to it inside the light
+// loop still doubled the shading pass).
 vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff,
-                vec3 f0, float alpha) {
+                vec3 f0, float alpha, bool with_shadows) {
   uint type = uint(light.direction_type.w);
   vec3 l;
   float attenuation = 1.0;
@@ -80,7 +87,7 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
   }
   float n_dot_l = dot(n, l);
   if (n_dot_l <= 0.0 || attenuation <= 0.0) return vec3(0.0);
-  if (light.spot.z > 0.0) {
+  if (with_shadows && light.spot.z > 0.0) {
     attenuation *= ShadowFactor(light, p, ng);
     if (attenuation <= 0.0) return vec3(0.0);
   }
@@ -93,6 +100,26 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
                   VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
   vec3 radiance = light.color_intensity.rgb * light.color_intensity.a * attenuation;
   return (diffuse + specular) * radiance * n_dot_l;
+}
+
+// Every light's contribution at a point: the global (directional) lights, then the local ones
+// of the tile's list (or all of them, brute force). `with_shadows` is a literal (see above).
+vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
+                 float alpha, bool tiled, uint tile, uint tile_count, bool with_shadows) {
+  vec3 color = vec3(0.0);
+  for (uint i = 0u; i < frame.counts.x; ++i)
+    color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, with_shadows);
+  if (tiled) {
+    uint base = tile * kMaxLightsPerTile;
+    for (uint k = 0u; k < tile_count; ++k)
+      color += ShadeLight(local_lights[tile_lights[base + k]], p, n, ng, v, n_dot_v, c_diff, f0,
+                          alpha, with_shadows);
+  } else {  // brute force: every local light for every pixel
+    for (uint i = 0u; i < frame.lighting.x; ++i)
+      color += ShadeLight(local_lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha,
+                          with_shadows);
+  }
+  return color;
 }
 
 // Blue -> green -> yellow -> red as a tile's light count goes 0 -> 16 -> 32 -> 64+.
@@ -169,18 +196,11 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
     return vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
   }
 
-  vec3 color = vec3(0.0);
-  for (uint i = 0u; i < frame.counts.x; ++i)  // global (directional) lights
-    color += ShadeLight(lights[i], s.world, n, ng, v, n_dot_v, c_diff, f0, alpha);
-  if (tiled) {
-    uint base = tile * kMaxLightsPerTile;
-    for (uint k = 0u; k < tile_count; ++k)
-      color += ShadeLight(local_lights[tile_lights[base + k]], s.world, n, ng, v, n_dot_v, c_diff,
-                          f0, alpha);
-  } else {  // brute force: every local light for every pixel
-    for (uint i = 0u; i < frame.lighting.x; ++i)
-      color += ShadeLight(local_lights[i], s.world, n, ng, v, n_dot_v, c_diff, f0, alpha);
-  }
+  vec3 color = kLightingEffects && (shadow.counts.w & kShadowsOn) != 0u
+                   ? DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile,
+                                 tile_count, true)
+                   : DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile,
+                                 tile_count, false);
 
   // Ambient: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
   // reflection vector, blurred towards the average as roughness grows.
@@ -188,11 +208,11 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   vec3 env = mix(Hemisphere(r), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb), roughness);
   // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
   // not in the depth it was computed from.
-  if ((shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
-    ao *= texture(u_ao, gl_FragCoord.xy / vec2(frame.counts.zw)).r;
+  if (kLightingEffects && (shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
+    ao *= textureLod(u_ao, gl_FragCoord.xy / vec2(frame.counts.zw), 0.0).r;
   color += (Hemisphere(n) * c_diff + env * EnvBrdfApprox(f0, roughness, n_dot_v)) * ao;
   color += emissive;
-  if (debug_view == kDebugCascades) {
+  if (kLightingEffects && debug_view == kDebugCascades) {
     // Lit colour, tinted by the cascade; darker where the sun is shadowed.
     float lum = dot(color, vec3(0.2126, 0.7152, 0.0722));
     return vec4(CascadeColor(s.world) * (0.25 + 0.75 * clamp(lum, 0.0, 1.0)), 1.0);
