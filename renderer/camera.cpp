@@ -86,9 +86,7 @@ Camera FrameBounds(const Aabb& bounds, float yfov, float aspect, glm::vec3 direc
   const float tan_x = tan_y * aspect;
   float distance = 0.0f, nearest = std::numeric_limits<float>::max();
   for (int i = 0; i < 8; ++i) {
-    const glm::vec3 corner(i & 1 ? box.max.x : box.min.x, i & 2 ? box.max.y : box.min.y,
-                           i & 4 ? box.max.z : box.min.z);
-    const glm::vec3 o = corner - center;
+    const glm::vec3 o = box.corner(i) - center;
     const float z = glm::dot(o, back);
     distance = std::max({distance, z + std::abs(glm::dot(o, right)) / tan_x,
                          z + std::abs(glm::dot(o, true_up)) / tan_y});

@@ -165,10 +165,7 @@ std::vector<MaterialRect> MaterialRects(const GpuScene& gs, const Frustum& frust
     glm::vec2 lo(1e30f), hi(-1e30f);
     bool behind = false;
     for (int c = 0; c < 8; ++c) {
-      const glm::vec3 corner((c & 1) ? d.world_bounds.max.x : d.world_bounds.min.x,
-                             (c & 2) ? d.world_bounds.max.y : d.world_bounds.min.y,
-                             (c & 4) ? d.world_bounds.max.z : d.world_bounds.min.z);
-      const glm::vec4 clip = view_proj * glm::vec4(corner, 1.0f);
+      const glm::vec4 clip = view_proj * glm::vec4(d.world_bounds.corner(c), 1.0f);
       if (clip.w <= 1e-6f) {
         behind = true;
         break;
@@ -588,17 +585,12 @@ absl::Status Renderer::Impl::PrepareShadows(const GpuScene& gs, const Camera& ca
 
   // The sun: the first directional light, in cascades that follow this view's camera (so the
   // key carries the view: two viewers of one scene do not overwrite each other's cascades).
+  const glm::vec3 eye = CameraPosition(camera);
   uint32_t cascades = 0;
   for (size_t i = 0; i < global.size(); ++i) {
     if (global[i].type != LightType::kDirectional) continue;
-    const glm::vec3 eye = CameraPosition(camera);
-    float distance = 0.0f;
     const Aabb& b = gs.bounds();
-    for (int c = 0; c < 8; ++c) {
-      const glm::vec3 corner((c & 1) ? b.max.x : b.min.x, (c & 2) ? b.max.y : b.min.y,
-                             (c & 4) ? b.max.z : b.min.z);
-      distance = std::max(distance, glm::length(corner - eye));
-    }
+    float distance = b.farthest_distance(eye);
     if (camera.zfar > 0.0f) distance = std::min(distance, camera.zfar);
     distance = std::max(distance, camera.znear * 2.0f);
     CascadeParams cp;
@@ -631,7 +623,6 @@ absl::Status Renderer::Impl::PrepareShadows(const GpuScene& gs, const Camera& ca
   // Point and spot lights: the most important ones in view. A spot has one view, a point
   // light six (its unrolled cubemap); a light whose faces do not fit even at half size stays
   // unshadowed.
-  const glm::vec3 eye = CameraPosition(camera);
   const std::vector<uint32_t> chosen =
       ChooseShadowedLights(local, FrustumFromViewProj(view_proj), eye, s.shadow_lights);
   uint32_t dropped = 0;

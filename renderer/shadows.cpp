@@ -10,10 +10,7 @@ namespace {
 
 std::array<glm::vec3, 8> Corners(const Aabb& b) {
   std::array<glm::vec3, 8> out;
-  for (int i = 0; i < 8; ++i) {
-    out[i] =
-        glm::vec3(i & 1 ? b.max.x : b.min.x, i & 2 ? b.max.y : b.min.y, i & 4 ? b.max.z : b.min.z);
-  }
+  for (int i = 0; i < 8; ++i) out[i] = b.corner(i);
   return out;
 }
 
@@ -147,14 +144,8 @@ float ShadowNear(const Light& light) {
 }
 
 float ShadowFar(const Light& light, const Aabb& scene_bounds) {
-  float far = light.range;
-  if (!(far > 0.0f)) {
-    far = 0.0f;
-    if (!scene_bounds.empty()) {
-      for (const glm::vec3& c : Corners(scene_bounds))
-        far = std::max(far, glm::length(c - light.position));
-    }
-  }
+  const float far =
+      light.range > 0.0f ? light.range : scene_bounds.farthest_distance(light.position);
   // A tiny range would put far before near.
   return std::max(far, ShadowNear(light) * 2.0f);
 }

@@ -1,6 +1,7 @@
 #pragma once
 // The CPU-side scene: what the glTF importer and the demo-scene generator produce, and what
 // GpuScene uploads. Plain data; no Vulkan, no tinygltf.
+#include <algorithm>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <limits>
@@ -28,6 +29,17 @@ struct Aabb {
   }
   glm::vec3 center() const { return (min + max) * 0.5f; }
   glm::vec3 extent() const { return max - min; }
+  // Corner i (0..7): bit 0 picks max.x over min.x, bit 1 max.y, bit 2 max.z.
+  glm::vec3 corner(int i) const {
+    return glm::vec3(i & 1 ? max.x : min.x, i & 2 ? max.y : min.y, i & 4 ? max.z : min.z);
+  }
+  // Distance from `p` to the farthest corner (0 for an empty box).
+  float farthest_distance(const glm::vec3& p) const {
+    float d = 0.0f;
+    if (!empty())
+      for (int i = 0; i < 8; ++i) d = std::max(d, glm::length(corner(i) - p));
+    return d;
+  }
   // Radius of the sphere around center() that encloses the box.
   float radius() const { return empty() ? 0.0f : glm::length(max - min) * 0.5f; }
   // The AABB of this box after an affine transform (exact for the transformed box's corners).

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "absl/strings/numbers.h"
+#include "bench_scene.h"
 #include "bench_util.h"
 #include "renderer/camera.h"
 #include "renderer/renderer.h"
@@ -96,16 +97,8 @@ int main(int argc, char** argv) {
   if (frames == 0) Fail("--frames must be at least 1");
   absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create();
   if (!renderer.ok()) Fail(std::string(renderer.status().message()));
-  absl::StatusOr<SceneHandle> scene;
-  if (scene_path.empty()) {
-    scene = (*renderer)->LoadScene(BuildDemoScene());
-  } else {
-    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(scene_path);
-    if (!source.ok()) Fail(std::string(source.status().message()));
-    scene = (*renderer)->LoadScene(*source);
-  }
-  if (!scene.ok()) Fail(std::string(scene.status().message()));
-  const SceneInfo& info = (*scene)->info();
+  const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
+  const SceneInfo& info = scene->info();
   Camera cam;
   if (scene_path.find("Sponza") != std::string::npos) {
     cam.eye = kSponzaEye;
@@ -130,7 +123,7 @@ int main(int argc, char** argv) {
   full.ssao_half_res = false;
 
   auto render = [&](const Settings& s, uint64_t view) {
-    absl::StatusOr<Frame> f = (*renderer)->Render(**scene, cam, s, view);
+    absl::StatusOr<Frame> f = (*renderer)->Render(*scene, cam, s, view);
     if (!f.ok()) Fail(std::string(f.status().message()));
     return std::move(*f);
   };

@@ -14,6 +14,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "bench_scene.h"
 #include "bench_util.h"
 #include "renderer/camera.h"
 #include "renderer/renderer.h"
@@ -109,16 +110,8 @@ int main(int argc, char** argv) {
   }
   absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
   if (!renderer.ok()) Fail(std::string(renderer.status().message()));
-  absl::StatusOr<SceneHandle> scene;
-  if (scene_path.empty()) {
-    scene = (*renderer)->LoadScene(BuildDemoScene());
-  } else {
-    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(scene_path);
-    if (!source.ok()) Fail(std::string(source.status().message()));
-    scene = (*renderer)->LoadScene(*source);
-  }
-  if (!scene.ok()) Fail(std::string(scene.status().message()));
-  const SceneInfo& info = (*scene)->info();
+  const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
+  const SceneInfo& info = scene->info();
   Camera cam = !info.cameras.empty() ? FromSceneCamera(info.cameras[0])
                                      : FrameBounds(info.bounds, 0.8f, float(width) / height);
   if (eye && target) {
@@ -134,7 +127,7 @@ int main(int argc, char** argv) {
   s.height = height;
   s.tile_size = tile;
   s.synthetic_lights = 0;
-  const Measured base = Measure(**renderer, **scene, cam, s, warmup, frames);
+  const Measured base = Measure(**renderer, *scene, cam, s, warmup, frames);
 
   nlohmann::json out;
   const DeviceInfo& dev = (*renderer)->device_info();
@@ -148,7 +141,7 @@ int main(int argc, char** argv) {
   for (uint32_t n : counts) {
     s.synthetic_lights = n;
     s.light_culling = true;
-    const Measured tiled = Measure(**renderer, **scene, cam, s, warmup, frames);
+    const Measured tiled = Measure(**renderer, *scene, cam, s, warmup, frames);
     nlohmann::json r;
     r["lights"] = n;
     r["tiled"] = {{"light_cull_ms", tiled.light_cull},
@@ -163,7 +156,7 @@ int main(int argc, char** argv) {
                     {"overflows", tiled.stats.tile_overflows}}}};
     // The same with per-tile depth bounds only (no 2.5D mask), to measure what the mask buys.
     s.tile_depth_mask = false;
-    const Measured bounds_only = Measure(**renderer, **scene, cam, s, warmup, frames);
+    const Measured bounds_only = Measure(**renderer, *scene, cam, s, warmup, frames);
     s.tile_depth_mask = true;
     r["tiled_depth_bounds_only"] = {{"light_cull_ms", bounds_only.light_cull},
                                     {"forward_ms", bounds_only.forward},
@@ -172,7 +165,7 @@ int main(int argc, char** argv) {
                                     {"lights_per_tile_max", bounds_only.stats.tile_lights_max}};
     if (n <= brute_max) {
       s.light_culling = false;
-      const Measured brute = Measure(**renderer, **scene, cam, s, 0, 1);
+      const Measured brute = Measure(**renderer, *scene, cam, s, 0, 1);
       r["brute_force"] = {{"forward_ms", brute.forward}, {"frame_ms", brute.frame}};
       // Shading of the lights alone: the forward pass minus what it costs without them.
       const double tiled_lights = std::max(1e-3, tiled.forward - base.forward);

@@ -16,6 +16,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "bench_scene.h"
 #include "bench_util.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
@@ -77,18 +78,10 @@ int main(int argc, char** argv) {
   absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
   if (!renderer.ok()) Fail(std::string(renderer.status().message()));
   const auto t0 = std::chrono::steady_clock::now();
-  absl::StatusOr<SceneHandle> scene;
-  if (scene_path.empty()) {
-    scene = (*renderer)->LoadScene(BuildDemoScene());
-  } else {
-    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(scene_path);
-    if (!source.ok()) Fail(std::string(source.status().message()));
-    scene = (*renderer)->LoadScene(*source);
-  }
-  if (!scene.ok()) Fail(std::string(scene.status().message()));
+  const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
   const double load_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  const SceneInfo& info = (*scene)->info();
+  const SceneInfo& info = scene->info();
 
   nlohmann::json out;
   const DeviceInfo& dev = (*renderer)->device_info();
@@ -118,7 +111,7 @@ int main(int argc, char** argv) {
     std::vector<double> total, record, submit_wait, readback, encode, ratio;
     Frame last;
     for (uint32_t f = 0; f < warmup + frames; ++f) {
-      absl::StatusOr<Frame> frame = (*renderer)->Render(**scene, camera, s);
+      absl::StatusOr<Frame> frame = (*renderer)->Render(*scene, camera, s);
       if (!frame.ok()) Fail(std::string(frame.status().message()));
       if (absl::StatusOr<std::vector<uint8_t>> jpg = EncodeFrame(*frame, ImageFormat::kJpeg);
           !jpg.ok()) {
