@@ -45,6 +45,10 @@ std::string_view PassName(PassId id) {
       return "geometric_aa";
     case PassId::kTaa:
       return "taa";
+    case PassId::kExposure:
+      return "exposure";
+    case PassId::kBloom:
+      return "bloom";
     case PassId::kFxaa:
       return "fxaa";
     case PassId::kCount:
@@ -53,11 +57,12 @@ std::string_view PassName(PassId id) {
   return "invalid";
 }
 
-std::vector<ResourceUse> PassUses(PassId id, AaMode aa, bool ssao) {
+std::vector<ResourceUse> PassUses(PassId id, AaMode aa, bool ssao, bool bloom) {
   std::vector<ResourceUse> uses = PassUsesWithoutAo(id, aa);
   const bool shades = id == PassId::kForward || id == PassId::kVisShade ||
                       id == PassId::kTransparent || id == PassId::kTonemap;
   if (ssao && shades) uses.push_back({Resource::kAo, Access::kSampled});
+  if (bloom && id == PassId::kTonemap) uses.push_back({Resource::kBloomUp, Access::kSampled});
   return uses;
 }
 
@@ -120,6 +125,10 @@ static std::vector<ResourceUse> PassUsesWithoutAo(PassId id, AaMode aa) {
       return {{R::kDepth, A::kDepthTest}, {vis ? R::kPostHdr : R::kHdrColor, A::kColorWrite}};
     case PassId::kTaa:
       return {{R::kHdrColor, A::kSampled}, {R::kDepth, A::kSampled}, {R::kPostHdr, A::kColorWrite}};
+    case PassId::kExposure:
+      return {{post, A::kComputeRead}};
+    case PassId::kBloom:
+      return {{post, A::kSampled}, {R::kBloomDown, A::kColorWrite}, {R::kBloomUp, A::kColorWrite}};
     case PassId::kTonemap:
       return {{post, A::kSampled}, {R::kLdrColor, A::kColorWrite}};
     case PassId::kFxaa:
@@ -164,6 +173,13 @@ std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& 
   // Blended surfaces need the opaque colour underneath and must not write depth.
   if (features.has_transparent) passes.push_back(PassId::kTransparent);
   if (settings.aa == AaMode::kTaa) passes.push_back(PassId::kTaa);
+  // Exposure before bloom: bloom's threshold is in exposed units. Debug views other than bloom's
+  // are not exposed, and must not move a stream's adapted exposure.
+  const bool exposed =
+      settings.debug_view == DebugView::kNone || settings.debug_view == DebugView::kBloom;
+  if (settings.exposure_mode == ExposureMode::kAuto && exposed)
+    passes.push_back(PassId::kExposure);
+  if (settings.bloom) passes.push_back(PassId::kBloom);
   passes.push_back(PassId::kTonemap);
   if (settings.aa == AaMode::kFxaa) passes.push_back(PassId::kFxaa);
   passes.push_back(PassId::kReadback);
@@ -199,15 +215,16 @@ int LayoutClass(Access a) {
 }  // namespace
 
 std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes,
-                                                     AaMode aa, bool ssao) {
+                                                     AaMode aa, bool ssao, bool bloom) {
   std::array<Access, static_cast<size_t>(Resource::kCount)> state;
   state.fill(Access::kNone);
   std::vector<std::vector<Transition>> plan(passes.size());
   for (size_t i = 0; i < passes.size(); ++i) {
-    for (const ResourceUse& use : PassUses(passes[i], aa, ssao)) {
+    for (const ResourceUse& use : PassUses(passes[i], aa, ssao, bloom)) {
       Access& current = state[static_cast<size_t>(use.resource)];
       const bool layout_change = LayoutClass(current) != LayoutClass(use.access);
-      if (layout_change || Writes(current) || Writes(use.access)) {
+      const bool other_stage = current != use.access;  // e.g. a compute read, then a fragment one
+      if (layout_change || other_stage || Writes(current) || Writes(use.access)) {
         plan[i].push_back({use.resource, current, use.access});
       }
       current = use.access;

@@ -30,6 +30,12 @@ enum class Resource : uint8_t {
   kFxaaColor,  // fxaa output, read back
   kAo,         // ssao: visibility (r) and view depth (g), half (or full) resolution
   kAoTemp,     // ssao: the blur's intermediate
+  // bloom: the downsample chain (mips from half the frame down) and the upsample chain (one
+  // mip fewer; its level 0 is the bloom). The bloom pass writes them (each mip is drawn, then
+  // read by the next draw: those per-mip barriers are its own) and hands bloom_up back as a
+  // colour target, all mips, so the graph's transition to the tonemap's read covers it.
+  kBloomDown,
+  kBloomUp,
   kCount
 };
 // (The culling passes' buffers are their own: each ends with a buffer barrier to the stage that
@@ -71,6 +77,8 @@ enum class PassId : uint8_t {
   kGeometricAa,   // vis_mlaa: blend partly covered pixels with the neighbours the mask points to
   kTransparent,   // blended materials, back to front, over the opaque result
   kTaa,           // taa: this frame blended with the reprojected history
+  kExposure,      // auto exposure: the frame's average log luma, adapted per view (compute)
+  kBloom,         // bloom: soft-threshold, 13-tap downsample chain, tent upsample chain
   kTonemap,       // HDR -> exposure -> tonemap -> sRGB RGBA8
   kFxaa,          // fxaa: one luma-based pass on the tonemapped image
   kReadback,      // RGBA8 image -> host buffer for the encoder
@@ -79,9 +87,11 @@ enum class PassId : uint8_t {
 
 std::string_view PassName(PassId id);
 // The resources a pass reads and writes; they depend on the AA mode (multisampled targets, the
-// post-AA colour) and on whether ssao runs (the shading passes then read its result).
-// kShadows uses none: its atlas lives across frames, outside the graph.
-std::vector<ResourceUse> PassUses(PassId id, AaMode aa = AaMode::kNone, bool ssao = false);
+// post-AA colour) and on whether ssao and bloom run (the shading and tonemap passes then read
+// their results). kShadows uses none: its atlas lives across frames, outside the graph, as does
+// auto exposure's per-view state.
+std::vector<ResourceUse> PassUses(PassId id, AaMode aa = AaMode::kNone, bool ssao = false,
+                                  bool bloom = false);
 
 // What the frame graph needs to know about the scene to pick passes.
 struct FrameFeatures {
@@ -100,10 +110,11 @@ struct Transition {
 };
 
 // For each pass, the transitions to make before it runs. A transition is emitted when the
-// layout changes or either side writes (write-after-write and read-after-write hazards);
-// read-after-read in the same layout needs none.
+// layout changes or either side writes (write-after-write and read-after-write hazards), and
+// between reads in different stages (a compute read then a fragment read: the barrier before
+// the first made the last write visible to its stage only); the same read again needs none.
 std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes,
                                                      AaMode aa = AaMode::kNone,
-                                                     bool ssao = false);
+                                                     bool ssao = false, bool bloom = false);
 
 }  // namespace tessera

@@ -6,11 +6,15 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <glm/gtc/packing.hpp>
+#include <limits>
 #include <map>
 #include <mutex>
 
 #include "absl/strings/str_cat.h"
 #include "renderer/frame_graph.h"
+#include "renderer/ibl.h"
+#include "renderer/ibl_maps.h"
 #include "renderer/light_culling.h"
 #include "renderer/shadows.h"
 #include "renderer/passes/pass.h"
@@ -36,6 +40,11 @@ constexpr size_t kMaxViews = 64;
 // the pyramid's cost is per texel (1280x720: 14.3 ms from a 1024x512 level 0, 6.4 ms from 512x256),
 // and the occlusion test reads a coarser level for all but tiny drawables anyway.
 constexpr uint32_t kHizLevel0Divisor = 2;
+// Auto exposure maps the frame's average luma to middle grey (Reinhard's key, 0.18) and moves a
+// tenth of the way towards each frame's average: about 90% of a change within 22 frames, under a
+// second at 30 frames a second. A view's first frame takes its own average at once.
+constexpr float kExposureKey = 0.18f;
+constexpr float kExposureAdaptRate = 0.1f;
 // Pipeline statistics gathered per geometry pass, in the order Vulkan returns them.
 constexpr VkQueryPipelineStatisticFlags kPipelineStats =
     VK_QUERY_PIPELINE_STATISTIC_INPUT_ASSEMBLY_PRIMITIVES_BIT |
@@ -258,6 +267,19 @@ struct Renderer::Impl {
   vk::Sampler shadow_sampler;  // comparison, bilinear
   vk::Sampler linear_sampler;  // ssao visibility
   vk::Image ao_placeholder;    // 1x1, shader-read layout: what the shading reads without ssao
+  // Auto exposure: each (scene, view)'s adapted average (ExposureFrame::state), least recently
+  // used dropped past kMaxExposureViews.
+  struct ExposureState {
+    vk::Image image;
+    bool written = false;
+    uint64_t last_used = 0;
+  };
+  std::map<std::pair<uint64_t, uint64_t>, ExposureState> exposure_state;
+  // IBL: the maps (made when ibl first runs), the hash of the sky they hold, and a 1x1 cube
+  // bound while ibl is off.
+  std::unique_ptr<IblMaps> ibl;
+  uint64_t ibl_sky_hash = 0;
+  vk::Image cube_placeholder;
 
   ~Impl() {
     if (!ctx) return;
@@ -265,6 +287,9 @@ struct Renderer::Impl {
     vkDeviceWaitIdle(d);
     for (auto& p : passes) p.reset();
     taa_history.clear();
+    exposure_state.clear();
+    ibl.reset();
+    cube_placeholder = vk::Image();
     shadow_atlas = vk::Image();
     shadow_placeholder = vk::Image();
     shadow_ubo = vk::Buffer();
@@ -294,6 +319,9 @@ struct Renderer::Impl {
   absl::Status InitShadows();
   absl::Status EnsureShadowAtlas(uint32_t size);
   absl::Status EnsureAo(uint32_t width, uint32_t height);
+  // bloom's chains for the current targets (half their size, kBloomLevels mips).
+  absl::Status EnsureBloom();
+  absl::StatusOr<ExposureState*> Exposure(const GpuScene& scene, uint64_t view);
   // shadows: places this frame's shadow views in the atlas, fills shadow_ubo's views, marks the
   // shadowed lights in `gl` / `ll` (the light buffers, in the order of `global` / `local`) and
   // lists the faces to render in `out`.
@@ -310,7 +338,10 @@ struct Renderer::Impl {
   absl::Status EnsureRowBuffer(size_t entries);
   absl::Status EnsureCullBuffers(uint32_t items, uint32_t lists);
   void DestroyHizViews();
-  absl::Status Capture(FrameCapture* capture, uint32_t tiles);
+  // Copies the depth, the light lists (`tiles` of them), the tonemap's input `hdr` (in the
+  // sampled layout) and auto exposure's `exposure` state (general layout; may be null).
+  absl::Status Capture(FrameCapture* capture, uint32_t tiles, const vk::Image& hdr,
+                       const vk::Image* exposure);
   // Capture helpers: begins `cmd`; makes the copies recorded so far visible to the host,
   // submits and waits.
   void BeginOneTime();
@@ -323,7 +354,9 @@ struct Renderer::Impl {
   void WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
   absl::StatusOr<GpuScene::ViewVisibility*> Visibility(const GpuScene& scene, uint64_t view);
   // The frame's set 0; binds the shadow atlas when `shadows` (else the 1x1 stand-in).
-  VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao);
+  VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao, bool ibl);
+  // ibl: makes the maps and bakes `sky` unless they hold it; true when it baked.
+  absl::StatusOr<bool> EnsureIbl(const SkyParams& sky);
 };
 
 absl::Status Renderer::Impl::Init() {
@@ -349,6 +382,14 @@ absl::Status Renderer::Impl::Init() {
        VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
       {gpu::kBindingAo, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
        nullptr},
+      {gpu::kBindingIrradiance, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingSpecular, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingBrdfLut, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingEnvironment, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
@@ -404,6 +445,8 @@ absl::Status Renderer::Impl::Init() {
   if (absl::Status s = add(CreateFxaaPass(*ctx)); !s.ok()) return s;
   if (absl::Status s = add(CreateShadowPass(*ctx, scene_layout)); !s.ok()) return s;
   if (absl::Status s = add(CreateSsaoPass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateExposurePass(*ctx)); !s.ok()) return s;
+  if (absl::Status s = add(CreateBloomPass(*ctx)); !s.ok()) return s;
 
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pci.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
@@ -430,15 +473,16 @@ absl::Status Renderer::Impl::Init() {
 
   // Per frame: the scene set, light culling, two culling phases, a set per pyramid level, the
   // vis_mlaa and post passes' sets.
-  // Shadows and ssao: two more images and a uniform buffer in the scene set, three ssao sets.
+  // Shadows, ssao, ibl: six more images and a uniform buffer in the scene set; the post passes
+  // allocate a set per draw (bloom: eleven).
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 40},
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 72},
-      {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 32},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 192},
+      {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 48},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  dpi.maxSets = 64;
+  dpi.maxSets = 128;
   dpi.poolSizeCount = 4;
   dpi.pPoolSizes = sizes;
   VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, &frame_pool), "descriptor pool");
@@ -506,16 +550,23 @@ absl::Status Renderer::Impl::InitShadows() {
   absl::StatusOr<vk::Image> ao = vk::Image::Create(*ctx, desc, "ao_placeholder");
   if (!ao.ok()) return ao.status();
   ao_placeholder = std::move(*ao);
+  // And without ibl, a 1x1 cube (never read either).
+  desc.format = VK_FORMAT_R16G16B16A16_SFLOAT;
+  desc.array_layers = 6;
+  desc.view_type = VK_IMAGE_VIEW_TYPE_CUBE;
+  absl::StatusOr<vk::Image> cube = vk::Image::Create(*ctx, desc, "cube_placeholder");
+  if (!cube.ok()) return cube.status();
+  cube_placeholder = std::move(*cube);
   BeginOneTime();
-  VkImageMemoryBarrier2 b[2];
-  for (int i = 0; i < 2; ++i) {
+  VkImageMemoryBarrier2 b[3];
+  for (int i = 0; i < 3; ++i) {
     b[i] = vk::MakeImageBarrier(
-        i == 0 ? shadow_placeholder : ao_placeholder,
+        i == 0 ? shadow_placeholder : i == 1 ? ao_placeholder : cube_placeholder,
         {VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_UNDEFINED,
          VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
   }
-  vk::CmdBarrier(cmd, b, 2);
+  vk::CmdBarrier(cmd, b, 3);
   return EndCopiesAndWait();
 }
 
@@ -725,8 +776,90 @@ absl::Status Renderer::Impl::EnsureCullBuffers(uint32_t items, uint32_t lists) {
 }
 
 void Renderer::Impl::DestroyHizViews() {
-  for (VkImageView v : targets.hiz_levels) vkDestroyImageView(ctx->device(), v, nullptr);
-  targets.hiz_levels.clear();
+  for (auto* levels : {&targets.hiz_levels, &targets.bloom_down_levels, &targets.bloom_up_levels}) {
+    for (VkImageView v : *levels) vkDestroyImageView(ctx->device(), v, nullptr);
+    levels->clear();
+  }
+}
+
+absl::Status Renderer::Impl::EnsureBloom() {
+  // At least 2^(kBloomLevels - 1) texels a side, so every level exists (a tiny frame's bloom is
+  // then magnified).
+  constexpr uint32_t kMin = 1u << (kBloomLevels - 1);
+  const uint32_t width = std::max(kMin, targets.width / 2);
+  const uint32_t height = std::max(kMin, targets.height / 2);
+  if (targets.bloom_down && targets.bloom_down.desc().width == width &&
+      targets.bloom_down.desc().height == height &&
+      targets.bloom_down_levels.size() == kBloomLevels &&
+      targets.bloom_up_levels.size() == kBloomLevels - 1)
+    return absl::OkStatus();
+  vkDeviceWaitIdle(ctx->device());
+  for (auto* levels : {&targets.bloom_down_levels, &targets.bloom_up_levels}) {
+    for (VkImageView v : *levels) vkDestroyImageView(ctx->device(), v, nullptr);
+    levels->clear();
+  }
+  auto make = [&](uint32_t mips, const char* name, vk::Image* image,
+                  std::vector<VkImageView>* views) -> absl::Status {
+    vk::ImageDesc desc;
+    desc.width = width;
+    desc.height = height;
+    desc.format = kHdrFormat;
+    desc.mip_levels = mips;
+    desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+    absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, name);
+    if (!img.ok()) return img.status();
+    *image = std::move(*img);
+    for (uint32_t level = 0; level < desc.mip_levels; ++level) {
+      VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+      vi.image = image->handle();
+      vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+      vi.format = kHdrFormat;
+      vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, level, 1, 0, 1};
+      VkImageView view;
+      if (vkCreateImageView(ctx->device(), &vi, nullptr, &view) != VK_SUCCESS)
+        return absl::ResourceExhaustedError(absl::StrCat(name, " level view"));
+      views->push_back(view);
+    }
+    return absl::OkStatus();
+  };
+  absl::Status st =
+      make(kBloomLevels, "bloom_down", &targets.bloom_down, &targets.bloom_down_levels);
+  if (st.ok()) st = make(kBloomLevels - 1, "bloom_up", &targets.bloom_up, &targets.bloom_up_levels);
+  if (!st.ok()) {  // all or nothing: the next frame with bloom tries again
+    for (auto* levels : {&targets.bloom_down_levels, &targets.bloom_up_levels}) {
+      for (VkImageView v : *levels) vkDestroyImageView(ctx->device(), v, nullptr);
+      levels->clear();
+    }
+    targets.bloom_down = vk::Image();
+    targets.bloom_up = vk::Image();
+  }
+  return st;
+}
+
+absl::StatusOr<Renderer::Impl::ExposureState*> Renderer::Impl::Exposure(const GpuScene& scene,
+                                                                        uint64_t view) {
+  constexpr size_t kMaxExposureViews = 64;  // 1x1 images: cheap to keep
+  const std::pair<uint64_t, uint64_t> key{scene.serial(), view};
+  auto it = exposure_state.find(key);
+  if (it != exposure_state.end()) {
+    it->second.last_used = ++frame_counter;
+    return &it->second;
+  }
+  if (exposure_state.size() >= kMaxExposureViews) {
+    exposure_state.erase(std::min_element(
+        exposure_state.begin(), exposure_state.end(),
+        [](const auto& a, const auto& b) { return a.second.last_used < b.second.last_used; }));
+  }
+  vk::ImageDesc desc;
+  desc.format = kExposureFormat;
+  desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+               VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::exposure_log2
+  absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, "exposure_state");
+  if (!img.ok()) return img.status();
+  ExposureState e;
+  e.image = std::move(*img);
+  e.last_used = ++frame_counter;
+  return &exposure_state.emplace(key, std::move(e)).first->second;
 }
 
 absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuScene& scene,
@@ -945,7 +1078,8 @@ absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
   absl::StatusOr<vk::Image> depth = vk::Image::Create(*ctx, desc, "depth");
   if (!depth.ok()) return depth.status();
   desc.format = kHdrFormat;
-  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+               VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::hdr
   absl::StatusOr<vk::Image> hdr = vk::Image::Create(*ctx, desc, "hdr_color");
   if (!hdr.ok()) return hdr.status();
   desc.format = kLdrFormat;
@@ -1009,6 +1143,7 @@ absl::Status Renderer::Impl::EnsureAaTargets(const Settings& s) {
   constexpr VkImageUsageFlags kColor = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT;
   constexpr VkImageUsageFlags kSampled = VK_IMAGE_USAGE_SAMPLED_BIT;
   constexpr VkImageUsageFlags kDepth = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
+  constexpr VkImageUsageFlags kCopy = VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::hdr
   const uint32_t n = s.samples;
   absl::Status st;
   switch (s.aa) {
@@ -1024,10 +1159,10 @@ absl::Status Renderer::Impl::EnsureAaTargets(const Settings& s) {
         st = make(targets.vis_coverage, kIdFormat, 1, kColor | kSampled, "vis_coverage");
       if (st.ok())
         st = make(targets.material_depth, kMaterialDepthFormat, 1, kDepth, "material_depth");
-      if (st.ok()) st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled, "post_hdr");
+      if (st.ok()) st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled | kCopy, "post_hdr");
       break;
     case AaMode::kTaa:
-      st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled, "post_hdr");
+      st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled | kCopy, "post_hdr");
       break;
     case AaMode::kFxaa:
       st = make(targets.fxaa, kLdrFormat, 1, kColor | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, "fxaa");
@@ -1163,18 +1298,27 @@ absl::Status Renderer::Impl::CaptureIds(const GpuScene& scene, VkDescriptorSet s
 }
 
 // After a frame: copies the prepass depth and the tile lists to the host (tests only).
-absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles) {
+absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, const vk::Image& hdr,
+                                     const vk::Image* exposure) {
   const VkDeviceSize depth_bytes = VkDeviceSize(targets.width) * targets.height * 4;
   const VkDeviceSize count_bytes = VkDeviceSize(tiles) * 4;
   const VkDeviceSize list_bytes = count_bytes * gpu::kMaxLightsPerTile;
+  const VkDeviceSize hdr_bytes = depth_bytes * 2;  // RGBA16F
+  // RGBA16F copies want offsets in whole texels: 16-byte aligned.
+  const VkDeviceSize hdr_at = (depth_bytes + count_bytes + list_bytes + 15) & ~VkDeviceSize(15);
+  const VkDeviceSize exposure_at = hdr_at + hdr_bytes;
   absl::StatusOr<vk::Buffer> host =
-      vk::Buffer::Create(*ctx, depth_bytes + count_bytes + list_bytes,
-                         VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kReadback, "capture");
+      vk::Buffer::Create(*ctx, exposure_at + 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                         vk::MemoryUsage::kReadback, "capture");
   if (!host.ok()) return host.status();
   BeginOneTime();
   const AccessInfo from = ToVulkan(Access::kDepthTest), to = ToVulkan(Access::kTransferSrc);
-  VkImageMemoryBarrier2 b = vk::MakeImageBarrier(
-      targets.depth, {from.stage, from.access, from.layout, to.stage, to.access, to.layout});
+  const AccessInfo sampled = ToVulkan(Access::kSampled);
+  VkImageMemoryBarrier2 b[2] = {
+      vk::MakeImageBarrier(targets.depth,
+                           {from.stage, from.access, from.layout, to.stage, to.access, to.layout}),
+      vk::MakeImageBarrier(hdr, {sampled.stage, sampled.access, sampled.layout, to.stage,
+                                 to.access, to.layout})};
   VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
   mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
   mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
@@ -1183,14 +1327,34 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles) {
   VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
   dep.memoryBarrierCount = 1;
   dep.pMemoryBarriers = &mb;
-  dep.imageMemoryBarrierCount = 1;
-  dep.pImageMemoryBarriers = &b;
+  dep.imageMemoryBarrierCount = 2;
+  dep.pImageMemoryBarriers = b;
   vkCmdPipelineBarrier2(cmd, &dep);
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
   region.imageExtent = {targets.width, targets.height, 1};
   vkCmdCopyImageToBuffer(cmd, targets.depth.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                          host->handle(), 1, &region);
+  region.bufferOffset = hdr_at;
+  region.imageSubresource.aspectMask = VK_IMAGE_ASPECT_COLOR_BIT;
+  vkCmdCopyImageToBuffer(cmd, hdr.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host->handle(),
+                         1, &region);
+  if (exposure) {  // from the general layout and back
+    VkImageMemoryBarrier2 eb = vk::MakeImageBarrier(
+        *exposure, {VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
+                    VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_COPY_BIT,
+                    VK_ACCESS_2_TRANSFER_READ_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL});
+    vk::CmdBarrier(cmd, &eb, 1);
+    region.bufferOffset = exposure_at;
+    region.imageExtent = {1, 1, 1};
+    vkCmdCopyImageToBuffer(cmd, exposure->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           host->handle(), 1, &region);
+    eb = vk::MakeImageBarrier(
+        *exposure, {VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_NONE,
+                    VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                    VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_GENERAL});
+    vk::CmdBarrier(cmd, &eb, 1);
+  }
   if (tiles > 0) {  // the lists exist only when the light-culling pass ran
     const VkBufferCopy counts{0, depth_bytes, count_bytes};
     vkCmdCopyBuffer(cmd, tile_counts.handle(), host->handle(), 1, &counts);
@@ -1206,10 +1370,35 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles) {
   std::memcpy(capture->tile_counts.data(), bytes + depth_bytes, count_bytes);
   capture->tile_lights.resize(size_t(tiles) * gpu::kMaxLightsPerTile);
   std::memcpy(capture->tile_lights.data(), bytes + depth_bytes + count_bytes, list_bytes);
+  capture->hdr.resize(size_t(targets.width) * targets.height * 4);
+  const auto* halves = reinterpret_cast<const uint16_t*>(bytes + hdr_at);
+  for (size_t i = 0; i < capture->hdr.size(); ++i) capture->hdr[i] = glm::unpackHalf1x16(halves[i]);
+  capture->exposure_log2 = std::numeric_limits<float>::quiet_NaN();
+  if (exposure) std::memcpy(&capture->exposure_log2, bytes + exposure_at, 4);
   return absl::OkStatus();
 }
 
-VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao) {
+absl::StatusOr<bool> Renderer::Impl::EnsureIbl(const SkyParams& sky) {
+  if (!ibl) {
+    absl::StatusOr<std::unique_ptr<IblMaps>> maps = IblMaps::Create(*ctx);
+    if (!maps.ok()) return maps.status();
+    ibl = std::move(*maps);
+  }
+  const uint64_t hash = HashBytes(&sky, sizeof(sky));
+  if (ibl->baked() && hash == ibl_sky_hash) return false;
+  vkDeviceWaitIdle(ctx->device());  // earlier frames may still sample the maps
+  BeginOneTime();
+  ibl->RecordBake(cmd, sky);
+  if (absl::Status st = EndCopiesAndWait(); !st.ok()) {
+    ibl.reset();  // what it holds is unknown: made and baked afresh next time
+    return st;
+  }
+  ibl_sky_hash = hash;
+  return true;
+}
+
+VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao,
+                                              bool with_ibl) {
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   ai.descriptorPool = frame_pool;
   ai.descriptorSetCount = 1;
@@ -1261,6 +1450,24 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadow
   w.dstBinding = gpu::kBindingAo;
   w.pImageInfo = &images[1];
   writes.push_back(w);
+  const bool on = with_ibl && ibl;
+  const VkSampler ibl_sampler = on ? ibl->sampler() : linear_sampler.handle();
+  const VkDescriptorImageInfo ibl_images[] = {
+      {ibl_sampler, (on ? ibl->irradiance() : cube_placeholder).view(),
+       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+      {ibl_sampler, (on ? ibl->specular() : cube_placeholder).view(),
+       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+      {ibl_sampler, (on ? ibl->brdf_lut() : ao_placeholder).view(),
+       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+      {ibl_sampler, (on ? ibl->environment() : cube_placeholder).view(),
+       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
+  const uint32_t ibl_bindings[] = {gpu::kBindingIrradiance, gpu::kBindingSpecular,
+                                   gpu::kBindingBrdfLut, gpu::kBindingEnvironment};
+  for (int i = 0; i < 4; ++i) {
+    w.dstBinding = ibl_bindings[i];
+    w.pImageInfo = &ibl_images[i];
+    writes.push_back(w);
+  }
   vkUpdateDescriptorSets(ctx->device(), static_cast<uint32_t>(writes.size()), writes.data(), 0,
                          nullptr);
   return set;
@@ -1319,6 +1526,7 @@ void Renderer::ForgetView(const Scene& scene, uint64_t view) {
   std::lock_guard lock(impl_->mutex);
   // Frames are synchronous (each Render waits for its fence), so nothing in flight uses them.
   impl_->taa_history.erase({scene.gpu_->serial(), view});
+  impl_->exposure_state.erase({scene.gpu_->serial(), view});
   scene.gpu_->views().erase(view);
 }
 
@@ -1400,7 +1608,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   fu.view_proj = fu.proj * fu.view;
   fu.inv_view_proj = glm::inverse(fu.view_proj);
   fu.camera_position = glm::vec4(CameraPosition(camera), 1.0f);
-  fu.ambient_sky = glm::vec4(0.40f, 0.52f, 0.75f, 0.0f);
+  fu.ambient_sky = glm::vec4(0.40f, 0.52f, 0.75f, s.ibl ? 1.0f : 0.0f);
   fu.ambient_ground = glm::vec4(0.24f, 0.21f, 0.18f, 0.0f);
   // Lights: directional ones are global (uniform buffer); point and spot lights, the scene's and
   // the synthetic ones, are local and culled per tile. A scene without lights gets a sun.
@@ -1474,6 +1682,40 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
       ssao.params = glm::vec4(radius, s.ssao_strength, 0.01f * radius, 0.0f);
       su.counts.w |= gpu::kSsaoOn;
     }
+  }
+  // IBL: the procedural sky with the first directional light's sun, baked when it changed.
+  if (s.ibl) {
+    glm::vec3 sun_dir(0.0f), sun_color(0.0f);
+    for (const Light& l : global) {
+      if (l.type != LightType::kDirectional) continue;
+      sun_dir = -l.direction;
+      // The glow's scale: the sun's colour at a quarter of its intensity, bounded so a
+      // physically scaled sun (lux) does not flood the sky.
+      sun_color = l.color * std::clamp(l.intensity * 0.25f, 0.0f, 1.0f);
+      break;
+    }
+    absl::StatusOr<bool> baked = m.EnsureIbl(DefaultSky(sun_dir, sun_color));
+    if (!baked.ok()) return baked.status();
+    frame.stats.ibl_bakes = *baked ? 1 : 0;
+  }
+  // Exposure: fixed, or auto with this view's adapted state; bloom's chains.
+  ExposureFrame exposure;
+  exposure.params = glm::vec4(std::exp2(s.exposure_ev), 0.0f, kExposureKey, 0.0f);
+  exposure.view = m.ao_placeholder.view();  // never read without auto exposure
+  Impl::ExposureState* exposure_state = nullptr;
+  if (s.exposure_mode == ExposureMode::kAuto) {
+    absl::StatusOr<Impl::ExposureState*> e = m.Exposure(gs, view);
+    if (!e.ok()) return e.status();
+    exposure_state = *e;
+    exposure.params.y = 1.0f;
+    exposure.state = &exposure_state->image;
+    exposure.state_valid = exposure_state->written;
+    exposure.rate = kExposureAdaptRate;
+    exposure.view = exposure_state->image.view();
+    exposure.layout = VK_IMAGE_LAYOUT_GENERAL;
+  }
+  if (s.bloom) {
+    if (absl::Status st = m.EnsureBloom(); !st.ok()) return st;
   }
   if (tiled) {  // what the light-culling pass reads: each light projected once, binned by row
     std::vector<gpu::GpuLightBounds> bounds(local.size());
@@ -1561,7 +1803,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   }
   const std::vector<PassId> pass_ids =
       SelectPasses(frame.settings.effective, {!draws.blend_order.empty(), uint32_t(local.size())});
-  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids, s.aa, s.ssao);
+  const std::vector<std::vector<Transition>> plan = PlanTransitions(pass_ids, s.aa, s.ssao, s.bloom);
   for (PassId id : pass_ids) {
     if (absl::Status st = m.passes[static_cast<size_t>(id)]->Prepare(*m.ctx, s); !st.ok())
       return st;
@@ -1573,7 +1815,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     vis.materials = MaterialRects(gs, frustum, fu.view_proj, s.width, s.height);
 
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool, 0));
-  const VkDescriptorSet scene_set = m.WriteSceneSet(gs, s.shadows, s.ssao);
+  const VkDescriptorSet scene_set = m.WriteSceneSet(gs, s.shadows, s.ssao, s.ibl);
   // Lavapipe records a timestamp when its rasterizer threads reach it in their tiles, so a
   // pass rasterized in one batch reads ~0 ms and its work lands before the next pass's start
   // stamp (the frame total stays right). On CPU devices each pass is therefore submitted on its
@@ -1629,6 +1871,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   pc.shadow_atlas_view = s.shadows ? &m.shadow_atlas : &m.shadow_placeholder;
   pc.ao_view = s.ssao ? &m.targets.ao : &m.ao_placeholder;
   pc.ssao = &ssao;
+  pc.exposure = &exposure;
   pc.samples = frame_samples;
   std::vector<double> pass_wall_ms;
   double record_ms = 0.0;
@@ -1687,6 +1930,9 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   frame.gpu_total_ms = per_pass_submit ? frame.cpu.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   if (visibility) visibility->prev ^= 1;  // this frame's bits are the next frame's history
   if (s.shadows) m.shadow_atlas_written = true;  // the faces listed were rendered
+  if (exposure_state && std::find(pass_ids.begin(), pass_ids.end(), PassId::kExposure) !=
+                            pass_ids.end())
+    exposure_state->written = true;
 
   m.CountDrawn(gs, draws, pass_ids, frame.stats, capture ? &capture->drawn : nullptr);
   frame.stats.indirect_draws = pass_stats.indirect_draws;
@@ -1718,7 +1964,12 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     if (capture->want_ids) {
       if (absl::Status st = m.CaptureIds(gs, scene_set, capture); !st.ok()) return st;
     }
-    if (absl::Status st = m.Capture(capture, tiled ? grid.tiles() : 0); !st.ok()) return st;
+    const bool post = s.aa == AaMode::kVisMlaa || s.aa == AaMode::kTaa;
+    if (absl::Status st = m.Capture(capture, tiled ? grid.tiles() : 0,
+                                    post ? m.targets.post_hdr : m.targets.hdr,
+                                    exposure_state ? &exposure_state->image : nullptr);
+        !st.ok())
+      return st;
     capture->local_lights = std::move(local);
     capture->view = fu.view;
     capture->proj = fu.proj;

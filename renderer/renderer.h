@@ -108,6 +108,8 @@ struct FrameStats {
   uint32_t shadow_faces_rendered = 0;
   uint32_t shadow_draws = 0;
   uint32_t shadow_evictions = 0;
+  // ibl: 1 when this frame baked the environment maps (its sky changed), else 0.
+  uint32_t ibl_bakes = 0;
 };
 
 // What tests need to check a frame's light culling against the CPU reference.
@@ -120,6 +122,8 @@ struct FrameCapture {
   std::vector<uint32_t> tile_counts;  // per tile (| overflow bit)
   std::vector<uint32_t> tile_lights;  // tile * 256 + k
   std::vector<Light> local_lights;    // in the order the lists index
+  std::vector<float> hdr;  // the tonemap's input (post-AA HDR colour), RGBA, width x height
+  float exposure_log2 = 0.0f;  // auto exposure: the view's adapted average log2 luma (else NaN)
   glm::mat4 view{1.0f}, proj{1.0f};
 };
 

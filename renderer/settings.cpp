@@ -25,6 +25,8 @@ constexpr std::array<std::pair<CullingMode, std::string_view>, 4> kCullingNames{
      {CullingMode::kGpuOcclusion, "gpu_occlusion"}}};
 constexpr std::array<std::pair<ExposureMode, std::string_view>, 2> kExposureNames{
     {{ExposureMode::kFixed, "fixed"}, {ExposureMode::kAuto, "auto"}}};
+constexpr std::array<std::pair<Tonemapper, std::string_view>, 2> kTonemapperNames{
+    {{Tonemapper::kPbrNeutral, "pbr_neutral"}, {Tonemapper::kPhotographic, "photographic"}}};
 constexpr std::array<std::pair<DebugView, std::string_view>, 11> kDebugNames{
     {{DebugView::kNone, "none"},
      {DebugView::kNormals, "normals"},
@@ -69,6 +71,10 @@ std::string_view ToString(AaMode v) { return NameOf(kAaNames, v); }
 std::string_view ToString(CullingMode v) { return NameOf(kCullingNames, v); }
 std::string_view ToString(ExposureMode v) { return NameOf(kExposureNames, v); }
 std::string_view ToString(DebugView v) { return NameOf(kDebugNames, v); }
+std::string_view ToString(Tonemapper v) { return NameOf(kTonemapperNames, v); }
+absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s) {
+  return Parse(kTonemapperNames, "tonemapper", s);
+}
 absl::StatusOr<AaMode> ParseAaMode(std::string_view s) { return Parse(kAaNames, "aa", s); }
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s) {
   return Parse(kCullingNames, "culling", s);
@@ -117,6 +123,8 @@ absl::Status ValidateSettings(const Settings& s) {
     return bad("exposure_mode", static_cast<uint32_t>(s.exposure_mode), "an ExposureMode");
   if (!std::isfinite(s.exposure_ev) || s.exposure_ev < -20.0f || s.exposure_ev > 20.0f)
     return bad("exposure_ev", s.exposure_ev, "-20..20 stops");
+  if (!Known(kTonemapperNames, s.tonemapper))
+    return bad("tonemapper", static_cast<uint32_t>(s.tonemapper), "a Tonemapper");
   if (!Known(kDebugNames, s.debug_view))
     return bad("debug_view", static_cast<uint32_t>(s.debug_view), "a DebugView");
   if (s.jpeg_quality < 1 || s.jpeg_quality > 100)
@@ -182,18 +190,6 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
          absl::StrCat("clamped from ", e.shadow_atlas_size, " to ",
                       std::bit_floor(caps.max_image_dimension), " (device maxImageDimension2D)"));
     e.shadow_atlas_size = std::bit_floor(caps.max_image_dimension);
-  }
-  if (e.bloom) {
-    not_applied("bloom", "not implemented yet");
-    e.bloom = false;
-  }
-  if (e.ibl) {
-    not_applied("ibl", "not implemented yet; a hemisphere ambient is used");
-    e.ibl = false;
-  }
-  if (e.exposure_mode == ExposureMode::kAuto) {
-    not_applied("exposure_mode", "auto exposure is not implemented yet; used fixed exposure_ev");
-    e.exposure_mode = ExposureMode::kFixed;
   }
   if (e.debug_view == DebugView::kAaMask && e.aa != AaMode::kVisMlaa) {
     not_applied("debug_view", "aa_mask shows vis_mlaa's coverage mask; aa is not vis_mlaa");

@@ -15,6 +15,9 @@ namespace tessera {
 enum class AaMode : uint32_t { kNone = 0, kMsaa, kFxaa, kTaa, kVisMlaa };
 enum class CullingMode : uint32_t { kNone = 0, kCpuFrustum, kGpuFrustum, kGpuOcclusion };
 enum class ExposureMode : uint32_t { kFixed = 0, kAuto };
+// The curve from exposed HDR to display: Khronos PBR Neutral (base colours come out as
+// authored), or the photographic operator 1 - e^-L applied to luma (Tesseract's, after Humus).
+enum class Tonemapper : uint32_t { kPbrNeutral = 0, kPhotographic };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
   kNone = 0,
@@ -60,11 +63,17 @@ struct Settings {
   float ssao_radius = 0.0f;
   float ssao_strength = 1.0f;
   bool ssao_half_res = true;
+  // Bloom: what is brighter than 1 after exposure (soft knee), blurred by a 13-tap downsample
+  // chain and a tent upsample, added at bloom_strength (0..1).
   bool bloom = false;
-  float bloom_strength = 0.05f;  // 0..1: share of the bloom added to the frame
+  float bloom_strength = 0.05f;
   bool ibl = false;
+  // Exposure: fixed (x 2^exposure_ev), or auto: the frame's average log luma, adapted over a
+  // view's frames (its first frame converges at once), mapped to middle grey; exposure_ev then
+  // compensates.
   ExposureMode exposure_mode = ExposureMode::kFixed;
-  float exposure_ev = 0.0f;  // fixed exposure in stops, -20..20 (0 = x1)
+  float exposure_ev = 0.0f;  // stops, -20..20 (0 = x1)
+  Tonemapper tonemapper = Tonemapper::kPbrNeutral;
   DebugView debug_view = DebugView::kNone;
   uint32_t jpeg_quality = 90;  // 1..100
   bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
@@ -103,10 +112,12 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
 std::string_view ToString(AaMode v);
 std::string_view ToString(CullingMode v);
 std::string_view ToString(ExposureMode v);
+std::string_view ToString(Tonemapper v);
 std::string_view ToString(DebugView v);
 absl::StatusOr<AaMode> ParseAaMode(std::string_view s);
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s);
 absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s);
+absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s);
 absl::StatusOr<DebugView> ParseDebugView(std::string_view s);
 
 }  // namespace tessera

@@ -55,6 +55,10 @@ absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSet
     return st;
   if (u.has_exposure_ev()) s.exposure_ev = u.exposure_ev();
   if (absl::Status st =
+          MergeEnum(u.tonemapper(), v1::Tonemapper_IsValid, "tonemapper", &s.tonemapper);
+      !st.ok())
+    return st;
+  if (absl::Status st =
           MergeEnum(u.debug_view(), v1::DebugView_IsValid, "debug_view", &s.debug_view);
       !st.ok())
     return st;
@@ -155,6 +159,7 @@ void ToProto(const Settings& s, v1::RenderSettings* o) {
   o->set_ibl(s.ibl);
   o->set_exposure_mode(static_cast<v1::ExposureMode>(WireEnum(s.exposure_mode)));
   o->set_exposure_ev(s.exposure_ev);
+  o->set_tonemapper(static_cast<v1::Tonemapper>(WireEnum(s.tonemapper)));
   o->set_debug_view(static_cast<v1::DebugView>(WireEnum(s.debug_view)));
   o->set_jpeg_quality(s.jpeg_quality);
   o->set_jpeg_444(s.jpeg_444);
@@ -288,6 +293,8 @@ void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {
   for (int v = 1; v1::DebugView_IsValid(v); ++v)
     o->add_debug_view(std::string(ToString(static_cast<DebugView>(v - 1))));
   for (uint32_t t : {8u, 16u, 32u}) o->add_tile_size(t);
+  for (int v = 1; v1::Tonemapper_IsValid(v); ++v)
+    o->add_tonemapper(std::string(ToString(static_cast<Tonemapper>(v - 1))));
 }
 
 absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,

@@ -1,4 +1,5 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
 // One level of the bloom downsample chain: the 13-tap filter of Jimenez, "Next Generation Post
 // Processing in Call of Duty: Advanced Warfare" (SIGGRAPH 2014). The target is half the source.
 //
@@ -14,12 +15,17 @@
 // The first level (reading the HDR frame) also weighs each box by 1 / (1 + luma) (Karis
 // average, so a single very bright pixel cannot flicker into a large blob: fireflies) and
 // applies a soft-knee threshold to the result.
+// The first level also exposes the frame (common/exposure.glsl): the threshold is in exposed
+// units, the units the tonemap pass adds the bloom in.
+#include "common/exposure.glsl"
 // The previous level, or the HDR frame; LINEAR, clamp to edge.
 layout(set = 0, binding = 0) uniform sampler2D u_src;
+layout(set = 0, binding = 1) uniform sampler2D u_exposure;  // auto exposure's state (NEAREST)
 layout(push_constant) uniform Push {
-  vec4 src;        // xy: 1 / source size in texels, z: 1 on the first level (Karis average and
-                   // threshold) else 0, w: unused
-  vec4 threshold;  // x: threshold (linear HDR), y: knee (soft knee width), zw: unused
+  vec4 src;        // xy: 1 / source size in texels, z: 1 on the first level (exposure, Karis
+                   // average and threshold) else 0, w: unused
+  vec4 threshold;  // x: threshold (exposed linear HDR), y: knee (soft knee width), zw: unused
+  vec4 exposure;   // Exposure()'s params (first level)
 } push;
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert: the target pixel's centre
 layout(location = 0) out vec4 out_color;
@@ -30,14 +36,18 @@ float Luma(vec3 c) {
   return dot(c, vec3(0.2126, 0.7152, 0.0722));  // Rec. 709
 }
 
-// One bilinear tap `offset` source texels from the centre, made non-negative and finite (NaN
-// and negative channels 0, +inf the largest half) so one bad pixel cannot poison the chain.
+float g_scale = 1.0;  // the exposure on the first level, else 1
+
+// One bilinear tap `offset` source texels from the centre, scaled, made non-negative and finite
+// (NaN and negative channels 0, +inf the largest half) so one bad pixel cannot poison the chain.
 vec3 Tap(vec2 offset) {
-  vec3 c = textureLod(u_src, v_uv + offset * push.src.xy, 0.0).rgb;
+  vec3 c = textureLod(u_src, v_uv + offset * push.src.xy, 0.0).rgb * g_scale;
   return mix(vec3(0.0), min(c, vec3(kMaxHalf)), greaterThanEqual(c, vec3(0.0)));
 }
 
 void main() {
+  bool first = push.src.z > 0.5;
+  if (first) g_scale = Exposure(u_exposure, push.exposure);
   vec3 a = Tap(vec2(-2.0, -2.0)), b = Tap(vec2(0.0, -2.0)), c = Tap(vec2(2.0, -2.0));
   vec3 d = Tap(vec2(-1.0, -1.0)), e = Tap(vec2(1.0, -1.0));
   vec3 f = Tap(vec2(-2.0, 0.0)), g = Tap(vec2(0.0, 0.0)), h = Tap(vec2(2.0, 0.0));
@@ -49,7 +59,6 @@ void main() {
                        0.25 * (f + g + k + l), 0.25 * (g + h + l + m));
   float weight[5] = float[](0.5, 0.125, 0.125, 0.125, 0.125);
 
-  bool first = push.src.z > 0.5;
   vec3 color = vec3(0.0);
   float total = 0.0;
   for (int n = 0; n < 5; ++n) {

@@ -23,6 +23,8 @@ void main() {
       sum += w * textureLod(u_low, v_uv + vec2(x, y) * step, 0.0).rgb;
     }
   }
-  vec3 color = sum * (1.0 / 16.0) + textureLod(u_this, v_uv, 0.0).rgb;
+  // Capped at the largest half: the sum of levels must not overflow the RGBA16F target to +inf
+  // (the tonemapper would turn it into NaN).
+  vec3 color = min(sum * (1.0 / 16.0) + textureLod(u_this, v_uv, 0.0).rgb, vec3(65504.0));
   out_color = vec4(color, 1.0);
 }

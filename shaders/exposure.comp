@@ -1,8 +1,8 @@
 #version 460
 // Auto exposure: the average log2 luminance of the HDR frame, adapted over frames.
 //
-// One workgroup of 256 threads samples a grid of points spread evenly over the frame (e.g.
-// 64 x 36). Each point is snapped to a texel corner, so one bilinear tap averages the 2x2
+// One workgroup of 256 threads samples a grid of points spread evenly over the frame (up to
+// 64 x 64). Each point is snapped to a texel corner, so one bilinear tap averages the 2x2
 // pixels around it (4 pixels for the price of one). The log2 luminances (clamped, so that black
 // or blown-out areas cannot drag the average arbitrarily far) are summed per thread, reduced in
 // shared memory, and thread 0 moves the stored value towards this frame's average in log2 space
@@ -35,7 +35,7 @@ void main() {
     uvec2 cell = uvec2(i % grid.x, i / grid.x);
     // The texel corner nearest the cell's centre, kept off the border so the tap's 2x2 pixels
     // are all inside (a 1-pixel axis reads its only pixel via clamp to edge).
-    vec2 corner = clamp(round((vec2(cell) + 0.5) / vec2(grid) * size), vec2(1.0),
+    vec2 corner = clamp(floor((vec2(cell) + 0.5) / vec2(grid) * size + 0.5), vec2(1.0),
                         max(size - 1.0, vec2(1.0)));
     vec3 rgb = textureLod(u_hdr, corner / size, 0.0).rgb;
     float lum = dot(rgb, vec3(0.2126, 0.7152, 0.0722));  // Rec. 709

@@ -11,5 +11,5 @@ layout(location = 0) out vec4 out_color;
 void main() {
   vec4 world = frame.inv_view_proj * vec4(v_uv * 2.0 - 1.0, 1.0, 1.0);  // on the near plane
   vec3 dir = normalize(world.xyz / world.w - frame.camera_position.xyz);
-  out_color = vec4(Hemisphere(dir), 1.0);
+  out_color = vec4(SkyRadiance(dir), 1.0);
 }

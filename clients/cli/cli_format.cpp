@@ -55,9 +55,13 @@ std::string SettingsSummary(const v1::RenderSettings& s) {
   if (s.has_bloom()) parts.push_back(absl::StrCat("bloom ", OnOff(s.bloom())));
   if (s.has_ibl()) parts.push_back(absl::StrCat("ibl ", OnOff(s.ibl())));
   if (s.exposure_mode() == v1::EXPOSURE_AUTO) {
-    parts.push_back("exposure auto");
+    parts.push_back(s.exposure_ev() != 0.0f ? absl::StrFormat("exposure auto %+g EV", s.exposure_ev())
+                                             : std::string("exposure auto"));
   } else if (s.exposure_mode() == v1::EXPOSURE_FIXED || s.has_exposure_ev()) {
     parts.push_back(absl::StrFormat("exposure %g EV", s.exposure_ev()));
+  }
+  if (s.tonemapper() != v1::TONEMAPPER_UNSPECIFIED) {
+    parts.push_back(absl::StrCat("tonemapper ", Name(s.tonemapper(), v1::Tonemapper_descriptor())));
   }
   if (s.debug_view() != v1::DEBUG_VIEW_UNSPECIFIED) {
     parts.push_back(absl::StrCat("debug ", Name(s.debug_view(), v1::DebugView_descriptor())));

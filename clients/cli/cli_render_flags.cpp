@@ -36,8 +36,10 @@ const char kSettingsFlagsUsage[] = R"(settings (unset ones take the server's def
   --no-shadow-cache   re-render every shadow map every frame (for comparison)
   --ssao-radius R     SSAO radius in world units (default 1.5% of the scene diagonal)
   --ssao-strength S   0..4 (default 1)        --ssao-full-res  SSAO at full resolution
-  --bloom-strength S  0..1 (default 0.05)
-  --exposure EV       fixed exposure in stops (default 0)   --auto-exposure
+  --bloom-strength S  0..1 (default 0.05): what is brighter than white glows
+  --exposure EV       fixed exposure in stops (default 0)
+  --auto-exposure     adapt to the frame's average luma (--exposure then compensates)
+  --tonemapper T      pbr_neutral|photographic (default pbr_neutral)
   --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask|
                       shadow_atlas|cascades|ssao|bloom
   --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
@@ -179,8 +181,10 @@ bool RenderFlags::ParseSettings(ArgReader& args) {
   } else if (args.Is("--bloom-strength")) {
     s.set_bloom_strength(args.Float());
   } else if (args.Is("--exposure")) {
-    s.set_exposure_mode(v1::EXPOSURE_FIXED);
+    if (s.exposure_mode() != v1::EXPOSURE_AUTO) s.set_exposure_mode(v1::EXPOSURE_FIXED);
     s.set_exposure_ev(args.Float());
+  } else if (args.Is("--tonemapper")) {
+    s.set_tonemapper(static_cast<v1::Tonemapper>(ParseEnum(args, v1::Tonemapper_descriptor())));
   } else if (args.Is("--auto-exposure")) {
     s.set_exposure_mode(v1::EXPOSURE_AUTO);
   } else if (args.Is("--debug")) {

@@ -85,6 +85,7 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
   absl::PrintF("           samples   %s\n", JoinNumbers(c.samples()));
   absl::PrintF("           culling   %s\n", absl::StrJoin(c.culling(), "|"));
   absl::PrintF("           exposure  %s\n", absl::StrJoin(c.exposure_mode(), "|"));
+  absl::PrintF("           tonemapper %s\n", absl::StrJoin(c.tonemapper(), "|"));
   absl::PrintF("           debug     %s\n", absl::StrJoin(c.debug_view(), "|"));
   absl::PrintF("           tile      %s\n", JoinNumbers(c.tile_size()));
   absl::PrintF("defaults   %s\n", WrapList(SettingsSummary(info.default_settings()), 11));

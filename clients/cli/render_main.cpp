@@ -28,7 +28,10 @@ constexpr char kUsage[] = R"(usage: tessera-render [options]
   --near N --far N    clip planes (far 0 = infinite, the default)
   --aa MODE           none|msaa|fxaa|taa|vis_mlaa          --samples N   1|2|4|8
   --culling MODE      none|cpu_frustum|gpu_frustum|gpu_occlusion
-  --exposure EV       exposure in stops (default 0)
+  --exposure EV       exposure in stops (default 0; with --auto-exposure, compensation)
+  --auto-exposure     adapt to the frame's average luma   --tonemapper pbr_neutral|photographic
+  --bloom             what is brighter than white glows   --bloom-strength S (0..1, default 0.05)
+  --ibl               image-based ambient light from a procedural sky (also the background)
   --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask|
                       shadow_atlas|cascades|ssao|bloom
   --shadows           sun cascades + point/spot shadow maps   --shadow-atlas N (512..8192)
@@ -137,6 +140,16 @@ int main(int argc, char** argv) {
       settings.culling = OrFail(ParseCullingMode(value()));
     else if (arg == "--exposure")
       settings.exposure_ev = ParseFloat(arg, value());
+    else if (arg == "--auto-exposure")
+      settings.exposure_mode = ExposureMode::kAuto;
+    else if (arg == "--tonemapper")
+      settings.tonemapper = OrFail(ParseTonemapper(value()));
+    else if (arg == "--bloom")
+      settings.bloom = true;
+    else if (arg == "--ibl")
+      settings.ibl = true;
+    else if (arg == "--bloom-strength")
+      settings.bloom_strength = ParseFloat(arg, value());
     else if (arg == "--debug")
       settings.debug_view = OrFail(ParseDebugView(value()));
     else if (arg == "--shadows")

@@ -21,7 +21,7 @@ struct ForwardPipelines {
   vk::Pipeline sky;  // forward only
 };
 
-// Pipelines per key = samples | kEffectsKey when shadows or ssao are on (shading.glsl's
+// Pipelines per key = samples | kEffectsKey when shadows, ssao or ibl are on (shading.glsl's
 // specialization constant 0).
 constexpr uint32_t kEffectsKey = 0x100;
 
@@ -71,7 +71,7 @@ class ForwardPass final : public Pass {
                              [&](uint32_t key) { return CreatePipelines(ctx, layout_, id_, key); });
   }
   static uint32_t Key(const Settings& s, uint32_t samples) {
-    return samples | (s.shadows || s.ssao ? kEffectsKey : 0u);
+    return samples | (s.shadows || s.ssao || s.ibl ? kEffectsKey : 0u);
   }
 
   void Record(PassContext& ctx) override {

@@ -29,6 +29,10 @@ inline constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
 inline constexpr VkFormat kMaterialDepthFormat = VK_FORMAT_D32_SFLOAT;
 inline constexpr VkFormat kShadowFormat = VK_FORMAT_D16_UNORM;  // the shadow atlas (16-bit)
 inline constexpr VkFormat kAoFormat = VK_FORMAT_R16G16_SFLOAT;  // ssao: visibility + depth
+inline constexpr VkFormat kExposureFormat = VK_FORMAT_R32_SFLOAT;  // adapted log2 luma, 1x1
+// Bloom's downsample chain: this many levels, the first at half the frame's size (the upsample
+// chain has one fewer). Six levels reach 1/64 of the frame: a glow about a tenth of its width.
+inline constexpr uint32_t kBloomLevels = 6;
 
 struct FrameTargets {
   uint32_t width = 0, height = 0;
@@ -46,6 +50,11 @@ struct FrameTargets {
   vk::Image post_hdr;
   vk::Image fxaa;
   vk::Image ao, ao_temp;  // ssao's size, made when ssao first runs
+  // bloom: the downsample chain from half the frame's size (at least 32 texels a side, so all
+  // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip (owned
+  // by the renderer), made when bloom first runs.
+  vk::Image bloom_down, bloom_up;
+  std::vector<VkImageView> bloom_down_levels, bloom_up_levels;
   const vk::Image& Get(Resource r) const {
     switch (r) {
       case Resource::kDepth: return depth;
@@ -62,6 +71,8 @@ struct FrameTargets {
       case Resource::kFxaaColor: return fxaa;
       case Resource::kAo: return ao;
       case Resource::kAoTemp: return ao_temp;
+      case Resource::kBloomDown: return bloom_down;
+      case Resource::kBloomUp: return bloom_up;
       case Resource::kCount: break;
     }
     return ldr;
@@ -165,6 +176,19 @@ struct SsaoFrame {
   glm::vec4 params{0.0f};  // radius (world), strength, bias, unused
 };
 
+// Exposure (shaders/common/exposure.glsl), read by bloom and tonemap, and auto exposure's
+// adaptation (shaders/exposure.comp).
+struct ExposureFrame {
+  glm::vec4 params{1.0f, 0.0f, 0.18f, 0.0f};  // 2^exposure_ev, 1 for auto, key, unused
+  // auto: the view's 1x1 state (R32F, general layout between frames, kept by the renderer).
+  const vk::Image* state = nullptr;
+  bool state_valid = false;  // holds an earlier frame's value (else: undefined contents)
+  float rate = 1.0f;         // how far to move towards this frame's average (1: at once)
+  // What bloom and tonemap bind as the state: `state`, or a stand-in without auto exposure.
+  VkImageView view = VK_NULL_HANDLE;
+  VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+};
+
 struct PassContext {
   VkCommandBuffer cmd = VK_NULL_HANDLE;
   const vk::Context* vk = nullptr;
@@ -182,6 +206,7 @@ struct PassContext {
   const TaaFrame* taa = nullptr;
   const ShadowFrame* shadows = nullptr;
   const SsaoFrame* ssao = nullptr;
+  const ExposureFrame* exposure = nullptr;
   // The atlas the shading reads (the real one, or a 1x1 stand-in without shadows), in
   // shader-read layout outside the shadow pass; the tonemap pass shows it as a debug view.
   const vk::Image* shadow_atlas_view = nullptr;
@@ -260,6 +285,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadowPass(const vk::Context& ctx,
                                                        const SceneLayout& layout);
 // ssao: obscurance at the size of FrameTargets::ao, blurred in place through ao_temp.
 absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx);
+// Auto exposure: the average log2 luma of the tonemap's input into ExposureFrame::state.
+absl::StatusOr<std::unique_ptr<Pass>> CreateExposurePass(const vk::Context& ctx);
+// Bloom: FrameTargets::bloom_down / bloom_up from the tonemap's input.
+absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx);
+// The HDR colour the post passes read: the post-AA colour where an AA pass made one.
+const vk::Image& PostColor(const PassContext& ctx);
 // A full-screen post pass: one fragment shader reading combined image samplers (bindings 0..n-1,
 // in the order of `inputs`) with a push-constant block, writing `outputs` colour targets.
 // Shared by tonemap, geometric AA, TAA and FXAA.

@@ -90,6 +90,11 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
   vkCmdEndRendering(ctx.cmd);
 }
 
+const vk::Image& PostColor(const PassContext& ctx) {
+  const AaMode aa = ctx.settings->aa;
+  return aa == AaMode::kVisMlaa || aa == AaMode::kTaa ? ctx.targets->post_hdr : ctx.targets->hdr;
+}
+
 namespace {
 
 // A pass made of one full-screen program and its samplers.
@@ -124,30 +129,40 @@ absl::StatusOr<std::unique_ptr<Pass>> MakePost(const vk::Context& ctx, const cha
   return std::unique_ptr<Pass>(new T(std::move(*program), std::move(*nearest), std::move(*linear)));
 }
 
-// Tonemap: HDR colour -> exposure -> Khronos PBR Neutral tonemapper -> sRGB RGBA8 (the
-// attachment's sRGB format does the encoding). PBR Neutral keeps base colours true under
-// neutral light, which is what product and sample-model renders are judged by. Debug views
-// pass through without tonemapping. Reads the post-AA colour when an AA pass made one.
+// Tonemap: HDR colour -> exposure (fixed or auto) + bloom -> Khronos PBR Neutral or the
+// photographic operator on luma -> sRGB RGBA8 (the attachment's sRGB format does the encoding).
+// PBR Neutral keeps base colours true under neutral light, which is what product and
+// sample-model renders are judged by. Debug views pass through without tonemapping. Reads the
+// post-AA colour when an AA pass made one.
 class TonemapPass final : public PostPass {
  public:
   using PostPass::PostPass;
   PassId id() const override { return PassId::kTonemap; }
   void Record(PassContext& ctx) override {
+    const Settings& s = *ctx.settings;
+    const ExposureFrame& e = *ctx.exposure;
+    const bool bloom = s.bloom;
     struct {
-      float exposure;        // linear multiplier, 2^exposure_ev
-      uint32_t passthrough;  // 1 for debug views
-      uint32_t debug_view;
-      uint32_t unused;
-    } push{std::exp2(ctx.settings->exposure_ev),
-           ctx.settings->debug_view != DebugView::kNone ? 1u : 0u,
-           static_cast<uint32_t>(ctx.settings->debug_view), 0u};
-    const AaMode aa = ctx.settings->aa;
-    const bool post = aa == AaMode::kVisMlaa || aa == AaMode::kTaa;
+      glm::vec4 exposure;
+      glm::uvec4 mode;
+      glm::vec4 bloom;
+    } push{glm::vec4(e.params.x, e.params.y, e.params.z,
+                     s.tonemapper == Tonemapper::kPhotographic ? 1.0f : 0.0f),
+           glm::uvec4(s.debug_view != DebugView::kNone ? 1u : 0u,
+                      static_cast<uint32_t>(s.debug_view), bloom ? 1u : 0u, 0u),
+           glm::vec4(s.bloom_strength / float(kBloomLevels), 1.0f / float(kBloomLevels), 0.0f,
+                     0.0f)};
     // The atlas is in shader-read layout outside the shadow pass, ao in the frame graph's
-    // sampled state (1x1 stand-ins without shadows, ssao).
+    // sampled state (1x1 stand-ins without shadows, ssao); without bloom, ao's image stands in
+    // for the bloom too (never read).
+    const PostInput bloom_in =
+        bloom ? PostInput{ctx.targets->bloom_up_levels[0], linear_.handle(),
+                          VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}
+              : Linear(*ctx.ao_view);
     program_.Draw(ctx,
-                  {Nearest(post ? ctx.targets->post_hdr : ctx.targets->hdr),
-                   Linear(*ctx.ao_view), Nearest(*ctx.shadow_atlas_view)},
+                  {Nearest(PostColor(ctx)), Linear(*ctx.ao_view),
+                   Nearest(*ctx.shadow_atlas_view), bloom_in,
+                   {e.view, nearest_.handle(), e.layout}},
                   {ctx.targets->ldr.view()}, &push);
   }
 };
@@ -227,7 +242,7 @@ class FxaaPass final : public PostPass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
-  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 3, 16, {kLdrFormat});
+  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 5, 48, {kLdrFormat});
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
   return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3, 12, {kHdrFormat});

@@ -232,7 +232,7 @@ constexpr VkClearColorValue kDebugBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
 class VisShadePass final : public Pass {
  public:
-  // `effects`: built with shading.glsl's shadows and SSAO (specialization constant 0).
+  // `effects`: built with shading.glsl's shadows, SSAO and IBL (specialization constant 0).
   VisShadePass(VisLayout layout, vk::Pipeline pipeline, vk::Pipeline effects, vk::Pipeline sky,
                vk::Sampler sampler)
       : layout_(std::move(layout)),
@@ -261,7 +261,7 @@ class VisShadePass final : public Pass {
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_NONE;
     BeginRendering(ctx, &color, &depth);
-    const bool effects = ctx.settings->shadows || ctx.settings->ssao;
+    const bool effects = ctx.settings->shadows || ctx.settings->ssao || ctx.settings->ibl;
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
                       (effects ? effects_ : pipeline_).handle());
     BindVisSets(ctx, layout_.pipeline_layout(), set);

@@ -125,6 +125,7 @@ absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
   img.desc_ = desc;
   VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
   ii.imageType = VK_IMAGE_TYPE_2D;
+  if (desc.view_type == VK_IMAGE_VIEW_TYPE_CUBE) ii.flags = VK_IMAGE_CREATE_CUBE_COMPATIBLE_BIT;
   ii.format = desc.format;
   ii.extent = {desc.width, desc.height, 1};
   ii.mipLevels = desc.mip_levels;

@@ -46,6 +46,10 @@ TS_CONST uint kBindingTileLights = 6;   // buffer uint[] tile * kMaxLightsPerTil
 TS_CONST uint kBindingShadows = 7;      // uniform ShadowUniforms (views of the shadow atlas)
 TS_CONST uint kBindingShadowAtlas = 8;  // sampler2DShadow: the shadow atlas (LESS_OR_EQUAL)
 TS_CONST uint kBindingAo = 9;           // sampler2D: SSAO visibility (r), bilinear
+TS_CONST uint kBindingIrradiance = 10;  // samplerCube: IBL diffuse irradiance / pi
+TS_CONST uint kBindingSpecular = 11;    // samplerCube: IBL prefiltered specular (roughness mips)
+TS_CONST uint kBindingBrdfLut = 12;     // sampler2D: split-sum BRDF (A, B) by (n.v, roughness)
+TS_CONST uint kBindingEnvironment = 13;  // samplerCube: IBL's sky, the background with ibl
 // ---- shadows (shaders/common/shadows.glsl, renderer/shadows.h) --------------------------------
 // Every shadow map of a frame is a "view" in one atlas: the sun's cascades first, then per
 // shadowed local light one view (spot) or six (point: +X, -X, +Y, -Y, +Z, -Z). A light finds its
@@ -254,7 +258,7 @@ struct FrameUniforms {
   mat4 view_proj;
   mat4 inv_view_proj;    // clip -> world, for the sky's view rays
   vec4 camera_position;  // xyz world position
-  vec4 ambient_sky;      // rgb radiance from above
+  vec4 ambient_sky;      // rgb radiance from above; w: 1 with IBL (the environment maps)
   vec4 ambient_ground;   // rgb radiance from below
   uvec4 counts;          // x light count, y debug view (kDebug*), z width, w height
   vec4 params;           // x unused (exposure is the tonemap pass's push constant), y near, z far

@@ -52,6 +52,11 @@ vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
 
 
 layout(set = 0, binding = kBindingAo) uniform sampler2D u_ao;
+// IBL (renderer/ibl_maps.h): irradiance / pi, the specular chain (roughness r at mip r * (n - 1)),
+// the split-sum BRDF table at (n_dot_v, roughness).
+layout(set = 0, binding = kBindingIrradiance) uniform samplerCube u_irradiance;
+layout(set = 0, binding = kBindingSpecular) uniform samplerCube u_specular;
+layout(set = 0, binding = kBindingBrdfLut) uniform sampler2D u_brdf_lut;
 // Pipelines are built with and without shadows and SSAO (constant 0): lavapipe runs the code of
 // an untaken branch at a cost (each doubled the shading pass of frames without them), so frames
 // without the effects use a pipeline that has none of their code.
@@ -202,15 +207,28 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
                    : DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile,
                                  tile_count, false);
 
-  // Ambient: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
-  // reflection vector, blurred towards the average as roughness grows.
+  // Ambient. With IBL: the split sum, the irradiance cube times the diffuse colour plus the
+  // prefiltered environment along the reflection times the BRDF table's F0 scale and bias.
+  // Without: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
+  // reflection vector, blurred towards the average as roughness grows, with Karis' analytic fit
+  // of the BRDF table.
   vec3 r = reflect(-v, n);
-  vec3 env = mix(Hemisphere(r), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb), roughness);
+  vec3 ambient;
+  if (kLightingEffects && IblOn()) {
+    float mips = float(textureQueryLevels(u_specular));
+    vec3 prefiltered = textureLod(u_specular, r, roughness * (mips - 1.0)).rgb;
+    vec2 ab = textureLod(u_brdf_lut, vec2(n_dot_v, roughness), 0.0).rg;
+    ambient = textureLod(u_irradiance, n, 0.0).rgb * c_diff + prefiltered * (f0 * ab.x + ab.y);
+  } else {
+    vec3 env = mix(Hemisphere(r), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb),
+                   roughness);
+    ambient = Hemisphere(n) * c_diff + env * EnvBrdfApprox(f0, roughness, n_dot_v);
+  }
   // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
   // not in the depth it was computed from.
   if (kLightingEffects && (shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
     ao *= textureLod(u_ao, gl_FragCoord.xy / vec2(frame.counts.zw), 0.0).r;
-  color += (Hemisphere(n) * c_diff + env * EnvBrdfApprox(f0, roughness, n_dot_v)) * ao;
+  color += ambient * ao;
   color += emissive;
   if (kLightingEffects && debug_view == kDebugCascades) {
     // Lit colour, tinted by the cascade; darker where the sun is shadowed.

@@ -1,12 +1,15 @@
-// Shadows and SSAO on the device (lavapipe in CI, validation on): goldens of each feature,
-// physical checks that hold whatever the golden (a shadow only removes light, and darkens where
-// the sun's ray from an occluder meets the floor), and the shadow cache's face counts.
+// Shadows, SSAO, bloom, auto exposure and IBL on the device (lavapipe in CI, validation on):
+// goldens of each feature, physical checks that hold whatever the golden (a shadow only removes
+// light, and darkens where the sun's ray from an occluder meets the floor; bloom only adds light,
+// near what is brighter than white), the shadow cache's face counts, auto exposure against a
+// CPU reduction of the captured HDR frame, and the IBL bake's count and orientation.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 
 #include "renderer/camera.h"
+#include "renderer/image_metrics.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "tests/render/golden.h"
@@ -259,6 +262,221 @@ TEST(SsaoTest, HalfResolutionAgreesWithFull) {
   bool ssao_pass = false;
   for (const PassTiming& p : full.passes) ssao_pass |= p.pass == "ssao";
   EXPECT_TRUE(ssao_pass);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Bloom
+
+float LumaHdr(const std::vector<float>& hdr, size_t i) {
+  return 0.2126f * hdr[4 * i] + 0.7152f * hdr[4 * i + 1] + 0.0722f * hdr[4 * i + 2];
+}
+
+// Bloom adds light and nothing else, and adds it around what is brighter than white (the
+// threshold, in exposed units): pixels near such pixels gain much more than pixels far from all.
+TEST(BloomTest, AddsLightAroundWhatIsBrighterThanWhite) {
+  const SceneHandle& scene = SharedDemoScene();
+  Settings s = Lit(false, false);
+  FrameCapture capture;
+  absl::StatusOr<Frame> off = SharedRenderer().Render(*scene, BackCamera(), s, 0, &capture);
+  ASSERT_TRUE(off.ok()) << off.status();
+  s.bloom = true;
+  s.bloom_strength = 0.5f;
+  const Frame on = RenderOrDie(*scene, BackCamera(), s);
+  // Distance (Chebyshev, in pixels, capped) from each pixel to the nearest one above 1.5.
+  const int w = int(kWidth), h = int(kHeight);
+  std::vector<int> dist(size_t(w) * h, 1 << 20);
+  int bright = 0;
+  for (int i = 0; i < w * h; ++i)
+    if (LumaHdr(capture.hdr, size_t(i)) > 1.5f) dist[i] = 0, ++bright;
+  ASSERT_GT(bright, 20) << "the demo has highlights brighter than white";
+  for (int pass = 0; pass < 2; ++pass) {  // two sweeps of a chamfer transform
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const int yy = pass == 0 ? y : h - 1 - y, xx = pass == 0 ? x : w - 1 - x;
+        const int d = pass == 0 ? -1 : 1;
+        int& v = dist[size_t(yy) * w + xx];
+        for (auto [dx, dy] : {std::pair{d, 0}, {0, d}, {d, d}, {-d, d}}) {
+          const int nx = xx + dx, ny = yy + dy;
+          if (nx >= 0 && nx < w && ny >= 0 && ny < h) v = std::min(v, dist[size_t(ny) * w + nx] + 1);
+        }
+      }
+    }
+  }
+  double near_gain = 0.0, far_gain = 0.0;
+  int near = 0, far = 0;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float gain = Luma(on.image, x, y) - Luma(off->image, x, y);
+      // A few levels down can happen: PBR Neutral's offset shrinks with a pixel's darkest
+      // channel, so light added to one channel can dim the others a little (ExpectOnlyDarker).
+      EXPECT_GE(gain, -4.0f) << "bloom darkened pixel " << x << "," << y;
+      const int d = dist[size_t(y) * w + x];
+      if (d >= 1 && d <= 4) near_gain += gain, ++near;
+      if (d > 60) far_gain += gain, ++far;
+    }
+  }
+  ASSERT_GT(near, 0);
+  ASSERT_GT(far, 0);
+  EXPECT_GT(near_gain / near, 2.0) << "no glow next to the highlights";
+  // The glow reaches far (six levels: 1/64 of the frame) but falls off.
+  EXPECT_GT(near_gain / near, 2.5 * (far_gain / far)) << "the glow does not fall off";
+  CompareWithGolden("bloom", on.image, 35.0);
+  s.debug_view = DebugView::kBloom;
+  CompareWithGolden("bloom_debug", RenderOrDie(*scene, BackCamera(), s).image, 30.0);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Auto exposure
+
+// exposure.comp's reduction on the CPU: the mean of clamp(log2(luma)) over a grid of up to
+// 64 x 64 points, each the bilinear mean of the 2x2 pixels around a texel corner.
+float ReferenceLog2Luma(const std::vector<float>& hdr, uint32_t w, uint32_t h) {
+  const uint32_t gw = std::min(w, 64u), gh = std::min(h, 64u);
+  double sum = 0.0;
+  for (uint32_t j = 0; j < gh; ++j) {
+    for (uint32_t i = 0; i < gw; ++i) {
+      // floor(x + 0.5) as the shader: ties (5i + 2.5 at 320 wide) round up on both sides.
+      const int cx = std::clamp(int(std::floor((i + 0.5) / gw * w + 0.5)), 1, int(w) - 1);
+      const int cy = std::clamp(int(std::floor((j + 0.5) / gh * h + 0.5)), 1, int(h) - 1);
+      float lum = 0.0f;
+      for (int dy = -1; dy <= 0; ++dy)
+        for (int dx = -1; dx <= 0; ++dx) lum += 0.25f * LumaHdr(hdr, size_t(cy + dy) * w + cx + dx);
+      sum += std::clamp(std::log2(std::max(lum, 1e-5f)), -16.0f, 16.0f);
+    }
+  }
+  return float(sum / (gw * gh));
+}
+
+Settings AutoExposure() {
+  Settings s = Lit(false, false);
+  s.exposure_mode = ExposureMode::kAuto;
+  s.tonemapper = Tonemapper::kPhotographic;
+  return s;
+}
+
+// A single render converges at once: the state is this frame's average, and the picture is the
+// fixed-exposure picture at the exposure that maps that average to middle grey.
+TEST(AutoExposureTest, MapsTheAverageToMiddleGreyAtOnce) {
+  const SceneHandle& scene = SharedDemoScene();
+  FrameCapture capture;
+  absl::StatusOr<Frame> autof =
+      SharedRenderer().Render(*scene, BackCamera(), AutoExposure(), 101, &capture);
+  ASSERT_TRUE(autof.ok()) << autof.status();
+  const float expected = ReferenceLog2Luma(capture.hdr, kWidth, kHeight);
+  EXPECT_NEAR(capture.exposure_log2, expected, 0.01);
+  Settings fixed = AutoExposure();
+  fixed.exposure_mode = ExposureMode::kFixed;
+  fixed.exposure_ev = std::log2(0.18f) - capture.exposure_log2;
+  const Frame f = RenderOrDie(*scene, BackCamera(), fixed);
+  absl::StatusOr<double> psnr = Psnr(autof->image, f.image);
+  ASSERT_TRUE(psnr.ok());
+  EXPECT_GT(*psnr, 45.0);
+  // exposure_ev compensates: +1 stop brightens the auto-exposed picture.
+  Settings brighter = AutoExposure();
+  brighter.exposure_ev = 1.0f;
+  const Frame b = RenderOrDie(*scene, BackCamera(), brighter, 102);
+  ExpectOnlyDarker(autof->image, b.image, "one stop less");
+  CompareWithGolden("auto_exposure", autof->image, 35.0);
+  SharedRenderer().ForgetView(*scene, 101);
+  SharedRenderer().ForgetView(*scene, 102);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// In a stream the exposure moves a tenth of the way to each new frame's average; a view's state
+// is its own, and forgetting the view starts it afresh.
+TEST(AutoExposureTest, AdaptsOverAStreamsFrames) {
+  const SceneHandle& scene = SharedDemoScene();
+  Camera sky = BackCamera();  // the same place, looking up at the sky: a brighter frame
+  sky.target = sky.eye + glm::vec3(0.3f, 1.0f, 0.4f);
+  auto state = [&](const Camera& c, uint64_t view) {
+    FrameCapture capture;
+    absl::StatusOr<Frame> f = SharedRenderer().Render(*scene, c, AutoExposure(), view, &capture);
+    EXPECT_TRUE(f.ok()) << f.status();
+    return capture.exposure_log2;
+  };
+  const float floor_avg = state(BackCamera(), 201);
+  const float sky_avg = state(sky, 202);
+  ASSERT_GT(std::abs(sky_avg - floor_avg), 0.2f) << "the two views should differ in brightness";
+  const float one = state(sky, 201);  // view 201 adapts from the floor towards the sky
+  EXPECT_NEAR(one, floor_avg + 0.1f * (sky_avg - floor_avg), 1e-3);
+  const float two = state(sky, 201);
+  EXPECT_NEAR(two, one + 0.1f * (sky_avg - one), 1e-3);
+  EXPECT_NEAR(state(sky, 202), sky_avg, 1e-4);  // converged view 202 stays put
+  SharedRenderer().ForgetView(*scene, 201);
+  EXPECT_NEAR(state(sky, 201), sky_avg, 1e-4);  // a forgotten view starts afresh
+  SharedRenderer().ForgetView(*scene, 201);
+  SharedRenderer().ForgetView(*scene, 202);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// ---------------------------------------------------------------------------------------------
+// IBL
+
+Settings Ibl(AaMode aa = AaMode::kNone) {
+  Settings s = Lit(false, false, aa);
+  s.ibl = true;
+  return s;
+}
+
+TEST(IblTest, MatchesGoldenInBothPaths) {
+  const SceneHandle& scene = SharedDemoScene();
+  const Frame forward = RenderOrDie(*scene, BackCamera(), Ibl());
+  CompareWithGolden("ibl", forward.image, 35.0);
+  const Frame vis = RenderOrDie(*scene, BackCamera(), Ibl(AaMode::kVisMlaa));
+  absl::StatusOr<double> psnr = Psnr(vis.image, forward.image);
+  ASSERT_TRUE(psnr.ok());
+  EXPECT_GT(*psnr, 30.0);
+  // IBL changes the ambient light, not the direct: the picture differs from the hemisphere's,
+  // but not wildly (the procedural sky is as bright as the hemisphere).
+  const Frame hemisphere = RenderOrDie(*scene, BackCamera(), Lit(false, false));
+  psnr = Psnr(forward.image, hemisphere.image);
+  ASSERT_TRUE(psnr.ok());
+  EXPECT_LT(*psnr, 45.0);
+  EXPECT_GT(*psnr, 18.0);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// The maps are baked once per sky: a frame with the same sun bakes nothing; another sun bakes.
+TEST(IblTest, BakedOncePerSky) {
+  const SceneHandle& scene = SharedDemoScene();
+  RenderOrDie(*scene, BackCamera(), Ibl());
+  EXPECT_EQ(RenderOrDie(*scene, BackCamera(), Ibl()).stats.ibl_bakes, 0u);
+  Camera other = BackCamera();
+  other.eye.x += 1.0f;
+  EXPECT_EQ(RenderOrDie(*scene, other, Ibl()).stats.ibl_bakes, 0u);  // the camera is not the sky
+  Settings default_sun = Ibl();
+  default_sun.scene_lights = false;  // the built-in sun, from another direction
+  EXPECT_EQ(RenderOrDie(*scene, BackCamera(), default_sun).stats.ibl_bakes, 1u);
+  EXPECT_EQ(RenderOrDie(*scene, BackCamera(), Ibl()).stats.ibl_bakes, 1u);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// The environment cube is oriented as the world: looking straight at the sun, its disc is the
+// brightest thing in the picture and lies at the centre.
+TEST(IblTest, TheSunIsWhereTheLightComesFrom) {
+  const SceneHandle& scene = SharedDemoScene();
+  const glm::vec3 to_sun = -glm::normalize(glm::vec3(-0.45f, -1.0f, -0.35f));  // demo's sun
+  Camera c;
+  c.eye = glm::vec3(0.0f, 5.0f, 0.0f);
+  c.target = c.eye + to_sun;
+  c.yfov = 0.5f;
+  const Frame f = RenderOrDie(*scene, c, Ibl());
+  // The centroid of the brightest pixels (the disc saturates: many share the maximum).
+  float best = -1.0f;
+  for (uint32_t y = 0; y < kHeight; ++y)
+    for (uint32_t x = 0; x < kWidth; ++x) best = std::max(best, Luma(f.image, x, y));
+  double sx = 0.0, sy = 0.0;
+  int n = 0;
+  for (uint32_t y = 0; y < kHeight; ++y)
+    for (uint32_t x = 0; x < kWidth; ++x)
+      if (Luma(f.image, x, y) >= best - 1.0f) sx += x + 0.5, sy += y + 0.5, ++n;
+  ASSERT_GT(n, 0);
+  EXPECT_NEAR(sx / n, kWidth / 2.0, 4.0);
+  EXPECT_NEAR(sy / n, kHeight / 2.0, 4.0);
+  EXPECT_LT(n, int(kWidth * kHeight / 20)) << "no disc: most of the sky is as bright";
+  EXPECT_GT(best, Luma(f.image, 10, 10) + 20.0f) << "no sun disc";
   ExpectNoValidationMessages(SharedRenderer());
 }
 

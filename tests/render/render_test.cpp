@@ -180,7 +180,7 @@ TEST(RenderTest, UnimplementedSettingsAreReported) {
   Renderer& r = SharedRenderer();
   const SceneHandle& scene = SharedDemoScene();
   Settings s = SmallSettings(64, 64);
-  s.bloom = true;
+  s.debug_view = DebugView::kCullingOverlay;  // not implemented yet
   s.samples = 8;
   s.aa = AaMode::kMsaa;
   absl::StatusOr<Frame> f = r.Render(*scene, Camera{}, s);
@@ -190,7 +190,8 @@ TEST(RenderTest, UnimplementedSettingsAreReported) {
       if (n.field == field) return true;
     return false;
   };
-  EXPECT_TRUE(has_note("bloom"));
+  EXPECT_TRUE(has_note("debug_view"));
+  EXPECT_EQ(f->settings.effective.debug_view, DebugView::kNone);
   EXPECT_EQ(f->settings.effective.samples, std::min(8u, r.device_info().max_samples));
   if (r.device_info().max_samples < 8) {
     EXPECT_TRUE(has_note("samples"));

@@ -60,6 +60,11 @@ std::vector<Settings> SettingsVariants() {
     s.shadows = s.ssao = true;
     s.synthetic_lights = 8;
     out.push_back(s);
+    s.ssao = false;  // post effects with every AA mode
+    s.bloom = true;
+    out.push_back(s);
+    s.exposure_mode = ExposureMode::kAuto;
+    out.push_back(s);
   }
   Settings all;
   all.shadows = all.ssao = all.bloom = all.ibl = true;
@@ -76,6 +81,7 @@ struct PassList {
   std::vector<PassId> passes;
   AaMode aa = AaMode::kNone;
   bool ssao = false;
+  bool bloom = false;
 };
 std::vector<PassList> AllPassLists() {
   std::vector<PassList> lists;
@@ -83,7 +89,7 @@ std::vector<PassList> AllPassLists() {
     for (bool transparent : {false, true}) {
       FrameFeatures f;
       f.has_transparent = transparent;
-      lists.push_back({SelectPasses(s, f), s.aa, s.ssao});
+      lists.push_back({SelectPasses(s, f), s.aa, s.ssao, s.bloom});
     }
   }
   return lists;
@@ -125,7 +131,7 @@ TEST(PassTest, EveryPassDeclaresItsUses) {
 }
 
 TEST(SelectPassesTest, OrderIsFixed) {
-  for (const auto& [passes, aa, ssao] : AllPassLists()) {
+  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
     const std::string d = Describe(passes);
     // vis_mlaa's visibility pass is its depth pass, its shading pass its forward pass.
     const int prepass = std::max(IndexOf(passes, PassId::kDepthPrepass),
@@ -153,6 +159,22 @@ TEST(SelectPassesTest, OrderIsFixed) {
     if (ao >= 0) {
       EXPECT_LT(prepass, ao) << d;
       EXPECT_LT(ao, forward) << d;
+    }
+    // Auto exposure and bloom read the final HDR colour (after AA and transparency), exposure
+    // first: bloom thresholds in exposed units.
+    const int exposure = IndexOf(passes, PassId::kExposure);
+    const int bloom_pass = IndexOf(passes, PassId::kBloom);
+    EXPECT_EQ(bloom_pass >= 0, bloom) << d;
+    for (int p : {exposure, bloom_pass}) {
+      if (p < 0) continue;
+      EXPECT_LT(std::max({forward, transparent, IndexOf(passes, PassId::kTaa),
+                          IndexOf(passes, PassId::kGeometricAa)}),
+                p)
+          << d;
+      EXPECT_LT(p, tonemap) << d;
+    }
+    if (exposure >= 0 && bloom_pass >= 0) {
+      EXPECT_LT(exposure, bloom_pass) << d;
     }
     // The image is read back last, once everything has been drawn into it.
     EXPECT_EQ(readback, static_cast<int>(passes.size()) - 1) << d;
@@ -259,17 +281,17 @@ TEST(PlanTransitionsTest, OcclusionCullingMovesDepthAndPyramid) {
 }
 
 TEST(PlanTransitionsTest, OnePlanEntryPerPass) {
-  for (const auto& [passes, aa, ssao] : AllPassLists())
-    EXPECT_EQ(PlanTransitions(passes, aa, ssao).size(), passes.size()) << Describe(passes);
+  for (const auto& [passes, aa, ssao, bloom] : AllPassLists())
+    EXPECT_EQ(PlanTransitions(passes, aa, ssao, bloom).size(), passes.size()) << Describe(passes);
   EXPECT_TRUE(PlanTransitions({}).empty());
 }
 
 TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
-  for (const auto& [passes, aa, ssao] : AllPassLists()) {
-    const auto plan = PlanTransitions(passes, aa, ssao);
+  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
+    const auto plan = PlanTransitions(passes, aa, ssao, bloom);
     std::array<bool, kResourceCount> used{};
     for (size_t i = 0; i < passes.size(); ++i) {
-      for (const ResourceUse& u : PassUses(passes[i], aa, ssao)) {
+      for (const ResourceUse& u : PassUses(passes[i], aa, ssao, bloom)) {
         const size_t r = static_cast<size_t>(u.resource);
         if (used[r]) continue;
         used[r] = true;
@@ -296,6 +318,31 @@ TEST(PlanTransitionsTest, NoBarrierForReadAfterReadInTheSameLayout) {
   EXPECT_EQ(t->to, Access::kDepthTest);
 }
 
+TEST(PlanTransitionsTest, BarrierBetweenReadsInDifferentStages) {
+  // Light culling reads the depth in a compute shader, ssao then samples it in a fragment
+  // shader: the barrier after the prepass made its writes visible to compute only.
+  Settings s;
+  s.ssao = true;
+  s.synthetic_lights = 4;
+  FrameFeatures f;
+  f.local_lights = 4;
+  const std::vector<PassId> passes = SelectPasses(s, f);
+  const auto plan = PlanTransitions(passes, s.aa, true);
+  const int ssao = IndexOf(passes, PassId::kSsao);
+  ASSERT_GT(ssao, IndexOf(passes, PassId::kLightCull));
+  const Transition* t = FindTransition(plan[ssao], Resource::kDepth);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->from, Access::kComputeRead);
+  EXPECT_EQ(t->to, Access::kSampled);
+  // The same for the colour auto exposure reads in compute, then tonemap in a fragment shader.
+  s.exposure_mode = ExposureMode::kAuto;
+  const std::vector<PassId> p2 = SelectPasses(s, f);
+  const auto plan2 = PlanTransitions(p2, s.aa, true);
+  t = FindTransition(plan2[IndexOf(p2, PassId::kTonemap)], Resource::kHdrColor);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->from, Access::kComputeRead);
+}
+
 TEST(PlanTransitionsTest, BarrierForWriteAfterWrite) {
   // Transparent blends over forward's HDR colour: same layout, but both write.
   const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward, PassId::kTransparent,
@@ -310,9 +357,9 @@ TEST(PlanTransitionsTest, BarrierForWriteAfterWrite) {
 // Replays the plan on a state table: every transition starts from the resource's current
 // state, and once a pass's transitions are applied every declared use is in its access.
 TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
-  for (const auto& [passes, aa, ssao] : AllPassLists()) {
+  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
     const std::string d = Describe(passes);
-    const auto plan = PlanTransitions(passes, aa, ssao);
+    const auto plan = PlanTransitions(passes, aa, ssao, bloom);
     ASSERT_EQ(plan.size(), passes.size());
     std::array<Access, kResourceCount> state;
     state.fill(Access::kNone);
@@ -326,13 +373,13 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
         EXPECT_TRUE(moved.insert(t.resource).second) << d << Name(passes[i]) << ": twice";
         state[r] = t.to;
       }
-      for (const ResourceUse& u : PassUses(passes[i], aa, ssao)) {
+      for (const ResourceUse& u : PassUses(passes[i], aa, ssao, bloom)) {
         EXPECT_EQ(state[static_cast<size_t>(u.resource)], u.access)
             << d << "before " << Name(passes[i]) << " resource " << static_cast<int>(u.resource);
       }
       // Transitions only for what the pass uses.
       for (const Transition& t : plan[i]) {
-        const auto uses = PassUses(passes[i], aa, ssao);
+        const auto uses = PassUses(passes[i], aa, ssao, bloom);
         EXPECT_TRUE(std::any_of(uses.begin(), uses.end(),
                                 [&](const ResourceUse& u) { return u.resource == t.resource; }))
             << d << Name(passes[i]) << " transitions a resource it does not use";
@@ -342,10 +389,10 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
 }
 
 TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
-  for (const auto& [passes, aa, ssao] : AllPassLists()) {
+  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
     std::array<bool, kResourceCount> written{};
     for (PassId p : passes) {
-      for (const ResourceUse& u : PassUses(p, aa, ssao)) {
+      for (const ResourceUse& u : PassUses(p, aa, ssao, bloom)) {
         const size_t r = static_cast<size_t>(u.resource);
         // The first culling phase binds the pyramid (one pipeline for both phases) but never
         // reads it: only the late phase tests occlusion.
@@ -355,7 +402,7 @@ TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
                                   << " before any pass wrote it";
         }
       }
-      for (const ResourceUse& u : PassUses(p, aa, ssao))
+      for (const ResourceUse& u : PassUses(p, aa, ssao, bloom))
         if (IsWrite(u.access)) written[static_cast<size_t>(u.resource)] = true;
     }
   }
@@ -363,12 +410,12 @@ TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
 
 TEST(PlanTransitionsTest, EveryHazardHasABarrier) {
   // Whenever a use follows a write, or changes the access class, the plan has a transition.
-  for (const auto& [passes, aa, ssao] : AllPassLists()) {
-    const auto plan = PlanTransitions(passes, aa, ssao);
+  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
+    const auto plan = PlanTransitions(passes, aa, ssao, bloom);
     std::array<Access, kResourceCount> last;
     last.fill(Access::kNone);
     for (size_t i = 0; i < passes.size(); ++i) {
-      for (const ResourceUse& u : PassUses(passes[i], aa, ssao)) {
+      for (const ResourceUse& u : PassUses(passes[i], aa, ssao, bloom)) {
         const size_t r = static_cast<size_t>(u.resource);
         // Only read-after-read in the same access may skip the barrier.
         const bool same_read = last[r] == u.access && IsRead(u.access);

@@ -516,6 +516,7 @@ Settings NonDefaultSettings() {
   s.ibl = true;
   s.exposure_mode = ExposureMode::kAuto;
   s.exposure_ev = -1.5f;
+  s.tonemapper = Tonemapper::kPhotographic;
   s.debug_view = DebugView::kLightHeatmap;
   s.jpeg_quality = 75;
   s.jpeg_444 = true;
@@ -538,6 +539,7 @@ void ExpectSameSettings(const Settings& a, const Settings& b) {
   EXPECT_EQ(a.ibl, b.ibl);
   EXPECT_EQ(ToString(a.exposure_mode), ToString(b.exposure_mode));
   EXPECT_EQ(a.exposure_ev, b.exposure_ev);
+  EXPECT_EQ(ToString(a.tonemapper), ToString(b.tonemapper));
   EXPECT_EQ(ToString(a.debug_view), ToString(b.debug_view));
   EXPECT_EQ(a.jpeg_quality, b.jpeg_quality);
   EXPECT_EQ(a.jpeg_444, b.jpeg_444);
@@ -602,6 +604,23 @@ TEST(MergeSettingsTest, WireEnumsMapToTheRendererEnums) {
     absl::StatusOr<Settings> s = MergeSettings(NonDefaultSettings(), u);
     ASSERT_TRUE(s.ok()) << s.status();
     EXPECT_EQ(ToString(s->exposure_mode), ToString(want)) << v1::ExposureMode_Name(wire);
+  }
+  for (const auto& [wire, want] :
+       std::vector<std::pair<v1::Tonemapper, Tonemapper>>{
+           {v1::TONEMAPPER_PBR_NEUTRAL, Tonemapper::kPbrNeutral},
+           {v1::TONEMAPPER_PHOTOGRAPHIC, Tonemapper::kPhotographic}}) {
+    v1::RenderSettings u;
+    u.set_tonemapper(wire);
+    absl::StatusOr<Settings> s = MergeSettings(Settings{}, u);
+    ASSERT_TRUE(s.ok()) << s.status();
+    EXPECT_EQ(ToString(s->tonemapper), ToString(want)) << v1::Tonemapper_Name(wire);
+  }
+  {
+    v1::RenderSettings u;
+    u.set_tonemapper(static_cast<v1::Tonemapper>(9));
+    absl::StatusOr<Settings> s = MergeSettings(Settings{}, u);
+    ASSERT_FALSE(s.ok());
+    EXPECT_NE(std::string(s.status().message()).find("settings.tonemapper"), std::string::npos);
   }
   const std::vector<std::pair<v1::DebugView, DebugView>> debug = {
       {v1::DEBUG_NONE, DebugView::kNone},

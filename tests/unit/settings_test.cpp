@@ -97,6 +97,7 @@ TEST(ValidateSettingsTest, OutOfRangeFieldsAreNamed) {
       {"ssao_radius", [](Settings& s) { s.ssao_radius = std::nanf(""); }},
       {"ssao_strength", [](Settings& s) { s.ssao_strength = 4.5f; }},
       {"bloom_strength", [](Settings& s) { s.bloom_strength = -0.1f; }},
+      {"tonemapper", [](Settings& s) { s.tonemapper = static_cast<Tonemapper>(7); }},
   };
   for (const Case& c : cases) {
     Settings s;
@@ -158,6 +159,7 @@ const std::vector<Field>& AllFields() {
       TESSERA_FIELD(ssao_strength),
       TESSERA_FIELD(ssao_half_res),
       TESSERA_FIELD(bloom_strength),
+      TESSERA_FIELD(tonemapper),
   };
   return fields;
 }
@@ -287,6 +289,7 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
   add("bloom", [](Settings& s) { s.bloom = true; });
   add("ibl", [](Settings& s) { s.ibl = true; });
   add("exposure auto", [](Settings& s) { s.exposure_mode = ExposureMode::kAuto; });
+  add("tonemapper photographic", [](Settings& s) { s.tonemapper = Tonemapper::kPhotographic; });
   add("exposure_ev", [](Settings& s) { s.exposure_ev = -3.5f; });
   for (uint32_t v = 0; v < 11; ++v) {
     add("debug_view " + std::to_string(v),
@@ -392,6 +395,10 @@ TEST(EnumNamesTest, KnownNames) {
   EXPECT_EQ(ToString(CullingMode::kCpuFrustum), "cpu_frustum");
   EXPECT_EQ(ToString(CullingMode::kGpuOcclusion), "gpu_occlusion");
   EXPECT_EQ(ToString(ExposureMode::kAuto), "auto");
+  EXPECT_EQ(ToString(Tonemapper::kPbrNeutral), "pbr_neutral");
+  EXPECT_EQ(ToString(Tonemapper::kPhotographic), "photographic");
+  EXPECT_EQ(*ParseTonemapper("photographic"), Tonemapper::kPhotographic);
+  EXPECT_FALSE(ParseTonemapper("filmic").ok());
   EXPECT_EQ(ToString(DebugView::kBaseColor), "base_color");
 }
 

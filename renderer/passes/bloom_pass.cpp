@@ -1,0 +1,118 @@
+// Bloom (Jimenez, "Next Generation Post Processing in Call of Duty: Advanced Warfare", 2014):
+// the tonemap's input, exposed and soft-thresholded, downsampled by the 13-tap filter into
+// kBloomLevels mips of bloom_down (shaders/bloom_down.frag), then upsampled with a 3x3 tent
+// back up through bloom_up, each level adding the downsample chain's level of its size
+// (shaders/bloom_up.frag). bloom_up's level 0 (half the frame) holds the sum of every level's
+// blur: the tonemap pass adds it, divided by the level count, at bloom_strength.
+//
+// The frame graph hands both chains over as colour targets (every mip). Each mip is drawn and
+// then read by the next draw: the pass makes those per-mip transitions itself, and at the end
+// puts bloom_up's read mips back in the colour-target layout, so that the whole image is where
+// the graph believes it is (its transition then makes level 0 readable by the tonemap pass).
+// bloom_down's mips stay in the shader-read layout: nothing after this pass uses them, and the
+// next frame's graph starts them from the undefined layout.
+#include <algorithm>
+
+#include "renderer/passes/pass.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera {
+
+namespace {
+
+// What passes the threshold: exposed values above 1 (brighter than the display's white), with a
+// soft knee of +-0.5 around it.
+constexpr float kThreshold = 1.0f;
+constexpr float kKnee = 0.5f;
+
+class BloomPass final : public Pass {
+ public:
+  BloomPass(FullscreenProgram down, FullscreenProgram up, vk::Sampler linear, vk::Sampler nearest)
+      : down_(std::move(down)),
+        up_(std::move(up)),
+        linear_(std::move(linear)),
+        nearest_(std::move(nearest)) {}
+  PassId id() const override { return PassId::kBloom; }
+
+  void Record(PassContext& ctx) override {
+    const FrameTargets& t = *ctx.targets;
+    const uint32_t levels = uint32_t(t.bloom_down_levels.size());
+    auto extent = [&](uint32_t level) {
+      return VkExtent2D{std::max(1u, t.bloom_down.desc().width >> level),
+                        std::max(1u, t.bloom_down.desc().height >> level)};
+    };
+    const PostInput exposure{ctx.exposure->view, nearest_.handle(), ctx.exposure->layout};
+    struct {
+      glm::vec4 src;
+      glm::vec4 threshold;
+      glm::vec4 exposure;
+    } down{glm::vec4(0.0f), glm::vec4(kThreshold, kKnee, 0.0f, 0.0f), ctx.exposure->params};
+    for (uint32_t i = 0; i < levels; ++i) {
+      const VkExtent2D src = i == 0 ? VkExtent2D{t.width, t.height} : extent(i - 1);
+      down.src = glm::vec4(1.0f / float(src.width), 1.0f / float(src.height), i == 0 ? 1.0f : 0.0f,
+                           0.0f);
+      const PostInput in{i == 0 ? PostColor(ctx).view() : t.bloom_down_levels[i - 1],
+                         linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+      down_.Draw(ctx, {in, exposure}, {t.bloom_down_levels[i]}, &down, extent(i));
+      ToRead(ctx, t.bloom_down, i);
+    }
+    // Up: level i of bloom_up = tent(the level below, magnified) + level i of bloom_down; the
+    // level below is bloom_down's last for the first step.
+    for (uint32_t i = levels - 1; i-- > 0;) {  // levels - 2 .. 0
+      const VkExtent2D low = extent(i + 1);
+      const glm::vec4 push(1.0f / float(low.width), 1.0f / float(low.height), 1.0f, 0.0f);
+      const VkImageView low_view =
+          i + 1 == levels - 1 ? t.bloom_down_levels[i + 1] : t.bloom_up_levels[i + 1];
+      up_.Draw(ctx,
+               {{low_view, linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+                {t.bloom_down_levels[i], linear_.handle(),
+                 VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}},
+               {t.bloom_up_levels[i]}, &push, extent(i));
+      if (i > 0) ToRead(ctx, t.bloom_up, i);
+    }
+    // Levels 1.. were read above (after their writes): back to the target layout, for the graph.
+    if (levels > 2) {
+      const VkImageMemoryBarrier2 b = vk::MakeImageBarrier(
+          t.bloom_up,
+          {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_NONE,
+           VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL, VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
+           VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL},
+          1, levels - 2);
+      vk::CmdBarrier(ctx.cmd, &b, 1);
+    }
+  }
+
+ private:
+  // A mip just drawn, to be sampled by the next draw (and bloom_up's level 0 by the tonemap).
+  static void ToRead(const PassContext& ctx, const vk::Image& image, uint32_t level) {
+    const VkImageMemoryBarrier2 b = vk::MakeImageBarrier(
+        image,
+        {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
+         VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
+        level, 1);
+    vk::CmdBarrier(ctx.cmd, &b, 1);
+  }
+
+  FullscreenProgram down_, up_;
+  vk::Sampler linear_, nearest_;
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx) {
+  absl::StatusOr<FullscreenProgram> down =
+      FullscreenProgram::Create(ctx, "bloom_down", "bloom_down.frag", 2, 48, {kHdrFormat});
+  if (!down.ok()) return down.status();
+  absl::StatusOr<FullscreenProgram> up =
+      FullscreenProgram::Create(ctx, "bloom_up", "bloom_up.frag", 2, 16, {kHdrFormat});
+  if (!up.ok()) return up.status();
+  absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, "bloom.linear");
+  if (!linear.ok()) return linear.status();
+  absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, "bloom.nearest");
+  if (!nearest.ok()) return nearest.status();
+  return std::unique_ptr<Pass>(new BloomPass(std::move(*down), std::move(*up),
+                                             std::move(*linear), std::move(*nearest)));
+}
+
+}  // namespace tessera

@@ -1,0 +1,108 @@
+// Auto exposure (shaders/exposure.comp): one workgroup reduces the log2 luma of an even grid of
+// points over the tonemap's input (each a bilinear tap at a texel corner: the mean of 2x2
+// pixels) to its average, and moves the view's 1x1 state towards it. The state lives across
+// frames, outside the frame graph, in the general layout: the pass orders itself after the
+// last frame's reads and before this frame's (bloom and tonemap sample it).
+#include <algorithm>
+
+#include "renderer/passes/pass.h"
+#include "renderer/vk/pipeline.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera {
+
+namespace {
+
+// Sample points per axis at most: 64 x 64 taps of 2x2 pixels, 16 per thread.
+constexpr uint32_t kGrid = 64;
+// The log2 luma range the average is kept in: a black or blown-out frame cannot push the
+// exposure further than 2^16 either way.
+constexpr float kMinLog2 = -16.0f;
+constexpr float kMaxLog2 = 16.0f;
+
+struct ExposurePush {
+  uint32_t size[4];  // frame width, height, grid width, grid height
+  float params[4];   // rate, min log2 luma, max log2 luma, unused
+};
+
+class ExposurePass final : public Pass {
+ public:
+  ExposurePass(VkDevice device, PassLayout layout, vk::Pipeline pipeline, vk::Sampler linear)
+      : device_(device),
+        layout_(std::move(layout)),
+        pipeline_(std::move(pipeline)),
+        linear_(std::move(linear)) {}
+  PassId id() const override { return PassId::kExposure; }
+
+  void Record(PassContext& ctx) override {
+    const ExposureFrame& e = *ctx.exposure;
+    const vk::Image& state = *e.state;
+    // After the last frame's reads (bloom, tonemap); a state never written starts undefined.
+    VkImageMemoryBarrier2 before = vk::MakeImageBarrier(
+        state, {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_NONE,
+                e.state_valid ? VK_IMAGE_LAYOUT_GENERAL : VK_IMAGE_LAYOUT_UNDEFINED,
+                VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                VK_IMAGE_LAYOUT_GENERAL});
+    vk::CmdBarrier(ctx.cmd, &before, 1);
+
+    const VkDescriptorSet set = layout_.Allocate(ctx);
+    const VkDescriptorImageInfo src{linear_.handle(), PostColor(ctx).view(),
+                                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    const VkDescriptorImageInfo dst{VK_NULL_HANDLE, state.view(), VK_IMAGE_LAYOUT_GENERAL};
+    VkWriteDescriptorSet w[2] = {{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET},
+                                 {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET}};
+    w[0].dstSet = w[1].dstSet = set;
+    w[0].dstBinding = 0;
+    w[0].descriptorCount = 1;
+    w[0].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    w[0].pImageInfo = &src;
+    w[1].dstBinding = 1;
+    w[1].descriptorCount = 1;
+    w[1].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+    w[1].pImageInfo = &dst;
+    vkUpdateDescriptorSets(device_, 2, w, 0, nullptr);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
+                            1, &set, 0, nullptr);
+    const uint32_t w_px = ctx.targets->width, h_px = ctx.targets->height;
+    const ExposurePush push{{w_px, h_px, std::min(w_px, kGrid), std::min(h_px, kGrid)},
+                            {e.state_valid ? e.rate : 1.0f, kMinLog2, kMaxLog2, 0.0f}};
+    vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       sizeof(push), &push);
+    vkCmdDispatch(ctx.cmd, 1, 1, 1);
+
+    VkImageMemoryBarrier2 after = vk::MakeImageBarrier(
+        state, {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
+                VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_GENERAL});
+    vk::CmdBarrier(ctx.cmd, &after, 1);
+  }
+
+ private:
+  VkDevice device_;
+  PassLayout layout_;
+  vk::Pipeline pipeline_;
+  vk::Sampler linear_;
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateExposurePass(const vk::Context& ctx) {
+  const std::vector<VkDescriptorSetLayoutBinding> bindings = {
+      {0, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+      {1, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
+  };
+  absl::StatusOr<PassLayout> layout = PassLayout::Create(
+      ctx, bindings, {{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(ExposurePush)}}, "exposure layout");
+  if (!layout.ok()) return layout.status();
+  absl::StatusOr<vk::Pipeline> pipeline =
+      vk::CreateComputePipeline(ctx, "exposure", "exposure.comp", layout->pipeline_layout());
+  if (!pipeline.ok()) return pipeline.status();
+  absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, "exposure");
+  if (!linear.ok()) return linear.status();
+  return std::make_unique<ExposurePass>(ctx.device(), std::move(*layout), std::move(*pipeline),
+                                        std::move(*linear));
+}
+
+}  // namespace tessera
