@@ -151,6 +151,40 @@ absl::Status MakeBuffer(const vk::Context& ctx, VkDeviceSize size, VkBufferUsage
 }
 
 // The light a scene without lights gets: a warm sun from above and in front.
+// Per-view state kept in a map (`last_used` in each value): drops the least recently used.
+template <typename Map>
+void DropLeastRecentlyUsed(Map& map) {
+  if (map.empty()) return;
+  map.erase(std::min_element(map.begin(), map.end(), [](const auto& a, const auto& b) {
+    return a.second.last_used < b.second.last_used;
+  }));
+}
+
+void DestroyViews(VkDevice device, std::vector<VkImageView>& views) {
+  for (VkImageView v : views) vkDestroyImageView(device, v, nullptr);
+  views.clear();
+}
+
+// A 2D view of each of `image`'s mips (for passes that write one mip and read another), appended
+// to `views`; on failure the ones made are destroyed.
+absl::Status CreateLevelViews(VkDevice device, const vk::Image& image, const char* name,
+                              std::vector<VkImageView>& views) {
+  for (uint32_t level = 0; level < image.desc().mip_levels; ++level) {
+    VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+    vi.image = image.handle();
+    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+    vi.format = image.desc().format;
+    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, level, 1, 0, 1};
+    VkImageView view;
+    if (vkCreateImageView(device, &vi, nullptr, &view) != VK_SUCCESS) {
+      DestroyViews(device, views);
+      return absl::ResourceExhaustedError(absl::StrCat(name, " level view"));
+    }
+    views.push_back(view);
+  }
+  return absl::OkStatus();
+}
+
 Light DefaultSun() {
   Light sun;
   sun.name = "default_sun";
@@ -776,10 +810,8 @@ absl::Status Renderer::Impl::EnsureCullBuffers(uint32_t items, uint32_t lists) {
 }
 
 void Renderer::Impl::DestroyHizViews() {
-  for (auto* levels : {&targets.hiz_levels, &targets.bloom_down_levels, &targets.bloom_up_levels}) {
-    for (VkImageView v : *levels) vkDestroyImageView(ctx->device(), v, nullptr);
-    levels->clear();
-  }
+  for (auto* levels : {&targets.hiz_levels, &targets.bloom_down_levels, &targets.bloom_up_levels})
+    DestroyViews(ctx->device(), *levels);
 }
 
 absl::Status Renderer::Impl::EnsureBloom() {
@@ -794,10 +826,9 @@ absl::Status Renderer::Impl::EnsureBloom() {
       targets.bloom_up_levels.size() == kBloomLevels - 1)
     return absl::OkStatus();
   vkDeviceWaitIdle(ctx->device());
-  for (auto* levels : {&targets.bloom_down_levels, &targets.bloom_up_levels}) {
-    for (VkImageView v : *levels) vkDestroyImageView(ctx->device(), v, nullptr);
-    levels->clear();
-  }
+  const VkDevice d = ctx->device();
+  DestroyViews(d, targets.bloom_down_levels);
+  DestroyViews(d, targets.bloom_up_levels);
   auto make = [&](uint32_t mips, const char* name, vk::Image* image,
                   std::vector<VkImageView>* views) -> absl::Status {
     vk::ImageDesc desc;
@@ -809,27 +840,14 @@ absl::Status Renderer::Impl::EnsureBloom() {
     absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, name);
     if (!img.ok()) return img.status();
     *image = std::move(*img);
-    for (uint32_t level = 0; level < desc.mip_levels; ++level) {
-      VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
-      vi.image = image->handle();
-      vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
-      vi.format = kHdrFormat;
-      vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, level, 1, 0, 1};
-      VkImageView view;
-      if (vkCreateImageView(ctx->device(), &vi, nullptr, &view) != VK_SUCCESS)
-        return absl::ResourceExhaustedError(absl::StrCat(name, " level view"));
-      views->push_back(view);
-    }
-    return absl::OkStatus();
+    return CreateLevelViews(d, *image, name, *views);
   };
   absl::Status st =
       make(kBloomLevels, "bloom_down", &targets.bloom_down, &targets.bloom_down_levels);
   if (st.ok()) st = make(kBloomLevels - 1, "bloom_up", &targets.bloom_up, &targets.bloom_up_levels);
   if (!st.ok()) {  // all or nothing: the next frame with bloom tries again
-    for (auto* levels : {&targets.bloom_down_levels, &targets.bloom_up_levels}) {
-      for (VkImageView v : *levels) vkDestroyImageView(ctx->device(), v, nullptr);
-      levels->clear();
-    }
+    DestroyViews(d, targets.bloom_down_levels);
+    DestroyViews(d, targets.bloom_up_levels);
     targets.bloom_down = vk::Image();
     targets.bloom_up = vk::Image();
   }
@@ -845,11 +863,7 @@ absl::StatusOr<Renderer::Impl::ExposureState*> Renderer::Impl::Exposure(const Gp
     it->second.last_used = ++frame_counter;
     return &it->second;
   }
-  if (exposure_state.size() >= kMaxExposureViews) {
-    exposure_state.erase(std::min_element(
-        exposure_state.begin(), exposure_state.end(),
-        [](const auto& a, const auto& b) { return a.second.last_used < b.second.last_used; }));
-  }
+  if (exposure_state.size() >= kMaxExposureViews) DropLeastRecentlyUsed(exposure_state);
   vk::ImageDesc desc;
   desc.format = kExposureFormat;
   desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
@@ -867,12 +881,7 @@ absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuSc
   auto& views = scene.views();
   auto it = views.find(view);
   if (it == views.end()) {
-    if (views.size() >= kMaxViews) {
-      auto oldest = std::min_element(views.begin(), views.end(), [](const auto& a, const auto& b) {
-        return a.second.last_used < b.second.last_used;
-      });
-      views.erase(oldest);
-    }
+    if (views.size() >= kMaxViews) DropLeastRecentlyUsed(views);
     GpuScene::ViewVisibility v;
     const VkDeviceSize bytes = VkDeviceSize((scene.draws().size() + 31) / 32 + 1) * 4;
     for (vk::Buffer& b : v.bits) {
@@ -1101,19 +1110,8 @@ absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
   desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
   absl::StatusOr<vk::Image> hiz = vk::Image::Create(*ctx, desc, "hiz");
   if (!hiz.ok()) return hiz.status();
-  for (uint32_t level = 0; level < desc.mip_levels; ++level) {
-    VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
-    vi.image = hiz->handle();
-    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
-    vi.format = kHizFormat;
-    vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, level, 1, 0, 1};
-    VkImageView view;
-    if (VkResult r = vkCreateImageView(ctx->device(), &vi, nullptr, &view); r != VK_SUCCESS) {
-      for (VkImageView v : t.hiz_levels) vkDestroyImageView(ctx->device(), v, nullptr);
-      return absl::ResourceExhaustedError("hiz level view");
-    }
-    t.hiz_levels.push_back(view);
-  }
+  if (absl::Status st = CreateLevelViews(ctx->device(), *hiz, "hiz", t.hiz_levels); !st.ok())
+    return st;
   t.hiz = std::move(*hiz);
   t.depth = std::move(*depth);
   t.hdr = std::move(*hdr);
@@ -1187,11 +1185,7 @@ absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& 
   if (it != taa_history.end()) {
     taa_history.erase(it);
   } else if (taa_history.size() >= kMaxTaaViews) {
-    auto oldest = std::min_element(taa_history.begin(), taa_history.end(),
-                                   [](const auto& a, const auto& b) {
-                                     return a.second.last_used < b.second.last_used;
-                                   });
-    taa_history.erase(oldest);
+    DropLeastRecentlyUsed(taa_history);
   }
   TaaHistory h;
   for (vk::Image& image : h.images) {
@@ -1964,9 +1958,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
     if (capture->want_ids) {
       if (absl::Status st = m.CaptureIds(gs, scene_set, capture); !st.ok()) return st;
     }
-    const bool post = s.aa == AaMode::kVisMlaa || s.aa == AaMode::kTaa;
-    if (absl::Status st = m.Capture(capture, tiled ? grid.tiles() : 0,
-                                    post ? m.targets.post_hdr : m.targets.hdr,
+    if (absl::Status st = m.Capture(capture, tiled ? grid.tiles() : 0, PostColor(pc),
                                     exposure_state ? &exposure_state->image : nullptr);
         !st.ok())
       return st;

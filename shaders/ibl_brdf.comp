@@ -42,7 +42,7 @@ void main() {
     float n_dot_l = l.z;
     float n_dot_h = h.z;
     if (n_dot_l > 0.0 && v_dot_h > 0.0) {
-      float vis = IblVisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
+      float vis = VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
       float g_vis = vis * n_dot_l * 4.0 * v_dot_h / n_dot_h;
       float fc = pow(max(1.0 - v_dot_h, 0.0), 5.0);  // v_dot_h may round above 1
       a += (1.0 - fc) * g_vis;

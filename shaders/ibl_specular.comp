@@ -48,7 +48,7 @@ void main() {
   uint count = max(uint(push.params.w), 1u);
   float max_lod = max(push.params.z - 1.0, 0.0);
   float size0 = max(push.params.y, 1.0);
-  float omega_p = 4.0 * kIblPi / (6.0 * size0 * size0);
+  float omega_p = 4.0 * kPi / (6.0 * size0 * size0);
 
   vec3 sum = vec3(0.0);
   float weight = 0.0;
@@ -58,7 +58,7 @@ void main() {
     vec3 l = 2.0 * n_dot_h * h - n;
     float n_dot_l = dot(n, l);
     if (n_dot_l > 0.0) {
-      float pdf = IblDistributionGgx(n_dot_h, alpha) * 0.25;
+      float pdf = DistributionGgx(n_dot_h, alpha) * 0.25;
       float omega_s = 1.0 / (float(count) * pdf);
       float lod = clamp(0.5 * log2(omega_s / omega_p) + 1.0, 0.0, max_lod);
       sum += textureLod(u_env, l, lod).rgb * n_dot_l;

@@ -9,6 +9,8 @@
 #ifndef TESSERA_SHADING_GLSL
 #define TESSERA_SHADING_GLSL
 
+#include "common/brdf.glsl"
+
 // A point of a surface to shade, in world space.
 struct SurfaceInput {
   vec3 world;
@@ -19,26 +21,6 @@ struct SurfaceInput {
   UvGradients grads;
   bool front_facing;
 };
-
-const float kPi = 3.14159265359;
-
-float DistributionGgx(float n_dot_h, float alpha) {
-  float a2 = alpha * alpha;
-  float f = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
-  return a2 / (kPi * f * f);
-}
-
-float VisibilitySmithGgxCorrelated(float n_dot_v, float n_dot_l, float alpha) {
-  float a2 = alpha * alpha;
-  float gv = n_dot_l * sqrt(n_dot_v * n_dot_v * (1.0 - a2) + a2);
-  float gl = n_dot_v * sqrt(n_dot_l * n_dot_l * (1.0 - a2) + a2);
-  float s = gv + gl;
-  return s > 0.0 ? 0.5 / s : 0.0;
-}
-
-vec3 FresnelSchlick(vec3 f0, float v_dot_h) {
-  return f0 + (1.0 - f0) * pow(1.0 - v_dot_h, 5.0);
-}
 
 // Karis' analytic fit of the split-sum environment BRDF.
 vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
