@@ -246,4 +246,21 @@ void CmdMemoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 src_stage,
   vkCmdPipelineBarrier2(cmd, &di);
 }
 
+absl::StatusOr<MipViews> MipViews::Create(const Context& ctx, const Image& image,
+                                          const std::string& name) {
+  MipViews out;
+  for (uint32_t level = 0; level < image.desc().mip_levels; ++level) {
+    VkImageViewCreateInfo vi{VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO};
+    vi.image = image.handle();
+    vi.viewType = VK_IMAGE_VIEW_TYPE_2D;
+    vi.format = image.desc().format;
+    vi.subresourceRange = {image.aspect(), level, 1, 0, 1};
+    UniqueImageView view;
+    if (vkCreateImageView(ctx.device(), &vi, nullptr, view.Replace(ctx.device())) != VK_SUCCESS)
+      return absl::ResourceExhaustedError(name + " level view");
+    out.views_.push_back(std::move(view));
+  }
+  return out;
+}
+
 }  // namespace tessera::vk

@@ -8,9 +8,11 @@
 #include <cstdint>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "absl/status/statusor.h"
 #include "renderer/vk/context.h"
+#include "renderer/vk/handle.h"
 
 namespace tessera::vk {
 
@@ -105,6 +107,19 @@ class Sampler {
   void Reset();
   VkDevice device_ = VK_NULL_HANDLE;
   VkSampler sampler_ = VK_NULL_HANDLE;
+};
+
+// One 2D view of each mip of an image (for passes that write one mip and read another).
+class MipViews {
+ public:
+  MipViews() = default;
+  static absl::StatusOr<MipViews> Create(const Context& ctx, const Image& image,
+                                         const std::string& name);
+  VkImageView operator[](size_t level) const { return views_[level].get(); }
+  size_t size() const { return views_.size(); }
+
+ private:
+  std::vector<UniqueImageView> views_;
 };
 
 bool IsDepthFormat(VkFormat format);

@@ -1,6 +1,7 @@
 // Renderer planning logic that needs no device: the frame graph's pass selection and barrier
 // plan, and the texture bucketing of GpuScene.
-#include "renderer/frame_graph.h"
+#include "renderer/graph/frame_graph.h"
+#include "renderer/features/features.h"
 
 #include <gtest/gtest.h>
 
@@ -38,67 +39,64 @@ bool IsRead(Access a) {
          a == Access::kComputeRead;
 }
 
-// Settings that select different features; pass selection must hold its invariants for all.
+// Every combination of AA mode, culling mode and the effects that add passes or change what
+// passes read (shadows, ssao, bloom, auto exposure, a debug view that stops exposure), with and
+// without local lights to cull.
 std::vector<Settings> SettingsVariants() {
-  std::vector<Settings> out(1);
+  std::vector<Settings> out;
   for (uint32_t aa = 0; aa < 5; ++aa) {
-    Settings s;
-    s.aa = static_cast<AaMode>(aa);
-    out.push_back(s);
-  }
-  for (uint32_t c = 0; c < 4; ++c) {
-    for (uint32_t aa = 0; aa < 5; ++aa) {
-      Settings s;
-      s.culling = static_cast<CullingMode>(c);
-      s.aa = static_cast<AaMode>(aa);
-      out.push_back(s);
+    for (uint32_t c = 0; c < 4; ++c) {
+      for (uint32_t effects = 0; effects < 64; ++effects) {
+        Settings s;
+        s.aa = static_cast<AaMode>(aa);
+        s.culling = static_cast<CullingMode>(c);
+        s.shadows = effects & 1;
+        s.ssao = effects & 2;
+        s.bloom = effects & 4;
+        s.exposure_mode = (effects & 8) ? ExposureMode::kAuto : ExposureMode::kFixed;
+        s.debug_view = (effects & 16) ? DebugView::kNormals : DebugView::kNone;
+        s.synthetic_lights = (effects & 32) ? 8 : 0;
+        s.light_culling = true;
+        out.push_back(s);
+      }
     }
   }
-  for (uint32_t aa = 0; aa < 5; ++aa) {  // shadows and ssao with every AA mode
-    Settings s;
-    s.aa = static_cast<AaMode>(aa);
-    s.shadows = s.ssao = true;
-    s.synthetic_lights = 8;
-    out.push_back(s);
-    s.ssao = false;  // post effects with every AA mode
-    s.bloom = true;
-    out.push_back(s);
-    s.exposure_mode = ExposureMode::kAuto;
-    out.push_back(s);
-  }
-  Settings all;
-  all.shadows = all.ssao = all.bloom = all.ibl = true;
-  all.exposure_mode = ExposureMode::kAuto;
-  all.synthetic_lights = 100;
-  all.debug_view = DebugView::kNormals;
-  out.push_back(all);
   return out;
 }
 
-// Every pass list SelectPasses produces for the variants above, with and without transparency,
-// with the AA mode the resources depend on.
-struct PassList {
+// The plan of every variant above, with and without transparency.
+struct PlanCase {
+  Settings settings;
+  FrameFeatures features;
+  FramePlan plan;
   std::vector<PassId> passes;
-  AaMode aa = AaMode::kNone;
-  bool ssao = false;
-  bool bloom = false;
 };
-std::vector<PassList> AllPassLists() {
-  std::vector<PassList> lists;
+std::vector<PlanCase> AllPlans() {
+  std::vector<PlanCase> out;
   for (const Settings& s : SettingsVariants()) {
     for (bool transparent : {false, true}) {
       FrameFeatures f;
       f.has_transparent = transparent;
-      lists.push_back({SelectPasses(s, f), s.aa, s.ssao, s.bloom});
+      f.local_lights = s.synthetic_lights;
+      FramePlan plan = PlanFrame(s, f);
+      std::vector<PassId> passes = plan.ids();
+      out.push_back({s, f, std::move(plan), std::move(passes)});
     }
   }
-  return lists;
+  return out;
 }
 
 std::string Describe(const std::vector<PassId>& passes) {
   std::string out;
   for (PassId p : passes) out += Name(p) + " ";
   return out;
+}
+
+const std::vector<ResourceUse>& UsesOf(const FramePlan& plan, PassId id) {
+  for (const PlannedPass& p : plan.passes)
+    if (p.id == id) return p.uses;
+  static const std::vector<ResourceUse> kNone;
+  return kNone;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -115,23 +113,28 @@ TEST(PassTest, NamesAreUniqueAndNonEmpty) {
 }
 
 TEST(PassTest, EveryPassDeclaresItsUses) {
-  for (int i = 0; i < kPassCount; ++i) {
-    const PassId id = static_cast<PassId>(i);
-    const std::vector<ResourceUse> uses = PassUses(id);
-    // The shadow pass's atlas lives across frames, outside the graph (its own barriers).
-    if (id != PassId::kShadows) EXPECT_FALSE(uses.empty()) << Name(id);
-    std::set<Resource> seen;
-    for (const ResourceUse& u : uses) {
-      EXPECT_LT(static_cast<size_t>(u.resource), kResourceCount) << Name(id);
-      EXPECT_NE(u.access, Access::kNone) << Name(id);
-      // One access per resource per pass: the plan moves a resource to a single state.
-      EXPECT_TRUE(seen.insert(u.resource).second) << Name(id) << " uses a resource twice";
+  std::set<PassId> planned;
+  for (const PlanCase& c : AllPlans()) {
+    for (const PlannedPass& p : c.plan.passes) {
+      planned.insert(p.id);
+      // The shadow pass's atlas lives across frames, outside the graph (its own barriers).
+      if (p.id != PassId::kShadows) EXPECT_FALSE(p.uses.empty()) << Name(p.id);
+      std::set<Resource> seen;
+      for (const ResourceUse& u : p.uses) {
+        EXPECT_LT(static_cast<size_t>(u.resource), kResourceCount) << Name(p.id);
+        EXPECT_NE(u.access, Access::kNone) << Name(p.id);
+        // One access per resource per pass: the plan moves a resource to a single state.
+        EXPECT_TRUE(seen.insert(u.resource).second) << Name(p.id) << " uses a resource twice";
+      }
     }
   }
+  // Some combination plans every pass the renderer has.
+  EXPECT_EQ(planned.size(), static_cast<size_t>(kPassCount));
 }
 
 TEST(SelectPassesTest, OrderIsFixed) {
-  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
+  for (const PlanCase& c : AllPlans()) {
+    const std::vector<PassId>& passes = c.passes;
     const std::string d = Describe(passes);
     // vis_mlaa's visibility pass is its depth pass, its shading pass its forward pass.
     const int prepass = std::max(IndexOf(passes, PassId::kDepthPrepass),
@@ -147,6 +150,7 @@ TEST(SelectPassesTest, OrderIsFixed) {
     EXPECT_LT(prepass, forward) << d;
     EXPECT_LT(forward, tonemap) << d;
     EXPECT_LT(tonemap, readback) << d;
+    EXPECT_EQ(transparent >= 0, c.features.has_transparent) << d;
     if (transparent >= 0) {
       EXPECT_LT(forward, transparent) << d;
       EXPECT_LT(transparent, tonemap) << d;
@@ -154,17 +158,22 @@ TEST(SelectPassesTest, OrderIsFixed) {
     // Shadow maps and ambient obscurance exist before anything is shaded; ssao reads the depth.
     const int shadows = IndexOf(passes, PassId::kShadows);
     const int ao = IndexOf(passes, PassId::kSsao);
+    EXPECT_EQ(shadows >= 0, c.settings.shadows) << d;
     if (shadows >= 0) EXPECT_LT(shadows, forward) << d;
-    EXPECT_EQ(ao >= 0, ssao) << d;
+    EXPECT_EQ(ao >= 0, c.settings.ssao) << d;
     if (ao >= 0) {
       EXPECT_LT(prepass, ao) << d;
       EXPECT_LT(ao, forward) << d;
     }
+    EXPECT_EQ(IndexOf(passes, PassId::kLightCull) >= 0, c.features.local_lights > 0) << d;
     // Auto exposure and bloom read the final HDR colour (after AA and transparency), exposure
-    // first: bloom thresholds in exposed units.
+    // first: bloom thresholds in exposed units. Debug views do not move the exposure.
     const int exposure = IndexOf(passes, PassId::kExposure);
     const int bloom_pass = IndexOf(passes, PassId::kBloom);
-    EXPECT_EQ(bloom_pass >= 0, bloom) << d;
+    EXPECT_EQ(bloom_pass >= 0, c.settings.bloom) << d;
+    EXPECT_EQ(exposure >= 0, c.settings.exposure_mode == ExposureMode::kAuto &&
+                                 c.settings.debug_view == DebugView::kNone)
+        << d;
     for (int p : {exposure, bloom_pass}) {
       if (p < 0) continue;
       EXPECT_LT(std::max({forward, transparent, IndexOf(passes, PassId::kTaa),
@@ -176,21 +185,20 @@ TEST(SelectPassesTest, OrderIsFixed) {
     if (exposure >= 0 && bloom_pass >= 0) {
       EXPECT_LT(exposure, bloom_pass) << d;
     }
+    // Optional inputs are read exactly when the effect that makes them runs.
+    auto reads = [&](PassId id, Resource r) {
+      const auto& uses = UsesOf(c.plan, id);
+      return std::any_of(uses.begin(), uses.end(),
+                         [&](const ResourceUse& u) { return u.resource == r; });
+    };
+    EXPECT_EQ(reads(PassId::kTonemap, Resource::kBloomUp), c.settings.bloom) << d;
+    EXPECT_EQ(reads(PassId::kTonemap, Resource::kAo), c.settings.ssao) << d;
+    EXPECT_EQ(reads(passes[forward], Resource::kAo), c.settings.ssao) << d;
     // The image is read back last, once everything has been drawn into it.
     EXPECT_EQ(readback, static_cast<int>(passes.size()) - 1) << d;
     // PassId is declared in the only order passes may run, and nothing runs twice.
     EXPECT_TRUE(std::is_sorted(passes.begin(), passes.end())) << d;
     EXPECT_EQ(std::adjacent_find(passes.begin(), passes.end()), passes.end()) << d;
-  }
-}
-
-TEST(SelectPassesTest, TransparentOnlyWhenTheSceneHasBlending) {
-  for (const Settings& s : SettingsVariants()) {
-    FrameFeatures f;
-    f.has_transparent = false;
-    EXPECT_EQ(IndexOf(SelectPasses(s, f), PassId::kTransparent), -1);
-    f.has_transparent = true;
-    EXPECT_GE(IndexOf(SelectPasses(s, f), PassId::kTransparent), 0);
   }
 }
 
@@ -237,20 +245,25 @@ TEST(SelectPassesTest, AaModes) {
   // msaa: the same passes, on multisampled targets resolved into the frame's depth and colour.
   s.aa = AaMode::kMsaa;
   EXPECT_EQ(SelectPasses(s, {}), SelectPasses(Settings{}, {}));
-  const std::vector<ResourceUse> prepass = PassUses(PassId::kDepthPrepass, AaMode::kMsaa);
+  const FramePlan msaa = PlanFrame(s, {});
+  const std::vector<ResourceUse>& prepass = UsesOf(msaa, PassId::kDepthPrepass);
   EXPECT_TRUE(std::any_of(prepass.begin(), prepass.end(), [](const ResourceUse& u) {
     return u.resource == Resource::kDepth && u.access == Access::kDepthResolve;
   }));
   // Tonemapping reads what the last colour pass wrote.
-  EXPECT_EQ(PassUses(PassId::kTonemap, AaMode::kVisMlaa)[0].resource, Resource::kPostHdr);
-  EXPECT_EQ(PassUses(PassId::kTonemap, AaMode::kTaa)[0].resource, Resource::kPostHdr);
-  EXPECT_EQ(PassUses(PassId::kTonemap, AaMode::kMsaa)[0].resource, Resource::kHdrColor);
-  EXPECT_EQ(PassUses(PassId::kReadback, AaMode::kFxaa)[0].resource, Resource::kFxaaColor);
+  auto first_use = [](AaMode aa, PassId id) {
+    Settings t;
+    t.aa = aa;
+    return UsesOf(PlanFrame(t, {}), id).at(0).resource;
+  };
+  EXPECT_EQ(first_use(AaMode::kVisMlaa, PassId::kTonemap), Resource::kPostHdr);
+  EXPECT_EQ(first_use(AaMode::kTaa, PassId::kTonemap), Resource::kPostHdr);
+  EXPECT_EQ(first_use(AaMode::kMsaa, PassId::kTonemap), Resource::kHdrColor);
+  EXPECT_EQ(first_use(AaMode::kFxaa, PassId::kReadback), Resource::kFxaaColor);
 }
 
 // ---------------------------------------------------------------------------------------------
-// PlanTransitions
-
+// The plan's transitions
 
 const Transition* FindTransition(const std::vector<Transition>& ts, Resource r) {
   for (const Transition& t : ts)
@@ -258,48 +271,68 @@ const Transition* FindTransition(const std::vector<Transition>& ts, Resource r) 
   return nullptr;
 }
 
+const std::vector<Transition>& BeforeOf(const FramePlan& plan, PassId id) {
+  for (const PlannedPass& p : plan.passes)
+    if (p.id == id) return p.before;
+  static const std::vector<Transition> kNone;
+  return kNone;
+}
+
 TEST(PlanTransitionsTest, OcclusionCullingMovesDepthAndPyramid) {
   Settings s;
   s.culling = CullingMode::kGpuOcclusion;
-  const std::vector<PassId> passes = SelectPasses(s, {});
-  const auto plan = PlanTransitions(passes);
-  auto at = [&](PassId id) -> const std::vector<Transition>& { return plan[IndexOf(passes, id)]; };
+  const FramePlan plan = PlanFrame(s, {});
   // The pyramid is written in the general layout, then read by the late cull.
-  const Transition* hiz = FindTransition(at(PassId::kHizBuild), Resource::kHiz);
+  const Transition* hiz = FindTransition(BeforeOf(plan, PassId::kHizBuild), Resource::kHiz);
   ASSERT_NE(hiz, nullptr);
   EXPECT_EQ(hiz->to, Access::kComputeWrite);
-  hiz = FindTransition(at(PassId::kCullLate), Resource::kHiz);
+  hiz = FindTransition(BeforeOf(plan, PassId::kCullLate), Resource::kHiz);
   ASSERT_NE(hiz, nullptr);
   EXPECT_EQ(hiz->from, Access::kComputeWrite);
   EXPECT_EQ(hiz->to, Access::kComputeRead);
   // The first phase's depth is sampled for the pyramid, then written again by the late phase
   // (from a defined layout, so its contents are kept).
-  const Transition* depth = FindTransition(at(PassId::kDepthPrepassLate), Resource::kDepth);
+  const Transition* depth =
+      FindTransition(BeforeOf(plan, PassId::kDepthPrepassLate), Resource::kDepth);
   ASSERT_NE(depth, nullptr);
   EXPECT_EQ(depth->from, Access::kComputeRead);
   EXPECT_EQ(depth->to, Access::kDepthWrite);
 }
 
-TEST(PlanTransitionsTest, OnePlanEntryPerPass) {
-  for (const auto& [passes, aa, ssao, bloom] : AllPassLists())
-    EXPECT_EQ(PlanTransitions(passes, aa, ssao, bloom).size(), passes.size()) << Describe(passes);
-  EXPECT_TRUE(PlanTransitions({}).empty());
+TEST(PlanTransitionsTest, BuilderDerivesTransitions) {
+  Settings s;
+  GraphBuilder b(s, {});
+  EXPECT_TRUE(std::move(b).Build().passes.empty());
+  GraphBuilder b2(s, {});
+  b2.Pass(PassId::kDepthPrepass).Use(Resource::kDepth, Access::kDepthWrite);
+  // An optional input nobody wrote is not used at all.
+  b2.Pass(PassId::kForward)
+      .Use(Resource::kDepth, Access::kDepthTest)
+      .UseIfWritten(Resource::kAo, Access::kSampled);
+  EXPECT_FALSE(b2.Written(Resource::kAo));
+  EXPECT_TRUE(b2.Written(Resource::kDepth));
+  const FramePlan plan = std::move(b2).Build();
+  ASSERT_EQ(plan.passes.size(), 2u);
+  EXPECT_EQ(plan.passes[1].uses.size(), 1u);
+  EXPECT_EQ(plan.FinalAccess(Resource::kDepth), Access::kDepthTest);
+  EXPECT_EQ(plan.FinalAccess(Resource::kAo), Access::kNone);
+  ASSERT_EQ(plan.passes[0].before.size(), 1u);
+  EXPECT_EQ(plan.passes[0].before[0].from, Access::kNone);
 }
 
 TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
-  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
-    const auto plan = PlanTransitions(passes, aa, ssao, bloom);
+  for (const PlanCase& c : AllPlans()) {
     std::array<bool, kResourceCount> used{};
-    for (size_t i = 0; i < passes.size(); ++i) {
-      for (const ResourceUse& u : PassUses(passes[i], aa, ssao, bloom)) {
+    for (const PlannedPass& p : c.plan.passes) {
+      for (const ResourceUse& u : p.uses) {
         const size_t r = static_cast<size_t>(u.resource);
         if (used[r]) continue;
         used[r] = true;
-        const Transition* t = FindTransition(plan[i], u.resource);
-        ASSERT_NE(t, nullptr) << Describe(passes) << ": no first-use transition in "
-                              << Name(passes[i]);
-        EXPECT_EQ(t->from, Access::kNone) << Describe(passes) << " " << Name(passes[i]);
-        EXPECT_EQ(t->to, u.access) << Describe(passes) << " " << Name(passes[i]);
+        const Transition* t = FindTransition(p.before, u.resource);
+        ASSERT_NE(t, nullptr) << Describe(c.passes) << ": no first-use transition in "
+                              << Name(p.id);
+        EXPECT_EQ(t->from, Access::kNone) << Describe(c.passes) << " " << Name(p.id);
+        EXPECT_EQ(t->to, u.access) << Describe(c.passes) << " " << Name(p.id);
       }
     }
   }
@@ -307,12 +340,15 @@ TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
 
 TEST(PlanTransitionsTest, NoBarrierForReadAfterReadInTheSameLayout) {
   // Forward then transparent both depth-test: the depth buffer stays as it is.
-  const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward, PassId::kTransparent,
-                                      PassId::kTonemap, PassId::kReadback};
-  const auto plan = PlanTransitions(passes);
-  EXPECT_EQ(FindTransition(plan[2], Resource::kDepth), nullptr);
+  FrameFeatures f;
+  f.has_transparent = true;
+  const FramePlan plan = PlanFrame(Settings{}, f);
+  const std::vector<PassId> expected = {PassId::kDepthPrepass, PassId::kForward,
+                                        PassId::kTransparent, PassId::kTonemap, PassId::kReadback};
+  ASSERT_EQ(plan.ids(), expected);
+  EXPECT_EQ(FindTransition(plan.passes[2].before, Resource::kDepth), nullptr);
   // But depth written by the prepass and then tested by forward is a read-after-write hazard.
-  const Transition* t = FindTransition(plan[1], Resource::kDepth);
+  const Transition* t = FindTransition(plan.passes[1].before, Resource::kDepth);
   ASSERT_NE(t, nullptr);
   EXPECT_EQ(t->from, Access::kDepthWrite);
   EXPECT_EQ(t->to, Access::kDepthTest);
@@ -326,29 +362,27 @@ TEST(PlanTransitionsTest, BarrierBetweenReadsInDifferentStages) {
   s.synthetic_lights = 4;
   FrameFeatures f;
   f.local_lights = 4;
-  const std::vector<PassId> passes = SelectPasses(s, f);
-  const auto plan = PlanTransitions(passes, s.aa, true);
-  const int ssao = IndexOf(passes, PassId::kSsao);
-  ASSERT_GT(ssao, IndexOf(passes, PassId::kLightCull));
-  const Transition* t = FindTransition(plan[ssao], Resource::kDepth);
+  const FramePlan plan = PlanFrame(s, f);
+  const std::vector<PassId> passes = plan.ids();
+  ASSERT_GT(IndexOf(passes, PassId::kSsao), IndexOf(passes, PassId::kLightCull));
+  const Transition* t = FindTransition(BeforeOf(plan, PassId::kSsao), Resource::kDepth);
   ASSERT_NE(t, nullptr);
   EXPECT_EQ(t->from, Access::kComputeRead);
   EXPECT_EQ(t->to, Access::kSampled);
   // The same for the colour auto exposure reads in compute, then tonemap in a fragment shader.
   s.exposure_mode = ExposureMode::kAuto;
-  const std::vector<PassId> p2 = SelectPasses(s, f);
-  const auto plan2 = PlanTransitions(p2, s.aa, true);
-  t = FindTransition(plan2[IndexOf(p2, PassId::kTonemap)], Resource::kHdrColor);
+  const FramePlan plan2 = PlanFrame(s, f);
+  t = FindTransition(BeforeOf(plan2, PassId::kTonemap), Resource::kHdrColor);
   ASSERT_NE(t, nullptr);
   EXPECT_EQ(t->from, Access::kComputeRead);
 }
 
 TEST(PlanTransitionsTest, BarrierForWriteAfterWrite) {
   // Transparent blends over forward's HDR colour: same layout, but both write.
-  const std::vector<PassId> passes = {PassId::kDepthPrepass, PassId::kForward, PassId::kTransparent,
-                                      PassId::kTonemap, PassId::kReadback};
-  const auto plan = PlanTransitions(passes);
-  const Transition* t = FindTransition(plan[2], Resource::kHdrColor);
+  FrameFeatures f;
+  f.has_transparent = true;
+  const FramePlan plan = PlanFrame(Settings{}, f);
+  const Transition* t = FindTransition(BeforeOf(plan, PassId::kTransparent), Resource::kHdrColor);
   ASSERT_NE(t, nullptr);
   EXPECT_EQ(t->from, Access::kColorWrite);
   EXPECT_EQ(t->to, Access::kColorWrite);
@@ -357,52 +391,51 @@ TEST(PlanTransitionsTest, BarrierForWriteAfterWrite) {
 // Replays the plan on a state table: every transition starts from the resource's current
 // state, and once a pass's transitions are applied every declared use is in its access.
 TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
-  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
-    const std::string d = Describe(passes);
-    const auto plan = PlanTransitions(passes, aa, ssao, bloom);
-    ASSERT_EQ(plan.size(), passes.size());
+  for (const PlanCase& c : AllPlans()) {
+    const std::string d = Describe(c.passes);
     std::array<Access, kResourceCount> state;
     state.fill(Access::kNone);
-    for (size_t i = 0; i < passes.size(); ++i) {
+    for (const PlannedPass& p : c.plan.passes) {
       std::set<Resource> moved;
-      for (const Transition& t : plan[i]) {
+      for (const Transition& t : p.before) {
         const size_t r = static_cast<size_t>(t.resource);
         ASSERT_LT(r, kResourceCount);
-        EXPECT_EQ(t.from, state[r]) << d << Name(passes[i]) << ": stale 'from'";
-        EXPECT_NE(t.to, Access::kNone) << d << Name(passes[i]);
-        EXPECT_TRUE(moved.insert(t.resource).second) << d << Name(passes[i]) << ": twice";
+        EXPECT_EQ(t.from, state[r]) << d << Name(p.id) << ": stale 'from'";
+        EXPECT_NE(t.to, Access::kNone) << d << Name(p.id);
+        EXPECT_TRUE(moved.insert(t.resource).second) << d << Name(p.id) << ": twice";
         state[r] = t.to;
       }
-      for (const ResourceUse& u : PassUses(passes[i], aa, ssao, bloom)) {
+      for (const ResourceUse& u : p.uses) {
         EXPECT_EQ(state[static_cast<size_t>(u.resource)], u.access)
-            << d << "before " << Name(passes[i]) << " resource " << static_cast<int>(u.resource);
+            << d << "before " << Name(p.id) << " resource " << static_cast<int>(u.resource);
       }
       // Transitions only for what the pass uses.
-      for (const Transition& t : plan[i]) {
-        const auto uses = PassUses(passes[i], aa, ssao, bloom);
-        EXPECT_TRUE(std::any_of(uses.begin(), uses.end(),
+      for (const Transition& t : p.before) {
+        EXPECT_TRUE(std::any_of(p.uses.begin(), p.uses.end(),
                                 [&](const ResourceUse& u) { return u.resource == t.resource; }))
-            << d << Name(passes[i]) << " transitions a resource it does not use";
+            << d << Name(p.id) << " transitions a resource it does not use";
       }
     }
+    for (size_t r = 0; r < kResourceCount; ++r)
+      EXPECT_EQ(c.plan.FinalAccess(static_cast<Resource>(r)), state[r]) << d << r;
   }
 }
 
 TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
-  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
+  for (const PlanCase& c : AllPlans()) {
     std::array<bool, kResourceCount> written{};
-    for (PassId p : passes) {
-      for (const ResourceUse& u : PassUses(p, aa, ssao, bloom)) {
+    for (const PlannedPass& p : c.plan.passes) {
+      for (const ResourceUse& u : p.uses) {
         const size_t r = static_cast<size_t>(u.resource);
         // The first culling phase binds the pyramid (one pipeline for both phases) but never
         // reads it: only the late phase tests occlusion.
-        if (p == PassId::kCull && u.resource == Resource::kHiz) continue;
+        if (p.id == PassId::kCull && u.resource == Resource::kHiz) continue;
         if (IsRead(u.access)) {
-          EXPECT_TRUE(written[r]) << Describe(passes) << ": " << Name(p) << " reads resource " << r
-                                  << " before any pass wrote it";
+          EXPECT_TRUE(written[r]) << Describe(c.passes) << ": " << Name(p.id)
+                                  << " reads resource " << r << " before any pass wrote it";
         }
       }
-      for (const ResourceUse& u : PassUses(p, aa, ssao, bloom))
+      for (const ResourceUse& u : p.uses)
         if (IsWrite(u.access)) written[static_cast<size_t>(u.resource)] = true;
     }
   }
@@ -410,18 +443,17 @@ TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
 
 TEST(PlanTransitionsTest, EveryHazardHasABarrier) {
   // Whenever a use follows a write, or changes the access class, the plan has a transition.
-  for (const auto& [passes, aa, ssao, bloom] : AllPassLists()) {
-    const auto plan = PlanTransitions(passes, aa, ssao, bloom);
+  for (const PlanCase& c : AllPlans()) {
     std::array<Access, kResourceCount> last;
     last.fill(Access::kNone);
-    for (size_t i = 0; i < passes.size(); ++i) {
-      for (const ResourceUse& u : PassUses(passes[i], aa, ssao, bloom)) {
+    for (const PlannedPass& p : c.plan.passes) {
+      for (const ResourceUse& u : p.uses) {
         const size_t r = static_cast<size_t>(u.resource);
         // Only read-after-read in the same access may skip the barrier.
         const bool same_read = last[r] == u.access && IsRead(u.access);
         if (!same_read) {
-          EXPECT_NE(FindTransition(plan[i], u.resource), nullptr)
-              << Describe(passes) << Name(passes[i]) << " resource " << r;
+          EXPECT_NE(FindTransition(p.before, u.resource), nullptr)
+              << Describe(c.passes) << Name(p.id) << " resource " << r;
         }
         last[r] = u.access;
       }

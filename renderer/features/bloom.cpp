@@ -13,7 +13,8 @@
 // next frame's graph starts them from the undefined layout.
 #include <algorithm>
 
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -113,6 +114,17 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx) {
   if (!nearest.ok()) return nearest.status();
   return std::unique_ptr<Pass>(new BloomPass(std::move(*down), std::move(*up),
                                              std::move(*linear), std::move(*nearest)));
+}
+
+void SetupBloom(GraphBuilder& b) {
+  if (!b.settings().bloom) return;
+  const Resource color = b.SceneColor();
+  // The pass makes its own per-mip barriers inside the chains; the graph sees the chains as
+  // colour targets, all mips, so its transition to the tonemap's read covers them.
+  b.Pass(PassId::kBloom)
+      .Use(color, Access::kSampled)
+      .Use(Resource::kBloomDown, Access::kColorWrite)
+      .Use(Resource::kBloomUp, Access::kColorWrite);
 }
 
 }  // namespace tessera

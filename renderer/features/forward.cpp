@@ -6,7 +6,8 @@
 // Draws are indirect: one vkCmdDrawIndexedIndirectCount per segment (render group x cull mode x
 // material; see DrawPlan) and culling phase. The material is a descriptor set per segment
 // because lavapipe cannot index samplers dynamically (shaders/common/gpu_types.h).
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/pipeline.h"
 
 namespace tessera {
@@ -139,6 +140,34 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateForwardPass(const vk::Context& ctx,
 absl::StatusOr<std::unique_ptr<Pass>> CreateTransparentPass(const vk::Context& ctx,
                                                             const SceneLayout& layout) {
   return Create(ctx, layout, PassId::kTransparent);
+}
+
+namespace {
+// The forward path's targets: multisampled with their resolve for msaa.
+void UseForwardTargets(GraphBuilder& b, Resource color) {
+  if (b.settings().aa == AaMode::kMsaa) {
+    b.Use(Resource::kDepthMs, Access::kDepthTest)
+        .Use(Resource::kHdrMs, Access::kColorWrite)
+        .Use(Resource::kHdrColor, Access::kColorWrite);
+  } else {
+    b.Use(Resource::kDepth, Access::kDepthTest).Use(color, Access::kColorWrite);
+  }
+  b.UseIfWritten(Resource::kAo, Access::kSampled);
+}
+}  // namespace
+
+void SetupForward(GraphBuilder& b) {
+  if (b.settings().aa == AaMode::kVisMlaa) return;  // vis_mlaa shades its visibility buffer
+  b.Pass(PassId::kForward);
+  UseForwardTargets(b, Resource::kHdrColor);
+}
+
+void SetupTransparent(GraphBuilder& b) {
+  // Blended surfaces need the opaque colour underneath and must not write depth; vis_mlaa's
+  // go over its anti-aliased result, against the resolved depth.
+  if (!b.features().has_transparent) return;
+  b.Pass(PassId::kTransparent);
+  UseForwardTargets(b, b.SceneColor());
 }
 
 }  // namespace tessera

@@ -5,7 +5,7 @@
 // the culling pass.
 #include <algorithm>
 
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"

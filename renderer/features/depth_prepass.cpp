@@ -5,7 +5,8 @@
 // material). With gpu_occlusion the pass runs twice: kDepthPrepass draws the first phase's
 // lists into a cleared depth, kDepthPrepassLate adds the second phase's. With msaa it draws
 // into the multisampled depth and resolves it into the frame's depth.
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/pipeline.h"
 
 namespace tessera {
@@ -94,5 +95,20 @@ absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const Scen
   d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;
   return vk::CreateGraphicsPipeline(ctx, d);
 }
+
+void AddDepthPass(GraphBuilder& b, bool late) {
+  if (b.settings().aa == AaMode::kVisMlaa) {  // its visibility pass is its depth pass
+    AddVisibilityPass(b, late);
+    return;
+  }
+  b.Pass(late ? PassId::kDepthPrepassLate : PassId::kDepthPrepass);
+  if (b.settings().aa == AaMode::kMsaa) {
+    b.Use(Resource::kDepthMs, Access::kDepthWrite).Use(Resource::kDepth, Access::kDepthResolve);
+  } else {
+    b.Use(Resource::kDepth, Access::kDepthWrite);
+  }
+}
+
+void SetupDepth(GraphBuilder& b) { AddDepthPass(b, /*late=*/false); }
 
 }  // namespace tessera

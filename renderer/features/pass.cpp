@@ -1,5 +1,5 @@
 // Helpers shared by the passes: beginning a rendering over the frame, and drawing scene items.
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
 
 #include <utility>
 

@@ -1,10 +1,13 @@
 // Full-screen post passes: tonemapping, and the anti-aliasing passes that work on whole images
 // (vis_mlaa's geometric AA, TAA, FXAA). Each is one fragment shader over a full-screen triangle
 // (shaders/fullscreen.vert) reading images through combined samplers.
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
@@ -252,6 +255,88 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx) {
   return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, 8, {kLdrFormat});
+}
+
+void SetupTaa(GraphBuilder& b) {
+  if (b.settings().aa != AaMode::kTaa) return;
+  b.Pass(PassId::kTaa)
+      .Use(Resource::kHdrColor, Access::kSampled)
+      .Use(Resource::kDepth, Access::kSampled)
+      .Use(Resource::kPostHdr, Access::kColorWrite);
+}
+
+void SetupTonemap(GraphBuilder& b) {
+  const Resource color = b.SceneColor();
+  b.Pass(PassId::kTonemap)
+      .Use(color, Access::kSampled)
+      .Use(Resource::kLdrColor, Access::kColorWrite)
+      .UseIfWritten(Resource::kAo, Access::kSampled)  // the ssao debug view
+      .UseIfWritten(Resource::kBloomUp, Access::kSampled);
+}
+
+void SetupFxaa(GraphBuilder& b) {
+  if (b.settings().aa != AaMode::kFxaa) return;
+  b.Pass(PassId::kFxaa)
+      .Use(Resource::kLdrColor, Access::kSampled)
+      .Use(Resource::kFxaaColor, Access::kColorWrite);
+}
+
+
+namespace {
+
+// TAA's sub-pixel jitter: the Halton (2, 3) sequence over 16 frames, in pixels around the
+// pixel centre.
+glm::vec2 TaaJitter(uint32_t frame) {
+  auto halton = [](uint32_t i, uint32_t base) {
+    float f = 1.0f, r = 0.0f;
+    for (; i > 0; i /= base) {
+      f /= float(base);
+      r += f * float(i % base);
+    }
+    return r;
+  };
+  const uint32_t i = frame % 16 + 1;
+  return glm::vec2(halton(i, 2) - 0.5f, halton(i, 3) - 0.5f);
+}
+
+}  // namespace
+
+absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
+  const Settings& s = f.s;
+  gpu::FrameUniforms& fu = f.fu;
+  f.aspect = float(s.width) / float(s.height);
+  fu.view = ViewMatrix(f.camera);
+  fu.proj = ProjectionMatrix(f.camera, f.aspect);
+  f.unjittered_view_proj = fu.proj * fu.view;
+  // taa: this view's history, and this frame's jitter of the projection (sub-pixel).
+  if (s.aa == AaMode::kTaa) {
+    ASSIGN_OR_RETURN(TaaHistory * h, Taa(f.gs, f.view));
+    TaaHistory& history = *h;
+    TaaFrame& taa = f.taa;
+    const bool valid = history.written[history.current];
+    const bool still = valid && history.view_proj == f.unjittered_view_proj;
+    // A still camera averages every frame so far (converging on the jittered supersample); a
+    // moving one keeps at least a tenth of each new frame.
+    history.frames = !valid ? 0 : still ? std::min(history.frames + 1, 15u)
+                                        : std::min(history.frames, 9u);
+    taa.current_weight = 1.0f / float(history.frames + 1);
+    taa.history_valid = valid;
+    taa.reproject = history.view_proj * glm::inverse(f.unjittered_view_proj);
+    taa.history_read = &history.images[history.current];
+    taa.history_write = &history.images[history.current ^ 1];
+    const glm::vec2 jitter = TaaJitter(history.jitter_index++);
+    fu.proj[2][0] += 2.0f * jitter.x / float(s.width);
+    fu.proj[2][1] += 2.0f * jitter.y / float(s.height);
+    history.current ^= 1;
+    history.written[history.current] = true;
+    history.view_proj = f.unjittered_view_proj;
+  }
+  fu.view_proj = fu.proj * fu.view;
+  fu.inv_view_proj = glm::inverse(fu.view_proj);
+  fu.camera_position = glm::vec4(CameraPosition(f.camera), 1.0f);
+  fu.ambient_sky = glm::vec4(0.40f, 0.52f, 0.75f, s.ibl ? 1.0f : 0.0f);
+  fu.ambient_ground = glm::vec4(0.24f, 0.21f, 0.18f, 0.0f);
+  return absl::OkStatus();
 }
 
 }  // namespace tessera

@@ -1,6 +1,7 @@
 // Readback: copies the RGBA8 frame into a host-visible buffer and makes the copy visible to
 // the host, so the CPU can encode it once the frame's fence signals.
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 
 namespace tessera {
 
@@ -34,6 +35,12 @@ class ReadbackPass final : public Pass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateReadbackPass() {
   return std::make_unique<ReadbackPass>();
+}
+
+void SetupReadback(GraphBuilder& b) {
+  const Resource image = b.Written(Resource::kFxaaColor) ? Resource::kFxaaColor
+                                                         : Resource::kLdrColor;
+  b.Pass(PassId::kReadback).Use(image, Access::kTransferSrc);
 }
 
 }  // namespace tessera

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
-#include "renderer/frame_graph.h"
+#include "renderer/graph/frame_graph.h"
 #include "renderer/scene/gpu_scene.h"
 #include "renderer/settings.h"
 #include "renderer/vk/context.h"
@@ -40,7 +40,7 @@ struct FrameTargets {
   vk::Image hdr;
   vk::Image ldr;
   vk::Image hiz;         // depth pyramid (R32F, mips), for gpu_occlusion
-  std::vector<VkImageView> hiz_levels;  // one storage view per level (owned by the renderer)
+  vk::MipViews hiz_levels;  // one storage view per level
   uint32_t hiz_width = 1, hiz_height = 1;
   vk::Buffer readback;  // width * height * 4 bytes, host visible
   // Made when a frame first needs them (at `samples` for the multisampled ones).
@@ -51,10 +51,10 @@ struct FrameTargets {
   vk::Image fxaa;
   vk::Image ao, ao_temp;  // ssao's size, made when ssao first runs
   // bloom: the downsample chain from half the frame's size (at least 32 texels a side, so all
-  // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip (owned
-  // by the renderer), made when bloom first runs.
+  // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip, made
+  // when bloom first runs.
   vk::Image bloom_down, bloom_up;
-  std::vector<VkImageView> bloom_down_levels, bloom_up_levels;
+  vk::MipViews bloom_down_levels, bloom_up_levels;
   const vk::Image& Get(Resource r) const {
     switch (r) {
       case Resource::kDepth: return depth;

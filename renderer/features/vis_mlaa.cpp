@@ -8,7 +8,12 @@
 //    drawables can cover) at that material's depth, EQUAL-tested, so each pixel is shaded once
 //    with its material bound as in the forward path; then the sky where no surface won.
 // The geometric AA pass that follows is a post pass (post_pass.cpp).
-#include "renderer/passes/pass.h"
+#include "renderer/renderer_impl.h"
+#include "absl/strings/str_cat.h"
+#include <bit>
+#include <map>
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
@@ -357,6 +362,117 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
   return std::make_unique<VisShadePass>(std::move(*layout), std::move(*pipeline),
                                         std::move(*effects), std::move(*sky),
                                         std::move(*sampler));
+}
+
+void AddVisibilityPass(GraphBuilder& b, bool late) {
+  b.Pass(late ? PassId::kVisibilityLate : PassId::kVisibility)
+      .Use(Resource::kDepthMs, Access::kDepthWrite)
+      .Use(Resource::kVisMs, Access::kColorWrite)
+      .Use(Resource::kDepth, Access::kDepthResolve);
+}
+
+void SetupVisMlaa(GraphBuilder& b) {
+  if (b.settings().aa != AaMode::kVisMlaa) return;
+  using R = Resource;
+  using A = Access;
+  b.Pass(PassId::kVisResolve)
+      .Use(R::kVisMs, A::kSampled)
+      .Use(R::kVisId, A::kColorWrite)
+      .Use(R::kVisCoverage, A::kColorWrite)
+      .Use(R::kMaterialDepth, A::kDepthWrite);
+  b.Pass(PassId::kVisShade)
+      .Use(R::kVisId, A::kSampled)
+      .Use(R::kVisCoverage, A::kSampled)
+      .Use(R::kVisMs, A::kSampled)
+      .Use(R::kMaterialDepth, A::kDepthTest)
+      .Use(R::kHdrColor, A::kColorWrite)
+      .UseIfWritten(R::kAo, A::kSampled);
+  b.Pass(PassId::kGeometricAa)
+      .Use(R::kHdrColor, A::kSampled)
+      .Use(R::kVisCoverage, A::kSampled)
+      .Use(R::kVisId, A::kSampled)
+      .Use(R::kPostHdr, A::kColorWrite);
+}
+
+
+namespace {
+
+// vis_mlaa: the bits of a visibility id that hold the triangle. 12 bits of drawable + 1 and 20
+// of triangle while the drawables fit; past 4095 drawables the drawable takes the bits it needs.
+uint32_t VisTriangleBits(uint32_t drawables) {
+  const uint32_t drawable_bits = std::max(12u, uint32_t(std::bit_width(drawables)));
+  return 32 - drawable_bits;
+}
+
+// Per material on screen, the pixel rectangle its drawables in the frustum can cover (their
+// projected bounds; the whole frame when a box reaches behind the eye).
+std::vector<MaterialRect> MaterialRects(const GpuScene& gs, const Frustum& frustum,
+                                        const glm::mat4& view_proj, uint32_t width,
+                                        uint32_t height) {
+  std::vector<MaterialRect> out;
+  std::map<uint32_t, glm::ivec4> rects;  // material -> x0, y0, x1, y1 (exclusive)
+  const glm::ivec2 size{int(width), int(height)};
+  for (const DrawItem& d : gs.draws()) {
+    if (d.alpha == AlphaMode::kBlend || !AabbIntersectsFrustum(d.world_bounds, frustum)) continue;
+    glm::vec2 lo(1e30f), hi(-1e30f);
+    bool behind = false;
+    for (int c = 0; c < 8; ++c) {
+      const glm::vec4 clip = view_proj * glm::vec4(d.world_bounds.corner(c), 1.0f);
+      if (clip.w <= 1e-6f) {
+        behind = true;
+        break;
+      }
+      const glm::vec2 pixel = (glm::vec2(clip) / clip.w * 0.5f + 0.5f) * glm::vec2(size);
+      lo = glm::min(lo, pixel);
+      hi = glm::max(hi, pixel);
+    }
+    glm::ivec4 r(0, 0, size.x, size.y);
+    if (!behind) {
+      r = glm::ivec4(glm::clamp(glm::ivec2(glm::floor(lo)) - 1, glm::ivec2(0), size),
+                     glm::clamp(glm::ivec2(glm::ceil(hi)) + 1, glm::ivec2(0), size));
+    }
+    auto [it, fresh] = rects.emplace(d.material, r);
+    if (!fresh) {
+      it->second = glm::ivec4(glm::min(glm::ivec2(it->second), glm::ivec2(r)),
+                              glm::max(glm::ivec2(it->second.z, it->second.w), glm::ivec2(r.z, r.w)));
+    }
+  }
+  for (const auto& [material, r] : rects) {
+    if (r.z <= r.x || r.w <= r.y) continue;
+    out.push_back(
+        {material, VkRect2D{{r.x, r.y}, {uint32_t(r.z - r.x), uint32_t(r.w - r.y)}}});
+  }
+  return out;
+}
+
+}  // namespace
+
+uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings& settings) {
+  // A visibility id holds the drawable and the triangle; a scene whose largest drawable has
+  // more triangles than the id leaves room for is drawn with msaa instead.
+  const uint32_t triangle_bits = VisTriangleBits(uint32_t(gs.draws().size()));
+  Settings& s = settings.effective;
+  if (s.aa != AaMode::kVisMlaa) return triangle_bits;
+  const uint32_t most = gs.max_draw_triangles();
+  if (most <= (uint64_t(1) << triangle_bits)) return triangle_bits;
+  settings.notes.push_back(
+      {"aa", absl::StrCat("not applied: vis_mlaa ids hold ", triangle_bits,
+                          " bits of triangle with ", gs.draws().size(),
+                          " drawables, and a drawable has ", most,
+                          " triangles; rendered with msaa")});
+  s.aa = AaMode::kMsaa;
+  if (s.debug_view == DebugView::kAaMask) {
+    settings.notes.push_back({"debug_view", "not applied: aa_mask needs vis_mlaa"});
+    s.debug_view = DebugView::kNone;
+  }
+  return triangle_bits;
+}
+
+void Renderer::Impl::PrepareVis(FrameData& f) {
+  // Per material, the pixels its drawables in the frustum can cover.
+  if (f.s.aa != AaMode::kVisMlaa) return;
+  f.vis.materials = MaterialRects(f.gs, FrustumFromViewProj(f.fu.view_proj), f.fu.view_proj,
+                                  f.s.width, f.s.height);
 }
 
 }  // namespace tessera

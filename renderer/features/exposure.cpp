@@ -3,9 +3,13 @@
 // pixels) to its average, and moves the view's 1x1 state towards it. The state lives across
 // frames, outside the frame graph, in the general layout: the pass orders itself after the
 // last frame's reads and before this frame's (bloom and tonemap sample it).
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
+#include <cmath>
 #include <algorithm>
 
-#include "renderer/passes/pass.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 
@@ -103,6 +107,43 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateExposurePass(const vk::Context& ctx)
   if (!linear.ok()) return linear.status();
   return std::make_unique<ExposurePass>(ctx.device(), std::move(*layout), std::move(*pipeline),
                                         std::move(*linear));
+}
+
+void SetupExposure(GraphBuilder& b) {
+  // Debug views other than bloom's are not exposed, and must not move a stream's adapted
+  // exposure.
+  const Settings& s = b.settings();
+  const bool exposed = s.debug_view == DebugView::kNone || s.debug_view == DebugView::kBloom;
+  if (s.exposure_mode != ExposureMode::kAuto || !exposed) return;
+  const Resource color = b.SceneColor();
+  b.Pass(PassId::kExposure).Use(color, Access::kComputeRead);
+}
+
+
+namespace {
+// Auto exposure maps the frame's average luma to middle grey (Reinhard's key, 0.18) and moves a
+// tenth of the way towards each frame's average: about 90% of a change within 22 frames, under a
+// second at 30 frames a second. A view's first frame takes its own average at once.
+constexpr float kExposureKey = 0.18f;
+constexpr float kExposureAdaptRate = 0.1f;
+}  // namespace
+
+absl::Status Renderer::Impl::PrepareExposure(FrameData& f) {
+  // Fixed, or auto with this view's adapted state.
+  ExposureFrame& exposure = f.exposure;
+  exposure.params = glm::vec4(std::exp2(f.s.exposure_ev), 0.0f, kExposureKey, 0.0f);
+  exposure.view = ao_placeholder.view();  // never read without auto exposure
+  if (f.s.exposure_mode != ExposureMode::kAuto) return absl::OkStatus();
+  ASSIGN_OR_RETURN(ExposureState * state, Exposure(f.gs, f.view));
+  f.exposure_state = &state->image;
+  f.exposure_written = &state->written;
+  exposure.params.y = 1.0f;
+  exposure.state = &state->image;
+  exposure.state_valid = state->written;
+  exposure.rate = kExposureAdaptRate;
+  exposure.view = state->image.view();
+  exposure.layout = VK_IMAGE_LAYOUT_GENERAL;
+  return absl::OkStatus();
 }
 
 }  // namespace tessera

@@ -1,8 +1,9 @@
 #pragma once
-// The frame: which passes run for a Settings value, in which order, and the barriers between
-// them. Passes declare the resources they read and write; the frame graph derives every layout
-// transition from those declarations, so no pass hand-codes a barrier for another's output.
-// The planning half is pure data and is unit-tested without a device.
+// The frame graph's plan: which passes run for a Settings value, in which order, and the
+// barriers between them. Each feature (renderer/features/) declares its passes and the
+// resources they read and write in its Setup; the graph derives every layout transition from
+// those declarations, so no pass hand-codes a barrier for another's output. The plan is pure
+// data and is unit-tested without a device; graph/executor.h runs it.
 #include <cstdint>
 #include <string_view>
 #include <vector>
@@ -86,21 +87,12 @@ enum class PassId : uint8_t {
 };
 
 std::string_view PassName(PassId id);
-// The resources a pass reads and writes; they depend on the AA mode (multisampled targets, the
-// post-AA colour) and on whether ssao and bloom run (the shading and tonemap passes then read
-// their results). kShadows uses none: its atlas lives across frames, outside the graph, as does
-// auto exposure's per-view state.
-std::vector<ResourceUse> PassUses(PassId id, AaMode aa = AaMode::kNone, bool ssao = false,
-                                  bool bloom = false);
 
 // What the frame graph needs to know about the scene to pick passes.
 struct FrameFeatures {
   bool has_transparent = false;  // any visible BLEND drawable
   uint32_t local_lights = 0;     // point and spot lights to shade
 };
-
-// The passes that run for `settings`, in order.
-std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& features);
 
 // A resource moving from one access to another before a pass.
 struct Transition {
@@ -109,12 +101,63 @@ struct Transition {
   Access to;
 };
 
-// For each pass, the transitions to make before it runs. A transition is emitted when the
-// layout changes or either side writes (write-after-write and read-after-write hazards), and
-// between reads in different stages (a compute read then a fragment read: the barrier before
-// the first made the last write visible to its stage only); the same read again needs none.
-std::vector<std::vector<Transition>> PlanTransitions(const std::vector<PassId>& passes,
-                                                     AaMode aa = AaMode::kNone,
-                                                     bool ssao = false, bool bloom = false);
+// One pass of a frame: what it uses, and the transitions to make before it runs.
+struct PlannedPass {
+  PassId id;
+  std::vector<ResourceUse> uses;
+  std::vector<Transition> before;
+};
+
+// The passes of one frame, in order, with every barrier between them.
+struct FramePlan {
+  std::vector<PlannedPass> passes;
+
+  std::vector<PassId> ids() const;
+  bool Has(PassId id) const;
+  // The access a resource is left in after the last pass (kNone: unused this frame).
+  Access FinalAccess(Resource r) const;
+};
+
+// What features declare their passes with. A feature's Setup adds its passes (in the order
+// they run) and says what each reads and writes; Build() then derives every transition:
+// a transition is emitted when the layout changes or either side writes (write-after-write and
+// read-after-write hazards), and between reads in different stages (a compute read then a
+// fragment read: the barrier before the first made the last write visible to its stage only);
+// the same read again needs none.
+class GraphBuilder {
+ public:
+  GraphBuilder(const Settings& settings, const FrameFeatures& features)
+      : settings_(settings), features_(features) {}
+
+  const Settings& settings() const { return settings_; }
+  const FrameFeatures& features() const { return features_; }
+
+  // Starts pass `id`; the uses that follow are its own.
+  GraphBuilder& Pass(PassId id);
+  // The current pass uses `r` as `access`.
+  GraphBuilder& Use(Resource r, Access access);
+  // The same, only when an earlier pass of this frame wrote `r` (an optional input such as
+  // ssao's obscurance or bloom's glow: the feature that makes it decides whether it exists).
+  GraphBuilder& UseIfWritten(Resource r, Access access);
+  // Whether a pass added so far writes `r`.
+  bool Written(Resource r) const;
+  // The scene's HDR colour as it stands: the post-AA colour once a pass wrote it, else the
+  // shaded colour.
+  Resource SceneColor() const;
+
+  FramePlan Build() &&;
+
+ private:
+  const Settings& settings_;
+  const FrameFeatures& features_;
+  std::vector<PlannedPass> passes_;
+};
+
+// The frame for `settings`: every feature's Setup, in the frame's order
+// (renderer/features/frame.cpp).
+FramePlan PlanFrame(const Settings& settings, const FrameFeatures& features);
+
+// Convenience for tests and tools: the pass ids of PlanFrame.
+std::vector<PassId> SelectPasses(const Settings& settings, const FrameFeatures& features);
 
 }  // namespace tessera

@@ -4,7 +4,10 @@
 // that reads both in one tap: ao -> ao_temp (horizontal) -> ao (vertical). The shading passes
 // multiply their ambient light by it. The two intermediate barriers are the pass's own: the
 // frame graph sees one pass that writes ao.
-#include "renderer/passes/pass.h"
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -83,6 +86,30 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx) {
   if (!nearest.ok()) return nearest.status();
   return std::unique_ptr<Pass>(
       new SsaoPass(std::move(*ao), std::move(*blur), std::move(*nearest)));
+}
+
+void SetupSsao(GraphBuilder& b) {
+  if (!b.settings().ssao) return;
+  b.Pass(PassId::kSsao)
+      .Use(Resource::kDepth, Access::kSampled)
+      .Use(Resource::kAo, Access::kColorWrite)
+      .Use(Resource::kAoTemp, Access::kColorWrite);
+}
+
+
+absl::Status Renderer::Impl::PrepareSsao(FrameData& f) {
+  const Settings& s = f.s;
+  if (!s.ssao) return absl::OkStatus();
+  const uint32_t div = s.ssao_half_res ? 2 : 1;
+  RETURN_IF_ERROR(EnsureAo(std::max(1u, s.width / div), std::max(1u, s.height / div)));
+  const Aabb& b = f.gs.bounds();
+  const float diagonal = b.empty() ? 1.0f : glm::length(b.max - b.min);
+  const float radius = s.ssao_radius > 0.0f ? s.ssao_radius : 0.015f * diagonal;
+  const gpu::FrameUniforms& fu = f.fu;
+  f.ssao.proj = glm::vec4(fu.proj[0][0], fu.proj[1][1], fu.proj[2][2], fu.proj[3][2]);
+  f.ssao.params = glm::vec4(radius, s.ssao_strength, 0.01f * radius, 0.0f);
+  static_cast<gpu::ShadowUniforms*>(shadow_ubo.mapped())->counts.w |= gpu::kSsaoOn;
+  return absl::OkStatus();
 }
 
 }  // namespace tessera

@@ -1,7 +1,13 @@
 // Light culling (forward+): one compute dispatch builds every tile's light list from the
 // prepass depth and the per-light bounds the CPU prepared; a buffer barrier then hands the
 // lists to the fragment shaders, and the counts are copied out for the frame's statistics.
-#include "renderer/passes/pass.h"
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
+#include "absl/strings/str_cat.h"
+#include <cmath>
+#include <cstring>
+#include "renderer/features/pass.h"
+#include "renderer/features/features.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
@@ -133,6 +139,133 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx
   if (!sampler.ok()) return sampler.status();
   return std::make_unique<LightCullPass>(ctx.device(), std::move(*layout), std::move(*pipeline),
                                          std::move(*sampler));
+}
+
+void SetupLightCulling(GraphBuilder& b) {
+  // Nothing to cull, or brute force asked for: no lists.
+  if (!b.settings().light_culling || b.features().local_lights == 0) return;
+  b.Pass(PassId::kLightCull).Use(Resource::kDepth, Access::kComputeRead);
+}
+
+
+namespace {
+
+gpu::GpuLight ToGpu(const Light& l) {
+  gpu::GpuLight g{};
+  g.position_range = glm::vec4(l.position, l.range);
+  g.color_intensity = glm::vec4(l.color, l.intensity);
+  g.direction_type = glm::vec4(glm::normalize(l.direction), float(static_cast<uint32_t>(l.type)));
+  // glTF spot falloff: smooth between cos(outer) and cos(inner).
+  const float cos_outer = std::cos(l.outer_cone_angle);
+  const float cos_inner = std::cos(l.inner_cone_angle);
+  const float scale = 1.0f / std::max(0.001f, cos_inner - cos_outer);
+  g.spot = glm::vec4(scale, -cos_outer * scale, 0.0f, 0.0f);
+  return g;
+}
+
+// The light a scene without lights gets: a warm sun from above and in front.
+Light DefaultSun() {
+  Light sun;
+  sun.name = "default_sun";
+  sun.type = LightType::kDirectional;
+  sun.color = glm::vec3(1.0f, 0.96f, 0.90f);
+  sun.intensity = 3.0f;
+  sun.direction = glm::normalize(glm::vec3(-0.35f, -1.0f, -0.45f));
+  return sun;
+}
+
+// Tile lists take tiles x 1 KiB; past 128 MiB (lavapipe's storage-buffer range) the frame
+// shades every light instead, and says so.
+constexpr uint64_t kMaxTileListBytes = 128ull << 20;
+
+}  // namespace
+
+absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
+  // Directional lights are global (uniform buffer); point and spot lights, the scene's and the
+  // synthetic ones, are local and culled per tile. A scene without lights gets a sun.
+  const Settings& s = f.s;
+  std::vector<Light>& global = f.global;
+  std::vector<Light>& local = f.local;
+  if (s.scene_lights) {
+    // Point and spot lights without a range reach everywhere: they are global too.
+    for (const Light& l : f.gs.lights())
+      (l.type == LightType::kDirectional || l.range <= 0.0f ? global : local).push_back(l);
+  }
+  if (global.empty() && local.empty()) global.push_back(DefaultSun());
+  if (global.size() > gpu::kMaxLights) {
+    frame.settings.notes.push_back(
+        {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", global.size(),
+                                      " directional or unbounded lights are shaded")});
+    global.resize(gpu::kMaxLights);
+  }
+  if (s.synthetic_lights > 0) {
+    std::vector<Light> synthetic = MakeSyntheticLights(
+        f.info.bounds, {s.synthetic_lights, s.light_seed, s.light_radius_min,
+                        s.light_radius_max, s.lights_animated, s.light_time});
+    local.insert(local.end(), synthetic.begin(), synthetic.end());
+  }
+  if (local.size() > gpu::kMaxLocalLights) {
+    frame.settings.notes.push_back(
+        {"synthetic_lights", absl::StrCat("only the first ", gpu::kMaxLocalLights, " of ",
+                                          local.size(), " point and spot lights are shaded")});
+    local.resize(gpu::kMaxLocalLights);
+  }
+  f.grid = TileGrid{s.width, s.height, s.tile_size};
+  f.tiled = s.light_culling && !local.empty();
+  if (f.tiled && uint64_t(f.grid.tiles()) * gpu::kMaxLightsPerTile * 4 > kMaxTileListBytes) {
+    frame.settings.notes.push_back(
+        {"light_culling", absl::StrCat("not applied: ", f.grid.tiles(), " tiles of ", s.tile_size,
+                                       " px need more than 128 MiB of light lists; every light "
+                                       "is shaded at every pixel (use a larger tile_size)")});
+    frame.settings.effective.light_culling = false;
+    f.tiled = false;
+  }
+  RETURN_IF_ERROR(EnsureLightBuffers(uint32_t(local.size()), f.tiled ? f.grid.tiles() : 1));
+  auto* gl = static_cast<gpu::GpuLight*>(lights_ubo.mapped());
+  for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
+  auto* ll = static_cast<gpu::GpuLight*>(local_lights.mapped());
+  for (size_t i = 0; i < local.size(); ++i) ll[i] = ToGpu(local[i]);
+  // Shadows are off until PrepareShadows says otherwise.
+  static_cast<gpu::ShadowUniforms*>(shadow_ubo.mapped())->counts = glm::uvec4(0u);
+  frame.stats.lights = uint32_t(global.size() + local.size());
+  frame.stats.local_lights = uint32_t(local.size());
+  LightCullBuffers& lb = f.light_buffers;
+  lb.frame_ubo = frame_ubo.handle();
+  lb.bounds = light_bounds.handle();
+  lb.tile_counts = tile_counts.handle();
+  lb.tile_lights = tile_lights.handle();
+  lb.counts_readback = tile_counts_readback.handle();
+  lb.row_lights = row_lights.handle();
+  lb.tiles = f.grid.tiles();
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::WriteLightBins(FrameData& f) {
+  if (!f.tiled) return absl::OkStatus();
+  // What the light-culling pass reads: each light projected once, binned by row.
+  std::vector<gpu::GpuLightBounds> bounds(f.local.size());
+  for (size_t i = 0; i < f.local.size(); ++i)
+    bounds[i] = BoundLight(f.local[i], f.fu.view, f.fu.proj, f.camera.znear, f.grid);
+  std::memcpy(light_bounds.mapped(), bounds.data(), bounds.size() * sizeof(bounds[0]));
+  const std::vector<uint32_t> rows = BinLightsByRow(bounds, f.grid.tiles_y());
+  RETURN_IF_ERROR(EnsureRowBuffer(rows.size()));
+  std::memcpy(row_lights.mapped(), rows.data(), rows.size() * sizeof(uint32_t));
+  f.light_buffers.row_lights = row_lights.handle();
+  return absl::OkStatus();
+}
+
+void Renderer::Impl::WriteFrameUniforms(FrameData& f, Frame& frame) {
+  const Settings& s = f.s;
+  gpu::FrameUniforms& fu = f.fu;
+  fu.counts = glm::uvec4(uint32_t(f.global.size()), static_cast<uint32_t>(s.debug_view),
+                         s.width, s.height);
+  fu.params = glm::vec4(0.0f, f.camera.znear, f.camera.zfar, 0.0f);
+  fu.lighting = glm::uvec4(uint32_t(f.local.size()), s.tile_size, f.grid.tiles_x(),
+                           (f.tiled ? 1u : 0u) | (s.tile_depth_mask ? 2u : 0u));
+  fu.depth_params = glm::vec4(fu.proj[2][2], fu.proj[3][2], float(f.grid.tiles_y()), 0.0f);
+  fu.aa = glm::uvec4(f.vis.triangle_bits, targets.samples, 0u, 0u);
+  std::memcpy(frame_ubo.mapped(), &fu, sizeof(fu));
+  frame.stats.drawables = uint32_t(f.gs.draws().size());
 }
 
 }  // namespace tessera

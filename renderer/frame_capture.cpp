@@ -1,0 +1,177 @@
+// Test captures (FrameCapture): after a frame, copies what the tests check against CPU
+// references back to the host. Costs an extra submit and wait; never used by the service.
+#include <cstring>
+#include <glm/gtc/packing.hpp>
+#include <limits>
+
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera {
+
+absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
+                                          const PassContext& pc, FrameCapture* capture) {
+  const Access depth_access = plan.FinalAccess(Resource::kDepth);
+  if (capture->want_ids) RETURN_IF_ERROR(CaptureIds(f.gs, f.scene_set, depth_access, capture));
+  // The tonemap's input: the scene colour as the post passes left it.
+  const bool post = f.s.aa == AaMode::kVisMlaa || f.s.aa == AaMode::kTaa;  // as PostColor
+  const Resource hdr = post ? Resource::kPostHdr : Resource::kHdrColor;
+  // CaptureIds left the depth in the depth-test layout.
+  RETURN_IF_ERROR(Capture(capture, f.tiled ? f.grid.tiles() : 0, PostColor(pc),
+                          plan.FinalAccess(hdr),
+                          capture->want_ids ? Access::kDepthTest : depth_access,
+                          f.exposure_state));
+  capture->local_lights = f.local;
+  capture->view = f.fu.view;
+  capture->proj = f.fu.proj;
+  return absl::OkStatus();
+}
+
+// After a frame (tests): draws every drawable, unculled, into an id target against the
+// frame's depth, so the ids on top are the truly visible drawables.
+absl::Status Renderer::Impl::CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set,
+                                        Access depth_access, FrameCapture* capture) {
+  if (!id_pipeline.handle()) {
+    absl::StatusOr<vk::Pipeline> p = CreateIdPipeline(*ctx, scene_layout);
+    if (!p.ok()) return p.status();
+    id_pipeline = std::move(*p);
+  }
+  vk::ImageDesc desc;
+  desc.width = targets.width;
+  desc.height = targets.height;
+  desc.format = kIdFormat;
+  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
+  absl::StatusOr<vk::Image> ids = vk::Image::Create(*ctx, desc, "drawable_ids");
+  if (!ids.ok()) return ids.status();
+  const VkDeviceSize bytes = VkDeviceSize(targets.width) * targets.height * 4;
+  absl::StatusOr<vk::Buffer> host = vk::Buffer::Create(
+      *ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kReadback, "ids_readback");
+  if (!host.ok()) return host.status();
+  executor->BeginOneTime();
+  const VkCommandBuffer cmd = executor->cmd();
+  VkImageMemoryBarrier2 to_color =
+      vk::MakeImageBarrier(*ids, Between(Access::kNone, Access::kColorWrite));
+  VkImageMemoryBarrier2 depth_ready =
+      vk::MakeImageBarrier(targets.depth, Between(depth_access, Access::kDepthTest));
+  VkImageMemoryBarrier2 before[] = {to_color, depth_ready};
+  vk::CmdBarrier(cmd, before, 2);
+  VkRenderingAttachmentInfo c{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  c.imageView = ids->view();
+  c.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+  c.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
+  c.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  c.clearValue.color.uint32[0] = 0;
+  VkRenderingAttachmentInfo d{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+  d.imageView = targets.depth.view();
+  d.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+  d.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+  d.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+  PassStats unused;
+  PassContext pc;
+  pc.cmd = cmd;
+  pc.targets = &targets;
+  pc.scene = &scene;
+  pc.scene_pipeline_layout = scene_layout.pipeline_layout;
+  pc.scene_set = scene_set;
+  pc.stats = &unused;
+  BeginRendering(pc, &c, &d);
+  BeginSceneDraw(pc, id_pipeline.handle());
+  RecordAllDirect(pc);
+  vkCmdEndRendering(cmd);
+  VkImageMemoryBarrier2 to_src =
+      vk::MakeImageBarrier(*ids, Between(Access::kColorWrite, Access::kTransferSrc));
+  vk::CmdBarrier(cmd, &to_src, 1);
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageExtent = {targets.width, targets.height, 1};
+  vkCmdCopyImageToBuffer(cmd, ids->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host->handle(),
+                         1, &region);
+  RETURN_IF_ERROR(executor->SubmitAndWait(/*host_read=*/true));
+  host->InvalidateForRead();
+  const auto* p = static_cast<const uint32_t*>(host->mapped());
+  capture->ids.assign(p, p + size_t(targets.width) * targets.height);
+  return absl::OkStatus();
+}
+
+// After a frame: copies the prepass depth and the tile lists to the host (tests only).
+absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, const vk::Image& hdr,
+                                     Access hdr_access, Access depth_access,
+                                     const vk::Image* exposure) {
+  const VkDeviceSize depth_bytes = VkDeviceSize(targets.width) * targets.height * 4;
+  const VkDeviceSize count_bytes = VkDeviceSize(tiles) * 4;
+  const VkDeviceSize list_bytes = count_bytes * gpu::kMaxLightsPerTile;
+  const VkDeviceSize hdr_bytes = depth_bytes * 2;  // RGBA16F
+  // RGBA16F copies want offsets in whole texels: 16-byte aligned.
+  const VkDeviceSize hdr_at = (depth_bytes + count_bytes + list_bytes + 15) & ~VkDeviceSize(15);
+  const VkDeviceSize exposure_at = hdr_at + hdr_bytes;
+  absl::StatusOr<vk::Buffer> host =
+      vk::Buffer::Create(*ctx, exposure_at + 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                         vk::MemoryUsage::kReadback, "capture");
+  if (!host.ok()) return host.status();
+  executor->BeginOneTime();
+  const VkCommandBuffer cmd = executor->cmd();
+  VkImageMemoryBarrier2 b[2] = {
+      vk::MakeImageBarrier(targets.depth, Between(depth_access, Access::kTransferSrc)),
+      vk::MakeImageBarrier(hdr, Between(hdr_access, Access::kTransferSrc))};
+  VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+  mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
+  mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
+  mb.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+  mb.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
+  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  dep.memoryBarrierCount = 1;
+  dep.pMemoryBarriers = &mb;
+  dep.imageMemoryBarrierCount = 2;
+  dep.pImageMemoryBarriers = b;
+  vkCmdPipelineBarrier2(cmd, &dep);
+  VkBufferImageCopy region{};
+  region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
+  region.imageExtent = {targets.width, targets.height, 1};
+  vkCmdCopyImageToBuffer(cmd, targets.depth.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                         host->handle(), 1, &region);
+  region.bufferOffset = hdr_at;
+  region.imageSubresource.aspectMask = VK_IMAGE_ASPECT_COLOR_BIT;
+  vkCmdCopyImageToBuffer(cmd, hdr.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host->handle(),
+                         1, &region);
+  if (exposure) {  // from the general layout and back
+    VkImageMemoryBarrier2 eb = vk::MakeImageBarrier(
+        *exposure, {VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
+                    VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_COPY_BIT,
+                    VK_ACCESS_2_TRANSFER_READ_BIT, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL});
+    vk::CmdBarrier(cmd, &eb, 1);
+    region.bufferOffset = exposure_at;
+    region.imageExtent = {1, 1, 1};
+    vkCmdCopyImageToBuffer(cmd, exposure->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           host->handle(), 1, &region);
+    eb = vk::MakeImageBarrier(
+        *exposure, {VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_NONE,
+                    VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                    VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_GENERAL});
+    vk::CmdBarrier(cmd, &eb, 1);
+  }
+  if (tiles > 0) {  // the lists exist only when the light-culling pass ran
+    const VkBufferCopy counts{0, depth_bytes, count_bytes};
+    vkCmdCopyBuffer(cmd, tile_counts.handle(), host->handle(), 1, &counts);
+    const VkBufferCopy lists{0, depth_bytes + count_bytes, list_bytes};
+    vkCmdCopyBuffer(cmd, tile_lights.handle(), host->handle(), 1, &lists);
+  }
+  RETURN_IF_ERROR(executor->SubmitAndWait(/*host_read=*/true));
+  host->InvalidateForRead();
+  const auto* bytes = static_cast<const uint8_t*>(host->mapped());
+  capture->depth.resize(size_t(targets.width) * targets.height);
+  std::memcpy(capture->depth.data(), bytes, depth_bytes);
+  capture->tile_counts.resize(tiles);
+  std::memcpy(capture->tile_counts.data(), bytes + depth_bytes, count_bytes);
+  capture->tile_lights.resize(size_t(tiles) * gpu::kMaxLightsPerTile);
+  std::memcpy(capture->tile_lights.data(), bytes + depth_bytes + count_bytes, list_bytes);
+  capture->hdr.resize(size_t(targets.width) * targets.height * 4);
+  const auto* halves = reinterpret_cast<const uint16_t*>(bytes + hdr_at);
+  for (size_t i = 0; i < capture->hdr.size(); ++i) capture->hdr[i] = glm::unpackHalf1x16(halves[i]);
+  capture->exposure_log2 = std::numeric_limits<float>::quiet_NaN();
+  if (exposure) std::memcpy(&capture->exposure_log2, bytes + exposure_at, 4);
+  return absl::OkStatus();
+}
+
+
+}  // namespace tessera

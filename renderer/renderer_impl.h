@@ -1,0 +1,220 @@
+#pragma once
+// Renderer::Impl: what the renderer keeps between frames, and FrameData: what one frame
+// prepares for its passes. Private to the renderer's own files (renderer.cpp is the front end,
+// frame_resources.cpp the targets and buffers, frame_capture.cpp the test captures, and each
+// feature in renderer/features/ prepares its own part of the frame).
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <utility>
+#include <vector>
+
+#include "renderer/features/pass.h"
+#include "renderer/graph/executor.h"
+#include "renderer/graph/frame_graph.h"
+#include "renderer/ibl.h"
+#include "renderer/ibl_maps.h"
+#include "renderer/light_culling.h"
+#include "renderer/renderer.h"
+#include "renderer/scene/gpu_scene.h"
+#include "renderer/shadows.h"
+#include "renderer/vk/context.h"
+#include "renderer/vk/handle.h"
+#include "renderer/vk/resources.h"
+#include "shaders/common/gpu_types.h"
+
+namespace tessera {
+
+// Views whose visibility bits a scene keeps for gpu_occlusion (least recently used dropped).
+inline constexpr size_t kMaxViews = 64;
+
+// Replaces `*out` with a new buffer (the old one is idle: every frame waits for its fence).
+absl::Status MakeBuffer(const vk::Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage,
+                        vk::MemoryUsage memory, const char* name, vk::Buffer* out);
+
+// Per-view state kept in a map (`last_used` in each value): drops the least recently used.
+template <typename Map>
+void DropLeastRecentlyUsed(Map& map) {
+  if (map.empty()) return;
+  map.erase(std::min_element(map.begin(), map.end(), [](const auto& a, const auto& b) {
+    return a.second.last_used < b.second.last_used;
+  }));
+}
+
+// What one frame prepares before its passes record: uniforms, lights, the draw lists and each
+// feature's parameters. Filled by the Prepare* steps in order.
+struct FrameData {
+  FrameData(const GpuScene& gs, const SceneInfo& info, const Camera& camera, const Settings& s,
+            uint64_t view)
+      : gs(gs), info(info), camera(camera), s(s), view(view) {}
+  const GpuScene& gs;
+  const SceneInfo& info;
+  const Camera& camera;
+  const Settings& s;  // the effective settings
+  uint64_t view;
+  float aspect = 1.0f;
+  gpu::FrameUniforms fu{};
+  glm::mat4 unjittered_view_proj{1.0f};
+  // Lights: directional (and unbounded) ones are global, point and spot lights local.
+  std::vector<Light> global, local;
+  TileGrid grid{};
+  bool tiled = false;  // forward+ tile lists this frame
+  TaaFrame taa;
+  ShadowFrame shadows;
+  SsaoFrame ssao;
+  ExposureFrame exposure;
+  const vk::Image* exposure_state = nullptr;  // auto exposure: the view's state
+  bool* exposure_written = nullptr;           // set once the exposure pass ran
+  DrawLists draws;
+  CullBuffers cull;
+  GpuScene::ViewVisibility* visibility = nullptr;  // gpu_occlusion: the view's bits
+  LightCullBuffers light_buffers;
+  VisFrame vis;
+  PassStats pass_stats;
+  VkDescriptorSet scene_set = VK_NULL_HANDLE;
+};
+
+struct Renderer::Impl {
+  std::shared_ptr<vk::Context> ctx;  // shared with the scenes, which may outlive the renderer
+  std::mutex mutex;                  // the queue and everything below
+  // Command buffer, fence, timestamps, statistics and submission (declared after ctx: destroyed
+  // before it).
+  std::unique_ptr<GraphExecutor> executor;
+  vk::UniqueDescriptorSetLayout scene_set_layout;
+  vk::UniqueDescriptorSetLayout material_set_layout;
+  vk::UniquePipelineLayout scene_pipeline_layout;
+  SceneLayout scene_layout;  // the three handles above, as the passes take them
+  std::array<std::unique_ptr<Pass>, static_cast<size_t>(PassId::kCount)> passes;
+  vk::UniqueDescriptorPool frame_pool;
+  vk::Buffer frame_ubo;
+  vk::Buffer lights_ubo;
+  // Forward+: local lights and their bounds (grown to the largest count seen), tile lists
+  // (sized for the tile grid).
+  vk::Buffer local_lights;
+  vk::Buffer light_bounds;
+  vk::Buffer tile_counts;
+  vk::Buffer tile_lights;
+  vk::Buffer tile_counts_readback;
+  vk::Buffer row_lights;  // lights binned by tile row (light_cull.comp)
+  uint32_t row_capacity = 0;
+  uint32_t light_capacity = 0;
+  uint32_t tile_capacity = 0;
+  // Geometry culling (grown to the largest scene drawn): the draw lists, the culling pass's
+  // uniforms (one range per phase) and scratch, and a stand-in for the visibility bits of the
+  // modes that keep none.
+  vk::Buffer draw_commands;
+  vk::Buffer draw_counts;
+  vk::Buffer cull_uniforms;
+  vk::Buffer cull_bases;
+  vk::Buffer no_visibility;
+  VkDeviceSize cull_uniform_stride = 0;
+  uint32_t command_capacity = 0;
+  uint32_t count_capacity = 0;
+  uint32_t base_capacity = 0;
+  vk::Pipeline id_pipeline;  // FrameCapture::want_ids, made on first use
+  uint64_t frame_counter = 0;
+  FrameTargets targets;
+  // taa: each (scene, view)'s history, least recently used dropped past kMaxTaaViews.
+  struct TaaHistory {
+    vk::Image images[2];
+    bool written[2] = {false, false};
+    uint32_t current = 0;  // the image last written
+    uint32_t frames = 0;   // frames blended into it since the last reset (capped)
+    uint32_t jitter_index = 0;
+    glm::mat4 view_proj{0.0f};  // unjittered, of the last frame
+    uint64_t last_used = 0;
+  };
+  std::map<std::pair<uint64_t, uint64_t>, TaaHistory> taa_history;
+  // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
+  // they hold (ShadowAtlas), the uniforms the shading reads, and a 1x1 stand-in bound while
+  // shadows are off.
+  vk::Image shadow_atlas;
+  vk::Image shadow_placeholder;
+  std::unique_ptr<ShadowAtlas> shadow_faces;
+  bool shadow_atlas_written = false;  // false: its contents (and layout) are undefined
+  vk::Buffer shadow_ubo;
+  vk::Sampler shadow_sampler;  // comparison, bilinear
+  vk::Sampler linear_sampler;  // ssao visibility
+  vk::Image ao_placeholder;    // 1x1, shader-read layout: what the shading reads without ssao
+  // Auto exposure: each (scene, view)'s adapted average (ExposureFrame::state), least recently
+  // used dropped past kMaxExposureViews.
+  struct ExposureState {
+    vk::Image image;
+    bool written = false;
+    uint64_t last_used = 0;
+  };
+  std::map<std::pair<uint64_t, uint64_t>, ExposureState> exposure_state;
+  // IBL: the maps (made when ibl first runs), the hash of the sky they hold, and a 1x1 cube
+  // bound while ibl is off.
+  std::unique_ptr<IblMaps> ibl;
+  uint64_t ibl_sky_hash = 0;
+  vk::Image cube_placeholder;
+
+  ~Impl() {
+    if (ctx) vkDeviceWaitIdle(ctx->device());  // then every member is idle when destroyed
+  }
+
+  // renderer_init.cpp
+  absl::Status Init();
+  absl::Status InitLayouts();
+  absl::Status InitPasses();
+  absl::Status InitShadows();
+
+  // frame_resources.cpp: targets and buffers, (re)made when a frame needs them.
+  absl::Status EnsureTargets(uint32_t width, uint32_t height);
+  absl::Status EnsureAaTargets(const Settings& s);  // the AA mode's, at its sample count
+  absl::Status EnsureShadowAtlas(uint32_t size);
+  absl::Status EnsureAo(uint32_t width, uint32_t height);
+  absl::Status EnsureBloom();  // bloom's chains for the current targets
+  absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
+  absl::Status EnsureRowBuffer(size_t entries);
+  absl::Status EnsureCullBuffers(uint32_t items, uint32_t lists);
+  // Per-view state (least recently used dropped): taa history, exposure state, occlusion bits.
+  absl::StatusOr<TaaHistory*> Taa(const GpuScene& scene, uint64_t view);
+  absl::StatusOr<ExposureState*> Exposure(const GpuScene& scene, uint64_t view);
+  absl::StatusOr<GpuScene::ViewVisibility*> Visibility(const GpuScene& scene, uint64_t view);
+  // The frame's set 0; binds the shadow atlas when `shadows` (else the 1x1 stand-in).
+  VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao, bool ibl);
+  // What the passes record with.
+  PassContext MakePassContext(FrameData& f);
+  void ReadBack(Frame& frame);
+
+  // The features' per-frame preparation, in the order Render calls them.
+  // vis_mlaa.cpp: falls back to msaa when the scene's ids do not fit (with a note).
+  // Returns the bits of an id that hold the triangle.
+  uint32_t CheckVisibilityIds(const GpuScene& gs, ResolvedSettings& settings);
+  absl::Status PrepareCamera(FrameData& f);  // post.cpp: uniforms, taa history and jitter
+  absl::Status PrepareLights(FrameData& f, Frame& frame);  // forward_plus.cpp
+  absl::Status PrepareShadows(FrameData& f, Frame& frame);  // shadows.cpp
+  absl::Status PrepareSsao(FrameData& f);                  // ssao.cpp
+  absl::Status PrepareIbl(FrameData& f, Frame& frame);     // ibl.cpp
+  absl::StatusOr<bool> EnsureIbl(const SkyParams& sky);    // bakes `sky` unless held
+  absl::Status PrepareExposure(FrameData& f);              // exposure.cpp
+  absl::Status WriteLightBins(FrameData& f);               // forward_plus.cpp
+  void WriteFrameUniforms(FrameData& f, Frame& frame);     // forward_plus.cpp
+  absl::Status PrepareDraws(FrameData& f);                 // culling.cpp
+  void PrepareVis(FrameData& f);                           // vis_mlaa.cpp
+  // culling.cpp: none / cpu_frustum: the CPU writes phase 0's lists.
+  void WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
+  // culling.cpp: what the frame drew, from the lists it executed.
+  void CountDrawn(const GpuScene& gs, const DrawLists& draws, const std::vector<PassId>& pass_ids,
+                  FrameStats& stats, std::vector<uint32_t>* drawn_out) const;
+  // After the passes ran: statistics and the per-view state the frame advanced.
+  absl::Status FinishFrame(FrameData& f, const FramePlan& plan,
+                           const GraphExecutor::Result& run, Frame& frame,
+                           FrameCapture* capture);
+
+  // frame_capture.cpp (tests): copies the depth, the light lists, the tonemap's input and auto
+  // exposure's state; with want_ids also every drawable's id against the frame's depth.
+  absl::Status CaptureFrame(FrameData& f, const FramePlan& plan, const PassContext& pc,
+                            FrameCapture* capture);
+  absl::Status Capture(FrameCapture* capture, uint32_t tiles, const vk::Image& hdr,
+                       Access hdr_access, Access depth_access, const vk::Image* exposure);
+  absl::Status CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set, Access depth_access,
+                          FrameCapture* capture);
+};
+
+}  // namespace tessera

@@ -1,0 +1,186 @@
+// The renderer's one-time setup: the scene layouts, every pass, the executor, the frame's
+// descriptor pool and uniform buffers, and the stand-ins bound while an effect is off.
+#include <cstring>
+
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
+#include "renderer/vk/vk_check.h"
+
+namespace tessera {
+
+absl::Status Renderer::Impl::InitLayouts() {
+  VkDevice d = ctx->device();
+  std::vector<VkDescriptorSetLayoutBinding> bindings = {
+      {gpu::kBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingLights, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingDrawables, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingMaterials, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingLocalLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingShadows, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingShadowAtlas, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingAo, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       nullptr},
+      {gpu::kBindingIrradiance, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingSpecular, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingBrdfLut, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+      {gpu::kBindingEnvironment, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+  };
+  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  li.bindingCount = static_cast<uint32_t>(bindings.size());
+  li.pBindings = bindings.data();
+  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, scene_set_layout.Replace(d)),
+                     "scene set layout");
+  std::vector<VkDescriptorSetLayoutBinding> texture_bindings = {
+      {gpu::kBindingMaterialUniform, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
+       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}};
+  for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k)
+    texture_bindings.push_back({gpu::kBindingBaseColorTex + k,
+                                VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
+                                VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+  li.bindingCount = static_cast<uint32_t>(texture_bindings.size());
+  li.pBindings = texture_bindings.data();
+  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, material_set_layout.Replace(d)),
+                     "material set layout");
+  const VkDescriptorSetLayout set_layouts[] = {scene_set_layout.get(), material_set_layout.get()};
+  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pli.setLayoutCount = 2;
+  pli.pSetLayouts = set_layouts;
+  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, scene_pipeline_layout.Replace(d)),
+                     "scene pipeline layout");
+  scene_layout = {scene_set_layout.get(), material_set_layout.get(), scene_pipeline_layout.get()};
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::InitPasses() {
+
+  auto add = [this](absl::StatusOr<std::unique_ptr<Pass>> pass) -> absl::Status {
+    if (!pass.ok()) return pass.status();
+    passes[static_cast<size_t>((*pass)->id())] = std::move(*pass);
+    return absl::OkStatus();
+  };
+  RETURN_IF_ERROR(add(CreateDepthPrepass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateDepthPrepass(*ctx, scene_layout, PassId::kDepthPrepassLate)));
+  RETURN_IF_ERROR(add(CreateCullPass(*ctx, PassId::kCull)));
+  RETURN_IF_ERROR(add(CreateCullPass(*ctx, PassId::kCullLate)));
+  RETURN_IF_ERROR(add(CreateHizBuildPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateForwardPass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateTransparentPass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateTonemapPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateLightCullPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateReadbackPass()));
+  RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibility)));
+  RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate)));
+  RETURN_IF_ERROR(add(CreateVisResolvePass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateVisShadePass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateGeometricAaPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateTaaPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateFxaaPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateShadowPass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateSsaoPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateExposurePass(*ctx)));
+  RETURN_IF_ERROR(add(CreateBloomPass(*ctx)));
+
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::Init() {
+  const VkDevice d = ctx->device();
+  RETURN_IF_ERROR(InitLayouts());
+  RETURN_IF_ERROR(InitPasses());
+  ASSIGN_OR_RETURN(executor, GraphExecutor::Create(*ctx));
+  // Per frame: the scene set, light culling, two culling phases, a set per pyramid level, the
+  // vis_mlaa and post passes' sets.
+  // Shadows, ssao, ibl: six more images and a uniform buffer in the scene set; the post passes
+  // allocate a set per draw (bloom: eleven).
+  const VkDescriptorPoolSize sizes[] = {
+      {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 40},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 192},
+      {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 48},
+  };
+  VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
+  dpi.maxSets = 128;
+  dpi.poolSizeCount = 4;
+  dpi.pPoolSizes = sizes;
+  VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, frame_pool.Replace(d)),
+                     "descriptor pool");
+
+  RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+                             vk::MemoryUsage::kUpload, "frame_uniforms", &frame_ubo));
+  RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::GpuLight) * gpu::kMaxLights,
+                             VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                             "lights", &lights_ubo));
+  RETURN_IF_ERROR(EnsureRowBuffer(1024));
+  const VkDeviceSize align =
+      std::max<VkDeviceSize>(16, ctx->limits().minUniformBufferOffsetAlignment);
+  cull_uniform_stride = (sizeof(gpu::CullUniforms) + align - 1) / align * align;
+  RETURN_IF_ERROR(MakeBuffer(*ctx, 2 * cull_uniform_stride, VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
+                                  vk::MemoryUsage::kUpload, "cull_uniforms", &cull_uniforms));
+  RETURN_IF_ERROR(MakeBuffer(*ctx, 4,
+                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                      VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                  vk::MemoryUsage::kUpload, "no_visibility", &no_visibility));
+  std::memset(no_visibility.mapped(), 0, 4);
+  RETURN_IF_ERROR(EnsureCullBuffers(1, 1));
+  RETURN_IF_ERROR(InitShadows());
+  return EnsureLightBuffers(1, 1);
+}
+
+absl::Status Renderer::Impl::InitShadows() {
+  RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::ShadowUniforms),
+                                  VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                                  "shadow_uniforms", &shadow_ubo));
+  std::memset(shadow_ubo.mapped(), 0, sizeof(gpu::ShadowUniforms));
+  // The hardware shadow sampler: bilinear comparison taps (the PCF's 4 taps each weigh 2x2
+  // texels). Standard Z: lit where the reference is nearer than (or at) the stored depth.
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = si.minFilter = VK_FILTER_LINEAR;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  si.compareEnable = VK_TRUE;
+  si.compareOp = VK_COMPARE_OP_LESS_OR_EQUAL;
+  ASSIGN_OR_RETURN(shadow_sampler, vk::Sampler::Create(*ctx, si, "shadow_compare"));
+  ASSIGN_OR_RETURN(linear_sampler, CreateClampSampler(*ctx, true, "ao_linear"));
+  // What the scene set binds while shadows are off: a 1x1 atlas in shader-read layout.
+  vk::ImageDesc desc;
+  desc.format = kShadowFormat;
+  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+  ASSIGN_OR_RETURN(shadow_placeholder, vk::Image::Create(*ctx, desc, "shadow_placeholder"));
+  // And without ssao, a 1x1 AO image (its contents are never read: the shaders test a flag).
+  desc.format = kAoFormat;
+  desc.usage = VK_IMAGE_USAGE_SAMPLED_BIT;
+  ASSIGN_OR_RETURN(ao_placeholder, vk::Image::Create(*ctx, desc, "ao_placeholder"));
+  // And without ibl, a 1x1 cube (never read either).
+  desc.format = VK_FORMAT_R16G16B16A16_SFLOAT;
+  desc.array_layers = 6;
+  desc.view_type = VK_IMAGE_VIEW_TYPE_CUBE;
+  ASSIGN_OR_RETURN(cube_placeholder, vk::Image::Create(*ctx, desc, "cube_placeholder"));
+  executor->BeginOneTime();
+  VkImageMemoryBarrier2 b[3];
+  for (int i = 0; i < 3; ++i) {
+    b[i] = vk::MakeImageBarrier(
+        i == 0 ? shadow_placeholder : i == 1 ? ao_placeholder : cube_placeholder,
+        {VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_UNDEFINED,
+         VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
+  }
+  vk::CmdBarrier(executor->cmd(), b, 3);
+  return executor->SubmitAndWait(/*host_read=*/false);
+}
+
+
+}  // namespace tessera
