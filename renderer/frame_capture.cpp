@@ -33,9 +33,8 @@ absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
 absl::Status Renderer::Impl::CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set,
                                         Access depth_access, FrameCapture* capture) {
   if (!id_pipeline.handle()) {
-    absl::StatusOr<vk::Pipeline> p = CreateIdPipeline(*ctx, scene_layout);
-    if (!p.ok()) return p.status();
-    id_pipeline = std::move(*p);
+    ASSIGN_OR_RETURN(vk::Pipeline p, CreateIdPipeline(*ctx, scene_layout));
+    id_pipeline = std::move(p);
   }
   vk::ImageDesc desc;
   desc.width = targets.width;
@@ -105,10 +104,9 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
   // RGBA16F copies want offsets in whole texels: 16-byte aligned.
   const VkDeviceSize hdr_at = (depth_bytes + count_bytes + list_bytes + 15) & ~VkDeviceSize(15);
   const VkDeviceSize exposure_at = hdr_at + hdr_bytes;
-  absl::StatusOr<vk::Buffer> host =
-      vk::Buffer::Create(*ctx, exposure_at + 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                         vk::MemoryUsage::kReadback, "capture");
-  if (!host.ok()) return host.status();
+  ASSIGN_OR_RETURN(vk::Buffer host,
+                   vk::Buffer::Create(*ctx, exposure_at + 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                      vk::MemoryUsage::kReadback, "capture"));
   executor->BeginOneTime();
   const VkCommandBuffer cmd = executor->cmd();
   VkImageMemoryBarrier2 b[2] = {
@@ -129,11 +127,11 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
   region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
   region.imageExtent = {targets.width, targets.height, 1};
   vkCmdCopyImageToBuffer(cmd, targets.depth.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                         host->handle(), 1, &region);
+                         host.handle(), 1, &region);
   region.bufferOffset = hdr_at;
   region.imageSubresource.aspectMask = VK_IMAGE_ASPECT_COLOR_BIT;
-  vkCmdCopyImageToBuffer(cmd, hdr.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host->handle(),
-                         1, &region);
+  vkCmdCopyImageToBuffer(cmd, hdr.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, host.handle(), 1,
+                         &region);
   if (exposure) {  // from the general layout and back
     VkImageMemoryBarrier2 eb = vk::MakeImageBarrier(
         *exposure, {VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_WRITE_BIT,
@@ -143,7 +141,7 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
     region.bufferOffset = exposure_at;
     region.imageExtent = {1, 1, 1};
     vkCmdCopyImageToBuffer(cmd, exposure->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-                           host->handle(), 1, &region);
+                           host.handle(), 1, &region);
     eb = vk::MakeImageBarrier(
         *exposure, {VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_NONE,
                     VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -152,13 +150,13 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
   }
   if (tiles > 0) {  // the lists exist only when the light-culling pass ran
     const VkBufferCopy counts{0, depth_bytes, count_bytes};
-    vkCmdCopyBuffer(cmd, tile_counts.handle(), host->handle(), 1, &counts);
+    vkCmdCopyBuffer(cmd, tile_counts.handle(), host.handle(), 1, &counts);
     const VkBufferCopy lists{0, depth_bytes + count_bytes, list_bytes};
-    vkCmdCopyBuffer(cmd, tile_lights.handle(), host->handle(), 1, &lists);
+    vkCmdCopyBuffer(cmd, tile_lights.handle(), host.handle(), 1, &lists);
   }
   RETURN_IF_ERROR(executor->SubmitAndWait(/*host_read=*/true));
-  host->InvalidateForRead();
-  const auto* bytes = static_cast<const uint8_t*>(host->mapped());
+  host.InvalidateForRead();
+  const auto* bytes = static_cast<const uint8_t*>(host.mapped());
   capture->depth.resize(size_t(targets.width) * targets.height);
   std::memcpy(capture->depth.data(), bytes, depth_bytes);
   capture->tile_counts.resize(tiles);

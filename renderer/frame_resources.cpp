@@ -18,9 +18,7 @@ constexpr uint32_t kHizLevel0Divisor = 2;
 
 absl::Status MakeBuffer(const vk::Context& ctx, VkDeviceSize size, VkBufferUsageFlags usage,
                         vk::MemoryUsage memory, const char* name, vk::Buffer* out) {
-  absl::StatusOr<vk::Buffer> b = vk::Buffer::Create(ctx, size, usage, memory, name);
-  if (!b.ok()) return b.status();
-  *out = std::move(*b);
+  ASSIGN_OR_RETURN(*out, vk::Buffer::Create(ctx, size, usage, memory, name));
   return absl::OkStatus();
 }
 
@@ -34,30 +32,119 @@ absl::Status Renderer::Impl::EnsureShadowAtlas(uint32_t size) {
   desc.width = desc.height = size;
   desc.format = kShadowFormat;
   desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
-  absl::StatusOr<vk::Image> atlas = vk::Image::Create(*ctx, desc, "shadow_atlas");
-  if (!atlas.ok()) return atlas.status();
-  shadow_atlas = std::move(*atlas);
+  ASSIGN_OR_RETURN(shadow_atlas, vk::Image::Create(*ctx, desc, "shadow_atlas"));
   shadow_faces = std::make_unique<ShadowAtlas>(size);
   shadow_atlas_written = false;
   return absl::OkStatus();
 }
 
-
-absl::Status Renderer::Impl::EnsureAo(uint32_t width, uint32_t height) {
-  if (targets.ao && targets.ao.desc().width == width && targets.ao.desc().height == height)
-    return absl::OkStatus();
-  vkDeviceWaitIdle(ctx->device());
-  vk::ImageDesc desc;
-  desc.width = width;
-  desc.height = height;
-  desc.format = kAoFormat;
-  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
-  absl::StatusOr<vk::Image> ao = vk::Image::Create(*ctx, desc, "ao");
-  if (!ao.ok()) return ao.status();
-  absl::StatusOr<vk::Image> temp = vk::Image::Create(*ctx, desc, "ao_temp");
-  if (!temp.ok()) return temp.status();
-  targets.ao = std::move(*ao);
-  targets.ao_temp = std::move(*temp);
+absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
+  const uint64_t frame = ++frame_counter;
+  const uint32_t width = s.width, height = s.height;
+  FrameTargets t;
+  t.width = width;
+  t.height = height;
+  // One target of the frame from the pool: `resource` at `w` x `h`, `samples`, `mips`.
+  auto get = [&](Resource resource, VkFormat format, VkImageUsageFlags usage, const char* name,
+                 uint32_t w, uint32_t h, uint32_t samples = 1,
+                 uint32_t mips = 1) -> absl::StatusOr<const TargetPool::Target*> {
+    vk::ImageDesc desc;
+    desc.width = w;
+    desc.height = h;
+    desc.format = format;
+    desc.samples = static_cast<VkSampleCountFlagBits>(samples);
+    desc.mip_levels = mips;
+    desc.usage = usage;
+    return target_pool.Acquire(*ctx, resource, desc, name, mips > 1, frame);
+  };
+  constexpr VkImageUsageFlags kColor = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT;
+  constexpr VkImageUsageFlags kSampled = VK_IMAGE_USAGE_SAMPLED_BIT;
+  constexpr VkImageUsageFlags kDepth = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
+  constexpr VkImageUsageFlags kCopy = VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // captures, readback
+  using R = Resource;
+  // Sampled by light culling, ssao, taa and the pyramid; copied out for tests (FrameCapture).
+  ASSIGN_OR_RETURN(auto* depth,
+                   get(R::kDepth, kDepthFormat, kDepth | kSampled | kCopy, "depth", width, height));
+  t.depth = depth->image;
+  ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat, kColor | kSampled | kCopy, "hdr_color",
+                                  width, height));
+  t.hdr = hdr->image;
+  ASSIGN_OR_RETURN(auto* ldr, get(R::kLdrColor, kLdrFormat, kColor | kSampled | kCopy, "ldr_color",
+                                  width, height));
+  t.ldr = ldr->image;
+  ASSIGN_OR_RETURN(
+      readback, target_pool.AcquireBuffer(*ctx, uint64_t(width) * height * 4, "readback", frame));
+  t.readback = readback->handle();
+  if (s.culling == CullingMode::kGpuFrustum || s.culling == CullingMode::kGpuOcclusion) {
+    // The depth pyramid: a power of two at or below half the frame size, down to 1x1.
+    t.hiz_width = std::max(1u, std::bit_floor(width) / kHizLevel0Divisor);
+    t.hiz_height = std::max(1u, std::bit_floor(height) / kHizLevel0Divisor);
+    const uint32_t levels = uint32_t(std::bit_width(std::max(t.hiz_width, t.hiz_height)));
+    ASSIGN_OR_RETURN(auto* hiz, get(R::kHiz, kHizFormat, VK_IMAGE_USAGE_STORAGE_BIT | kSampled,
+                                    "hiz", t.hiz_width, t.hiz_height, 1, levels));
+    t.hiz = hiz->image;
+    t.hiz_levels = hiz->mips;
+  }
+  // The AA mode's targets, at its sample count.
+  const uint32_t n = s.samples;
+  const bool msaa = s.aa == AaMode::kMsaa, vis = s.aa == AaMode::kVisMlaa;
+  t.samples = msaa || vis ? n : 1;
+  if (msaa || vis) {
+    ASSIGN_OR_RETURN(auto* d, get(R::kDepthMs, kDepthFormat, kDepth, "depth_ms", width, height, n));
+    t.depth_ms = d->image;
+  }
+  if (msaa) {
+    ASSIGN_OR_RETURN(auto* c, get(R::kHdrMs, kHdrFormat, kColor, "hdr_ms", width, height, n));
+    t.hdr_ms = c->image;
+  }
+  if (vis) {
+    ASSIGN_OR_RETURN(auto* v,
+                     get(R::kVisMs, kIdFormat, kColor | kSampled, "visibility", width, height, n));
+    t.vis_ms = v->image;
+    ASSIGN_OR_RETURN(auto* id,
+                     get(R::kVisId, kIdFormat, kColor | kSampled, "vis_id", width, height));
+    t.vis_id = id->image;
+    ASSIGN_OR_RETURN(auto* cov, get(R::kVisCoverage, kIdFormat, kColor | kSampled, "vis_coverage",
+                                    width, height));
+    t.vis_coverage = cov->image;
+    ASSIGN_OR_RETURN(auto* md, get(R::kMaterialDepth, kMaterialDepthFormat, kDepth,
+                                   "material_depth", width, height));
+    t.material_depth = md->image;
+  }
+  if (vis || s.aa == AaMode::kTaa) {
+    ASSIGN_OR_RETURN(auto* post, get(R::kPostHdr, kHdrFormat, kColor | kSampled | kCopy, "post_hdr",
+                                     width, height));
+    t.post_hdr = post->image;
+  }
+  if (s.aa == AaMode::kFxaa) {
+    ASSIGN_OR_RETURN(auto* fx,
+                     get(R::kFxaaColor, kLdrFormat, kColor | kCopy, "fxaa", width, height));
+    t.fxaa = fx->image;
+  }
+  if (s.ssao) {  // half (or full) resolution
+    const uint32_t div = s.ssao_half_res ? 2 : 1;
+    const uint32_t w = std::max(1u, width / div), h = std::max(1u, height / div);
+    ASSIGN_OR_RETURN(auto* ao, get(R::kAo, kAoFormat, kColor | kSampled, "ao", w, h));
+    t.ao = ao->image;
+    ASSIGN_OR_RETURN(auto* temp, get(R::kAoTemp, kAoFormat, kColor | kSampled, "ao_temp", w, h));
+    t.ao_temp = temp->image;
+  }
+  if (s.bloom) {
+    // From half the frame's size, at least 2^(kBloomLevels - 1) texels a side so every level
+    // exists (a tiny frame's bloom is then magnified).
+    constexpr uint32_t kMin = 1u << (kBloomLevels - 1);
+    const uint32_t w = std::max(kMin, width / 2), h = std::max(kMin, height / 2);
+    ASSIGN_OR_RETURN(auto* down, get(R::kBloomDown, kHdrFormat, kColor | kSampled, "bloom_down", w,
+                                     h, 1, kBloomLevels));
+    t.bloom_down = down->image;
+    t.bloom_down_levels = down->mips;
+    ASSIGN_OR_RETURN(auto* up, get(R::kBloomUp, kHdrFormat, kColor | kSampled, "bloom_up", w, h, 1,
+                                   kBloomLevels - 1));
+    t.bloom_up = up->image;
+    t.bloom_up_levels = up->mips;
+  }
+  targets = t;
+  target_pool.Trim(frame);
   return absl::OkStatus();
 }
 
@@ -69,67 +156,23 @@ absl::Status Renderer::Impl::EnsureCullBuffers(uint32_t items, uint32_t lists) {
                                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                             VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   if (commands > command_capacity) {
-    if (absl::Status s =
-            MakeBuffer(*ctx, VkDeviceSize(commands) * sizeof(VkDrawIndexedIndirectCommand),
-                       kListUsage, vk::MemoryUsage::kUpload, "draw_commands", &draw_commands);
-        !s.ok())
-      return s;
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(commands) * sizeof(VkDrawIndexedIndirectCommand),
+                               kListUsage, vk::MemoryUsage::kUpload, "draw_commands",
+                               &draw_commands));
     command_capacity = commands;
   }
   const uint32_t counts = 2 * (lists + gpu::kCullStatCount);
   if (counts > count_capacity) {
-    if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(counts) * 4, kListUsage,
-                                    vk::MemoryUsage::kUpload, "draw_counts", &draw_counts);
-        !s.ok())
-      return s;
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(counts) * 4, kListUsage, vk::MemoryUsage::kUpload,
+                               "draw_counts", &draw_counts));
     count_capacity = counts;
   }
   if (lists > base_capacity) {
-    if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(lists) * 4,
-                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                                    vk::MemoryUsage::kDeviceLocal, "cull_bases", &cull_bases);
-        !s.ok())
-      return s;
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(lists) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                               vk::MemoryUsage::kDeviceLocal, "cull_bases", &cull_bases));
     base_capacity = lists;
   }
   return absl::OkStatus();
-}
-
-
-absl::Status Renderer::Impl::EnsureBloom() {
-  // At least 2^(kBloomLevels - 1) texels a side, so every level exists (a tiny frame's bloom is
-  // then magnified).
-  constexpr uint32_t kMin = 1u << (kBloomLevels - 1);
-  const uint32_t width = std::max(kMin, targets.width / 2);
-  const uint32_t height = std::max(kMin, targets.height / 2);
-  if (targets.bloom_down && targets.bloom_down.desc().width == width &&
-      targets.bloom_down.desc().height == height &&
-      targets.bloom_down_levels.size() == kBloomLevels &&
-      targets.bloom_up_levels.size() == kBloomLevels - 1)
-    return absl::OkStatus();
-  vkDeviceWaitIdle(ctx->device());
-  auto make = [&](uint32_t mips, const char* name, vk::Image* image,
-                  vk::MipViews* views) -> absl::Status {
-    vk::ImageDesc desc;
-    desc.width = width;
-    desc.height = height;
-    desc.format = kHdrFormat;
-    desc.mip_levels = mips;
-    desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
-    ASSIGN_OR_RETURN(*image, vk::Image::Create(*ctx, desc, name));
-    ASSIGN_OR_RETURN(*views, vk::MipViews::Create(*ctx, *image, name));
-    return absl::OkStatus();
-  };
-  absl::Status st =
-      make(kBloomLevels, "bloom_down", &targets.bloom_down, &targets.bloom_down_levels);
-  if (st.ok()) st = make(kBloomLevels - 1, "bloom_up", &targets.bloom_up, &targets.bloom_up_levels);
-  if (!st.ok()) {  // all or nothing: the next frame with bloom tries again
-    targets.bloom_down_levels = vk::MipViews();
-    targets.bloom_up_levels = vk::MipViews();
-    targets.bloom_down = vk::Image();
-    targets.bloom_up = vk::Image();
-  }
-  return st;
 }
 
 absl::StatusOr<Renderer::Impl::ExposureState*> Renderer::Impl::Exposure(const GpuScene& scene,
@@ -146,10 +189,9 @@ absl::StatusOr<Renderer::Impl::ExposureState*> Renderer::Impl::Exposure(const Gp
   desc.format = kExposureFormat;
   desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
                VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::exposure_log2
-  absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, "exposure_state");
-  if (!img.ok()) return img.status();
+  ASSIGN_OR_RETURN(vk::Image img, vk::Image::Create(*ctx, desc, "exposure_state"));
   ExposureState e;
-  e.image = std::move(*img);
+  e.image = std::move(img);
   e.last_used = ++frame_counter;
   return &exposure_state.emplace(key, std::move(e)).first->second;
 }
@@ -163,12 +205,9 @@ absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuSc
     GpuScene::ViewVisibility v;
     const VkDeviceSize bytes = VkDeviceSize((scene.draws().size() + 31) / 32 + 1) * 4;
     for (vk::Buffer& b : v.bits) {
-      if (absl::Status s = MakeBuffer(*ctx, bytes,
-                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-                                          VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                      vk::MemoryUsage::kUpload, "visibility_bits", &b);
-          !s.ok())
-        return s;
+      RETURN_IF_ERROR(MakeBuffer(
+          *ctx, bytes, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+          vk::MemoryUsage::kUpload, "visibility_bits", &b));
       std::memset(b.mapped(), 0, bytes);  // nothing seen yet: the first phase draws nothing
     }
     it = views.emplace(view, std::move(v)).first;
@@ -184,10 +223,8 @@ absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuSc
 absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
   if (entries <= row_capacity) return absl::OkStatus();
   const uint32_t cap = uint32_t(std::max<size_t>(entries, size_t(row_capacity) * 2));
-  if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(cap) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                                  vk::MemoryUsage::kUpload, "row_lights", &row_lights);
-      !s.ok())
-    return s;
+  RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                             vk::MemoryUsage::kUpload, "row_lights", &row_lights));
   row_capacity = cap;
   return absl::OkStatus();
 }
@@ -197,140 +234,29 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
   tiles = std::max(tiles, 1u);
   if (lights > light_capacity) {
     const uint32_t cap = std::max(lights, light_capacity * 2);
-    if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLight),
-                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
-                                    "local_lights", &local_lights);
-        !s.ok())
-      return s;
-    if (absl::Status s = MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
-                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
-                                    "light_bounds", &light_bounds);
-        !s.ok())
-      return s;
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLight),
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                               "local_lights", &local_lights));
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                               "light_bounds", &light_bounds));
     light_capacity = cap;
   }
   if (tiles > tile_capacity) {
-    if (absl::Status s =
-            MakeBuffer(*ctx, VkDeviceSize(tiles) * 4,
-                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                       vk::MemoryUsage::kDeviceLocal, "tile_counts", &tile_counts);
-        !s.ok())
-      return s;
-    if (absl::Status s =
-            MakeBuffer(*ctx, VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
-                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                       vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights);
-        !s.ok())
-      return s;
-    if (absl::Status s =
-            MakeBuffer(*ctx, VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                       vk::MemoryUsage::kReadback, "tile_counts_readback", &tile_counts_readback);
-        !s.ok())
-      return s;
+    RETURN_IF_ERROR(
+        MakeBuffer(*ctx, VkDeviceSize(tiles) * 4,
+                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                   vk::MemoryUsage::kDeviceLocal, "tile_counts", &tile_counts));
+    RETURN_IF_ERROR(
+        MakeBuffer(*ctx, VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
+                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                   vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights));
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                               vk::MemoryUsage::kReadback, "tile_counts_readback",
+                               &tile_counts_readback));
     tile_capacity = tiles;
   }
   return absl::OkStatus();
-}
-
-absl::Status Renderer::Impl::EnsureTargets(uint32_t width, uint32_t height) {
-  if (targets.width == width && targets.height == height) return absl::OkStatus();
-  vkDeviceWaitIdle(ctx->device());
-  targets = FrameTargets{};
-  FrameTargets t;
-  t.width = width;
-  t.height = height;
-  vk::ImageDesc desc;
-  desc.width = width;
-  desc.height = height;
-  desc.format = kDepthFormat;
-  // Sampled by the light-culling pass; copied out for tests (FrameCapture).
-  desc.usage = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
-               VK_IMAGE_USAGE_TRANSFER_SRC_BIT;
-  absl::StatusOr<vk::Image> depth = vk::Image::Create(*ctx, desc, "depth");
-  if (!depth.ok()) return depth.status();
-  desc.format = kHdrFormat;
-  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
-               VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::hdr
-  absl::StatusOr<vk::Image> hdr = vk::Image::Create(*ctx, desc, "hdr_color");
-  if (!hdr.ok()) return hdr.status();
-  desc.format = kLdrFormat;
-  desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT |
-               VK_IMAGE_USAGE_SAMPLED_BIT;  // fxaa reads it
-  absl::StatusOr<vk::Image> ldr = vk::Image::Create(*ctx, desc, "ldr_color");
-  if (!ldr.ok()) return ldr.status();
-  absl::StatusOr<vk::Buffer> readback =
-      vk::Buffer::Create(*ctx, uint64_t(width) * height * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                         vk::MemoryUsage::kReadback, "readback");
-  if (!readback.ok()) return readback.status();
-  // The depth pyramid: a power of two at or below half the frame size, down to 1x1.
-  t.hiz_width = std::max(1u, std::bit_floor(width) / kHizLevel0Divisor);
-  t.hiz_height = std::max(1u, std::bit_floor(height) / kHizLevel0Divisor);
-  desc.width = t.hiz_width;
-  desc.height = t.hiz_height;
-  desc.format = kHizFormat;
-  desc.mip_levels = uint32_t(std::bit_width(std::max(t.hiz_width, t.hiz_height)));
-  desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
-  absl::StatusOr<vk::Image> hiz = vk::Image::Create(*ctx, desc, "hiz");
-  if (!hiz.ok()) return hiz.status();
-  ASSIGN_OR_RETURN(t.hiz_levels, vk::MipViews::Create(*ctx, *hiz, "hiz"));
-  t.hiz = std::move(*hiz);
-  t.depth = std::move(*depth);
-  t.hdr = std::move(*hdr);
-  t.ldr = std::move(*ldr);
-  t.readback = std::move(*readback);
-  targets = std::move(t);
-  return absl::OkStatus();
-}
-
-absl::Status Renderer::Impl::EnsureAaTargets(const Settings& s) {
-  auto make = [&](vk::Image& image, VkFormat format, uint32_t samples, VkImageUsageFlags usage,
-                  const char* name) -> absl::Status {
-    if (image && image.desc().samples == static_cast<VkSampleCountFlagBits>(samples))
-      return absl::OkStatus();
-    vkDeviceWaitIdle(ctx->device());
-    vk::ImageDesc desc;
-    desc.width = targets.width;
-    desc.height = targets.height;
-    desc.format = format;
-    desc.samples = static_cast<VkSampleCountFlagBits>(samples);
-    desc.usage = usage;
-    absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, name);
-    if (!img.ok()) return img.status();
-    image = std::move(*img);
-    return absl::OkStatus();
-  };
-  constexpr VkImageUsageFlags kColor = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT;
-  constexpr VkImageUsageFlags kSampled = VK_IMAGE_USAGE_SAMPLED_BIT;
-  constexpr VkImageUsageFlags kDepth = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
-  constexpr VkImageUsageFlags kCopy = VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::hdr
-  const uint32_t n = s.samples;
-  absl::Status st;
-  switch (s.aa) {
-    case AaMode::kMsaa:
-      if (st.ok()) st = make(targets.depth_ms, kDepthFormat, n, kDepth, "depth_ms");
-      if (st.ok()) st = make(targets.hdr_ms, kHdrFormat, n, kColor, "hdr_ms");
-      break;
-    case AaMode::kVisMlaa:
-      if (st.ok()) st = make(targets.depth_ms, kDepthFormat, n, kDepth, "depth_ms");
-      if (st.ok()) st = make(targets.vis_ms, kIdFormat, n, kColor | kSampled, "visibility");
-      if (st.ok()) st = make(targets.vis_id, kIdFormat, 1, kColor | kSampled, "vis_id");
-      if (st.ok())
-        st = make(targets.vis_coverage, kIdFormat, 1, kColor | kSampled, "vis_coverage");
-      if (st.ok())
-        st = make(targets.material_depth, kMaterialDepthFormat, 1, kDepth, "material_depth");
-      if (st.ok()) st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled | kCopy, "post_hdr");
-      break;
-    case AaMode::kTaa:
-      st = make(targets.post_hdr, kHdrFormat, 1, kColor | kSampled | kCopy, "post_hdr");
-      break;
-    case AaMode::kFxaa:
-      st = make(targets.fxaa, kLdrFormat, 1, kColor | VK_IMAGE_USAGE_TRANSFER_SRC_BIT, "fxaa");
-      break;
-    case AaMode::kNone:
-      break;
-  }
-  targets.samples = (s.aa == AaMode::kMsaa || s.aa == AaMode::kVisMlaa) ? n : 1;
-  return st;
 }
 
 absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& scene,
@@ -355,9 +281,7 @@ absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& 
     desc.height = targets.height;
     desc.format = kHdrFormat;
     desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
-    absl::StatusOr<vk::Image> img = vk::Image::Create(*ctx, desc, "taa_history");
-    if (!img.ok()) return img.status();
-    image = std::move(*img);
+    ASSIGN_OR_RETURN(image, vk::Image::Create(*ctx, desc, "taa_history"));
   }
   h.last_used = ++frame_counter;
   return &taa_history.emplace(key, std::move(h)).first->second;
@@ -400,7 +324,7 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadow
   const vk::Image& atlas = shadows && shadow_atlas ? shadow_atlas : shadow_placeholder;
   const VkDescriptorImageInfo images[] = {
       {shadow_sampler.handle(), atlas.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-      {linear_sampler.handle(), (ssao ? targets.ao : ao_placeholder).view(),
+      {linear_sampler.handle(), (ssao ? targets.ao.get() : ao_placeholder).view(),
        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
   VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   w.dstSet = set;

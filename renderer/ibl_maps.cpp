@@ -6,6 +6,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -57,28 +58,19 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
     desc.array_layers = cube ? 6 : 1;
     desc.view_type = cube ? VK_IMAGE_VIEW_TYPE_CUBE : VK_IMAGE_VIEW_TYPE_2D;
     desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | extra;
-    absl::StatusOr<vk::Image> img = vk::Image::Create(ctx, desc, name);
-    if (!img.ok()) return img.status();
-    *out = std::move(*img);
+    ASSIGN_OR_RETURN(vk::Image img, vk::Image::Create(ctx, desc, name));
+    *out = std::move(img);
     return absl::OkStatus();
   };
   const uint32_t env_mips = uint32_t(std::bit_width(kIblEnvSize));
-  if (absl::Status st = image(kIblEnvSize, env_mips, true, kCubeFormat,
-                              VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
-                              "ibl_environment", &m->env_);
-      !st.ok())
-    return st;
-  if (absl::Status st =
-          image(kIblIrradianceSize, 1, true, kCubeFormat, 0, "ibl_irradiance", &m->irradiance_);
-      !st.ok())
-    return st;
-  if (absl::Status st = image(kIblSpecularSize, kIblSpecularMips, true, kCubeFormat, 0,
-                              "ibl_specular", &m->specular_);
-      !st.ok())
-    return st;
-  if (absl::Status st = image(kIblBrdfLutSize, 1, false, kLutFormat, 0, "ibl_brdf", &m->brdf_);
-      !st.ok())
-    return st;
+  RETURN_IF_ERROR(image(kIblEnvSize, env_mips, true, kCubeFormat,
+                        VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT,
+                        "ibl_environment", &m->env_));
+  RETURN_IF_ERROR(
+      image(kIblIrradianceSize, 1, true, kCubeFormat, 0, "ibl_irradiance", &m->irradiance_));
+  RETURN_IF_ERROR(image(kIblSpecularSize, kIblSpecularMips, true, kCubeFormat, 0, "ibl_specular",
+                        &m->specular_));
+  RETURN_IF_ERROR(image(kIblBrdfLutSize, 1, false, kLutFormat, 0, "ibl_brdf", &m->brdf_));
 
   // Storage views: one mip each, all six faces as an array.
   auto storage_view = [&](const vk::Image& img, VkFormat format, uint32_t mip,
@@ -99,9 +91,7 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
   si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
   si.maxLod = VK_LOD_CLAMP_NONE;
-  absl::StatusOr<vk::Sampler> sampler = vk::Sampler::Create(ctx, si, "ibl");
-  if (!sampler.ok()) return sampler.status();
-  m->sampler_ = std::move(*sampler);
+  ASSIGN_OR_RETURN(m->sampler_, vk::Sampler::Create(ctx, si, "ibl"));
 
   const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 16},
                                         {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 16}};
@@ -131,17 +121,13 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
     pli.pushConstantRangeCount = push > 0 ? 1 : 0;
     pli.pPushConstantRanges = &range;
     VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, &p->layout), shader);
-    absl::StatusOr<vk::Pipeline> pipeline = vk::CreateComputePipeline(ctx, shader, shader, p->layout);
-    if (!pipeline.ok()) return pipeline.status();
-    p->pipeline = std::move(*pipeline);
+    ASSIGN_OR_RETURN(p->pipeline, vk::CreateComputePipeline(ctx, shader, shader, p->layout));
     return absl::OkStatus();
   };
-  if (absl::Status st = program(&m->env_program_, "ibl_env.comp", false, 96); !st.ok()) return st;
-  if (absl::Status st = program(&m->irradiance_program_, "ibl_irradiance.comp", true, 16); !st.ok())
-    return st;
-  if (absl::Status st = program(&m->specular_program_, "ibl_specular.comp", true, 32); !st.ok())
-    return st;
-  if (absl::Status st = program(&m->brdf_program_, "ibl_brdf.comp", false, 0); !st.ok()) return st;
+  RETURN_IF_ERROR(program(&m->env_program_, "ibl_env.comp", false, 96));
+  RETURN_IF_ERROR(program(&m->irradiance_program_, "ibl_irradiance.comp", true, 16));
+  RETURN_IF_ERROR(program(&m->specular_program_, "ibl_specular.comp", true, 32));
+  RETURN_IF_ERROR(program(&m->brdf_program_, "ibl_brdf.comp", false, 0));
 
   // The sets never change: write them once.
   auto set = [&](const Program& p, VkImageView out, bool reads_env) -> VkDescriptorSet {

@@ -14,6 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {
@@ -187,7 +188,7 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
     return absl::InvalidArgumentError(
         absl::StrCat("EncodeJpeg: quality ", quality, " outside 1..100"));
   }
-  if (absl::Status s = ValidateImage(image, "EncodeJpeg"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(image, "EncodeJpeg"));
 
   TjHandle tj(tjInitCompress());
   if (tj.get() == nullptr) {
@@ -244,7 +245,7 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max
 }
 
 absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image) {
-  if (absl::Status s = ValidateImage(image, "EncodePng"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(image, "EncodePng"));
   PngWriteState st;
   st.image = &image;
   st.rows.resize(image.height);
@@ -327,8 +328,8 @@ absl::Status WriteFileBytes(const std::string& path, std::span<const uint8_t> by
 }
 
 absl::StatusOr<double> Psnr(const RgbaImage& a, const RgbaImage& b) {
-  if (absl::Status s = ValidateImage(a, "Psnr (first image)"); !s.ok()) return s;
-  if (absl::Status s = ValidateImage(b, "Psnr (second image)"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(a, "Psnr (first image)"));
+  RETURN_IF_ERROR(ValidateImage(b, "Psnr (second image)"));
   if (a.width != b.width || a.height != b.height) {
     return absl::InvalidArgumentError(absl::StrCat("Psnr: sizes differ: ", a.width, "x", a.height,
                                                    " vs ", b.width, "x", b.height));
@@ -346,8 +347,8 @@ absl::StatusOr<double> Psnr(const RgbaImage& a, const RgbaImage& b) {
 }
 
 absl::StatusOr<RgbaImage> DiffImage(const RgbaImage& a, const RgbaImage& b, float gain) {
-  if (absl::Status s = ValidateImage(a, "DiffImage (first image)"); !s.ok()) return s;
-  if (absl::Status s = ValidateImage(b, "DiffImage (second image)"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(a, "DiffImage (first image)"));
+  RETURN_IF_ERROR(ValidateImage(b, "DiffImage (second image)"));
   if (a.width != b.width || a.height != b.height) {
     return absl::InvalidArgumentError(absl::StrCat("DiffImage: sizes differ: ", a.width, "x",
                                                    a.height, " vs ", b.width, "x", b.height));

@@ -9,6 +9,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {
@@ -16,12 +17,8 @@ namespace {
 
 // Both images valid and of one size.
 absl::Status ValidatePair(const RgbaImage& a, const RgbaImage& b, const char* fn) {
-  if (absl::Status s = ValidateImage(a, absl::StrCat(fn, " (first image)").c_str()); !s.ok()) {
-    return s;
-  }
-  if (absl::Status s = ValidateImage(b, absl::StrCat(fn, " (second image)").c_str()); !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(ValidateImage(a, absl::StrCat(fn, " (first image)").c_str()));
+  RETURN_IF_ERROR(ValidateImage(b, absl::StrCat(fn, " (second image)").c_str()));
   if (a.width != b.width || a.height != b.height) {
     return absl::InvalidArgumentError(absl::StrCat(fn, ": sizes differ: ", a.width, "x", a.height,
                                                    " vs ", b.width, "x", b.height));
@@ -230,7 +227,7 @@ float LinearToSrgb(float linear) {
 }
 
 absl::StatusOr<RgbaImage> DownsampleBox(const RgbaImage& image, uint32_t factor) {
-  if (absl::Status s = ValidateImage(image, "DownsampleBox"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(image, "DownsampleBox"));
   if (factor == 0) return absl::InvalidArgumentError("DownsampleBox: factor must be at least 1");
   if (image.width % factor != 0 || image.height % factor != 0) {
     return absl::InvalidArgumentError(absl::StrCat("DownsampleBox: ", image.width, "x",
@@ -266,7 +263,7 @@ absl::StatusOr<RgbaImage> DownsampleBox(const RgbaImage& image, uint32_t factor)
 
 absl::StatusOr<std::vector<uint8_t>> DifferenceMask(const RgbaImage& a, const RgbaImage& b,
                                                     int threshold) {
-  if (absl::Status s = ValidatePair(a, b, "DifferenceMask"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidatePair(a, b, "DifferenceMask"));
   if (threshold < 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("DifferenceMask: threshold ", threshold, " is negative"));
@@ -295,8 +292,8 @@ uint64_t MaskCount(const std::vector<uint8_t>& mask) {
 
 absl::StatusOr<double> PsnrMasked(const RgbaImage& a, const RgbaImage& b,
                                   const std::vector<uint8_t>& mask) {
-  if (absl::Status s = ValidatePair(a, b, "PsnrMasked"); !s.ok()) return s;
-  if (absl::Status s = ValidateMask(mask, a, "PsnrMasked"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidatePair(a, b, "PsnrMasked"));
+  RETURN_IF_ERROR(ValidateMask(mask, a, "PsnrMasked"));
   const size_t pixels = size_t{a.width} * a.height;
   uint64_t sum_sq = 0;
   uint64_t selected = 0;
@@ -316,8 +313,8 @@ absl::StatusOr<double> PsnrMasked(const RgbaImage& a, const RgbaImage& b,
 
 absl::StatusOr<double> SsimMasked(const RgbaImage& a, const RgbaImage& b,
                                   const std::vector<uint8_t>& mask) {
-  if (absl::Status s = ValidatePair(a, b, "SsimMasked"); !s.ok()) return s;
-  if (absl::Status s = ValidateMask(mask, a, "SsimMasked"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidatePair(a, b, "SsimMasked"));
+  RETURN_IF_ERROR(ValidateMask(mask, a, "SsimMasked"));
   const uint32_t width = a.width, height = a.height;
   const std::array<double, kSsimTaps> w = GaussianWeights();
 
@@ -374,7 +371,7 @@ absl::StatusOr<double> SsimMasked(const RgbaImage& a, const RgbaImage& b,
 
 absl::StatusOr<CoverageError> MeasureCoverage(const RgbaImage& image,
                                               const std::vector<float>& coverage) {
-  if (absl::Status s = ValidateImage(image, "MeasureCoverage"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(image, "MeasureCoverage"));
   const size_t pixels = size_t{image.width} * image.height;
   if (coverage.size() != pixels) {
     return absl::InvalidArgumentError(absl::StrCat("MeasureCoverage: coverage has ",
@@ -426,7 +423,7 @@ absl::StatusOr<RgbaImage> ContactSheet(const std::vector<LabelledImage>& images,
   for (size_t i = 0; i < images.size(); ++i) {
     const std::string what = absl::StrCat("ContactSheet: images[", i, "] (", images[i].label, ")");
     if (images[i].image == nullptr) return absl::InvalidArgumentError(what + ": null image");
-    if (absl::Status s = ValidateImage(*images[i].image, what.c_str()); !s.ok()) return s;
+    RETURN_IF_ERROR(ValidateImage(*images[i].image, what.c_str()));
     const RgbaImage& first = *images[0].image;
     if (images[i].image->width != first.width || images[i].image->height != first.height) {
       return absl::InvalidArgumentError(

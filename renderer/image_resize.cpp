@@ -10,6 +10,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {
@@ -233,7 +234,7 @@ void FilterColumns(const int16_t* in, size_t in_stride, const AxisFilter& rows, 
 }  // namespace
 
 absl::StatusOr<RgbaImage> ResizeBicubic(const RgbaImage& src, uint32_t width, uint32_t height) {
-  if (absl::Status s = ValidateImage(src, "ResizeBicubic (source)"); !s.ok()) return s;
+  RETURN_IF_ERROR(ValidateImage(src, "ResizeBicubic (source)"));
   if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide) {
     return absl::InvalidArgumentError(absl::StrCat("ResizeBicubic: target ", width, "x", height,
                                                    " is not 1..", kMaxImageSide, " per side"));

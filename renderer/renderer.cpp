@@ -101,8 +101,9 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   frame.settings = std::move(resolved);
   const uint32_t triangle_bits = m.CheckVisibilityIds(gs, frame.settings);
   const Settings& s = frame.settings.effective;
-  RETURN_IF_ERROR(m.EnsureTargets(s.width, s.height));
-  RETURN_IF_ERROR(m.EnsureAaTargets(s));
+  const uint64_t targets_before = m.target_pool.created();
+  RETURN_IF_ERROR(m.AcquireTargets(s));
+  frame.stats.targets_created = uint32_t(m.target_pool.created() - targets_before);
 
   // Each feature prepares its part of the frame, in order: the camera (and taa's jitter)
   // first, the lights before the shadows that mark them, the draw lists last.
@@ -115,7 +116,6 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   RETURN_IF_ERROR(m.PrepareSsao(f));
   RETURN_IF_ERROR(m.PrepareIbl(f, frame));
   RETURN_IF_ERROR(m.PrepareExposure(f));
-  if (s.bloom) RETURN_IF_ERROR(m.EnsureBloom());
   RETURN_IF_ERROR(m.WriteLightBins(f));
   m.WriteFrameUniforms(f, frame);
   RETURN_IF_ERROR(m.PrepareDraws(f));
@@ -161,7 +161,7 @@ PassContext Renderer::Impl::MakePassContext(FrameData& f) {
   pc.taa = &f.taa;
   pc.shadows = &f.shadows;
   pc.shadow_atlas_view = f.s.shadows ? &shadow_atlas : &shadow_placeholder;
-  pc.ao_view = f.s.ssao ? &targets.ao : &ao_placeholder;
+  pc.ao_view = f.s.ssao ? &targets.ao.get() : &ao_placeholder;
   pc.ssao = &f.ssao;
   pc.exposure = &f.exposure;
   pc.samples = targets.samples;
@@ -203,11 +203,11 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
 void Renderer::Impl::ReadBack(Frame& frame) {
   const auto t_readback = Clock::now();
   const Settings& s = frame.settings.effective;
-  targets.readback.InvalidateForRead();
+  readback->InvalidateForRead();
   frame.image.width = s.width;
   frame.image.height = s.height;
   frame.image.pixels.resize(size_t(s.width) * s.height * 4);
-  std::memcpy(frame.image.pixels.data(), targets.readback.mapped(), frame.image.pixels.size());
+  std::memcpy(frame.image.pixels.data(), readback->mapped(), frame.image.pixels.size());
   frame.cpu.readback_ms = MsSince(t_readback);
 }
 

@@ -110,6 +110,8 @@ struct FrameStats {
   uint32_t shadow_evictions = 0;
   // ibl: 1 when this frame baked the environment maps (its sky changed), else 0.
   uint32_t ibl_bakes = 0;
+  // Render targets this frame had to make: 0 once the pool holds its size and AA mode's.
+  uint32_t targets_created = 0;
 };
 
 // What tests need to check a frame's light culling against the CPU reference.

@@ -15,6 +15,7 @@
 #include "renderer/features/pass.h"
 #include "renderer/graph/executor.h"
 #include "renderer/graph/frame_graph.h"
+#include "renderer/graph/target_pool.h"
 #include "renderer/ibl.h"
 #include "renderer/ibl_maps.h"
 #include "renderer/light_culling.h"
@@ -116,7 +117,9 @@ struct Renderer::Impl {
   uint32_t base_capacity = 0;
   vk::Pipeline id_pipeline;  // FrameCapture::want_ids, made on first use
   uint64_t frame_counter = 0;
-  FrameTargets targets;
+  TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
+  FrameTargets targets;    // this frame's, from the pool
+  const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool
   // taa: each (scene, view)'s history, least recently used dropped past kMaxTaaViews.
   struct TaaHistory {
     vk::Image images[2];
@@ -164,11 +167,9 @@ struct Renderer::Impl {
   absl::Status InitShadows();
 
   // frame_resources.cpp: targets and buffers, (re)made when a frame needs them.
-  absl::Status EnsureTargets(uint32_t width, uint32_t height);
-  absl::Status EnsureAaTargets(const Settings& s);  // the AA mode's, at its sample count
+  // This frame's targets from the pool (the ones its settings use), then a trim of the pool.
+  absl::Status AcquireTargets(const Settings& s);
   absl::Status EnsureShadowAtlas(uint32_t size);
-  absl::Status EnsureAo(uint32_t width, uint32_t height);
-  absl::Status EnsureBloom();  // bloom's chains for the current targets
   absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
   absl::Status EnsureRowBuffer(size_t entries);
   absl::Status EnsureCullBuffers(uint32_t items, uint32_t lists);

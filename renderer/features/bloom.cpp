@@ -13,8 +13,9 @@
 // next frame's graph starts them from the undefined layout.
 #include <algorithm>
 
-#include "renderer/features/pass.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -108,12 +109,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx) {
   absl::StatusOr<FullscreenProgram> up =
       FullscreenProgram::Create(ctx, "bloom_up", "bloom_up.frag", 2, 16, {kHdrFormat});
   if (!up.ok()) return up.status();
-  absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, "bloom.linear");
-  if (!linear.ok()) return linear.status();
+  ASSIGN_OR_RETURN(vk::Sampler linear, CreateClampSampler(ctx, true, "bloom.linear"));
   absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, "bloom.nearest");
   if (!nearest.ok()) return nearest.status();
-  return std::unique_ptr<Pass>(new BloomPass(std::move(*down), std::move(*up),
-                                             std::move(*linear), std::move(*nearest)));
+  return std::unique_ptr<Pass>(
+      new BloomPass(std::move(*down), std::move(*up), std::move(linear), std::move(*nearest)));
 }
 
 void SetupBloom(GraphBuilder& b) {

@@ -5,8 +5,9 @@
 // material). With gpu_occlusion the pass runs twice: kDepthPrepass draws the first phase's
 // lists into a cleared depth, kDepthPrepassLate adds the second phase's. With msaa it draws
 // into the multisampled depth and resolves it into the frame's depth.
-#include "renderer/features/pass.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/pipeline.h"
 
 namespace tessera {
@@ -28,14 +29,13 @@ absl::StatusOr<PrepassPipelines> CreatePipelines(const vk::Context& ctx,
   d.depth_write = true;
   d.depth_compare = VK_COMPARE_OP_GREATER;
   d.samples = static_cast<VkSampleCountFlagBits>(samples);
-  absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
-  if (!opaque.ok()) return opaque.status();
+  ASSIGN_OR_RETURN(vk::Pipeline opaque, vk::CreateGraphicsPipeline(ctx, d));
   d.name = "depth_prepass.mask";
   d.vertex_shader = "forward.vert";
   d.fragment_shader = "depth_mask.frag";
   absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
   if (!mask.ok()) return mask.status();
-  return PrepassPipelines{std::move(*opaque), std::move(*mask)};
+  return PrepassPipelines{std::move(opaque), std::move(*mask)};
 }
 
 class DepthPrepass final : public Pass {

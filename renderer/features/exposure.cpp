@@ -100,12 +100,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateExposurePass(const vk::Context& ctx)
   absl::StatusOr<PassLayout> layout = PassLayout::Create(
       ctx, bindings, {{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(ExposurePush)}}, "exposure layout");
   if (!layout.ok()) return layout.status();
-  absl::StatusOr<vk::Pipeline> pipeline =
-      vk::CreateComputePipeline(ctx, "exposure", "exposure.comp", layout->pipeline_layout());
-  if (!pipeline.ok()) return pipeline.status();
+  ASSIGN_OR_RETURN(
+      vk::Pipeline pipeline,
+      vk::CreateComputePipeline(ctx, "exposure", "exposure.comp", layout->pipeline_layout()));
   absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, "exposure");
   if (!linear.ok()) return linear.status();
-  return std::make_unique<ExposurePass>(ctx.device(), std::move(*layout), std::move(*pipeline),
+  return std::make_unique<ExposurePass>(ctx.device(), std::move(*layout), std::move(pipeline),
                                         std::move(*linear));
 }
 

@@ -6,8 +6,9 @@
 // Draws are indirect: one vkCmdDrawIndexedIndirectCount per segment (render group x cull mode x
 // material; see DrawPlan) and culling phase. The material is a descriptor set per segment
 // because lavapipe cannot index samplers dynamically (shaders/common/gpu_types.h).
-#include "renderer/features/pass.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/pipeline.h"
 
 namespace tessera {
@@ -43,11 +44,10 @@ absl::StatusOr<ForwardPipelines> CreatePipelines(const vk::Context& ctx, const S
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
   d.samples = static_cast<VkSampleCountFlagBits>(samples);
   d.fragment_constants = {(key & kEffectsKey) ? 1u : 0u};
-  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
-  if (!pipeline.ok()) return pipeline.status();
+  ASSIGN_OR_RETURN(vk::Pipeline pipeline, vk::CreateGraphicsPipeline(ctx, d));
   d.fragment_constants.clear();
   ForwardPipelines p;
-  p.pipeline = std::move(*pipeline);
+  p.pipeline = std::move(pipeline);
   if (!transparent) {
     // Far plane is depth 0: GREATER_OR_EQUAL passes only where the prepass left the clear value.
     d.name = "sky";
@@ -82,8 +82,8 @@ class ForwardPass final : public Pass {
     const FrameTargets& t = *ctx.targets;
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     // vis_mlaa draws blended surfaces over its anti-aliased result.
-    const vk::Image& single = transparent && ctx.settings->aa == AaMode::kVisMlaa ? t.post_hdr
-                                                                                  : t.hdr;
+    const vk::ImageRef single =
+        transparent && ctx.settings->aa == AaMode::kVisMlaa ? t.post_hdr : t.hdr;
     color.imageView = samples > 1 ? t.hdr_ms.view() : single.view();
     color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
     color.loadOp = transparent ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;

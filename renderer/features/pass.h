@@ -34,27 +34,27 @@ inline constexpr VkFormat kExposureFormat = VK_FORMAT_R32_SFLOAT;  // adapted lo
 // chain has one fewer). Six levels reach 1/64 of the frame: a glow about a tenth of its width.
 inline constexpr uint32_t kBloomLevels = 6;
 
+// One frame's targets: references into the renderer's pool (graph/target_pool.h); the ones
+// the frame's settings do not use are empty.
 struct FrameTargets {
   uint32_t width = 0, height = 0;
-  vk::Image depth;
-  vk::Image hdr;
-  vk::Image ldr;
-  vk::Image hiz;         // depth pyramid (R32F, mips), for gpu_occlusion
-  vk::MipViews hiz_levels;  // one storage view per level
+  vk::ImageRef depth;
+  vk::ImageRef hdr;
+  vk::ImageRef ldr;
+  vk::ImageRef hiz;            // depth pyramid (R32F, mips), for the gpu culling modes
+  vk::MipViewsRef hiz_levels;  // one storage view per level
   uint32_t hiz_width = 1, hiz_height = 1;
-  vk::Buffer readback;  // width * height * 4 bytes, host visible
-  // Made when a frame first needs them (at `samples` for the multisampled ones).
-  uint32_t samples = 1;
-  vk::Image depth_ms, hdr_ms, vis_ms;
-  vk::Image vis_id, vis_coverage, material_depth;
-  vk::Image post_hdr;
-  vk::Image fxaa;
-  vk::Image ao, ao_temp;  // ssao's size, made when ssao first runs
+  VkBuffer readback = VK_NULL_HANDLE;  // width * height * 4 bytes, host visible
+  uint32_t samples = 1;                // of the multisampled targets (msaa, vis_mlaa), else 1
+  vk::ImageRef depth_ms, hdr_ms, vis_ms;
+  vk::ImageRef vis_id, vis_coverage, material_depth;
+  vk::ImageRef post_hdr;
+  vk::ImageRef fxaa;
+  vk::ImageRef ao, ao_temp;  // ssao's size
   // bloom: the downsample chain from half the frame's size (at least 32 texels a side, so all
-  // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip, made
-  // when bloom first runs.
-  vk::Image bloom_down, bloom_up;
-  vk::MipViews bloom_down_levels, bloom_up_levels;
+  // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip.
+  vk::ImageRef bloom_down, bloom_up;
+  vk::MipViewsRef bloom_down_levels, bloom_up_levels;
   const vk::Image& Get(Resource r) const {
     switch (r) {
       case Resource::kDepth: return depth;

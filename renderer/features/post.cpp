@@ -37,9 +37,8 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
                         VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
   std::vector<VkPushConstantRange> push;
   if (push_size > 0) push.push_back({VK_SHADER_STAGE_FRAGMENT_BIT, 0, push_size});
-  absl::StatusOr<PassLayout> layout = PassLayout::Create(ctx, bindings, push, name);
-  if (!layout.ok()) return layout.status();
-  p.layout_ = std::move(*layout);
+  ASSIGN_OR_RETURN(PassLayout layout, PassLayout::Create(ctx, bindings, push, name));
+  p.layout_ = std::move(layout);
   vk::GraphicsPipelineDesc d;
   d.name = name;
   d.vertex_shader = "fullscreen.vert";
@@ -47,9 +46,7 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
   d.layout = p.layout_.pipeline_layout();
   d.scene_vertex_input = false;
   d.color_formats = std::move(outputs);
-  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
-  if (!pipeline.ok()) return pipeline.status();
-  p.pipeline_ = std::move(*pipeline);
+  ASSIGN_OR_RETURN(p.pipeline_, vk::CreateGraphicsPipeline(ctx, d));
   return p;
 }
 
@@ -95,7 +92,8 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
 
 const vk::Image& PostColor(const PassContext& ctx) {
   const AaMode aa = ctx.settings->aa;
-  return aa == AaMode::kVisMlaa || aa == AaMode::kTaa ? ctx.targets->post_hdr : ctx.targets->hdr;
+  return (aa == AaMode::kVisMlaa || aa == AaMode::kTaa ? ctx.targets->post_hdr : ctx.targets->hdr)
+      .get();
 }
 
 namespace {
@@ -122,14 +120,14 @@ template <typename T>
 absl::StatusOr<std::unique_ptr<Pass>> MakePost(const vk::Context& ctx, const char* name,
                                                const char* fragment, uint32_t inputs,
                                                uint32_t push_size, std::vector<VkFormat> outputs) {
-  absl::StatusOr<FullscreenProgram> program =
-      FullscreenProgram::Create(ctx, name, fragment, inputs, push_size, std::move(outputs));
-  if (!program.ok()) return program.status();
+  ASSIGN_OR_RETURN(
+      FullscreenProgram program,
+      FullscreenProgram::Create(ctx, name, fragment, inputs, push_size, std::move(outputs)));
   absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, name);
   if (!nearest.ok()) return nearest.status();
   absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, name);
   if (!linear.ok()) return linear.status();
-  return std::unique_ptr<Pass>(new T(std::move(*program), std::move(*nearest), std::move(*linear)));
+  return std::unique_ptr<Pass>(new T(std::move(program), std::move(*nearest), std::move(*linear)));
 }
 
 // Tonemap: HDR colour -> exposure (fixed or auto) + bloom -> Khronos PBR Neutral or the

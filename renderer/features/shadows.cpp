@@ -50,16 +50,12 @@ class ShadowPass final : public Pass {
     d.depth_compare = VK_COMPARE_OP_LESS;  // standard Z in the atlas (renderer/shadows.h)
     d.depth_bias_constant = kBiasConstant;
     d.depth_bias_slope = kBiasSlope;
-    absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
-    if (!opaque.ok()) return opaque.status();
-    pass->opaque_ = std::move(*opaque);
+    ASSIGN_OR_RETURN(pass->opaque_, vk::CreateGraphicsPipeline(ctx, d));
     d.name = "shadows.mask";
     d.vertex_shader = "shadow_mask.vert";
     d.fragment_shader = "depth_mask.frag";
     d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
-    absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
-    if (!mask.ok()) return mask.status();
-    pass->mask_ = std::move(*mask);
+    ASSIGN_OR_RETURN(pass->mask_, vk::CreateGraphicsPipeline(ctx, d));
     return std::unique_ptr<Pass>(std::move(pass));
   }
 
@@ -164,131 +160,141 @@ void SetupShadows(GraphBuilder& b) {
   if (b.settings().shadows) b.Pass(PassId::kShadows);
 }
 
-// Places this frame's shadow views in the atlas, fills shadow_ubo's views, marks the shadowed
-// lights in the light buffers and lists the faces to render.
-absl::Status Renderer::Impl::PrepareShadows(FrameData& f, Frame& frame) {
-  const GpuScene& gs = f.gs;
-  const Camera& camera = f.camera;
-  const float aspect = f.aspect;
-  const uint64_t view = f.view;
-  const Settings& s = f.s;
-  const glm::mat4& view_proj = f.fu.view_proj;
-  const std::vector<Light>& global = f.global;
-  const std::vector<Light>& local = f.local;
-  auto* gl = static_cast<gpu::GpuLight*>(lights_ubo.mapped());
-  auto* ll = static_cast<gpu::GpuLight*>(local_lights.mapped());
-  ShadowFrame* out = &f.shadows;
-  auto& su = *static_cast<gpu::ShadowUniforms*>(shadow_ubo.mapped());
-  RETURN_IF_ERROR(EnsureShadowAtlas(s.shadow_atlas_size));
-  ShadowAtlas& atlas = *shadow_faces;
-  out->atlas = &shadow_atlas;
-  out->atlas_new = !shadow_atlas_written;
-  if (out->atlas_new) atlas.Clear();
-  atlas.BeginFrame();
-  const uint32_t evictions_before = atlas.evictions();
-  const uint32_t size = s.shadow_atlas_size;
-  const std::vector<DrawItem>& items = gs.draws();
-  FrameStats& stats = frame.stats;
-  uint32_t views = 0;
-  // Places one face; lists it for rendering unless the atlas already holds exactly it.
-  auto add_face = [&](uint64_t key, uint32_t res, const glm::mat4& face_view_proj, float texel,
-                      bool perspective) {
-    uint64_t content = HashBytes(&face_view_proj, sizeof(face_view_proj), gs.serial());
+namespace {
+
+// Places a frame's shadow views in the atlas: each face takes a view (its matrix into the
+// atlas) and is listed for rendering unless the atlas already holds exactly it.
+class ShadowPlacer {
+ public:
+  ShadowPlacer(const GpuScene& gs, const Settings& s, ShadowAtlas& atlas, gpu::ShadowUniforms& su,
+               ShadowFrame& out)
+      : gs_(gs), s_(s), atlas_(atlas), su_(su), out_(out), size_(s.shadow_atlas_size) {}
+
+  uint32_t size() const { return size_; }
+  uint32_t views() const { return views_; }
+
+  uint64_t Key(uint64_t kind, uint64_t a, uint64_t b) const {
+    const uint64_t k[4] = {kind, gs_.serial(), a, b};
+    return HashBytes(k, sizeof(k));
+  }
+
+  bool AddFace(uint64_t key, uint32_t res, const glm::mat4& face_view_proj, float texel,
+               bool perspective) {
+    uint64_t content = HashBytes(&face_view_proj, sizeof(face_view_proj), gs_.serial());
     content = HashBytes(&res, sizeof(res), content);
-    std::optional<ShadowAtlas::Placement> placed = atlas.Acquire(key, res, content);
+    std::optional<ShadowAtlas::Placement> placed = atlas_.Acquire(key, res, content);
     if (!placed) return false;
-    gpu::GpuShadowView& v = su.views[views++];
-    v.world_to_atlas = AtlasTransform(placed->rect, size) * face_view_proj;
+    gpu::GpuShadowView& v = su_.views[views_++];
+    v.world_to_atlas = AtlasTransform(placed->rect, size_) * face_view_proj;
     v.params = glm::vec4(texel, perspective ? 1.0f : 0.0f, 0.0f, 0.0f);
-    if (placed->cached && s.shadow_cache) return true;
+    if (placed->cached && s_.shadow_cache) return true;
     ShadowFace face{placed->rect.x, placed->rect.y, placed->rect.size, face_view_proj, {}};
     // The face's own culling: every item in its frustum (all of them with culling none).
     // Blended surfaces cast no shadow.
+    const std::vector<DrawItem>& items = gs_.draws();
     const Frustum frustum = FrustumFromViewProj(face_view_proj);
     for (uint32_t i = 0; i < items.size(); ++i) {
       if (items[i].alpha == AlphaMode::kBlend) continue;
-      if (s.culling != CullingMode::kNone &&
+      if (s_.culling != CullingMode::kNone &&
           !AabbIntersectsFrustum(items[i].world_bounds, frustum))
         continue;
       face.items.push_back(i);
     }
-    out->faces.push_back(std::move(face));
+    out_.faces.push_back(std::move(face));
     return true;
-  };
-  auto key_of = [&](uint64_t kind, uint64_t a, uint64_t b) {
-    const uint64_t k[4] = {kind, gs.serial(), a, b};
-    return HashBytes(k, sizeof(k));
-  };
+  }
 
-  // The sun: the first directional light, in cascades that follow this view's camera (so the
-  // key carries the view: two viewers of one scene do not overwrite each other's cascades).
-  const glm::vec3 eye = CameraPosition(camera);
-  uint32_t cascades = 0;
-  for (size_t i = 0; i < global.size(); ++i) {
-    if (global[i].type != LightType::kDirectional) continue;
-    const Aabb& b = gs.bounds();
+  // Takes back the views and faces placed since `views` / `faces` (their atlas keys are given
+  // back by the caller).
+  void Rewind(uint32_t views, size_t faces) {
+    views_ = views;
+    out_.faces.resize(faces);
+  }
+  void Release(uint64_t key) { atlas_.Release(key); }
+
+ private:
+  const GpuScene& gs_;
+  const Settings& s_;
+  ShadowAtlas& atlas_;
+  gpu::ShadowUniforms& su_;
+  ShadowFrame& out_;
+  const uint32_t size_;
+  uint32_t views_ = 0;
+};
+
+// The sun: the first directional light, in cascades that follow this view's camera (so the
+// key carries the view: two viewers of one scene do not overwrite each other's cascades).
+// Returns the cascades placed (0: the sun stays unshadowed).
+uint32_t PlaceSun(ShadowPlacer& placer, const FrameData& f, gpu::GpuLight* gl,
+                  gpu::ShadowUniforms& su, Frame& frame) {
+  const glm::vec3 eye = CameraPosition(f.camera);
+  for (size_t i = 0; i < f.global.size(); ++i) {
+    if (f.global[i].type != LightType::kDirectional) continue;
+    const Aabb& b = f.gs.bounds();
     float distance = b.farthest_distance(eye);
-    if (camera.zfar > 0.0f) distance = std::min(distance, camera.zfar);
-    distance = std::max(distance, camera.znear * 2.0f);
+    if (f.camera.zfar > 0.0f) distance = std::min(distance, f.camera.zfar);
+    distance = std::max(distance, f.camera.znear * 2.0f);
     CascadeParams cp;
     cp.count = kMaxCascades;
-    cp.resolution = size / 4;
+    cp.resolution = placer.size() / 4;
     const std::vector<Cascade> cs =
-        ComputeCascades(camera, aspect, global[i].direction, b, distance, cp);
+        ComputeCascades(f.camera, f.aspect, f.global[i].direction, b, distance, cp);
     bool placed = true;
     for (uint32_t c = 0; c < cs.size() && placed; ++c)
-      placed = add_face(key_of(1, view, c), cp.resolution, cs[c].view_proj, cs[c].texel_world,
-                        false);
+      placed = placer.AddFace(placer.Key(1, f.view, c), cp.resolution, cs[c].view_proj,
+                              cs[c].texel_world, false);
     if (!placed) {  // an atlas too small for them: the sun stays unshadowed
-      views = 0;
-      out->faces.clear();
+      placer.Rewind(0, 0);
       frame.settings.notes.push_back(
           {"shadows", "the sun's cascades did not fit the shadow atlas; the sun is unshadowed"});
-      break;
+      return 0;
     }
     // The spheres the shader picks cascades by, less the normal offset's 1.5 texels (and half a
     // texel of snapping): an offset lookup then stays inside the map's filter border.
     for (uint32_t c = 0; c < cs.size(); ++c)
       su.cascade_spheres[c] = glm::vec4(cs[c].center, cs[c].radius - 2.0f * cs[c].texel_world);
-    cascades = uint32_t(cs.size());
     gl[i].spot.z = 1.0f;  // views 0 .. cascades - 1
-    gl[i].spot.w = float(cascades);
-    ++stats.shadowed_lights;
-    break;
+    gl[i].spot.w = float(cs.size());
+    ++frame.stats.shadowed_lights;
+    return uint32_t(cs.size());
   }
+  return 0;
+}
 
-  // Point and spot lights: the most important ones in view. A spot has one view, a point
-  // light six (its unrolled cubemap); a light whose faces do not fit even at half size stays
-  // unshadowed.
-  const std::vector<uint32_t> chosen =
-      ChooseShadowedLights(local, FrustumFromViewProj(view_proj), eye, s.shadow_lights);
+// Point and spot lights: the most important ones in view. A spot has one view, a point light
+// six (its unrolled cubemap); a light whose faces do not fit even at half size stays
+// unshadowed.
+void PlaceLocalLights(ShadowPlacer& placer, const FrameData& f, gpu::GpuLight* ll, Frame& frame) {
+  const std::vector<uint32_t> chosen = ChooseShadowedLights(
+      f.local, FrustumFromViewProj(f.fu.view_proj), CameraPosition(f.camera), f.s.shadow_lights);
+  const uint32_t size = placer.size();
   uint32_t dropped = 0;
   for (uint32_t li : chosen) {
-    const Light& l = local[li];
+    const Light& l = f.local[li];
     const bool spot = l.type == LightType::kSpot;
     const uint32_t faces = spot ? 1 : kCubeFaces;
     bool placed = false;
     for (uint32_t res = std::max(size / (spot ? 8 : 16), 64u); res >= 64 && !placed; res /= 2) {
-      const uint32_t first = views;
-      const size_t rendered = out->faces.size();
+      const uint32_t first = placer.views();
+      const size_t rendered = f.shadows.faces.size();
       placed = true;
       const float border = float(res) / float(res - 2 * kShadowBorderTexels);
       const float tan_half =
           spot ? std::tan(std::min(l.outer_cone_angle, glm::radians(89.0f))) * border : border;
-      for (uint32_t f = 0; f < faces && placed; ++f) {
-        const glm::mat4 vp = spot ? SpotViewProj(l, res, gs.bounds())
-                                  : PointFaceViewProj(l, f, res, gs.bounds());
-        placed = add_face(key_of(2, li, f), res, vp, 2.0f * tan_half / float(res), true);
+      for (uint32_t face = 0; face < faces && placed; ++face) {
+        const glm::mat4 vp = spot ? SpotViewProj(l, res, f.gs.bounds())
+                                  : PointFaceViewProj(l, face, res, f.gs.bounds());
+        placed =
+            placer.AddFace(placer.Key(2, li, face), res, vp, 2.0f * tan_half / float(res), true);
       }
       if (!placed) {  // give back the faces placed: they were never rendered
-        for (uint32_t f = 0; f < faces; ++f) atlas.Release(key_of(2, li, f));
-        views = first;
-        out->faces.resize(rendered);
+        for (uint32_t face = 0; face < faces; ++face) placer.Release(placer.Key(2, li, face));
+        placer.Rewind(first, rendered);
         continue;
       }
       ll[li].spot.z = float(first + 1);
       ll[li].spot.w = float(faces);
-      ++stats.shadowed_lights;
+      ++frame.stats.shadowed_lights;
     }
     if (!placed) ++dropped;
   }
@@ -298,14 +304,36 @@ absl::Status Renderer::Impl::PrepareShadows(FrameData& f, Frame& frame) {
                                        " lights did not fit the shadow atlas and are unshadowed "
                                        "(use a larger shadow_atlas_size)")});
   }
-  su.counts = glm::uvec4(views, cascades, 0u, gpu::kShadowsOn);
+}
+
+}  // namespace
+
+// Places this frame's shadow views in the atlas, fills shadow_ubo's views, marks the shadowed
+// lights in the light buffers and lists the faces to render.
+absl::Status Renderer::Impl::PrepareShadows(FrameData& f, Frame& frame) {
+  RETURN_IF_ERROR(EnsureShadowAtlas(f.s.shadow_atlas_size));
+  auto& su = *static_cast<gpu::ShadowUniforms*>(shadow_ubo.mapped());
+  ShadowAtlas& atlas = *shadow_faces;
+  ShadowFrame& out = f.shadows;
+  out.atlas = &shadow_atlas;
+  out.atlas_new = !shadow_atlas_written;
+  if (out.atlas_new) atlas.Clear();
+  atlas.BeginFrame();
+  const uint32_t evictions_before = atlas.evictions();
+  ShadowPlacer placer(f.gs, f.s, atlas, su, out);
+  const uint32_t cascades =
+      PlaceSun(placer, f, static_cast<gpu::GpuLight*>(lights_ubo.mapped()), su, frame);
+  PlaceLocalLights(placer, f, static_cast<gpu::GpuLight*>(local_lights.mapped()), frame);
+  const uint32_t size = placer.size();
+  su.counts = glm::uvec4(placer.views(), cascades, 0u, gpu::kShadowsOn);
   su.atlas = glm::vec4(float(size), 1.0f / float(size), 1.5f, 0.0f);
-  stats.shadow_views = views;
-  stats.shadow_faces_rendered = uint32_t(out->faces.size());
-  for (const ShadowFace& f : out->faces) stats.shadow_draws += uint32_t(f.items.size());
+  FrameStats& stats = frame.stats;
+  stats.shadow_views = placer.views();
+  stats.shadow_faces_rendered = uint32_t(out.faces.size());
+  for (const ShadowFace& face : out.faces) stats.shadow_draws += uint32_t(face.items.size());
   stats.shadow_evictions = atlas.evictions() - evictions_before;
   // Until this frame's submit succeeds the atlas is not known to hold what the faces say.
-  if (!out->faces.empty()) shadow_atlas_written = false;
+  if (!out.faces.empty()) shadow_atlas_written = false;
   return absl::OkStatus();
 }
 

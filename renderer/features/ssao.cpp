@@ -82,10 +82,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx) {
   absl::StatusOr<FullscreenProgram> blur =
       FullscreenProgram::Create(ctx, "ssao_blur", "ssao_blur.frag", 1, 32, {kAoFormat});
   if (!blur.ok()) return blur.status();
-  absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, "ssao");
-  if (!nearest.ok()) return nearest.status();
-  return std::unique_ptr<Pass>(
-      new SsaoPass(std::move(*ao), std::move(*blur), std::move(*nearest)));
+  ASSIGN_OR_RETURN(vk::Sampler nearest, CreateClampSampler(ctx, false, "ssao"));
+  return std::unique_ptr<Pass>(new SsaoPass(std::move(*ao), std::move(*blur), std::move(nearest)));
 }
 
 void SetupSsao(GraphBuilder& b) {
@@ -100,8 +98,6 @@ void SetupSsao(GraphBuilder& b) {
 absl::Status Renderer::Impl::PrepareSsao(FrameData& f) {
   const Settings& s = f.s;
   if (!s.ssao) return absl::OkStatus();
-  const uint32_t div = s.ssao_half_res ? 2 : 1;
-  RETURN_IF_ERROR(EnsureAo(std::max(1u, s.width / div), std::max(1u, s.height / div)));
   const Aabb& b = f.gs.bounds();
   const float diagonal = b.empty() ? 1.0f : glm::length(b.max - b.min);
   const float radius = s.ssao_radius > 0.0f ? s.ssao_radius : 0.015f * diagonal;

@@ -8,16 +8,17 @@
 //    drawables can cover) at that material's depth, EQUAL-tested, so each pixel is shaded once
 //    with its material bound as in the forward path; then the sky where no surface won.
 // The geometric AA pass that follows is a post pass (post_pass.cpp).
-#include "renderer/renderer_impl.h"
-#include "absl/strings/str_cat.h"
 #include <bit>
 #include <map>
-#include "renderer/features/pass.h"
+
+#include "absl/strings/str_cat.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
-
 
 namespace tessera {
 
@@ -73,8 +74,7 @@ class VisibilityPass final : public Pass {
     d.depth_write = true;
     d.depth_compare = VK_COMPARE_OP_GREATER;
     d.samples = static_cast<VkSampleCountFlagBits>(samples);
-    absl::StatusOr<vk::Pipeline> opaque = vk::CreateGraphicsPipeline(ctx, d);
-    if (!opaque.ok()) return opaque.status();
+    ASSIGN_OR_RETURN(vk::Pipeline opaque, vk::CreateGraphicsPipeline(ctx, d));
     d.name = "visibility.mask";
     d.vertex_shader = "id.vert";
     d.fragment_shader = "vis_mask.frag";
@@ -82,7 +82,7 @@ class VisibilityPass final : public Pass {
         (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
     absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
     if (!mask.ok()) return mask.status();
-    return Pipelines{std::move(*opaque), std::move(*mask)};
+    return Pipelines{std::move(opaque), std::move(*mask)};
   }
 
   PassId id_;
@@ -309,13 +309,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisibilityPass(const vk::Context& ct
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ctx,
                                                            const SceneLayout& scene) {
-  absl::StatusOr<VisLayout> layout = VisLayout::Create(ctx, scene, /*resolve=*/true);
-  if (!layout.ok()) return layout.status();
+  ASSIGN_OR_RETURN(VisLayout layout, VisLayout::Create(ctx, scene, /*resolve=*/true));
   vk::GraphicsPipelineDesc d;
   d.name = "vis_resolve";
   d.vertex_shader = "fullscreen.vert";
   d.fragment_shader = "vis_resolve.frag";
-  d.layout = layout->pipeline_layout();
+  d.layout = layout.pipeline_layout();
   d.scene_vertex_input = false;
   d.color_formats = {kIdFormat, kIdFormat};
   d.depth_format = kMaterialDepthFormat;
@@ -326,19 +325,18 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ct
   if (!pipeline.ok()) return pipeline.status();
   absl::StatusOr<vk::Sampler> sampler = CreateClampSampler(ctx, false, "vis_resolve");
   if (!sampler.ok()) return sampler.status();
-  return std::make_unique<VisResolvePass>(std::move(*layout), std::move(*pipeline),
+  return std::make_unique<VisResolvePass>(std::move(layout), std::move(*pipeline),
                                           std::move(*sampler));
 }
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
                                                          const SceneLayout& scene) {
-  absl::StatusOr<VisLayout> layout = VisLayout::Create(ctx, scene, /*resolve=*/false);
-  if (!layout.ok()) return layout.status();
+  ASSIGN_OR_RETURN(VisLayout layout, VisLayout::Create(ctx, scene, /*resolve=*/false));
   vk::GraphicsPipelineDesc d;
   d.name = "vis_shade";
   d.vertex_shader = "vis_shade.vert";
   d.fragment_shader = "vis_shade.frag";
-  d.layout = layout->pipeline_layout();
+  d.layout = layout.pipeline_layout();
   d.scene_vertex_input = false;
   d.color_formats = {kHdrFormat};
   d.depth_format = kMaterialDepthFormat;
@@ -359,9 +357,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
   if (!sky.ok()) return sky.status();
   absl::StatusOr<vk::Sampler> sampler = CreateClampSampler(ctx, false, "vis_shade");
   if (!sampler.ok()) return sampler.status();
-  return std::make_unique<VisShadePass>(std::move(*layout), std::move(*pipeline),
-                                        std::move(*effects), std::move(*sky),
-                                        std::move(*sampler));
+  return std::make_unique<VisShadePass>(std::move(layout), std::move(*pipeline),
+                                        std::move(*effects), std::move(*sky), std::move(*sampler));
 }
 
 void AddVisibilityPass(GraphBuilder& b, bool late) {

@@ -14,6 +14,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "renderer/scene/gltf_import.h"
+#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {
@@ -86,16 +87,15 @@ std::string_view GlbJson(const std::vector<uint8_t>& d) {
 }  // namespace
 
 absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& path) {
-  absl::StatusOr<std::vector<uint8_t>> main = ReadFile(path);
-  if (!main.ok()) return main.status();
+  ASSIGN_OR_RETURN(std::vector<uint8_t> main, ReadFile(path));
   const fs::path file(path);
   GltfSource source;
   source.main_file = file.filename().string();
-  const bool is_glb = main->size() >= 4 && std::memcmp(main->data(), "glTF", 4) == 0;
+  const bool is_glb = main.size() >= 4 && std::memcmp(main.data(), "glTF", 4) == 0;
   const std::string_view text =
-      is_glb ? GlbJson(*main)
-             : std::string_view(reinterpret_cast<const char*>(main->data()), main->size());
-  source.files[source.main_file] = std::move(*main);
+      is_glb ? GlbJson(main)
+             : std::string_view(reinterpret_cast<const char*>(main.data()), main.size());
+  source.files[source.main_file] = std::move(main);
 
   nlohmann::json j;
   try {
@@ -125,9 +125,7 @@ absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& path) {
           absl::StrCat(path, ": URI '", uri, "' is absolute or leaves the asset directory"));
     }
     if (source.files.count(key)) continue;
-    absl::StatusOr<std::vector<uint8_t>> data = ReadFile(dir / key);
-    if (!data.ok()) return data.status();
-    source.files[key] = std::move(*data);
+    ASSIGN_OR_RETURN(source.files[key], ReadFile(dir / key));
   }
   return source;
 }

@@ -23,6 +23,7 @@
 #include "absl/strings/string_view.h"
 #include "renderer/image_io.h"
 #include "renderer/scene/gltf_prescan.h"
+#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {
@@ -30,11 +31,6 @@ namespace {
 using gltf_internal::Invalid;
 using gltf_internal::OverLimit;
 using gltf_internal::Quote;
-
-#define RETURN_IF_ERROR(expr)                             \
-  do {                                                    \
-    if (absl::Status st_ = (expr); !st_.ok()) return st_; \
-  } while (false)
 
 constexpr size_t kMaxWarnings = 100;  // hostile files must not grow the warning list forever
 // Bound on unbounded material parameters (emissive strength, normal scale, UV transforms):
@@ -175,7 +171,7 @@ absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
         absl::StrCat("cannot decode: the ", png ? "PNG" : "JPEG", " header is cut short or "
                      "declares no size"));
   }
-  if (absl::Status st = CheckImageSize(w, h, limits, already_decoded); !st.ok()) return st;
+  RETURN_IF_ERROR(CheckImageSize(w, h, limits, already_decoded));
   const std::span<const uint8_t> file(bytes, size);
   const uint64_t max_pixels = uint64_t(w) * h;  // what the header promised, and was checked
   absl::StatusOr<RgbaImage> image = png ? DecodePng(file, max_pixels) : DecodeJpeg(file, max_pixels);
@@ -392,9 +388,8 @@ class Converter {
     while (!stack.empty()) {
       const auto [node, parent_world] = stack.back();
       stack.pop_back();
-      absl::StatusOr<glm::mat4> local = LocalMatrix(node);
-      if (!local.ok()) return local.status();
-      const glm::mat4 world = parent_world * *local;
+      ASSIGN_OR_RETURN(glm::mat4 local, LocalMatrix(node));
+      const glm::mat4 world = parent_world * local;
       RETURN_IF_ERROR(PlaceNode(node, world));
       const std::vector<int>& children = m_.nodes[node].children;
       for (auto c = children.rbegin(); c != children.rend(); ++c) stack.emplace_back(*c, world);
@@ -1001,7 +996,5 @@ absl::StatusOr<DecodedImage> DecodeTextureImage(const uint8_t* bytes, size_t siz
                                                 const ImportLimits& limits) {
   return DecodeImage(bytes, size, limits, 0);
 }
-
-#undef RETURN_IF_ERROR
 
 }  // namespace tessera

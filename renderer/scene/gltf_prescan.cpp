@@ -16,16 +16,12 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
+#include "renderer/status_macros.h"
 
 namespace tessera::gltf_internal {
 namespace {
 
 using nlohmann::json;
-
-#define RETURN_IF_ERROR(expr)                             \
-  do {                                                    \
-    if (absl::Status st_ = (expr); !st_.ok()) return st_; \
-  } while (false)
 
 constexpr size_t kMaxQuoted = 120;  // longest string quoted in a message
 
@@ -335,9 +331,8 @@ class PreScan {
       if (IsTinygltfDataUri(u, &payload)) return std::string::npos;
       return Invalid(file_, field, "unsupported data: URI (base64 buffer and image types only)");
     }
-    absl::StatusOr<std::string> key = Resolve(field, u);
-    if (!key.ok()) return key.status();
-    return src_.files.at(*key).size();
+    ASSIGN_OR_RETURN(std::string key, Resolve(field, u));
+    return src_.files.at(key).size();
   }
 
   absl::Status Buffers(const json& j) {
@@ -522,7 +517,5 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
   }
   return result;
 }
-
-#undef RETURN_IF_ERROR
 
 }  // namespace tessera::gltf_internal

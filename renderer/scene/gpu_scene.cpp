@@ -1,17 +1,17 @@
 #include "renderer/scene/gpu_scene.h"
 
-#include <atomic>
-
 #include <stb/stb_image_resize.h>
 
 #include <algorithm>
-#include <cmath>
+#include <atomic>
 #include <bit>
+#include <cmath>
 #include <cstring>
 #include <map>
 #include <tuple>
 
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -71,13 +71,13 @@ absl::StatusOr<vk::Buffer> UploadBuffer(vk::Context& ctx, const void* data, size
   absl::StatusOr<vk::Buffer> buffer = vk::Buffer::Create(
       ctx, size, usage | VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kDeviceLocal, name);
   if (!buffer.ok() || size == 0) return buffer;
-  absl::StatusOr<vk::Buffer> staging = vk::Buffer::Create(
-      ctx, size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT, vk::MemoryUsage::kUpload, name + ".staging");
-  if (!staging.ok()) return staging.status();
-  std::memcpy(staging->mapped(), data, size);
+  ASSIGN_OR_RETURN(vk::Buffer staging,
+                   vk::Buffer::Create(ctx, size, VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                      vk::MemoryUsage::kUpload, name + ".staging"));
+  std::memcpy(staging.mapped(), data, size);
   absl::Status st = ctx.SubmitOnce([&](VkCommandBuffer cmd) {
     const VkBufferCopy region{0, 0, size};
-    vkCmdCopyBuffer(cmd, staging->handle(), buffer->handle(), 1, &region);
+    vkCmdCopyBuffer(cmd, staging.handle(), buffer->handle(), 1, &region);
   });
   if (!st.ok()) return st;
   return buffer;
@@ -143,8 +143,7 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
   desc.usage = VK_IMAGE_USAGE_TRANSFER_SRC_BIT | VK_IMAGE_USAGE_TRANSFER_DST_BIT |
                VK_IMAGE_USAGE_SAMPLED_BIT;
   desc.view_type = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
-  absl::StatusOr<vk::Image> image = vk::Image::Create(ctx, desc, name);
-  if (!image.ok()) return image.status();
+  ASSIGN_OR_RETURN(vk::Image image, vk::Image::Create(ctx, desc, name));
 
   const size_t layer_bytes = static_cast<size_t>(b.width) * b.height * 4;
   const size_t chunk_layers = std::max<size_t>(1, (64u << 20) / layer_bytes);
@@ -171,7 +170,7 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
         t.dst_stage = VK_PIPELINE_STAGE_2_COPY_BIT;
         t.dst_access = VK_ACCESS_2_TRANSFER_WRITE_BIT;
         t.new_layout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-        const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(*image, t);
+        const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(image, t);
         vk::CmdBarrier(cmd, &barrier, 1);
       }
       std::vector<VkBufferImageCopy> regions(count);
@@ -181,7 +180,7 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
                                        static_cast<uint32_t>(first + i), 1};
         regions[i].imageExtent = {b.width, b.height, 1};
       }
-      vkCmdCopyBufferToImage(cmd, staging->handle(), image->handle(),
+      vkCmdCopyBufferToImage(cmd, staging->handle(), image.handle(),
                              VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL,
                              static_cast<uint32_t>(regions.size()), regions.data());
     });
@@ -197,7 +196,7 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
           VK_PIPELINE_STAGE_2_TRANSFER_BIT,     VK_ACCESS_2_TRANSFER_WRITE_BIT,
           VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_BLIT_BIT,
           VK_ACCESS_2_TRANSFER_READ_BIT,        VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
-      const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(*image, t, level - 1, 1);
+      const VkImageMemoryBarrier2 barrier = vk::MakeImageBarrier(image, t, level - 1, 1);
       vk::CmdBarrier(cmd, &barrier, 1);
       const int32_t nw = std::max(1, w / 2), nh = std::max(1, h / 2);
       VkImageBlit blit{};
@@ -205,7 +204,7 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
       blit.srcOffsets[1] = {w, h, 1};
       blit.dstSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, level, 0, desc.array_layers};
       blit.dstOffsets[1] = {nw, nh, 1};
-      vkCmdBlitImage(cmd, image->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image->handle(),
+      vkCmdBlitImage(cmd, image.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, image.handle(),
                      VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, 1, &blit, VK_FILTER_LINEAR);
       w = nw;
       h = nh;
@@ -217,13 +216,13 @@ absl::StatusOr<vk::Image> UploadBucket(vk::Context& ctx, const TextureBucketPlan
         VK_PIPELINE_STAGE_2_TRANSFER_BIT,     VK_ACCESS_2_TRANSFER_WRITE_BIT,
         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    barriers[n++] = vk::MakeImageBarrier(*image, to_read_dst, levels - 1, 1);
+    barriers[n++] = vk::MakeImageBarrier(image, to_read_dst, levels - 1, 1);
     if (levels > 1) {
       const vk::ImageTransition to_read_src{
           VK_PIPELINE_STAGE_2_TRANSFER_BIT,     VK_ACCESS_2_TRANSFER_READ_BIT,
           VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
           VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-      barriers[n++] = vk::MakeImageBarrier(*image, to_read_src, 0, levels - 1);
+      barriers[n++] = vk::MakeImageBarrier(image, to_read_src, 0, levels - 1);
     }
     vk::CmdBarrier(cmd, barriers, n);
   });
@@ -236,25 +235,25 @@ absl::StatusOr<vk::Image> PlaceholderBucket(vk::Context& ctx, uint32_t index) {
   desc.format = VK_FORMAT_R8G8B8A8_UNORM;
   desc.usage = VK_IMAGE_USAGE_TRANSFER_DST_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
   desc.view_type = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
-  absl::StatusOr<vk::Image> image =
-      vk::Image::Create(ctx, desc, absl::StrCat("texture_bucket", index, ".placeholder"));
-  if (!image.ok()) return image;
+  ASSIGN_OR_RETURN(
+      vk::Image image,
+      vk::Image::Create(ctx, desc, absl::StrCat("texture_bucket", index, ".placeholder")));
   absl::Status st = ctx.SubmitOnce([&](VkCommandBuffer cmd) {
     vk::ImageTransition t;
     t.dst_stage = VK_PIPELINE_STAGE_2_CLEAR_BIT;
     t.dst_access = VK_ACCESS_2_TRANSFER_WRITE_BIT;
     t.new_layout = VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL;
-    VkImageMemoryBarrier2 b = vk::MakeImageBarrier(*image, t);
+    VkImageMemoryBarrier2 b = vk::MakeImageBarrier(image, t);
     vk::CmdBarrier(cmd, &b, 1);
     const VkClearColorValue white{{1.0f, 1.0f, 1.0f, 1.0f}};
     const VkImageSubresourceRange range{VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-    vkCmdClearColorImage(cmd, image->handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &white, 1,
+    vkCmdClearColorImage(cmd, image.handle(), VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, &white, 1,
                          &range);
     const vk::ImageTransition to_read{
         VK_PIPELINE_STAGE_2_CLEAR_BIT,        VK_ACCESS_2_TRANSFER_WRITE_BIT,
         VK_IMAGE_LAYOUT_TRANSFER_DST_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    b = vk::MakeImageBarrier(*image, to_read);
+    b = vk::MakeImageBarrier(image, to_read);
     vk::CmdBarrier(cmd, &b, 1);
   });
   if (!st.ok()) return st;
@@ -483,9 +482,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   si.anisotropyEnable = ctx.info().max_anisotropy > 1.0f;
   si.maxAnisotropy = ctx.info().max_anisotropy;
   si.maxLod = VK_LOD_CLAMP_NONE;
-  absl::StatusOr<vk::Sampler> sampler = vk::Sampler::Create(ctx, si, n + ".sampler");
-  if (!sampler.ok()) return sampler.status();
-  gs->sampler_ = std::move(*sampler);
+  ASSIGN_OR_RETURN(gs->sampler_, vk::Sampler::Create(ctx, si, n + ".sampler"));
 
   // One texture set per material; slots without a texture point at bucket 0 (never sampled).
   const uint32_t material_count = uint32_t(materials.size());

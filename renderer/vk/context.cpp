@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "renderer/log.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
@@ -252,11 +253,10 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
     family_of.push_back(family);
     timestamp_bits.push_back(family >= 0 ? families[family].timestampValidBits : 0);
   }
-  absl::StatusOr<size_t> chosen = ChooseDevice(candidates, wanted);
-  if (!chosen.ok()) return chosen.status();
-  ctx->physical_ = devices[*chosen];
-  ctx->queue_family_ = static_cast<uint32_t>(family_of[*chosen]);
-  ctx->info_.timestamp_valid_bits = timestamp_bits[*chosen];
+  ASSIGN_OR_RETURN(size_t chosen, ChooseDevice(candidates, wanted));
+  ctx->physical_ = devices[chosen];
+  ctx->queue_family_ = static_cast<uint32_t>(family_of[chosen]);
+  ctx->info_.timestamp_valid_bits = timestamp_bits[chosen];
 
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};

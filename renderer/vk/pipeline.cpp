@@ -2,6 +2,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "renderer/scene/cpu_scene.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
 #include "shaders/shader_registry.h"
@@ -38,7 +39,7 @@ class ScopedShader {
 absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
                                                 const GraphicsPipelineDesc& desc) {
   ScopedShader vs(ctx.device()), fs(ctx.device());
-  if (absl::Status s = vs.Load(desc.vertex_shader); !s.ok()) return s;
+  RETURN_IF_ERROR(vs.Load(desc.vertex_shader));
   std::vector<VkPipelineShaderStageCreateInfo> stages;
   VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
@@ -48,7 +49,7 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
   std::vector<VkSpecializationMapEntry> entries;
   VkSpecializationInfo spec{};
   if (!desc.fragment_shader.empty()) {
-    if (absl::Status s = fs.Load(desc.fragment_shader); !s.ok()) return s;
+    RETURN_IF_ERROR(fs.Load(desc.fragment_shader));
     stage.stage = VK_SHADER_STAGE_FRAGMENT_BIT;
     stage.module = fs.get();
     if (!desc.fragment_constants.empty()) {
@@ -166,7 +167,7 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
 absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
                                                const std::string& shader, VkPipelineLayout layout) {
   ScopedShader cs(ctx.device());
-  if (absl::Status st = cs.Load(shader); !st.ok()) return st;
+  RETURN_IF_ERROR(cs.Load(shader));
   VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
   ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;

@@ -3,6 +3,7 @@
 #include <atomic>
 
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
@@ -64,9 +65,8 @@ absl::StatusOr<Buffer> Buffer::Create(const Context& ctx, VkDeviceSize size,
       break;
   }
   VkMemoryPropertyFlags flags = 0;
-  absl::StatusOr<VkDeviceMemory> mem = Allocate(ctx, req, required, preferred, name, &flags);
-  if (!mem.ok()) return mem.status();
-  b.memory_ = *mem;
+  ASSIGN_OR_RETURN(VkDeviceMemory mem, Allocate(ctx, req, required, preferred, name, &flags));
+  b.memory_ = mem;
   b.memory_bytes_ = req.size;
   VK_CHECK(vkBindBufferMemory(b.device_, b.buffer_, b.memory_, 0));
   if (memory != MemoryUsage::kDeviceLocal) {
@@ -139,10 +139,9 @@ absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
   ctx.SetName(img.image_, VK_OBJECT_TYPE_IMAGE, name);
   VkMemoryRequirements req;
   vkGetImageMemoryRequirements(img.device_, img.image_, &req);
-  absl::StatusOr<VkDeviceMemory> mem =
-      Allocate(ctx, req, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, name, nullptr);
-  if (!mem.ok()) return mem.status();
-  img.memory_ = *mem;
+  ASSIGN_OR_RETURN(VkDeviceMemory mem,
+                   Allocate(ctx, req, 0, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT, name, nullptr));
+  img.memory_ = mem;
   img.memory_bytes_ = req.size;
   VK_CHECK(vkBindImageMemory(img.device_, img.image_, img.memory_, 0));
 

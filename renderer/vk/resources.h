@@ -109,6 +109,22 @@ class Sampler {
   VkSampler sampler_ = VK_NULL_HANDLE;
 };
 
+// A non-owning reference to an Image (a pooled frame target) that reads like the image.
+class ImageRef {
+ public:
+  ImageRef() = default;
+  ImageRef(const Image& image) : image_(&image) {}   // NOLINT: implicit by design
+  operator const Image&() const { return *image_; }  // NOLINT
+  const Image& get() const { return *image_; }
+  VkImage handle() const { return image_ ? image_->handle() : VK_NULL_HANDLE; }
+  VkImageView view() const { return image_ ? image_->view() : VK_NULL_HANDLE; }
+  const ImageDesc& desc() const { return image_->desc(); }
+  explicit operator bool() const { return image_ != nullptr && bool(*image_); }
+
+ private:
+  const Image* image_ = nullptr;
+};
+
 // One 2D view of each mip of an image (for passes that write one mip and read another).
 class MipViews {
  public:
@@ -120,6 +136,18 @@ class MipViews {
 
  private:
   std::vector<UniqueImageView> views_;
+};
+
+// A non-owning reference to MipViews (empty: no views).
+class MipViewsRef {
+ public:
+  MipViewsRef() = default;
+  MipViewsRef(const MipViews& views) : views_(&views) {}  // NOLINT: implicit by design
+  VkImageView operator[](size_t level) const { return (*views_)[level]; }
+  size_t size() const { return views_ ? views_->size() : 0; }
+
+ private:
+  const MipViews* views_ = nullptr;
 };
 
 bool IsDepthFormat(VkFormat format);

@@ -111,6 +111,48 @@ TEST(RenderTest, Deterministic) {
   ExpectNoValidationMessages(r);
 }
 
+// Viewers of different sizes and AA modes keep their own targets (renderer/graph/
+// target_pool.h): frames that alternate between them allocate nothing after the first of each
+// and give the pixels each gives alone, and targets no frame uses for a while are given back.
+TEST(RenderTest, TargetsArePooledPerSizeAndMode) {
+  // A renderer of its own: its pool holds only what this test renders.
+  absl::StatusOr<std::unique_ptr<Renderer>> own = Renderer::Create({.validation = true});
+  ASSERT_TRUE(own.ok()) << own.status();
+  Renderer& r = **own;
+  absl::StatusOr<SceneHandle> loaded = r.LoadScene(BuildDemoScene());
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  const SceneHandle& scene = *loaded;
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  const Settings a = SmallSettings(96, 64);
+  Settings b = SmallSettings(72, 40);
+  b.aa = AaMode::kMsaa;
+  absl::StatusOr<Frame> alone = r.Render(*scene, camera, a);
+  ASSERT_TRUE(alone.ok()) << alone.status();
+  const uint64_t one_viewer = Renderer::DeviceMemoryBytes();
+  absl::StatusOr<Frame> first_b = r.Render(*scene, camera, b);
+  ASSERT_TRUE(first_b.ok()) << first_b.status();
+  // b's size and sample count are new: its targets are made (depth, colour, tonemapped colour,
+  // readback buffer, multisampled depth and colour), a's are kept.
+  EXPECT_EQ(first_b->stats.targets_created, 6u);
+  const uint64_t two_viewers = Renderer::DeviceMemoryBytes();
+  EXPECT_GT(two_viewers, one_viewer);
+  for (int i = 0; i < 4; ++i) {
+    absl::StatusOr<Frame> fa = r.Render(*scene, camera, a);
+    ASSERT_TRUE(fa.ok()) << fa.status();
+    EXPECT_EQ(fa->stats.targets_created, 0u) << i;
+    EXPECT_EQ(fa->image.pixels, alone->image.pixels) << i;
+    absl::StatusOr<Frame> fb = r.Render(*scene, camera, b);
+    ASSERT_TRUE(fb.ok()) << fb.status();
+    EXPECT_EQ(fb->stats.targets_created, 0u) << i;
+    EXPECT_EQ(fb->image.pixels, first_b->image.pixels) << i;
+    EXPECT_EQ(Renderer::DeviceMemoryBytes(), two_viewers) << "frame pair " << i;
+  }
+  // b stops: after the pool's idle limit its targets are given back.
+  for (int i = 0; i < 40; ++i) ASSERT_TRUE(r.Render(*scene, camera, a).ok());
+  EXPECT_EQ(Renderer::DeviceMemoryBytes(), one_viewer);
+  ExpectNoValidationMessages(r);
+}
+
 // Every pass reports a GPU time; the passes fit inside the frame's total, and the total fits
 // inside the wall-clock time from submit to fence (the timestamps measure real time).
 TEST(RenderTest, TimingsAreConsistent) {
