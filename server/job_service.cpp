@@ -13,8 +13,6 @@
 namespace tessera::server {
 namespace {
 
-absl::Status Unavailable() { return absl::UnavailableError("server is shutting down"); }
-
 // At most this many progress messages wait for a slow watcher; past it the oldest frame event
 // goes (the job snapshot in every message keeps the counts exact; state changes always go).
 constexpr size_t kMaxPendingProgress = 64;
