@@ -262,7 +262,7 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     return std::move(*work);
   }
 
-  void Deliver(const RenderWork& work, absl::StatusOr<v1::Frame> frame) override {
+  void Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) override {
     if (work.sequence == 0) {  // dropped from the queue (shutdown) before a turn
       std::lock_guard lock(mu_);
       queued_ = false;
@@ -289,7 +289,8 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
 
     // The file first, then the journal line: a crash in between redoes the frame, never
     // trusts a file that is not whole.
-    const std::string& data = frame->data();
+    const std::string_view data(reinterpret_cast<const char*>(frame->data.data()),
+                                frame->data.size());
     const std::string sha = Sha256Hex(data.data(), data.size());
     const std::string path = FramePath(number);
     absl::Status written = WriteFileAtomic(path, data);
@@ -320,9 +321,11 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     e->set_sha256(sha);
     if (spec.output() == v1::JOB_OUTPUT_SERVER_DIR)
       e->set_path(JoinPath(spec.output_dir(), jobs::FrameFileName(spec, number)));
-    *e->mutable_passes() = frame->passes();
-    e->set_gpu_total_ms(frame->gpu_total_ms());
-    *e->mutable_cpu() = frame->cpu();
+    v1::Frame meta;  // the timings as a Frame has them
+    FrameMetaToProto(*frame, &meta);
+    *e->mutable_passes() = std::move(*meta.mutable_passes());
+    e->set_gpu_total_ms(meta.gpu_total_ms());
+    *e->mutable_cpu() = meta.cpu();
     if (done_.size() == frames_.size() && in_flight_ == 0) {
       EndLocked(lock, v1::JOB_SUCCEEDED, "", &event);
       return;
@@ -441,13 +444,11 @@ absl::StatusOr<std::shared_ptr<StoredScene>> LoadIntoStore(Renderer* renderer, S
   }
   absl::StatusOr<SceneHandle> gpu = renderer->LoadScene(*cpu);
   if (!gpu.ok()) return gpu.status();
-  v1::SceneInfo info;
-  ToProto((*gpu)->info(), &info);
-  info.set_name(source.main_file);
-  uint64_t bytes = 0;
-  for (const auto& [name, data] : source.files) bytes += data.size();
-  info.set_upload_bytes(bytes);
-  info.set_load_ms(MsBetween(t0, Clock::now()));
+  StoredSceneInfo info;
+  info.scene = (*gpu)->info();
+  info.scene.name = source.main_file;
+  for (const auto& [name, data] : source.files) info.upload_bytes += data.size();
+  info.load_ms = MsBetween(t0, Clock::now());
   return store->Add(scene_id, *std::move(gpu), std::move(info));
 }
 

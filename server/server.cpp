@@ -161,11 +161,11 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     const auto t0 = std::chrono::steady_clock::now();
     absl::StatusOr<SceneHandle> demo = impl->renderer->LoadScene(BuildDemoScene());
     if (!demo.ok()) return demo.status();
-    v1::SceneInfo info;
-    ToProto((*demo)->info(), &info);
-    info.set_load_ms(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    info.set_name("demo");
+    StoredSceneInfo info;
+    info.scene = (*demo)->info();
+    info.scene.name = "demo";
+    info.load_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
     impl->store->AddDemo(*std::move(demo), std::move(info));
   }
   impl->loader = std::make_unique<ThreadPool>("load", std::max(1u, options.loader_threads));

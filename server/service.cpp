@@ -62,8 +62,8 @@ class UnaryRender final : public RenderClient {
     return work_;
   }
 
-  void Deliver(const RenderWork&, absl::StatusOr<v1::Frame> frame) override {
-    if (frame.ok()) *response_ = *std::move(frame);
+  void Deliver(const RenderWork&, absl::StatusOr<EncodedFrame> frame) override {
+    if (frame.ok()) ToProto(*frame, response_);
     Finish(frame.status());
   }
 
@@ -217,8 +217,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
     absl::StatusOr<GltfSource> source = assembler_.Finish(&scene_id);
     if (!source.ok()) return Done(source.status());
     if (std::shared_ptr<StoredScene> existing = state_->store->FindExact(scene_id)) {
-      *response_ = existing->info;  // same content: nothing to parse
-      SceneStore::FillLiveFields(*existing, response_);
+      ToProto(SceneStore::Describe(*existing), response_);  // same content: nothing to parse
       existing.reset();  // not held while the client hears back (eviction)
       if (state_->jobs && state_->jobs->options().persistent)
         state_->loader->Submit([jobs = state_->jobs, scene_id,
@@ -250,8 +249,7 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
         LoadIntoStore(state_->renderer, state_->store, scene_id, source,
                       {state_->options.import_limits, state_->options.max_scene_device_bytes});
     if (!stored.ok()) return Done(stored.status());
-    *response_ = (*stored)->info;
-    SceneStore::FillLiveFields(**stored, response_);
+    ToProto(SceneStore::Describe(**stored), response_);
     stored->reset();  // before the client hears back: an unused scene is evictable at once
     // A persistent daemon keeps the files for its jobs, before the client hears back, so a
     // job submitted next finds them even if the scene is evicted meanwhile.
@@ -364,8 +362,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::HasScene(grpc::CallbackServerContex
     return Reply(state_, ctx, "HasScene", absl::InvalidArgumentError("scene_id: is empty"));
   if (std::shared_ptr<StoredScene> s = state_->store->FindExact(req->scene_id())) {
     r->set_present(true);
-    *r->mutable_info() = s->info;
-    SceneStore::FillLiveFields(*s, r->mutable_info());
+    ToProto(SceneStore::Describe(*s), r->mutable_info());
   }
   Log().info("HasScene {} -> {} peer={}", req->scene_id().substr(0, 80), r->present(), Peer(ctx));
   return Reply(state_, ctx, "HasScene", absl::OkStatus());
@@ -376,7 +373,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::ListScenes(grpc::CallbackServerCont
                                                         v1::ListScenesResponse* r) {
   if (absl::Status st = state_->Authorize(ctx).status(); !st.ok())
     return Reply(state_, ctx, "ListScenes", st);
-  for (v1::SceneInfo& info : state_->store->List()) *r->add_scenes() = std::move(info);
+  for (const SceneListing& scene : state_->store->List()) ToProto(scene, r->add_scenes());
   Log().info("ListScenes -> {} scenes peer={}", r->scenes_size(), Peer(ctx));
   return Reply(state_, ctx, "ListScenes", absl::OkStatus());
 }

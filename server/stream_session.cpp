@@ -147,10 +147,12 @@ std::optional<RenderWork> StreamSession::TakeWork() {
   return work;
 }
 
-void StreamSession::Deliver(const RenderWork& work, absl::StatusOr<v1::Frame> frame) {
+void StreamSession::Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) {
+  std::optional<v1::Frame> wire;  // converted before taking the lock
+  if (frame.ok()) ToProto(*frame, &wire.emplace());
   React([&] {
     const Arrival arrival = schedule_.FrameDone(work.sequence, frame.status());
-    if (frame.ok()) KeepFrameLocked(arrival, *std::move(frame));
+    if (wire) KeepFrameLocked(arrival, *std::move(wire));
   });
 }
 

@@ -37,7 +37,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   void OnDone() override;
 
   std::optional<RenderWork> TakeWork() override;
-  void Deliver(const RenderWork& work, absl::StatusOr<v1::Frame> frame) override;
+  void Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) override;
 
   // The server is stopping: no new frames; the stream ends with UNAVAILABLE once the frames
   // in flight are written.
