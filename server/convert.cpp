@@ -1,4 +1,4 @@
-#include "server/proto_vec.h"
+#include "common/proto_vec.h"
 #include "server/convert.h"
 
 #include <cmath>

@@ -5,10 +5,10 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "server/job_journal.h"
-#include "server/job_spec.h"
+#include "common/job_spec.h"
 #include "server/jobs.h"
 #include "server/service.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {

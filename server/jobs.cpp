@@ -14,8 +14,8 @@
 #include "renderer/scene/gltf_import.h"
 #include "server/auth.h"
 #include "server/convert.h"
-#include "server/job_spec.h"
-#include "tessera/scene_id.h"
+#include "common/job_spec.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {

@@ -33,7 +33,7 @@
 #include "server/render_loop.h"
 #include "server/scene_store.h"
 #include "server/upload.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {
