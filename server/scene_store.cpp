@@ -4,6 +4,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 
 namespace tessera::server {
 namespace {
@@ -151,9 +152,7 @@ std::vector<SceneListing> SceneStore::List() const {
 }
 
 absl::StatusOr<uint32_t> SceneStore::Delete(const std::string& id) {
-  absl::StatusOr<std::shared_ptr<StoredScene>> found = Find(id);
-  if (!found.ok()) return found.status();
-  std::shared_ptr<StoredScene> s = *std::move(found);
+  ASSIGN_OR_RETURN(std::shared_ptr<StoredScene> s, Find(id));
   if (s->id == kDemoSceneId)
     return absl::FailedPreconditionError("scene_id: the built-in \"demo\" scene cannot be deleted");
   std::lock_guard lock(mu_);
