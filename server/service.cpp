@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "renderer/scene/gltf_import.h"
+#include "renderer/status_macros.h"
 #include "server/convert.h"
 #include "server/jobs.h"
 #include "server/metrics.h"
@@ -95,6 +96,29 @@ std::shared_ptr<RenderClient> MakeUnaryRender(ServiceState* state,
   return std::make_shared<UnaryRender>(state, ctx, reactor, response, std::move(work), method);
 }
 
+namespace {
+
+// The frame a Render request asks for, once everything the client sent is checked.
+absl::StatusOr<RenderWork> RenderRequestWork(const ServiceState& state,
+                                             const v1::RenderRequest& req) {
+  ASSIGN_OR_RETURN(std::shared_ptr<StoredScene> scene, state.store->Find(req.scene_id()));
+  RenderWork work;
+  ASSIGN_OR_RETURN(work.settings, MergeSettings(state.default_settings, req.settings()));
+  ASSIGN_OR_RETURN(work.camera,
+                   ResolveCamera(req.camera(), scene->scene->info(), Aspect(work.settings)));
+  if (!v1::ImageEncoding_IsValid(req.encoding()))
+    return absl::InvalidArgumentError(
+        absl::StrCat("encoding: unknown value ", static_cast<int>(req.encoding())));
+  work.scene = scene->scene;
+  work.scene_id = scene->id;
+  work.format = req.encoding() == v1::IMAGE_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;
+  work.sequence = 1;
+  work.kind = req.background() ? "background" : "render";
+  return work;
+}
+
+}  // namespace
+
 grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext* ctx,
                                                     const v1::RenderRequest* req,
                                                     v1::Frame* response) {
@@ -108,32 +132,16 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
   };
   if (absl::Status st = state_->Authorize(ctx).status(); !st.ok()) return fail(st);
   if (state_->shutting_down) return fail(Unavailable());
-  absl::StatusOr<std::shared_ptr<StoredScene>> scene = state_->store->Find(req->scene_id());
-  if (!scene.ok()) return fail(scene.status());
-  absl::StatusOr<Settings> settings = MergeSettings(state_->default_settings, req->settings());
-  if (!settings.ok()) return fail(settings.status());
-  absl::StatusOr<Camera> camera =
-      ResolveCamera(req->camera(), (*scene)->scene->info(), Aspect(*settings));
-  if (!camera.ok()) return fail(camera.status());
-  if (!v1::ImageEncoding_IsValid(req->encoding()))
-    return fail(absl::InvalidArgumentError(
-        absl::StrCat("encoding: unknown value ", static_cast<int>(req->encoding()))));
+  absl::StatusOr<RenderWork> work = RenderRequestWork(*state_, *req);
+  if (!work.ok()) return fail(work.status());
   if (state_->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
     --state_->unary_queued;
     return fail(absl::ResourceExhaustedError(absl::StrCat(
         "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
   }
-  RenderWork work;
-  work.scene = (*scene)->scene;
-  work.scene_id = (*scene)->id;
-  work.camera = *camera;
-  work.settings = *settings;
-  work.format = req->encoding() == v1::IMAGE_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;
-  work.sequence = 1;
-  work.requested = Clock::now();
-  work.kind = req->background() ? "background" : "render";
+  work->requested = Clock::now();
   state_->loop->Enqueue(
-      MakeUnaryRender(state_, ctx, reactor, response, std::move(work), "Render"),
+      MakeUnaryRender(state_, ctx, reactor, response, *std::move(work), "Render"),
       req->background() ? Priority::kBackground : Priority::kNormal);
   return reactor;
 }
