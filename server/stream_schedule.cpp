@@ -149,8 +149,8 @@ StreamDecision StreamSchedule::Next(Clock::time_point now) {
   d.finish = End();
   if (!d.finish) return d;
   // A client that vanished without closing keeps its session for a resume.
-  d.park = client_gone_ && phase_ == Phase::kLive && !stopping_ && !error_ && !reads_done_ &&
-           may_park_;
+  d.park =
+      client_gone_ && phase_ == Phase::kLive && !stopping_ && !error_ && !reads_done_ && may_park_;
   phase_ = Phase::kFinished;
   return d;
 }

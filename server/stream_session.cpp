@@ -43,8 +43,7 @@ StreamSession::StreamSession(ServiceState* state, grpc::CallbackServerContext* c
 void StreamSession::Begin(const absl::Status& admission) {
   self_ = shared_from_this();
   if (!admission.ok()) {
-    Log().info("Stream session={} refused: {} peer={}", st_.id, admission.ToString(),
-               ctx_->peer());
+    Log().info("Stream session={} refused: {} peer={}", st_.id, admission.ToString(), ctx_->peer());
     schedule_.Refuse();  // nothing else runs before the reactor is returned
     FinishCounted(ToGrpc(admission));
     return;
@@ -89,12 +88,13 @@ void StreamSession::OnReadDone(bool ok) {
 void StreamSession::ApplyEventLocked(Clock::time_point now,
                                      std::optional<absl::StatusOr<SessionState>> resumed) {
   if (!schedule_.TakesEvents()) {
-    if (resumed && resumed->ok()) state_->Park(*std::move(*resumed));  // died meanwhile: put it back
+    if (resumed && resumed->ok())
+      state_->Park(*std::move(*resumed));  // died meanwhile: put it back
     return;
   }
-  absl::Status st = resumed               ? ResumeLocked(now, *std::move(resumed))
+  absl::Status st = resumed              ? ResumeLocked(now, *std::move(resumed))
                     : schedule_.opened() ? ApplyUpdateLocked(now)
-                                          : OpenLocked(now);
+                                         : OpenLocked(now);
   if (!st.ok() && schedule_.Fail(st))
     Log().info("Stream session={} event={}: {}", st_.id, event_.event_id(), st.ToString());
 }
@@ -267,8 +267,8 @@ absl::Status StreamSession::ResumeLocked(Clock::time_point now,
   schedule_.Resume(now, PacingLocked(), st_.sequence);
   Register();
   if (state_->metrics) state_->metrics->SessionOpened(true);
-  Log().info("Stream session={} resumed (stream {}) scene={} at frame {} peer={}", st_.id,
-             fresh_id, st_.lease->get().id, st_.sequence, ctx_->peer());
+  Log().info("Stream session={} resumed (stream {}) scene={} at frame {} peer={}", st_.id, fresh_id,
+             st_.lease->get().id, st_.sequence, ctx_->peer());
   return absl::OkStatus();
 }
 
@@ -290,8 +290,7 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   }
   if (event_.has_camera()) {
     RETURN_IF_ERROR(
-        ResolveCamera(event_.camera(), st_.lease->get().scene->info(), Aspect(settings))
-            .status());
+        ResolveCamera(event_.camera(), st_.lease->get().scene->info(), Aspect(settings)).status());
     st_.camera = event_.camera();
     schedule_.CameraMoved(now);
   }
@@ -355,9 +354,9 @@ StreamDecision StreamSession::DecideLocked(Clock::time_point now) {
     state_->Park(std::move(st_));
   }
   if (d.finish)
-    end_status_ = d.finish->ok() ? "OK"
-                                 : absl::StrCat(static_cast<int>(d.finish->code()), ": ",
-                                                d.finish->message());
+    end_status_ = d.finish->ok()
+                      ? "OK"
+                      : absl::StrCat(static_cast<int>(d.finish->code()), ": ", d.finish->message());
   return d;
 }
 
@@ -388,9 +387,9 @@ grpc::ServerBidiReactor<v1::ClientEvent, v1::Frame>* RenderServiceImpl::Stream(
           "sessions: ", state_->sessions.size(), " open streams reach the max_sessions limit (",
           state_->options.max_sessions, ")"));
     else if (!state_->principal_sessions.TryAcquire(p.name, p.max_sessions))
-      admission = absl::ResourceExhaustedError(absl::StrCat(
-          "sessions: token \"", p.name, "\" has its max_sessions (", p.max_sessions.value_or(0),
-          ") streams open"));
+      admission = absl::ResourceExhaustedError(
+          absl::StrCat("sessions: token \"", p.name, "\" has its max_sessions (",
+                       p.max_sessions.value_or(0), ") streams open"));
     else
       state_->sessions.insert(session);
   }
@@ -434,8 +433,8 @@ void ServiceState::Park(SessionState state) {
   Log().info("Stream session={} parked for {} s (resume_token)", state.id, options.resume_grace_s);
   const std::string token = state.token;
   live_tokens.erase(token);
-  parked[token] = Parked{std::move(state),
-                         Clock::now() + std::chrono::seconds(options.resume_grace_s)};
+  parked[token] =
+      Parked{std::move(state), Clock::now() + std::chrono::seconds(options.resume_grace_s)};
 }
 
 absl::StatusOr<SessionState> ServiceState::Resume(const std::string& token,

@@ -51,8 +51,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
  private:
   // One event, under mu_: opens, resumes or updates the session; the stream fails with an
   // error it returns.
-  void ApplyEventLocked(Clock::time_point now,
-                        std::optional<absl::StatusOr<SessionState>> resumed);
+  void ApplyEventLocked(Clock::time_point now, std::optional<absl::StatusOr<SessionState>> resumed);
   absl::Status OpenLocked(Clock::time_point now);
   absl::Status ResumeLocked(Clock::time_point now, absl::StatusOr<SessionState> resumed);
   absl::Status ApplyUpdateLocked(Clock::time_point now);
@@ -92,8 +91,8 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
 
   std::mutex mu_;
   StreamSchedule schedule_;
-  SessionState st_;       // moved out when parked or handed over
-  std::string fps_note_;  // target_fps was lowered to the cap
+  SessionState st_;                // moved out when parked or handed over
+  std::string fps_note_;           // target_fps was lowered to the cap
   std::optional<v1::Frame> slot_;  // the newest encoded frame not yet written
   v1::Frame writing_frame_;        // owned by gRPC while a write is outstanding
   uint64_t frames_sent_ = 0;

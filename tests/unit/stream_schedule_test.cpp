@@ -313,7 +313,7 @@ TEST(StreamScheduleTest, AStoppingServerEndsTheStreamAfterItsFramesInFlight) {
   StreamDecision d = s.Next(T(1));
   EXPECT_FALSE(d.finish);
   EXPECT_FALSE(d.enqueue);
-  EXPECT_FALSE(d.enqueue_at);  // no new frames
+  EXPECT_FALSE(d.enqueue_at);                                     // no new frames
   EXPECT_EQ(s.FrameDone(1, absl::OkStatus()), Arrival::kToSlot);  // still written
   d = s.Next(T(10));
   EXPECT_TRUE(d.write);
