@@ -1,4 +1,4 @@
-#include "server/proto_vec.h"
+#include "common/proto_vec.h"
 #include "server/convert.h"
 
 #include <cmath>
@@ -7,6 +7,8 @@
 #include "absl/strings/str_cat.h"
 #include "google/protobuf/descriptor.h"
 #include "google/protobuf/message.h"
+#include "server/render_loop.h"
+#include "server/scene_store.h"
 
 namespace tessera::server {
 namespace {
@@ -338,6 +340,35 @@ void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out) {
       r->SetUInt32(out, field, uint32_t(f.Get(limits)));
     }
   }
+}
+
+void FrameMetaToProto(const EncodedFrame& f, v1::Frame* o) {
+  FrameToProto(f.frame, o);
+  CameraToProto(f.camera, o);
+  o->set_render_width(f.render_width);
+  o->set_render_height(f.render_height);
+  o->set_sequence(f.sequence);
+  o->set_event_id(f.event_id);
+  o->set_scene_id(f.scene_id);
+  o->set_profile(f.profile);
+  o->set_encoding(f.format == ImageFormat::kPng ? v1::IMAGE_PNG : v1::IMAGE_JPEG);
+  v1::CpuTimings* cpu = o->mutable_cpu();
+  cpu->set_queue_wait_ms(f.queue_wait_ms);
+  cpu->set_total_ms(f.total_ms);
+}
+
+void ToProto(const EncodedFrame& f, v1::Frame* o) {
+  FrameMetaToProto(f, o);
+  o->set_data(f.data.data(), f.data.size());
+}
+
+void ToProto(const SceneListing& s, v1::SceneInfo* o) {
+  ToProto(s.info.scene, o);
+  o->set_scene_id(s.id);
+  o->set_upload_bytes(s.info.upload_bytes);
+  o->set_load_ms(s.info.load_ms);
+  o->set_sessions(s.sessions);
+  o->set_deleted(s.deleted);
 }
 
 }  // namespace tessera::server

@@ -49,4 +49,14 @@ void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out);
 // Names accepted by each enum setting (lower case, as ToString in settings.h).
 void FillChoices(uint32_t sample_counts, v1::SettingChoices* out);
 
+// The wire's Frame of a frame from the render loop (render_loop.h): everything but the
+// encoded bytes (jobs write those to files), and the whole frame.
+struct EncodedFrame;
+void FrameMetaToProto(const EncodedFrame& frame, v1::Frame* out);
+void ToProto(const EncodedFrame& frame, v1::Frame* out);
+
+// The wire's SceneInfo of a scene in the store (scene_store.h).
+struct SceneListing;
+void ToProto(const SceneListing& scene, v1::SceneInfo* out);
+
 }  // namespace tessera::server

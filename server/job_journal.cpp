@@ -19,7 +19,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "server/upload.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {

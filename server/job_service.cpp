@@ -5,15 +5,13 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "server/job_journal.h"
-#include "server/job_spec.h"
+#include "common/job_spec.h"
 #include "server/jobs.h"
 #include "server/service.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {
-
-absl::Status Unavailable() { return absl::UnavailableError("server is shutting down"); }
 
 // At most this many progress messages wait for a slow watcher; past it the oldest frame event
 // goes (the job snapshot in every message keeps the counts exact; state changes always go).

@@ -12,10 +12,11 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "renderer/scene/gltf_import.h"
+#include "renderer/status_macros.h"
 #include "server/auth.h"
 #include "server/convert.h"
-#include "server/job_spec.h"
-#include "tessera/scene_id.h"
+#include "common/job_spec.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {
@@ -77,10 +78,9 @@ namespace {
 // The concrete camera of `frame` in a scene, for frames of the given settings.
 absl::StatusOr<Camera> JobCamera(const v1::JobSpec& spec, uint32_t frame, const SceneInfo& scene,
                                  const Settings& settings) {
-  absl::StatusOr<v1::Camera> wire = jobs::CameraAtFrame(spec, frame);
-  if (!wire.ok()) return wire.status();
+  ASSIGN_OR_RETURN(v1::Camera wire, jobs::CameraAtFrame(spec, frame));
   absl::StatusOr<Camera> camera =
-      ResolveCamera(*wire, scene, float(settings.width) / float(settings.height));
+      ResolveCamera(wire, scene, float(settings.width) / float(settings.height));
   if (!camera.ok())
     return Prefixed(camera.status(), absl::StrCat("spec: the camera of frame ", frame, ": "));
   return camera;
@@ -93,12 +93,10 @@ absl::StatusOr<RenderWork> JobFrameWork(const v1::JobSpec& spec, uint32_t frame,
                                         uint64_t view) {
   absl::StatusOr<Settings> settings = MergeSettings(defaults, spec.settings());
   if (!settings.ok()) return Prefixed(settings.status(), "spec.");
-  absl::StatusOr<Camera> camera = JobCamera(spec, frame, scene.scene->info(), *settings);
-  if (!camera.ok()) return camera.status();
   RenderWork w;
+  ASSIGN_OR_RETURN(w.camera, JobCamera(spec, frame, scene.scene->info(), *settings));
   w.scene = scene.scene;
   w.scene_id = scene.id;
-  w.camera = *camera;
   w.settings = *settings;
   w.format = spec.encoding() == v1::IMAGE_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;
   w.view = view;
@@ -262,7 +260,7 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     return std::move(*work);
   }
 
-  void Deliver(const RenderWork& work, absl::StatusOr<v1::Frame> frame) override {
+  void Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) override {
     if (work.sequence == 0) {  // dropped from the queue (shutdown) before a turn
       std::lock_guard lock(mu_);
       queued_ = false;
@@ -289,7 +287,8 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
 
     // The file first, then the journal line: a crash in between redoes the frame, never
     // trusts a file that is not whole.
-    const std::string& data = frame->data();
+    const std::string_view data(reinterpret_cast<const char*>(frame->data.data()),
+                                frame->data.size());
     const std::string sha = Sha256Hex(data.data(), data.size());
     const std::string path = FramePath(number);
     absl::Status written = WriteFileAtomic(path, data);
@@ -320,9 +319,11 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     e->set_sha256(sha);
     if (spec.output() == v1::JOB_OUTPUT_SERVER_DIR)
       e->set_path(JoinPath(spec.output_dir(), jobs::FrameFileName(spec, number)));
-    *e->mutable_passes() = frame->passes();
-    e->set_gpu_total_ms(frame->gpu_total_ms());
-    *e->mutable_cpu() = frame->cpu();
+    v1::Frame meta;  // the timings as a Frame has them
+    FrameMetaToProto(*frame, &meta);
+    *e->mutable_passes() = std::move(*meta.mutable_passes());
+    e->set_gpu_total_ms(meta.gpu_total_ms());
+    *e->mutable_cpu() = meta.cpu();
     if (done_.size() == frames_.size() && in_flight_ == 0) {
       EndLocked(lock, v1::JOB_SUCCEEDED, "", &event);
       return;
@@ -429,26 +430,22 @@ absl::StatusOr<std::shared_ptr<StoredScene>> LoadIntoStore(Renderer* renderer, S
                                                            const GltfSource& source,
                                                            const SceneLimits& limits) {
   const Clock::time_point t0 = Clock::now();
-  absl::StatusOr<CpuScene> cpu = ImportGltf(source, limits.import);
-  if (!cpu.ok()) return cpu.status();
+  ASSIGN_OR_RETURN(CpuScene cpu, ImportGltf(source, limits.import));
   if (limits.max_device_bytes != 0) {
-    const uint64_t bytes = renderer->EstimateDeviceBytes(*cpu);
+    const uint64_t bytes = renderer->EstimateDeviceBytes(cpu);
     if (bytes > limits.max_device_bytes)
       return absl::ResourceExhaustedError(absl::StrCat(
           source.main_file, ": the scene needs ", bytes,
           " bytes of device memory, over the max_scene_device_bytes limit (",
           limits.max_device_bytes, ")"));
   }
-  absl::StatusOr<SceneHandle> gpu = renderer->LoadScene(*cpu);
-  if (!gpu.ok()) return gpu.status();
-  v1::SceneInfo info;
-  ToProto((*gpu)->info(), &info);
-  info.set_name(source.main_file);
-  uint64_t bytes = 0;
-  for (const auto& [name, data] : source.files) bytes += data.size();
-  info.set_upload_bytes(bytes);
-  info.set_load_ms(MsBetween(t0, Clock::now()));
-  return store->Add(scene_id, *std::move(gpu), std::move(info));
+  ASSIGN_OR_RETURN(SceneHandle gpu, renderer->LoadScene(cpu));
+  StoredSceneInfo info;
+  info.scene = gpu->info();
+  info.scene.name = source.main_file;
+  for (const auto& [name, data] : source.files) info.upload_bytes += data.size();
+  info.load_ms = MsBetween(t0, Clock::now());
+  return store->Add(scene_id, std::move(gpu), std::move(info));
 }
 
 JobManager::JobManager(const JobManagerOptions& options, std::unique_ptr<JobJournal> journal,

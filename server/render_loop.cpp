@@ -5,7 +5,7 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/image_resize.h"
 #include "renderer/log.h"
-#include "server/convert.h"
+#include "renderer/status_macros.h"
 #include "server/metrics.h"
 
 namespace tessera::server {
@@ -13,6 +13,34 @@ namespace {
 
 double MsBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+// Upscales an interactive frame to the work's output size and encodes it; `frame` is consumed.
+absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double queue_wait_ms) {
+  EncodedFrame out;
+  out.render_width = frame.image.width;
+  out.render_height = frame.image.height;
+  double upscale_ms = 0.0;
+  if (work.output_width != 0 && work.output_height != 0 &&
+      (work.output_width != out.render_width || work.output_height != out.render_height)) {
+    const Clock::time_point t0 = Clock::now();
+    ASSIGN_OR_RETURN(frame.image, ResizeBicubic(frame.image, work.output_width,
+                                                work.output_height));
+    upscale_ms = MsBetween(t0, Clock::now());
+  }
+  ASSIGN_OR_RETURN(out.data, EncodeFrame(frame, work.format));
+  frame.cpu.encode_ms += upscale_ms;  // the upscale is part of encoding
+  frame.image.pixels = {};            // the bytes are what goes on
+  out.frame = std::move(frame);
+  out.format = work.format;
+  out.camera = work.camera;
+  out.sequence = work.sequence;
+  out.event_id = work.event_id;
+  out.scene_id = work.scene_id;
+  out.profile = work.profile;
+  out.queue_wait_ms = queue_wait_ms;
+  out.total_ms = MsBetween(work.requested, Clock::now());
+  return out;
 }
 
 }  // namespace
@@ -265,61 +293,21 @@ void RenderLoop::Accumulate(Accumulation acc, bool background) {
 
 void RenderLoop::EncodeAndDeliver(const std::shared_ptr<RenderClient>& client,
                                   const RenderWork& work, Frame& frame, double queue_wait_ms) {
-  auto done = [this] {
-    {
-      std::lock_guard lock(mu_);
-      --frames_in_flight_;
-    }
-    encoded_cv_.notify_one();
-  };
-  const uint32_t render_width = frame.image.width;
-  const uint32_t render_height = frame.image.height;
-  double upscale_ms = 0.0;
-  if (work.output_width != 0 && work.output_height != 0 &&
-      (work.output_width != render_width || work.output_height != render_height)) {
-    const Clock::time_point t0 = Clock::now();
-    absl::StatusOr<RgbaImage> upscaled =
-        ResizeBicubic(frame.image, work.output_width, work.output_height);
-    if (!upscaled.ok()) {
-      done();
-      client->Deliver(work, upscaled.status());
-      return;
-    }
-    frame.image = *std::move(upscaled);
-    upscale_ms = MsBetween(t0, Clock::now());
-  }
-  absl::StatusOr<std::vector<uint8_t>> bytes = EncodeFrame(frame, work.format);
-  if (!bytes.ok()) {
-    done();
-    client->Deliver(work, bytes.status());
-    return;
-  }
-  v1::Frame out;
-  FrameToProto(frame, &out);
-  CameraToProto(work.camera, &out);
-  out.set_width(frame.image.width);
-  out.set_height(frame.image.height);
-  out.set_render_width(render_width);
-  out.set_render_height(render_height);
-  out.set_sequence(work.sequence);
-  out.set_event_id(work.event_id);
-  out.set_scene_id(work.scene_id);
-  out.set_profile(work.profile);
-  out.set_encoding(work.format == ImageFormat::kPng ? v1::IMAGE_PNG : v1::IMAGE_JPEG);
-  out.set_data(bytes->data(), bytes->size());
-  v1::CpuTimings* cpu = out.mutable_cpu();
-  cpu->set_queue_wait_ms(queue_wait_ms);
-  cpu->set_encode_ms(cpu->encode_ms() + upscale_ms);  // the upscale is part of encoding
-  cpu->set_total_ms(MsBetween(work.requested, Clock::now()));
-  if (options_.metrics) {
+  absl::StatusOr<EncodedFrame> encoded = Encode(work, frame, queue_wait_ms);
+  if (encoded.ok() && options_.metrics) {
     std::vector<std::pair<std::string, double>> passes;
-    passes.reserve(frame.passes.size());
-    for (const PassTiming& p : frame.passes) passes.emplace_back(p.pass, p.gpu_ms);
+    passes.reserve(encoded->frame.passes.size());
+    for (const PassTiming& p : encoded->frame.passes) passes.emplace_back(p.pass, p.gpu_ms);
     options_.metrics->FrameDone(work.kind, work.profile[0] ? work.profile : "full", passes,
-                                frame.gpu_total_ms, cpu->encode_ms(), cpu->total_ms());
+                                encoded->frame.gpu_total_ms, encoded->frame.cpu.encode_ms,
+                                encoded->total_ms);
   }
-  done();
-  client->Deliver(work, std::move(out));
+  {
+    std::lock_guard lock(mu_);
+    --frames_in_flight_;
+  }
+  encoded_cv_.notify_one();
+  client->Deliver(work, std::move(encoded));
 }
 
 }  // namespace tessera::server

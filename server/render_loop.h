@@ -29,7 +29,6 @@
 
 #include "absl/status/statusor.h"
 #include "renderer/renderer.h"
-#include "tessera/v1/frame.pb.h"
 
 namespace tessera::server {
 
@@ -80,6 +79,26 @@ struct RenderWork {
   uint32_t accumulate = 1;
 };
 
+// A rendered frame as the loop delivers it: the renderer's frame and its encoded bytes, with
+// what the work asked for. Clients convert it for the wire themselves (ToProto in convert.h).
+struct EncodedFrame {
+  // The renderer's frame: timings (encode_ms includes an interactive frame's upscale), stats,
+  // effective settings. Its pixels are released once encoded; image.width/height stay: the
+  // encoded size.
+  Frame frame;
+  std::vector<uint8_t> data;  // the encoded image
+  ImageFormat format = ImageFormat::kJpeg;
+  uint32_t render_width = 0;  // the rendered size (smaller than the image when upscaled)
+  uint32_t render_height = 0;
+  Camera camera;
+  uint64_t sequence = 0;
+  uint64_t event_id = 0;
+  std::string scene_id;
+  const char* profile = "";
+  double queue_wait_ms = 0.0;  // from RenderWork::requested to the render's start
+  double total_ms = 0.0;       // from RenderWork::requested to the encoded frame
+};
+
 enum class Priority { kNormal, kBackground };
 
 struct RenderLoopOptions {
@@ -100,9 +119,9 @@ class RenderClient {
   virtual ~RenderClient() = default;
   // Render thread. What to render now, or nullopt if nothing (any more). Called once per turn.
   virtual std::optional<RenderWork> TakeWork() = 0;
-  // Encoder thread (or render thread for errors and shutdown). The finished frame: every field
-  // set except data when it failed.
-  virtual void Deliver(const RenderWork& work, absl::StatusOr<v1::Frame> frame) = 0;
+  // Encoder thread (or render thread for errors and shutdown). The finished frame, or why
+  // there is none (UNAVAILABLE when the loop stops).
+  virtual void Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) = 0;
 };
 
 class RenderLoop {

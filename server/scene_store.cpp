@@ -4,6 +4,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "renderer/status_macros.h"
 
 namespace tessera::server {
 namespace {
@@ -20,12 +21,11 @@ bool Evictable(const std::shared_ptr<StoredScene>& s) {
 
 }  // namespace
 
-void SceneStore::AddDemo(SceneHandle scene, v1::SceneInfo info) {
+void SceneStore::AddDemo(SceneHandle scene, StoredSceneInfo info) {
   auto s = std::make_shared<StoredScene>();
-  s->device_bytes = info.device_bytes();
+  s->device_bytes = info.scene.device_bytes;
   s->id = kDemoSceneId;
   s->scene = std::move(scene);
-  info.set_scene_id(kDemoSceneId);
   s->info = std::move(info);
   std::lock_guard lock(mu_);
   demo_ = std::move(s);
@@ -73,13 +73,13 @@ absl::Status SceneStore::CheckRoom() const {
 
 absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Add(const std::string& id,
                                                              SceneHandle scene,
-                                                             v1::SceneInfo info) {
+                                                             StoredSceneInfo info) {
   std::lock_guard lock(mu_);
   if (auto it = scenes_.find(id); it != scenes_.end()) {
     Touch(*it->second);
     return it->second;  // same content
   }
-  const uint64_t bytes = info.device_bytes();
+  const uint64_t bytes = info.scene.device_bytes;
   if (memory_budget_ != 0 && bytes > memory_budget_)
     return absl::ResourceExhaustedError(absl::StrCat(
         "scene_memory_budget: the scene needs ", bytes, " bytes of device memory, more than the "
@@ -100,7 +100,6 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Add(const std::string& 
   Touch(*s);
   s->id = id;
   s->scene = std::move(scene);
-  info.set_scene_id(id);
   s->info = std::move(info);
   scenes_.emplace(id, s);
   order_.push_back(id);
@@ -137,18 +136,14 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Find(const std::string&
                                           "\" (ListScenes shows what is loaded)"));
 }
 
-void SceneStore::FillLiveFields(const StoredScene& s, v1::SceneInfo* out) {
-  out->set_sessions(s.sessions.load());
-  out->set_deleted(s.deleted.load());
+SceneListing SceneStore::Describe(const StoredScene& s) {
+  return SceneListing{s.id, s.info, s.sessions.load(), s.deleted.load()};
 }
 
-std::vector<v1::SceneInfo> SceneStore::List() const {
+std::vector<SceneListing> SceneStore::List() const {
   std::lock_guard lock(mu_);
-  std::vector<v1::SceneInfo> out;
-  auto add = [&out](const StoredScene& s) {
-    out.push_back(s.info);
-    FillLiveFields(s, &out.back());
-  };
+  std::vector<SceneListing> out;
+  auto add = [&out](const StoredScene& s) { out.push_back(Describe(s)); };
   if (demo_) add(*demo_);
   for (const std::string& id : order_) add(*scenes_.at(id));
   for (const auto& w : deleted_)
@@ -157,9 +152,7 @@ std::vector<v1::SceneInfo> SceneStore::List() const {
 }
 
 absl::StatusOr<uint32_t> SceneStore::Delete(const std::string& id) {
-  absl::StatusOr<std::shared_ptr<StoredScene>> found = Find(id);
-  if (!found.ok()) return found.status();
-  std::shared_ptr<StoredScene> s = *std::move(found);
+  ASSIGN_OR_RETURN(std::shared_ptr<StoredScene> s, Find(id));
   if (s->id == kDemoSceneId)
     return absl::FailedPreconditionError("scene_id: the built-in \"demo\" scene cannot be deleted");
   std::lock_guard lock(mu_);

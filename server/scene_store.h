@@ -19,20 +19,34 @@
 
 #include "absl/status/statusor.h"
 #include "renderer/renderer.h"
-#include "tessera/v1/scene.pb.h"
 
 namespace tessera::server {
 
 inline constexpr char kDemoSceneId[] = "demo";
 
+// What the store keeps of a scene beside its handle; handlers make the wire's SceneInfo of it.
+struct StoredSceneInfo {
+  SceneInfo scene;            // the renderer's; its name is the main file's (or "demo")
+  uint64_t upload_bytes = 0;  // bytes of the uploaded files
+  double load_ms = 0.0;       // import + device upload time when it was loaded
+};
+
 struct StoredScene {
   std::string id;
   SceneHandle scene;
-  v1::SceneInfo info;  // sessions/deleted are filled in when listed
+  StoredSceneInfo info;
   std::atomic<uint32_t> sessions{0};
   std::atomic<bool> deleted{false};
   mutable std::atomic<int64_t> last_used{0};  // steady-clock ticks of the last Find
   uint64_t device_bytes = 0;
+};
+
+// A scene as listed: what the store keeps of it, and its users at that moment.
+struct SceneListing {
+  std::string id;
+  StoredSceneInfo info;
+  uint32_t sessions = 0;  // streaming sessions using it
+  bool deleted = false;   // deleted, kept until the sessions using it end
 };
 
 // Held by a streaming session: counts it as a user of the scene for as long as it lives.
@@ -61,7 +75,7 @@ class SceneStore {
   void set_eviction_listener(std::function<void(const StoredScene&)> f) { on_evict_ = std::move(f); }
 
   // The built-in scene (not counted against max_scenes, cannot be deleted).
-  void AddDemo(SceneHandle scene, v1::SceneInfo info);
+  void AddDemo(SceneHandle scene, StoredSceneInfo info);
 
   // OK when another uploaded scene fits, counting scenes that could be evicted as room:
   // RESOURCE_EXHAUSTED naming max_scenes otherwise. Checked before an upload is parsed; Add
@@ -71,14 +85,14 @@ class SceneStore {
   // Inserts a scene, evicting unused ones if needed, or returns the one already stored under
   // `id` (same content). RESOURCE_EXHAUSTED naming the limit when it cannot make room.
   absl::StatusOr<std::shared_ptr<StoredScene>> Add(const std::string& id, SceneHandle scene,
-                                                   v1::SceneInfo info);
+                                                   StoredSceneInfo info);
 
   // By full id or a unique prefix of at least 8 characters. NOT_FOUND naming the id.
   absl::StatusOr<std::shared_ptr<StoredScene>> Find(const std::string& id_or_prefix) const;
   std::shared_ptr<StoredScene> FindExact(const std::string& id) const;
 
-  // Demo first, then in load order; sessions and deleted filled in.
-  std::vector<v1::SceneInfo> List() const;
+  // Demo first, then in load order, then deleted scenes still in use.
+  std::vector<SceneListing> List() const;
 
   // Returns how many sessions still use it. NOT_FOUND, or FAILED_PRECONDITION for the demo.
   absl::StatusOr<uint32_t> Delete(const std::string& id_or_prefix);
@@ -90,7 +104,8 @@ class SceneStore {
   uint64_t memory_budget() const { return memory_budget_; }
   uint64_t evictions() const { return evictions_; }
 
-  static void FillLiveFields(const StoredScene& s, v1::SceneInfo* out);
+  // `s` as listed now (its sessions and whether it is deleted).
+  static SceneListing Describe(const StoredScene& s);
 
  private:
   size_t UploadedLocked() const;  // indexed + deleted-but-in-use uploaded scenes

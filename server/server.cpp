@@ -19,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
 #include "renderer/scene/demo_scene.h"
+#include "renderer/status_macros.h"
 #include "server/auth.h"
 #include "server/convert.h"
 #include "server/job_journal.h"
@@ -48,18 +49,14 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> Credentials(const Serve
       return absl::InvalidArgumentError("tls_client_ca: needs tls_cert and tls_key");
     return grpc::InsecureServerCredentials();
   }
-  absl::StatusOr<std::string> cert = ReadPem(o.tls_cert_file, "tls_cert");
-  if (!cert.ok()) return cert.status();
-  absl::StatusOr<std::string> key = ReadPem(o.tls_key_file, "tls_key");
-  if (!key.ok()) return key.status();
+  ASSIGN_OR_RETURN(std::string cert, ReadPem(o.tls_cert_file, "tls_cert"));
+  ASSIGN_OR_RETURN(std::string key, ReadPem(o.tls_key_file, "tls_key"));
   grpc::SslServerCredentialsOptions ssl(GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE);
   if (!o.tls_client_ca_file.empty()) {
-    absl::StatusOr<std::string> ca = ReadPem(o.tls_client_ca_file, "tls_client_ca");
-    if (!ca.ok()) return ca.status();
-    ssl.pem_root_certs = *ca;
+    ASSIGN_OR_RETURN(ssl.pem_root_certs, ReadPem(o.tls_client_ca_file, "tls_client_ca"));
     ssl.client_certificate_request = GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY;
   }
-  ssl.pem_key_cert_pairs.push_back({*key, *cert});
+  ssl.pem_key_cert_pairs.push_back({key, cert});
   return grpc::SslServerCredentials(ssl);
 }
 
@@ -95,6 +92,15 @@ struct Server::Impl {
   std::condition_variable sweeper_cv;
   bool sweeper_stop = false;
 
+  // The steps of Server::Start, in its order.
+  absl::Status OpenAuth();
+  absl::Status LoadDemo();
+  void StartMetricsAndLoop();
+  absl::Status StartJobs();
+  void StartService();  // the handlers' ServiceState, and the jobs restored from the journal
+  absl::Status Listen(const std::shared_ptr<grpc::ServerCredentials>& credentials);
+  void StartSweeper();
+
   void StopSweeper() {
     {
       std::lock_guard lock(sweeper_mu);
@@ -118,7 +124,10 @@ struct Server::Impl {
   }
 };
 
-absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
+namespace {
+
+// The limits that have no meaningful value outside their range (INVALID_ARGUMENT naming them).
+absl::Status CheckOptions(const ServerOptions& options) {
   if (options.max_chunk_bytes == 0 || options.max_chunk_bytes > (64u << 20))
     return absl::InvalidArgumentError("max_chunk_bytes: must be 1..67108864");
   if (options.max_upload_files == 0 || options.max_sessions == 0 ||
@@ -135,43 +144,38 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     return absl::InvalidArgumentError("max_jobs, max_job_frames: must be > 0");
   if (!(options.background_share > 0.0 && options.background_share <= 1.0))
     return absl::InvalidArgumentError("background_share: must be in (0, 1]");
-  auto impl = std::make_unique<Impl>();
-  impl->options = options;
-  absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> credentials = Credentials(options);
-  if (!credentials.ok()) return credentials.status();
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::Status Server::Impl::OpenAuth() {
   if (options.token_file.empty()) {
-    impl->auth = std::make_unique<Authenticator>();
-  } else {
-    absl::StatusOr<std::unique_ptr<Authenticator>> auth =
-        Authenticator::FromFile(options.token_file);
-    if (!auth.ok()) return auth.status();
-    impl->auth = *std::move(auth);
-    if (options.tls_cert_file.empty() && !IsLoopback(options.listen))
-      Log().warn("bearer tokens without TLS on {}: tokens cross the network in clear text",
-                 options.listen);
+    auth = std::make_unique<Authenticator>();
+    return absl::OkStatus();
   }
-  absl::StatusOr<std::unique_ptr<Renderer>> renderer =
-      Renderer::Create(RendererOptions{options.device, options.validation});
-  if (!renderer.ok()) return renderer.status();
-  impl->renderer = *std::move(renderer);
+  ASSIGN_OR_RETURN(auth, Authenticator::FromFile(options.token_file));
+  if (options.tls_cert_file.empty() && !IsLoopback(options.listen))
+    Log().warn("bearer tokens without TLS on {}: tokens cross the network in clear text",
+               options.listen);
+  return absl::OkStatus();
+}
 
-  impl->store =
-      std::make_unique<SceneStore>(options.max_scenes, options.scene_memory_budget_bytes);
-  if (options.load_demo_scene) {
-    const auto t0 = std::chrono::steady_clock::now();
-    absl::StatusOr<SceneHandle> demo = impl->renderer->LoadScene(BuildDemoScene());
-    if (!demo.ok()) return demo.status();
-    v1::SceneInfo info;
-    ToProto((*demo)->info(), &info);
-    info.set_load_ms(
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-    info.set_name("demo");
-    impl->store->AddDemo(*std::move(demo), std::move(info));
-  }
-  impl->loader = std::make_unique<ThreadPool>("load", std::max(1u, options.loader_threads));
+absl::Status Server::Impl::LoadDemo() {
+  const auto t0 = std::chrono::steady_clock::now();
+  ASSIGN_OR_RETURN(SceneHandle demo, renderer->LoadScene(BuildDemoScene()));
+  StoredSceneInfo info;
+  info.scene = demo->info();
+  info.scene.name = "demo";
+  info.load_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  store->AddDemo(std::move(demo), std::move(info));
+  return absl::OkStatus();
+}
 
-  Impl* raw = impl.get();
-  impl->metrics = std::make_unique<Metrics>([raw] {
+void Server::Impl::StartMetricsAndLoop() {
+  Impl* raw = this;
+  metrics = std::make_unique<Metrics>([raw] {
     MetricsGauges g;
     g.sessions = raw->state.session_count();
     g.parked_sessions = raw->state.parked_count();
@@ -185,7 +189,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
     g.jobs_active = raw->jobs ? raw->jobs->active() : 0;
     return g;
   });
-  impl->store->set_eviction_listener([raw](const StoredScene& s) {
+  store->set_eviction_listener([raw](const StoredScene& s) {
     Log().info("scene {} evicted (unused; {} bytes of device memory)", s.id, s.device_bytes);
     raw->metrics->SceneEvicted();
   });
@@ -193,10 +197,12 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   loop_options.encoder_threads = options.encoder_threads;
   loop_options.max_frames_in_flight = options.max_frames_in_flight;
   loop_options.pipelined = options.pipelined;
-  loop_options.metrics = impl->metrics.get();
+  loop_options.metrics = metrics.get();
   loop_options.background_share = options.background_share;
-  impl->loop = std::make_unique<RenderLoop>(impl->renderer.get(), loop_options);
+  loop = std::make_unique<RenderLoop>(renderer.get(), loop_options);
+}
 
+absl::Status Server::Impl::StartJobs() {
   std::string state_dir = options.state_dir;
   if (state_dir.empty()) {
     const char* tmp = std::getenv("TMPDIR");
@@ -205,7 +211,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
       return absl::FailedPreconditionError(
           absl::StrCat("jobs: cannot make a temporary directory ", templ, ": ",
                        std::strerror(errno), " (or give --state_dir)"));
-    impl->temp_state_dir = state_dir = templ;
+    temp_state_dir = state_dir = templ;
   }
   absl::StatusOr<std::unique_ptr<JobJournal>> journal = JobJournal::Open(state_dir);
   if (!journal.ok()) return absl::Status(journal.status().code(),
@@ -223,59 +229,82 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   job_options.persistent = !options.state_dir.empty();
   job_options.max_scene_bytes = options.max_upload_bytes;
   job_options.scene_limits = {options.import_limits, options.max_scene_device_bytes};
-  impl->jobs = std::make_unique<JobManager>(job_options, *std::move(journal),
-                                            impl->renderer.get(), impl->store.get(),
-                                            impl->loop.get(), impl->loader.get(),
-                                            impl->state.default_settings);
+  jobs = std::make_unique<JobManager>(job_options, *std::move(journal), renderer.get(),
+                                      store.get(), loop.get(), loader.get(),
+                                      state.default_settings);
+  return absl::OkStatus();
+}
 
-  ServiceState& st = impl->state;
-  st.options = options;
-  st.renderer = impl->renderer.get();
-  st.store = impl->store.get();
-  st.loop = impl->loop.get();
-  st.loader = impl->loader.get();
-  st.auth = impl->auth.get();
-  st.metrics = impl->metrics.get();
-  st.jobs = impl->jobs.get();
-  impl->service = std::make_unique<RenderServiceImpl>(&st);
-  {
-    std::vector<std::string> lines;
-    impl->jobs->Restore(&lines);
-    for (const std::string& line : lines) Log().info("{}", line);
-  }
+void Server::Impl::StartService() {
+  state.options = options;
+  state.renderer = renderer.get();
+  state.store = store.get();
+  state.loop = loop.get();
+  state.loader = loader.get();
+  state.auth = auth.get();
+  state.metrics = metrics.get();
+  state.jobs = jobs.get();
+  service = std::make_unique<RenderServiceImpl>(&state);
+  std::vector<std::string> lines;
+  jobs->Restore(&lines);
+  for (const std::string& line : lines) Log().info("{}", line);
+}
 
+absl::Status Server::Impl::Listen(const std::shared_ptr<grpc::ServerCredentials>& credentials) {
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   grpc::ServerBuilder builder;
-  builder.AddListeningPort(options.listen, *credentials, &impl->port);
-  builder.RegisterService(impl->service.get());
+  builder.AddListeningPort(options.listen, credentials, &port);
+  builder.RegisterService(service.get());
   // A chunk plus the message framing, or a job spec with an explicit camera per frame (about
   // 60 bytes each); anything larger is refused by gRPC itself.
   builder.SetMaxReceiveMessageSize(
       std::max(static_cast<int>(options.max_chunk_bytes) + (64 << 10), 16 << 20));
   builder.SetMaxSendMessageSize(256 << 20);  // a 16384^2 PNG frame
-  impl->grpc_server = builder.BuildAndStart();
-  if (!impl->grpc_server || impl->port == 0)
+  grpc_server = builder.BuildAndStart();
+  if (!grpc_server || port == 0)
     return absl::UnavailableError(absl::StrCat("listen: cannot listen on \"", options.listen,
                                                "\" (in use or not an address)"));
-  impl->host = options.listen.substr(0, options.listen.rfind(':'));
-  if (impl->host.empty() || impl->host == "0.0.0.0" || impl->host == "[::]")
-    impl->host = "127.0.0.1";
+  host = options.listen.substr(0, options.listen.rfind(':'));
+  if (host.empty() || host == "0.0.0.0" || host == "[::]") host = "127.0.0.1";
   if (!options.metrics_listen.empty()) {
-    absl::StatusOr<int> port = impl->metrics->Serve(options.metrics_listen);
-    if (!port.ok()) {
-      impl->grpc_server->Shutdown();
-      return port.status();
+    absl::StatusOr<int> serving = metrics->Serve(options.metrics_listen);
+    if (!serving.ok()) {
+      grpc_server->Shutdown();
+      return serving.status();
     }
-    impl->metrics_port = *port;
-    Log().info("metrics: http://{}:{}/metrics", impl->host, *port);
+    metrics_port = *serving;
+    Log().info("metrics: http://{}:{}/metrics", host, metrics_port);
   }
-  impl->sweeper = std::thread([raw] {
-    std::unique_lock lock(raw->sweeper_mu);
-    while (!raw->sweeper_cv.wait_for(lock, std::chrono::milliseconds(250),
-                                     [raw] { return raw->sweeper_stop; }))
-      raw->state.SweepParked();
+  return absl::OkStatus();
+}
+
+void Server::Impl::StartSweeper() {
+  sweeper = std::thread([this] {
+    std::unique_lock lock(sweeper_mu);
+    while (!sweeper_cv.wait_for(lock, std::chrono::milliseconds(250),
+                                [this] { return sweeper_stop; }))
+      state.SweepParked();
   });
+}
+
+absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
+  RETURN_IF_ERROR(CheckOptions(options));
+  auto impl = std::make_unique<Impl>();
+  impl->options = options;
+  ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials, Credentials(options));
+  RETURN_IF_ERROR(impl->OpenAuth());
+  ASSIGN_OR_RETURN(impl->renderer,
+                   Renderer::Create(RendererOptions{options.device, options.validation}));
+  impl->store =
+      std::make_unique<SceneStore>(options.max_scenes, options.scene_memory_budget_bytes);
+  if (options.load_demo_scene) RETURN_IF_ERROR(impl->LoadDemo());
+  impl->loader = std::make_unique<ThreadPool>("load", std::max(1u, options.loader_threads));
+  impl->StartMetricsAndLoop();
+  RETURN_IF_ERROR(impl->StartJobs());
+  impl->StartService();
+  RETURN_IF_ERROR(impl->Listen(credentials));
+  impl->StartSweeper();
   Log().info("tesserad {} listening on {}:{}{}{}", TESSERA_VERSION, impl->host, impl->port,
              options.tls_cert_file.empty() ? "" : " (TLS)",
              impl->auth->enabled() ? absl::StrCat(", ", impl->auth->token_count(), " tokens")

@@ -141,6 +141,13 @@ class RenderServiceImpl final : public v1::RenderService::CallbackService {
 
 inline constexpr uint32_t kMaxQueuedRenders = 64;  // unary renders waiting for the render thread
 
+// Milliseconds from `t` to now.
+double MsSince(Clock::time_point t);
+// The aspect ratio of frames of these settings (width / height).
+float Aspect(const Settings& s);
+// UNAVAILABLE: what every call gets once the server is shutting down.
+absl::Status Unavailable();
+
 // absl::Status -> grpc::Status (same codes, same message).
 grpc::Status ToGrpc(const absl::Status& status);
 

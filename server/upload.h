@@ -9,7 +9,7 @@
 
 #include "absl/status/statusor.h"
 #include "renderer/scene/gltf_import.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 #include "tessera/v1/scene.pb.h"
 
 namespace tessera::server {

@@ -21,7 +21,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
 #include "google/protobuf/descriptor.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::cli {
 

@@ -36,8 +36,8 @@
 #include "clients/cli/cli_progress.h"
 #include "clients/cli/cli_render_flags.h"
 #include "clients/cli/cli_stream_parts.h"
-#include "server/job_spec.h"
-#include "tessera/scene_id.h"
+#include "common/job_spec.h"
+#include "common/scene_id.h"
 
 namespace tessera::cli {
 namespace {

@@ -14,7 +14,7 @@
 #include "clients/cli/cli_format.h"
 #include "clients/cli/cli_progress.h"
 #include "renderer/scene/gltf_import.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::cli {
 namespace {

@@ -20,7 +20,7 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/camera.h"
 #include "renderer/scene/gltf_import.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 
 namespace tessera::bench {

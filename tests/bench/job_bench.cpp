@@ -79,7 +79,7 @@
 #include "bench_util.h"
 #include "process_util.h"
 #include "renderer/scene/gltf_import.h"
-#include "server/job_spec.h"
+#include "common/job_spec.h"
 #include "server/server.h"
 #include "tessera/v1/job.pb.h"
 #include "tessera/v1/render_service.grpc.pb.h"

@@ -79,7 +79,7 @@
 #include "bench_util.h"
 #include "process_util.h"
 #include "renderer/scene/gltf_import.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 
 namespace {

@@ -17,7 +17,7 @@
 #include "google/protobuf/io/coded_stream.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/convert.h"
-#include "server/job_spec.h"
+#include "common/job_spec.h"
 #include "server/upload.h"
 #include "tests/fuzz/file_set.h"
 #include "tessera/v1/job.pb.h"

@@ -18,7 +18,7 @@
 
 #include "renderer/scene/gltf_import.h"
 #include "server/server.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 
 // Expects `status` to have the grpc::StatusCode `code` and a message that names `text`.

@@ -19,7 +19,7 @@
 
 #include "renderer/image_io.h"
 #include "server/server.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 #include "tests/integration/client_helpers.h"
 

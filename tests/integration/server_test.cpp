@@ -22,7 +22,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "renderer/image_io.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 #include "tests/integration/client_helpers.h"
 

@@ -2,7 +2,7 @@
 // UINT32_MAX), submit-time validation (every error names the field a person has to fix),
 // keyframe interpolation (linear, step, Catmull-Rom through the keys, holding outside them,
 // never a degenerate camera), camera lists and output file names.
-#include "server/job_spec.h"
+#include "common/job_spec.h"
 
 #include <gtest/gtest.h>
 

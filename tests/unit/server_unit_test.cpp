@@ -30,9 +30,10 @@
 #include "google/protobuf/descriptor.h"
 #include "google/protobuf/message.h"
 #include "server/convert.h"
+#include "server/render_loop.h"
 #include "server/scene_store.h"
 #include "server/upload.h"
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 namespace tessera::server {
 namespace {
@@ -973,9 +974,9 @@ std::string IdOf(const std::string& prefix, char fill) {
   return prefix + std::string(64 - prefix.size(), fill);
 }
 
-v1::SceneInfo Info(const std::string& name) {
-  v1::SceneInfo info;
-  info.set_name(name);
+StoredSceneInfo Info(const std::string& name) {
+  StoredSceneInfo info;
+  info.scene.name = name;
   return info;
 }
 
@@ -988,8 +989,8 @@ TEST(SceneStoreTest, FindByIdAndUniquePrefix) {
   absl::StatusOr<std::shared_ptr<StoredScene>> added = store.Add(a, nullptr, Info("a.gltf"));
   ASSERT_TRUE(added.ok()) << added.status();
   EXPECT_EQ((*added)->id, a);
-  EXPECT_EQ((*added)->info.scene_id(), a);
-  EXPECT_EQ((*added)->info.name(), "a.gltf");
+  EXPECT_EQ((*added)->id, a);
+  EXPECT_EQ((*added)->info.scene.name, "a.gltf");
   ASSERT_TRUE(store.Add(b, nullptr, Info("b.gltf")).ok());
   ASSERT_TRUE(store.Add(c, nullptr, Info("c.gltf")).ok());
 
@@ -1005,7 +1006,7 @@ TEST(SceneStoreTest, FindByIdAndUniquePrefix) {
   found = store.Find("demo");
   ASSERT_TRUE(found.ok()) << found.status();
   EXPECT_EQ((*found)->id, "demo");
-  EXPECT_EQ((*found)->info.scene_id(), "demo");
+  EXPECT_EQ((*found)->id, "demo");
   EXPECT_EQ(store.FindExact(c)->id, c);
   EXPECT_EQ(store.FindExact("12345678"), nullptr);  // exact means exact
 }
@@ -1037,7 +1038,7 @@ TEST(SceneStoreTest, AddingTheSameIdReturnsTheStoredEntry) {
   absl::StatusOr<std::shared_ptr<StoredScene>> second = store.Add(id, nullptr, Info("second"));
   ASSERT_TRUE(second.ok()) << second.status();
   EXPECT_EQ(*second, *first);
-  EXPECT_EQ((*second)->info.name(), "first");
+  EXPECT_EQ((*second)->info.scene.name, "first");
   EXPECT_EQ(store.count(), 1u);
   EXPECT_EQ(store.List().size(), 1u);
 }
@@ -1088,9 +1089,9 @@ TEST(SceneStoreTest, MaxScenesRefusesWhenEverySceneIsInUse) {
   EXPECT_EQ(store.evictions(), 0u);
 }
 
-v1::SceneInfo Sized(const std::string& name, uint64_t bytes) {
-  v1::SceneInfo info = Info(name);
-  info.set_device_bytes(bytes);
+StoredSceneInfo Sized(const std::string& name, uint64_t bytes) {
+  StoredSceneInfo info = Info(name);
+  info.scene.device_bytes = bytes;
   return info;
 }
 
@@ -1134,15 +1135,15 @@ TEST(SceneStoreTest, ListIsDemoThenLoadOrder) {
   ASSERT_TRUE(store.Add(IdOf("", 'f'), nullptr, Info("f")).ok());
   ASSERT_TRUE(store.Add(IdOf("", '0'), nullptr, Info("0")).ok());
   ASSERT_TRUE(store.Add(IdOf("", '8'), nullptr, Info("8")).ok());
-  const std::vector<v1::SceneInfo> list = store.List();
+  const std::vector<SceneListing> list = store.List();
   ASSERT_EQ(list.size(), 4u);
-  EXPECT_EQ(list[0].scene_id(), "demo");
-  EXPECT_EQ(list[1].name(), "f");
-  EXPECT_EQ(list[2].name(), "0");
-  EXPECT_EQ(list[3].name(), "8");
-  for (const v1::SceneInfo& info : list) {
-    EXPECT_EQ(info.sessions(), 0u);
-    EXPECT_FALSE(info.deleted());
+  EXPECT_EQ(list[0].id, "demo");
+  EXPECT_EQ(list[1].info.scene.name, "f");
+  EXPECT_EQ(list[2].info.scene.name, "0");
+  EXPECT_EQ(list[3].info.scene.name, "8");
+  for (const SceneListing& info : list) {
+    EXPECT_EQ(info.sessions, 0u);
+    EXPECT_FALSE(info.deleted);
   }
 }
 
@@ -1190,10 +1191,9 @@ TEST(SceneStoreTest, DeleteWhileLeasedKeepsTheSceneUntilTheLeaseEnds) {
   }
   EXPECT_EQ(lease->get().sessions.load(), 1u);
   {
-    v1::SceneInfo live;
-    SceneStore::FillLiveFields(lease->get(), &live);
-    EXPECT_EQ(live.sessions(), 1u);
-    EXPECT_FALSE(live.deleted());
+    const SceneListing live = SceneStore::Describe(lease->get());
+    EXPECT_EQ(live.sessions, 1u);
+    EXPECT_FALSE(live.deleted);
   }
 
   absl::StatusOr<uint32_t> users = store.Delete(id);
@@ -1206,11 +1206,11 @@ TEST(SceneStoreTest, DeleteWhileLeasedKeepsTheSceneUntilTheLeaseEnds) {
   EXPECT_EQ(store.FindExact(id), nullptr);
   // ...but it is still in memory, listed as deleted with its session.
   EXPECT_EQ(store.count(), 2u);
-  std::vector<v1::SceneInfo> list = store.List();
+  std::vector<SceneListing> list = store.List();
   ASSERT_EQ(list.size(), 2u);
-  EXPECT_EQ(list[1].scene_id(), id);
-  EXPECT_TRUE(list[1].deleted());
-  EXPECT_EQ(list[1].sessions(), 1u);
+  EXPECT_EQ(list[1].id, id);
+  EXPECT_TRUE(list[1].deleted);
+  EXPECT_EQ(list[1].sessions, 1u);
 
   // Uploading the same content again makes a new, separate entry.
   absl::StatusOr<std::shared_ptr<StoredScene>> again = store.Add(id, nullptr, Info("again"));
@@ -1226,7 +1226,7 @@ TEST(SceneStoreTest, DeleteWhileLeasedKeepsTheSceneUntilTheLeaseEnds) {
   EXPECT_EQ(store.count(), 1u);
   list = store.List();
   ASSERT_EQ(list.size(), 1u);
-  EXPECT_EQ(list[0].scene_id(), "demo");
+  EXPECT_EQ(list[0].id, "demo");
 }
 
 }  // namespace
@@ -1258,6 +1258,81 @@ TEST(ImportLimitsProto, EveryLimitHasItsFieldAndValue) {
                                : r->GetUInt32(proto, field);
     EXPECT_EQ(value, f.Get(limits)) << f.name;
   }
+}
+
+// The render loop's frame and the store's scenes are plain structs; the handlers make the wire's
+// messages of them, every field where the client finds it.
+TEST(WireConversion, EncodedFrameBecomesTheWireFrame) {
+  EncodedFrame f;
+  f.frame.image.width = 64;  // the encoded size: the pixels are gone
+  f.frame.image.height = 48;
+  f.frame.passes = {{"depth_prepass", 1.5, 1.25}, {"forward", 2.5, 2.0}};
+  f.frame.gpu_total_ms = 4.0;
+  f.frame.cpu.encode_ms = 3.0;
+  f.frame.stats.draws = 11;
+  f.data = {1, 2, 3};
+  f.format = ImageFormat::kPng;
+  f.render_width = 32;
+  f.render_height = 24;
+  f.camera.eye = {1.0f, 2.0f, 3.0f};
+  f.sequence = 7;
+  f.event_id = 5;
+  f.scene_id = "demo";
+  f.profile = "interactive";
+  f.queue_wait_ms = 0.5;
+  f.total_ms = 9.0;
+  v1::Frame wire;
+  ToProto(f, &wire);
+  EXPECT_EQ(wire.width(), 64u);
+  EXPECT_EQ(wire.height(), 48u);
+  EXPECT_EQ(wire.render_width(), 32u);
+  EXPECT_EQ(wire.render_height(), 24u);
+  ASSERT_EQ(wire.passes_size(), 2);
+  EXPECT_EQ(wire.passes(1).pass(), "forward");
+  EXPECT_EQ(wire.passes(1).gpu_ms(), 2.5);
+  EXPECT_EQ(wire.gpu_total_ms(), 4.0);
+  EXPECT_EQ(wire.cpu().encode_ms(), 3.0);
+  EXPECT_EQ(wire.cpu().queue_wait_ms(), 0.5);
+  EXPECT_EQ(wire.cpu().total_ms(), 9.0);
+  EXPECT_EQ(wire.stats().draws(), 11u);
+  EXPECT_EQ(wire.camera().eye().y(), 2.0f);
+  EXPECT_EQ(wire.sequence(), 7u);
+  EXPECT_EQ(wire.event_id(), 5u);
+  EXPECT_EQ(wire.scene_id(), "demo");
+  EXPECT_EQ(wire.profile(), "interactive");
+  EXPECT_EQ(wire.encoding(), v1::IMAGE_PNG);
+  EXPECT_EQ(wire.data(), std::string("\x01\x02\x03", 3));
+  // Jobs take the metadata and write the bytes to files.
+  v1::Frame meta;
+  FrameMetaToProto(f, &meta);
+  EXPECT_TRUE(meta.data().empty());
+  meta.set_data(wire.data());
+  EXPECT_EQ(meta.SerializeAsString(), wire.SerializeAsString());
+}
+
+TEST(WireConversion, StoredSceneBecomesTheWireSceneInfo) {
+  SceneListing scene;
+  scene.id = std::string(64, 'a');
+  scene.info.scene.name = "box.gltf";
+  scene.info.scene.counts.triangles = 12;
+  scene.info.scene.warnings = {"no lights"};
+  scene.info.scene.device_bytes = 4096;
+  scene.info.upload_bytes = 1000;
+  scene.info.load_ms = 12.5;
+  scene.sessions = 2;
+  scene.deleted = true;
+  v1::SceneInfo wire;
+  ToProto(scene, &wire);
+  EXPECT_EQ(wire.scene_id(), scene.id);
+  EXPECT_EQ(wire.name(), "box.gltf");
+  EXPECT_EQ(wire.counts().triangles(), 12u);
+  ASSERT_EQ(wire.warnings_size(), 1);
+  EXPECT_EQ(wire.warnings(0), "no lights");
+  EXPECT_EQ(wire.device_bytes(), 4096u);
+  EXPECT_EQ(wire.upload_bytes(), 1000u);
+  EXPECT_EQ(wire.load_ms(), 12.5);
+  EXPECT_EQ(wire.sessions(), 2u);
+  EXPECT_TRUE(wire.deleted());
 }
 
 }  // namespace

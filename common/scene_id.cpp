@@ -1,4 +1,4 @@
-#include "tessera/scene_id.h"
+#include "common/scene_id.h"
 
 #include <openssl/evp.h>
 

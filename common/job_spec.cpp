@@ -1,5 +1,5 @@
-#include "server/proto_vec.h"
-#include "server/job_spec.h"
+#include "common/proto_vec.h"
+#include "common/job_spec.h"
 
 #include <algorithm>
 #include <cmath>
@@ -39,9 +39,6 @@ uint64_t FrameCount64(const v1::FrameRange& r) {
   return (static_cast<uint64_t>(r.last()) - r.first()) / Step(r) + 1;
 }
 
-using server::Finite;
-using server::SetVec;
-using server::Vec;
 
 // LookAt.up defaults to +Y; proto3 cannot tell an unset Vec3's zeros from sent zeros, and a
 // zero up is never meaningful, so both mean the default.

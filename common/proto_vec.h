@@ -7,7 +7,7 @@
 
 #include "tessera/v1/settings.pb.h"
 
-namespace tessera::server {
+namespace tessera {
 
 inline bool Finite(const v1::Vec3& v) {
   return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z());
@@ -21,4 +21,4 @@ inline void SetVec(const glm::vec3& v, v1::Vec3* out) {
   out->set_z(v.z);
 }
 
-}  // namespace tessera::server
+}  // namespace tessera
