@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 
 #include "absl/strings/numbers.h"
@@ -276,6 +277,8 @@ absl::StatusOr<double> ParseNumber(const SettingRow& row, std::string_view flag,
   double d = 0.0;
   if (!absl::SimpleAtod(Arg(text), &d) || !std::isfinite(d))
     return FlagError(flag, Cat(": not a number: '", text, "'"));
+  // Beyond float's range is infinite (which validation refuses), not undefined behaviour.
+  if (std::abs(d) > std::numeric_limits<float>::max()) return d > 0 ? INFINITY : -INFINITY;
   return static_cast<double>(static_cast<float>(d));
 }
 

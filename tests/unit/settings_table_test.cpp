@@ -321,6 +321,10 @@ TEST(ParseSettingFlagTest, TheFlagsUsersKnow) {
   EXPECT_EQ(p.settings.light_radius_max, 3.0f);
   p = ParseArgs({"--no-scene-lights"});
   EXPECT_FALSE(p.settings.scene_lights);
+  p = ParseArgs({"--exposure", "1e300"});  // beyond float: infinite, which validation refuses
+  ASSERT_TRUE(p.result.ok());
+  EXPECT_TRUE(std::isinf(p.settings.exposure_ev));
+  EXPECT_FALSE(ValidateSettings(p.settings).ok());
   p = ParseArgs({"--width", "0"});  // ranges are the server's (or ValidateSettings') business
   EXPECT_TRUE(p.result.ok());
   EXPECT_EQ(p.settings.width, 0u);
