@@ -1,134 +1,95 @@
 #include "renderer/settings.h"
 
-#include <array>
 #include <bit>
-#include <cmath>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "renderer/settings_table.h"
+#include "renderer/status_macros.h"
 
 namespace tessera {
 
+// The names of each enum, indexed by value (the enums count from 0 without gaps).
+template <>
+const std::vector<std::string_view>& EnumNames<AaMode>() {
+  static const std::vector<std::string_view> names{"none", "msaa", "fxaa", "taa", "vis_mlaa"};
+  return names;
+}
+template <>
+const std::vector<std::string_view>& EnumNames<CullingMode>() {
+  static const std::vector<std::string_view> names{"none", "cpu_frustum", "gpu_frustum",
+                                                   "gpu_occlusion"};
+  return names;
+}
+template <>
+const std::vector<std::string_view>& EnumNames<ExposureMode>() {
+  static const std::vector<std::string_view> names{"fixed", "auto"};
+  return names;
+}
+template <>
+const std::vector<std::string_view>& EnumNames<Tonemapper>() {
+  static const std::vector<std::string_view> names{"pbr_neutral", "photographic"};
+  return names;
+}
+template <>
+const std::vector<std::string_view>& EnumNames<DebugView>() {
+  static const std::vector<std::string_view> names{
+      "none",          "normals", "depth",    "base_color", "light_heatmap", "culling_overlay",
+      "aa_mask",       "shadow_atlas", "cascades", "ssao",   "bloom"};
+  return names;
+}
+
 namespace {
 
-constexpr std::array<std::pair<AaMode, std::string_view>, 5> kAaNames{
-    {{AaMode::kNone, "none"},
-     {AaMode::kMsaa, "msaa"},
-     {AaMode::kFxaa, "fxaa"},
-     {AaMode::kTaa, "taa"},
-     {AaMode::kVisMlaa, "vis_mlaa"}}};
-constexpr std::array<std::pair<CullingMode, std::string_view>, 4> kCullingNames{
-    {{CullingMode::kNone, "none"},
-     {CullingMode::kCpuFrustum, "cpu_frustum"},
-     {CullingMode::kGpuFrustum, "gpu_frustum"},
-     {CullingMode::kGpuOcclusion, "gpu_occlusion"}}};
-constexpr std::array<std::pair<ExposureMode, std::string_view>, 2> kExposureNames{
-    {{ExposureMode::kFixed, "fixed"}, {ExposureMode::kAuto, "auto"}}};
-constexpr std::array<std::pair<Tonemapper, std::string_view>, 2> kTonemapperNames{
-    {{Tonemapper::kPbrNeutral, "pbr_neutral"}, {Tonemapper::kPhotographic, "photographic"}}};
-constexpr std::array<std::pair<DebugView, std::string_view>, 11> kDebugNames{
-    {{DebugView::kNone, "none"},
-     {DebugView::kNormals, "normals"},
-     {DebugView::kDepth, "depth"},
-     {DebugView::kBaseColor, "base_color"},
-     {DebugView::kLightHeatmap, "light_heatmap"},
-     {DebugView::kCullingOverlay, "culling_overlay"},
-     {DebugView::kAaMask, "aa_mask"},
-     {DebugView::kShadowAtlas, "shadow_atlas"},
-     {DebugView::kCascades, "cascades"},
-     {DebugView::kSsao, "ssao"},
-     {DebugView::kBloom, "bloom"}}};
-
-template <typename E, size_t N>
-std::string_view NameOf(const std::array<std::pair<E, std::string_view>, N>& table, E v) {
-  for (const auto& [e, name] : table)
-    if (e == v) return name;
-  return "invalid";
+template <typename E>
+std::string_view NameOf(E v) {
+  const std::vector<std::string_view>& names = EnumNames<E>();
+  const auto i = static_cast<size_t>(v);
+  return i < names.size() ? names[i] : "invalid";
 }
 
-template <typename E, size_t N>
-absl::StatusOr<E> Parse(const std::array<std::pair<E, std::string_view>, N>& table,
-                        std::string_view field, std::string_view s) {
-  std::vector<std::string> names;
-  for (const auto& [e, name] : table) {
-    if (name == s) return e;
-    names.emplace_back(name);
-  }
-  return absl::InvalidArgumentError(absl::StrCat(std::string(field), ": unknown value '",
-                                                 std::string(s),
-                                                 "' (one of: ", absl::StrJoin(names, ", "), ")"));
-}
-
-template <typename E, size_t N>
-bool Known(const std::array<std::pair<E, std::string_view>, N>& table, E v) {
-  return NameOf(table, v) != "invalid";
+template <typename E>
+absl::StatusOr<E> Parse(std::string_view field, std::string_view s) {
+  const std::vector<std::string_view>& names = EnumNames<E>();
+  for (size_t i = 0; i < names.size(); ++i)
+    if (names[i] == s) return static_cast<E>(i);
+  return absl::InvalidArgumentError(absl::StrCat(
+      std::string(field), ": unknown value '", std::string(s), "' (one of: ",
+      absl::StrJoin(names, ", ",
+                    [](std::string* out, std::string_view name) { out->append(name); }),
+      ")"));
 }
 
 }  // namespace
 
-std::string_view ToString(AaMode v) { return NameOf(kAaNames, v); }
-std::string_view ToString(CullingMode v) { return NameOf(kCullingNames, v); }
-std::string_view ToString(ExposureMode v) { return NameOf(kExposureNames, v); }
-std::string_view ToString(DebugView v) { return NameOf(kDebugNames, v); }
-std::string_view ToString(Tonemapper v) { return NameOf(kTonemapperNames, v); }
+std::string_view ToString(AaMode v) { return NameOf(v); }
+std::string_view ToString(CullingMode v) { return NameOf(v); }
+std::string_view ToString(ExposureMode v) { return NameOf(v); }
+std::string_view ToString(DebugView v) { return NameOf(v); }
+std::string_view ToString(Tonemapper v) { return NameOf(v); }
 absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s) {
-  return Parse(kTonemapperNames, "tonemapper", s);
+  return Parse<Tonemapper>("tonemapper", s);
 }
-absl::StatusOr<AaMode> ParseAaMode(std::string_view s) { return Parse(kAaNames, "aa", s); }
+absl::StatusOr<AaMode> ParseAaMode(std::string_view s) { return Parse<AaMode>("aa", s); }
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s) {
-  return Parse(kCullingNames, "culling", s);
+  return Parse<CullingMode>("culling", s);
 }
 absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s) {
-  return Parse(kExposureNames, "exposure_mode", s);
+  return Parse<ExposureMode>("exposure_mode", s);
 }
 absl::StatusOr<DebugView> ParseDebugView(std::string_view s) {
-  return Parse(kDebugNames, "debug_view", s);
+  return Parse<DebugView>("debug_view", s);
 }
 
 absl::Status ValidateSettings(const Settings& s) {
-  auto bad = [](const char* field, auto value, const char* range) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("settings.", field, ": ", value, " is out of range (", range, ")"));
-  };
-  if (s.width < 1 || s.width > 16384) return bad("width", s.width, "1..16384");
-  if (s.height < 1 || s.height > 16384) return bad("height", s.height, "1..16384");
-  if (!Known(kAaNames, s.aa)) return bad("aa", static_cast<uint32_t>(s.aa), "an AaMode");
-  if (s.samples == 0 || s.samples > kMaxSamples || (s.samples & (s.samples - 1)) != 0)
-    return bad("samples", s.samples, "1, 2, 4 or 8");
-  if (!Known(kCullingNames, s.culling))
-    return bad("culling", static_cast<uint32_t>(s.culling), "a CullingMode");
-  if (s.synthetic_lights > 65536) return bad("synthetic_lights", s.synthetic_lights, "0..65536");
-  if (!std::isfinite(s.light_radius_min) || s.light_radius_min < 0.0f || s.light_radius_min > 1e6f)
-    return bad("light_radius_min", s.light_radius_min, "0..1e6 world units, 0 = auto");
-  if (!std::isfinite(s.light_radius_max) || s.light_radius_max < 0.0f || s.light_radius_max > 1e6f)
-    return bad("light_radius_max", s.light_radius_max, "0..1e6 world units, 0 = auto");
-  if (s.light_radius_max > 0.0f && s.light_radius_max < s.light_radius_min)
-    return bad("light_radius_max", s.light_radius_max, ">= light_radius_min");
-  if (!std::isfinite(s.light_time) || std::abs(s.light_time) > 1e6f)
-    return bad("light_time", s.light_time, "-1e6..1e6 seconds");
-  if (s.tile_size != 8 && s.tile_size != 16 && s.tile_size != 32)
-    return bad("tile_size", s.tile_size, "8, 16 or 32");
-  if (s.shadow_atlas_size < 512 || s.shadow_atlas_size > 8192 ||
-      (s.shadow_atlas_size & (s.shadow_atlas_size - 1)) != 0)
-    return bad("shadow_atlas_size", s.shadow_atlas_size, "a power of two, 512..8192");
-  if (s.shadow_lights > 32) return bad("shadow_lights", s.shadow_lights, "0..32");
-  if (!std::isfinite(s.ssao_radius) || s.ssao_radius < 0.0f || s.ssao_radius > 1e6f)
-    return bad("ssao_radius", s.ssao_radius, "0..1e6 world units, 0 = auto");
-  if (!std::isfinite(s.ssao_strength) || s.ssao_strength < 0.0f || s.ssao_strength > 4.0f)
-    return bad("ssao_strength", s.ssao_strength, "0..4");
-  if (!std::isfinite(s.bloom_strength) || s.bloom_strength < 0.0f || s.bloom_strength > 1.0f)
-    return bad("bloom_strength", s.bloom_strength, "0..1");
-  if (!Known(kExposureNames, s.exposure_mode))
-    return bad("exposure_mode", static_cast<uint32_t>(s.exposure_mode), "an ExposureMode");
-  if (!std::isfinite(s.exposure_ev) || s.exposure_ev < -20.0f || s.exposure_ev > 20.0f)
-    return bad("exposure_ev", s.exposure_ev, "-20..20 stops");
-  if (!Known(kTonemapperNames, s.tonemapper))
-    return bad("tonemapper", static_cast<uint32_t>(s.tonemapper), "a Tonemapper");
-  if (!Known(kDebugNames, s.debug_view))
-    return bad("debug_view", static_cast<uint32_t>(s.debug_view), "a DebugView");
-  if (s.jpeg_quality < 1 || s.jpeg_quality > 100)
-    return bad("jpeg_quality", s.jpeg_quality, "1..100");
+  for (const SettingRow& row : SettingsTable()) RETURN_IF_ERROR(row.Validate(s));
+  // Rules between fields, after each field is known to be in its own range.
+  if (s.light_radius_max > 0.0f && s.light_radius_max < s.light_radius_min) {
+    return absl::InvalidArgumentError(absl::StrCat("settings.light_radius_max: ",
+                                                   s.light_radius_max,
+                                                   " is out of range (>= light_radius_min)"));
+  }
   return absl::OkStatus();
 }
 

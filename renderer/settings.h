@@ -102,13 +102,30 @@ struct ResolvedSettings {
   std::vector<SettingNote> notes;
 };
 
-// INVALID_ARGUMENT naming the field when a value is out of its documented range.
+// INVALID_ARGUMENT naming the field when a value is out of its range in the settings table
+// (renderer/settings_table.h): "settings.<field>: <value> is out of range (<range>)".
 absl::Status ValidateSettings(const Settings& settings);
 
 // Validates, then clamps to `caps` and lists every field that is clamped or not applied.
 absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const DeviceCaps& caps);
 
-// Names used by the CLI, JSON output and (later) the proto.
+// Every name of enum setting type E (AaMode, CullingMode, ExposureMode, Tonemapper, DebugView),
+// indexed by value: the names the CLI, JSON output and the settings table use, and the proto's
+// value names without their prefix, in lower case.
+template <typename E>
+const std::vector<std::string_view>& EnumNames();
+template <>
+const std::vector<std::string_view>& EnumNames<AaMode>();
+template <>
+const std::vector<std::string_view>& EnumNames<CullingMode>();
+template <>
+const std::vector<std::string_view>& EnumNames<ExposureMode>();
+template <>
+const std::vector<std::string_view>& EnumNames<Tonemapper>();
+template <>
+const std::vector<std::string_view>& EnumNames<DebugView>();
+
+// Names used by the CLI, JSON output and the proto ("invalid" for a value out of range).
 std::string_view ToString(AaMode v);
 std::string_view ToString(CullingMode v);
 std::string_view ToString(ExposureMode v);

@@ -13,75 +13,11 @@
 namespace tessera::server {
 namespace {
 
-// Proto enums put UNSPECIFIED at 0, so wire value v is renderer value v - 1.
-template <typename RendererEnum, typename IsValidFn>
-absl::Status MergeEnum(int wire, IsValidFn is_valid, const char* field, RendererEnum* out) {
-  if (wire == 0) return absl::OkStatus();  // unspecified: keep
-  if (!is_valid(wire))
-    return absl::InvalidArgumentError(absl::StrCat("settings.", field, ": unknown value ", wire));
-  *out = static_cast<RendererEnum>(wire - 1);
-  return absl::OkStatus();
-}
-
-template <typename RendererEnum>
-int WireEnum(RendererEnum v) {
-  return static_cast<int>(v) + 1;
-}
-
 absl::Status Bad(const std::string& field, const std::string& why) {
   return absl::InvalidArgumentError(absl::StrCat("camera.", field, ": ", why));
 }
 
 }  // namespace
-
-absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSettings& u) {
-  Settings s = base;
-  if (u.has_width()) s.width = u.width();
-  if (u.has_height()) s.height = u.height();
-  if (absl::Status st = MergeEnum(u.aa(), v1::AaMode_IsValid, "aa", &s.aa); !st.ok()) return st;
-  if (u.has_samples()) s.samples = u.samples();
-  if (absl::Status st = MergeEnum(u.culling(), v1::CullingMode_IsValid, "culling", &s.culling);
-      !st.ok())
-    return st;
-  if (u.has_scene_lights()) s.scene_lights = u.scene_lights();
-  if (u.has_synthetic_lights()) s.synthetic_lights = u.synthetic_lights();
-  if (u.has_light_seed()) s.light_seed = u.light_seed();
-  if (u.has_tile_size()) s.tile_size = u.tile_size();
-  if (u.has_shadows()) s.shadows = u.shadows();
-  if (u.has_ssao()) s.ssao = u.ssao();
-  if (u.has_bloom()) s.bloom = u.bloom();
-  if (u.has_ibl()) s.ibl = u.ibl();
-  if (absl::Status st =
-          MergeEnum(u.exposure_mode(), v1::ExposureMode_IsValid, "exposure_mode", &s.exposure_mode);
-      !st.ok())
-    return st;
-  if (u.has_exposure_ev()) s.exposure_ev = u.exposure_ev();
-  if (absl::Status st =
-          MergeEnum(u.tonemapper(), v1::Tonemapper_IsValid, "tonemapper", &s.tonemapper);
-      !st.ok())
-    return st;
-  if (absl::Status st =
-          MergeEnum(u.debug_view(), v1::DebugView_IsValid, "debug_view", &s.debug_view);
-      !st.ok())
-    return st;
-  if (u.has_jpeg_quality()) s.jpeg_quality = u.jpeg_quality();
-  if (u.has_jpeg_444()) s.jpeg_444 = u.jpeg_444();
-  if (u.has_light_culling()) s.light_culling = u.light_culling();
-  if (u.has_light_radius_min()) s.light_radius_min = u.light_radius_min();
-  if (u.has_light_radius_max()) s.light_radius_max = u.light_radius_max();
-  if (u.has_lights_animated()) s.lights_animated = u.lights_animated();
-  if (u.has_light_time()) s.light_time = u.light_time();
-  if (u.has_tile_depth_mask()) s.tile_depth_mask = u.tile_depth_mask();
-  if (u.has_shadow_atlas_size()) s.shadow_atlas_size = u.shadow_atlas_size();
-  if (u.has_shadow_lights()) s.shadow_lights = u.shadow_lights();
-  if (u.has_shadow_cache()) s.shadow_cache = u.shadow_cache();
-  if (u.has_ssao_radius()) s.ssao_radius = u.ssao_radius();
-  if (u.has_ssao_strength()) s.ssao_strength = u.ssao_strength();
-  if (u.has_ssao_half_res()) s.ssao_half_res = u.ssao_half_res();
-  if (u.has_bloom_strength()) s.bloom_strength = u.bloom_strength();
-  if (absl::Status st = ValidateSettings(s); !st.ok()) return st;
-  return s;
-}
 
 absl::StatusOr<Camera> ResolveCamera(const v1::Camera& c, const SceneInfo& scene, float aspect) {
   Camera cam;
@@ -143,41 +79,6 @@ absl::StatusOr<Camera> ResolveCamera(const v1::Camera& c, const SceneInfo& scene
   if (c.has_zfar()) cam.zfar = c.zfar();
   if (absl::Status st = ValidateCamera(cam); !st.ok()) return st;
   return cam;
-}
-
-void ToProto(const Settings& s, v1::RenderSettings* o) {
-  o->set_width(s.width);
-  o->set_height(s.height);
-  o->set_aa(static_cast<v1::AaMode>(WireEnum(s.aa)));
-  o->set_samples(s.samples);
-  o->set_culling(static_cast<v1::CullingMode>(WireEnum(s.culling)));
-  o->set_scene_lights(s.scene_lights);
-  o->set_synthetic_lights(s.synthetic_lights);
-  o->set_light_seed(s.light_seed);
-  o->set_tile_size(s.tile_size);
-  o->set_shadows(s.shadows);
-  o->set_ssao(s.ssao);
-  o->set_bloom(s.bloom);
-  o->set_ibl(s.ibl);
-  o->set_exposure_mode(static_cast<v1::ExposureMode>(WireEnum(s.exposure_mode)));
-  o->set_exposure_ev(s.exposure_ev);
-  o->set_tonemapper(static_cast<v1::Tonemapper>(WireEnum(s.tonemapper)));
-  o->set_debug_view(static_cast<v1::DebugView>(WireEnum(s.debug_view)));
-  o->set_jpeg_quality(s.jpeg_quality);
-  o->set_jpeg_444(s.jpeg_444);
-  o->set_light_culling(s.light_culling);
-  o->set_light_radius_min(s.light_radius_min);
-  o->set_light_radius_max(s.light_radius_max);
-  o->set_lights_animated(s.lights_animated);
-  o->set_light_time(s.light_time);
-  o->set_tile_depth_mask(s.tile_depth_mask);
-  o->set_shadow_atlas_size(s.shadow_atlas_size);
-  o->set_shadow_lights(s.shadow_lights);
-  o->set_shadow_cache(s.shadow_cache);
-  o->set_ssao_radius(s.ssao_radius);
-  o->set_ssao_strength(s.ssao_strength);
-  o->set_ssao_half_res(s.ssao_half_res);
-  o->set_bloom_strength(s.bloom_strength);
 }
 
 void ToProto(const Aabb& box, v1::Aabb* out) {
@@ -280,23 +181,6 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_shadow_faces_rendered(f.stats.shadow_faces_rendered);
   st->set_shadow_draws(f.stats.shadow_draws);
   st->set_shadow_evictions(f.stats.shadow_evictions);
-}
-
-void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {
-  for (int v = 1; v1::AaMode_IsValid(v); ++v)
-    o->add_aa(std::string(ToString(static_cast<AaMode>(v - 1))));
-  // Up to kMaxSamples, what ValidateSettings accepts (a GPU may offer 16 or more).
-  for (uint32_t s = 1; s <= kMaxSamples; s *= 2)
-    if (sample_counts & s) o->add_samples(s);
-  for (int v = 1; v1::CullingMode_IsValid(v); ++v)
-    o->add_culling(std::string(ToString(static_cast<CullingMode>(v - 1))));
-  for (int v = 1; v1::ExposureMode_IsValid(v); ++v)
-    o->add_exposure_mode(std::string(ToString(static_cast<ExposureMode>(v - 1))));
-  for (int v = 1; v1::DebugView_IsValid(v); ++v)
-    o->add_debug_view(std::string(ToString(static_cast<DebugView>(v - 1))));
-  for (uint32_t t : {8u, 16u, 32u}) o->add_tile_size(t);
-  for (int v = 1; v1::Tonemapper_IsValid(v); ++v)
-    o->add_tonemapper(std::string(ToString(static_cast<Tonemapper>(v - 1))));
 }
 
 absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,

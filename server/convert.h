@@ -9,6 +9,7 @@
 #include "renderer/camera.h"
 #include "renderer/renderer.h"
 #include "renderer/settings.h"
+#include "server/settings_wire.h"  // MergeSettings, ToProto(Settings), FillChoices
 #include "tessera/v1/render_service.pb.h"
 
 namespace tessera::server {
@@ -26,16 +27,11 @@ absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
                                                 const v1::InteractiveProfile& update,
                                                 const std::string& field);
 
-// `base` with every field set in `update` replaced. INVALID_ARGUMENT naming the field for an
-// unknown enum value or an out-of-range result (ValidateSettings).
-absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSettings& update);
-
 // The concrete camera for `camera` in a scene (framing uses the scene bounds and the frame's
 // aspect ratio). INVALID_ARGUMENT naming the field.
 absl::StatusOr<Camera> ResolveCamera(const v1::Camera& camera, const SceneInfo& scene,
                                      float aspect);
 
-void ToProto(const Settings& s, v1::RenderSettings* out);
 void ToProto(const SceneInfo& info, v1::SceneInfo* out);  // scene_id etc. left to the caller
 void ToProto(const Aabb& box, v1::Aabb* out);
 // Eye/target/up of any camera (a view matrix is decomposed).
@@ -45,9 +41,6 @@ void FrameToProto(const Frame& frame, v1::Frame* out);
 
 // Every limit of `limits` into the proto field of the same name.
 void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out);
-
-// Names accepted by each enum setting (lower case, as ToString in settings.h).
-void FillChoices(uint32_t sample_counts, v1::SettingChoices* out);
 
 // The wire's Frame of a frame from the render loop (render_loop.h): everything but the
 // encoded bytes (jobs write those to files), and the whole frame.

@@ -431,14 +431,6 @@ int ParseEnumShortName(const pb::EnumDescriptor* type, absl::string_view name) {
   return -1;
 }
 
-std::string EnumChoices(const pb::EnumDescriptor* type) {
-  std::vector<std::string> names;
-  for (int i = 0; i < type->value_count(); ++i) {
-    if (type->value(i)->number() != 0) names.push_back(EnumShortName(type->value(i)));
-  }
-  return absl::StrJoin(names, "|");
-}
-
 namespace {
 
 // The shortest decimal that reads back as the same float, so 0.8f prints as 0.8 and not

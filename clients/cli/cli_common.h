@@ -157,8 +157,6 @@ Json ToJson(const google::protobuf::Message& msg);
 std::string EnumShortName(const google::protobuf::EnumValueDescriptor* value);
 // The value of `type` whose short name is `name`, or -1. Value 0 (UNSPECIFIED) never matches.
 int ParseEnumShortName(const google::protobuf::EnumDescriptor* type, absl::string_view name);
-// "none|msaa|fxaa|..." for usage and error messages.
-std::string EnumChoices(const google::protobuf::EnumDescriptor* type);
 
 // "1.5 MiB", "312 KiB", "17 B".
 std::string HumanBytes(uint64_t bytes);

@@ -7,6 +7,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "server/settings_wire.h"
 
 namespace tessera::cli {
 
@@ -19,31 +20,9 @@ const char kCameraFlagsUsage[] = R"(camera (default: the server frames the scene
   --near N --far N    clip planes (far 0 = infinite, the default)
 )";
 
-const char kSettingsFlagsUsage[] = R"(settings (unset ones take the server's defaults):
-  --width N --height N          frame size in pixels (default 1280x720)
-  --aa MODE           none|msaa|fxaa|taa|vis_mlaa          --samples N   1|2|4|8
-  --culling MODE      none|cpu_frustum|gpu_frustum|gpu_occlusion
-  --lights N          N synthetic point lights in the scene bounds   --light-seed N
-  --no-scene-lights   ignore the file's KHR_lights_punctual lights (--scene-lights: use them)
-  --tile-size N       light-culling tile, 8|16|32 pixels
-  --no-light-culling  shade every light at every pixel (brute force; --light-culling: tiles)
-  --light-radius MIN,MAX   synthetic light range in world units (default 1%..4% of the scene)
-  --animate-lights    synthetic lights circle around   --light-time SECONDS  where they are
-  --no-tile-depth-mask     cull with per-tile depth bounds only (no 2.5D mask)
-  --shadows --ssao --bloom --ibl   turn effects on (--no-shadows etc.: off)
-  --shadow-atlas N    shadow atlas side, a power of two 512..8192 (default 4096)
-  --shadow-lights N   point/spot lights with shadows besides the sun, 0..32 (default 16)
-  --no-shadow-cache   re-render every shadow map every frame (for comparison)
-  --ssao-radius R     SSAO radius in world units (default 1.5% of the scene diagonal)
-  --ssao-strength S   0..4 (default 1)        --ssao-full-res  SSAO at full resolution
-  --bloom-strength S  0..1 (default 0.05): what is brighter than white glows
-  --exposure EV       fixed exposure in stops (default 0)
-  --auto-exposure     adapt to the frame's average luma (--exposure then compensates)
-  --tonemapper T      pbr_neutral|photographic (default pbr_neutral)
-  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask|
-                      shadow_atlas|cascades|ssao|bloom
-  --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
-)";
+std::string SettingsFlagsUsageText() {
+  return absl::StrCat("settings (unset ones take the server's defaults):\n", SettingsFlagsUsage());
+}
 
 namespace {
 
@@ -71,44 +50,6 @@ v1::Vec3 ParseNumbers(ArgReader& args, size_t n, const char* form) {
 }
 
 v1::Vec3 ParseVec3(ArgReader& args) { return ParseNumbers(args, 3, "X,Y,Z"); }
-
-// An enum setting by its lower-case name ("msaa" -> AA_MSAA).
-int ParseEnum(ArgReader& args, const google::protobuf::EnumDescriptor* type) {
-  const std::string flag = args.current();
-  const std::string name = args.Value();
-  const int value = ParseEnumShortName(type, name);
-  if (value < 0) {
-    args.Fail(absl::StrCat(flag, ": '", name, "' is not one of ", EnumChoices(type)));
-  }
-  return value;
-}
-
-// The on/off settings: --NAME turns one on, --no-NAME off.
-bool ParseToggle(ArgReader& args, v1::RenderSettings* settings) {
-  using Setter = void (v1::RenderSettings::*)(bool);
-  static constexpr std::pair<const char*, Setter> kToggles[] = {
-      {"scene-lights", &v1::RenderSettings::set_scene_lights},
-      {"shadows", &v1::RenderSettings::set_shadows},
-      {"ssao", &v1::RenderSettings::set_ssao},
-      {"bloom", &v1::RenderSettings::set_bloom},
-      {"ibl", &v1::RenderSettings::set_ibl},
-      {"light-culling", &v1::RenderSettings::set_light_culling},
-      {"tile-depth-mask", &v1::RenderSettings::set_tile_depth_mask},
-      {"animate-lights", &v1::RenderSettings::set_lights_animated},
-      {"shadow-cache", &v1::RenderSettings::set_shadow_cache},
-  };
-  for (const auto& [name, set] : kToggles) {
-    if (args.Is(absl::StrCat("--", name))) {
-      (settings->*set)(true);
-      return true;
-    }
-    if (args.Is(absl::StrCat("--no-", name))) {
-      (settings->*set)(false);
-      return true;
-    }
-  }
-  return false;
-}
 
 }  // namespace
 
@@ -143,61 +84,13 @@ bool RenderFlags::ParseCamera(ArgReader& args) {
 }
 
 bool RenderFlags::ParseSettings(ArgReader& args) {
-  v1::RenderSettings& s = settings_;
-  if (args.Is("--width")) {
-    s.set_width(args.Uint());
-  } else if (args.Is("--height")) {
-    s.set_height(args.Uint());
-  } else if (args.Is("--aa")) {
-    s.set_aa(static_cast<v1::AaMode>(ParseEnum(args, v1::AaMode_descriptor())));
-  } else if (args.Is("--samples")) {
-    s.set_samples(args.Uint());
-  } else if (args.Is("--culling")) {
-    s.set_culling(static_cast<v1::CullingMode>(ParseEnum(args, v1::CullingMode_descriptor())));
-  } else if (args.Is("--lights")) {
-    s.set_synthetic_lights(args.Uint());
-  } else if (args.Is("--light-seed")) {
-    s.set_light_seed(args.Uint());
-  } else if (args.Is("--tile-size")) {
-    s.set_tile_size(args.Uint());
-  } else if (args.Is("--light-radius")) {
-    const v1::Vec3 r = ParseNumbers(args, 2, "MIN,MAX");
-    s.set_light_radius_min(r.x());
-    s.set_light_radius_max(r.y());
-  } else if (args.Is("--light-time")) {
-    s.set_light_time(args.Float());
-  } else if (ParseToggle(args, &s)) {
-    // done
-  } else if (args.Is("--shadow-atlas")) {
-    s.set_shadow_atlas_size(args.Uint());
-  } else if (args.Is("--shadow-lights")) {
-    s.set_shadow_lights(args.Uint());
-  } else if (args.Is("--ssao-radius")) {
-    s.set_ssao_radius(args.Float());
-  } else if (args.Is("--ssao-strength")) {
-    s.set_ssao_strength(args.Float());
-  } else if (args.Is("--ssao-full-res")) {
-    s.set_ssao_half_res(false);
-  } else if (args.Is("--bloom-strength")) {
-    s.set_bloom_strength(args.Float());
-  } else if (args.Is("--exposure")) {
-    if (s.exposure_mode() != v1::EXPOSURE_AUTO) s.set_exposure_mode(v1::EXPOSURE_FIXED);
-    s.set_exposure_ev(args.Float());
-  } else if (args.Is("--tonemapper")) {
-    s.set_tonemapper(static_cast<v1::Tonemapper>(ParseEnum(args, v1::Tonemapper_descriptor())));
-  } else if (args.Is("--auto-exposure")) {
-    s.set_exposure_mode(v1::EXPOSURE_AUTO);
-  } else if (args.Is("--debug")) {
-    s.set_debug_view(static_cast<v1::DebugView>(ParseEnum(args, v1::DebugView_descriptor())));
-  } else if (args.Is("--quality")) {
-    s.set_jpeg_quality(args.Uint());
-  } else if (args.Is("--chroma")) {
-    const std::string c = args.Value();
-    if (c != "420" && c != "444") args.Fail("--chroma wants 420 or 444");
-    s.set_jpeg_444(c == "444");
-  } else {
-    return false;
-  }
+  // The settings table parses (the same flags as tessera-render); only the rows the command line
+  // named go into the request, so the server's defaults fill in the rest.
+  const absl::StatusOr<bool> parsed =
+      ParseSettingFlag(args.current(), [&args] { return args.Value(); }, &parsed_, &named_);
+  if (!parsed.ok()) args.Fail(parsed.status().message());
+  if (!*parsed) return false;
+  server::ToProto(parsed_, named_, &settings_);
   return true;
 }
 

@@ -4,13 +4,15 @@
 #include <string>
 
 #include "clients/cli/cli_common.h"
+#include "renderer/settings_table.h"
 #include "tessera/v1/render_service.pb.h"
 
 namespace tessera::cli {
 
 // Usage lines for the flags below.
 extern const char kCameraFlagsUsage[];
-extern const char kSettingsFlagsUsage[];
+// The settings flags, from the settings table (renderer/settings_table.h).
+std::string SettingsFlagsUsageText();
 
 class RenderFlags {
  public:
@@ -39,6 +41,9 @@ class RenderFlags {
 
   v1::Camera camera_;
   v1::RenderSettings settings_;
+  // The settings flags as parsed, and which rows they named (only those go into settings_).
+  Settings parsed_;
+  SettingMask named_;
   // tessera-render's defaults for a partly given look-at camera.
   v1::Vec3 eye_, target_, up_;
   bool eye_set_ = false, target_set_ = false, up_set_ = false;

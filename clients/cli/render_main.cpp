@@ -14,41 +14,23 @@
 #include "absl/strings/str_split.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
+#include "renderer/settings_table.h"
 
 namespace {
 
 constexpr char kUsage[] = R"(usage: tessera-render [options]
   --scene FILE        .gltf or .glb to render (default: the built-in demo scene)
   --out FILE          output image, .jpg/.jpeg or .png (default: tessera.jpg)
-  --width N --height N          frame size in pixels (default 1280x720)
   --camera N          use the file's camera N (default: the file's first camera, else framed)
   --frame             frame the scene bounds even if the file has cameras
   --eye X,Y,Z --target X,Y,Z --up X,Y,Z   explicit camera (world units)
   --fov DEGREES       vertical field of view (default 45.8)
   --near N --far N    clip planes (far 0 = infinite, the default)
-  --aa MODE           none|msaa|fxaa|taa|vis_mlaa          --samples N   1|2|4|8
-  --culling MODE      none|cpu_frustum|gpu_frustum|gpu_occlusion
-  --exposure EV       exposure in stops (default 0; with --auto-exposure, compensation)
-  --auto-exposure     adapt to the frame's average luma   --tonemapper pbr_neutral|photographic
-  --bloom             what is brighter than white glows   --bloom-strength S (0..1, default 0.05)
-  --ibl               image-based ambient light from a procedural sky (also the background)
-  --debug VIEW        none|normals|depth|base_color|light_heatmap|culling_overlay|aa_mask|
-                      shadow_atlas|cascades|ssao|bloom
-  --shadows           sun cascades + point/spot shadow maps   --shadow-atlas N (512..8192)
-  --shadow-lights N   shadowed point/spot lights, 0..32 (default 16)   --no-shadow-cache
-  --ssao              ambient obscurance   --ssao-radius R   --ssao-strength S   --ssao-full-res
-  --no-scene-lights   ignore the file's KHR_lights_punctual lights
-  --lights N          N synthetic point lights in the scene bounds   --light-seed N
-  --tile-size N       light-culling tile, 8|16|32 pixels
-  --no-light-culling  shade every light at every pixel (brute force, for comparison)
-  --light-radius MIN,MAX   synthetic light range in world units (default 1%..4% of the scene)
-  --animate-lights    synthetic lights circle around   --light-time SECONDS  where they are
-  --no-tile-depth-mask     cull with per-tile depth bounds only (no 2.5D mask)
-  --quality Q         JPEG quality 1..100 (default 90)       --chroma 420|444
   --frames N          render N frames and report the last (default 1)
   --device NAME       pick a Vulkan device by (part of) its name
   --validation        enable Vulkan validation layers
   --json              print the result as JSON instead of a table
+settings:
 )";
 
 [[noreturn]] void Fail(const std::string& msg) {
@@ -89,6 +71,7 @@ int main(int argc, char** argv) {
   using namespace tessera;
   std::string scene_path, out_path = "tessera.jpg", device;
   Settings settings;
+  SettingMask named;  // the settings the command line gave (unused: every field has a default)
   Camera camera;
   bool explicit_camera = false, frame_bounds = false, json = false, validation = false;
   bool fov_set = false;
@@ -104,15 +87,12 @@ int main(int argc, char** argv) {
     };
     if (arg == "--help" || arg == "-h") {
       std::fputs(kUsage, stdout);
+      std::fputs(SettingsFlagsUsage().c_str(), stdout);
       return 0;
     } else if (arg == "--scene")
       scene_path = value();
     else if (arg == "--out")
       out_path = value();
-    else if (arg == "--width")
-      settings.width = ParseUint(arg, value());
-    else if (arg == "--height")
-      settings.height = ParseUint(arg, value());
     else if (arg == "--camera")
       camera_index = int(ParseUint(arg, value()));
     else if (arg == "--frame")
@@ -132,69 +112,11 @@ int main(int argc, char** argv) {
       znear = ParseFloat(arg, value());
     else if (arg == "--far")
       zfar = ParseFloat(arg, value());
-    else if (arg == "--aa")
-      settings.aa = OrFail(ParseAaMode(value()));
-    else if (arg == "--samples")
-      settings.samples = ParseUint(arg, value());
-    else if (arg == "--culling")
-      settings.culling = OrFail(ParseCullingMode(value()));
-    else if (arg == "--exposure")
-      settings.exposure_ev = ParseFloat(arg, value());
-    else if (arg == "--auto-exposure")
-      settings.exposure_mode = ExposureMode::kAuto;
-    else if (arg == "--tonemapper")
-      settings.tonemapper = OrFail(ParseTonemapper(value()));
-    else if (arg == "--bloom")
-      settings.bloom = true;
-    else if (arg == "--ibl")
-      settings.ibl = true;
-    else if (arg == "--bloom-strength")
-      settings.bloom_strength = ParseFloat(arg, value());
-    else if (arg == "--debug")
-      settings.debug_view = OrFail(ParseDebugView(value()));
-    else if (arg == "--shadows")
-      settings.shadows = true;
-    else if (arg == "--shadow-atlas")
-      settings.shadow_atlas_size = ParseUint(arg, value());
-    else if (arg == "--shadow-lights")
-      settings.shadow_lights = ParseUint(arg, value());
-    else if (arg == "--no-shadow-cache")
-      settings.shadow_cache = false;
-    else if (arg == "--ssao")
-      settings.ssao = true;
-    else if (arg == "--ssao-radius")
-      settings.ssao_radius = ParseFloat(arg, value());
-    else if (arg == "--ssao-strength")
-      settings.ssao_strength = ParseFloat(arg, value());
-    else if (arg == "--ssao-full-res")
-      settings.ssao_half_res = false;
-    else if (arg == "--no-scene-lights")
-      settings.scene_lights = false;
-    else if (arg == "--lights")
-      settings.synthetic_lights = ParseUint(arg, value());
-    else if (arg == "--light-seed")
-      settings.light_seed = ParseUint(arg, value());
-    else if (arg == "--tile-size")
-      settings.tile_size = ParseUint(arg, value());
-    else if (arg == "--no-light-culling")
-      settings.light_culling = false;
-    else if (arg == "--no-tile-depth-mask")
-      settings.tile_depth_mask = false;
-    else if (arg == "--animate-lights")
-      settings.lights_animated = true;
-    else if (arg == "--light-time")
-      settings.light_time = ParseFloat(arg, value());
-    else if (arg == "--light-radius") {
-      const std::vector<std::string> r = absl::StrSplit(value(), ',');
-      if (r.size() != 2) Fail("--light-radius wants MIN,MAX");
-      settings.light_radius_min = ParseFloat(arg, r[0]);
-      settings.light_radius_max = ParseFloat(arg, r[1]);
-    } else if (arg == "--quality")
-      settings.jpeg_quality = ParseUint(arg, value());
-    else if (arg == "--chroma") {
-      const std::string c = value();
-      if (c != "420" && c != "444") Fail("--chroma wants 420 or 444");
-      settings.jpeg_444 = c == "444";
+    else if (absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &settings, &named);
+             !setting.ok())
+      Fail(std::string(setting.status().message()));
+    else if (*setting) {
+      // a settings flag (renderer/settings_table.h)
     } else if (arg == "--frames")
       frames = std::max(1u, ParseUint(arg, value()));
     else if (arg == "--device")

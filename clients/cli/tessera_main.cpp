@@ -53,7 +53,7 @@ void PrintMainUsage(FILE* out) {
 
 void PrintCommandUsage(const Command& c) {
   std::fputs(c.usage, stdout);
-  if (c.render_flags) std::printf("\n%s\n%s", kCameraFlagsUsage, kSettingsFlagsUsage);
+  if (c.render_flags) std::printf("\n%s\n%s", kCameraFlagsUsage, SettingsFlagsUsageText().c_str());
   std::printf("\n%s", kGlobalUsage);
 }
 

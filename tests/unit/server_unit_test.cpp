@@ -713,7 +713,8 @@ TEST(MergeSettingsTest, ToProtoRoundTripsEveryField) {
     ExpectSameSettings(*over, s);
   }
   // Every enum value survives the trip (the wire values are shifted by one).
-  for (AaMode v : {AaMode::kNone, AaMode::kMsaa, AaMode::kFxaa, AaMode::kTaa, AaMode::kVisMlaa}) {
+  for (size_t i = 0; i < EnumNames<AaMode>().size(); ++i) {
+    const auto v = static_cast<AaMode>(i);
     Settings s;
     s.aa = v;
     v1::RenderSettings wire;
@@ -722,9 +723,8 @@ TEST(MergeSettingsTest, ToProtoRoundTripsEveryField) {
     ASSERT_TRUE(back.ok()) << back.status();
     EXPECT_EQ(ToString(back->aa), ToString(v));
   }
-  for (DebugView v :
-       {DebugView::kNone, DebugView::kNormals, DebugView::kDepth, DebugView::kBaseColor,
-        DebugView::kLightHeatmap, DebugView::kCullingOverlay, DebugView::kAaMask}) {
+  for (size_t i = 0; i < EnumNames<DebugView>().size(); ++i) {
+    const auto v = static_cast<DebugView>(i);
     Settings s;
     s.debug_view = v;
     v1::RenderSettings wire;

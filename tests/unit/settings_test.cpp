@@ -11,6 +11,8 @@
 #include <string_view>
 #include <vector>
 
+#include "renderer/settings_table.h"
+
 namespace tessera {
 namespace {
 
@@ -122,48 +124,25 @@ const SettingNote* FindNote(const ResolvedSettings& r, const std::string& field)
   return nullptr;
 }
 
-// Every Settings field by the name notes use, with an equality test between two Settings.
+// Every Settings field by the name notes use (the settings table's rows), with an equality test
+// between two Settings.
 struct Field {
   std::string name;
   std::function<bool(const Settings&, const Settings&)> same;
 };
 
-#define TESSERA_FIELD(f)                                                \
-  Field {                                                               \
-#f, [](const Settings& a, const Settings& b) { return a.f == b.f; } \
-  }
 const std::vector<Field>& AllFields() {
-  static const std::vector<Field> fields = {
-      TESSERA_FIELD(width),
-      TESSERA_FIELD(height),
-      TESSERA_FIELD(aa),
-      TESSERA_FIELD(samples),
-      TESSERA_FIELD(culling),
-      TESSERA_FIELD(scene_lights),
-      TESSERA_FIELD(synthetic_lights),
-      TESSERA_FIELD(light_seed),
-      TESSERA_FIELD(tile_size),
-      TESSERA_FIELD(shadows),
-      TESSERA_FIELD(ssao),
-      TESSERA_FIELD(bloom),
-      TESSERA_FIELD(ibl),
-      TESSERA_FIELD(exposure_mode),
-      TESSERA_FIELD(exposure_ev),
-      TESSERA_FIELD(debug_view),
-      TESSERA_FIELD(jpeg_quality),
-      TESSERA_FIELD(jpeg_444),
-      TESSERA_FIELD(shadow_atlas_size),
-      TESSERA_FIELD(shadow_lights),
-      TESSERA_FIELD(shadow_cache),
-      TESSERA_FIELD(ssao_radius),
-      TESSERA_FIELD(ssao_strength),
-      TESSERA_FIELD(ssao_half_res),
-      TESSERA_FIELD(bloom_strength),
-      TESSERA_FIELD(tonemapper),
-  };
+  static const std::vector<Field> fields = [] {
+    std::vector<Field> out;
+    for (const SettingRow& row : SettingsTable()) {
+      out.push_back({std::string(row.name), [&row](const Settings& a, const Settings& b) {
+                       return row.get(a) == row.get(b);
+                     }});
+    }
+    return out;
+  }();
   return fields;
 }
-#undef TESSERA_FIELD
 
 // The contract of ResolveSettings: each field is either honoured exactly or has a note naming
 // it (with a non-empty explanation), and notes only name real fields.
@@ -365,9 +344,12 @@ TEST(ResolveSettingsTest, ClampsRespectTheDevice) {
 // ---------------------------------------------------------------------------------------------
 // Enum names
 
+// Every value of E (as many as EnumNames<E> has, the list ToString and the settings table use).
 template <typename E>
-void ExpectRoundTrip(int count, absl::StatusOr<E> (*parse)(std::string_view), const char* type) {
+void ExpectRoundTrip(absl::StatusOr<E> (*parse)(std::string_view), const char* type) {
   std::set<std::string> names;
+  const int count = static_cast<int>(EnumNames<E>().size());
+  EXPECT_GE(count, 2) << type;
   for (int i = 0; i < count; ++i) {
     const E v = static_cast<E>(i);
     const std::string name(ToString(v));
@@ -378,13 +360,16 @@ void ExpectRoundTrip(int count, absl::StatusOr<E> (*parse)(std::string_view), co
     ASSERT_TRUE(parsed.ok()) << type << " " << name << ": " << parsed.status();
     EXPECT_EQ(*parsed, v) << type << " " << name;
   }
+  // One past the last value has no name.
+  EXPECT_EQ(ToString(static_cast<E>(count)), "invalid") << type;
 }
 
 TEST(EnumNamesTest, ToStringParseRoundTrip) {
-  ExpectRoundTrip<AaMode>(5, &ParseAaMode, "AaMode");
-  ExpectRoundTrip<CullingMode>(4, &ParseCullingMode, "CullingMode");
-  ExpectRoundTrip<ExposureMode>(2, &ParseExposureMode, "ExposureMode");
-  ExpectRoundTrip<DebugView>(7, &ParseDebugView, "DebugView");
+  ExpectRoundTrip<AaMode>(&ParseAaMode, "AaMode");
+  ExpectRoundTrip<CullingMode>(&ParseCullingMode, "CullingMode");
+  ExpectRoundTrip<ExposureMode>(&ParseExposureMode, "ExposureMode");
+  ExpectRoundTrip<Tonemapper>(&ParseTonemapper, "Tonemapper");
+  ExpectRoundTrip<DebugView>(&ParseDebugView, "DebugView");
 }
 
 TEST(EnumNamesTest, KnownNames) {
@@ -403,7 +388,7 @@ TEST(EnumNamesTest, KnownNames) {
 }
 
 template <typename E>
-void ExpectUnknownRejected(int count, absl::StatusOr<E> (*parse)(std::string_view),
+void ExpectUnknownRejected(absl::StatusOr<E> (*parse)(std::string_view),
                            const std::string& field) {
   for (const char* bad : {"bogus", "", "MSAA ", "none "}) {
     const absl::StatusOr<E> r = parse(bad);
@@ -412,7 +397,7 @@ void ExpectUnknownRejected(int count, absl::StatusOr<E> (*parse)(std::string_vie
     EXPECT_TRUE(Contains(r.status(), field)) << r.status();
     EXPECT_TRUE(Contains(r.status(), std::string("'") + bad + "'")) << r.status();
     // The message lists every valid name, so a user can fix the request without the docs.
-    for (int i = 0; i < count; ++i) {
+    for (size_t i = 0; i < EnumNames<E>().size(); ++i) {
       const std::string name(ToString(static_cast<E>(i)));
       EXPECT_TRUE(Contains(r.status(), name)) << "missing '" << name << "' in " << r.status();
     }
@@ -420,10 +405,11 @@ void ExpectUnknownRejected(int count, absl::StatusOr<E> (*parse)(std::string_vie
 }
 
 TEST(EnumNamesTest, UnknownNamesRejectedWithTheValidOnes) {
-  ExpectUnknownRejected<AaMode>(5, &ParseAaMode, "aa");
-  ExpectUnknownRejected<CullingMode>(4, &ParseCullingMode, "culling");
-  ExpectUnknownRejected<ExposureMode>(2, &ParseExposureMode, "exposure_mode");
-  ExpectUnknownRejected<DebugView>(7, &ParseDebugView, "debug_view");
+  ExpectUnknownRejected<AaMode>(&ParseAaMode, "aa");
+  ExpectUnknownRejected<CullingMode>(&ParseCullingMode, "culling");
+  ExpectUnknownRejected<ExposureMode>(&ParseExposureMode, "exposure_mode");
+  ExpectUnknownRejected<Tonemapper>(&ParseTonemapper, "tonemapper");
+  ExpectUnknownRejected<DebugView>(&ParseDebugView, "debug_view");
 }
 
 TEST(EnumNamesTest, InvalidValuesHaveNoValidName) {

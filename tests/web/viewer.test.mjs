@@ -91,6 +91,19 @@ test('the page loads and shows the demo scene, with a settings panel built from 
     assert.ok(await page.$(`#${id}`), `no #${id}`);
   }
   assert.equal(await page.$('#setting-width'), null, 'width is the viewport\'s, not a setting');
+  // Labels, docs and ranges come from the server's settings table (ServerInfo.choices.settings).
+  const bloom = await page.evaluate(() => {
+    const input = document.getElementById('setting-bloom_strength');
+    const label = document.querySelector('label[for="setting-bloom_strength"]');
+    return { min: input.min, max: input.max, title: input.title, label: label.textContent };
+  });
+  assert.equal(bloom.label, 'Bloom strength');
+  assert.equal(bloom.min, '0');
+  assert.equal(bloom.max, '1');
+  assert.match(bloom.title, /\(0\.\.1\)$/);
+  const lightsMax = await page.$eval('#setting-synthetic_lights', (i) => i.max);
+  const limit = await page.evaluate(() => window.tessera.info.limits.max_synthetic_lights);
+  assert.equal(Number(lightsMax), Math.min(65536, Number(limit)));
   await shot('01-loaded');
 });
 

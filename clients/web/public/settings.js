@@ -1,32 +1,28 @@
 // The settings panel: one control per RenderSettings field, built from the gateway's schema of
-// the proto (clients/web/README.md, SettingField) with the choices the server offers, showing
+// the proto (clients/web/README.md, SettingField) with the choices the server offers and the
+// labels, docs and ranges of the server's settings table (ServerInfo.choices.settings), showing
 // the effective settings of each frame and the server's notes on fields it changed.
 import { el } from './dom.js';
 
 const HIDDEN_SETTINGS = new Set(['width', 'height']);  // the viewport drives them
 
-const LABELS = {
-  aa: 'Anti-aliasing', samples: 'Samples', culling: 'Culling', scene_lights: "Scene's lights",
-  synthetic_lights: 'Synthetic lights', light_seed: 'Light seed', tile_size: 'Tile size (px)',
-  shadows: 'Shadows', ssao: 'SSAO', bloom: 'Bloom', ibl: 'IBL', exposure_mode: 'Exposure',
-  exposure_ev: 'Exposure (EV)', debug_view: 'Debug view', jpeg_quality: 'JPEG quality',
-  jpeg_444: 'JPEG 4:4:4 chroma', light_culling: 'Light culling (forward+)',
-  light_radius_min: 'Light radius min', light_radius_max: 'Light radius max',
-  lights_animated: 'Animate lights', light_time: 'Light time (s)', tile_depth_mask: 'Tile depth mask',
-};
-
-/** Ranges of the numeric fields, from the comments in settings.proto. */
-function numericRange(name, info) {
-  switch (name) {
-    case 'synthetic_lights': return { min: 0, max: Number(info?.limits?.max_synthetic_lights) || 65536 };
-    case 'jpeg_quality': return { min: 1, max: 100 };
-    case 'exposure_ev': return { min: -20, max: 20 };
-    case 'light_seed': return { min: 0, max: 4294967295 };
-    case 'light_radius_min':
-    case 'light_radius_max': return { min: 0, max: 1e6 };
-    case 'light_time': return { min: -1e6, max: 1e6 };
-    default: return {};
+/**
+ * What the server's settings table says about a field (ServerInfo.choices.settings: label, doc,
+ * range), as {label, doc, min, max}. A server without the table (an older tesserad) gives no
+ * range and the field's name as its label.
+ */
+export function settingSpec(name, info) {
+  const spec = (info?.choices?.settings ?? []).find((s) => s.name === name);
+  const out = { label: spec?.label || name.replace(/_/g, ' '), doc: spec?.doc ?? '' };
+  if (spec && (spec.type === 'uint' || spec.type === 'float')) {
+    out.min = Number(spec.min);
+    out.max = Number(spec.max);
+    if (spec.range) out.doc = out.doc ? `${out.doc} (${spec.range})` : spec.range;
   }
+  // The server may cap the synthetic lights below the table's range (its --max_synthetic_lights).
+  const cap = Number(info?.limits?.max_synthetic_lights);
+  if (name === 'synthetic_lights' && cap > 0) out.max = Math.min(out.max ?? cap, cap);
+  return out;
 }
 
 /** "AA_VIS_MLAA" -> "vis_mlaa": the prefix the enum's values share, removed; lower case. */
@@ -69,8 +65,10 @@ export class SettingsPanel {
       const control = this.#control(field, info);
       if (!control) continue;
       control.element.id = `setting-${field.name}`;
-      const label = el('label', LABELS[field.name] ?? field.name.replace(/_/g, ' '));
+      const spec = settingSpec(field.name, info);
+      const label = el('label', spec.label);
       label.htmlFor = control.element.id;
+      if (spec.doc) label.title = control.element.title = spec.doc;
       control.row = el('div', undefined, 'field');
       control.row.append(label, control.element);
       rows.push(control.row);
@@ -105,7 +103,7 @@ export class SettingsPanel {
     const listed = field.choices?.length ? field.choices : info?.choices?.[field.name] ?? [];
     const choices = listed.map(Number).filter(Number.isFinite);
     if (choices.length > 0) return selectControl(choices.map((n) => [String(n), String(n)]), Number);
-    return numberControl(numericRange(field.name, info), integer, field.type.startsWith('u'));
+    return numberControl(settingSpec(field.name, info), integer, field.type.startsWith('u'));
   }
 
   /**

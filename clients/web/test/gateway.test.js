@@ -46,6 +46,15 @@ test('info carries the server info and the RenderSettings schema with the offere
   assert.deepEqual(byName.culling.choices, info.choices.culling.map((c) => `CULLING_${c.toUpperCase()}`));
   assert.deepEqual(byName.samples.choices, info.choices.samples);
   assert.equal(info.default_settings.aa, 'AA_NONE');
+  // The server's settings table: one spec per RenderSettings field, with its range and label.
+  const specs = Object.fromEntries(info.choices.settings.map((s) => [s.name, s]));
+  assert.deepEqual(Object.keys(specs).sort(), schema.map((f) => f.name).sort());
+  assert.equal(specs.bloom_strength.type, 'float');
+  assert.equal(specs.bloom_strength.max, 1);
+  assert.equal(specs.jpeg_quality.min, 1);
+  assert.equal(specs.jpeg_quality.default_value, '90');
+  assert.equal(specs.aa.label, 'Anti-aliasing');
+  assert.deepEqual(specs.aa.choices, info.choices.aa);
   page.close();
 });
 
