@@ -175,25 +175,30 @@ absl::Status Renderer::Impl::EnsureCullBuffers(uint32_t items, uint32_t lists) {
   return absl::OkStatus();
 }
 
+Renderer::Impl::ViewState& Renderer::Impl::View(const GpuScene& scene, uint64_t view) {
+  constexpr size_t kMaxViewStates = 64;
+  const std::pair<uint64_t, uint64_t> key{scene.serial(), view};
+  auto it = view_states.find(key);
+  if (it == view_states.end()) {
+    if (view_states.size() >= kMaxViewStates) DropLeastRecentlyUsed(view_states);
+    it = view_states.emplace(key, ViewState{}).first;
+  }
+  it->second.last_used = ++frame_counter;
+  return it->second;
+}
+
 absl::StatusOr<Renderer::Impl::ExposureState*> Renderer::Impl::Exposure(const GpuScene& scene,
                                                                         uint64_t view) {
-  constexpr size_t kMaxExposureViews = 64;  // 1x1 images: cheap to keep
-  const std::pair<uint64_t, uint64_t> key{scene.serial(), view};
-  auto it = exposure_state.find(key);
-  if (it != exposure_state.end()) {
-    it->second.last_used = ++frame_counter;
-    return &it->second;
-  }
-  if (exposure_state.size() >= kMaxExposureViews) DropLeastRecentlyUsed(exposure_state);
+  ViewState& v = View(scene, view);
+  if (v.exposure) return v.exposure.get();
   vk::ImageDesc desc;
   desc.format = kExposureFormat;
   desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
                VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // FrameCapture::exposure_log2
-  ASSIGN_OR_RETURN(vk::Image img, vk::Image::Create(*ctx, desc, "exposure_state"));
-  ExposureState e;
-  e.image = std::move(img);
-  e.last_used = ++frame_counter;
-  return &exposure_state.emplace(key, std::move(e)).first->second;
+  auto e = std::make_unique<ExposureState>();
+  ASSIGN_OR_RETURN(e->image, vk::Image::Create(*ctx, desc, "exposure_state"));
+  v.exposure = std::move(e);
+  return v.exposure.get();
 }
 
 absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuScene& scene,
@@ -261,21 +266,23 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
 
 absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& scene,
                                                                 uint64_t view) {
-  constexpr size_t kMaxTaaViews = 8;
-  const std::pair<uint64_t, uint64_t> key{scene.serial(), view};
-  auto it = taa_history.find(key);
-  if (it != taa_history.end() && it->second.images[0].desc().width == targets.width &&
-      it->second.images[0].desc().height == targets.height) {
-    it->second.last_used = ++frame_counter;
-    return &it->second;
+  constexpr size_t kMaxTaaViews = 8;  // frame-sized images: the views that keep them are few
+  ViewState& v = View(scene, view);
+  if (v.taa && v.taa->images[0].desc().width == targets.width &&
+      v.taa->images[0].desc().height == targets.height)
+    return v.taa.get();
+  if (!v.taa) {  // past the limit, the least recently used other view's history goes
+    size_t with_taa = 0;
+    ViewState* oldest = nullptr;
+    for (auto& [key, state] : view_states) {
+      if (!state.taa) continue;
+      ++with_taa;
+      if (!oldest || state.last_used < oldest->last_used) oldest = &state;
+    }
+    if (with_taa >= kMaxTaaViews && oldest) oldest->taa.reset();
   }
-  if (it != taa_history.end()) {
-    taa_history.erase(it);
-  } else if (taa_history.size() >= kMaxTaaViews) {
-    DropLeastRecentlyUsed(taa_history);
-  }
-  TaaHistory h;
-  for (vk::Image& image : h.images) {
+  auto h = std::make_unique<TaaHistory>();
+  for (vk::Image& image : h->images) {
     vk::ImageDesc desc;
     desc.width = targets.width;
     desc.height = targets.height;
@@ -283,8 +290,8 @@ absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& 
     desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
     ASSIGN_OR_RETURN(image, vk::Image::Create(*ctx, desc, "taa_history"));
   }
-  h.last_used = ++frame_counter;
-  return &taa_history.emplace(key, std::move(h)).first->second;
+  v.taa = std::move(h);
+  return v.taa.get();
 }
 
 

@@ -62,6 +62,24 @@ static_assert(offsetof(ShadowUniforms, views) == 96);
 static_assert(sizeof(ShadowUniforms) == 96 + kMaxShadowViews * 80);
 static_assert(sizeof(ShadowUniforms) <= 16384, "must fit the smallest maxUniformBufferRange");
 
+// Push-constant blocks: within the 128 bytes every device has, std430 offsets.
+static_assert(sizeof(TonemapPush) == 48);
+static_assert(sizeof(GeometricAaPush) == 12);
+static_assert(sizeof(TaaPush) == 80 && offsetof(TaaPush, params) == 64);
+static_assert(sizeof(FxaaPush) == 8);
+static_assert(sizeof(SsaoPush) == 48);
+static_assert(sizeof(SsaoBlurPush) == 32);
+static_assert(sizeof(BloomDownPush) == 48);
+static_assert(sizeof(BloomUpPush) == 16);
+static_assert(sizeof(ExposurePush) == 32);
+static_assert(sizeof(HizPush) == 24 && offsetof(HizPush, dst_size) == 8 &&
+              offsetof(HizPush, mode) == 16 && offsetof(HizPush, src_level) == 20);
+static_assert(sizeof(IblEnvPush) == 96 && offsetof(IblEnvPush, size) == 80);
+static_assert(sizeof(IblIrradiancePush) == 16);
+static_assert(sizeof(IblSpecularPush) == 32);
+static_assert(sizeof(ShadowPush) == 64);
+static_assert(sizeof(VisShadePush) == 4);
+
 }  // namespace tessera::gpu
 
 namespace tessera {

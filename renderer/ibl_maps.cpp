@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
 
 namespace tessera {
 
@@ -33,16 +34,7 @@ VkImageMemoryBarrier2 Barrier(const vk::Image& image, VkPipelineStageFlags2 src_
 
 }  // namespace
 
-IblMaps::~IblMaps() {
-  if (device_ == VK_NULL_HANDLE) return;
-  for (VkImageView v : storage_views_) vkDestroyImageView(device_, v, nullptr);
-  for (Program* p : {&env_program_, &irradiance_program_, &specular_program_, &brdf_program_}) {
-    p->pipeline = vk::Pipeline();
-    if (p->layout) vkDestroyPipelineLayout(device_, p->layout, nullptr);
-    if (p->set_layout) vkDestroyDescriptorSetLayout(device_, p->set_layout, nullptr);
-  }
-  if (pool_) vkDestroyDescriptorPool(device_, pool_, nullptr);
-}
+IblMaps::~IblMaps() = default;
 
 absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx) {
   std::unique_ptr<IblMaps> m(new IblMaps());
@@ -80,10 +72,10 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
     vi.viewType = cube ? VK_IMAGE_VIEW_TYPE_2D_ARRAY : VK_IMAGE_VIEW_TYPE_2D;
     vi.format = format;
     vi.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, mip, 1, 0, cube ? 6u : 1u};
-    VkImageView view;
-    VK_RETURN_IF_ERROR(vkCreateImageView(d, &vi, nullptr, &view), "ibl storage view");
-    m->storage_views_.push_back(view);
-    return view;
+    vk::UniqueImageView view;
+    VK_RETURN_IF_ERROR(vkCreateImageView(d, &vi, nullptr, view.Replace(d)), "ibl storage view");
+    m->storage_views_.push_back(std::move(view));
+    return m->storage_views_.back().get();
   };
 
   VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
@@ -99,7 +91,8 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
   dpi.maxSets = 16;
   dpi.poolSizeCount = 2;
   dpi.pPoolSizes = sizes;
-  VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, &m->pool_), "ibl descriptor pool");
+  VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, m->pool_.Replace(d)),
+                     "ibl descriptor pool");
 
   // A program: (sampled env at binding 0 when `reads_env`) + a storage image, push constants.
   auto program = [&](Program* p, const char* shader, bool reads_env,
@@ -113,28 +106,33 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
     VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     li.bindingCount = uint32_t(b.size());
     li.pBindings = b.data();
-    VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, &p->set_layout), shader);
+    VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, p->set_layout.Replace(d)),
+                       shader);
+    const VkDescriptorSetLayout set_layout = p->set_layout.get();
     VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push};
     VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pli.setLayoutCount = 1;
-    pli.pSetLayouts = &p->set_layout;
+    pli.pSetLayouts = &set_layout;
     pli.pushConstantRangeCount = push > 0 ? 1 : 0;
     pli.pPushConstantRanges = &range;
-    VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, &p->layout), shader);
-    ASSIGN_OR_RETURN(p->pipeline, vk::CreateComputePipeline(ctx, shader, shader, p->layout));
+    VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, p->layout.Replace(d)), shader);
+    ASSIGN_OR_RETURN(p->pipeline, vk::CreateComputePipeline(ctx, shader, shader, p->layout.get()));
     return absl::OkStatus();
   };
-  RETURN_IF_ERROR(program(&m->env_program_, "ibl_env.comp", false, 96));
-  RETURN_IF_ERROR(program(&m->irradiance_program_, "ibl_irradiance.comp", true, 16));
-  RETURN_IF_ERROR(program(&m->specular_program_, "ibl_specular.comp", true, 32));
+  RETURN_IF_ERROR(program(&m->env_program_, "ibl_env.comp", false, sizeof(gpu::IblEnvPush)));
+  RETURN_IF_ERROR(program(&m->irradiance_program_, "ibl_irradiance.comp", true,
+                          sizeof(gpu::IblIrradiancePush)));
+  RETURN_IF_ERROR(
+      program(&m->specular_program_, "ibl_specular.comp", true, sizeof(gpu::IblSpecularPush)));
   RETURN_IF_ERROR(program(&m->brdf_program_, "ibl_brdf.comp", false, 0));
 
   // The sets never change: write them once.
   auto set = [&](const Program& p, VkImageView out, bool reads_env) -> VkDescriptorSet {
     VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-    ai.descriptorPool = m->pool_;
+    ai.descriptorPool = m->pool_.get();
     ai.descriptorSetCount = 1;
-    ai.pSetLayouts = &p.set_layout;
+    const VkDescriptorSetLayout set_layout = p.set_layout.get();
+    ai.pSetLayouts = &set_layout;
     VkDescriptorSet s;
     VK_CHECK(vkAllocateDescriptorSets(d, &ai, &s));
     const VkDescriptorImageInfo env{m->sampler_.handle(), m->env_.view(),
@@ -187,21 +185,19 @@ void IblMaps::RecordBake(VkCommandBuffer cmd, const SkyParams& sky) {
   constexpr VkImageLayout kRead = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
   auto bind = [&](const Program& p, VkDescriptorSet set) {
     vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.pipeline.handle());
-    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0, nullptr);
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout.get(), 0, 1, &set, 0,
+                            nullptr);
   };
 
   // The sun is a directional light the shading already adds: the maps the lighting reads are
   // baked from the sky without it (else diffuse gets it twice and mirrors show two suns). The
   // background (level 0) gets the sky with its glow and disc at the end.
   auto sky_pass = [&](const SkyParams& p) {
-    struct {
-      glm::vec4 sun_dir, sun_color, zenith, horizon, ground;
-      glm::uvec4 size;
-    } push{glm::vec4(p.sun_dir, 0.0f), glm::vec4(p.sun_color, 0.0f),
-           glm::vec4(p.zenith, 0.0f),  glm::vec4(p.horizon, 0.0f),
-           glm::vec4(p.ground, 0.0f),  glm::uvec4(kIblEnvSize, 0u, 0u, 0u)};
+    const gpu::IblEnvPush push{glm::vec4(p.sun_dir, 0.0f), glm::vec4(p.sun_color, 0.0f),
+                               glm::vec4(p.zenith, 0.0f),  glm::vec4(p.horizon, 0.0f),
+                               glm::vec4(p.ground, 0.0f),  glm::uvec4(kIblEnvSize, 0u, 0u, 0u)};
     bind(env_program_, env_set_);
-    vkCmdPushConstants(cmd, env_program_.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push),
+    vkCmdPushConstants(cmd, env_program_.layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push),
                        &push);
     vkCmdDispatch(cmd, Groups(kIblEnvSize), Groups(kIblEnvSize), 6);
   };
@@ -253,24 +249,22 @@ void IblMaps::RecordBake(VkCommandBuffer cmd, const SkyParams& sky) {
   }
   // 3. Diffuse irradiance: every texel of a 16x16-face level, cosine-weighted.
   {
-    const glm::uvec4 push(kIblIrradianceSize, kIrradianceSourceLevel,
-                          kIblEnvSize >> kIrradianceSourceLevel, 0u);
+    const gpu::IblIrradiancePush push{glm::uvec4(kIblIrradianceSize, kIrradianceSourceLevel,
+                                                 kIblEnvSize >> kIrradianceSourceLevel, 0u)};
     bind(irradiance_program_, irradiance_set_);
-    vkCmdPushConstants(cmd, irradiance_program_.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0,
+    vkCmdPushConstants(cmd, irradiance_program_.layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
     vkCmdDispatch(cmd, Groups(kIblIrradianceSize), Groups(kIblIrradianceSize), 6);
   }
   // 4. The specular chain: mip m filtered for roughness m / (mips - 1).
   for (uint32_t mip = 0; mip < kIblSpecularMips; ++mip) {
     const uint32_t size = std::max(1u, kIblSpecularSize >> mip);
-    struct {
-      glm::vec4 params;
-      glm::uvec4 size;
-    } push{glm::vec4(float(mip) / float(kIblSpecularMips - 1), float(kIblEnvSize),
-                     float(env_mips), kSpecularSamples),
-           glm::uvec4(size, 0u, 0u, 0u)};
+    const gpu::IblSpecularPush push{
+        glm::vec4(float(mip) / float(kIblSpecularMips - 1), float(kIblEnvSize), float(env_mips),
+                  kSpecularSamples),
+        glm::uvec4(size, 0u, 0u, 0u)};
     bind(specular_program_, specular_sets_[mip]);
-    vkCmdPushConstants(cmd, specular_program_.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0,
+    vkCmdPushConstants(cmd, specular_program_.layout.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
     vkCmdDispatch(cmd, Groups(size), Groups(size), 6);
   }

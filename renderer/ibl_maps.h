@@ -48,11 +48,11 @@ class IblMaps {
   IblMaps() = default;
   VkDevice device_ = VK_NULL_HANDLE;
   vk::Image env_, irradiance_, specular_, brdf_;
-  std::vector<VkImageView> storage_views_;  // 2D-array views of single mips (owned)
-  VkDescriptorPool pool_ = VK_NULL_HANDLE;
+  std::vector<vk::UniqueImageView> storage_views_;  // 2D-array views of single mips
+  vk::UniqueDescriptorPool pool_;
   struct Program {
-    VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
-    VkPipelineLayout layout = VK_NULL_HANDLE;
+    vk::UniqueDescriptorSetLayout set_layout;
+    vk::UniquePipelineLayout layout;
     vk::Pipeline pipeline;
   };
   Program env_program_, irradiance_program_, specular_program_, brdf_program_;

@@ -73,8 +73,7 @@ uint64_t Renderer::DeviceMemoryBytes() { return vk::AllocatedDeviceBytes(); }
 void Renderer::ForgetView(const Scene& scene, uint64_t view) {
   std::lock_guard lock(impl_->mutex);
   // Frames are synchronous (each Render waits for its fence), so nothing in flight uses them.
-  impl_->taa_history.erase({scene.gpu_->serial(), view});
-  impl_->exposure_state.erase({scene.gpu_->serial(), view});
+  impl_->view_states.erase({scene.gpu_->serial(), view});
   scene.gpu_->views().erase(view);
 }
 
@@ -122,8 +121,14 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   m.PrepareVis(f);
 
   // The frame's passes, from the features' Setup; each builds what it lacks for the settings.
-  const FramePlan plan =
-      PlanFrame(s, {!f.draws.blend_order.empty(), uint32_t(f.local.size())});
+  FrameFeatures features;
+  features.has_transparent = !f.draws.blend_order.empty();
+  features.local_lights = uint32_t(f.local.size());
+  features.shadow_atlas_valid = !f.shadows.atlas_new;
+  features.taa_history_valid = f.taa.history_valid;
+  features.exposure_valid = f.exposure.state_valid;
+  const FramePlan plan = PlanFrame(s, features);
+  m.ImportTargets(f);
   for (const PlannedPass& p : plan.passes)
     RETURN_IF_ERROR(m.passes[static_cast<size_t>(p.id)]->Prepare(*m.ctx, s));
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool.get(), 0));
@@ -142,6 +147,14 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   if (capture) RETURN_IF_ERROR(m.CaptureFrame(f, plan, pc, capture));
   m.ReadBack(frame);
   return frame;
+}
+
+void Renderer::Impl::ImportTargets(const FrameData& f) {
+  targets.shadow_atlas = f.shadows.atlas ? vk::ImageRef(*f.shadows.atlas) : vk::ImageRef();
+  targets.taa_history = f.taa.history_read ? vk::ImageRef(*f.taa.history_read) : vk::ImageRef();
+  targets.taa_history_next =
+      f.taa.history_write ? vk::ImageRef(*f.taa.history_write) : vk::ImageRef();
+  targets.exposure_state = f.exposure_state ? vk::ImageRef(*f.exposure_state) : vk::ImageRef();
 }
 
 PassContext Renderer::Impl::MakePassContext(FrameData& f) {

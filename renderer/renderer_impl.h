@@ -120,7 +120,7 @@ struct Renderer::Impl {
   TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
   FrameTargets targets;    // this frame's, from the pool
   const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool
-  // taa: each (scene, view)'s history, least recently used dropped past kMaxTaaViews.
+  // taa: a view's history.
   struct TaaHistory {
     vk::Image images[2];
     bool written[2] = {false, false};
@@ -128,9 +128,7 @@ struct Renderer::Impl {
     uint32_t frames = 0;   // frames blended into it since the last reset (capped)
     uint32_t jitter_index = 0;
     glm::mat4 view_proj{0.0f};  // unjittered, of the last frame
-    uint64_t last_used = 0;
   };
-  std::map<std::pair<uint64_t, uint64_t>, TaaHistory> taa_history;
   // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
   // they hold (ShadowAtlas), the uniforms the shading reads, and a 1x1 stand-in bound while
   // shadows are off.
@@ -142,14 +140,19 @@ struct Renderer::Impl {
   vk::Sampler shadow_sampler;  // comparison, bilinear
   vk::Sampler linear_sampler;  // ssao visibility
   vk::Image ao_placeholder;    // 1x1, shader-read layout: what the shading reads without ssao
-  // Auto exposure: each (scene, view)'s adapted average (ExposureFrame::state), least recently
-  // used dropped past kMaxExposureViews.
+  // Auto exposure: a view's adapted average (ExposureFrame::state).
   struct ExposureState {
     vk::Image image;
     bool written = false;
+  };
+  // Everything a (scene, view) keeps between its frames, in one least-recently-used cache
+  // (gpu_occlusion's visibility bits are the scene's: GpuScene::views).
+  struct ViewState {
+    std::unique_ptr<TaaHistory> taa;          // two frame-sized images: at most kMaxTaaViews
+    std::unique_ptr<ExposureState> exposure;  // 1x1
     uint64_t last_used = 0;
   };
-  std::map<std::pair<uint64_t, uint64_t>, ExposureState> exposure_state;
+  std::map<std::pair<uint64_t, uint64_t>, ViewState> view_states;
   // IBL: the maps (made when ibl first runs), the hash of the sky they hold, and a 1x1 cube
   // bound while ibl is off.
   std::unique_ptr<IblMaps> ibl;
@@ -173,12 +176,16 @@ struct Renderer::Impl {
   absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
   absl::Status EnsureRowBuffer(size_t entries);
   absl::Status EnsureCullBuffers(uint32_t items, uint32_t lists);
-  // Per-view state (least recently used dropped): taa history, exposure state, occlusion bits.
+  // Per-view state (least recently used dropped): the view's entry, its taa history, its exposure
+  // state, its occlusion bits.
+  ViewState& View(const GpuScene& scene, uint64_t view);
   absl::StatusOr<TaaHistory*> Taa(const GpuScene& scene, uint64_t view);
   absl::StatusOr<ExposureState*> Exposure(const GpuScene& scene, uint64_t view);
   absl::StatusOr<GpuScene::ViewVisibility*> Visibility(const GpuScene& scene, uint64_t view);
   // The frame's set 0; binds the shadow atlas when `shadows` (else the 1x1 stand-in).
   VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao, bool ibl);
+  // The long-lived images this frame imports into its graph (FrameTargets::shadow_atlas ...).
+  void ImportTargets(const FrameData& f);
   // What the passes record with.
   PassContext MakePassContext(FrameData& f);
   void ReadBack(Frame& frame);

@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // One level of the bloom downsample chain: the 13-tap filter of Jimenez, "Next Generation Post
 // Processing in Call of Duty: Advanced Warfare" (SIGGRAPH 2014). The target is half the source.
 //
@@ -21,12 +22,7 @@
 // The previous level, or the HDR frame; LINEAR, clamp to edge.
 layout(set = 0, binding = 0) uniform sampler2D u_src;
 layout(set = 0, binding = 1) uniform sampler2D u_exposure;  // auto exposure's state (NEAREST)
-layout(push_constant) uniform Push {
-  vec4 src;        // xy: 1 / source size in texels, z: 1 on the first level (exposure, Karis
-                   // average and threshold) else 0, w: unused
-  vec4 threshold;  // x: threshold (exposed linear HDR), y: knee (soft knee width), zw: unused
-  vec4 exposure;   // Exposure()'s params (first level)
-} push;
+layout(push_constant) uniform Push { TS_PUSH_BLOOM_DOWN } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert: the target pixel's centre
 layout(location = 0) out vec4 out_color;
 

@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // One level of the bloom upsample chain (Jimenez, SIGGRAPH 2014): the level below (already
 // upsampled, half this size) filtered with a 3x3 tent while magnified, plus this level of the
 // downsample chain. The tent (1 2 1 / 2 4 2 / 1 2 1, / 16) of bilinear taps hides the blocky
@@ -8,9 +10,7 @@
 layout(set = 0, binding = 0) uniform sampler2D u_low;
 // This level of the downsample chain (the target's size); LINEAR.
 layout(set = 0, binding = 1) uniform sampler2D u_this;
-layout(push_constant) uniform Push {
-  vec4 params;  // xy: 1 / u_low size in texels, z: tent radius in u_low texels (1), w: unused
-} push;
+layout(push_constant) uniform Push { TS_PUSH_BLOOM_UP } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert: the target pixel's centre
 layout(location = 0) out vec4 out_color;
 

@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Auto exposure: the average log2 luminance of the HDR frame, adapted over frames.
 //
 // One workgroup of 256 threads samples a grid of points spread evenly over the frame (up to
@@ -11,11 +13,7 @@ layout(local_size_x = 256) in;
 
 layout(set = 0, binding = 0) uniform sampler2D u_hdr;        // HDR frame, LINEAR, clamp to edge
 layout(set = 0, binding = 1, r32f) uniform image2D u_state;  // 1x1: adapted average log2 luminance
-layout(push_constant) uniform Push {
-  uvec4 size;   // xy: HDR size in pixels, z: grid width, w: grid height (sample points)
-  vec4 params;  // x: rate (>= 1: this frame's value at once, else the fraction of the way to
-                // move), y: min log2 luminance, z: max log2 luminance, w: unused
-} push;
+layout(push_constant) uniform Push { TS_PUSH_EXPOSURE } push;  // common/gpu_types.h
 
 const uint kThreads = 256;    // = local_size_x
 const float kMinLum = 1e-5;   // luminance floor before log2 (black is -inf otherwise)

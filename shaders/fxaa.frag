@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // FXAA: one luma-based anti-aliasing pass over the tonemapped image.
 //
 // For each pixel: measure the local luma contrast and leave low-contrast pixels untouched;
@@ -15,9 +17,7 @@
 // makes the contrast thresholds perceptual. Pixels without a detected edge are returned with
 // texelFetch, unfiltered, so they come out bit-identical to the input.
 layout(set = 0, binding = 0) uniform sampler2D u_ldr;  // R8G8B8A8_SRGB, LINEAR filter, clamp to edge
-layout(push_constant) uniform Push {
-  vec2 inv_size;  // 1/width, 1/height
-} push;
+layout(push_constant) uniform Push { TS_PUSH_FXAA } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert; unused: centres come from gl_FragCoord
 layout(location = 0) out vec4 out_color;
 

@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // vis_mlaa geometric AA. A pixel whose shaded surface owns every sample passes through. In any
 // other pixel the mean position of the surface's samples lies off the pixel centre, towards
 // the surface; the other surface lies the opposite way. That direction (the "compass") picks
@@ -11,11 +13,7 @@
 layout(set = 0, binding = 0) uniform sampler2D u_color;
 layout(set = 0, binding = 1) uniform usampler2D u_coverage;
 layout(set = 0, binding = 2) uniform usampler2D u_id;
-layout(push_constant) uniform Push {
-  uint samples;
-  uint show_mask;
-  uint triangle_bits;
-} push;
+layout(push_constant) uniform Push { TS_PUSH_GEOMETRIC_AA } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;
 layout(location = 0) out vec4 out_color;
 

@@ -16,12 +16,7 @@ layout(local_size_x = kHizGroupSize, local_size_y = kHizGroupSize) in;
 layout(set = 0, binding = kHizBindingSource) uniform sampler2D source;
 layout(set = 0, binding = kHizBindingDest, r32f) uniform writeonly image2D dest;
 
-layout(push_constant) uniform Push {
-  uvec2 src_size;  // pixels of the source level
-  uvec2 dst_size;  // texels of the level written
-  uint mode;       // 0: from the depth buffer, 1: min sampler, 2: four fetches
-  uint src_level;  // source mip (modes 1, 2)
-} push;
+layout(push_constant) uniform Push { TS_PUSH_HIZ } push;  // common/gpu_types.h
 
 void main() {
   const uvec2 t = gl_GlobalInvocationID.xy;

@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Image-based lighting, step 1: renders the procedural sky (common/ibl_sky.glsl) into mip 0 of
 // the environment cube map, one invocation per texel, gl_GlobalInvocationID.z = face (0..5 =
 // +X, -X, +Y, -Y, +Z, -Z). The cube is written as a 6-layer image2DArray view; each texel holds
@@ -12,14 +13,7 @@
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(set = 0, binding = 0, rgba16f) uniform writeonly image2DArray u_env;
-layout(push_constant, std430) uniform Push {
-  vec4 sun_dir;    // xyz: towards the sun (normalized, or zero: no sun), w: unused
-  vec4 sun_color;  // rgb: sun radiance scale, w: unused
-  vec4 zenith;     // rgb: sky radiance straight up
-  vec4 horizon;    // rgb: sky radiance at the horizon
-  vec4 ground;     // rgb: radiance below the horizon
-  uvec4 size;      // x: face size in texels, yzw: unused
-} push;
+layout(push_constant) uniform Push { TS_PUSH_IBL_ENV } push;  // common/gpu_types.h
 
 void main() {
   uvec3 id = gl_GlobalInvocationID;

@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Image-based lighting, step 2: the diffuse irradiance cube map, by brute-force integration over
 // every texel of one (small) mip level of the environment. One invocation per output texel,
 // gl_GlobalInvocationID.z = face. For the output direction n it stores
@@ -27,10 +28,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(set = 0, binding = 0) uniform samplerCube u_env;  // linear, mip chain made by blits
 layout(set = 0, binding = 1, rgba16f) uniform writeonly image2DArray u_out;
-layout(push_constant, std430) uniform Push {
-  uvec4 size;  // x: output face size, y: env mip level integrated over, z: that level's face
-               // size, w: unused
-} push;
+layout(push_constant) uniform Push { TS_PUSH_IBL_IRRADIANCE } push;  // common/gpu_types.h
 
 void main() {
   uvec3 id = gl_GlobalInvocationID;

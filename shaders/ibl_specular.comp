@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Image-based lighting, step 3: one mip level of the prefiltered specular cube map, the first
 // factor of Karis' split sum (UE4, 2013): the environment convolved with the GGX lobe of this
 // level's roughness under the assumption N = V = R, weighted by n_dot_l. One invocation per
@@ -24,11 +25,7 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
 layout(set = 0, binding = 0) uniform samplerCube u_env;  // linear, mip chain made by blits
 layout(set = 0, binding = 1, rgba16f) uniform writeonly image2DArray u_out;  // one mip level
-layout(push_constant, std430) uniform Push {
-  vec4 params;  // x: perceptual roughness of this level (alpha = x^2), y: env mip-0 face size
-                // in texels, z: env mip count, w: sample count
-  uvec4 size;   // x: this level's face size, yzw: unused
-} push;
+layout(push_constant) uniform Push { TS_PUSH_IBL_SPECULAR } push;  // common/gpu_types.h
 
 // alpha below this is treated as this: D at n_dot_h = 1 is 1 / (pi alpha^2), and alpha = 0
 // would make it 0 / 0. (The smallest shaded roughness, 0.03, has alpha 9e-4.)

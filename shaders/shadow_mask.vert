@@ -1,10 +1,11 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Shadow maps of alpha-mask materials: shadow.vert plus the texture coordinates that
 // depth_mask.frag tests the base colour's alpha with.
 #include "common/scene.glsl"
 
-layout(push_constant) uniform Push { mat4 view_proj; } push;
+layout(push_constant) uniform Push { TS_PUSH_SHADOW } push;  // common/gpu_types.h
 layout(location = kAttrPosition) in vec3 in_position;
 layout(location = kAttrUv0) in vec2 in_uv0;
 layout(location = kAttrUv1) in vec2 in_uv1;

@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Screen-space ambient obscurance: SAO / Alchemy AO (McGuire, Mara, Luebke, "Scalable Ambient
 // Obscurance", HPG 2012), at half or full resolution.
 //
@@ -13,13 +15,7 @@
 // view distance z, for the bilateral blur; sky (depth 0) is (1, 0).
 // D32, reverse Z (1 near, 0 sky), NEAREST sampler (texelFetch only).
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
-layout(push_constant) uniform Push {
-  vec4 proj;    // x: proj[0][0], y: proj[1][1] (negative: Vulkan clip y is down),
-                // z: proj[2][2], w: proj[3][2]
-  vec4 params;  // x: radius (world units), y: intensity (1 = default), z: bias (world units),
-                // w: unused
-  uvec4 size;   // xy: depth size in pixels, zw: output size in pixels
-} push;
+layout(push_constant) uniform Push { TS_PUSH_SSAO } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert; unused: pixels come from gl_FragCoord
 layout(location = 0) out vec4 out_ao;
 

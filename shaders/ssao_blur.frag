@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // One direction of the separable bilateral blur of ssao.frag's output (run horizontally, then
 // vertically). AO and view distance share a texel (RG16F), so each tap is one fetch.
 //
@@ -9,10 +11,7 @@
 // sky centres (g == 0) pass through as (1, 0), sky taps never count for non-sky centres.
 // RG16F: r visibility, g view distance (0: sky); NEAREST sampler (texelFetch only).
 layout(set = 0, binding = 0) uniform sampler2D u_ao;
-layout(push_constant) uniform Push {
-  ivec4 dir;    // xy: step, (1, 0) or (0, 1); zw: image size in texels
-  vec4 params;  // x: depth sharpness (e.g. 8); yzw: unused
-} push;
+layout(push_constant) uniform Push { TS_PUSH_SSAO_BLUR } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert; unused: pixels come from gl_FragCoord
 layout(location = 0) out vec4 out_ao;
 

@@ -1,4 +1,6 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // Temporal anti-aliasing resolve, in HDR before tonemapping.
 //
 // Each frame is rendered with a subpixel jitter; this pass blends the frame into an
@@ -18,10 +20,7 @@
 layout(set = 0, binding = 0) uniform sampler2D u_current;  // RGBA16F, NEAREST
 layout(set = 0, binding = 1) uniform sampler2D u_depth;    // D32, reverse Z (1 near, 0 far), NEAREST
 layout(set = 0, binding = 2) uniform sampler2D u_history;  // RGBA16F, LINEAR, clamp to edge
-layout(push_constant) uniform Push {
-  mat4 reproject;  // this frame's unjittered clip space -> last frame's unjittered clip space
-  vec4 params;     // x: current-frame weight, y: history valid (1) or not (0), zw: 1/width, 1/height
-} push;
+layout(push_constant) uniform Push { TS_PUSH_TAA } push;  // common/gpu_types.h
 layout(location = 0) in vec2 v_uv;  // from fullscreen.vert; unused: centres come from gl_FragCoord
 layout(location = 0) out vec4 out_color;    // this frame's anti-aliased HDR colour
 layout(location = 1) out vec4 out_history;  // the same, as next frame's history

@@ -12,12 +12,7 @@ layout(set = 0, binding = 1) uniform sampler2D u_ao;        // ssao visibility (
 layout(set = 0, binding = 2) uniform sampler2D u_atlas;     // shadow atlas depths (nearest)
 layout(set = 0, binding = 3) uniform sampler2D u_bloom;     // bloom, half size (bilinear)
 layout(set = 0, binding = 4) uniform sampler2D u_exposure;  // auto exposure's state (nearest)
-layout(push_constant) uniform Push {
-  vec4 exposure;  // Exposure()'s params; w: tonemapper (0 PBR Neutral, 1 photographic)
-  uvec4 mode;     // x: 1 for debug views (no exposure, no tonemap), y: debug view (kDebug*),
-                  // z: 1 with bloom, w: unused
-  vec4 bloom;     // x: strength / levels (the upsample chain sums its levels), y: 1 / levels
-} push;
+layout(push_constant) uniform Push { TS_PUSH_TONEMAP } push;  // common/gpu_types.h
 layout(location = 0) out vec4 out_color;
 
 // Khronos PBR Neutral: identity below ~0.76, then a smooth shoulder that desaturates towards

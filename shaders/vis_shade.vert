@@ -1,8 +1,10 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
+#include "common/gpu_types.h"
 // vis_mlaa shading: one full-screen triangle per material at that material's depth; the
 // EQUAL test against the material-depth target leaves the material's pixels (the scissor is
 // the rectangle its drawables can cover).
-layout(push_constant) uniform Push { float depth; } push;
+layout(push_constant) uniform Push { TS_PUSH_VIS_SHADE } push;  // common/gpu_types.h
 layout(location = 0) out vec2 v_uv;
 
 void main() {

@@ -44,11 +44,8 @@ class BloomPass final : public Pass {
                         std::max(1u, t.bloom_down.desc().height >> level)};
     };
     const PostInput exposure{ctx.exposure->view, nearest_.handle(), ctx.exposure->layout};
-    struct {
-      glm::vec4 src;
-      glm::vec4 threshold;
-      glm::vec4 exposure;
-    } down{glm::vec4(0.0f), glm::vec4(kThreshold, kKnee, 0.0f, 0.0f), ctx.exposure->params};
+    gpu::BloomDownPush down{glm::vec4(0.0f), glm::vec4(kThreshold, kKnee, 0.0f, 0.0f),
+                            ctx.exposure->params};
     for (uint32_t i = 0; i < levels; ++i) {
       const VkExtent2D src = i == 0 ? VkExtent2D{t.width, t.height} : extent(i - 1);
       down.src = glm::vec4(1.0f / float(src.width), 1.0f / float(src.height), i == 0 ? 1.0f : 0.0f,
@@ -62,7 +59,8 @@ class BloomPass final : public Pass {
     // level below is bloom_down's last for the first step.
     for (uint32_t i = levels - 1; i-- > 0;) {  // levels - 2 .. 0
       const VkExtent2D low = extent(i + 1);
-      const glm::vec4 push(1.0f / float(low.width), 1.0f / float(low.height), 1.0f, 0.0f);
+      const gpu::BloomUpPush push{
+          glm::vec4(1.0f / float(low.width), 1.0f / float(low.height), 1.0f, 0.0f)};
       const VkImageView low_view =
           i + 1 == levels - 1 ? t.bloom_down_levels[i + 1] : t.bloom_up_levels[i + 1];
       up_.Draw(ctx,
@@ -103,11 +101,11 @@ class BloomPass final : public Pass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx) {
-  absl::StatusOr<FullscreenProgram> down =
-      FullscreenProgram::Create(ctx, "bloom_down", "bloom_down.frag", 2, 48, {kHdrFormat});
+  absl::StatusOr<FullscreenProgram> down = FullscreenProgram::Create(
+      ctx, "bloom_down", "bloom_down.frag", 2, sizeof(gpu::BloomDownPush), {kHdrFormat});
   if (!down.ok()) return down.status();
-  absl::StatusOr<FullscreenProgram> up =
-      FullscreenProgram::Create(ctx, "bloom_up", "bloom_up.frag", 2, 16, {kHdrFormat});
+  absl::StatusOr<FullscreenProgram> up = FullscreenProgram::Create(
+      ctx, "bloom_up", "bloom_up.frag", 2, sizeof(gpu::BloomUpPush), {kHdrFormat});
   if (!up.ok()) return up.status();
   ASSIGN_OR_RETURN(vk::Sampler linear, CreateClampSampler(ctx, true, "bloom.linear"));
   absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, "bloom.nearest");
@@ -124,7 +122,8 @@ void SetupBloom(GraphBuilder& b) {
   b.Pass(PassId::kBloom)
       .Use(color, Access::kSampled)
       .Use(Resource::kBloomDown, Access::kColorWrite)
-      .Use(Resource::kBloomUp, Access::kColorWrite);
+      .Use(Resource::kBloomUp, Access::kColorWrite)
+      .UseIfPresent(Resource::kExposureState, Access::kSampledGeneral);
 }
 
 }  // namespace tessera

@@ -24,11 +24,6 @@ constexpr uint32_t kGrid = 64;
 constexpr float kMinLog2 = -16.0f;
 constexpr float kMaxLog2 = 16.0f;
 
-struct ExposurePush {
-  uint32_t size[4];  // frame width, height, grid width, grid height
-  float params[4];   // rate, min log2 luma, max log2 luma, unused
-};
-
 class ExposurePass final : public Pass {
  public:
   ExposurePass(VkDevice device, PassLayout layout, vk::Pipeline pipeline, vk::Sampler linear)
@@ -40,15 +35,7 @@ class ExposurePass final : public Pass {
 
   void Record(PassContext& ctx) override {
     const ExposureFrame& e = *ctx.exposure;
-    const vk::Image& state = *e.state;
-    // After the last frame's reads (bloom, tonemap); a state never written starts undefined.
-    VkImageMemoryBarrier2 before = vk::MakeImageBarrier(
-        state, {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_NONE,
-                e.state_valid ? VK_IMAGE_LAYOUT_GENERAL : VK_IMAGE_LAYOUT_UNDEFINED,
-                VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                VK_IMAGE_LAYOUT_GENERAL});
-    vk::CmdBarrier(ctx.cmd, &before, 1);
+    const vk::Image& state = *e.state;  // imported (SetupExposure)
 
     const VkDescriptorSet set = layout_.Allocate(ctx);
     const VkDescriptorImageInfo src{linear_.handle(), PostColor(ctx).view(),
@@ -70,17 +57,12 @@ class ExposurePass final : public Pass {
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
                             1, &set, 0, nullptr);
     const uint32_t w_px = ctx.targets->width, h_px = ctx.targets->height;
-    const ExposurePush push{{w_px, h_px, std::min(w_px, kGrid), std::min(h_px, kGrid)},
-                            {e.state_valid ? e.rate : 1.0f, kMinLog2, kMaxLog2, 0.0f}};
+    const gpu::ExposurePush push{
+        glm::uvec4(w_px, h_px, std::min(w_px, kGrid), std::min(h_px, kGrid)),
+        glm::vec4(e.state_valid ? e.rate : 1.0f, kMinLog2, kMaxLog2, 0.0f)};
     vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
     vkCmdDispatch(ctx.cmd, 1, 1, 1);
-
-    VkImageMemoryBarrier2 after = vk::MakeImageBarrier(
-        state, {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                VK_IMAGE_LAYOUT_GENERAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-                VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, VK_IMAGE_LAYOUT_GENERAL});
-    vk::CmdBarrier(ctx.cmd, &after, 1);
   }
 
  private:
@@ -98,7 +80,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateExposurePass(const vk::Context& ctx)
       {1, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
   };
   absl::StatusOr<PassLayout> layout = PassLayout::Create(
-      ctx, bindings, {{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(ExposurePush)}}, "exposure layout");
+      ctx, bindings, {{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(gpu::ExposurePush)}},
+      "exposure layout");
   if (!layout.ok()) return layout.status();
   ASSIGN_OR_RETURN(
       vk::Pipeline pipeline,
@@ -113,10 +96,18 @@ void SetupExposure(GraphBuilder& b) {
   // Debug views other than bloom's are not exposed, and must not move a stream's adapted
   // exposure.
   const Settings& s = b.settings();
+  if (s.exposure_mode != ExposureMode::kAuto) return;
+  // The view's state lives across frames in the general layout, where bloom and tonemap read
+  // it (a state never written is undefined until the exposure pass writes it).
+  b.Import(Resource::kExposureState,
+           b.features().exposure_valid ? Access::kSampledGeneral : Access::kNone,
+           Access::kSampledGeneral);
   const bool exposed = s.debug_view == DebugView::kNone || s.debug_view == DebugView::kBloom;
-  if (s.exposure_mode != ExposureMode::kAuto || !exposed) return;
+  if (!exposed) return;
   const Resource color = b.SceneColor();
-  b.Pass(PassId::kExposure).Use(color, Access::kComputeRead);
+  b.Pass(PassId::kExposure)
+      .Use(color, Access::kComputeRead)
+      .Use(Resource::kExposureState, Access::kComputeWrite);
 }
 
 

@@ -152,7 +152,8 @@ void UseForwardTargets(GraphBuilder& b, Resource color) {
   } else {
     b.Use(Resource::kDepth, Access::kDepthTest).Use(color, Access::kColorWrite);
   }
-  b.UseIfWritten(Resource::kAo, Access::kSampled);
+  b.UseIfPresent(Resource::kAo, Access::kSampled)
+      .UseIfPresent(Resource::kShadowAtlas, Access::kSampled);
 }
 }  // namespace
 

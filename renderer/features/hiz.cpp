@@ -14,10 +14,6 @@ namespace tessera {
 
 namespace {
 
-struct HizPush {
-  uint32_t src_w, src_h, dst_w, dst_h, mode, src_level;
-};
-
 class HizBuildPass final : public Pass {
  public:
   HizBuildPass(VkDevice device, PassLayout layout, vk::Pipeline pipeline,
@@ -60,7 +56,8 @@ class HizBuildPass final : public Pass {
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(),
                               0, 1, &set, 0, nullptr);
       // Each level view has one mip, so the source level is 0 in its view.
-      const HizPush push{src_w, src_h, dst_w, dst_h, level == 0 ? 0u : (minmax_ ? 1u : 2u), 0u};
+      const gpu::HizPush push{glm::uvec2(src_w, src_h), glm::uvec2(dst_w, dst_h),
+                              level == 0 ? 0u : (minmax_ ? 1u : 2u), 0u};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
       vkCmdDispatch(ctx.cmd, (dst_w + gpu::kHizGroupSize - 1) / gpu::kHizGroupSize,
                     (dst_h + gpu::kHizGroupSize - 1) / gpu::kHizGroupSize, 1);
@@ -96,7 +93,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateHizBuildPass(const vk::Context& ctx)
        nullptr},
   };
   absl::StatusOr<PassLayout> layout = PassLayout::Create(
-      ctx, bindings, {{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(HizPush)}}, "hiz layout");
+      ctx, bindings, {{VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(gpu::HizPush)}}, "hiz layout");
   if (!layout.ok()) return layout.status();
   absl::StatusOr<vk::Pipeline> pipeline = vk::CreateComputePipeline(
       ctx, "hiz_build", "hiz_build.comp", layout->pipeline_layout());

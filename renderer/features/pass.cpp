@@ -55,38 +55,25 @@ absl::StatusOr<PassLayout> PassLayout::Create(
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
   li.pBindings = bindings.data();
-  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(l.device_, &li, nullptr, &l.set_layout_), name);
+  VK_RETURN_IF_ERROR(
+      vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)), name);
+  const VkDescriptorSetLayout set_layout = l.set_layout_.get();
   VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
   pli.setLayoutCount = 1;
-  pli.pSetLayouts = &l.set_layout_;
+  pli.pSetLayouts = &set_layout;
   pli.pushConstantRangeCount = static_cast<uint32_t>(push.size());
   pli.pPushConstantRanges = push.data();
-  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, &l.layout_), name);
+  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
+                     name);
   return l;
-}
-
-PassLayout& PassLayout::operator=(PassLayout&& o) noexcept {
-  if (this != &o) {
-    Reset();
-    device_ = std::exchange(o.device_, VK_NULL_HANDLE);
-    set_layout_ = std::exchange(o.set_layout_, VK_NULL_HANDLE);
-    layout_ = std::exchange(o.layout_, VK_NULL_HANDLE);
-  }
-  return *this;
-}
-
-void PassLayout::Reset() {
-  if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
-  if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
-  layout_ = VK_NULL_HANDLE;
-  set_layout_ = VK_NULL_HANDLE;
 }
 
 VkDescriptorSet PassLayout::Allocate(const PassContext& ctx) const {
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   ai.descriptorPool = ctx.frame_pool;
   ai.descriptorSetCount = 1;
-  ai.pSetLayouts = &set_layout_;
+  const VkDescriptorSetLayout set_layout = set_layout_.get();
+  ai.pSetLayouts = &set_layout;
   VkDescriptorSet set;
   VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
   return set;

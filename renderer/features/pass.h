@@ -55,6 +55,8 @@ struct FrameTargets {
   // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip.
   vk::ImageRef bloom_down, bloom_up;
   vk::MipViewsRef bloom_down_levels, bloom_up_levels;
+  // The long-lived resources this frame imports (renderer-owned; empty when unused).
+  vk::ImageRef shadow_atlas, taa_history, taa_history_next, exposure_state;
   const vk::Image& Get(Resource r) const {
     switch (r) {
       case Resource::kDepth: return depth;
@@ -73,6 +75,14 @@ struct FrameTargets {
       case Resource::kAoTemp: return ao_temp;
       case Resource::kBloomDown: return bloom_down;
       case Resource::kBloomUp: return bloom_up;
+      case Resource::kShadowAtlas:
+        return shadow_atlas;
+      case Resource::kTaaHistory:
+        return taa_history;
+      case Resource::kTaaHistoryNext:
+        return taa_history_next;
+      case Resource::kExposureState:
+        return exposure_state;
       case Resource::kCount: break;
     }
     return ldr;
@@ -219,25 +229,18 @@ struct PassContext {
 class PassLayout {
  public:
   PassLayout() = default;
-  static absl::StatusOr<PassLayout> Create(const vk::Context& ctx,
-                                           const std::vector<VkDescriptorSetLayoutBinding>& bindings,
-                                           const std::vector<VkPushConstantRange>& push,
-                                           const char* name);
-  ~PassLayout() { Reset(); }
-  PassLayout(PassLayout&& o) noexcept { *this = std::move(o); }
-  PassLayout& operator=(PassLayout&& o) noexcept;
-  PassLayout(const PassLayout&) = delete;
-  PassLayout& operator=(const PassLayout&) = delete;
+  static absl::StatusOr<PassLayout> Create(
+      const vk::Context& ctx, const std::vector<VkDescriptorSetLayoutBinding>& bindings,
+      const std::vector<VkPushConstantRange>& push, const char* name);
 
-  VkPipelineLayout pipeline_layout() const { return layout_; }
+  VkPipelineLayout pipeline_layout() const { return layout_.get(); }
   // Allocates a set of this layout from the frame's pool (reset every frame).
   VkDescriptorSet Allocate(const PassContext& ctx) const;
 
  private:
-  void Reset();
   VkDevice device_ = VK_NULL_HANDLE;
-  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
-  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+  vk::UniqueDescriptorSetLayout set_layout_;
+  vk::UniquePipelineLayout layout_;
 };
 
 class Pass {

@@ -143,16 +143,12 @@ class TonemapPass final : public PostPass {
     const Settings& s = *ctx.settings;
     const ExposureFrame& e = *ctx.exposure;
     const bool bloom = s.bloom;
-    struct {
-      glm::vec4 exposure;
-      glm::uvec4 mode;
-      glm::vec4 bloom;
-    } push{glm::vec4(e.params.x, e.params.y, e.params.z,
-                     s.tonemapper == Tonemapper::kPhotographic ? 1.0f : 0.0f),
-           glm::uvec4(s.debug_view != DebugView::kNone ? 1u : 0u,
-                      static_cast<uint32_t>(s.debug_view), bloom ? 1u : 0u, 0u),
-           glm::vec4(s.bloom_strength / float(kBloomLevels), 1.0f / float(kBloomLevels), 0.0f,
-                     0.0f)};
+    const gpu::TonemapPush push{
+        glm::vec4(e.params.x, e.params.y, e.params.z,
+                  s.tonemapper == Tonemapper::kPhotographic ? 1.0f : 0.0f),
+        glm::uvec4(s.debug_view != DebugView::kNone ? 1u : 0u, static_cast<uint32_t>(s.debug_view),
+                   bloom ? 1u : 0u, 0u),
+        glm::vec4(s.bloom_strength / float(kBloomLevels), 1.0f / float(kBloomLevels), 0.0f, 0.0f)};
     // The atlas is in shader-read layout outside the shadow pass, ao in the frame graph's
     // sampled state (1x1 stand-ins without shadows, ssao); without bloom, ao's image stands in
     // for the bloom too (never read).
@@ -175,13 +171,13 @@ class GeometricAaPass final : public PostPass {
   using PostPass::PostPass;
   PassId id() const override { return PassId::kGeometricAa; }
   void Record(PassContext& ctx) override {
-    const uint32_t push[3] = {ctx.samples,
-                              ctx.settings->debug_view == DebugView::kAaMask ? 1u : 0u,
-                              ctx.vis->triangle_bits};
+    const gpu::GeometricAaPush push{ctx.samples,
+                                    ctx.settings->debug_view == DebugView::kAaMask ? 1u : 0u,
+                                    ctx.vis->triangle_bits};
     program_.Draw(ctx,
                   {Nearest(ctx.targets->hdr), Nearest(ctx.targets->vis_coverage),
                    Nearest(ctx.targets->vis_id)},
-                  {ctx.targets->post_hdr.view()}, push);
+                  {ctx.targets->post_hdr.view()}, &push);
   }
 };
 
@@ -192,40 +188,14 @@ class TaaPass final : public PostPass {
   using PostPass::PostPass;
   PassId id() const override { return PassId::kTaa; }
   void Record(PassContext& ctx) override {
-    const TaaFrame& taa = *ctx.taa;
-    // The history images live across frames, outside the frame graph: the one read was left in
-    // shader-read layout by the last frame (or is new), the one written is overwritten whole.
-    const VkImageLayout read = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
-    VkImageMemoryBarrier2 before[2] = {
-        vk::MakeImageBarrier(*taa.history_read,
-                             {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
-                              VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
-                              taa.history_valid ? read : VK_IMAGE_LAYOUT_UNDEFINED,
-                              VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-                              VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, read}),
-        vk::MakeImageBarrier(*taa.history_write,
-                             {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_NONE,
-                              VK_IMAGE_LAYOUT_UNDEFINED,
-                              VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
-                              VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
-                              VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL})};
-    vk::CmdBarrier(ctx.cmd, before, 2);
-    struct {
-      glm::mat4 reproject;
-      glm::vec4 params;
-    } push{taa.reproject, glm::vec4(taa.current_weight, taa.history_valid ? 1.0f : 0.0f,
-                                    1.0f / float(ctx.targets->width),
-                                    1.0f / float(ctx.targets->height))};
-    program_.Draw(ctx,
-                  {Nearest(ctx.targets->hdr), Nearest(ctx.targets->depth),
-                   Linear(*taa.history_read)},
-                  {ctx.targets->post_hdr.view(), taa.history_write->view()}, &push);
-    VkImageMemoryBarrier2 after = vk::MakeImageBarrier(
-        *taa.history_write,
-        {VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT, VK_ACCESS_2_COLOR_ATTACHMENT_WRITE_BIT,
-         VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT,
-         VK_ACCESS_2_SHADER_SAMPLED_READ_BIT, read});
-    vk::CmdBarrier(ctx.cmd, &after, 1);
+    const TaaFrame& taa = *ctx.taa;  // the history images are imported (SetupTaa)
+    const gpu::TaaPush push{
+        taa.reproject,
+        glm::vec4(taa.current_weight, taa.history_valid ? 1.0f : 0.0f,
+                  1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height))};
+    program_.Draw(
+        ctx, {Nearest(ctx.targets->hdr), Nearest(ctx.targets->depth), Linear(*taa.history_read)},
+        {ctx.targets->post_hdr.view(), taa.history_write->view()}, &push);
   }
 };
 
@@ -235,32 +205,43 @@ class FxaaPass final : public PostPass {
   using PostPass::PostPass;
   PassId id() const override { return PassId::kFxaa; }
   void Record(PassContext& ctx) override {
-    const glm::vec2 inv_size(1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height));
-    program_.Draw(ctx, {Linear(ctx.targets->ldr)}, {ctx.targets->fxaa.view()}, &inv_size);
+    const gpu::FxaaPush push{
+        glm::vec2(1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height))};
+    program_.Draw(ctx, {Linear(ctx.targets->ldr)}, {ctx.targets->fxaa.view()}, &push);
   }
 };
 
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
-  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 5, 48, {kLdrFormat});
+  return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 5, sizeof(gpu::TonemapPush),
+                               {kLdrFormat});
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
-  return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3, 12, {kHdrFormat});
+  return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,
+                                   sizeof(gpu::GeometricAaPush), {kHdrFormat});
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
-  return MakePost<TaaPass>(ctx, "taa", "taa.frag", 3, 80, {kHdrFormat, kHdrFormat});
+  return MakePost<TaaPass>(ctx, "taa", "taa.frag", 3, sizeof(gpu::TaaPush),
+                           {kHdrFormat, kHdrFormat});
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx) {
-  return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, 8, {kLdrFormat});
+  return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, sizeof(gpu::FxaaPush), {kLdrFormat});
 }
 
 void SetupTaa(GraphBuilder& b) {
   if (b.settings().aa != AaMode::kTaa) return;
+  // The view's history: last frame's output is read (undefined before the first), this
+  // frame's is written whole and left readable for the next frame.
+  b.Import(Resource::kTaaHistory, b.features().taa_history_valid ? Access::kSampled : Access::kNone,
+           Access::kSampled);
+  b.Import(Resource::kTaaHistoryNext, Access::kNone, Access::kSampled);
   b.Pass(PassId::kTaa)
       .Use(Resource::kHdrColor, Access::kSampled)
       .Use(Resource::kDepth, Access::kSampled)
-      .Use(Resource::kPostHdr, Access::kColorWrite);
+      .Use(Resource::kTaaHistory, Access::kSampled)
+      .Use(Resource::kPostHdr, Access::kColorWrite)
+      .Use(Resource::kTaaHistoryNext, Access::kColorWrite);
 }
 
 void SetupTonemap(GraphBuilder& b) {
@@ -268,8 +249,10 @@ void SetupTonemap(GraphBuilder& b) {
   b.Pass(PassId::kTonemap)
       .Use(color, Access::kSampled)
       .Use(Resource::kLdrColor, Access::kColorWrite)
-      .UseIfWritten(Resource::kAo, Access::kSampled)  // the ssao debug view
-      .UseIfWritten(Resource::kBloomUp, Access::kSampled);
+      .UseIfPresent(Resource::kAo, Access::kSampled)  // the ssao debug view
+      .UseIfPresent(Resource::kBloomUp, Access::kSampled)
+      .UseIfPresent(Resource::kShadowAtlas, Access::kSampled)  // the shadow_atlas debug view
+      .UseIfPresent(Resource::kExposureState, Access::kSampledGeneral);
 }
 
 void SetupFxaa(GraphBuilder& b) {

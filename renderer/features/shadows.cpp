@@ -2,8 +2,9 @@
 // view changed, or it was evicted, or caching is off), clear its square and draw the opaque and
 // alpha-mask items in its frustum, depth only, through the face's matrix (a push constant).
 // Cached faces are not touched: the atlas is loaded, not cleared, so a frame where nothing
-// changed records no draw at all. The atlas lives across frames outside the frame graph; it
-// waits in shader-read layout and this pass moves it to attachment layout and back.
+// changed records no draw at all. The atlas lives across frames and is imported into each frame
+// graph: it waits in shader-read layout, the graph moves it to attachment layout for this pass
+// and back for the shading.
 // Draws are direct (one per item in the face's frustum, the items culled on the CPU per face):
 // a face sees few items, and its list changes with the face, not per frame.
 #include "renderer/renderer_impl.h"
@@ -32,18 +33,19 @@ class ShadowPass final : public Pass {
     auto pass = std::make_unique<ShadowPass>();
     pass->device_ = ctx.device();
     const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout};
-    const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4)};
+    const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(gpu::ShadowPush)};
     VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pli.setLayoutCount = 2;
     pli.pSetLayouts = sets;
     pli.pushConstantRangeCount = 1;
     pli.pPushConstantRanges = &push;
-    VK_RETURN_IF_ERROR(vkCreatePipelineLayout(ctx.device(), &pli, nullptr, &pass->layout_),
-                       "shadow pipeline layout");
+    VK_RETURN_IF_ERROR(
+        vkCreatePipelineLayout(ctx.device(), &pli, nullptr, pass->layout_.Replace(ctx.device())),
+        "shadow pipeline layout");
     vk::GraphicsPipelineDesc d;
     d.name = "shadows.opaque";
     d.vertex_shader = "shadow.vert";
-    d.layout = pass->layout_;
+    d.layout = pass->layout_.get();
     d.depth_format = kShadowFormat;
     d.depth_test = true;
     d.depth_write = true;
@@ -59,26 +61,13 @@ class ShadowPass final : public Pass {
     return std::unique_ptr<Pass>(std::move(pass));
   }
 
-  ~ShadowPass() override {
-    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
-  }
-
   void Record(PassContext& ctx) override {
     const ShadowFrame& sf = *ctx.shadows;
     const vk::Image& atlas = *sf.atlas;
     if (sf.faces.empty() && !sf.atlas_new) return;  // every face cached: nothing to do
-    const VkImageLayout read = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    // The graph moved the atlas (imported, SetupShadows) to the depth-attachment layout;
+    // loading keeps the cached faces.
     const VkImageLayout attach = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
-    constexpr VkPipelineStageFlags2 kDepthStages =
-        VK_PIPELINE_STAGE_2_EARLY_FRAGMENT_TESTS_BIT | VK_PIPELINE_STAGE_2_LATE_FRAGMENT_TESTS_BIT;
-    constexpr VkAccessFlags2 kDepthAccess = VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_READ_BIT |
-                                            VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT;
-    // Last frame's shading read it (or it is new); loading keeps the cached faces.
-    VkImageMemoryBarrier2 before = vk::MakeImageBarrier(
-        atlas, {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
-                sf.atlas_new ? VK_IMAGE_LAYOUT_UNDEFINED : read, kDepthStages, kDepthAccess,
-                attach});
-    vk::CmdBarrier(ctx.cmd, &before, 1);
     const uint32_t size = atlas.desc().width;
     VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     depth.imageView = atlas.view();
@@ -95,7 +84,7 @@ class ShadowPass final : public Pass {
     const VkDeviceSize offset = 0;
     vkCmdBindVertexBuffers(ctx.cmd, 0, 1, &vb, &offset);
     vkCmdBindIndexBuffer(ctx.cmd, ctx.scene->indices().handle(), 0, VK_INDEX_TYPE_UINT32);
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_, 0, 1,
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.get(), 0, 1,
                             &ctx.scene_set, 0, nullptr);
     // Both sides of every surface cast: open geometry (a wall plane) must still block the
     // light from behind; the bias handles the acne of front faces.
@@ -121,13 +110,14 @@ class ShadowPass final : public Pass {
         const VkPipeline want = mask ? mask_.handle() : opaque_.handle();
         if (want != bound) {
           vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, want);
-          vkCmdPushConstants(ctx.cmd, layout_, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(glm::mat4),
-                             &face.view_proj);
+          const gpu::ShadowPush push{face.view_proj};
+          vkCmdPushConstants(ctx.cmd, layout_.get(), VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push),
+                             &push);
           bound = want;
         }
         if (mask && item.material != material) {
           const VkDescriptorSet set = ctx.scene->material_set(item.material);
-          vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_,
+          vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.get(),
                                   gpu::kMaterialSet, 1, &set, 0, nullptr);
           material = item.material;
         }
@@ -136,16 +126,11 @@ class ShadowPass final : public Pass {
       }
     }
     vkCmdEndRendering(ctx.cmd);
-    VkImageMemoryBarrier2 after = vk::MakeImageBarrier(
-        atlas, {kDepthStages, VK_ACCESS_2_DEPTH_STENCIL_ATTACHMENT_WRITE_BIT, attach,
-                VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
-                read});
-    vk::CmdBarrier(ctx.cmd, &after, 1);
   }
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
-  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+  vk::UniquePipelineLayout layout_;  // declared before the pipelines: destroyed after them
   vk::Pipeline opaque_, mask_;
 };
 
@@ -157,7 +142,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadowPass(const vk::Context& ctx,
 }
 
 void SetupShadows(GraphBuilder& b) {
-  if (b.settings().shadows) b.Pass(PassId::kShadows);
+  if (!b.settings().shadows) return;
+  // The atlas lives across frames in the shading's sampled state; loading it keeps the cached
+  // faces (a new atlas is undefined and cleared whole).
+  b.Import(Resource::kShadowAtlas,
+           b.features().shadow_atlas_valid ? Access::kSampled : Access::kNone, Access::kSampled);
+  b.Pass(PassId::kShadows).Use(Resource::kShadowAtlas, Access::kDepthWrite);
 }
 
 namespace {

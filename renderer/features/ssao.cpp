@@ -26,18 +26,12 @@ class SsaoPass final : public Pass {
   void Record(PassContext& ctx) override {
     const FrameTargets& t = *ctx.targets;
     const VkExtent2D extent{t.ao.desc().width, t.ao.desc().height};
-    struct {
-      glm::vec4 proj;
-      glm::vec4 params;
-      glm::uvec4 size;
-    } push{ctx.ssao->proj, ctx.ssao->params,
-           glm::uvec4(t.width, t.height, extent.width, extent.height)};
+    const gpu::SsaoPush push{ctx.ssao->proj, ctx.ssao->params,
+                             glm::uvec4(t.width, t.height, extent.width, extent.height)};
     ao_.Draw(ctx, {{t.depth.view(), nearest_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}},
              {t.ao.view()}, &push, extent);
-    struct {
-      glm::ivec4 dir;
-      glm::vec4 params;
-    } blur{glm::ivec4(1, 0, extent.width, extent.height), glm::vec4(kDepthSharpness, 0, 0, 0)};
+    gpu::SsaoBlurPush blur{glm::ivec4(1, 0, extent.width, extent.height),
+                           glm::vec4(kDepthSharpness, 0, 0, 0)};
     ToRead(ctx, t.ao);
     blur_.Draw(ctx, {{t.ao.view(), nearest_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}},
                {t.ao_temp.view()}, &blur, extent);
@@ -77,10 +71,10 @@ class SsaoPass final : public Pass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx) {
   absl::StatusOr<FullscreenProgram> ao =
-      FullscreenProgram::Create(ctx, "ssao", "ssao.frag", 1, 48, {kAoFormat});
+      FullscreenProgram::Create(ctx, "ssao", "ssao.frag", 1, sizeof(gpu::SsaoPush), {kAoFormat});
   if (!ao.ok()) return ao.status();
-  absl::StatusOr<FullscreenProgram> blur =
-      FullscreenProgram::Create(ctx, "ssao_blur", "ssao_blur.frag", 1, 32, {kAoFormat});
+  absl::StatusOr<FullscreenProgram> blur = FullscreenProgram::Create(
+      ctx, "ssao_blur", "ssao_blur.frag", 1, sizeof(gpu::SsaoBlurPush), {kAoFormat});
   if (!blur.ok()) return blur.status();
   ASSIGN_OR_RETURN(vk::Sampler nearest, CreateClampSampler(ctx, false, "ssao"));
   return std::unique_ptr<Pass>(new SsaoPass(std::move(*ao), std::move(*blur), std::move(nearest)));

@@ -117,33 +117,23 @@ class VisLayout {
     VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     li.bindingCount = uint32_t(b.size());
     li.pBindings = b.data();
-    VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(l.device_, &li, nullptr, &l.set_layout_),
-                       "vis set layout");
+    VK_RETURN_IF_ERROR(
+        vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)),
+        "vis set layout");
     const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout,
-                                          l.set_layout_};
-    const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(float)};
+                                          l.set_layout_.get()};
+    const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(gpu::VisShadePush)};
     VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pli.setLayoutCount = 3;
     pli.pSetLayouts = sets;
     pli.pushConstantRangeCount = resolve ? 0 : 1;
     pli.pPushConstantRanges = &push;
-    VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, &l.layout_),
-                       "vis pipeline layout");
+    VK_RETURN_IF_ERROR(
+        vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
+        "vis pipeline layout");
     return l;
   }
-  VisLayout() = default;
-  VisLayout(VisLayout&& o) noexcept { *this = std::move(o); }
-  VisLayout& operator=(VisLayout&& o) noexcept {
-    std::swap(device_, o.device_);
-    std::swap(set_layout_, o.set_layout_);
-    std::swap(layout_, o.layout_);
-    return *this;
-  }
-  ~VisLayout() {
-    if (layout_) vkDestroyPipelineLayout(device_, layout_, nullptr);
-    if (set_layout_) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
-  }
-  VkPipelineLayout pipeline_layout() const { return layout_; }
+  VkPipelineLayout pipeline_layout() const { return layout_.get(); }
 
   // Set 2 for this frame: `images` at their bindings, and the scene's index and vertex buffers.
   VkDescriptorSet Write(const PassContext& ctx,
@@ -151,7 +141,8 @@ class VisLayout {
     VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
     ai.descriptorPool = ctx.frame_pool;
     ai.descriptorSetCount = 1;
-    ai.pSetLayouts = &set_layout_;
+    const VkDescriptorSetLayout set_layout = set_layout_.get();
+    ai.pSetLayouts = &set_layout;
     VkDescriptorSet set;
     VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
     std::vector<VkWriteDescriptorSet> writes;
@@ -182,8 +173,8 @@ class VisLayout {
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
-  VkDescriptorSetLayout set_layout_ = VK_NULL_HANDLE;
-  VkPipelineLayout layout_ = VK_NULL_HANDLE;
+  vk::UniqueDescriptorSetLayout set_layout_;
+  vk::UniquePipelineLayout layout_;
 };
 
 void BindVisSets(const PassContext& ctx, VkPipelineLayout layout, VkDescriptorSet vis_set) {
@@ -276,9 +267,9 @@ class VisShadePass final : public Pass {
       const VkDescriptorSet material = ctx.scene->material_set(m.material);
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.pipeline_layout(),
                               gpu::kMaterialSet, 1, &material, 0, nullptr);
-      const float z = float(m.material + 1) * gpu::kMaterialDepthScale;
+      const gpu::VisShadePush push{float(m.material + 1) * gpu::kMaterialDepthScale};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_VERTEX_BIT, 0,
-                         sizeof(z), &z);
+                         sizeof(push), &push);
       vkCmdSetScissor(ctx.cmd, 0, 1, &m.rect);
       vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
       ctx.stats->material_draws++;
@@ -383,7 +374,8 @@ void SetupVisMlaa(GraphBuilder& b) {
       .Use(R::kVisMs, A::kSampled)
       .Use(R::kMaterialDepth, A::kDepthTest)
       .Use(R::kHdrColor, A::kColorWrite)
-      .UseIfWritten(R::kAo, A::kSampled);
+      .UseIfPresent(R::kAo, A::kSampled)
+      .UseIfPresent(R::kShadowAtlas, A::kSampled);
   b.Pass(PassId::kGeometricAa)
       .Use(R::kHdrColor, A::kSampled)
       .Use(R::kVisCoverage, A::kSampled)

@@ -55,7 +55,11 @@ AccessInfo ToVulkan(Access a) {
               VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL};
     case Access::kComputeWrite:
       return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-              VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+              VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT |
+                  VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+              VK_IMAGE_LAYOUT_GENERAL};
+    case Access::kSampledGeneral:
+      return {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
               VK_IMAGE_LAYOUT_GENERAL};
     case Access::kDepthResolve:
       // Depth resolves write in the colour-output stage with colour-attachment access.
@@ -159,6 +163,12 @@ absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
     if (stats_query) vkCmdEndQuery(cmd_, stats_pool, uint32_t(pass.id));
     vkCmdWriteTimestamp2(cmd_, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, stamps_pool,
                          uint32_t(2 * i + 1));
+    if (i + 1 == n && !plan.after.empty()) {  // the imports into what the next frame expects
+      std::vector<VkImageMemoryBarrier2> after;
+      for (const Transition& t : plan.after)
+        after.push_back(vk::MakeImageBarrier(image(t.resource), Between(t.from, t.to)));
+      vk::CmdBarrier(cmd_, after.data(), uint32_t(after.size()));
+    }
     if (per_pass_submit && i + 1 < n) {
       result.record_ms += MsSince(t_chunk);
       ASSIGN_OR_RETURN(const double wall, EndSubmitAndWait());

@@ -74,11 +74,17 @@ int LayoutClass(Access a) {
     case Access::kTransferSrc:
       return 4;
     case Access::kComputeWrite:
+    case Access::kSampledGeneral:
       return 5;
     case Access::kNone:
       return 0;
   }
   return 0;
+}
+bool NeedsTransition(Access current, Access next) {
+  const bool layout_change = LayoutClass(current) != LayoutClass(next);
+  const bool other_stage = current != next;  // e.g. a compute read, then a fragment one
+  return layout_change || other_stage || Writes(current) || Writes(next);
 }
 }  // namespace
 
@@ -92,8 +98,19 @@ GraphBuilder& GraphBuilder::Use(Resource r, Access access) {
   return *this;
 }
 
-GraphBuilder& GraphBuilder::UseIfWritten(Resource r, Access access) {
-  return Written(r) ? Use(r, access) : *this;
+GraphBuilder& GraphBuilder::UseIfPresent(Resource r, Access access) {
+  return Written(r) || Imported(r) ? Use(r, access) : *this;
+}
+
+GraphBuilder& GraphBuilder::Import(Resource r, Access initial, Access final) {
+  imports_.push_back({r, initial, final});
+  return *this;
+}
+
+bool GraphBuilder::Imported(Resource r) const {
+  for (const ResourceImport& i : imports_)
+    if (i.resource == r) return true;
+  return false;
 }
 
 bool GraphBuilder::Written(Resource r) const {
@@ -110,18 +127,25 @@ Resource GraphBuilder::SceneColor() const {
 FramePlan GraphBuilder::Build() && {
   std::array<Access, static_cast<size_t>(Resource::kCount)> state;
   state.fill(Access::kNone);
+  for (const ResourceImport& i : imports_) state[static_cast<size_t>(i.resource)] = i.initial;
   for (PlannedPass& pass : passes_) {
     for (const ResourceUse& use : pass.uses) {
       Access& current = state[static_cast<size_t>(use.resource)];
-      const bool layout_change = LayoutClass(current) != LayoutClass(use.access);
-      const bool other_stage = current != use.access;  // e.g. a compute read, then a fragment one
-      if (layout_change || other_stage || Writes(current) || Writes(use.access)) {
+      if (NeedsTransition(current, use.access))
         pass.before.push_back({use.resource, current, use.access});
-      }
       current = use.access;
     }
   }
-  return FramePlan{std::move(passes_)};
+  FramePlan plan{std::move(passes_), std::move(imports_), {}};
+  // Imports leave in the access the next frame expects (one no pass touched stays as it was).
+  for (const ResourceImport& i : plan.imports) {
+    const Access current = state[static_cast<size_t>(i.resource)];
+    if (current != i.initial || i.initial == Access::kNone) {
+      if (current != i.final && NeedsTransition(current, i.final))
+        plan.after.push_back({i.resource, current, i.final});
+    }
+  }
+  return plan;
 }
 
 std::vector<PassId> FramePlan::ids() const {
@@ -138,9 +162,13 @@ bool FramePlan::Has(PassId id) const {
 
 Access FramePlan::FinalAccess(Resource r) const {
   Access last = Access::kNone;
+  for (const ResourceImport& i : imports)
+    if (i.resource == r) last = i.initial;
   for (const PlannedPass& p : passes)
     for (const ResourceUse& u : p.uses)
       if (u.resource == r) last = u.access;
+  for (const Transition& t : after)
+    if (t.resource == r) last = t.to;
   return last;
 }
 

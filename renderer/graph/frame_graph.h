@@ -18,41 +18,51 @@ namespace tessera {
 // transparent pass of vis_mlaa read.
 enum class Resource : uint8_t {
   kDepth,
-  kHdrColor,   // the shaded frame (for msaa: the resolve of kHdrMs)
-  kLdrColor,   // tonemapped, sRGB
+  kHdrColor,  // the shaded frame (for msaa: the resolve of kHdrMs)
+  kLdrColor,  // tonemapped, sRGB
   kHiz,
-  kDepthMs,    // msaa / vis_mlaa: multisampled depth
-  kHdrMs,      // msaa: multisampled colour
-  kVisMs,      // vis_mlaa: multisampled visibility ids (drawable | triangle per sample)
-  kVisId,      // vis_mlaa: per pixel the id of the triangle to shade
+  kDepthMs,        // msaa / vis_mlaa: multisampled depth
+  kHdrMs,          // msaa: multisampled colour
+  kVisMs,          // vis_mlaa: multisampled visibility ids (drawable | triangle per sample)
+  kVisId,          // vis_mlaa: per pixel the id of the triangle to shade
   kVisCoverage,    // vis_mlaa: per pixel the coverage mask and mean position of its surface
   kMaterialDepth,  // vis_mlaa: per pixel its surface's material as a depth value
-  kPostHdr,    // vis_mlaa (geometric AA) and taa output, tonemapped
-  kFxaaColor,  // fxaa output, read back
-  kAo,         // ssao: visibility (r) and view depth (g), half (or full) resolution
-  kAoTemp,     // ssao: the blur's intermediate
+  kPostHdr,        // vis_mlaa (geometric AA) and taa output, tonemapped
+  kFxaaColor,      // fxaa output, read back
+  kAo,             // ssao: visibility (r) and view depth (g), half (or full) resolution
+  kAoTemp,         // ssao: the blur's intermediate
   // bloom: the downsample chain (mips from half the frame down) and the upsample chain (one
   // mip fewer; its level 0 is the bloom). The bloom pass writes them (each mip is drawn, then
   // read by the next draw: those per-mip barriers are its own) and hands bloom_up back as a
   // colour target, all mips, so the graph's transition to the tonemap's read covers it.
   kBloomDown,
   kBloomUp,
+  // Long-lived resources the renderer keeps between frames and imports into each frame that
+  // uses them (graph/frame_graph.h: GraphBuilder::Import): they enter in the state the last
+  // frame left them in and leave in the one the next frame expects.
+  kShadowAtlas,     // shadows: the atlas of every shadow map (shader-read between frames)
+  kTaaHistory,      // taa: the view's last output (read)
+  kTaaHistoryNext,  // taa: this frame's output, the next frame's history (written)
+  kExposureState,   // auto exposure: the view's adapted average (1x1, general layout)
   kCount
 };
 // (The culling passes' buffers are their own: each ends with a buffer barrier to the stage that
 // reads them: draw-indirect for the geometry-culling lists, fragment for the light lists.)
+// Barriers inside a pass between its own steps (bloom's and the pyramid's mips, ssao's blur)
+// are the pass's.
 
 // How a pass uses a resource.
 enum class Access : uint8_t {
-  kNone,         // not yet used this frame (contents undefined)
-  kDepthWrite,   // depth attachment, test + write
-  kDepthTest,    // depth attachment, test only
-  kColorWrite,   // colour attachment
-  kSampled,      // read in a fragment shader
-  kComputeRead,  // read (sampled) in a compute shader
-  kComputeWrite,  // written (storage image) and read back in a compute shader, general layout
-  kTransferSrc,  // copied from
-  kDepthResolve,  // written by the multisample resolve of a depth attachment
+  kNone,            // not yet used this frame (contents undefined)
+  kDepthWrite,      // depth attachment, test + write
+  kDepthTest,       // depth attachment, test only
+  kColorWrite,      // colour attachment
+  kSampled,         // read in a fragment shader
+  kComputeRead,     // read (sampled) in a compute shader
+  kComputeWrite,    // written (storage image) and read back in a compute shader, general layout
+  kTransferSrc,     // copied from
+  kDepthResolve,    // written by the multisample resolve of a depth attachment
+  kSampledGeneral,  // read in a fragment shader in the general layout (auto exposure's state)
 };
 
 struct ResourceUse {
@@ -92,6 +102,10 @@ std::string_view PassName(PassId id);
 struct FrameFeatures {
   bool has_transparent = false;  // any visible BLEND drawable
   uint32_t local_lights = 0;     // point and spot lights to shade
+  // What the long-lived resources hold as the frame starts (else their contents are undefined).
+  bool shadow_atlas_valid = false;  // the atlas holds earlier frames' maps
+  bool taa_history_valid = false;   // the view's history holds its last frame
+  bool exposure_valid = false;      // the view's exposure state holds an adapted value
 };
 
 // A resource moving from one access to another before a pass.
@@ -108,9 +122,19 @@ struct PlannedPass {
   std::vector<Transition> before;
 };
 
+// A long-lived resource in a frame: the access it enters in (kNone: undefined contents) and
+// the one it must leave in.
+struct ResourceImport {
+  Resource resource;
+  Access initial;
+  Access final;
+};
+
 // The passes of one frame, in order, with every barrier between them.
 struct FramePlan {
   std::vector<PlannedPass> passes;
+  std::vector<ResourceImport> imports;
+  std::vector<Transition> after;  // after the last pass: the imports into their final access
 
   std::vector<PassId> ids() const;
   bool Has(PassId id) const;
@@ -136,11 +160,16 @@ class GraphBuilder {
   GraphBuilder& Pass(PassId id);
   // The current pass uses `r` as `access`.
   GraphBuilder& Use(Resource r, Access access);
-  // The same, only when an earlier pass of this frame wrote `r` (an optional input such as
-  // ssao's obscurance or bloom's glow: the feature that makes it decides whether it exists).
-  GraphBuilder& UseIfWritten(Resource r, Access access);
+  // The same, only when `r` is present: imported, or written by an earlier pass of this frame
+  // (an optional input such as ssao's obscurance or bloom's glow: the feature that makes it
+  // decides whether it exists).
+  GraphBuilder& UseIfPresent(Resource r, Access access);
   // Whether a pass added so far writes `r`.
   bool Written(Resource r) const;
+  // `r` lives across frames: it enters this frame in `initial` (kNone: contents undefined) and
+  // leaves it in `final`.
+  GraphBuilder& Import(Resource r, Access initial, Access final);
+  bool Imported(Resource r) const;
   // The scene's HDR colour as it stands: the post-AA colour once a pass wrote it, else the
   // shaded colour.
   Resource SceneColor() const;
@@ -151,6 +180,7 @@ class GraphBuilder {
   const Settings& settings_;
   const FrameFeatures& features_;
   std::vector<PlannedPass> passes_;
+  std::vector<ResourceImport> imports_;
 };
 
 // The frame for `settings`: every feature's Setup, in the frame's order

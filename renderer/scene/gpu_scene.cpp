@@ -325,9 +325,7 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
   return bytes;
 }
 
-GpuScene::~GpuScene() {
-  if (material_pool_) vkDestroyDescriptorPool(device_, material_pool_, nullptr);
-}
+GpuScene::~GpuScene() = default;
 
 absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, const CpuScene& scene,
                                                            VkDescriptorSetLayout material_layout) {
@@ -493,12 +491,13 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   dpi.maxSets = material_count;
   dpi.poolSizeCount = 2;
   dpi.pPoolSizes = pool_sizes;
-  VK_RETURN_IF_ERROR(vkCreateDescriptorPool(ctx.device(), &dpi, nullptr, &gs->material_pool_),
-                     "material descriptor pool");
+  VK_RETURN_IF_ERROR(
+      vkCreateDescriptorPool(ctx.device(), &dpi, nullptr, gs->material_pool_.Replace(ctx.device())),
+      "material descriptor pool");
   std::vector<VkDescriptorSetLayout> layouts(material_count, material_layout);
   gs->material_sets_.resize(material_count);
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-  ai.descriptorPool = gs->material_pool_;
+  ai.descriptorPool = gs->material_pool_.get();
   ai.descriptorSetCount = material_count;
   ai.pSetLayouts = layouts.data();
   VK_RETURN_IF_ERROR(vkAllocateDescriptorSets(ctx.device(), &ai, gs->material_sets_.data()),

@@ -130,7 +130,7 @@ class GpuScene {
   std::vector<vk::Image> buckets_;
   vk::Sampler sampler_;
   VkDevice device_ = VK_NULL_HANDLE;
-  VkDescriptorPool material_pool_ = VK_NULL_HANDLE;
+  vk::UniqueDescriptorPool material_pool_;
   std::vector<VkDescriptorSet> material_sets_;
   std::vector<DrawItem> draws_;
   DrawPlan plan_;

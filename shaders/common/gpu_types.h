@@ -13,6 +13,8 @@ using vec4 = glm::vec4;
 using ivec4 = glm::ivec4;
 using uvec4 = glm::uvec4;
 using mat4 = glm::mat4;
+using vec2 = glm::vec2;
+using uvec2 = glm::uvec2;
 using uint = uint32_t;
 #define TS_CONST inline constexpr
 #else
@@ -267,6 +269,134 @@ struct FrameUniforms {
   vec4 depth_params;     // view depth of a depth-buffer value d: y / (d + x); z tiles per column
   uvec4 aa;              // vis_mlaa: x triangle bits of a visibility id, y samples; zw unused
 };
+
+// ---- push constants ---------------------------------------------------------------------------
+// Each pass's push-constant block, its members written once: the shader declares
+//   layout(push_constant) uniform Push { TS_PUSH_TONEMAP } push;
+// and C++ gets the struct of the same members below (sizes static_asserted in
+// renderer/gpu_layout_check.cpp; push-constant blocks are std430, which these layouts match).
+// tonemap.frag: exposure = Exposure()'s params, w: tonemapper (0 PBR Neutral, 1 photographic);
+// mode x: 1 for debug views (no exposure, no tonemap), y: debug view (kDebug*), z: 1 with bloom;
+// bloom x: strength / levels (the upsample chain sums its levels), y: 1 / levels.
+#define TS_PUSH_TONEMAP \
+  vec4 exposure;        \
+  uvec4 mode;           \
+  vec4 bloom;
+// geometric_aa.frag: the visibility samples, 1 to show the coverage mask, id triangle bits.
+#define TS_PUSH_GEOMETRIC_AA \
+  uint samples;              \
+  uint show_mask;            \
+  uint triangle_bits;
+// taa.frag: this frame's unjittered clip space -> last frame's; params x: current-frame
+// weight, y: history valid (1) or not (0), zw: 1/width, 1/height.
+#define TS_PUSH_TAA \
+  mat4 reproject;   \
+  vec4 params;
+// fxaa.frag: 1/width, 1/height.
+#define TS_PUSH_FXAA vec2 inv_size;
+// ssao.frag: proj x: proj[0][0], y: proj[1][1] (negative: Vulkan clip y is down), z: proj[2][2],
+// w: proj[3][2]; params x: radius (world units), y: intensity (1 = default), z: bias (world
+// units); size xy: depth size in pixels, zw: output size in pixels.
+#define TS_PUSH_SSAO \
+  vec4 proj;         \
+  vec4 params;       \
+  uvec4 size;
+// ssao_blur.frag: dir xy: step, (1, 0) or (0, 1), zw: image size in texels; params x: depth
+// sharpness (e.g. 8).
+#define TS_PUSH_SSAO_BLUR \
+  ivec4 dir;              \
+  vec4 params;
+// bloom_down.frag: src xy: 1 / source size in texels, z: 1 on the first level (exposure, Karis
+// average and threshold) else 0; threshold x: threshold (exposed linear HDR), y: knee (soft knee
+// width); exposure: Exposure()'s params (first level).
+#define TS_PUSH_BLOOM_DOWN \
+  vec4 src;                \
+  vec4 threshold;          \
+  vec4 exposure;
+// bloom_up.frag: xy: 1 / u_low size in texels, z: tent radius in u_low texels (1).
+#define TS_PUSH_BLOOM_UP vec4 params;
+// exposure.comp: size xy: HDR size in pixels, z: grid width, w: grid height (sample points);
+// params x: rate (>= 1: this frame's value at once, else the fraction of the way to move),
+// y: min log2 luminance, z: max log2 luminance.
+#define TS_PUSH_EXPOSURE \
+  uvec4 size;            \
+  vec4 params;
+// hiz_build.comp: pixels of the source level, texels of the level written, mode (0: from the
+// depth buffer, 1: min sampler, 2: four fetches), source mip (modes 1, 2).
+#define TS_PUSH_HIZ \
+  uvec2 src_size;   \
+  uvec2 dst_size;   \
+  uint mode;        \
+  uint src_level;
+// ibl_env.comp: xyz towards the sun (normalized, or zero: no sun); rgb sun radiance scale; sky
+// radiance straight up, at the horizon, below the horizon; size x: face size in texels.
+#define TS_PUSH_IBL_ENV \
+  vec4 sun_dir;         \
+  vec4 sun_color;       \
+  vec4 zenith;          \
+  vec4 horizon;         \
+  vec4 ground;          \
+  uvec4 size;
+// ibl_irradiance.comp: x output face size, y env mip level integrated over, z that level's
+// face size.
+#define TS_PUSH_IBL_IRRADIANCE uvec4 size;
+// ibl_specular.comp: params x: perceptual roughness of this level (alpha = x^2), y: env mip-0
+// face size in texels, z: env mip count, w: sample count; size x: this level's face size.
+#define TS_PUSH_IBL_SPECULAR \
+  vec4 params;               \
+  uvec4 size;
+// shadow.vert, shadow_mask.vert: world -> the face's clip space.
+#define TS_PUSH_SHADOW mat4 view_proj;
+// vis_shade.vert: the material's depth (EQUAL-tested against the material depth target).
+#define TS_PUSH_VIS_SHADE float depth;
+
+#ifdef __cplusplus
+struct TonemapPush {
+  TS_PUSH_TONEMAP
+};
+struct GeometricAaPush {
+  TS_PUSH_GEOMETRIC_AA
+};
+struct TaaPush {
+  TS_PUSH_TAA
+};
+struct FxaaPush {
+  TS_PUSH_FXAA
+};
+struct SsaoPush {
+  TS_PUSH_SSAO
+};
+struct SsaoBlurPush {
+  TS_PUSH_SSAO_BLUR
+};
+struct BloomDownPush {
+  TS_PUSH_BLOOM_DOWN
+};
+struct BloomUpPush {
+  TS_PUSH_BLOOM_UP
+};
+struct ExposurePush {
+  TS_PUSH_EXPOSURE
+};
+struct HizPush {
+  TS_PUSH_HIZ
+};
+struct IblEnvPush {
+  TS_PUSH_IBL_ENV
+};
+struct IblIrradiancePush {
+  TS_PUSH_IBL_IRRADIANCE
+};
+struct IblSpecularPush {
+  TS_PUSH_IBL_SPECULAR
+};
+struct ShadowPush {
+  TS_PUSH_SHADOW
+};
+struct VisShadePush {
+  TS_PUSH_VIS_SHADE
+};
+#endif
 
 #ifdef __cplusplus
 }  // namespace tessera::gpu

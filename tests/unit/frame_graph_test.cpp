@@ -36,7 +36,14 @@ bool IsWrite(Access a) {
 }
 bool IsRead(Access a) {
   return a == Access::kDepthTest || a == Access::kSampled || a == Access::kTransferSrc ||
-         a == Access::kComputeRead;
+         a == Access::kComputeRead || a == Access::kSampledGeneral;
+}
+
+// The access `r` enters the frame in: its import's, else none.
+Access InitialAccess(const FramePlan& plan, Resource r) {
+  for (const ResourceImport& i : plan.imports)
+    if (i.resource == r) return i.initial;
+  return Access::kNone;
 }
 
 // Every combination of AA mode, culling mode and the effects that add passes or change what
@@ -64,7 +71,8 @@ std::vector<Settings> SettingsVariants() {
   return out;
 }
 
-// The plan of every variant above, with and without transparency.
+// The plan of every variant above, with and without transparency, and with the long-lived
+// resources holding earlier frames or new.
 struct PlanCase {
   Settings settings;
   FrameFeatures features;
@@ -74,10 +82,11 @@ struct PlanCase {
 std::vector<PlanCase> AllPlans() {
   std::vector<PlanCase> out;
   for (const Settings& s : SettingsVariants()) {
-    for (bool transparent : {false, true}) {
+    for (int variant = 0; variant < 4; ++variant) {
       FrameFeatures f;
-      f.has_transparent = transparent;
+      f.has_transparent = variant & 1;
       f.local_lights = s.synthetic_lights;
+      f.shadow_atlas_valid = f.taa_history_valid = f.exposure_valid = variant & 2;
       FramePlan plan = PlanFrame(s, f);
       std::vector<PassId> passes = plan.ids();
       out.push_back({s, f, std::move(plan), std::move(passes)});
@@ -117,8 +126,7 @@ TEST(PassTest, EveryPassDeclaresItsUses) {
   for (const PlanCase& c : AllPlans()) {
     for (const PlannedPass& p : c.plan.passes) {
       planned.insert(p.id);
-      // The shadow pass's atlas lives across frames, outside the graph (its own barriers).
-      if (p.id != PassId::kShadows) EXPECT_FALSE(p.uses.empty()) << Name(p.id);
+      EXPECT_FALSE(p.uses.empty()) << Name(p.id);
       std::set<Resource> seen;
       for (const ResourceUse& u : p.uses) {
         EXPECT_LT(static_cast<size_t>(u.resource), kResourceCount) << Name(p.id);
@@ -308,7 +316,7 @@ TEST(PlanTransitionsTest, BuilderDerivesTransitions) {
   // An optional input nobody wrote is not used at all.
   b2.Pass(PassId::kForward)
       .Use(Resource::kDepth, Access::kDepthTest)
-      .UseIfWritten(Resource::kAo, Access::kSampled);
+      .UseIfPresent(Resource::kAo, Access::kSampled);
   EXPECT_FALSE(b2.Written(Resource::kAo));
   EXPECT_TRUE(b2.Written(Resource::kDepth));
   const FramePlan plan = std::move(b2).Build();
@@ -320,7 +328,7 @@ TEST(PlanTransitionsTest, BuilderDerivesTransitions) {
   EXPECT_EQ(plan.passes[0].before[0].from, Access::kNone);
 }
 
-TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
+TEST(PlanTransitionsTest, FirstUseTransitionsFromTheImportOrNone) {
   for (const PlanCase& c : AllPlans()) {
     std::array<bool, kResourceCount> used{};
     for (const PlannedPass& p : c.plan.passes) {
@@ -328,14 +336,55 @@ TEST(PlanTransitionsTest, FirstUseTransitionsFromNone) {
         const size_t r = static_cast<size_t>(u.resource);
         if (used[r]) continue;
         used[r] = true;
+        const Access initial = InitialAccess(c.plan, u.resource);
         const Transition* t = FindTransition(p.before, u.resource);
+        if (initial == u.access && IsRead(u.access)) {  // already readable as it comes in
+          EXPECT_EQ(t, nullptr) << Describe(c.passes) << " " << Name(p.id);
+          continue;
+        }
         ASSERT_NE(t, nullptr) << Describe(c.passes) << ": no first-use transition in "
                               << Name(p.id);
-        EXPECT_EQ(t->from, Access::kNone) << Describe(c.passes) << " " << Name(p.id);
+        EXPECT_EQ(t->from, initial) << Describe(c.passes) << " " << Name(p.id);
         EXPECT_EQ(t->to, u.access) << Describe(c.passes) << " " << Name(p.id);
       }
     }
   }
+}
+
+// The long-lived resources enter each frame as the last one left them and leave as the next
+// one expects: taa's history (last frame's read, this frame's written then readable), the
+// shadow atlas (sampled between frames), auto exposure's state (general layout).
+TEST(PlanTransitionsTest, ImportsEnterAndLeaveInTheirStates) {
+  for (const PlanCase& c : AllPlans()) {
+    const std::string d = Describe(c.passes);
+    auto imported = [&](Resource r) {
+      return InitialAccess(c.plan, r) != Access::kNone || c.plan.FinalAccess(r) != Access::kNone;
+    };
+    EXPECT_EQ(imported(Resource::kShadowAtlas), c.settings.shadows) << d;
+    EXPECT_EQ(imported(Resource::kTaaHistoryNext), c.settings.aa == AaMode::kTaa) << d;
+    EXPECT_EQ(imported(Resource::kExposureState), c.settings.exposure_mode == ExposureMode::kAuto)
+        << d;
+    for (const ResourceImport& i : c.plan.imports) {
+      EXPECT_EQ(c.plan.FinalAccess(i.resource), i.final) << d << int(i.resource);
+      // What a frame imports holding earlier frames it keeps: nothing enters undefined unless
+      // the features say it holds nothing (or, for this frame's output, will be overwritten).
+      const bool valid = i.resource == Resource::kShadowAtlas     ? c.features.shadow_atlas_valid
+                         : i.resource == Resource::kTaaHistory    ? c.features.taa_history_valid
+                         : i.resource == Resource::kExposureState ? c.features.exposure_valid
+                                                                  : false;
+      EXPECT_EQ(i.initial != Access::kNone, valid) << d << int(i.resource);
+    }
+  }
+  // The atlas is loaded (its cached faces kept): from the sampled layout into the attachment.
+  Settings s;
+  s.shadows = true;
+  FrameFeatures f;
+  f.shadow_atlas_valid = true;
+  const FramePlan plan = PlanFrame(s, f);
+  const Transition* t = FindTransition(BeforeOf(plan, PassId::kShadows), Resource::kShadowAtlas);
+  ASSERT_NE(t, nullptr);
+  EXPECT_EQ(t->from, Access::kSampled);
+  EXPECT_EQ(t->to, Access::kDepthWrite);
 }
 
 TEST(PlanTransitionsTest, NoBarrierForReadAfterReadInTheSameLayout) {
@@ -395,6 +444,8 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
     const std::string d = Describe(c.passes);
     std::array<Access, kResourceCount> state;
     state.fill(Access::kNone);
+    for (const ResourceImport& i : c.plan.imports)
+      state[static_cast<size_t>(i.resource)] = i.initial;
     for (const PlannedPass& p : c.plan.passes) {
       std::set<Resource> moved;
       for (const Transition& t : p.before) {
@@ -416,6 +467,11 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
             << d << Name(p.id) << " transitions a resource it does not use";
       }
     }
+    for (const Transition& t : c.plan.after) {
+      const size_t r = static_cast<size_t>(t.resource);
+      EXPECT_EQ(t.from, state[r]) << d << "after: stale 'from'";
+      state[r] = t.to;
+    }
     for (size_t r = 0; r < kResourceCount; ++r)
       EXPECT_EQ(c.plan.FinalAccess(static_cast<Resource>(r)), state[r]) << d << r;
   }
@@ -424,12 +480,22 @@ TEST(PlanTransitionsTest, SimulatedPlanPutsEveryUseInItsState) {
 TEST(PlanTransitionsTest, NothingIsReadBeforeItIsWritten) {
   for (const PlanCase& c : AllPlans()) {
     std::array<bool, kResourceCount> written{};
+    for (const ResourceImport& i : c.plan.imports)  // imported holding earlier frames
+      written[static_cast<size_t>(i.resource)] = i.initial != Access::kNone;
     for (const PlannedPass& p : c.plan.passes) {
       for (const ResourceUse& u : p.uses) {
         const size_t r = static_cast<size_t>(u.resource);
         // The first culling phase binds the pyramid (one pipeline for both phases) but never
         // reads it: only the late phase tests occlusion.
         if (p.id == PassId::kCull && u.resource == Resource::kHiz) continue;
+        // taa binds the history a new view does not have yet; its shader then ignores it (the
+        // push constant says the history is not valid).
+        if (p.id == PassId::kTaa && u.resource == Resource::kTaaHistory) continue;
+        // A debug view (other than bloom's) is not exposed, so no exposure pass fills a new
+        // view's state; bloom and tonemap bind it, and what they compute from it is not shown.
+        if (u.resource == Resource::kExposureState && c.settings.debug_view != DebugView::kNone &&
+            c.settings.debug_view != DebugView::kBloom)
+          continue;
         if (IsRead(u.access)) {
           EXPECT_TRUE(written[r]) << Describe(c.passes) << ": " << Name(p.id)
                                   << " reads resource " << r << " before any pass wrote it";
@@ -446,6 +512,8 @@ TEST(PlanTransitionsTest, EveryHazardHasABarrier) {
   for (const PlanCase& c : AllPlans()) {
     std::array<Access, kResourceCount> last;
     last.fill(Access::kNone);
+    for (const ResourceImport& i : c.plan.imports)
+      last[static_cast<size_t>(i.resource)] = i.initial;
     for (const PlannedPass& p : c.plan.passes) {
       for (const ResourceUse& u : p.uses) {
         const size_t r = static_cast<size_t>(u.resource);
