@@ -334,26 +334,6 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   static std::atomic<uint64_t> next_serial{1};
   gs->serial_ = next_serial++;
   const std::string& n = scene.name;
-  // vis_mlaa's resolve and shading passes read triangles from both buffers.
-  constexpr VkBufferUsageFlags kVertexUsage =
-      VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
-  auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
-    if (!src.ok()) return src.status();
-    gs->device_bytes_ += src->size();
-    dst = std::move(*src);
-    return absl::OkStatus();
-  };
-
-  absl::Status st = assign(gs->vertices_, UploadBuffer(ctx, scene.vertices.data(),
-                                                       scene.vertices.size() * sizeof(Vertex),
-                                                       kVertexUsage, n + ".vertices"));
-  if (st.ok())
-    st = assign(gs->indices_,
-                UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
-                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                             n + ".indices"));
-  if (!st.ok()) return st;
-
   const uint32_t max_size = std::min<uint32_t>(kMaxTextureSide, ctx.info().max_image_dimension);
   const TextureBucketPlan plan = PlanTextureBuckets(scene.textures, max_size);
   for (const auto& b : plan.buckets) {
@@ -371,6 +351,19 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   if (materials.empty()) materials.push_back(MakeMaterial(Material{}, scene.textures, plan));
 
   std::vector<gpu::GpuDrawable> drawables;
+  std::vector<gpu::GpuCullItem> items;
+  gs->PlanScene(scene, &drawables, &items);
+  RETURN_IF_ERROR(gs->UploadBuffers(ctx, scene, materials, drawables, items));
+  RETURN_IF_ERROR(gs->UploadTextures(ctx, scene, plan));
+  RETURN_IF_ERROR(gs->WriteMaterialSets(ctx, materials, material_layout));
+  gs->lights_ = scene.lights;
+  gs->bounds_ = scene.bounds;
+  return gs;
+}
+
+void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* drawables_out,
+                         std::vector<gpu::GpuCullItem>* items_out) {
+  std::vector<gpu::GpuDrawable>& drawables = *drawables_out;
   drawables.reserve(scene.drawables.size());
   for (uint32_t i = 0; i < scene.drawables.size(); ++i) {
     const Drawable& d = scene.drawables[i];
@@ -391,64 +384,97 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
     g.aabb_min = glm::vec4(d.world_bounds.min, 0.0f);
     g.aabb_max = glm::vec4(d.world_bounds.max, 0.0f);
     drawables.push_back(g);
-    gs->max_draw_triangles_ = std::max(gs->max_draw_triangles_, p.index_count / 3);
-    gs->draws_.push_back({i, material, p.first_index,
-                          p.index_count, static_cast<int32_t>(p.first_vertex), m.alpha_mode,
-                          m.double_sided, d.world_bounds});
+    max_draw_triangles_ = std::max(max_draw_triangles_, p.index_count / 3);
+    draws_.push_back({i, material, p.first_index, p.index_count,
+                      static_cast<int32_t>(p.first_vertex), m.alpha_mode, m.double_sided,
+                      d.world_bounds});
   }
   if (drawables.empty()) drawables.push_back(gpu::GpuDrawable{});  // keep the binding valid
-  gs->plan_ = PlanDraws(gs->draws_);
+  plan_ = PlanDraws(draws_);
   {
     std::vector<DrawItem> ordered;
-    ordered.reserve(gs->draws_.size());
-    for (uint32_t i : gs->plan_.order) ordered.push_back(gs->draws_[i]);
-    gs->draws_ = std::move(ordered);
+    ordered.reserve(draws_.size());
+    for (uint32_t i : plan_.order) ordered.push_back(draws_[i]);
+    draws_ = std::move(ordered);
   }
-  std::vector<gpu::GpuCullItem> items(std::max<size_t>(1, gs->draws_.size()));
-  for (const DrawSegment& seg : gs->plan_.segments) {
+  std::vector<gpu::GpuCullItem>& items = *items_out;
+  items.resize(std::max<size_t>(1, draws_.size()));
+  for (const DrawSegment& seg : plan_.segments) {
     for (uint32_t i = seg.first_item; i < seg.first_item + seg.item_count; ++i) {
-      const DrawItem& d = gs->draws_[i];
+      const DrawItem& d = draws_[i];
       gpu::GpuCullItem& c = items[i];
       c.draw = glm::uvec4(d.first_index, d.index_count, static_cast<uint32_t>(d.vertex_offset),
                           d.drawable);
-      c.slot = glm::uvec4(uint32_t(&seg - gs->plan_.segments.data()), seg.first_item, ~0u, 0u);
+      c.slot = glm::uvec4(uint32_t(&seg - plan_.segments.data()), seg.first_item, ~0u, 0u);
       c.flags.x = i + 1 == seg.first_item + seg.item_count ? 1u : 0u;
     }
   }
-  for (uint32_t b = 0; b < gs->plan_.batches.size(); ++b) {
-    const DrawBatch& batch = gs->plan_.batches[b];
+  for (uint32_t b = 0; b < plan_.batches.size(); ++b) {
+    const DrawBatch& batch = plan_.batches[b];
     for (uint32_t i = batch.first_item; i < batch.first_item + batch.item_count; ++i) {
       items[i].slot.z = b;
       items[i].slot.w = batch.first_item;
       if (i + 1 == batch.first_item + batch.item_count) items[i].flags.x |= 2u;
     }
   }
+}
 
-  st = assign(gs->materials_,
+absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
+                                     const std::vector<gpu::GpuMaterial>& materials,
+                                     const std::vector<gpu::GpuDrawable>& drawables,
+                                     const std::vector<gpu::GpuCullItem>& items) {
+  const std::string& n = scene.name;
+  // vis_mlaa's resolve and shading passes read triangles from both buffers.
+  constexpr VkBufferUsageFlags kVertexUsage =
+      VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+  auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
+    if (!src.ok()) return src.status();
+    device_bytes_ += src->size();
+    dst = std::move(*src);
+    return absl::OkStatus();
+  };
+  absl::Status st = assign(
+      vertices_, UploadBuffer(ctx, scene.vertices.data(), scene.vertices.size() * sizeof(Vertex),
+                              kVertexUsage, n + ".vertices"));
+  if (st.ok())
+    st = assign(indices_,
+                UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
+                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                             n + ".indices"));
+  if (!st.ok()) return st;
+
+  st = assign(materials_,
               UploadBuffer(ctx, materials.data(), materials.size() * sizeof(gpu::GpuMaterial),
                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".materials"));
   if (st.ok())
-    st = assign(gs->drawables_,
+    st = assign(drawables_,
                 UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
   if (st.ok())
-    st = assign(gs->cull_items_,
-                UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),
-                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".cull_items"));
+    st =
+        assign(cull_items_, UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),
+                                         VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".cull_items"));
   if (!st.ok()) return st;
 
   // The same materials for uniform reads, one aligned range per material (set 1, binding 0).
   const VkDeviceSize align =
       std::max<VkDeviceSize>(16, ctx.limits().minUniformBufferOffsetAlignment);
   const VkDeviceSize stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
+  material_stride_ = stride;
   std::vector<uint8_t> padded(stride * materials.size(), 0);
   for (size_t i = 0; i < materials.size(); ++i)
     std::memcpy(padded.data() + i * stride, &materials[i], sizeof(gpu::GpuMaterial));
-  st = assign(gs->material_uniforms_,
+  st = assign(material_uniforms_,
               UploadBuffer(ctx, padded.data(), padded.size(), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
                            n + ".material_uniforms"));
   if (!st.ok()) return st;
 
+  return absl::OkStatus();
+}
+
+absl::Status GpuScene::UploadTextures(vk::Context& ctx, const CpuScene& scene,
+                                      const TextureBucketPlan& plan) {
+  const std::string& n = scene.name;
   const uint32_t bucket_count = std::max<uint32_t>(1, uint32_t(plan.buckets.size()));
   for (uint32_t b = 0; b < bucket_count; ++b) {
     absl::StatusOr<vk::Image> image;
@@ -462,13 +488,13 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
       image = UploadBucket(ctx, plan.buckets[b], layers, absl::StrCat(n, ".texture_bucket", b));
       if (image.ok()) {
         const auto& d = image->desc();
-        gs->device_bytes_ += uint64_t(d.width) * d.height * 4 * d.array_layers * 4 / 3;
+        device_bytes_ += uint64_t(d.width) * d.height * 4 * d.array_layers * 4 / 3;
       }
     } else {
       image = PlaceholderBucket(ctx, b);
     }
     if (!image.ok()) return image.status();
-    gs->buckets_.push_back(std::move(*image));
+    buckets_.push_back(std::move(*image));
   }
 
   VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
@@ -480,8 +506,14 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   si.anisotropyEnable = ctx.info().max_anisotropy > 1.0f;
   si.maxAnisotropy = ctx.info().max_anisotropy;
   si.maxLod = VK_LOD_CLAMP_NONE;
-  ASSIGN_OR_RETURN(gs->sampler_, vk::Sampler::Create(ctx, si, n + ".sampler"));
+  ASSIGN_OR_RETURN(sampler_, vk::Sampler::Create(ctx, si, n + ".sampler"));
 
+  return absl::OkStatus();
+}
+
+absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
+                                         const std::vector<gpu::GpuMaterial>& materials,
+                                         VkDescriptorSetLayout material_layout) {
   // One texture set per material; slots without a texture point at bucket 0 (never sampled).
   const uint32_t material_count = uint32_t(materials.size());
   const VkDescriptorPoolSize pool_sizes[] = {
@@ -492,15 +524,15 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   dpi.poolSizeCount = 2;
   dpi.pPoolSizes = pool_sizes;
   VK_RETURN_IF_ERROR(
-      vkCreateDescriptorPool(ctx.device(), &dpi, nullptr, gs->material_pool_.Replace(ctx.device())),
+      vkCreateDescriptorPool(ctx.device(), &dpi, nullptr, material_pool_.Replace(ctx.device())),
       "material descriptor pool");
   std::vector<VkDescriptorSetLayout> layouts(material_count, material_layout);
-  gs->material_sets_.resize(material_count);
+  material_sets_.resize(material_count);
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-  ai.descriptorPool = gs->material_pool_.get();
+  ai.descriptorPool = material_pool_.get();
   ai.descriptorSetCount = material_count;
   ai.pSetLayouts = layouts.data();
-  VK_RETURN_IF_ERROR(vkAllocateDescriptorSets(ctx.device(), &ai, gs->material_sets_.data()),
+  VK_RETURN_IF_ERROR(vkAllocateDescriptorSets(ctx.device(), &ai, material_sets_.data()),
                      "material descriptor sets");
   std::vector<VkDescriptorImageInfo> infos(size_t(material_count) * gpu::kMaterialTextureSlots);
   std::vector<VkDescriptorBufferInfo> buffer_infos(material_count);
@@ -513,19 +545,19 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
     VkDescriptorImageInfo* info = &infos[size_t(m) * gpu::kMaterialTextureSlots];
     for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k) {
       const int bucket = std::max(0, slots[k]->info.x);
-      info[k] = {gs->sampler_.handle(), gs->buckets_[bucket].view(),
+      info[k] = {sampler_.handle(), buckets_[bucket].view(),
                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
     }
-    buffer_infos[m] = {gs->material_uniforms_.handle(), m * stride, sizeof(gpu::GpuMaterial)};
+    buffer_infos[m] = {material_uniforms_.handle(), m * material_stride_, sizeof(gpu::GpuMaterial)};
     VkWriteDescriptorSet u{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    u.dstSet = gs->material_sets_[m];
+    u.dstSet = material_sets_[m];
     u.dstBinding = gpu::kBindingMaterialUniform;
     u.descriptorCount = 1;
     u.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
     u.pBufferInfo = &buffer_infos[m];
     writes.push_back(u);
     VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    w.dstSet = gs->material_sets_[m];
+    w.dstSet = material_sets_[m];
     w.dstBinding = gpu::kBindingBaseColorTex;
     w.descriptorCount = gpu::kMaterialTextureSlots;  // consecutive bindings
     w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
@@ -534,9 +566,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   }
   vkUpdateDescriptorSets(ctx.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
 
-  gs->lights_ = scene.lights;
-  gs->bounds_ = scene.bounds;
-  return gs;
+  return absl::OkStatus();
 }
 
 }  // namespace tessera

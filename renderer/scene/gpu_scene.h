@@ -125,8 +125,22 @@ class GpuScene {
   std::map<uint64_t, ViewVisibility>& views() const { return views_; }
 
  private:
+  // Upload's steps: the draws in item order with their GPU records, the buffers, the texture
+  // buckets and sampler, one descriptor set per material.
+  void PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* drawables,
+                 std::vector<gpu::GpuCullItem>* items);
+  absl::Status UploadBuffers(vk::Context& ctx, const CpuScene& scene,
+                             const std::vector<gpu::GpuMaterial>& materials,
+                             const std::vector<gpu::GpuDrawable>& drawables,
+                             const std::vector<gpu::GpuCullItem>& items);
+  absl::Status UploadTextures(vk::Context& ctx, const CpuScene& scene,
+                              const TextureBucketPlan& plan);
+  absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
+                                 VkDescriptorSetLayout material_layout);
+
   vk::Buffer vertices_, indices_, drawables_, materials_;
   vk::Buffer material_uniforms_;  // the materials again, each at a uniform-offset-aligned stride
+  VkDeviceSize material_stride_ = 0;
   std::vector<vk::Image> buckets_;
   vk::Sampler sampler_;
   VkDevice device_ = VK_NULL_HANDLE;

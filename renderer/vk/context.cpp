@@ -154,7 +154,16 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   const bool validation = options.validation || EnvFlag("TESSERA_VALIDATION");
   std::string wanted = options.device_name;
   if (wanted.empty() && std::getenv("TESSERA_DEVICE")) wanted = std::getenv("TESSERA_DEVICE");
+  RETURN_IF_ERROR(ctx->InitInstance(validation));
+  RETURN_IF_ERROR(ctx->PickDevice(wanted));
+  RETURN_IF_ERROR(ctx->InitDevice(validation));
+  const DeviceInfo& info = ctx->info_;
+  Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name, info.type,
+             info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
+  return ctx;
+}
 
+absl::Status Context::InitInstance(bool validation) {
   uint32_t loader_version = 0;
   if (vkEnumerateInstanceVersion(&loader_version) != VK_SUCCESS ||
       loader_version < VK_API_VERSION_1_3) {
@@ -192,7 +201,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
                                VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
                                VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
   messenger_info.pfnUserCallback = &Context::DebugCallback;
-  messenger_info.pUserData = ctx.get();
+  messenger_info.pUserData = this;
 
   VkInstanceCreateInfo ici{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
   ici.pApplicationInfo = &app;
@@ -212,24 +221,28 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
     features.pNext = ici.pNext;
     ici.pNext = &features;
   }
-  VK_RETURN_IF_ERROR(vkCreateInstance(&ici, nullptr, &ctx->instance_), "vkCreateInstance");
+  VK_RETURN_IF_ERROR(vkCreateInstance(&ici, nullptr, &instance_), "vkCreateInstance");
 
   if (validation && debug_utils) {
     auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
-        vkGetInstanceProcAddr(ctx->instance_, "vkCreateDebugUtilsMessengerEXT"));
-    if (create) VK_CHECK(create(ctx->instance_, &messenger_info, nullptr, &ctx->messenger_));
+        vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
+    if (create) VK_CHECK(create(instance_, &messenger_info, nullptr, &messenger_));
   }
   if (debug_utils) {
-    ctx->set_name_ = reinterpret_cast<PFN_vkSetDebugUtilsObjectNameEXT>(
-        vkGetInstanceProcAddr(ctx->instance_, "vkSetDebugUtilsObjectNameEXT"));
+    set_name_ = reinterpret_cast<PFN_vkSetDebugUtilsObjectNameEXT>(
+        vkGetInstanceProcAddr(instance_, "vkSetDebugUtilsObjectNameEXT"));
   }
 
+  return absl::OkStatus();
+}
+
+absl::Status Context::PickDevice(const std::string& wanted) {
   // Choose the device: by name if asked, else the best type that offers Vulkan 1.3 and a
   // graphics queue.
   uint32_t count = 0;
-  vkEnumeratePhysicalDevices(ctx->instance_, &count, nullptr);
+  vkEnumeratePhysicalDevices(instance_, &count, nullptr);
   std::vector<VkPhysicalDevice> devices(count);
-  vkEnumeratePhysicalDevices(ctx->instance_, &count, devices.data());
+  vkEnumeratePhysicalDevices(instance_, &count, devices.data());
   std::vector<DeviceCandidate> candidates;
   std::vector<int> family_of;
   std::vector<uint32_t> timestamp_bits;
@@ -254,31 +267,17 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
     timestamp_bits.push_back(family >= 0 ? families[family].timestampValidBits : 0);
   }
   ASSIGN_OR_RETURN(size_t chosen, ChooseDevice(candidates, wanted));
-  ctx->physical_ = devices[chosen];
-  ctx->queue_family_ = static_cast<uint32_t>(family_of[chosen]);
-  ctx->info_.timestamp_valid_bits = timestamp_bits[chosen];
+  physical_ = devices[chosen];
+  queue_family_ = static_cast<uint32_t>(family_of[chosen]);
+  info_.timestamp_valid_bits = timestamp_bits[chosen];
 
-  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
-  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
-  props2.pNext = &driver;
-  vkGetPhysicalDeviceProperties2(ctx->physical_, &props2);
-  const VkPhysicalDeviceProperties& p = props2.properties;
-  ctx->limits_ = p.limits;
-  vkGetPhysicalDeviceMemoryProperties(ctx->physical_, &ctx->memory_);
+  return absl::OkStatus();
+}
 
-  VkPhysicalDeviceFeatures supported{};
-  vkGetPhysicalDeviceFeatures(ctx->physical_, &supported);
-  VkPhysicalDeviceVulkan13Features f13_supported{
-      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
-  VkPhysicalDeviceFeatures2 f2_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
-  f2_supported.pNext = &f13_supported;
-  vkGetPhysicalDeviceFeatures2(ctx->physical_, &f2_supported);
-  if (!f13_supported.dynamicRendering || !f13_supported.synchronization2) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
-  }
-
-  DeviceInfo& info = ctx->info_;
+void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
+                             const VkPhysicalDeviceDriverProperties& driver,
+                             const VkPhysicalDeviceFeatures& supported, bool validation) {
+  DeviceInfo& info = info_;
   info.name = p.deviceName;
   info.type = TypeName(p.deviceType);
   info.driver_name = driver.driverName;
@@ -292,7 +291,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
     VkPhysicalDeviceVulkan12Properties p12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_PROPERTIES};
     VkPhysicalDeviceProperties2 pp{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
     pp.pNext = &p12;
-    vkGetPhysicalDeviceProperties2(ctx->physical_, &pp);
+    vkGetPhysicalDeviceProperties2(physical_, &pp);
     // Per format rather than the device-wide limits: lavapipe reports 1x in
     // framebufferIntegerColorSampleCounts yet supports 4x R32_UINT attachments.
     info.sample_counts = p.limits.framebufferColorSampleCounts &
@@ -303,7 +302,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
         {VK_FORMAT_D32_SFLOAT, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT}};
     for (const auto& [format, usage] : targets) {
       VkImageFormatProperties fp{};
-      if (vkGetPhysicalDeviceImageFormatProperties(ctx->physical_, format, VK_IMAGE_TYPE_2D,
+      if (vkGetPhysicalDeviceImageFormatProperties(physical_, format, VK_IMAGE_TYPE_2D,
                                                    VK_IMAGE_TILING_OPTIMAL, usage, 0,
                                                    &fp) != VK_SUCCESS) {
         fp.sampleCounts = VK_SAMPLE_COUNT_1_BIT;
@@ -323,7 +322,31 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
                             ? std::min(8.0f, p.limits.maxSamplerAnisotropy)
                             : 1.0f;
   info.validation = validation;
+}
 
+absl::Status Context::InitDevice(bool validation) {
+  VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
+  VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
+  props2.pNext = &driver;
+  vkGetPhysicalDeviceProperties2(physical_, &props2);
+  const VkPhysicalDeviceProperties& p = props2.properties;
+  limits_ = p.limits;
+  vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
+
+  VkPhysicalDeviceFeatures supported{};
+  vkGetPhysicalDeviceFeatures(physical_, &supported);
+  VkPhysicalDeviceVulkan13Features f13_supported{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
+  VkPhysicalDeviceFeatures2 f2_supported{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
+  f2_supported.pNext = &f13_supported;
+  vkGetPhysicalDeviceFeatures2(physical_, &f2_supported);
+  if (!f13_supported.dynamicRendering || !f13_supported.synchronization2) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
+  }
+
+  DescribeDevice(p, driver, supported, validation);
+  DeviceInfo& info = info_;
   VkPhysicalDeviceFeatures enabled{};
   enabled.samplerAnisotropy = info.max_anisotropy > 1.0f ? VK_TRUE : VK_FALSE;
   enabled.multiDrawIndirect = supported.multiDrawIndirect;
@@ -344,7 +367,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
       VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_FEATURES};
   VkPhysicalDeviceFeatures2 q{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   q.pNext = &f12_supported;
-  vkGetPhysicalDeviceFeatures2(ctx->physical_, &q);
+  vkGetPhysicalDeviceFeatures2(physical_, &q);
   // Every scene draw is an indexed indirect draw with a GPU-written count.
   if (!f12_supported.drawIndirectCount || !supported.drawIndirectFirstInstance) {
     return absl::FailedPreconditionError(absl::StrCat(
@@ -354,7 +377,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   f12.samplerFilterMinmax = f12_supported.samplerFilterMinmax;
   {
     VkFormatProperties fp{};
-    vkGetPhysicalDeviceFormatProperties(ctx->physical_, VK_FORMAT_R32_SFLOAT, &fp);
+    vkGetPhysicalDeviceFormatProperties(physical_, VK_FORMAT_R32_SFLOAT, &fp);
     info.sampler_minmax =
         f12_supported.samplerFilterMinmax &&
         (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT) != 0;
@@ -364,7 +387,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
 
   const float priority = 1.0f;
   VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-  qci.queueFamilyIndex = ctx->queue_family_;
+  qci.queueFamilyIndex = queue_family_;
   qci.queueCount = 1;
   qci.pQueuePriorities = &priority;
   VkDeviceCreateInfo dci{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
@@ -372,21 +395,18 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   dci.queueCreateInfoCount = 1;
   dci.pQueueCreateInfos = &qci;
   dci.pEnabledFeatures = &enabled;
-  VK_RETURN_IF_ERROR(vkCreateDevice(ctx->physical_, &dci, nullptr, &ctx->device_),
-                     "vkCreateDevice");
+  VK_RETURN_IF_ERROR(vkCreateDevice(physical_, &dci, nullptr, &device_), "vkCreateDevice");
   PinDriverModulesForLeakSanitizer();
-  vkGetDeviceQueue(ctx->device_, ctx->queue_family_, 0, &ctx->queue_);
+  vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
 
   VkCommandPoolCreateInfo pci{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pci.flags = VK_COMMAND_POOL_CREATE_TRANSIENT_BIT;
-  pci.queueFamilyIndex = ctx->queue_family_;
-  VK_CHECK(vkCreateCommandPool(ctx->device_, &pci, nullptr, &ctx->upload_pool_));
+  pci.queueFamilyIndex = queue_family_;
+  VK_CHECK(vkCreateCommandPool(device_, &pci, nullptr, &upload_pool_));
   VkFenceCreateInfo fci{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-  VK_CHECK(vkCreateFence(ctx->device_, &fci, nullptr, &ctx->upload_fence_));
+  VK_CHECK(vkCreateFence(device_, &fci, nullptr, &upload_fence_));
 
-  Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name, info.type,
-             info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
-  return ctx;
+  return absl::OkStatus();
 }
 
 Context::~Context() {

@@ -64,6 +64,14 @@ class Context {
   std::vector<std::string> validation_messages() const;
 
  private:
+  // Create's steps: the instance (with validation and its messenger), the physical device and
+  // its queue family, then the device with the features Tessera uses (and DeviceInfo).
+  absl::Status InitInstance(bool validation);
+  absl::Status PickDevice(const std::string& wanted);
+  absl::Status InitDevice(bool validation);
+  void DescribeDevice(const VkPhysicalDeviceProperties& p,
+                      const VkPhysicalDeviceDriverProperties& driver,
+                      const VkPhysicalDeviceFeatures& supported, bool validation);
   Context() = default;
   static VKAPI_ATTR VkBool32 VKAPI_CALL DebugCallback(
       VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT types,
