@@ -32,6 +32,30 @@ VkImageMemoryBarrier2 Barrier(const vk::Image& image, VkPipelineStageFlags2 src_
                               mip, mips);
 }
 
+// A map: `size` texels a side, `mips` levels, a cube (six layers) or a 2D image, written by the
+// bake's compute shaders and sampled by the shading.
+absl::StatusOr<vk::Image> MakeImage(const vk::Context& ctx, uint32_t size, uint32_t mips, bool cube,
+                                    VkFormat format, VkImageUsageFlags extra, const char* name) {
+  vk::ImageDesc desc;
+  desc.format = format;
+  desc.width = desc.height = size;
+  desc.mip_levels = mips;
+  desc.array_layers = cube ? 6 : 1;
+  desc.view_type = cube ? VK_IMAGE_VIEW_TYPE_CUBE : VK_IMAGE_VIEW_TYPE_2D;
+  desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | extra;
+  return vk::Image::Create(ctx, desc, name);
+}
+
+// Trilinear, clamped: what the shading samples the maps with.
+absl::StatusOr<vk::Sampler> MakeSampler(const vk::Context& ctx) {
+  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
+  si.magFilter = si.minFilter = VK_FILTER_LINEAR;
+  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
+  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
+  si.maxLod = VK_LOD_CLAMP_NONE;
+  return vk::Sampler::Create(ctx, si, "ibl");
+}
+
 }  // namespace
 
 IblMaps::~IblMaps() = default;
@@ -43,15 +67,7 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
 
   auto image = [&](uint32_t size, uint32_t mips, bool cube, VkFormat format,
                    VkImageUsageFlags extra, const char* name, vk::Image* out) -> absl::Status {
-    vk::ImageDesc desc;
-    desc.format = format;
-    desc.width = desc.height = size;
-    desc.mip_levels = mips;
-    desc.array_layers = cube ? 6 : 1;
-    desc.view_type = cube ? VK_IMAGE_VIEW_TYPE_CUBE : VK_IMAGE_VIEW_TYPE_2D;
-    desc.usage = VK_IMAGE_USAGE_STORAGE_BIT | VK_IMAGE_USAGE_SAMPLED_BIT | extra;
-    ASSIGN_OR_RETURN(vk::Image img, vk::Image::Create(ctx, desc, name));
-    *out = std::move(img);
+    ASSIGN_OR_RETURN(*out, MakeImage(ctx, size, mips, cube, format, extra, name));
     return absl::OkStatus();
   };
   const uint32_t env_mips = uint32_t(std::bit_width(kIblEnvSize));
@@ -78,12 +94,7 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
     return m->storage_views_.back().get();
   };
 
-  VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
-  si.magFilter = si.minFilter = VK_FILTER_LINEAR;
-  si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_LINEAR;
-  si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
-  si.maxLod = VK_LOD_CLAMP_NONE;
-  ASSIGN_OR_RETURN(m->sampler_, vk::Sampler::Create(ctx, si, "ibl"));
+  ASSIGN_OR_RETURN(m->sampler_, MakeSampler(ctx));
 
   const VkDescriptorPoolSize sizes[] = {{VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 16},
                                         {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 16}};

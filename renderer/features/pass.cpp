@@ -68,15 +68,18 @@ absl::StatusOr<PassLayout> PassLayout::Create(
   return l;
 }
 
-VkDescriptorSet PassLayout::Allocate(const PassContext& ctx) const {
+VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout layout) {
   VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
   ai.descriptorPool = ctx.frame_pool;
   ai.descriptorSetCount = 1;
-  const VkDescriptorSetLayout set_layout = set_layout_.get();
-  ai.pSetLayouts = &set_layout;
+  ai.pSetLayouts = &layout;
   VkDescriptorSet set;
-  VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
+  VK_CHECK(vkAllocateDescriptorSets(ctx.vk->device(), &ai, &set));
   return set;
+}
+
+VkDescriptorSet PassLayout::Allocate(const PassContext& ctx) const {
+  return AllocateFrameSet(ctx, set_layout_.get());
 }
 
 namespace {

@@ -226,6 +226,9 @@ struct PassContext {
 };
 
 // A pass's own descriptor set layout and pipeline layout (one set), destroyed together.
+// A descriptor set of `layout` from the frame's pool (reset every frame).
+VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout layout);
+
 class PassLayout {
  public:
   PassLayout() = default;

@@ -138,13 +138,7 @@ class VisLayout {
   // Set 2 for this frame: `images` at their bindings, and the scene's index and vertex buffers.
   VkDescriptorSet Write(const PassContext& ctx,
                         const std::vector<std::pair<uint32_t, VkDescriptorImageInfo>>& images) {
-    VkDescriptorSetAllocateInfo ai{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO};
-    ai.descriptorPool = ctx.frame_pool;
-    ai.descriptorSetCount = 1;
-    const VkDescriptorSetLayout set_layout = set_layout_.get();
-    ai.pSetLayouts = &set_layout;
-    VkDescriptorSet set;
-    VK_CHECK(vkAllocateDescriptorSets(device_, &ai, &set));
+    const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
     std::vector<VkWriteDescriptorSet> writes;
     for (const auto& [binding, info] : images) {
       VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
