@@ -64,15 +64,8 @@ class CullPass final : public Pass {
     w[gpu::kCullBindingHiz].pImageInfo = &hiz;
     vkUpdateDescriptorSets(device_, kBindings, w, 0, nullptr);
 
-    // The previous frame drew from these lists and read the statistics on the host; the
-    // previous cull wrote the visibility bits.
-    vk::CmdMemoryBarrier(ctx.cmd,
-                  VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
-                      VK_PIPELINE_STAGE_2_HOST_BIT,
-                  VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_HOST_WRITE_BIT,
-                  VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
-                  VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
-                      VK_ACCESS_2_TRANSFER_WRITE_BIT);
+    // The graph ordered the lists and visibility bits after their earlier uses (SetupCulling);
+    // the clears below come before this pass's dispatch.
     const uint32_t lists_per_phase = uint32_t(ctx.scene->segments().size() +
                                               ctx.scene->batches().size());
     vkCmdFillBuffer(ctx.cmd, lists.counts, lists.CountOffset(phase, lists_per_phase),
@@ -86,14 +79,6 @@ class CullPass final : public Pass {
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
                             1, &set, 0, nullptr);
     vkCmdDispatch(ctx.cmd, 1, 1, 1);  // one workgroup: the lists come out in item order
-
-    // Lists -> the indirect draws; statistics -> the host; visibility bits -> the next cull.
-    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                  VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                  VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_HOST_BIT |
-                      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                  VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_HOST_READ_BIT |
-                      VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
   }
 
  private:
@@ -131,9 +116,20 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateCullPass(const vk::Context& ctx, Pas
 
 void SetupCulling(GraphBuilder& b) {
   const CullingMode c = b.settings().culling;
-  if (c != CullingMode::kGpuFrustum && c != CullingMode::kGpuOcclusion) return;
+  const bool gpu = c == CullingMode::kGpuFrustum || c == CullingMode::kGpuOcclusion;
+  // Every frame draws from the lists: the host writes them before the frame (none,
+  // cpu_frustum) or the cull passes do; the host reads them after it (what the frame drew).
+  b.Import(Resource::kDrawLists, gpu ? Access::kNone : Access::kHostWrite, Access::kHostRead);
+  if (!gpu) return;
+  // gpu_occlusion: the first phase reads what the view saw last frame (the late cull wrote it,
+  // or the host zeroed a new view's bits).
+  if (c == CullingMode::kGpuOcclusion)
+    b.Import(Resource::kVisibilityBits, Access::kComputeWrite, Access::kComputeWrite);
   // The first phase does not read the pyramid, but its pipeline binds it.
-  b.Pass(PassId::kCull).Use(Resource::kHiz, Access::kComputeRead);
+  b.Pass(PassId::kCull)
+      .Use(Resource::kHiz, Access::kComputeRead)
+      .Use(Resource::kDrawLists, Access::kComputeWrite)
+      .UseIfPresent(Resource::kVisibilityBits, Access::kComputeRead);
 }
 
 void SetupOcclusion(GraphBuilder& b) {
@@ -144,7 +140,10 @@ void SetupOcclusion(GraphBuilder& b) {
   b.Pass(PassId::kHizBuild)
       .Use(Resource::kDepth, Access::kComputeRead)
       .Use(Resource::kHiz, Access::kComputeWrite);
-  b.Pass(PassId::kCullLate).Use(Resource::kHiz, Access::kComputeRead);
+  b.Pass(PassId::kCullLate)
+      .Use(Resource::kHiz, Access::kComputeRead)
+      .Use(Resource::kDrawLists, Access::kComputeWrite)
+      .Use(Resource::kVisibilityBits, Access::kComputeWrite);
   AddDepthPass(b, /*late=*/true);
 }
 

@@ -101,7 +101,8 @@ void AddDepthPass(GraphBuilder& b, bool late) {
     AddVisibilityPass(b, late);
     return;
   }
-  b.Pass(late ? PassId::kDepthPrepassLate : PassId::kDepthPrepass);
+  b.Pass(late ? PassId::kDepthPrepassLate : PassId::kDepthPrepass)
+      .Use(Resource::kDrawLists, Access::kIndirectRead);
   if (b.settings().aa == AaMode::kMsaa) {
     b.Use(Resource::kDepthMs, Access::kDepthWrite).Use(Resource::kDepth, Access::kDepthResolve);
   } else {

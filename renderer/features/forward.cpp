@@ -145,6 +145,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateTransparentPass(const vk::Context& c
 namespace {
 // The forward path's targets: multisampled with their resolve for msaa.
 void UseForwardTargets(GraphBuilder& b, Resource color) {
+  b.Use(Resource::kDrawLists, Access::kIndirectRead);
   if (b.settings().aa == AaMode::kMsaa) {
     b.Use(Resource::kDepthMs, Access::kDepthTest)
         .Use(Resource::kHdrMs, Access::kColorWrite)
@@ -153,7 +154,8 @@ void UseForwardTargets(GraphBuilder& b, Resource color) {
     b.Use(Resource::kDepth, Access::kDepthTest).Use(color, Access::kColorWrite);
   }
   b.UseIfPresent(Resource::kAo, Access::kSampled)
-      .UseIfPresent(Resource::kShadowAtlas, Access::kSampled);
+      .UseIfPresent(Resource::kShadowAtlas, Access::kSampled)
+      .UseIfPresent(Resource::kLightLists, Access::kSampled);
 }
 }  // namespace
 

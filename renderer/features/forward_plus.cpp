@@ -53,21 +53,7 @@ class LightCullPass final : public Pass {
     w[gpu::kCullBindingRowLights].pBufferInfo = &rows;
     vkUpdateDescriptorSets(device_, 6, w, 0, nullptr);
 
-    // The previous frame's shading read these buffers: finish before they are rewritten.
-    VkBufferMemoryBarrier2 before[2];
-    for (int i = 0; i < 2; ++i) {
-      before[i] = {VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
-      before[i].srcStageMask =
-          VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT;
-      before[i].srcAccessMask = VK_ACCESS_2_NONE;
-      before[i].dstStageMask = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
-      before[i].dstAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
-      before[i].srcQueueFamilyIndex = before[i].dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-      before[i].size = VK_WHOLE_SIZE;
-    }
-    before[0].buffer = lb.tile_counts;
-    before[1].buffer = lb.tile_lights;
-    vk::CmdBarrier(ctx.cmd, nullptr, 0, before, 2);
+    // The graph ordered the lists after their earlier uses (SetupLightCulling).
 
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
@@ -75,21 +61,17 @@ class LightCullPass final : public Pass {
     vkCmdDispatch(ctx.cmd, (lb.tiles + gpu::kLightCullGroupSize - 1) / gpu::kLightCullGroupSize, 1,
                   1);
 
-    // Lists and counts -> the fragment shaders; counts -> the copy for the statistics.
-    VkBufferMemoryBarrier2 after[2];
-    for (int i = 0; i < 2; ++i) {
-      after[i] = {VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
-      after[i].srcStageMask = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
-      after[i].srcAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
-      after[i].dstStageMask =
-          VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT | VK_PIPELINE_STAGE_2_COPY_BIT;
-      after[i].dstAccessMask = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_TRANSFER_READ_BIT;
-      after[i].srcQueueFamilyIndex = after[i].dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-      after[i].size = VK_WHOLE_SIZE;
-    }
-    after[0].buffer = lb.tile_counts;
-    after[1].buffer = lb.tile_lights;
-    vk::CmdBarrier(ctx.cmd, nullptr, 0, after, 2);
+    // This pass's own copy of the counts for the statistics (the graph orders the lists
+    // before the shading's reads).
+    VkBufferMemoryBarrier2 after{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
+    after.srcStageMask = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+    after.srcAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
+    after.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+    after.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
+    after.srcQueueFamilyIndex = after.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+    after.buffer = lb.tile_counts;
+    after.size = VK_WHOLE_SIZE;
+    vk::CmdBarrier(ctx.cmd, nullptr, 0, &after, 1);
     const VkBufferCopy copy{0, 0, VkDeviceSize(lb.tiles) * sizeof(uint32_t)};
     vkCmdCopyBuffer(ctx.cmd, lb.tile_counts, lb.counts_readback, 1, &copy);
     VkBufferMemoryBarrier2 host{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
@@ -144,7 +126,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx
 void SetupLightCulling(GraphBuilder& b) {
   // Nothing to cull, or brute force asked for: no lists.
   if (!b.settings().light_culling || b.features().local_lights == 0) return;
-  b.Pass(PassId::kLightCull).Use(Resource::kDepth, Access::kComputeRead);
+  // The lists are rewritten whole each frame; the shading reads them (UseIfPresent).
+  b.Import(Resource::kLightLists, Access::kNone, Access::kSampled);
+  b.Pass(PassId::kLightCull)
+      .Use(Resource::kDepth, Access::kComputeRead)
+      .Use(Resource::kLightLists, Access::kComputeWrite);
 }
 
 

@@ -348,6 +348,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
 
 void AddVisibilityPass(GraphBuilder& b, bool late) {
   b.Pass(late ? PassId::kVisibilityLate : PassId::kVisibility)
+      .Use(Resource::kDrawLists, Access::kIndirectRead)
       .Use(Resource::kDepthMs, Access::kDepthWrite)
       .Use(Resource::kVisMs, Access::kColorWrite)
       .Use(Resource::kDepth, Access::kDepthResolve);
@@ -369,7 +370,8 @@ void SetupVisMlaa(GraphBuilder& b) {
       .Use(R::kMaterialDepth, A::kDepthTest)
       .Use(R::kHdrColor, A::kColorWrite)
       .UseIfPresent(R::kAo, A::kSampled)
-      .UseIfPresent(R::kShadowAtlas, A::kSampled);
+      .UseIfPresent(R::kShadowAtlas, A::kSampled)
+      .UseIfPresent(R::kLightLists, A::kSampled);
   b.Pass(PassId::kGeometricAa)
       .Use(R::kHdrColor, A::kSampled)
       .Use(R::kVisCoverage, A::kSampled)

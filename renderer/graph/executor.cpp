@@ -61,6 +61,10 @@ AccessInfo ToVulkan(Access a) {
     case Access::kSampledGeneral:
       return {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
               VK_IMAGE_LAYOUT_GENERAL};
+    case Access::kIndirectRead:  // buffers only
+    case Access::kHostWrite:
+    case Access::kHostRead:
+      break;
     case Access::kDepthResolve:
       // Depth resolves write in the colour-output stage with colour-attachment access.
       return {kDepthStages | VK_PIPELINE_STAGE_2_COLOR_ATTACHMENT_OUTPUT_BIT,
@@ -70,6 +74,37 @@ AccessInfo ToVulkan(Access a) {
               VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL};
   }
   return {};
+}
+
+BufferAccessInfo ToVulkanBuffer(Access a) {
+  switch (a) {
+    case Access::kComputeWrite:  // storage writes, and the clears a pass makes before them
+      return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+              VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+                  VK_ACCESS_2_TRANSFER_WRITE_BIT};
+    case Access::kComputeRead:
+      return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT};
+    case Access::kSampled:
+      return {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT};
+    case Access::kIndirectRead:
+      return {VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT, VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT};
+    case Access::kHostWrite:
+      return {VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_WRITE_BIT};
+    case Access::kHostRead:
+      return {VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT};
+    default:
+      return {VK_PIPELINE_STAGE_2_NONE, VK_ACCESS_2_NONE};
+  }
+}
+
+VkMemoryBarrier2 BufferBarrier(Access from, Access to) {
+  const BufferAccessInfo a = ToVulkanBuffer(from), b = ToVulkanBuffer(to);
+  VkMemoryBarrier2 m{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+  m.srcStageMask = a.stage;
+  m.srcAccessMask = a.access;
+  m.dstStageMask = b.stage;
+  m.dstAccessMask = b.access;
+  return m;
 }
 
 vk::ImageTransition Between(Access from, Access to) {
@@ -152,10 +187,7 @@ absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
   const size_t n = plan.passes.size();
   for (size_t i = 0; i < n; ++i) {
     const PlannedPass& pass = plan.passes[i];
-    std::vector<VkImageMemoryBarrier2> barriers;
-    for (const Transition& t : pass.before)
-      barriers.push_back(vk::MakeImageBarrier(image(t.resource), Between(t.from, t.to)));
-    vk::CmdBarrier(cmd_, barriers.data(), uint32_t(barriers.size()));
+    RecordTransitions(pass.before, image);
     vkCmdWriteTimestamp2(cmd_, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, stamps_pool, uint32_t(2 * i));
     const bool stats_query = stats_pool && IsGeometryPass(pass.id);
     if (stats_query) vkCmdBeginQuery(cmd_, stats_pool, uint32_t(pass.id), 0);
@@ -163,12 +195,7 @@ absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
     if (stats_query) vkCmdEndQuery(cmd_, stats_pool, uint32_t(pass.id));
     vkCmdWriteTimestamp2(cmd_, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, stamps_pool,
                          uint32_t(2 * i + 1));
-    if (i + 1 == n && !plan.after.empty()) {  // the imports into what the next frame expects
-      std::vector<VkImageMemoryBarrier2> after;
-      for (const Transition& t : plan.after)
-        after.push_back(vk::MakeImageBarrier(image(t.resource), Between(t.from, t.to)));
-      vk::CmdBarrier(cmd_, after.data(), uint32_t(after.size()));
-    }
+    if (i + 1 == n) RecordTransitions(plan.after, image);  // imports: as the next frame expects
     if (per_pass_submit && i + 1 < n) {
       result.record_ms += MsSince(t_chunk);
       ASSIGN_OR_RETURN(const double wall, EndSubmitAndWait());
@@ -203,6 +230,26 @@ absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
   result.gpu_total_ms = per_pass_submit ? result.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   RETURN_IF_ERROR(ReadStatistics(plan, result));
   return result;
+}
+
+void GraphExecutor::RecordTransitions(const std::vector<Transition>& transitions,
+                                      const std::function<const vk::Image&(Resource)>& image) {
+  std::vector<VkImageMemoryBarrier2> images;
+  std::vector<VkMemoryBarrier2> memory;
+  for (const Transition& t : transitions) {
+    if (IsBuffer(t.resource)) {
+      memory.push_back(BufferBarrier(t.from, t.to));
+    } else {
+      images.push_back(vk::MakeImageBarrier(image(t.resource), Between(t.from, t.to)));
+    }
+  }
+  if (images.empty() && memory.empty()) return;
+  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  dep.memoryBarrierCount = uint32_t(memory.size());
+  dep.pMemoryBarriers = memory.data();
+  dep.imageMemoryBarrierCount = uint32_t(images.size());
+  dep.pImageMemoryBarriers = images.data();
+  vkCmdPipelineBarrier2(cmd_, &dep);
 }
 
 absl::Status GraphExecutor::ReadStatistics(const FramePlan& plan, Result& result) {

@@ -27,6 +27,12 @@ struct AccessInfo {
   VkImageLayout layout;
 };
 AccessInfo ToVulkan(Access a);
+// For a buffer resource (frame_graph.h: IsBuffer): the stages and accesses of a use.
+struct BufferAccessInfo {
+  VkPipelineStageFlags2 stage;
+  VkAccessFlags2 access;
+};
+BufferAccessInfo ToVulkanBuffer(Access a);
 // The whole-image transition from one access to another.
 vk::ImageTransition Between(Access from, Access to);
 
@@ -71,6 +77,9 @@ class GraphExecutor {
   explicit GraphExecutor(const vk::Context& ctx) : ctx_(ctx) {}
   absl::StatusOr<double> EndSubmitAndWait();
   absl::Status ReadStatistics(const FramePlan& plan, Result& result);
+  // Image barriers for image resources, memory barriers for buffers, in one dependency.
+  void RecordTransitions(const std::vector<Transition>& transitions,
+                         const std::function<const vk::Image&(Resource)>& image);
 
   const vk::Context& ctx_;
   vk::UniqueCommandPool pool_;

@@ -57,7 +57,7 @@ std::string_view PassName(PassId id) {
 namespace {
 bool Writes(Access a) {
   return a == Access::kDepthWrite || a == Access::kColorWrite || a == Access::kComputeWrite ||
-         a == Access::kDepthResolve;
+         a == Access::kDepthResolve || a == Access::kHostWrite;
 }
 // Accesses that share a layout (depth test and depth write are both attachment-optimal).
 int LayoutClass(Access a) {
@@ -76,6 +76,11 @@ int LayoutClass(Access a) {
     case Access::kComputeWrite:
     case Access::kSampledGeneral:
       return 5;
+    case Access::kIndirectRead:
+      return 6;
+    case Access::kHostWrite:
+    case Access::kHostRead:
+      return 7;
     case Access::kNone:
       return 0;
   }

@@ -44,12 +44,22 @@ enum class Resource : uint8_t {
   kTaaHistory,      // taa: the view's last output (read)
   kTaaHistoryNext,  // taa: this frame's output, the next frame's history (written)
   kExposureState,   // auto exposure: the view's adapted average (1x1, general layout)
+  // Buffers: the graph orders their uses with memory barriers (they have no layout).
+  kDrawLists,       // the indirect draw commands and counts (written by the cull passes or,
+                    // for none / cpu_frustum, by the host before the frame)
+  kVisibilityBits,  // gpu_occlusion: the view's visibility bits (last frame's read, this
+                    // frame's written by the late cull)
+  kLightLists,      // forward+: per-tile light counts and lists
   kCount
 };
-// (The culling passes' buffers are their own: each ends with a buffer barrier to the stage that
-// reads them: draw-indirect for the geometry-culling lists, fragment for the light lists.)
-// Barriers inside a pass between its own steps (bloom's and the pyramid's mips, ssao's blur)
-// are the pass's.
+
+// Whether `r` is a buffer (its transitions are memory barriers) rather than an image.
+inline bool IsBuffer(Resource r) {
+  return r == Resource::kDrawLists || r == Resource::kVisibilityBits || r == Resource::kLightLists;
+}
+// Barriers inside a pass between its own steps (bloom's and the pyramid's mips, ssao's blur, a
+// cull pass's clears before its dispatch, light culling's copy of its counts for the host) are
+// the pass's.
 
 // How a pass uses a resource.
 enum class Access : uint8_t {
@@ -63,6 +73,11 @@ enum class Access : uint8_t {
   kTransferSrc,     // copied from
   kDepthResolve,    // written by the multisample resolve of a depth attachment
   kSampledGeneral,  // read in a fragment shader in the general layout (auto exposure's state)
+  // Buffers only (kComputeWrite, kComputeRead and kSampled apply to buffers too: storage writes
+  // and clears, storage reads in compute, storage reads in fragment shaders).
+  kIndirectRead,  // indirect draw commands and counts
+  kHostWrite,     // written by the host before the frame was submitted
+  kHostRead,      // read by the host after the frame
 };
 
 struct ResourceUse {

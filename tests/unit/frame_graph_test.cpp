@@ -32,11 +32,12 @@ int IndexOf(const std::vector<PassId>& passes, PassId id) {
 
 bool IsWrite(Access a) {
   return a == Access::kDepthWrite || a == Access::kColorWrite || a == Access::kComputeWrite ||
-         a == Access::kDepthResolve;
+         a == Access::kDepthResolve || a == Access::kHostWrite;
 }
 bool IsRead(Access a) {
   return a == Access::kDepthTest || a == Access::kSampled || a == Access::kTransferSrc ||
-         a == Access::kComputeRead || a == Access::kSampledGeneral;
+         a == Access::kComputeRead || a == Access::kSampledGeneral || a == Access::kIndirectRead ||
+         a == Access::kHostRead;
 }
 
 // The access `r` enters the frame in: its import's, else none.
@@ -364,8 +365,13 @@ TEST(PlanTransitionsTest, ImportsEnterAndLeaveInTheirStates) {
     EXPECT_EQ(imported(Resource::kTaaHistoryNext), c.settings.aa == AaMode::kTaa) << d;
     EXPECT_EQ(imported(Resource::kExposureState), c.settings.exposure_mode == ExposureMode::kAuto)
         << d;
+    EXPECT_TRUE(imported(Resource::kDrawLists)) << d;  // every frame draws from the lists
+    EXPECT_EQ(imported(Resource::kVisibilityBits), c.settings.culling == CullingMode::kGpuOcclusion)
+        << d;
+    EXPECT_EQ(imported(Resource::kLightLists), c.features.local_lights > 0) << d;
     for (const ResourceImport& i : c.plan.imports) {
       EXPECT_EQ(c.plan.FinalAccess(i.resource), i.final) << d << int(i.resource);
+      if (IsBuffer(i.resource)) continue;
       // What a frame imports holding earlier frames it keeps: nothing enters undefined unless
       // the features say it holds nothing (or, for this frame's output, will be overwritten).
       const bool valid = i.resource == Resource::kShadowAtlas     ? c.features.shadow_atlas_valid
