@@ -1,4 +1,3 @@
-#include "common/proto_vec.h"
 #include "common/job_spec.h"
 
 #include <algorithm>
@@ -9,6 +8,8 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
+#include "common/proto_vec.h"
+#include "common/status_macros.h"
 
 namespace tessera::jobs {
 namespace {
@@ -99,13 +100,9 @@ absl::Status ValidatePath(const v1::CameraPath& path, const JobLimits& limits) {
                                   path.keyframes(i - 1).frame(), ")"));
     if (!k.has_look_at()) return Invalid(absl::StrCat(key, ".look_at"), "is required");
     const v1::LookAt& l = k.look_at();
-    if (absl::Status st = ValidateFinite(absl::StrCat(key, ".look_at.eye"), l.eye()); !st.ok())
-      return st;
-    if (absl::Status st = ValidateFinite(absl::StrCat(key, ".look_at.target"), l.target());
-        !st.ok())
-      return st;
-    if (absl::Status st = ValidateFinite(absl::StrCat(key, ".look_at.up"), l.up()); !st.ok())
-      return st;
+    RETURN_IF_ERROR(ValidateFinite(absl::StrCat(key, ".look_at.eye"), l.eye()));
+    RETURN_IF_ERROR(ValidateFinite(absl::StrCat(key, ".look_at.target"), l.target()));
+    RETURN_IF_ERROR(ValidateFinite(absl::StrCat(key, ".look_at.up"), l.up()));
     const glm::vec3 eye = Vec(l.eye()), target = Vec(l.target());
     if (!ViewOk(eye, target))
       return Invalid(absl::StrCat(key, ".look_at.target"),
@@ -137,8 +134,7 @@ absl::Status ValidateList(const v1::CameraList& list, const v1::FrameRange& fram
         for (const auto& [name, v] : {std::pair<const char*, const v1::Vec3*>{"eye", &l.eye()},
                                       {"target", &l.target()},
                                       {"up", &l.up()}}) {
-          if (absl::Status st = ValidateFinite(absl::StrCat(cam, ".look_at.", name), *v); !st.ok())
-            return st;
+          RETURN_IF_ERROR(ValidateFinite(absl::StrCat(cam, ".look_at.", name), *v));
         }
         break;
       }
@@ -153,27 +149,16 @@ absl::Status ValidateList(const v1::CameraList& list, const v1::FrameRange& fram
         break;
       }
       case v1::Camera::kFrame:
-        if (absl::Status st =
-                ValidateFinite(absl::StrCat(cam, ".frame.direction"), c.frame().direction());
-            !st.ok())
-          return st;
+        RETURN_IF_ERROR(
+            ValidateFinite(absl::StrCat(cam, ".frame.direction"), c.frame().direction()));
         break;
       case v1::Camera::kSceneCamera:  // an index: checked against the scene at render time
       case v1::Camera::PLACEMENT_NOT_SET:
         break;
     }
-    if (absl::Status st =
-            ValidateOptionalFinite(absl::StrCat(cam, ".yfov"), c.has_yfov(), c.yfov());
-        !st.ok())
-      return st;
-    if (absl::Status st =
-            ValidateOptionalFinite(absl::StrCat(cam, ".znear"), c.has_znear(), c.znear());
-        !st.ok())
-      return st;
-    if (absl::Status st =
-            ValidateOptionalFinite(absl::StrCat(cam, ".zfar"), c.has_zfar(), c.zfar());
-        !st.ok())
-      return st;
+    RETURN_IF_ERROR(ValidateOptionalFinite(absl::StrCat(cam, ".yfov"), c.has_yfov(), c.yfov()));
+    RETURN_IF_ERROR(ValidateOptionalFinite(absl::StrCat(cam, ".znear"), c.has_znear(), c.znear()));
+    RETURN_IF_ERROR(ValidateOptionalFinite(absl::StrCat(cam, ".zfar"), c.has_zfar(), c.zfar()));
   }
   return absl::OkStatus();
 }
@@ -384,7 +369,7 @@ absl::Status ValidateFrameRange(const v1::FrameRange& range, uint32_t max_frames
 
 absl::StatusOr<std::vector<uint32_t>> FrameNumbers(const v1::FrameRange& range,
                                                    uint32_t max_frames) {
-  if (absl::Status st = ValidateFrameRange(range, max_frames); !st.ok()) return st;
+  RETURN_IF_ERROR(ValidateFrameRange(range, max_frames));
   const uint64_t count = FrameCount64(range), step = Step(range);
   std::vector<uint32_t> frames;
   frames.reserve(count);
@@ -406,15 +391,15 @@ absl::Status ValidateJobSpec(const v1::JobSpec& spec, const JobLimits& limits) {
   if (spec.name().size() > kMaxNameBytes)
     return Invalid("spec.name",
                    absl::StrCat(spec.name().size(), " bytes, more than ", kMaxNameBytes));
-  if (absl::Status st = ValidateFrameRange(spec.frames(), limits.max_frames); !st.ok()) return st;
+  RETURN_IF_ERROR(ValidateFrameRange(spec.frames(), limits.max_frames));
   if (!v1::ImageEncoding_IsValid(spec.encoding()))
     return Invalid("spec.encoding", absl::StrCat("unknown value ", spec.encoding()));
   if (!v1::JobOutput_IsValid(spec.output()))
     return Invalid("spec.output", absl::StrCat("unknown value ", spec.output()));
   // Checked whatever the output: a spec is journalled and may be resubmitted with another.
-  if (absl::Status st = ValidateOutputDir(spec.output_dir()); !st.ok()) return st;
+  RETURN_IF_ERROR(ValidateOutputDir(spec.output_dir()));
   if (!spec.name_pattern().empty()) {
-    if (absl::Status st = ValidateNamePattern(spec.name_pattern()); !st.ok()) return st;
+    RETURN_IF_ERROR(ValidateNamePattern(spec.name_pattern()));
   }
   if (spec.taa_frames() > kMaxTaaFrames)
     return Invalid("spec.taa_frames",

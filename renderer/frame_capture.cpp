@@ -4,8 +4,8 @@
 #include <glm/gtc/packing.hpp>
 #include <limits>
 
+#include "common/status_macros.h"
 #include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

@@ -3,8 +3,8 @@
 #include <bit>
 #include <cstring>
 
+#include "common/status_macros.h"
 #include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

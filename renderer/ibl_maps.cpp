@@ -6,7 +6,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
 

@@ -14,7 +14,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 
 namespace tessera {
 namespace {

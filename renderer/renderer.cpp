@@ -8,9 +8,9 @@
 #include <chrono>
 #include <cstring>
 
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

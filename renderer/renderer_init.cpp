@@ -2,8 +2,8 @@
 // descriptor pool and uniform buffers, and the stand-ins bound while an effect is off.
 #include <cstring>
 
+#include "common/status_macros.h"
 #include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

@@ -5,8 +5,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "common/status_macros.h"
 #include "renderer/settings_table.h"
-#include "renderer/status_macros.h"
 
 namespace tessera {
 

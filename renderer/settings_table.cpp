@@ -8,7 +8,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 
 namespace tessera {
 namespace {

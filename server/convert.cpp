@@ -1,10 +1,11 @@
-#include "common/proto_vec.h"
 #include "server/convert.h"
 
 #include <cmath>
 #include <glm/gtc/type_ptr.hpp>
 
 #include "absl/strings/str_cat.h"
+#include "common/proto_vec.h"
+#include "common/status_macros.h"
 #include "google/protobuf/descriptor.h"
 #include "google/protobuf/message.h"
 #include "server/render_loop.h"
@@ -77,7 +78,7 @@ absl::StatusOr<Camera> ResolveCamera(const v1::Camera& c, const SceneInfo& scene
   if (c.has_yfov()) cam.yfov = c.yfov();
   if (c.has_znear()) cam.znear = c.znear();
   if (c.has_zfar()) cam.zfar = c.zfar();
-  if (absl::Status st = ValidateCamera(cam); !st.ok()) return st;
+  RETURN_IF_ERROR(ValidateCamera(cam));
   return cam;
 }
 

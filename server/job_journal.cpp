@@ -18,8 +18,9 @@
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
-#include "server/upload.h"
 #include "common/scene_id.h"
+#include "common/status_macros.h"
+#include "server/upload.h"
 
 namespace tessera::server {
 namespace {
@@ -176,7 +177,7 @@ absl::Status MakeDirs(const std::string& path) {
   if (err == ENOENT) {
     const std::string parent = SplitPath(path).first;
     if (parent != path) {
-      if (absl::Status st = MakeDirs(parent); !st.ok()) return st;
+      RETURN_IF_ERROR(MakeDirs(parent));
       if (mkdir(path.c_str(), 0700) == 0) return absl::OkStatus();
       err = errno;
     }
@@ -233,7 +234,7 @@ absl::Status RemoveStale(const std::string& dir, bool prefix_only) {
     const bool stale = prefix_only ? absl::StartsWith(name, kTmpPrefix)
                                    : name.front() == '.' && absl::StrContains(name, ".tmp-");
     if (!stale) continue;
-    if (absl::Status st = RemoveAll(absl::StrCat(dir, "/", name)); !st.ok()) return st;
+    RETURN_IF_ERROR(RemoveAll(absl::StrCat(dir, "/", name)));
   }
   return absl::OkStatus();
 }
@@ -321,7 +322,7 @@ bool IsLowerHex(const std::string& s, size_t length) {
 absl::Status WriteNewFile(const std::string& path, std::string_view data) {
   Fd fd(OpenRetry(path, O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600));
   if (!fd.ok()) return absl::ErrnoToStatus(errno, absl::StrCat("create ", path));
-  if (absl::Status st = WriteAll(fd.get(), data, path); !st.ok()) return st;
+  RETURN_IF_ERROR(WriteAll(fd.get(), data, path));
   if (fsync(fd.get()) != 0) return absl::ErrnoToStatus(errno, absl::StrCat("fsync ", path));
   if (fd.Close() != 0) return absl::ErrnoToStatus(errno, absl::StrCat("close ", path));
   return absl::OkStatus();
@@ -353,11 +354,11 @@ absl::Status WriteSceneTree(const std::string& root, const GltfSource& source) {
       return absl::InvalidArgumentError(
           absl::StrCat("file ", Quote(name), " is also a directory of other files in the upload"));
     const std::string_view bytes(reinterpret_cast<const char*>(data.data()), data.size());
-    if (absl::Status st = WriteNewFile(path, bytes); !st.ok()) return st;
+    RETURN_IF_ERROR(WriteNewFile(path, bytes));
   }
-  if (absl::Status st = WriteNewFile(root + "/main", source.main_file); !st.ok()) return st;
+  RETURN_IF_ERROR(WriteNewFile(root + "/main", source.main_file));
   for (const std::string& dir : dirs) {
-    if (absl::Status st = FsyncDir(dir); !st.ok()) return st;
+    RETURN_IF_ERROR(FsyncDir(dir));
   }
   return absl::OkStatus();
 }
@@ -402,7 +403,7 @@ absl::Status WriteFileAtomic(const std::string& path, std::string_view data) {
 
 absl::StatusOr<std::string> ReadWholeFile(const std::string& path, uint64_t max_bytes) {
   std::string text;
-  if (absl::Status st = ReadFileInto(path, max_bytes, &text); !st.ok()) return st;
+  RETURN_IF_ERROR(ReadFileInto(path, max_bytes, &text));
   return text;
 }
 
@@ -485,7 +486,7 @@ absl::Status JobJournal::SaveJob(const v1::Job& job) {
       return absl::ErrnoToStatus(errno, absl::StrCat("job ", id, ": mkdir ", d));
     }
   }
-  if (absl::Status st = WriteFileAtomic(job_dir + "/job.pb", bytes); !st.ok()) return st;
+  RETURN_IF_ERROR(WriteFileAtomic(job_dir + "/job.pb", bytes));
   // A new job's directory entry in jobs/ (WriteFileAtomic synced the job's own directory).
   if (created) return FsyncDir(jobs_dir_);
   return absl::OkStatus();
@@ -522,7 +523,7 @@ absl::Status JobJournal::AppendFrame(const std::string& job_id, const JobFrameRe
     if (n == 1 && last != '\n') line.insert(0, "\n");
   }
   // One write: a crash can cut the line short but not interleave it with another.
-  if (absl::Status ws = WriteAll(fd.get(), line, path); !ws.ok()) return ws;
+  RETURN_IF_ERROR(WriteAll(fd.get(), line, path));
   if (fdatasync(fd.get()) != 0) return absl::ErrnoToStatus(errno, absl::StrCat("fdatasync ", path));
   if (fd.Close() != 0) return absl::ErrnoToStatus(errno, absl::StrCat("close ", path));
   // The first line created the file: its directory entry must be durable too.
@@ -605,7 +606,7 @@ absl::Status JobJournal::RemoveDirectory(const std::string& parent, const std::s
     if (err == ENOENT) return absl::OkStatus();
     return absl::ErrnoToStatus(err, absl::StrCat("delete ", path, ": rename to ", doomed));
   }
-  if (absl::Status synced = FsyncDir(parent); !synced.ok()) return synced;
+  RETURN_IF_ERROR(FsyncDir(parent));
   // Gone from the journal already; what fails to delete here is removed by the next Open.
   if (absl::Status removed = RemoveAll(doomed); !removed.ok())
     return WithPrefix(removed, absl::StrCat("delete ", path,

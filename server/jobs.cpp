@@ -10,13 +10,13 @@
 #include <set>
 
 #include "absl/strings/str_cat.h"
-#include "renderer/log.h"
-#include "renderer/scene/gltf_import.h"
-#include "renderer/status_macros.h"
-#include "server/auth.h"
-#include "server/convert.h"
 #include "common/job_spec.h"
 #include "common/scene_id.h"
+#include "common/status_macros.h"
+#include "renderer/log.h"
+#include "renderer/scene/gltf_import.h"
+#include "server/auth.h"
+#include "server/convert.h"
 
 namespace tessera::server {
 namespace {
@@ -587,8 +587,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
   if (!settings.ok()) return Prefixed(settings.status(), "spec.");
   if (scene) {
     for (uint32_t f : *frames) {
-      if (absl::Status st = JobCamera(spec, f, scene->scene->info(), *settings).status(); !st.ok())
-        return st;
+      RETURN_IF_ERROR(JobCamera(spec, f, scene->scene->info(), *settings).status());
     }
   }
   std::string output_path;
@@ -610,7 +609,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
   auto job = std::make_shared<Job>(this, proto, *std::move(frames), kJobViewBase | next_view_++);
   {
     std::lock_guard lock(mu_);
-    if (absl::Status st = MakeRoomLocked(); !st.ok()) return st;
+    RETURN_IF_ERROR(MakeRoomLocked());
     if (absl::Status st = journal_->SaveJob(proto); !st.ok())
       return absl::InternalError(absl::StrCat("jobs: the journal: ", st.message()));
     jobs_[proto.job_id()] = job;
@@ -644,7 +643,7 @@ absl::Status JobManager::Delete(const std::string& job_id) {
   if (!it->second->terminal())
     return absl::FailedPreconditionError(
         absl::StrCat("job ", job_id, ": is still running; cancel it first"));
-  if (absl::Status st = journal_->RemoveJob(job_id); !st.ok()) return st;
+  RETURN_IF_ERROR(journal_->RemoveJob(job_id));
   jobs_.erase(it);
   std::erase(order_, job_id);
   return absl::OkStatus();

@@ -3,9 +3,9 @@
 #include <pthread.h>
 
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/image_resize.h"
 #include "renderer/log.h"
-#include "renderer/status_macros.h"
 #include "server/metrics.h"
 
 namespace tessera::server {

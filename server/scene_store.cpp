@@ -4,7 +4,7 @@
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 
 namespace tessera::server {
 namespace {

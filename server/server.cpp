@@ -3,7 +3,6 @@
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
-
 #include <sys/stat.h>
 
 #include <algorithm>
@@ -17,9 +16,9 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/log.h"
 #include "renderer/scene/demo_scene.h"
-#include "renderer/status_macros.h"
 #include "server/auth.h"
 #include "server/convert.h"
 #include "server/job_journal.h"

@@ -3,13 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
-
 #include <optional>
 
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/log.h"
 #include "renderer/scene/gltf_import.h"
-#include "renderer/status_macros.h"
 #include "server/convert.h"
 #include "server/jobs.h"
 #include "server/metrics.h"

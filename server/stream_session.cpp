@@ -5,8 +5,8 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/log.h"
-#include "renderer/status_macros.h"
 #include "server/convert.h"
 #include "server/metrics.h"
 

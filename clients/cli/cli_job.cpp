@@ -3,9 +3,9 @@
 // (RenderJobFrame through gRPC's round_robin load balancing, retrying a failed frame on
 // another daemon, writing every frame exactly once). `watch`, `cancel`, `list`, `fetch` and
 // `rm` work on the jobs of one daemon.
+#include <arpa/inet.h>
 #include <netdb.h>
 #include <sys/socket.h>
-#include <arpa/inet.h>
 
 #include <algorithm>
 #include <atomic>
@@ -38,6 +38,7 @@
 #include "clients/cli/cli_stream_parts.h"
 #include "common/job_spec.h"
 #include "common/scene_id.h"
+#include "common/status_macros.h"
 
 namespace tessera::cli {
 namespace {
@@ -124,9 +125,9 @@ absl::StatusOr<v1::CameraPath> ReadKeyframes(const std::string& path) {
       return absl::OkStatus();
     };
     v1::LookAt* la = key->mutable_look_at();
-    if (absl::Status s = vec("eye", la->mutable_eye(), true); !s.ok()) return s;
-    if (absl::Status s = vec("target", la->mutable_target(), true); !s.ok()) return s;
-    if (absl::Status s = vec("up", la->mutable_up(), false); !s.ok()) return s;
+    RETURN_IF_ERROR(vec("eye", la->mutable_eye(), true));
+    RETURN_IF_ERROR(vec("target", la->mutable_target(), true));
+    RETURN_IF_ERROR(vec("up", la->mutable_up(), false));
     if (k.contains("yfov") && k["yfov"].is_number()) key->set_yfov(k["yfov"].get<float>());
   }
   return out;
@@ -254,10 +255,8 @@ absl::StatusOr<v1::JobSpec> BuildSpec(v1::RenderService::Stub* stub, const Submi
     if (!path.ok()) return path.status();
     *spec.mutable_path() = *std::move(path);
   } else if (o.orbit) {
-    if (absl::Status st = OrbitCameras(stub, o, scene_id, jobs::FrameCount(spec.frames()),
-                                       spec.mutable_list());
-        !st.ok())
-      return st;
+    RETURN_IF_ERROR(
+        OrbitCameras(stub, o, scene_id, jobs::FrameCount(spec.frames()), spec.mutable_list()));
   } else if (c.has_look_at()) {
     // One camera for every frame: a path with one key holds it.
     v1::CameraPath* path = spec.mutable_path();
@@ -273,7 +272,7 @@ absl::StatusOr<v1::JobSpec> BuildSpec(v1::RenderService::Stub* stub, const Submi
     if (n > 100000) return absl::InvalidArgumentError("--frames: too many frames for one camera");
     for (uint32_t i = 0; i < n; ++i) *spec.mutable_list()->add_cameras() = c;
   }
-  if (absl::Status st = jobs::ValidateJobSpec(spec); !st.ok()) return st;
+  RETURN_IF_ERROR(jobs::ValidateJobSpec(spec));
   return spec;
 }
 

@@ -13,9 +13,9 @@
 // next frame's graph starts them from the undefined layout.
 #include <algorithm>
 
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

@@ -4,12 +4,13 @@
 //    the view saw last frame and is still in the frustum);
 //  - kCullLate: the second gpu_occlusion phase, against the depth pyramid of the first phase's
 //    depth; records this frame's visibility bits.
-#include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include <algorithm>
 #include <cstring>
-#include "renderer/features/pass.h"
+
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"

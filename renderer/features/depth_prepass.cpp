@@ -5,9 +5,9 @@
 // material). With gpu_occlusion the pass runs twice: kDepthPrepass draws the first phase's
 // lists into a cleared depth, kDepthPrepassLate adds the second phase's. With msaa it draws
 // into the multisampled depth and resolves it into the frame's depth.
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/pipeline.h"
 
 namespace tessera {

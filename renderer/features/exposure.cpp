@@ -3,13 +3,13 @@
 // pixels) to its average, and moves the view's 1x1 state towards it. The state lives across
 // frames, outside the frame graph, in the general layout: the pass orders itself after the
 // last frame's reads and before this frame's (bloom and tonemap sample it).
-#include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
-#include <cmath>
 #include <algorithm>
+#include <cmath>
 
-#include "renderer/features/pass.h"
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 

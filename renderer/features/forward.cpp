@@ -6,9 +6,9 @@
 // Draws are indirect: one vkCmdDrawIndexedIndirectCount per segment (render group x cull mode x
 // material; see DrawPlan) and culling phase. The material is a descriptor set per segment
 // because lavapipe cannot index samplers dynamically (shaders/common/gpu_types.h).
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/pipeline.h"
 
 namespace tessera {

@@ -1,13 +1,14 @@
 // Light culling (forward+): one compute dispatch builds every tile's light list from the
 // prepass depth and the per-light bounds the CPU prepared; a buffer barrier then hands the
 // lists to the fragment shaders, and the counts are copied out for the frame's statistics.
-#include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
-#include "absl/strings/str_cat.h"
 #include <cmath>
 #include <cstring>
-#include "renderer/features/pass.h"
+
+#include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"

@@ -2,8 +2,8 @@
 // irradiance and prefiltered specular maps (renderer/ibl_maps.h) when the sky changes. It adds
 // no pass to the frame: the shading reads the maps through the scene set, and the sky is the
 // background.
+#include "common/status_macros.h"
 #include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 
 namespace tessera {
 

@@ -1,13 +1,13 @@
 // Full-screen post passes: tonemapping, and the anti-aliasing passes that work on whole images
 // (vis_mlaa's geometric AA, TAA, FXAA). Each is one fragment shader over a full-screen triangle
 // (shaders/fullscreen.vert) reading images through combined samplers.
-#include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
-#include "renderer/features/pass.h"
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"

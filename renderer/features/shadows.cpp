@@ -7,11 +7,11 @@
 // and back for the shading.
 // Draws are direct (one per item in the face's frustum, the items culled on the CPU per face):
 // a face sees few items, and its list changes with the face, not per frame.
-#include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include "absl/strings/str_cat.h"
-#include "renderer/features/pass.h"
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 

@@ -4,10 +4,10 @@
 // that reads both in one tap: ao -> ao_temp (horizontal) -> ao (vertical). The shading passes
 // multiply their ambient light by it. The two intermediate barriers are the pass's own: the
 // frame graph sees one pass that writes ao.
-#include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
-#include "renderer/features/pass.h"
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

@@ -12,10 +12,10 @@
 #include <map>
 
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
 #include "renderer/renderer_impl.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"

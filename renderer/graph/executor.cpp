@@ -1,6 +1,6 @@
 #include "renderer/graph/executor.h"
 
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

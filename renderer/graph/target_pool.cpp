@@ -1,6 +1,6 @@
 #include "renderer/graph/target_pool.h"
 
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 
 namespace tessera {
 

@@ -13,8 +13,8 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/scene/gltf_import.h"
-#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {

@@ -21,9 +21,9 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "common/status_macros.h"
 #include "renderer/image_io.h"
 #include "renderer/scene/gltf_prescan.h"
-#include "renderer/status_macros.h"
 
 namespace tessera {
 namespace {

@@ -16,7 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 
 namespace tessera::gltf_internal {
 namespace {

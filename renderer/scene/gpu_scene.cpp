@@ -11,7 +11,7 @@
 #include <tuple>
 
 #include "absl/strings/str_cat.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {

@@ -10,8 +10,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "common/status_macros.h"
 #include "renderer/log.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {

@@ -1,8 +1,8 @@
 #include "renderer/vk/pipeline.h"
 
 #include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
 #include "renderer/scene/cpu_scene.h"
-#include "renderer/status_macros.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
 #include "shaders/shader_registry.h"

@@ -3,7 +3,7 @@
 #include <atomic>
 
 #include "absl/strings/str_cat.h"
-#include "renderer/status_macros.h"
+#include "common/status_macros.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {

@@ -16,11 +16,11 @@
 #define TESSERA_STATUS_CONCAT(a, b) TESSERA_STATUS_CONCAT_INNER(a, b)
 
 // Evaluates `expr` (an absl::Status) once; returns it from the enclosing function when not OK.
-#define RETURN_IF_ERROR(expr)                                                 \
-  do {                                                                        \
-    if (::absl::Status tessera_status_ = (expr); !tessera_status_.ok()) {     \
-      return tessera_status_;                                                 \
-    }                                                                         \
+#define RETURN_IF_ERROR(expr)                                             \
+  do {                                                                    \
+    if (::absl::Status tessera_status_ = (expr); !tessera_status_.ok()) { \
+      return tessera_status_;                                             \
+    }                                                                     \
   } while (false)
 
 // Evaluates `rexpr` (an absl::StatusOr<T>) once; returns its status when not OK, else moves
