@@ -261,7 +261,8 @@ int RunUpload(const Invocation& inv) {
 
 const Command kUploadCommand = {"upload", "upload .gltf/.glb scenes (skipped when already there)",
                                 R"(usage: tessera upload FILE...
-Uploads each FILE (a .glb, or a .gltf with the .bin and image files it names) to the server.
+Uploads each FILE (a .glb, or a .gltf with the .bin and image files it names; a directory
+means the one .gltf or .glb in it) to the server.
 The scene id is the content hash, computed locally first: a scene the server already has is
 not sent again. A progress bar shows on stderr when it is a terminal.
 

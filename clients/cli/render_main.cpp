@@ -19,7 +19,7 @@
 namespace {
 
 constexpr char kUsage[] = R"(usage: tessera-render [options]
-  --scene FILE        .gltf or .glb to render (default: the built-in demo scene)
+  --scene FILE        .gltf or .glb to render, or a directory with one (default: the demo scene)
   --out FILE          output image, .jpg/.jpeg or .png (default: tessera.jpg)
   --camera N          use the file's camera N (default: the file's first camera, else framed)
   --frame             frame the scene bounds even if the file has cameras

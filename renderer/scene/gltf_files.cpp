@@ -1,6 +1,8 @@
 // LoadGltfSourceFromDisk: gathers a .gltf/.glb and the files its URIs name into a GltfSource.
 // Only for trusted local tools, but URIs are still kept inside the asset's directory so a file
 // cannot pull arbitrary paths into an upload.
+#include <algorithm>
+#include <cctype>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -22,6 +24,10 @@ namespace {
 namespace fs = std::filesystem;
 
 absl::StatusOr<std::vector<uint8_t>> ReadFile(const fs::path& path) {
+  std::error_code ec;
+  if (fs::exists(path, ec) && !fs::is_regular_file(path, ec)) {  // a directory, a pipe, a device
+    return absl::InvalidArgumentError(absl::StrCat(path.string(), ": not a regular file"));
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) return absl::NotFoundError(absl::StrCat(path.string(), ": cannot open file"));
   std::vector<uint8_t> data;
@@ -84,11 +90,43 @@ std::string_view GlbJson(const std::vector<uint8_t>& d) {
   return std::string_view(reinterpret_cast<const char*>(&d[20]), len);
 }
 
+// A directory stands for the one .gltf or .glb file in it (how a multi-file glTF is usually
+// handed over); any other path for itself.
+absl::StatusOr<fs::path> AssetFile(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_directory(path, ec)) return fs::path(path);
+  std::vector<fs::path> found;
+  for (fs::directory_iterator it(path, ec), end; !ec && it != end; it.increment(ec)) {
+    std::string ext = it->path().extension().string();
+    for (char& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if ((ext == ".gltf" || ext == ".glb") && it->is_regular_file(ec)) found.push_back(it->path());
+  }
+  if (ec) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ": cannot list the directory: ", ec.message()));
+  }
+  if (found.empty()) {
+    return absl::NotFoundError(
+        absl::StrCat(path, ": a directory without a .gltf or .glb file in it"));
+  }
+  if (found.size() > 1) {
+    std::sort(found.begin(), found.end());
+    std::string names;
+    for (const fs::path& f : found)
+      absl::StrAppend(&names, names.empty() ? "" : ", ", f.filename().string());
+    return absl::InvalidArgumentError(absl::StrCat(path, ": a directory with ", found.size(),
+                                                   " glTF files (", names,
+                                                   "); name the one to use"));
+  }
+  return found[0];
+}
+
 }  // namespace
 
-absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& path) {
+absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& asset_path) {
+  ASSIGN_OR_RETURN(const fs::path file, AssetFile(asset_path));
+  const std::string path = file.string();
   ASSIGN_OR_RETURN(std::vector<uint8_t> main, ReadFile(path));
-  const fs::path file(path);
   GltfSource source;
   source.main_file = file.filename().string();
   const bool is_glb = main.size() >= 4 && std::memcmp(main.data(), "glTF", 4) == 0;

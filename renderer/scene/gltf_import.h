@@ -26,8 +26,10 @@ struct GltfSource {
 absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits& limits = {});
 
 // Builds a GltfSource from a file on disk: the .gltf/.glb itself plus every buffer and image
-// URI it names that resolves to a file in the same directory tree. For trusted local tools
-// (render tool, CLI uploads); the importer itself never touches the file system.
+// URI it names that resolves to a file in the same directory tree. A directory means the one
+// .gltf or .glb in it (NOT_FOUND naming it when there is none, INVALID_ARGUMENT listing them when
+// there are several); anything else that is not a regular file is INVALID_ARGUMENT. For trusted
+// local tools (render tool, CLI uploads); the importer itself never touches the file system.
 absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& path);
 
 // A decoded texture image: RGBA8, width x height.

@@ -523,6 +523,45 @@ TEST(GltfImportFiles, DiskLoaderRefusesEscapingUris) {
   fs::remove_all(dir);
 }
 
+// A directory stands for the glTF file in it (a multi-file asset is usually handed over as its
+// folder); one without, or with several, is an error naming it; a directory is never read as a
+// file (it once made the loader allocate whatever tellg() said).
+TEST(GltfImportFiles, DiskLoaderTakesTheGltfInADirectory) {
+  const fs::path box = fs::path(AssetsDir()) / "Box/glTF";
+  absl::StatusOr<GltfSource> s = LoadGltfSourceFromDisk(box.string());
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->main_file, "Box.gltf");
+  EXPECT_EQ(s->files.count("Box0.bin"), 1u);
+  absl::StatusOr<CpuScene> scene = ImportGltf(*s);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  EXPECT_EQ(scene->counts.triangles, 12u);
+
+  const fs::path dir =
+      fs::temp_directory_path() / ("tessera_gltf_dir_" + std::to_string(::getpid()));
+  fs::create_directories(dir / "sub");
+  absl::StatusOr<GltfSource> none = LoadGltfSourceFromDisk(dir.string());
+  ASSERT_FALSE(none.ok());
+  EXPECT_EQ(none.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_NE(none.status().message().find(dir.string()), absl::string_view::npos) << none.status();
+  std::ofstream(dir / "a.gltf") << "{}";
+  std::ofstream(dir / "b.GLB") << "glTF";
+  absl::StatusOr<GltfSource> two = LoadGltfSourceFromDisk(dir.string());
+  ASSERT_FALSE(two.ok());
+  EXPECT_EQ(two.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(two.status().message().find("a.gltf, b.GLB"), absl::string_view::npos) << two.status();
+  // A directory named like a glTF file is not a file.
+  fs::create_directories(dir / "c.gltf");
+  fs::remove(dir / "a.gltf");
+  fs::remove(dir / "b.GLB");
+  absl::StatusOr<GltfSource> named = LoadGltfSourceFromDisk((dir / "c.gltf").string() + "/.");
+  ASSERT_FALSE(named.ok());
+  absl::StatusOr<GltfSource> not_file = LoadGltfSourceFromDisk("/dev/null");
+  ASSERT_FALSE(not_file.ok());
+  EXPECT_NE(not_file.status().message().find("not a regular file"), absl::string_view::npos)
+      << not_file.status();
+  fs::remove_all(dir);
+}
+
 // ----- Malformed input: every case must be INVALID_ARGUMENT naming the culprit. -----------
 
 TEST(GltfImportMalformed, EmptyFile) {
