@@ -14,14 +14,11 @@ absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
                                           const PassContext& pc, FrameCapture* capture) {
   const Access depth_access = plan.FinalAccess(Resource::kDepth);
   if (capture->want_ids) RETURN_IF_ERROR(CaptureIds(f.gs, f.scene_set, depth_access, capture));
-  // The tonemap's input: the scene colour as the post passes left it.
-  const bool post = f.s.aa == AaMode::kVisMlaa || f.s.aa == AaMode::kTaa;  // as PostColor
-  const Resource hdr = post ? Resource::kPostHdr : Resource::kHdrColor;
-  // CaptureIds left the depth in the depth-test layout.
+  // The tonemap's input as the post passes left it; CaptureIds left the depth in the
+  // depth-test layout.
   RETURN_IF_ERROR(Capture(capture, f.tiled ? f.grid.tiles() : 0, PostColor(pc),
-                          plan.FinalAccess(hdr),
-                          capture->want_ids ? Access::kDepthTest : depth_access,
-                          f.exposure_state));
+                          plan.FinalAccess(plan.scene_color),
+                          capture->want_ids ? Access::kDepthTest : depth_access, f.exposure.state));
   capture->local_lights = f.local;
   capture->view = f.fu.view;
   capture->proj = f.fu.proj;

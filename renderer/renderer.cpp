@@ -134,16 +134,16 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool.get(), 0));
   f.scene_set = m.WriteSceneSet(gs, s.shadows, s.ssao, s.ibl);
   PassContext pc = m.MakePassContext(f);
-  ASSIGN_OR_RETURN(
-      const GraphExecutor::Result run,
-      m.executor->Execute(
-          plan, [&](Resource r) -> const vk::Image& { return m.targets.Get(r); },
-          [&](PassId id, VkCommandBuffer cmd) {
-            pc.cmd = cmd;
-            m.passes[static_cast<size_t>(id)]->Record(pc);
-          },
-          t_record));
-  RETURN_IF_ERROR(m.FinishFrame(f, plan, run, frame, capture));
+  pc.post_color = plan.scene_color;
+  ASSIGN_OR_RETURN(GraphExecutor::Result run,
+                   m.executor->Execute(
+                       plan, [&](Resource r) -> const vk::Image& { return m.targets.Get(r); },
+                       [&](PassId id, VkCommandBuffer cmd) {
+                         pc.cmd = cmd;
+                         m.passes[static_cast<size_t>(id)]->Record(pc);
+                       },
+                       t_record));
+  RETURN_IF_ERROR(m.FinishFrame(f, plan, std::move(run), frame, capture));
   if (capture) RETURN_IF_ERROR(m.CaptureFrame(f, plan, pc, capture));
   m.ReadBack(frame);
   return frame;
@@ -154,7 +154,7 @@ void Renderer::Impl::ImportTargets(const FrameData& f) {
   targets.taa_history = f.taa.history_read ? vk::ImageRef(*f.taa.history_read) : vk::ImageRef();
   targets.taa_history_next =
       f.taa.history_write ? vk::ImageRef(*f.taa.history_write) : vk::ImageRef();
-  targets.exposure_state = f.exposure_state ? vk::ImageRef(*f.exposure_state) : vk::ImageRef();
+  targets.exposure_state = f.exposure.state ? vk::ImageRef(*f.exposure.state) : vk::ImageRef();
 }
 
 PassContext Renderer::Impl::MakePassContext(FrameData& f) {
@@ -182,10 +182,10 @@ PassContext Renderer::Impl::MakePassContext(FrameData& f) {
 }
 
 absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
-                                         const GraphExecutor::Result& run, Frame& frame,
+                                         GraphExecutor::Result run, Frame& frame,
                                          FrameCapture* capture) {
   frame.timing = run.timing;
-  frame.passes = run.passes;
+  frame.passes = std::move(run.passes);
   frame.gpu_total_ms = run.gpu_total_ms;
   frame.cpu.record_ms = run.record_ms;
   frame.cpu.submit_wait_ms = run.submit_wait_ms;

@@ -67,8 +67,7 @@ struct FrameData {
   ShadowFrame shadows;
   SsaoFrame ssao;
   ExposureFrame exposure;
-  const vk::Image* exposure_state = nullptr;  // auto exposure: the view's state
-  bool* exposure_written = nullptr;           // set once the exposure pass ran
+  bool* exposure_written = nullptr;  // auto exposure: set once the exposure pass ran
   DrawLists draws;
   CullBuffers cull;
   GpuScene::ViewVisibility* visibility = nullptr;  // gpu_occlusion: the view's bits
@@ -211,9 +210,8 @@ struct Renderer::Impl {
   void CountDrawn(const GpuScene& gs, const DrawLists& draws, const std::vector<PassId>& pass_ids,
                   FrameStats& stats, std::vector<uint32_t>* drawn_out) const;
   // After the passes ran: statistics and the per-view state the frame advanced.
-  absl::Status FinishFrame(FrameData& f, const FramePlan& plan,
-                           const GraphExecutor::Result& run, Frame& frame,
-                           FrameCapture* capture);
+  absl::Status FinishFrame(FrameData& f, const FramePlan& plan, GraphExecutor::Result run,
+                           Frame& frame, FrameCapture* capture);
 
   // frame_capture.cpp (tests): copies the depth, the light lists, the tonemap's input and auto
   // exposure's state; with want_ids also every drawable's id against the frame's depth.

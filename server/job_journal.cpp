@@ -509,10 +509,10 @@ absl::Status JobJournal::AppendFrame(const std::string& job_id, const JobFrameRe
   if (!fd.ok()) return absl::ErrnoToStatus(errno, absl::StrCat("open ", path));
   struct stat st;
   if (fstat(fd.get(), &st) != 0) return absl::ErrnoToStatus(errno, absl::StrCat("stat ", path));
-  std::string line = absl::StrCat(record.frame, " ", record.bytes, " ", record.sha256, "\n");
   // A line torn by an earlier crash would run into this one and could make a different but
   // well-formed line ("1" + "2 100 <sha>" reads as frame 12). Ending the fragment first keeps
   // it a malformed line of its own, which LoadJobs skips.
+  bool torn = false;
   if (st.st_size > 0) {
     char last = '\n';
     ssize_t n;
@@ -520,8 +520,10 @@ absl::Status JobJournal::AppendFrame(const std::string& job_id, const JobFrameRe
       n = pread(fd.get(), &last, 1, st.st_size - 1);
     } while (n < 0 && errno == EINTR);
     if (n < 0) return absl::ErrnoToStatus(errno, absl::StrCat("read ", path));
-    if (n == 1 && last != '\n') line.insert(0, "\n");
+    torn = n == 1 && last != '\n';
   }
+  const std::string line =
+      absl::StrCat(torn ? "\n" : "", record.frame, " ", record.bytes, " ", record.sha256, "\n");
   // One write: a crash can cut the line short but not interleave it with another.
   RETURN_IF_ERROR(WriteAll(fd.get(), line, path));
   if (fdatasync(fd.get()) != 0) return absl::ErrnoToStatus(errno, absl::StrCat("fdatasync ", path));

@@ -126,7 +126,6 @@ absl::Status Renderer::Impl::PrepareExposure(FrameData& f) {
   exposure.view = ao_placeholder.view();  // never read without auto exposure
   if (f.s.exposure_mode != ExposureMode::kAuto) return absl::OkStatus();
   ASSIGN_OR_RETURN(ExposureState * state, Exposure(f.gs, f.view));
-  f.exposure_state = &state->image;
   f.exposure_written = &state->written;
   exposure.params.y = 1.0f;
   exposure.state = &state->image;

@@ -64,25 +64,16 @@ class LightCullPass final : public Pass {
 
     // This pass's own copy of the counts for the statistics (the graph orders the lists
     // before the shading's reads).
-    VkBufferMemoryBarrier2 after{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
-    after.srcStageMask = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
-    after.srcAccessMask = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
-    after.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
-    after.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
-    after.srcQueueFamilyIndex = after.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    after.buffer = lb.tile_counts;
-    after.size = VK_WHOLE_SIZE;
+    const VkBufferMemoryBarrier2 after =
+        vk::MakeBufferBarrier(lb.tile_counts, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                              VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COPY_BIT,
+                              VK_ACCESS_2_TRANSFER_READ_BIT);
     vk::CmdBarrier(ctx.cmd, nullptr, 0, &after, 1);
     const VkBufferCopy copy{0, 0, VkDeviceSize(lb.tiles) * sizeof(uint32_t)};
     vkCmdCopyBuffer(ctx.cmd, lb.tile_counts, lb.counts_readback, 1, &copy);
-    VkBufferMemoryBarrier2 host{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
-    host.srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
-    host.srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT;
-    host.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
-    host.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
-    host.srcQueueFamilyIndex = host.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    host.buffer = lb.counts_readback;
-    host.size = VK_WHOLE_SIZE;
+    const VkBufferMemoryBarrier2 host = vk::MakeBufferBarrier(
+        lb.counts_readback, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+        VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
     vk::CmdBarrier(ctx.cmd, nullptr, 0, &host, 1);
   }
 

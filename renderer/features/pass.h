@@ -83,6 +83,10 @@ struct FrameTargets {
         return taa_history_next;
       case Resource::kExposureState:
         return exposure_state;
+      // Buffers have no image: the graph records memory barriers for them.
+      case Resource::kDrawLists:
+      case Resource::kVisibilityBits:
+      case Resource::kLightLists:
       case Resource::kCount: break;
     }
     return ldr;
@@ -223,6 +227,8 @@ struct PassContext {
   const vk::Image* ao_view = nullptr;  // ssao's result, or a 1x1 stand-in (shader-read layout)
   // The colour passes draw into; Settings::samples where multisampled.
   uint32_t samples = 1;
+  // The HDR colour the post passes read (FramePlan::scene_color).
+  Resource post_color = Resource::kHdrColor;
 };
 
 // A pass's own descriptor set layout and pipeline layout (one set), destroyed together.

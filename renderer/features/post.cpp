@@ -90,11 +90,7 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
   vkCmdEndRendering(ctx.cmd);
 }
 
-const vk::Image& PostColor(const PassContext& ctx) {
-  const AaMode aa = ctx.settings->aa;
-  return (aa == AaMode::kVisMlaa || aa == AaMode::kTaa ? ctx.targets->post_hdr : ctx.targets->hdr)
-      .get();
-}
+const vk::Image& PostColor(const PassContext& ctx) { return ctx.targets->Get(ctx.post_color); }
 
 namespace {
 

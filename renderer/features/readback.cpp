@@ -19,14 +19,9 @@ class ReadbackPass final : public Pass {
         ctx.settings->aa == AaMode::kFxaa ? ctx.targets->fxaa : ctx.targets->ldr;
     vkCmdCopyImageToBuffer(ctx.cmd, image.handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                            ctx.targets->readback, 1, &region);
-    VkBufferMemoryBarrier2 b{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
-    b.srcStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
-    b.srcAccessMask = VK_ACCESS_2_TRANSFER_WRITE_BIT;
-    b.dstStageMask = VK_PIPELINE_STAGE_2_HOST_BIT;
-    b.dstAccessMask = VK_ACCESS_2_HOST_READ_BIT;
-    b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-    b.buffer = ctx.targets->readback;
-    b.size = VK_WHOLE_SIZE;
+    const VkBufferMemoryBarrier2 b = vk::MakeBufferBarrier(
+        ctx.targets->readback, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+        VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
     vk::CmdBarrier(ctx.cmd, nullptr, 0, &b, 1);
   }
 };

@@ -24,7 +24,18 @@ bool IsGeometryPass(PassId id) {
          id == PassId::kForward || id == PassId::kTransparent;
 }
 
-}  // namespace
+// How a declared Access maps to Vulkan synchronization.
+struct AccessInfo {
+  VkPipelineStageFlags2 stage;
+  VkAccessFlags2 access;
+  VkImageLayout layout;
+};
+
+// For a buffer resource (frame_graph.h: IsBuffer): the stages and accesses of a use.
+struct BufferAccessInfo {
+  VkPipelineStageFlags2 stage;
+  VkAccessFlags2 access;
+};
 
 AccessInfo ToVulkan(Access a) {
   constexpr VkPipelineStageFlags2 kDepthStages =
@@ -99,13 +110,10 @@ BufferAccessInfo ToVulkanBuffer(Access a) {
 
 VkMemoryBarrier2 BufferBarrier(Access from, Access to) {
   const BufferAccessInfo a = ToVulkanBuffer(from), b = ToVulkanBuffer(to);
-  VkMemoryBarrier2 m{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-  m.srcStageMask = a.stage;
-  m.srcAccessMask = a.access;
-  m.dstStageMask = b.stage;
-  m.dstAccessMask = b.access;
-  return m;
+  return vk::MakeMemoryBarrier(a.stage, a.access, b.stage, b.access);
 }
+
+}  // namespace
 
 vk::ImageTransition Between(Access from, Access to) {
   const AccessInfo a = ToVulkan(from), b = ToVulkan(to);

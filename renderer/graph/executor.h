@@ -20,19 +20,6 @@
 
 namespace tessera {
 
-// How a declared Access maps to Vulkan synchronization.
-struct AccessInfo {
-  VkPipelineStageFlags2 stage;
-  VkAccessFlags2 access;
-  VkImageLayout layout;
-};
-AccessInfo ToVulkan(Access a);
-// For a buffer resource (frame_graph.h: IsBuffer): the stages and accesses of a use.
-struct BufferAccessInfo {
-  VkPipelineStageFlags2 stage;
-  VkAccessFlags2 access;
-};
-BufferAccessInfo ToVulkanBuffer(Access a);
 // The whole-image transition from one access to another.
 vk::ImageTransition Between(Access from, Access to);
 

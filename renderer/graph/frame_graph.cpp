@@ -141,14 +141,13 @@ FramePlan GraphBuilder::Build() && {
       current = use.access;
     }
   }
-  FramePlan plan{std::move(passes_), std::move(imports_), {}};
-  // Imports leave in the access the next frame expects (one no pass touched stays as it was).
+  const Resource scene_color = SceneColor();
+  FramePlan plan{std::move(passes_), std::move(imports_), {}, scene_color};
+  // Imports leave in the access the next frame expects.
   for (const ResourceImport& i : plan.imports) {
     const Access current = state[static_cast<size_t>(i.resource)];
-    if (current != i.initial || i.initial == Access::kNone) {
-      if (current != i.final && NeedsTransition(current, i.final))
-        plan.after.push_back({i.resource, current, i.final});
-    }
+    if (current != i.final && NeedsTransition(current, i.final))
+      plan.after.push_back({i.resource, current, i.final});
   }
   return plan;
 }

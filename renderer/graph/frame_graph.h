@@ -150,6 +150,9 @@ struct FramePlan {
   std::vector<PlannedPass> passes;
   std::vector<ResourceImport> imports;
   std::vector<Transition> after;  // after the last pass: the imports into their final access
+  // The scene's HDR colour as the frame leaves it: what the post passes (exposure, bloom,
+  // tonemap) read.
+  Resource scene_color = Resource::kHdrColor;
 
   std::vector<PassId> ids() const;
   bool Has(PassId id) const;

@@ -39,7 +39,6 @@ class TargetPool {
   // Drops the targets unused since `frame` - kIdleFrames.
   void Trim(uint64_t frame);
 
-  size_t size() const { return targets_.size() + buffers_.size(); }
   // Targets and buffers made so far.
   uint64_t created() const { return created_; }
 

@@ -231,14 +231,34 @@ void CmdBarrier(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images, uint32
   vkCmdPipelineBarrier2(cmd, &di);
 }
 
-void CmdMemoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 src_stage,
-                      VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
-                      VkAccessFlags2 dst_access) {
+VkMemoryBarrier2 MakeMemoryBarrier(VkPipelineStageFlags2 src_stage, VkAccessFlags2 src_access,
+                                   VkPipelineStageFlags2 dst_stage, VkAccessFlags2 dst_access) {
   VkMemoryBarrier2 b{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
   b.srcStageMask = src_stage;
   b.srcAccessMask = src_access;
   b.dstStageMask = dst_stage;
   b.dstAccessMask = dst_access;
+  return b;
+}
+
+VkBufferMemoryBarrier2 MakeBufferBarrier(VkBuffer buffer, VkPipelineStageFlags2 src_stage,
+                                         VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
+                                         VkAccessFlags2 dst_access) {
+  VkBufferMemoryBarrier2 b{VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER_2};
+  b.srcStageMask = src_stage;
+  b.srcAccessMask = src_access;
+  b.dstStageMask = dst_stage;
+  b.dstAccessMask = dst_access;
+  b.srcQueueFamilyIndex = b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
+  b.buffer = buffer;
+  b.size = VK_WHOLE_SIZE;
+  return b;
+}
+
+void CmdMemoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 src_stage,
+                      VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
+                      VkAccessFlags2 dst_access) {
+  const VkMemoryBarrier2 b = MakeMemoryBarrier(src_stage, src_access, dst_stage, dst_access);
   VkDependencyInfo di{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
   di.memoryBarrierCount = 1;
   di.pMemoryBarriers = &b;

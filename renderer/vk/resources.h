@@ -170,6 +170,13 @@ VkImageMemoryBarrier2 MakeImageBarrier(const Image& image, const ImageTransition
 void CmdBarrier(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images, uint32_t image_count,
                 const VkBufferMemoryBarrier2* buffers = nullptr, uint32_t buffer_count = 0);
 
+// A global memory barrier, and one on a whole buffer, with synchronization2 scopes.
+VkMemoryBarrier2 MakeMemoryBarrier(VkPipelineStageFlags2 src_stage, VkAccessFlags2 src_access,
+                                   VkPipelineStageFlags2 dst_stage, VkAccessFlags2 dst_access);
+VkBufferMemoryBarrier2 MakeBufferBarrier(VkBuffer buffer, VkPipelineStageFlags2 src_stage,
+                                         VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
+                                         VkAccessFlags2 dst_access);
+
 // A global memory dependency (for buffers: one barrier covers them all).
 void CmdMemoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 src_stage,
                       VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
