@@ -33,6 +33,10 @@ struct DeviceInfo {
   bool validation = false;      // validation layers active
   bool sampler_minmax = false;  // min/max reduction samplers on R32F (the depth pyramid)
   bool pipeline_statistics = false;  // pipelineStatisticsQuery
+  uint32_t subgroup_size = 1;
+  // Compute shaders have subgroup basic and ballot operations (the visibility pipeline's
+  // classification aggregates its atomics per subgroup with them).
+  bool subgroup_ballot = false;
 };
 
 // A physical device as the chooser sees it.

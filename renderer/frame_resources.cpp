@@ -66,8 +66,10 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   ASSIGN_OR_RETURN(auto* depth,
                    get(R::kDepth, kDepthFormat, kDepth | kSampled | kCopy, "depth", width, height));
   t.depth = depth->image;
-  ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat, kColor | kSampled | kCopy, "hdr_color",
-                                  width, height));
+  // Storage: the visibility pipeline shades it in compute.
+  ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat,
+                                  kColor | kSampled | kCopy | VK_IMAGE_USAGE_STORAGE_BIT,
+                                  "hdr_color", width, height));
   t.hdr = hdr->image;
   ASSIGN_OR_RETURN(auto* ldr, get(R::kLdrColor, kLdrFormat, kColor | kSampled | kCopy, "ldr_color",
                                   width, height));
@@ -110,6 +112,11 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
     ASSIGN_OR_RETURN(auto* md, get(R::kMaterialDepth, kMaterialDepthFormat, kDepth,
                                    "material_depth", width, height));
     t.material_depth = md->image;
+  }
+  if (ShadesVisibility(s)) {  // one sample: the ids straight from the visibility pass
+    ASSIGN_OR_RETURN(auto* id,
+                     get(R::kVisId, kIdFormat, kColor | kSampled, "vis_id", width, height));
+    t.vis_id = id->image;
   }
   if (vis || s.aa == AaMode::kTaa) {
     ASSIGN_OR_RETURN(auto* post, get(R::kPostHdr, kHdrFormat, kColor | kSampled | kCopy, "post_hdr",

@@ -41,7 +41,7 @@ const DeviceInfo& Renderer::device_info() const { return impl_->ctx->info(); }
 DeviceCaps Renderer::caps() const {
   const DeviceInfo& info = impl_->ctx->info();
   return {info.max_samples, info.max_image_dimension, info.sample_counts,
-          info.visibility_buffer};
+          info.visibility_buffer, info.type == "cpu"};
 }
 
 absl::StatusOr<SceneHandle> Renderer::LoadScene(const GltfSource& source) {
@@ -119,6 +119,7 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   m.WriteFrameUniforms(f, frame);
   RETURN_IF_ERROR(m.PrepareDraws(f));
   m.PrepareVis(f);
+  RETURN_IF_ERROR(m.PrepareShade(f));
 
   // The frame's passes, from the features' Setup; each builds what it lacks for the settings.
   FrameFeatures features;
@@ -171,6 +172,7 @@ PassContext Renderer::Impl::MakePassContext(FrameData& f) {
   pc.light_buffers = &f.light_buffers;
   pc.cull = &f.cull;
   pc.vis = &f.vis;
+  pc.shade = &f.shade;
   pc.taa = &f.taa;
   pc.shadows = &f.shadows;
   pc.shadow_atlas_view = f.s.shadows ? &shadow_atlas : &shadow_placeholder;
@@ -200,6 +202,15 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
   frame.stats.primitives_in = run.primitives_in;
   frame.stats.primitives_clipped = run.primitives_clipped;
   frame.stats.fragment_invocations = run.fragment_invocations;
+  if (plan.Has(PassId::kVisClassify)) {
+    shade_entries_readback.InvalidateForRead();
+    const auto* entries = static_cast<const gpu::GpuShadeEntry*>(shade_entries_readback.mapped());
+    for (uint32_t m = 0; m < f.shade.materials; ++m) {
+      const glm::uvec4& d = entries[m].dispatch;
+      frame.stats.shaded_pixels += d.w;
+      frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
+    }
+  }
   if (f.tiled) {
     tile_counts_readback.InvalidateForRead();
     const auto* counts = static_cast<const uint32_t*>(tile_counts_readback.mapped());

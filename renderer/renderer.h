@@ -92,6 +92,10 @@ struct FrameStats {
   uint64_t primitives_in = 0;          // input-assembly primitives
   uint64_t primitives_clipped = 0;     // primitives out of clipping (reach the rasterizer)
   uint64_t fragment_invocations = 0;   // fragment-shader invocations
+  // The visibility pipeline's shading pass (0 otherwise): the pixels it shaded (each once) and
+  // its compute invocations (the pixels rounded up to whole workgroups per material).
+  uint64_t shaded_pixels = 0;
+  uint64_t shading_invocations = 0;
   uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
   uint32_t local_lights = 0;         // of which point and spot lights (scene + synthetic)
   // Forward+ (when the light-culling pass ran): lights per tile over all tiles.

@@ -73,6 +73,7 @@ struct FrameData {
   GpuScene::ViewVisibility* visibility = nullptr;  // gpu_occlusion: the view's bits
   LightCullBuffers light_buffers;
   VisFrame vis;
+  ShadeBuffers shade;
   PassStats pass_stats;
   VkDescriptorSet scene_set = VK_NULL_HANDLE;
 };
@@ -114,6 +115,13 @@ struct Renderer::Impl {
   uint32_t command_capacity = 0;
   uint32_t count_capacity = 0;
   uint32_t base_capacity = 0;
+  // The visibility pipeline (grown to the most materials and pixels drawn): per material a
+  // GpuShadeEntry and its host copy, and the pixel lists.
+  vk::Buffer shade_entries;
+  vk::Buffer shade_entries_readback;
+  vk::Buffer shade_pixels;
+  uint32_t shade_material_capacity = 0;
+  uint64_t shade_pixel_capacity = 0;
   vk::Pipeline id_pipeline;  // FrameCapture::want_ids, made on first use
   uint64_t frame_counter = 0;
   TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
@@ -204,6 +212,7 @@ struct Renderer::Impl {
   void WriteFrameUniforms(FrameData& f, Frame& frame);     // forward_plus.cpp
   absl::Status PrepareDraws(FrameData& f);                 // culling.cpp
   void PrepareVis(FrameData& f);                           // vis_mlaa.cpp
+  absl::Status PrepareShade(FrameData& f);                 // vis_shade.cpp
   // culling.cpp: none / cpu_frustum: the CPU writes phase 0's lists.
   void WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
   // culling.cpp: what the frame drew, from the lists it executed.

@@ -10,35 +10,39 @@ namespace tessera {
 
 absl::Status Renderer::Impl::InitLayouts() {
   VkDevice d = ctx->device();
+  // The scene's sets are read by fragment shaders and by the visibility pipeline's compute
+  // shading (features/vis_shade.cpp).
+  constexpr VkShaderStageFlags kPixel = VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
+  constexpr VkShaderStageFlags kVertexPixel = VK_SHADER_STAGE_VERTEX_BIT | kPixel;
   std::vector<VkDescriptorSetLayoutBinding> bindings = {
       {gpu::kBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
-       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
-      {gpu::kBindingLights, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       kVertexPixel, nullptr},
+      {gpu::kBindingLights, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kPixel,
        nullptr},
       {gpu::kBindingDrawables, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+       kVertexPixel, nullptr},
       {gpu::kBindingMaterials, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
-      {gpu::kBindingLocalLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       kVertexPixel, nullptr},
+      {gpu::kBindingLocalLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kPixel,
        nullptr},
-      {gpu::kBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+      {gpu::kBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kPixel,
        nullptr},
-      {gpu::kBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+      {gpu::kBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kPixel,
        nullptr},
-      {gpu::kBindingShadows, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+      {gpu::kBindingShadows, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kPixel,
        nullptr},
       {gpu::kBindingShadowAtlas, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
-      {gpu::kBindingAo, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, VK_SHADER_STAGE_FRAGMENT_BIT,
+       kPixel, nullptr},
+      {gpu::kBindingAo, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kPixel,
        nullptr},
       {gpu::kBindingIrradiance, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+       kPixel, nullptr},
       {gpu::kBindingSpecular, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+       kPixel, nullptr},
       {gpu::kBindingBrdfLut, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+       kPixel, nullptr},
       {gpu::kBindingEnvironment, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
+       kPixel, nullptr},
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
@@ -47,11 +51,11 @@ absl::Status Renderer::Impl::InitLayouts() {
                      "scene set layout");
   std::vector<VkDescriptorSetLayoutBinding> texture_bindings = {
       {gpu::kBindingMaterialUniform, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
-       VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}};
+       kPixel, nullptr}};
   for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k)
     texture_bindings.push_back({gpu::kBindingBaseColorTex + k,
                                 VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-                                VK_SHADER_STAGE_FRAGMENT_BIT, nullptr});
+                                kPixel, nullptr});
   li.bindingCount = static_cast<uint32_t>(texture_bindings.size());
   li.pBindings = texture_bindings.data();
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, material_set_layout.Replace(d)),
@@ -87,6 +91,8 @@ absl::Status Renderer::Impl::InitPasses() {
   RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate)));
   RETURN_IF_ERROR(add(CreateVisResolvePass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateVisShadePass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateVisClassifyPass(*ctx, scene_layout)));
+  RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateGeometricAaPass(*ctx)));
   RETURN_IF_ERROR(add(CreateTaaPass(*ctx)));
   RETURN_IF_ERROR(add(CreateFxaaPass(*ctx)));

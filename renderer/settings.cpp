@@ -40,6 +40,12 @@ const std::vector<std::string_view>& EnumNames<DebugView>() {
   return names;
 }
 
+template <>
+const std::vector<std::string_view>& EnumNames<Pipeline>() {
+  static const std::vector<std::string_view> names{"auto", "forward", "visibility"};
+  return names;
+}
+
 namespace {
 
 template <typename E>
@@ -68,6 +74,7 @@ std::string_view ToString(CullingMode v) { return NameOf(v); }
 std::string_view ToString(ExposureMode v) { return NameOf(v); }
 std::string_view ToString(DebugView v) { return NameOf(v); }
 std::string_view ToString(Tonemapper v) { return NameOf(v); }
+std::string_view ToString(Pipeline v) { return NameOf(v); }
 absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s) {
   return Parse<Tonemapper>("tonemapper", s);
 }
@@ -145,6 +152,17 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     not_applied("aa", "vis_mlaa needs gl_PrimitiveID in fragment shaders (geometryShader) and "
                       "standard sample locations; rendered with msaa");
     e.aa = AaMode::kMsaa;
+  }
+  if (e.pipeline == Pipeline::kAuto) {
+    // Measured (README, "The visibility pipeline"): on lavapipe the forward path is faster for
+    // plain frames (its rasterizer skips hidden fragments cheaply, and rebuilding each pixel's
+    // surface from its id costs more than interpolating it); on GPUs the visibility pipeline.
+    e.pipeline = caps.cpu ? Pipeline::kForward : Pipeline::kVisibility;
+  }
+  if (ShadesVisibility(e) && !caps.visibility_buffer) {
+    not_applied("pipeline", "the visibility buffer needs gl_PrimitiveID in fragment shaders "
+                            "(geometryShader); shaded forward");
+    e.pipeline = Pipeline::kForward;
   }
   if (e.shadows && e.shadow_atlas_size > caps.max_image_dimension) {
     note("shadow_atlas_size",

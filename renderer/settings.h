@@ -18,6 +18,12 @@ enum class ExposureMode : uint32_t { kFixed = 0, kAuto };
 // The curve from exposed HDR to display: Khronos PBR Neutral (base colours come out as
 // authored), or the photographic operator 1 - e^-L applied to luma (Tesseract's, after Humus).
 enum class Tonemapper : uint32_t { kPbrNeutral = 0, kPhotographic };
+// How opaque surfaces are shaded with aa none, fxaa or taa: a visibility buffer (the geometry
+// drawn once into depth and triangle ids, then each pixel shaded once in compute), or the
+// forward path (a depth prepass, then the geometry again with the full shader). auto: the one
+// measured faster on the device (ResolveSettings: forward on CPU devices, visibility elsewhere).
+// msaa always shades forward; vis_mlaa always uses its multisampled visibility buffer.
+enum class Pipeline : uint32_t { kAuto = 0, kForward, kVisibility };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
   kNone = 0,
@@ -74,6 +80,7 @@ struct Settings {
   ExposureMode exposure_mode = ExposureMode::kFixed;
   float exposure_ev = 0.0f;  // stops, -20..20 (0 = x1)
   Tonemapper tonemapper = Tonemapper::kPbrNeutral;
+  Pipeline pipeline = Pipeline::kAuto;
   DebugView debug_view = DebugView::kNone;
   uint32_t jpeg_quality = 90;  // 1..100
   bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
@@ -89,6 +96,7 @@ struct DeviceCaps {
   // Usable sample counts, bit n = 2^n samples; 0: every power of two up to max_samples.
   uint32_t sample_counts = 0;
   bool visibility_buffer = true;  // vis_mlaa can run (else it falls back to msaa)
+  bool cpu = false;               // a CPU device (lavapipe, SwiftShader): pipeline auto -> forward
 };
 
 // One field the renderer changed or could not honour.
@@ -124,6 +132,8 @@ template <>
 const std::vector<std::string_view>& EnumNames<Tonemapper>();
 template <>
 const std::vector<std::string_view>& EnumNames<DebugView>();
+template <>
+const std::vector<std::string_view>& EnumNames<Pipeline>();
 
 // Names used by the CLI, JSON output and the proto ("invalid" for a value out of range).
 std::string_view ToString(AaMode v);
@@ -131,10 +141,18 @@ std::string_view ToString(CullingMode v);
 std::string_view ToString(ExposureMode v);
 std::string_view ToString(Tonemapper v);
 std::string_view ToString(DebugView v);
+std::string_view ToString(Pipeline v);
 absl::StatusOr<AaMode> ParseAaMode(std::string_view s);
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s);
 absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s);
 absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s);
 absl::StatusOr<DebugView> ParseDebugView(std::string_view s);
+
+// Whether the frame shades its opaque surfaces from a single-sampled visibility buffer
+// (Pipeline::kVisibility with aa none, fxaa or taa; effective settings have no kAuto).
+inline bool ShadesVisibility(const Settings& s) {
+  return s.pipeline == Pipeline::kVisibility &&
+         (s.aa == AaMode::kNone || s.aa == AaMode::kFxaa || s.aa == AaMode::kTaa);
+}
 
 }  // namespace tessera

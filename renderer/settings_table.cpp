@@ -237,6 +237,11 @@ std::vector<SettingRow> BuildTable() {
   t.push_back(Flags(Row<&S::tonemapper>("tonemapper", "Tonemapper",
                                         "the curve from exposed HDR to the display"),
                     {Value("tonemapper", "T")}));
+  t.push_back(Flags(Row<&S::pipeline>("pipeline", "Pipeline",
+                                      "opaque shading with aa none/fxaa/taa: visibility buffer "
+                                      "(each pixel shaded once), forward, or auto (the faster "
+                                      "on the device)"),
+                    {Value("pipeline", "P")}));
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),
                     {Value("debug", "VIEW")}));

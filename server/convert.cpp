@@ -182,6 +182,8 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_shadow_faces_rendered(f.stats.shadow_faces_rendered);
   st->set_shadow_draws(f.stats.shadow_draws);
   st->set_shadow_evictions(f.stats.shadow_evictions);
+  st->set_shaded_pixels(f.stats.shaded_pixels);
+  st->set_shading_invocations(f.stats.shading_invocations);
 }
 
 absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,

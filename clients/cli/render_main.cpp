@@ -200,6 +200,8 @@ int main(int argc, char** argv) {
                   {"drawables_stale", frame.stats.drawables_stale},
                   {"primitives_in", frame.stats.primitives_in},
                   {"fragment_invocations", frame.stats.fragment_invocations},
+                  {"shaded_pixels", frame.stats.shaded_pixels},
+                  {"shading_invocations", frame.stats.shading_invocations},
                   {"lights", frame.stats.lights},
                   {"local_lights", frame.stats.local_lights},
                   {"tile_lights_avg", frame.stats.tile_lights_avg},

@@ -214,8 +214,11 @@ void Renderer::Impl::CountDrawn(const GpuScene& gs, const DrawLists& draws,
     const uint32_t o = static_cast<uint32_t>(AlphaMode::kOpaque);
     const uint32_t k = static_cast<uint32_t>(AlphaMode::kMask);
     const uint32_t b = static_cast<uint32_t>(AlphaMode::kBlend);
-    if (id == PassId::kDepthPrepass || id == PassId::kDepthPrepassLate) {
-      const uint32_t p = id == PassId::kDepthPrepassLate ? 1 : 0;
+    // The depth prepass and the visibility pass (vis_mlaa's, the visibility pipeline's) draw
+    // the opaque batches and the alpha-mask segments of their phase.
+    if (id == PassId::kDepthPrepass || id == PassId::kDepthPrepassLate ||
+        id == PassId::kVisibility || id == PassId::kVisibilityLate) {
+      const uint32_t p = id == PassId::kDepthPrepassLate || id == PassId::kVisibilityLate ? 1 : 0;
       add(batch_sums[p]);
       add(group_sums[p][k]);
     } else if (id == PassId::kForward || id == PassId::kTransparent) {

@@ -97,7 +97,8 @@ absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const Scen
 }
 
 void AddDepthPass(GraphBuilder& b, bool late) {
-  if (b.settings().aa == AaMode::kVisMlaa) {  // its visibility pass is its depth pass
+  // vis_mlaa's and the visibility pipeline's visibility pass is their depth pass.
+  if (b.settings().aa == AaMode::kVisMlaa || ShadesVisibility(b.settings())) {
     AddVisibilityPass(b, late);
     return;
   }

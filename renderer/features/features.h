@@ -22,6 +22,9 @@ void AddDepthPass(GraphBuilder& b, bool late);
 // resolve, shade per material, geometric AA.
 void AddVisibilityPass(GraphBuilder& b, bool late);
 void SetupVisMlaa(GraphBuilder& b);
+// vis_shade.cpp: the visibility pipeline's shading: each pixel's material (and the sky), then
+// one compute dispatch per material over its pixels.
+void SetupVisibilityShading(GraphBuilder& b);
 // forward_plus.cpp: per-tile light lists from the depth.
 void SetupLightCulling(GraphBuilder& b);
 // shadows.cpp: the atlas faces whose view changed (the atlas lives outside the graph).

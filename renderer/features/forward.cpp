@@ -160,7 +160,8 @@ void UseForwardTargets(GraphBuilder& b, Resource color) {
 }  // namespace
 
 void SetupForward(GraphBuilder& b) {
-  if (b.settings().aa == AaMode::kVisMlaa) return;  // vis_mlaa shades its visibility buffer
+  // vis_mlaa and the visibility pipeline shade their visibility buffers.
+  if (b.settings().aa == AaMode::kVisMlaa || ShadesVisibility(b.settings())) return;
   b.Pass(PassId::kForward);
   UseForwardTargets(b, Resource::kHdrColor);
 }

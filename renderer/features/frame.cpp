@@ -7,13 +7,14 @@ namespace tessera {
 FramePlan PlanFrame(const Settings& settings, const FrameFeatures& features) {
   GraphBuilder b(settings, features);
   SetupCulling(b);       // gpu culling: indirect draw lists from the drawables
-  SetupDepth(b);         // depth first, so shading runs once per pixel
+  SetupDepth(b);         // depth (or visibility) first, so shading runs once per pixel
   SetupOcclusion(b);     // gpu_occlusion: what became visible against the first phase's depth
   SetupLightCulling(b);  // forward+: per-tile light lists
   SetupShadows(b);       // shadow maps and ambient obscurance, before the shading reads them
   SetupSsao(b);
   SetupVisMlaa(b);       // vis_mlaa shades its visibility buffer ...
-  SetupForward(b);       // ... every other mode shades forward
+  SetupVisibilityShading(b);  // ... the visibility pipeline its own ...
+  SetupForward(b);            // ... and the forward pipeline shades forward
   SetupTransparent(b);   // blended surfaces over the opaque colour, without depth writes
   SetupTaa(b);
   SetupExposure(b);      // before bloom: bloom's threshold is in exposed units

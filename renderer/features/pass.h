@@ -87,6 +87,7 @@ struct FrameTargets {
       case Resource::kDrawLists:
       case Resource::kVisibilityBits:
       case Resource::kLightLists:
+      case Resource::kShadeLists:
       case Resource::kCount: break;
     }
     return ldr;
@@ -135,6 +136,16 @@ struct LightCullBuffers {
   VkBuffer counts_readback = VK_NULL_HANDLE;  // host copy of tile_counts
   VkBuffer row_lights = VK_NULL_HANDLE;       // lights binned by tile row (gpu_types.h)
   uint32_t tiles = 0;
+};
+
+// The visibility pipeline's buffers (handles owned by the renderer): per material a
+// GpuShadeEntry and one more for the sky (entry `materials`), the pixel lists (a uint per pixel
+// of the frame), and a host copy of the entries for the frame's statistics.
+struct ShadeBuffers {
+  VkBuffer entries = VK_NULL_HANDLE;
+  VkBuffer pixels = VK_NULL_HANDLE;
+  VkBuffer entries_readback = VK_NULL_HANDLE;
+  uint32_t materials = 0;
 };
 
 struct PassStats {
@@ -217,6 +228,7 @@ struct PassContext {
   const LightCullBuffers* light_buffers = nullptr;
   const CullBuffers* cull = nullptr;
   const VisFrame* vis = nullptr;
+  const ShadeBuffers* shade = nullptr;
   const TaaFrame* taa = nullptr;
   const ShadowFrame* shadows = nullptr;
   const SsaoFrame* ssao = nullptr;
@@ -290,6 +302,11 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ct
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
                                                          const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx);
+// The visibility pipeline: kVisClassify and kShade (features/vis_shade.cpp).
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
+                                                            const SceneLayout& layout);
+absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
+                                                      const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx);
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx);
 // shadows: renders ShadowFrame::faces into the atlas.

@@ -31,27 +31,33 @@ class VisibilityPass final : public Pass {
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
-    return pipelines_.Ensure(s.samples, [&](uint32_t samples) { return Create(ctx, samples); });
+    if (s.aa != AaMode::kVisMlaa && !ShadesVisibility(s)) return absl::OkStatus();
+    return pipelines_.Ensure(Samples(s, s.samples),
+                             [&](uint32_t samples) { return Create(ctx, samples); });
+  }
+  // vis_mlaa's sample count, or 1 for the visibility pipeline.
+  static uint32_t Samples(const Settings& s, uint32_t samples) {
+    return s.aa == AaMode::kVisMlaa ? samples : 1;
   }
 
   void Record(PassContext& ctx) override {
     const bool late = id_ == PassId::kVisibilityLate;
     const uint32_t phase = late ? 1 : 0;
-    const Pipelines& p = pipelines_.at(ctx.samples);
+    const uint32_t samples = Samples(*ctx.settings, ctx.samples);
+    const Pipelines& p = pipelines_.at(samples);
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    color.imageView = ctx.targets->vis_ms.view();
+    color.imageView = samples > 1 ? ctx.targets->vis_ms.view() : ctx.targets->vis_id.view();
     color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
     color.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     color.clearValue.color.uint32[0] = 0;  // no surface
     VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    depth.imageView = ctx.targets->depth_ms.view();
+    depth.imageView = samples > 1 ? ctx.targets->depth_ms.view() : ctx.targets->depth.view();
     depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
     depth.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
-    ResolveDepthInto(ctx, depth);
+    if (samples > 1) ResolveDepthInto(ctx, depth);
     BeginRendering(ctx, &color, &depth);
     RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase);
     vkCmdEndRendering(ctx.cmd);
@@ -348,10 +354,14 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
 
 void AddVisibilityPass(GraphBuilder& b, bool late) {
   b.Pass(late ? PassId::kVisibilityLate : PassId::kVisibility)
-      .Use(Resource::kDrawLists, Access::kIndirectRead)
-      .Use(Resource::kDepthMs, Access::kDepthWrite)
-      .Use(Resource::kVisMs, Access::kColorWrite)
-      .Use(Resource::kDepth, Access::kDepthResolve);
+      .Use(Resource::kDrawLists, Access::kIndirectRead);
+  if (b.settings().aa == AaMode::kVisMlaa) {
+    b.Use(Resource::kDepthMs, Access::kDepthWrite)
+        .Use(Resource::kVisMs, Access::kColorWrite)
+        .Use(Resource::kDepth, Access::kDepthResolve);
+  } else {  // the visibility pipeline: one sample, straight into the frame's depth
+    b.Use(Resource::kDepth, Access::kDepthWrite).Use(Resource::kVisId, Access::kColorWrite);
+  }
 }
 
 void SetupVisMlaa(GraphBuilder& b) {
@@ -434,17 +444,23 @@ std::vector<MaterialRect> MaterialRects(const GpuScene& gs, const Frustum& frust
 
 uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings& settings) {
   // A visibility id holds the drawable and the triangle; a scene whose largest drawable has
-  // more triangles than the id leaves room for is drawn with msaa instead.
+  // more triangles than the id leaves room for is drawn without one: vis_mlaa with msaa, the
+  // visibility pipeline forward.
   const uint32_t triangle_bits = VisTriangleBits(uint32_t(gs.draws().size()));
   Settings& s = settings.effective;
-  if (s.aa != AaMode::kVisMlaa) return triangle_bits;
   const uint32_t most = gs.max_draw_triangles();
-  if (most <= (uint64_t(1) << triangle_bits)) return triangle_bits;
+  const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
+  if (most <= (uint64_t(1) << triangle_bits) || (!vis_mlaa && !ShadesVisibility(s)))
+    return triangle_bits;
   settings.notes.push_back(
-      {"aa", absl::StrCat("not applied: vis_mlaa ids hold ", triangle_bits,
-                          " bits of triangle with ", gs.draws().size(),
-                          " drawables, and a drawable has ", most,
-                          " triangles; rendered with msaa")});
+      {vis_mlaa ? "aa" : "pipeline",
+       absl::StrCat("not applied: visibility ids hold ", triangle_bits, " bits of triangle with ",
+                    gs.draws().size(), " drawables, and a drawable has ", most, " triangles; ",
+                    vis_mlaa ? "rendered with msaa" : "shaded forward")});
+  if (!vis_mlaa) {
+    s.pipeline = Pipeline::kForward;
+    return triangle_bits;
+  }
   s.aa = AaMode::kMsaa;
   if (s.debug_view == DebugView::kAaMask) {
     settings.notes.push_back({"debug_view", "not applied: aa_mask needs vis_mlaa"});
@@ -454,8 +470,9 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
 }
 
 void Renderer::Impl::PrepareVis(FrameData& f) {
-  // Per material, the pixels its drawables in the frustum can cover.
-  if (f.s.aa != AaMode::kVisMlaa) return;
+  // Per material, the pixels its drawables in the frustum can cover (the visibility pipeline
+  // shades the materials listed, vis_mlaa their rectangles).
+  if (f.s.aa != AaMode::kVisMlaa && !ShadesVisibility(f.s)) return;
   f.vis.materials = MaterialRects(f.gs, FrustumFromViewProj(f.fu.view_proj), f.fu.view_proj,
                                   f.s.width, f.s.height);
 }

@@ -22,6 +22,10 @@ std::string_view PassName(PassId id) {
       return "shadows";
     case PassId::kSsao:
       return "ssao";
+    case PassId::kVisClassify:
+      return "vis_classify";
+    case PassId::kShade:
+      return "shade";
     case PassId::kForward:
       return "forward";
     case PassId::kTransparent:

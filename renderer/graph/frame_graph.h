@@ -50,12 +50,15 @@ enum class Resource : uint8_t {
   kVisibilityBits,  // gpu_occlusion: the view's visibility bits (last frame's read, this
                     // frame's written by the late cull)
   kLightLists,      // forward+: per-tile light counts and lists
+  kShadeLists,      // visibility pipeline: per material its pixel count, list offset and
+                    // dispatch size, and the pixel lists the shading dispatches read
   kCount
 };
 
 // Whether `r` is a buffer (its transitions are memory barriers) rather than an image.
 inline bool IsBuffer(Resource r) {
-  return r == Resource::kDrawLists || r == Resource::kVisibilityBits || r == Resource::kLightLists;
+  return r == Resource::kDrawLists || r == Resource::kVisibilityBits ||
+         r == Resource::kLightLists || r == Resource::kShadeLists;
 }
 // Barriers inside a pass between its own steps (bloom's and the pyramid's mips, ssao's blur, a
 // cull pass's clears before its dispatch, light culling's copy of its counts for the host) are
@@ -75,7 +78,7 @@ enum class Access : uint8_t {
   kSampledGeneral,  // read in a fragment shader in the general layout (auto exposure's state)
   // Buffers only (kComputeWrite, kComputeRead and kSampled apply to buffers too: storage writes
   // and clears, storage reads in compute, storage reads in fragment shaders).
-  kIndirectRead,  // indirect draw commands and counts
+  kIndirectRead,  // indirect draw and dispatch commands and counts
   kHostWrite,     // written by the host before the frame was submitted
   kHostRead,      // read by the host after the frame
 };
@@ -99,6 +102,8 @@ enum class PassId : uint8_t {
   kSsao,          // ssao: obscurance from the depth, then a bilateral blur (two directions)
   kVisResolve,    // vis_mlaa: group each pixel's samples by surface, pick the one to shade
   kVisShade,      // vis_mlaa: shade each pixel's surface, one draw per material
+  kVisClassify,   // visibility pipeline: each pixel's material, the sky, per-material lists
+  kShade,         // visibility pipeline: each listed pixel shaded once (compute, per material)
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
   kGeometricAa,   // vis_mlaa: blend partly covered pixels with the neighbours the mask points to
   kTransparent,   // blended materials, back to front, over the opaque result

@@ -98,6 +98,7 @@ class GpuScene {
   const std::vector<vk::Image>& texture_buckets() const { return buckets_; }
   // Descriptor set 1 of material `m`: the material as a uniform range and its textures' buckets.
   VkDescriptorSet material_set(uint32_t m) const { return material_sets_[m]; }
+  uint32_t material_count() const { return uint32_t(material_sets_.size()); }
   VkSampler sampler() const { return sampler_.handle(); }
   // The draws in item order (DrawPlan): draws()[i] is item i.
   const std::vector<DrawItem>& draws() const { return draws_; }

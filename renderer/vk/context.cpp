@@ -289,6 +289,8 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
       MaxSamples(p.limits.framebufferColorSampleCounts & p.limits.framebufferDepthSampleCounts);
   {
     VkPhysicalDeviceVulkan12Properties p12{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_2_PROPERTIES};
+    VkPhysicalDeviceSubgroupProperties sub{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+    p12.pNext = &sub;
     VkPhysicalDeviceProperties2 pp{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
     pp.pNext = &p12;
     vkGetPhysicalDeviceProperties2(physical_, &pp);
@@ -313,6 +315,11 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
     info.max_samples = MaxSamples(info.sample_counts);
     info.depth_resolve_min = (p12.supportedDepthResolveModes & VK_RESOLVE_MODE_MIN_BIT) != 0;
     info.visibility_buffer = supported.geometryShader && p.limits.standardSampleLocations;
+    info.subgroup_size = sub.subgroupSize;
+    constexpr VkSubgroupFeatureFlags kBallot =
+        VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
+    info.subgroup_ballot = (sub.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) != 0 &&
+                           (sub.supportedOperations & kBallot) == kBallot;
   }
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;

@@ -165,7 +165,8 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
 }
 
 absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
-                                               const std::string& shader, VkPipelineLayout layout) {
+                                               const std::string& shader, VkPipelineLayout layout,
+                                               const std::vector<uint32_t>& constants) {
   ScopedShader cs(ctx.device());
   RETURN_IF_ERROR(cs.Load(shader));
   VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
@@ -173,6 +174,16 @@ absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::st
   ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
   ci.stage.module = cs.get();
   ci.stage.pName = "main";
+  std::vector<VkSpecializationMapEntry> entries;
+  VkSpecializationInfo spec{};
+  if (!constants.empty()) {
+    for (uint32_t i = 0; i < constants.size(); ++i) entries.push_back({i, i * 4, 4});
+    spec.mapEntryCount = uint32_t(entries.size());
+    spec.pMapEntries = entries.data();
+    spec.dataSize = constants.size() * 4;
+    spec.pData = constants.data();
+    ci.stage.pSpecializationInfo = &spec;
+  }
   ci.layout = layout;
   VkPipeline pipeline;
   VK_RETURN_IF_ERROR(

@@ -68,8 +68,10 @@ struct GraphicsPipelineDesc {
 absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
                                                 const GraphicsPipelineDesc& desc);
 
-// A compute pipeline from an embedded shader (e.g. "light_cull.comp").
+// A compute pipeline from an embedded shader (e.g. "light_cull.comp"); `constants` are its
+// specialization constants 0, 1, ... (32-bit each).
 absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
-                                               const std::string& shader, VkPipelineLayout layout);
+                                               const std::string& shader, VkPipelineLayout layout,
+                                               const std::vector<uint32_t>& constants = {});
 
 }  // namespace tessera::vk

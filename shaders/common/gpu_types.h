@@ -134,6 +134,25 @@ TS_CONST uint kVisBindingIndices = 2;   // both: buffer uint[] the scene's index
 TS_CONST uint kVisBindingVertices = 3;  // both: buffer float[] the scene's vertex buffer
 TS_CONST uint kVisBindingShadeSamples = 4;  // shade: usampler2DMS, the visibility ids
 TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
+// ---- the visibility pipeline (vis_classify.comp, vis_shade.comp, vis_sky.comp;
+// features/vis_shade.cpp) ------------------------------------------------------------------------
+// Set 2 of these passes: the ids, the HDR colour they write, the scene's index and vertex
+// buffers (kVisBindingIndices / kVisBindingVertices, as vis_mlaa's), the per-material entries
+// and the pixel lists.
+TS_CONST uint kShadeBindingId = 0;       // usampler2D: the visibility id per pixel
+TS_CONST uint kShadeBindingColor = 1;    // image2D rgba16f: the HDR colour (written)
+TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 1] (+1: the sky)
+TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
+TS_CONST uint kClassifyTile = 8;         // vis_classify: 8x8 pixels per workgroup
+TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
+// A material's dispatch is at most this many workgroups wide (more rows above: the indirect
+// dispatch stays inside maxComputeWorkGroupCount, 65535, at any frame size).
+TS_CONST uint kShadeDispatchWidth = 4096;
+// vis_classify's modes (push constant params.x).
+TS_CONST uint kClassifyCount = 0;  // count each material's pixels; write the sky
+TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
+TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
+
 // A material's surfaces are marked in the material-depth target by this depth (material + 1
 // times the scale, exact in D32); 0 marks the sky.
 TS_CONST float kMaterialDepthScale = 1.0f / 16777216.0f;
@@ -270,6 +289,12 @@ struct FrameUniforms {
   uvec4 aa;              // vis_mlaa: x triangle bits of a visibility id, y samples; zw unused
 };
 
+// The visibility pipeline's record of one material in a frame: its pixels and its dispatch.
+struct GpuShadeEntry {
+  uvec4 dispatch;  // xyz: VkDispatchIndirectCommand of its shading, w: pixel count
+  uvec4 list;      // x: its first pixel in the lists, y: fill cursor, zw unused
+};
+
 // ---- push constants ---------------------------------------------------------------------------
 // Each pass's push-constant block, its members written once: the shader declares
 //   layout(push_constant) uniform Push { TS_PUSH_TONEMAP } push;
@@ -347,6 +372,9 @@ struct FrameUniforms {
   uvec4 size;
 // shadow.vert, shadow_mask.vert: world -> the face's clip space.
 #define TS_PUSH_SHADOW mat4 view_proj;
+// vis_classify.comp: x mode (kClassify*), y materials (the sky's entry is the next);
+// vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry.
+#define TS_PUSH_SHADE uvec4 params;
 // vis_shade.vert: the material's depth (EQUAL-tested against the material depth target).
 #define TS_PUSH_VIS_SHADE float depth;
 
@@ -395,6 +423,9 @@ struct ShadowPush {
 };
 struct VisShadePush {
   TS_PUSH_VIS_SHADE
+};
+struct ShadePush {
+  TS_PUSH_SHADE
 };
 #endif
 

@@ -4,10 +4,14 @@
 // Global (directional) lights from the lights UBO, local lights from the tile lists (or all of
 // them, brute force), shadowed through the shadow atlas (shadows.glsl), plus a hemisphere
 // ambient with an analytic split-sum specular term, darkened by SSAO. Needs scene.glsl, sky.glsl,
-// textures.glsl (the material in set 1) and shadows.glsl; fragment shaders only (the tile and
-// the AO texel come from gl_FragCoord).
+// textures.glsl (the material in set 1) and shadows.glsl. The pixel (its forward+ tile and AO
+// texel) is gl_FragCoord in fragment shaders; a compute shader defines TESSERA_COMPUTE and
+// SHADING_PIXEL (the pixel's centre in framebuffer pixels) before including this.
 #ifndef TESSERA_SHADING_GLSL
 #define TESSERA_SHADING_GLSL
+#ifndef SHADING_PIXEL
+#define SHADING_PIXEL gl_FragCoord.xy
+#endif
 
 #include "common/brdf.glsl"
 
@@ -126,7 +130,9 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   if (HasTexture(m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).
+#ifndef TESSERA_COMPUTE
   if (alpha_test && m.flags.x == kAlphaMask && base.a < m.params2.x) discard;
+#endif
 
   float metallic = m.params.x;
   float roughness = m.params.y;
@@ -175,7 +181,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
 
   // The tile this pixel belongs to, and its light list (built by the light-culling pass).
   uint tile_size = frame.lighting.y;
-  uint tile = uint(gl_FragCoord.y) / tile_size * frame.lighting.z + uint(gl_FragCoord.x) / tile_size;
+  uint tile = uint(SHADING_PIXEL.y) / tile_size * frame.lighting.z + uint(SHADING_PIXEL.x) / tile_size;
   // Blended surfaces are not in the prepass depth the lists were culled against: brute force.
   bool tiled = (frame.lighting.w & 1u) != 0u && m.flags.x != kAlphaBlend;
   uint tile_count = tiled ? (tile_counts[tile] & ~kTileOverflowBit) : 0u;
@@ -209,7 +215,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
   // not in the depth it was computed from.
   if (kLightingEffects && (shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
-    ao *= textureLod(u_ao, gl_FragCoord.xy / vec2(frame.counts.zw), 0.0).r;
+    ao *= textureLod(u_ao, SHADING_PIXEL / vec2(frame.counts.zw), 0.0).r;
   color += ambient * ao;
   color += emissive;
   if (kLightingEffects && debug_view == kDebugCascades) {

@@ -32,10 +32,12 @@ struct UvGradients {
   vec4 dy;
 };
 
+#ifndef TESSERA_COMPUTE
 UvGradients ComputeUvGradients(vec2 uv0, vec2 uv1) {
   vec4 uv = vec4(uv0, uv1);
   return UvGradients(dFdx(uv), dFdy(uv));
 }
+#endif
 
 vec4 SampleTexture(sampler2DArray bucket, GpuTextureRef t, vec2 uv0, vec2 uv1, UvGradients g) {
   bool second = t.info.z == 1;

@@ -3,7 +3,7 @@
 // timed test: compare figures as ratios within one run (the machines are noisy).
 //
 //   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf
-//       --sizes 1280x720,1920x1080 --frames 20 --warmup 3
+//       --sizes 1280x720,1920x1080 --frames 20 --warmup 3 [--pipeline visibility --aa taa ...]
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -20,6 +20,7 @@
 #include "bench_util.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
+#include "renderer/settings_table.h"
 
 namespace {
 
@@ -36,6 +37,7 @@ int main(int argc, char** argv) {
   uint32_t frames = 20, warmup = 3;
   std::optional<glm::vec3> eye, target;
   Settings base;
+  SettingMask named;
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&]() -> std::string {
@@ -54,10 +56,11 @@ int main(int argc, char** argv) {
       eye = ParseVec3(value());
     else if (arg == "--target")
       target = ParseVec3(value());
-    else if (arg == "--culling") {
-      absl::StatusOr<CullingMode> c = ParseCullingMode(value());
-      if (!c.ok()) Fail(std::string(c.status().message()));
-      base.culling = *c;
+    else if (absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &base, &named);
+             !setting.ok()) {
+      Fail(std::string(setting.status().message()));
+    } else if (*setting) {
+      // a settings flag (renderer/settings_table.h): --culling, --pipeline, --aa, --shadows ...
     } else if (arg == "--sizes") {
       sizes.clear();
       const std::vector<std::string> items = absl::StrSplit(value(), ',');
@@ -71,7 +74,7 @@ int main(int argc, char** argv) {
     } else {
       Fail("unknown option " + arg +
            " (--scene F --sizes WxH,.. --frames N --warmup N --eye X,Y,Z --target X,Y,Z "
-           "--culling MODE --device NAME)");
+           "--device NAME, and the settings flags of tessera-render)");
     }
   }
 
@@ -151,9 +154,15 @@ int main(int argc, char** argv) {
     r["timestamp_total_over_wall"] = Median(ratio);
     r["timing"] =
         last.timing == TimingSource::kPassWallClock ? "pass_wall_clock" : "gpu_timestamps";
+    const double pixels = double(w) * h;
+    r["pipeline"] = ToString(last.settings.effective.pipeline);
+    r["aa"] = ToString(last.settings.effective.aa);
     r["stats"] = {{"draws", last.stats.draws},
                   {"triangles_submitted", last.stats.triangles_submitted},
-                  {"drawables_culled", last.stats.drawables_culled}};
+                  {"drawables_culled", last.stats.drawables_culled},
+                  {"fragment_invocations_per_pixel", double(last.stats.fragment_invocations) / pixels},
+                  {"shaded_pixels", last.stats.shaded_pixels},
+                  {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels}};
     out["results"].push_back(r);
   }
   std::printf("%s\n", out.dump(2).c_str());

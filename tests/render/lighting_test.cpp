@@ -482,3 +482,34 @@ TEST(IblTest, TheSunIsWhereTheLightComesFrom) {
 
 }  // namespace
 }  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// The visibility pipeline shades with the same lighting as the forward path: shadows (sun and
+// local), SSAO, IBL, forward+ light lists, bloom, auto exposure; and under fxaa and taa.
+TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
+  const SceneHandle& scene = SharedDemoScene();
+  for (AaMode aa : {AaMode::kNone, AaMode::kFxaa, AaMode::kTaa}) {
+    Settings s = Lit(true, true, aa);
+    s.ibl = true;
+    s.bloom = true;
+    s.exposure_mode = ExposureMode::kAuto;
+    s.synthetic_lights = 64;
+    s.pipeline = Pipeline::kForward;
+    // A view of their own each, so taa starts from an empty history in both.
+    const Frame forward = RenderOrDie(*scene, BackCamera(), s, 901);
+    s.pipeline = Pipeline::kVisibility;
+    const Frame vis = RenderOrDie(*scene, BackCamera(), s, 902);
+    EXPECT_EQ(vis.settings.effective.pipeline, Pipeline::kVisibility);
+    EXPECT_GT(vis.stats.shaded_pixels, 0u);
+    EXPECT_GT(vis.stats.tile_lights_max, 0u);  // the light lists were built and read
+    absl::StatusOr<double> psnr = Psnr(vis.image, forward.image);
+    ASSERT_TRUE(psnr.ok()) << psnr.status();
+    EXPECT_GE(*psnr, 40.0) << ToString(aa);
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+}  // namespace
+}  // namespace tessera

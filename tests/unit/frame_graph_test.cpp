@@ -52,11 +52,12 @@ Access InitialAccess(const FramePlan& plan, Resource r) {
 // without local lights to cull.
 std::vector<Settings> SettingsVariants() {
   std::vector<Settings> out;
-  for (uint32_t aa = 0; aa < 5; ++aa) {
+  for (uint32_t aa = 0; aa < 10; ++aa) {  // each AA mode with both pipelines
     for (uint32_t c = 0; c < 4; ++c) {
       for (uint32_t effects = 0; effects < 64; ++effects) {
         Settings s;
-        s.aa = static_cast<AaMode>(aa);
+        s.aa = static_cast<AaMode>(aa % 5);
+        s.pipeline = aa < 5 ? Pipeline::kForward : Pipeline::kVisibility;
         s.culling = static_cast<CullingMode>(c);
         s.shadows = effects & 1;
         s.ssao = effects & 2;
@@ -145,10 +146,14 @@ TEST(SelectPassesTest, OrderIsFixed) {
   for (const PlanCase& c : AllPlans()) {
     const std::vector<PassId>& passes = c.passes;
     const std::string d = Describe(passes);
-    // vis_mlaa's visibility pass is its depth pass, its shading pass its forward pass.
+    // The visibility pass is the depth pass of vis_mlaa and of the visibility pipeline, their
+    // shading passes the forward pass.
     const int prepass = std::max(IndexOf(passes, PassId::kDepthPrepass),
                                  IndexOf(passes, PassId::kVisibility));
-    const int forward = std::max(IndexOf(passes, PassId::kForward), IndexOf(passes, PassId::kVisShade));
+    const int forward = std::max({IndexOf(passes, PassId::kForward),
+                                  IndexOf(passes, PassId::kVisShade),
+                                  IndexOf(passes, PassId::kShade)});
+    EXPECT_EQ(IndexOf(passes, PassId::kShade) >= 0, ShadesVisibility(c.settings)) << d;
     const int transparent = IndexOf(passes, PassId::kTransparent);
     const int tonemap = IndexOf(passes, PassId::kTonemap);
     const int readback = IndexOf(passes, PassId::kReadback);
@@ -269,6 +274,46 @@ TEST(SelectPassesTest, AaModes) {
   EXPECT_EQ(first_use(AaMode::kTaa, PassId::kTonemap), Resource::kPostHdr);
   EXPECT_EQ(first_use(AaMode::kMsaa, PassId::kTonemap), Resource::kHdrColor);
   EXPECT_EQ(first_use(AaMode::kFxaa, PassId::kReadback), Resource::kFxaaColor);
+}
+
+TEST(SelectPassesTest, VisibilityPipeline) {
+  Settings s;
+  s.pipeline = Pipeline::kVisibility;
+  const std::vector<PassId> plain = {PassId::kVisibility, PassId::kVisClassify, PassId::kShade,
+                                     PassId::kTonemap, PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, {}), plain);
+  s.aa = AaMode::kTaa;
+  const std::vector<PassId> taa = {PassId::kVisibility, PassId::kVisClassify, PassId::kShade,
+                                   PassId::kTaa,        PassId::kTonemap,     PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, {}), taa);
+  s.aa = AaMode::kNone;
+  s.culling = CullingMode::kGpuOcclusion;
+  const std::vector<PassId> occlusion = {
+      PassId::kCull,       PassId::kVisibility,      PassId::kHizBuild,
+      PassId::kCullLate,   PassId::kVisibilityLate,  PassId::kVisClassify,
+      PassId::kShade,      PassId::kTonemap,         PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, {}), occlusion);
+  // One sample, straight into the frame's depth; the shading reads the ids, writes the colour
+  // in compute and dispatches from the classification's lists.
+  const FramePlan plan = PlanFrame(s, {});
+  auto uses = [&](PassId id, Resource r, Access a) {
+    const std::vector<ResourceUse>& u = UsesOf(plan, id);
+    return std::any_of(u.begin(), u.end(),
+                       [&](const ResourceUse& x) { return x.resource == r && x.access == a; });
+  };
+  EXPECT_TRUE(uses(PassId::kVisibility, Resource::kDepth, Access::kDepthWrite));
+  EXPECT_TRUE(uses(PassId::kVisibility, Resource::kVisId, Access::kColorWrite));
+  EXPECT_TRUE(uses(PassId::kVisClassify, Resource::kShadeLists, Access::kComputeWrite));
+  EXPECT_TRUE(uses(PassId::kShade, Resource::kShadeLists, Access::kIndirectRead));
+  EXPECT_TRUE(uses(PassId::kShade, Resource::kHdrColor, Access::kComputeWrite));
+  // msaa and vis_mlaa are not changed by the setting.
+  for (AaMode aa : {AaMode::kMsaa, AaMode::kVisMlaa}) {
+    Settings f;
+    f.aa = aa;
+    Settings v = f;
+    v.pipeline = Pipeline::kVisibility;
+    EXPECT_EQ(SelectPasses(v, {}), SelectPasses(f, {})) << ToString(aa);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

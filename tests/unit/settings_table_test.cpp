@@ -167,6 +167,7 @@ std::optional<std::string> TypedName(std::string_view row, const Settings& s) {
   if (row == "exposure_mode") return std::string(ToString(s.exposure_mode));
   if (row == "tonemapper") return std::string(ToString(s.tonemapper));
   if (row == "debug_view") return std::string(ToString(s.debug_view));
+  if (row == "pipeline") return std::string(ToString(s.pipeline));
   return std::nullopt;
 }
 
@@ -194,7 +195,7 @@ TEST(SettingsTableTest, EveryEnumValueOfEveryRowRoundTrips) {
               absl::StrCat("settings.", std::string(row.name), ": ", row.choices.size(),
                            " is out of range (", row.RangeText(), ")"));
   }
-  EXPECT_EQ(enums, 5);
+  EXPECT_EQ(enums, 6);
 }
 
 // --- command line -----------------------------------------------------------------------------

@@ -136,6 +136,10 @@ const std::vector<Field>& AllFields() {
     std::vector<Field> out;
     for (const SettingRow& row : SettingsTable()) {
       out.push_back({std::string(row.name), [&row](const Settings& a, const Settings& b) {
+                       // pipeline auto asks the renderer to choose: any choice honours it.
+                       if (row.name == "pipeline" && a.pipeline == Pipeline::kAuto &&
+                           b.pipeline != Pipeline::kAuto)
+                         return true;
                        return row.get(a) == row.get(b);
                      }});
     }
@@ -293,6 +297,8 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
     s.ssao_radius = 0.5f;
     s.ssao_strength = 2.0f;
   });
+  for (uint32_t v = 0; v < 3; ++v)
+    add("pipeline " + std::to_string(v), [v](Settings& s) { s.pipeline = static_cast<Pipeline>(v); });
   add("jpeg_quality", [](Settings& s) { s.jpeg_quality = 37; });
   add("jpeg_444", [](Settings& s) { s.jpeg_444 = true; });
   add("everything", [](Settings& s) {
@@ -325,6 +331,40 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
                                        std::to_string(caps.max_image_dimension) + "}");
     }
   }
+}
+
+TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
+  DeviceCaps gpu{8, 16384};
+  DeviceCaps cpu = gpu;
+  cpu.cpu = true;
+  absl::StatusOr<ResolvedSettings> r = ResolveSettings(Settings{}, gpu);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->effective.pipeline, Pipeline::kVisibility);
+  EXPECT_TRUE(r->notes.empty());
+  r = ResolveSettings(Settings{}, cpu);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
+  EXPECT_TRUE(r->notes.empty());
+  // Asked for explicitly, each is honoured on either device.
+  for (Pipeline p : {Pipeline::kForward, Pipeline::kVisibility}) {
+    for (const DeviceCaps& caps : {gpu, cpu}) {
+      Settings s;
+      s.pipeline = p;
+      r = ResolveSettings(s, caps);
+      ASSERT_TRUE(r.ok());
+      EXPECT_EQ(r->effective.pipeline, p);
+    }
+  }
+  // Without gl_PrimitiveID in fragment shaders there are no visibility ids: forward, noted.
+  DeviceCaps no_vis = gpu;
+  no_vis.visibility_buffer = false;
+  Settings s;
+  s.pipeline = Pipeline::kVisibility;
+  r = ResolveSettings(s, no_vis);
+  ASSERT_TRUE(r.ok());
+  EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
+  ASSERT_EQ(r->notes.size(), 1u);
+  EXPECT_EQ(r->notes[0].field, "pipeline");
 }
 
 TEST(ResolveSettingsTest, ClampsRespectTheDevice) {

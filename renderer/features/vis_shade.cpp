@@ -1,0 +1,283 @@
+// The visibility pipeline's shading (pipeline: visibility, with aa none, fxaa or taa). The
+// visibility pass (vis_mlaa.cpp, at one sample) drew the opaque and alpha-mask geometry once
+// into the frame's depth and a triangle id per pixel; then, all in compute:
+//  - vis_classify: per pixel its material (the drawable's; the sky's where no surface is); per
+//    material a count, a scan into list offsets and indirect dispatch sizes, and the list of its
+//    pixels (shaders/common/vis_classify.glsl);
+//  - shade: per material on screen one vkCmdDispatchIndirect over exactly its pixels, with its
+//    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads
+//    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id
+//    and shaded once (shaders/vis_shade.comp); then one over the sky's pixels (vis_sky.comp).
+// The sky is listed rather than written by the classification: lavapipe runs the code of
+// masked-off lanes, so writing it there cost every pixel of the frame (33 -> 20 ms for the
+// classification of DamagedHelmet at 1280x720).
+// Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
+#include "absl/strings/str_cat.h"
+#include "common/status_macros.h"
+#include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
+#include "renderer/vk/pipeline.h"
+#include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
+
+namespace tessera {
+
+namespace {
+
+// Set 2 of both passes and their pipeline layout (sets 0 and 1 are the scene's).
+class ShadeLayout {
+ public:
+  static absl::StatusOr<ShadeLayout> Create(const vk::Context& ctx, const SceneLayout& scene) {
+    ShadeLayout l;
+    l.device_ = ctx.device();
+    constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
+    const VkDescriptorSetLayoutBinding b[] = {
+        {gpu::kShadeBindingId, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute, nullptr},
+        {gpu::kShadeBindingColor, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCompute, nullptr},
+        {gpu::kVisBindingIndices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kShadeBindingEntries, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kShadeBindingPixels, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+    };
+    VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+    li.bindingCount = uint32_t(std::size(b));
+    li.pBindings = b;
+    VK_RETURN_IF_ERROR(
+        vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)),
+        "shade set layout");
+    const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout,
+                                          l.set_layout_.get()};
+    const VkPushConstantRange push{kCompute, 0, sizeof(gpu::ShadePush)};
+    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+    pli.setLayoutCount = 3;
+    pli.pSetLayouts = sets;
+    pli.pushConstantRangeCount = 1;
+    pli.pPushConstantRanges = &push;
+    VK_RETURN_IF_ERROR(
+        vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
+        "shade pipeline layout");
+    ASSIGN_OR_RETURN(l.sampler_, CreateClampSampler(ctx, false, "shade.ids"));
+    return l;
+  }
+  VkPipelineLayout pipeline_layout() const { return layout_.get(); }
+
+  // Writes this frame's set 2 and binds it with the scene's set 0.
+  void Bind(const PassContext& ctx) const {
+    const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
+    const VkDescriptorImageInfo ids{sampler_.handle(), ctx.targets->vis_id.view(),
+                                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    const VkDescriptorImageInfo color{VK_NULL_HANDLE, ctx.targets->hdr.view(),
+                                      VK_IMAGE_LAYOUT_GENERAL};
+    const VkDescriptorBufferInfo buffers[] = {
+        {ctx.scene->indices().handle(), 0, VK_WHOLE_SIZE},
+        {ctx.scene->vertices().handle(), 0, VK_WHOLE_SIZE},
+        {ctx.shade->entries, 0, VK_WHOLE_SIZE},
+        {ctx.shade->pixels, 0, VK_WHOLE_SIZE}};
+    const uint32_t buffer_bindings[] = {gpu::kVisBindingIndices, gpu::kVisBindingVertices,
+                                        gpu::kShadeBindingEntries, gpu::kShadeBindingPixels};
+    VkWriteDescriptorSet w[6];
+    for (VkWriteDescriptorSet& x : w) {
+      x = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+      x.dstSet = set;
+      x.descriptorCount = 1;
+    }
+    w[0].dstBinding = gpu::kShadeBindingId;
+    w[0].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    w[0].pImageInfo = &ids;
+    w[1].dstBinding = gpu::kShadeBindingColor;
+    w[1].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+    w[1].pImageInfo = &color;
+    for (int i = 0; i < 4; ++i) {
+      w[2 + i].dstBinding = buffer_bindings[i];
+      w[2 + i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+      w[2 + i].pBufferInfo = &buffers[i];
+    }
+    vkUpdateDescriptorSets(device_, 6, w, 0, nullptr);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1,
+                            &ctx.scene_set, 0, nullptr);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), gpu::kVisSet,
+                            1, &set, 0, nullptr);
+  }
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  vk::UniqueDescriptorSetLayout set_layout_;
+  vk::UniquePipelineLayout layout_;
+  vk::Sampler sampler_;
+};
+
+// A compute-to-compute dependency on the entries and lists between the classification's steps.
+void ComputeBarrier(VkCommandBuffer cmd) {
+  vk::CmdMemoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                       VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                       VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+}
+
+class VisClassifyPass final : public Pass {
+ public:
+  VisClassifyPass(ShadeLayout layout, vk::Pipeline pipeline)
+      : layout_(std::move(layout)), pipeline_(std::move(pipeline)) {}
+  PassId id() const override { return PassId::kVisClassify; }
+
+  void Record(PassContext& ctx) override {
+    const ShadeBuffers& sb = *ctx.shade;
+    // The scene's materials and the sky's entry.
+    const VkDeviceSize entry_bytes =
+        VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry);
+    // The counts start at zero (the graph ordered this after the last frame's reads).
+    vkCmdFillBuffer(ctx.cmd, sb.entries, 0, entry_bytes, 0);
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                         VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+    layout_.Bind(ctx);
+    const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
+    const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
+    auto step = [&](uint32_t mode, uint32_t x, uint32_t y) {
+      const gpu::ShadePush push{glm::uvec4(mode, sb.materials, 0u, 0u)};
+      vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                         sizeof(push), &push);
+      vkCmdDispatch(ctx.cmd, x, y, 1);
+    };
+    step(gpu::kClassifyCount, gx, gy);
+    ComputeBarrier(ctx.cmd);
+    step(gpu::kClassifyScan, 1, 1);
+    ComputeBarrier(ctx.cmd);
+    step(gpu::kClassifyFill, gx, gy);
+    // This pass's own copy of the entries for the statistics (the graph orders the entries
+    // before the shading's dispatches).
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                         VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COPY_BIT,
+                         VK_ACCESS_2_TRANSFER_READ_BIT);
+    const VkBufferCopy copy{0, 0, entry_bytes};
+    vkCmdCopyBuffer(ctx.cmd, sb.entries, sb.entries_readback, 1, &copy);
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+  }
+
+ private:
+  ShadeLayout layout_;
+  vk::Pipeline pipeline_;
+};
+
+class ShadePass final : public Pass {
+ public:
+  // `effects`: built with shading.glsl's shadows, SSAO and IBL (specialization constant 0).
+  ShadePass(ShadeLayout layout, vk::Pipeline plain, vk::Pipeline effects, vk::Pipeline sky)
+      : layout_(std::move(layout)),
+        plain_(std::move(plain)),
+        effects_(std::move(effects)),
+        sky_(std::move(sky)) {}
+  PassId id() const override { return PassId::kShade; }
+
+  void Record(PassContext& ctx) override {
+    const Settings& s = *ctx.settings;
+    const bool effects = s.shadows || s.ssao || s.ibl;
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                      (effects ? effects_ : plain_).handle());
+    layout_.Bind(ctx);
+    // The materials whose drawables are in the frustum; the others have no pixels.
+    for (const MaterialRect& m : ctx.vis->materials) {
+      const VkDescriptorSet material = ctx.scene->material_set(m.material);
+      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(),
+                              gpu::kMaterialSet, 1, &material, 0, nullptr);
+      const gpu::ShadePush push{glm::uvec4(m.material, 0u, 0u, 0u)};
+      vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                         sizeof(push), &push);
+      vkCmdDispatchIndirect(ctx.cmd, ctx.shade->entries,
+                            VkDeviceSize(m.material) * sizeof(gpu::GpuShadeEntry));
+      ctx.stats->material_draws++;
+    }
+    const uint32_t sky = ctx.shade->materials;
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, sky_.handle());
+    const gpu::ShadePush push{glm::uvec4(sky, 0u, 0u, 0u)};
+    vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       sizeof(push), &push);
+    vkCmdDispatchIndirect(ctx.cmd, ctx.shade->entries,
+                          VkDeviceSize(sky) * sizeof(gpu::GpuShadeEntry));
+  }
+
+ private:
+  ShadeLayout layout_;
+  vk::Pipeline plain_, effects_, sky_;
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
+                                                            const SceneLayout& scene) {
+  ASSIGN_OR_RETURN(ShadeLayout layout, ShadeLayout::Create(ctx, scene));
+  // One atomic per subgroup and material where compute shaders have ballots, else per pixel.
+  const char* shader =
+      ctx.info().subgroup_ballot ? "vis_classify.comp" : "vis_classify_atomic.comp";
+  ASSIGN_OR_RETURN(vk::Pipeline pipeline,
+                   vk::CreateComputePipeline(ctx, "vis_classify", shader, layout.pipeline_layout()));
+  return std::make_unique<VisClassifyPass>(std::move(layout), std::move(pipeline));
+}
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
+                                                      const SceneLayout& scene) {
+  ASSIGN_OR_RETURN(ShadeLayout layout, ShadeLayout::Create(ctx, scene));
+  ASSIGN_OR_RETURN(vk::Pipeline plain, vk::CreateComputePipeline(ctx, "shade", "vis_shade.comp",
+                                                                 layout.pipeline_layout(), {0u}));
+  ASSIGN_OR_RETURN(vk::Pipeline effects,
+                   vk::CreateComputePipeline(ctx, "shade.effects", "vis_shade.comp",
+                                             layout.pipeline_layout(), {1u}));
+  ASSIGN_OR_RETURN(vk::Pipeline sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp",
+                                                               layout.pipeline_layout()));
+  return std::make_unique<ShadePass>(std::move(layout), std::move(plain), std::move(effects),
+                                     std::move(sky));
+}
+
+void SetupVisibilityShading(GraphBuilder& b) {
+  if (!ShadesVisibility(b.settings())) return;
+  using R = Resource;
+  using A = Access;
+  // The entries and lists are rewritten whole each frame.
+  b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
+  b.Pass(PassId::kVisClassify)
+      .Use(R::kVisId, A::kComputeRead)
+      .Use(R::kShadeLists, A::kComputeWrite);
+  b.Pass(PassId::kShade)
+      .Use(R::kVisId, A::kComputeRead)
+      .Use(R::kShadeLists, A::kIndirectRead)
+      .Use(R::kHdrColor, A::kComputeWrite)
+      .UseIfPresent(R::kAo, A::kComputeRead)
+      .UseIfPresent(R::kShadowAtlas, A::kComputeRead)
+      .UseIfPresent(R::kLightLists, A::kComputeRead);
+}
+
+
+absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
+  if (!ShadesVisibility(f.s)) return absl::OkStatus();
+  const uint32_t materials = f.gs.material_count();
+  const uint64_t pixels = uint64_t(f.s.width) * f.s.height;
+  if (materials + 1 > shade_material_capacity) {  // and the sky's entry
+    const uint32_t cap = std::max(materials + 1, shade_material_capacity * 2);
+    const VkDeviceSize bytes = VkDeviceSize(cap) * sizeof(gpu::GpuShadeEntry);
+    RETURN_IF_ERROR(MakeBuffer(*ctx, bytes,
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                   VK_BUFFER_USAGE_INDIRECT_BUFFER_BIT |
+                                   VK_BUFFER_USAGE_TRANSFER_DST_BIT |
+                                   VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                               vk::MemoryUsage::kDeviceLocal, "shade_entries", &shade_entries));
+    RETURN_IF_ERROR(MakeBuffer(*ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                               vk::MemoryUsage::kReadback, "shade_entries_readback",
+                               &shade_entries_readback));
+    shade_material_capacity = cap;
+  }
+  if (pixels > shade_pixel_capacity) {
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(pixels) * sizeof(uint32_t),
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kDeviceLocal,
+                               "shade_pixels", &shade_pixels));
+    shade_pixel_capacity = pixels;
+  }
+  f.shade.entries = shade_entries.handle();
+  f.shade.pixels = shade_pixels.handle();
+  f.shade.entries_readback = shade_entries_readback.handle();
+  f.shade.materials = materials;
+  return absl::OkStatus();
+}
+
+}  // namespace tessera

@@ -1,0 +1,101 @@
+// The visibility pipeline's classification (vis_classify.comp, and vis_classify_atomic.comp for
+// devices without subgroup ballots): which material each pixel shows, and per material the list
+// of its pixels, so that the shading pass runs one indirect dispatch per material over exactly
+// its pixels (every invocation shades a pixel; lavapipe runs masked-off lanes at full cost, so a
+// dispatch over tiles would shade tiles' other pixels too). Three modes (push params.x):
+//  - kClassifyCount: count each material's pixels; write the sky where no surface is;
+//  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size;
+//  - kClassifyFill: append each pixel to its material's list.
+// The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by
+// peeling: the lanes of the first lane's material take their ranks from a ballot).
+#include "common/scene.glsl"
+#include "common/vis.glsl"
+
+layout(local_size_x = kClassifyTile, local_size_y = kClassifyTile) in;
+
+layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+layout(set = kVisSet, binding = kShadeBindingId) uniform usampler2D u_vis_id;
+layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
+  GpuShadeEntry entries[];
+};
+layout(set = kVisSet, binding = kShadeBindingPixels, std430) writeonly buffer PixelBlock {
+  uint pixels[];
+};
+
+const uint kNoMaterial = 0xffffffffu;
+
+// Adds `n` = 1 for this invocation to counter `word` of material m's entry (0: the pixel
+// count, 1: the fill cursor) and returns the value before this invocation's add.
+uint Append(uint m, bool cursor) {
+#ifdef VIS_CLASSIFY_SUBGROUPS
+  uint slot = 0u;
+  bool done = false;
+  while (!done) {
+    uint first = subgroupBroadcastFirst(m);
+    if (m == first) {
+      uvec4 same = subgroupBallot(true);
+      uint n = subgroupBallotBitCount(same);
+      uint base = 0u;
+      if (subgroupElect()) {
+        base = cursor ? atomicAdd(entries[m].list.y, n) : atomicAdd(entries[m].dispatch.w, n);
+      }
+      slot = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(same);
+      done = true;
+    }
+  }
+  return slot;
+#else
+  return cursor ? atomicAdd(entries[m].list.y, 1u) : atomicAdd(entries[m].dispatch.w, 1u);
+#endif
+}
+
+shared uint s_sums[kClassifyTile * kClassifyTile];
+
+// One workgroup: each invocation sums a run of materials, the workgroup scans the 64 sums, and
+// each invocation writes its run's offsets and dispatch sizes.
+void Scan() {
+  const uint lanes = kClassifyTile * kClassifyTile;
+  uint materials = push.params.y + 1u;  // and the sky
+  uint run = (materials + lanes - 1u) / lanes;
+  uint i = gl_LocalInvocationIndex;
+  uint begin = min(i * run, materials), end = min(begin + run, materials);
+  uint sum = 0u;
+  for (uint m = begin; m < end; ++m) sum += entries[m].dispatch.w;
+  s_sums[i] = sum;
+  barrier();
+  for (uint step = 1u; step < lanes; step *= 2u) {  // inclusive Hillis-Steele scan
+    uint add = i >= step ? s_sums[i - step] : 0u;
+    barrier();
+    s_sums[i] += add;
+    barrier();
+  }
+  uint offset = s_sums[i] - sum;
+  for (uint m = begin; m < end; ++m) {
+    uint count = entries[m].dispatch.w;
+    uint groups = (count + kShadeGroupSize - 1u) / kShadeGroupSize;
+    uint width = min(groups, kShadeDispatchWidth);
+    entries[m].dispatch.xyz = uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
+    entries[m].list = uvec4(offset, 0u, 0u, 0u);
+    offset += count;
+  }
+}
+
+void main() {
+  if (push.params.x == kClassifyScan) {
+    Scan();
+    return;
+  }
+  ivec2 p = ivec2(gl_GlobalInvocationID.xy);
+  bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
+  uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
+  uint m = !inside ? kNoMaterial
+           : id == 0u ? push.params.y  // the sky
+                      : drawables[VisDrawable(id, frame.aa.x)].ids.y;
+  if (m == kNoMaterial) return;
+  if (push.params.x == kClassifyCount) {
+    Append(m, false);
+  } else {
+    uint slot = Append(m, true);
+    pixels[entries[m].list.x + slot] = uint(p.x) | (uint(p.y) << 16);
+  }
+}

@@ -1,0 +1,77 @@
+// A visibility id's surface point, rebuilt from the scene's buffers: the camera ray through a
+// point of the frame meets the triangle's plane at barycentrics that give every attribute, and
+// the rays through the next pixel right and down give the uv gradients for texture filtering
+// (there are no neighbouring fragments of the same triangle to difference). Shared by
+// vis_mlaa's shading (vis_shade.frag) and the visibility pipeline's (vis_shade.comp). Needs
+// scene.glsl, textures.glsl and vis.glsl.
+#ifndef TESSERA_VIS_SURFACE_GLSL
+#define TESSERA_VIS_SURFACE_GLSL
+
+// World-space direction of the camera ray through a point in framebuffer pixels.
+vec3 RayDirection(vec2 pixel) {
+  vec2 ndc = pixel / vec2(frame.counts.zw) * 2.0 - 1.0;
+  vec4 p = frame.inv_view_proj * vec4(ndc, 1.0, 1.0);  // on the near plane (reverse Z)
+  return p.xyz / p.w - frame.camera_position.xyz;
+}
+
+// Barycentrics (b0, b1, b2) of where the ray from the camera along `dir` meets the plane of the
+// triangle p0, p0 + e1, p0 + e2 (Moller-Trumbore: triple products, well conditioned even for
+// thin triangles, where the normal equations lose the digits the uv gradients need).
+vec3 Barycentrics(vec3 p0, vec3 e1, vec3 e2, vec3 dir) {
+  vec3 t = frame.camera_position.xyz - p0;
+  vec3 pv = cross(dir, e2);
+  float det = dot(e1, pv);
+  float inv = abs(det) > 1e-30 ? 1.0 / det : 0.0;
+  float b1 = dot(t, pv) * inv;
+  float b2 = dot(dir, cross(t, e1)) * inv;
+  return vec3(1.0 - b1 - b2, b1, b2);
+}
+
+struct Triangle {
+  uint drawable;
+  uvec3 v;
+  vec3 p0, e1, e2;  // world space
+};
+
+Triangle LoadTriangle(uint id) {
+  Triangle t;
+  uint tb = frame.aa.x;
+  t.drawable = VisDrawable(id, tb);
+  mat4 world = drawables[t.drawable].world;
+  t.v = TriangleVertices(drawables[t.drawable].ids, VisTriangle(id, tb));
+  t.p0 = (world * vec4(VertexPosition(t.v.x), 1.0)).xyz;
+  t.e1 = (world * vec4(VertexPosition(t.v.y), 1.0)).xyz - t.p0;
+  t.e2 = (world * vec4(VertexPosition(t.v.z), 1.0)).xyz - t.p0;
+  return t;
+}
+
+// The surface of `tri` seen through `pixel` (framebuffer pixels), `b` its barycentrics there.
+SurfaceInput VisSurface(Triangle tri, vec3 b, vec2 pixel) {
+  mat4 world = drawables[tri.drawable].world;
+  vec3 bx = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel + vec2(1.0, 0.0)));
+  vec3 by = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel + vec2(0.0, 1.0)));
+  uvec3 v = tri.v;
+  vec4 uv_a = VertexUvs(v.x), uv_b = VertexUvs(v.y), uv_c = VertexUvs(v.z);
+  // Gradients from the ray differentials; the attributes from the barycentrics clamped to the
+  // triangle (a point outside it, e.g. vis_mlaa's mean sample position when no triangle of the
+  // surface holds it, must not extrapolate across a uv seam into another part of an atlas).
+  vec4 uv_dx = (bx.x - b.x) * uv_a + (bx.y - b.y) * uv_b + (bx.z - b.z) * uv_c;
+  vec4 uv_dy = (by.x - b.x) * uv_a + (by.y - b.y) * uv_b + (by.z - b.z) * uv_c;
+  b = max(b, vec3(0.0));
+  b /= max(b.x + b.y + b.z, 1e-20);
+  vec4 uv = b.x * uv_a + b.y * uv_b + b.z * uv_c;
+  vec3 n = b.x * VertexNormal(v.x) + b.y * VertexNormal(v.y) + b.z * VertexNormal(v.z);
+  vec4 t = b.x * VertexTangent(v.x) + b.y * VertexTangent(v.y) + b.z * VertexTangent(v.z);
+
+  SurfaceInput s;
+  s.world = tri.p0 + b.y * tri.e1 + b.z * tri.e2;
+  s.normal = mat3(drawables[tri.drawable].normal_matrix) * n;
+  s.tangent = vec4(mat3(world) * t.xyz, VertexTangent(v.x).w);
+  s.uv0 = uv.xy;
+  s.uv1 = uv.zw;
+  s.grads = UvGradients(uv_dx, uv_dy);
+  // glTF front faces wind counter-clockwise as seen from the camera.
+  s.front_facing = dot(cross(tri.e1, tri.e2), frame.camera_position.xyz - tri.p0) > 0.0;
+  return s;
+}
+#endif

@@ -1,0 +1,8 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+// The visibility pipeline's classification, one atomic per subgroup and material
+// (common/vis_classify.glsl).
+#define VIS_CLASSIFY_SUBGROUPS
+#include "common/vis_classify.glsl"
