@@ -109,9 +109,6 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
     ASSIGN_OR_RETURN(auto* cov, get(R::kVisCoverage, kIdFormat, kColor | kSampled, "vis_coverage",
                                     width, height));
     t.vis_coverage = cov->image;
-    ASSIGN_OR_RETURN(auto* md, get(R::kMaterialDepth, kMaterialDepthFormat, kDepth,
-                                   "material_depth", width, height));
-    t.material_depth = md->image;
   }
   if (ShadesVisibility(s)) {  // one sample: the ids straight from the visibility pass
     ASSIGN_OR_RETURN(auto* id,

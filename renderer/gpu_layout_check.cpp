@@ -78,7 +78,6 @@ static_assert(sizeof(IblEnvPush) == 96 && offsetof(IblEnvPush, size) == 80);
 static_assert(sizeof(IblIrradiancePush) == 16);
 static_assert(sizeof(IblSpecularPush) == 32);
 static_assert(sizeof(ShadowPush) == 64);
-static_assert(sizeof(VisShadePush) == 4);
 static_assert(sizeof(ShadePush) == 16);
 static_assert(sizeof(GpuShadeEntry) == 32);
 

@@ -90,7 +90,6 @@ absl::Status Renderer::Impl::InitPasses() {
   RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibility)));
   RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate)));
   RETURN_IF_ERROR(add(CreateVisResolvePass(*ctx, scene_layout)));
-  RETURN_IF_ERROR(add(CreateVisShadePass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateVisClassifyPass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateGeometricAaPass(*ctx)));

@@ -7,21 +7,14 @@
 // samples wins (ties: the one holding the lowest sample). Writes, per pixel:
 //  - out_id: the id of the winning sample nearest the mean position of the winning samples
 //    (the triangle the shading pass intersects);
-//  - out_coverage: the winning samples' mask and their mean position (PackCoverage);
-//  - depth: the winning surface's material (kMaterialDepthScale * (material + 1); 0: the sky),
-//    which the shading pass tests EQUAL against, one draw per material.
+//  - out_coverage: the winning samples' mask and their mean position (PackCoverage).
+// The shading (vis_classify.comp, vis_shade_mlaa.comp) then lists and shades each pixel's id.
 #include "common/scene.glsl"
 #include "common/vis.glsl"
 
 layout(set = kVisSet, binding = kVisBindingSamples) uniform usampler2DMS u_vis;
 layout(location = 0) out uint out_id;
 layout(location = 1) out uint out_coverage;
-
-float MaterialDepth(uint id) {
-  if (id == 0u) return 0.0;
-  uint material = drawables[VisDrawable(id, frame.aa.x)].ids.y;
-  return float(material + 1u) * kMaterialDepthScale;
-}
 
 bool SameSurface(uint a, uint b) {
   if (a == b) return true;
@@ -99,7 +92,6 @@ void Group(uint n, uint ids[8]) {
   }
   out_id = ids[nearest];
   out_coverage = PackCoverage(mask, mean);
-  gl_FragDepth = MaterialDepth(ids[nearest]);
 }
 
 void main() {
@@ -114,7 +106,6 @@ void main() {
   // One triangle covers the pixel (or none): shade it at the pixel centre.
   out_id = ids[0];
   out_coverage = PackCoverage((1u << n) - 1u, vec2(0.5));
-  gl_FragDepth = MaterialDepth(ids[0]);
   // (On llvmpipe the grouping still costs every 8-pixel block holding an edge pixel; written as a
   // zero-or-one-trip loop it measured the same.)
   if (!uniform_id) Group(n, ids);

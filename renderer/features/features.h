@@ -18,12 +18,13 @@ void SetupOcclusion(GraphBuilder& b);
 // pass, which is its depth pass). `late`: the second gpu_occlusion phase.
 void SetupDepth(GraphBuilder& b);
 void AddDepthPass(GraphBuilder& b, bool late);
-// vis_mlaa.cpp: the multisampled visibility ids (phase 0 or the late phase) and the shading:
-// resolve, shade per material, geometric AA.
+// vis_mlaa.cpp: the visibility ids (phase 0 or the late phase; multisampled for vis_mlaa), and
+// vis_mlaa's resolve (its shading is SetupVisibilityShading's) and geometric AA.
 void AddVisibilityPass(GraphBuilder& b, bool late);
 void SetupVisMlaa(GraphBuilder& b);
-// vis_shade.cpp: the visibility pipeline's shading: each pixel's material (and the sky), then
-// one compute dispatch per material over its pixels.
+void SetupGeometricAa(GraphBuilder& b);
+// vis_shade.cpp: the shading of the visibility pipeline and of vis_mlaa: each pixel's material
+// (or the sky), then one compute dispatch per material over its pixels.
 void SetupVisibilityShading(GraphBuilder& b);
 // forward_plus.cpp: per-tile light lists from the depth.
 void SetupLightCulling(GraphBuilder& b);

@@ -26,7 +26,6 @@ inline constexpr VkFormat kHdrFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 inline constexpr VkFormat kLdrFormat = VK_FORMAT_R8G8B8A8_SRGB;
 inline constexpr VkFormat kHizFormat = VK_FORMAT_R32_SFLOAT;
 inline constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
-inline constexpr VkFormat kMaterialDepthFormat = VK_FORMAT_D32_SFLOAT;
 inline constexpr VkFormat kShadowFormat = VK_FORMAT_D16_UNORM;  // the shadow atlas (16-bit)
 inline constexpr VkFormat kAoFormat = VK_FORMAT_R16G16_SFLOAT;  // ssao: visibility + depth
 inline constexpr VkFormat kExposureFormat = VK_FORMAT_R32_SFLOAT;  // adapted log2 luma, 1x1
@@ -47,7 +46,7 @@ struct FrameTargets {
   VkBuffer readback = VK_NULL_HANDLE;  // width * height * 4 bytes, host visible
   uint32_t samples = 1;                // of the multisampled targets (msaa, vis_mlaa), else 1
   vk::ImageRef depth_ms, hdr_ms, vis_ms;
-  vk::ImageRef vis_id, vis_coverage, material_depth;
+  vk::ImageRef vis_id, vis_coverage;
   vk::ImageRef post_hdr;
   vk::ImageRef fxaa;
   vk::ImageRef ao, ao_temp;  // ssao's size
@@ -68,7 +67,6 @@ struct FrameTargets {
       case Resource::kVisMs: return vis_ms;
       case Resource::kVisId: return vis_id;
       case Resource::kVisCoverage: return vis_coverage;
-      case Resource::kMaterialDepth: return material_depth;
       case Resource::kPostHdr: return post_hdr;
       case Resource::kFxaaColor: return fxaa;
       case Resource::kAo: return ao;
@@ -150,17 +148,13 @@ struct ShadeBuffers {
 
 struct PassStats {
   uint32_t indirect_draws = 0;  // vkCmdDrawIndexedIndirectCount calls recorded
-  uint32_t material_draws = 0;  // vis_mlaa: full-screen material draws (one per material seen)
+  uint32_t material_draws = 0;  // the visibility shading's dispatches (one per material in view)
 };
 
-// vis_mlaa's shading: per material on screen, the pixel rectangle its drawables can cover
-// (from their projected bounds); the shading pass draws one rectangle per material.
-struct MaterialRect {
-  uint32_t material = 0;
-  VkRect2D rect{};
-};
+// The visibility shading (vis_mlaa and the visibility pipeline): the materials of the opaque and
+// alpha-mask drawables in the frustum, ascending (the shading dispatches once for each).
 struct VisFrame {
-  std::vector<MaterialRect> materials;
+  std::vector<uint32_t> materials;
   uint32_t triangle_bits = 20;  // low bits of an id: triangle; high bits: drawable + 1
 };
 
@@ -299,10 +293,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisibilityPass(const vk::Context& ct
                                                            const SceneLayout& layout, PassId id);
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ctx,
                                                            const SceneLayout& layout);
-absl::StatusOr<std::unique_ptr<Pass>> CreateVisShadePass(const vk::Context& ctx,
-                                                         const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx);
-// The visibility pipeline: kVisClassify and kShade (features/vis_shade.cpp).
+// The visibility shading: kVisClassify and kShade (features/vis_shade.cpp).
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
                                                             const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,

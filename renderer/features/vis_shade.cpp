@@ -1,13 +1,16 @@
-// The visibility pipeline's shading (pipeline: visibility, with aa none, fxaa or taa). The
-// visibility pass (vis_mlaa.cpp, at one sample) drew the opaque and alpha-mask geometry once
-// into the frame's depth and a triangle id per pixel; then, all in compute:
+// The visibility shading of the visibility pipeline (pipeline: visibility, with aa none, fxaa or
+// taa) and of vis_mlaa. The visibility pass (vis_mlaa.cpp) drew the opaque and alpha-mask
+// geometry once into the frame's depth and a triangle id per pixel (vis_mlaa: per sample, then
+// resolved to the id of the surface each pixel shows, its coverage and mean sample position);
+// then, all in compute:
 //  - vis_classify: per pixel its material (the drawable's; the sky's where no surface is); per
 //    material a count, a scan into list offsets and indirect dispatch sizes, and the list of its
 //    pixels (shaders/common/vis_classify.glsl);
 //  - shade: per material on screen one vkCmdDispatchIndirect over exactly its pixels, with its
 //    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads
 //    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id
-//    and shaded once (shaders/vis_shade.comp); then one over the sky's pixels (vis_sky.comp).
+//    and shaded once (shaders/vis_shade.comp; vis_mlaa: vis_shade_mlaa.comp, at the surface's
+//    mean sample position); then one over the sky's pixels (vis_sky.comp).
 // The sky is listed rather than written by the classification: lavapipe runs the code of
 // masked-off lanes, so writing it there cost every pixel of the frame (33 -> 20 ms for the
 // classification of DamagedHelmet at 1280x720).
@@ -25,12 +28,16 @@ namespace tessera {
 
 namespace {
 
-// Set 2 of both passes and their pipeline layout (sets 0 and 1 are the scene's).
+// Set 2 of these passes and their pipeline layout (sets 0 and 1 are the scene's); with
+// `vis_mlaa` also the resolve's coverage and the visibility samples (a separate layout: lavapipe
+// reads every descriptor of a bound set, so none may be left unwritten).
 class ShadeLayout {
  public:
-  static absl::StatusOr<ShadeLayout> Create(const vk::Context& ctx, const SceneLayout& scene) {
+  static absl::StatusOr<ShadeLayout> Create(const vk::Context& ctx, const SceneLayout& scene,
+                                            bool vis_mlaa) {
     ShadeLayout l;
     l.device_ = ctx.device();
+    l.vis_mlaa_ = vis_mlaa;
     constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
     const VkDescriptorSetLayoutBinding b[] = {
         {gpu::kShadeBindingId, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute, nullptr},
@@ -39,9 +46,13 @@ class ShadeLayout {
         {gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
         {gpu::kShadeBindingEntries, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
         {gpu::kShadeBindingPixels, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kShadeBindingCoverage, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute,
+         nullptr},
+        {gpu::kShadeBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute,
+         nullptr},
     };
     VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    li.bindingCount = uint32_t(std::size(b));
+    li.bindingCount = vis_mlaa ? 8 : 6;
     li.pBindings = b;
     VK_RETURN_IF_ERROR(
         vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)),
@@ -76,7 +87,14 @@ class ShadeLayout {
         {ctx.shade->pixels, 0, VK_WHOLE_SIZE}};
     const uint32_t buffer_bindings[] = {gpu::kVisBindingIndices, gpu::kVisBindingVertices,
                                         gpu::kShadeBindingEntries, gpu::kShadeBindingPixels};
-    VkWriteDescriptorSet w[6];
+    const bool vis_mlaa = vis_mlaa_;  // its targets exist
+    const VkDescriptorImageInfo coverage{
+        sampler_.handle(), vis_mlaa ? ctx.targets->vis_coverage.view() : VK_NULL_HANDLE,
+        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    const VkDescriptorImageInfo samples{
+        sampler_.handle(), vis_mlaa ? ctx.targets->vis_ms.view() : VK_NULL_HANDLE,
+        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    VkWriteDescriptorSet w[8];
     for (VkWriteDescriptorSet& x : w) {
       x = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
       x.dstSet = set;
@@ -93,7 +111,12 @@ class ShadeLayout {
       w[2 + i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
       w[2 + i].pBufferInfo = &buffers[i];
     }
-    vkUpdateDescriptorSets(device_, 6, w, 0, nullptr);
+    w[6].dstBinding = gpu::kShadeBindingCoverage;
+    w[6].pImageInfo = &coverage;
+    w[7].dstBinding = gpu::kShadeBindingSamples;
+    w[7].pImageInfo = &samples;
+    for (int i = 6; i < 8; ++i) w[i].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    vkUpdateDescriptorSets(device_, vis_mlaa ? 8 : 6, w, 0, nullptr);
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1,
                             &ctx.scene_set, 0, nullptr);
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), gpu::kVisSet,
@@ -102,6 +125,7 @@ class ShadeLayout {
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
+  bool vis_mlaa_ = false;
   vk::UniqueDescriptorSetLayout set_layout_;
   vk::UniquePipelineLayout layout_;
   vk::Sampler sampler_;
@@ -161,53 +185,60 @@ class VisClassifyPass final : public Pass {
   vk::Pipeline pipeline_;
 };
 
+// The shading pipelines: one sample or vis_mlaa's, each with and without shading.glsl's
+// shadows, SSAO and IBL (specialization constant 0).
+struct ShadePipelines {
+  vk::Pipeline plain, effects, sky, mlaa_plain, mlaa_effects, mlaa_sky;
+};
+
 class ShadePass final : public Pass {
  public:
-  // `effects`: built with shading.glsl's shadows, SSAO and IBL (specialization constant 0).
-  ShadePass(ShadeLayout layout, vk::Pipeline plain, vk::Pipeline effects, vk::Pipeline sky)
-      : layout_(std::move(layout)),
-        plain_(std::move(plain)),
-        effects_(std::move(effects)),
-        sky_(std::move(sky)) {}
+  ShadePass(ShadeLayout one, ShadeLayout mlaa, ShadePipelines pipelines)
+      : one_(std::move(one)), mlaa_(std::move(mlaa)), pipelines_(std::move(pipelines)) {}
   PassId id() const override { return PassId::kShade; }
 
   void Record(PassContext& ctx) override {
     const Settings& s = *ctx.settings;
     const bool effects = s.shadows || s.ssao || s.ibl;
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                      (effects ? effects_ : plain_).handle());
-    layout_.Bind(ctx);
+    const ShadePipelines& p = pipelines_;
+    const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
+    const vk::Pipeline& pipeline = vis_mlaa ? (effects ? p.mlaa_effects : p.mlaa_plain)
+                                            : (effects ? p.effects : p.plain);
+    const ShadeLayout& layout = vis_mlaa ? mlaa_ : one_;
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
+    layout.Bind(ctx);
     // The materials whose drawables are in the frustum; the others have no pixels.
-    for (const MaterialRect& m : ctx.vis->materials) {
-      const VkDescriptorSet material = ctx.scene->material_set(m.material);
-      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(),
+    for (const uint32_t m : ctx.vis->materials) {
+      const VkDescriptorSet material = ctx.scene->material_set(m);
+      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout.pipeline_layout(),
                               gpu::kMaterialSet, 1, &material, 0, nullptr);
-      const gpu::ShadePush push{glm::uvec4(m.material, 0u, 0u, 0u)};
-      vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+      const gpu::ShadePush push{glm::uvec4(m, 0u, 0u, 0u)};
+      vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(push), &push);
       vkCmdDispatchIndirect(ctx.cmd, ctx.shade->entries,
-                            VkDeviceSize(m.material) * sizeof(gpu::GpuShadeEntry));
+                            VkDeviceSize(m) * sizeof(gpu::GpuShadeEntry));
       ctx.stats->material_draws++;
     }
     const uint32_t sky = ctx.shade->materials;
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, sky_.handle());
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                      (vis_mlaa ? p.mlaa_sky : p.sky).handle());
     const gpu::ShadePush push{glm::uvec4(sky, 0u, 0u, 0u)};
-    vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+    vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
     vkCmdDispatchIndirect(ctx.cmd, ctx.shade->entries,
                           VkDeviceSize(sky) * sizeof(gpu::GpuShadeEntry));
   }
 
  private:
-  ShadeLayout layout_;
-  vk::Pipeline plain_, effects_, sky_;
+  ShadeLayout one_, mlaa_;  // one sample, vis_mlaa
+  ShadePipelines pipelines_;
 };
 
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
                                                             const SceneLayout& scene) {
-  ASSIGN_OR_RETURN(ShadeLayout layout, ShadeLayout::Create(ctx, scene));
+  ASSIGN_OR_RETURN(ShadeLayout layout, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/false));
   // One atomic per subgroup and material where compute shaders have ballots, else per pixel.
   const char* shader =
       ctx.info().subgroup_ballot ? "vis_classify.comp" : "vis_classify_atomic.comp";
@@ -218,20 +249,26 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& c
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                                       const SceneLayout& scene) {
-  ASSIGN_OR_RETURN(ShadeLayout layout, ShadeLayout::Create(ctx, scene));
-  ASSIGN_OR_RETURN(vk::Pipeline plain, vk::CreateComputePipeline(ctx, "shade", "vis_shade.comp",
-                                                                 layout.pipeline_layout(), {0u}));
-  ASSIGN_OR_RETURN(vk::Pipeline effects,
-                   vk::CreateComputePipeline(ctx, "shade.effects", "vis_shade.comp",
-                                             layout.pipeline_layout(), {1u}));
-  ASSIGN_OR_RETURN(vk::Pipeline sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp",
-                                                               layout.pipeline_layout()));
-  return std::make_unique<ShadePass>(std::move(layout), std::move(plain), std::move(effects),
-                                     std::move(sky));
+  ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/false));
+  ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/true));
+  const VkPipelineLayout pl = one.pipeline_layout(), ml = mlaa.pipeline_layout();
+  ShadePipelines p;
+  ASSIGN_OR_RETURN(p.plain, vk::CreateComputePipeline(ctx, "shade", "vis_shade.comp", pl, {0u}));
+  ASSIGN_OR_RETURN(p.effects,
+                   vk::CreateComputePipeline(ctx, "shade.effects", "vis_shade.comp", pl, {1u}));
+  ASSIGN_OR_RETURN(p.mlaa_plain, vk::CreateComputePipeline(ctx, "shade.vis_mlaa",
+                                                           "vis_shade_mlaa.comp", ml, {0u}));
+  ASSIGN_OR_RETURN(p.mlaa_effects, vk::CreateComputePipeline(ctx, "shade.vis_mlaa.effects",
+                                                             "vis_shade_mlaa.comp", ml, {1u}));
+  ASSIGN_OR_RETURN(p.sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp", pl));
+  ASSIGN_OR_RETURN(p.mlaa_sky,
+                   vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky.comp", ml));
+  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(p));
 }
 
 void SetupVisibilityShading(GraphBuilder& b) {
-  if (!ShadesVisibility(b.settings())) return;
+  const bool vis_mlaa = b.settings().aa == AaMode::kVisMlaa;
+  if (!vis_mlaa && !ShadesVisibility(b.settings())) return;
   using R = Resource;
   using A = Access;
   // The entries and lists are rewritten whole each frame.
@@ -246,11 +283,12 @@ void SetupVisibilityShading(GraphBuilder& b) {
       .UseIfPresent(R::kAo, A::kComputeRead)
       .UseIfPresent(R::kShadowAtlas, A::kComputeRead)
       .UseIfPresent(R::kLightLists, A::kComputeRead);
+  if (vis_mlaa) b.Use(R::kVisCoverage, A::kComputeRead).Use(R::kVisMs, A::kComputeRead);
 }
 
 
 absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
-  if (!ShadesVisibility(f.s)) return absl::OkStatus();
+  if (!ShadesVisibility(f.s) && f.s.aa != AaMode::kVisMlaa) return absl::OkStatus();
   const uint32_t materials = f.gs.material_count();
   const uint64_t pixels = uint64_t(f.s.width) * f.s.height;
   if (materials + 1 > shade_material_capacity) {  // and the sky's entry

@@ -40,8 +40,6 @@ std::string_view PassName(PassId id) {
       return "visibility_late";
     case PassId::kVisResolve:
       return "vis_resolve";
-    case PassId::kVisShade:
-      return "vis_shade";
     case PassId::kGeometricAa:
       return "geometric_aa";
     case PassId::kTaa:

@@ -24,9 +24,8 @@ enum class Resource : uint8_t {
   kDepthMs,        // msaa / vis_mlaa: multisampled depth
   kHdrMs,          // msaa: multisampled colour
   kVisMs,          // vis_mlaa: multisampled visibility ids (drawable | triangle per sample)
-  kVisId,          // vis_mlaa: per pixel the id of the triangle to shade
+  kVisId,          // vis_mlaa, visibility pipeline: per pixel the id of the triangle to shade
   kVisCoverage,    // vis_mlaa: per pixel the coverage mask and mean position of its surface
-  kMaterialDepth,  // vis_mlaa: per pixel its surface's material as a depth value
   kPostHdr,        // vis_mlaa (geometric AA) and taa output, tonemapped
   kFxaaColor,      // fxaa output, read back
   kAo,             // ssao: visibility (r) and view depth (g), half (or full) resolution
@@ -101,9 +100,8 @@ enum class PassId : uint8_t {
   kShadows,       // shadows: the atlas faces whose view changed (the atlas is not a frame target)
   kSsao,          // ssao: obscurance from the depth, then a bilateral blur (two directions)
   kVisResolve,    // vis_mlaa: group each pixel's samples by surface, pick the one to shade
-  kVisShade,      // vis_mlaa: shade each pixel's surface, one draw per material
-  kVisClassify,   // visibility pipeline: each pixel's material, the sky, per-material lists
-  kShade,         // visibility pipeline: each listed pixel shaded once (compute, per material)
+  kVisClassify,   // visibility shading: each pixel's material (or the sky), per-material lists
+  kShade,         // visibility shading: each listed pixel shaded once (compute, per material)
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
   kGeometricAa,   // vis_mlaa: blend partly covered pixels with the neighbours the mask points to
   kTransparent,   // blended materials, back to front, over the opaque result

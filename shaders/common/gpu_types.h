@@ -128,11 +128,8 @@ TS_CONST uint kMaterialTextureSlots = 5;
 TS_CONST uint kVisDefaultTriangleBits = 20;
 TS_CONST uint kVisSet = 2;              // the vis passes' own descriptor set
 TS_CONST uint kVisBindingSamples = 0;   // resolve: usampler2DMS, the visibility ids
-TS_CONST uint kVisBindingId = 0;        // shade: usampler2D, the id to shade per pixel
-TS_CONST uint kVisBindingCoverage = 1;  // shade: usampler2D, mask + mean position per pixel
-TS_CONST uint kVisBindingIndices = 2;   // both: buffer uint[] the scene's index buffer
-TS_CONST uint kVisBindingVertices = 3;  // both: buffer float[] the scene's vertex buffer
-TS_CONST uint kVisBindingShadeSamples = 4;  // shade: usampler2DMS, the visibility ids
+TS_CONST uint kVisBindingIndices = 2;   // resolve, shade: buffer uint[] the scene's index buffer
+TS_CONST uint kVisBindingVertices = 3;  // resolve, shade: buffer float[] the scene's vertex buffer
 TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
 // ---- the visibility pipeline (vis_classify.comp, vis_shade.comp, vis_sky.comp;
 // features/vis_shade.cpp) ------------------------------------------------------------------------
@@ -143,6 +140,8 @@ TS_CONST uint kShadeBindingId = 0;       // usampler2D: the visibility id per pi
 TS_CONST uint kShadeBindingColor = 1;    // image2D rgba16f: the HDR colour (written)
 TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 1] (+1: the sky)
 TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
+TS_CONST uint kShadeBindingCoverage = 6;  // vis_mlaa: usampler2D, the resolve's coverage word
+TS_CONST uint kShadeBindingSamples = 7;   // vis_mlaa: usampler2DMS, the visibility samples
 TS_CONST uint kClassifyTile = 8;         // vis_classify: 8x8 pixels per workgroup
 TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // A material's dispatch is at most this many workgroups wide (more rows above: the indirect
@@ -153,9 +152,6 @@ TS_CONST uint kClassifyCount = 0;  // count each material's pixels; write the sk
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
 
-// A material's surfaces are marked in the material-depth target by this depth (material + 1
-// times the scale, exact in D32); 0 marks the sky.
-TS_CONST float kMaterialDepthScale = 1.0f / 16777216.0f;
 
 // ---- enums (values match the C++ enums in renderer/settings.h and scene/cpu_scene.h) ---------
 TS_CONST uint kAlphaOpaque = 0;
@@ -375,8 +371,6 @@ struct GpuShadeEntry {
 // vis_classify.comp: x mode (kClassify*), y materials (the sky's entry is the next);
 // vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry.
 #define TS_PUSH_SHADE uvec4 params;
-// vis_shade.vert: the material's depth (EQUAL-tested against the material depth target).
-#define TS_PUSH_VIS_SHADE float depth;
 
 #ifdef __cplusplus
 struct TonemapPush {
@@ -420,9 +414,6 @@ struct IblSpecularPush {
 };
 struct ShadowPush {
   TS_PUSH_SHADOW
-};
-struct VisShadePush {
-  TS_PUSH_VIS_SHADE
 };
 struct ShadePush {
   TS_PUSH_SHADE

@@ -151,9 +151,10 @@ TEST(SelectPassesTest, OrderIsFixed) {
     const int prepass = std::max(IndexOf(passes, PassId::kDepthPrepass),
                                  IndexOf(passes, PassId::kVisibility));
     const int forward = std::max({IndexOf(passes, PassId::kForward),
-                                  IndexOf(passes, PassId::kVisShade),
                                   IndexOf(passes, PassId::kShade)});
-    EXPECT_EQ(IndexOf(passes, PassId::kShade) >= 0, ShadesVisibility(c.settings)) << d;
+    EXPECT_EQ(IndexOf(passes, PassId::kShade) >= 0,
+              ShadesVisibility(c.settings) || c.settings.aa == AaMode::kVisMlaa)
+        << d;
     const int transparent = IndexOf(passes, PassId::kTransparent);
     const int tonemap = IndexOf(passes, PassId::kTonemap);
     const int readback = IndexOf(passes, PassId::kReadback);
@@ -245,8 +246,9 @@ TEST(SelectPassesTest, CullingModes) {
 TEST(SelectPassesTest, AaModes) {
   Settings s;
   s.aa = AaMode::kVisMlaa;
-  const std::vector<PassId> vis = {PassId::kVisibility, PassId::kVisResolve, PassId::kVisShade,
-                                   PassId::kGeometricAa, PassId::kTonemap, PassId::kReadback};
+  const std::vector<PassId> vis = {PassId::kVisibility, PassId::kVisResolve, PassId::kVisClassify,
+                                   PassId::kShade,      PassId::kGeometricAa, PassId::kTonemap,
+                                   PassId::kReadback};
   EXPECT_EQ(SelectPasses(s, {}), vis);
   s.aa = AaMode::kTaa;
   const std::vector<PassId> taa = {PassId::kDepthPrepass, PassId::kForward, PassId::kTaa,

@@ -1,0 +1,71 @@
+// The visibility pipeline's and vis_mlaa's shading (vis_shade.comp, vis_shade_mlaa.comp): one
+// dispatch per material (its set 1 bound, as a forward draw's) over the pixels vis_classify
+// listed for it, each shaded once. The surface is rebuilt from the pixel's visibility id
+// (common/vis_surface.glsl) and shaded by the forward path's material and lighting
+// (common/shading.glsl): at the pixel's centre, or with VIS_MLAA at the mean position of the
+// samples the resolve gave the pixel's surface (vis_resolve.frag).
+#define TESSERA_COMPUTE
+vec2 g_pixel;  // the pixel's centre, for shading.glsl's tile and AO lookups
+#define SHADING_PIXEL g_pixel
+#include "common/scene.glsl"
+#include "common/sky.glsl"
+#include "common/textures.glsl"
+#include "common/shadows.glsl"
+#include "common/shading.glsl"
+#include "common/vis.glsl"
+#include "common/vis_surface.glsl"
+
+layout(local_size_x = kShadeGroupSize) in;
+
+layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+layout(set = kVisSet, binding = kShadeBindingId) uniform usampler2D u_vis_id;
+layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
+layout(set = kVisSet, binding = kShadeBindingEntries, std430) readonly buffer EntryBlock {
+  GpuShadeEntry entries[];
+};
+layout(set = kVisSet, binding = kShadeBindingPixels, std430) readonly buffer PixelBlock {
+  uint pixels[];
+};
+#ifdef VIS_MLAA
+layout(set = kVisSet, binding = kShadeBindingCoverage) uniform usampler2D u_vis_coverage;
+layout(set = kVisSet, binding = kShadeBindingSamples) uniform usampler2DMS u_vis_samples;
+#endif
+
+void main() {
+  uint m = push.params.x;
+  uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+  uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
+  if (i >= entries[m].dispatch.w) return;
+  uint packed = pixels[entries[m].list.x + i];
+  ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
+  g_pixel = vec2(p) + 0.5;
+  uint id = texelFetch(u_vis_id, p, 0).r;
+#ifdef VIS_MLAA
+  uint word = texelFetch(u_vis_coverage, p, 0).r;
+  vec2 pixel = vec2(p) + CoverageMean(word);
+  vec3 dir = RayDirection(pixel);
+  Triangle tri = LoadTriangle(id);
+  vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, dir);
+  // When the surface spans several triangles, the mean position can miss the nearest sample's
+  // triangle: take the first of the surface's other triangles that contains it.
+  uint mask = CoverageMask(word);
+  const float kInside = -1e-4;
+  for (uint s = 0u; s < frame.aa.y && min(b.x, min(b.y, b.z)) < kInside; ++s) {
+    if ((mask & (1u << s)) == 0u) continue;
+    uint other = texelFetch(u_vis_samples, p, int(s)).r;
+    if (other == id) continue;
+    Triangle t = LoadTriangle(other);
+    vec3 bt = Barycentrics(t.p0, t.e1, t.e2, dir);
+    if (min(bt.x, min(bt.y, bt.z)) >= kInside) {
+      tri = t;
+      b = bt;
+      id = other;
+    }
+  }
+#else
+  vec2 pixel = g_pixel;
+  Triangle tri = LoadTriangle(id);
+  vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel));
+#endif
+  imageStore(u_color, p, vec4(ShadeSurface(VisSurface(tri, b, pixel), false).rgb, 1.0));
+}
