@@ -61,14 +61,14 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   constexpr VkImageUsageFlags kSampled = VK_IMAGE_USAGE_SAMPLED_BIT;
   constexpr VkImageUsageFlags kDepth = VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT;
   constexpr VkImageUsageFlags kCopy = VK_IMAGE_USAGE_TRANSFER_SRC_BIT;  // captures, readback
+  constexpr VkImageUsageFlags kStorage = VK_IMAGE_USAGE_STORAGE_BIT;
   using R = Resource;
   // Sampled by light culling, ssao, taa and the pyramid; copied out for tests (FrameCapture).
   ASSIGN_OR_RETURN(auto* depth,
                    get(R::kDepth, kDepthFormat, kDepth | kSampled | kCopy, "depth", width, height));
   t.depth = depth->image;
   // Storage: the visibility pipeline shades it in compute.
-  ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat,
-                                  kColor | kSampled | kCopy | VK_IMAGE_USAGE_STORAGE_BIT,
+  ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat, kColor | kSampled | kCopy | kStorage,
                                   "hdr_color", width, height));
   t.hdr = hdr->image;
   ASSIGN_OR_RETURN(auto* ldr, get(R::kLdrColor, kLdrFormat, kColor | kSampled | kCopy, "ldr_color",
@@ -103,16 +103,15 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
     ASSIGN_OR_RETURN(auto* v,
                      get(R::kVisMs, kIdFormat, kColor | kSampled, "visibility", width, height, n));
     t.vis_ms = v->image;
-    ASSIGN_OR_RETURN(auto* id,
-                     get(R::kVisId, kIdFormat, kColor | kSampled, "vis_id", width, height));
-    t.vis_id = id->image;
-    ASSIGN_OR_RETURN(auto* cov, get(R::kVisCoverage, kIdFormat, kColor | kSampled, "vis_coverage",
-                                    width, height));
+    ASSIGN_OR_RETURN(auto* cov, get(R::kVisCoverage, kIdFormat, kSampled | kStorage,
+                                    "vis_coverage", width, height));
     t.vis_coverage = cov->image;
   }
-  if (ShadesVisibility(s)) {  // one sample: the ids straight from the visibility pass
-    ASSIGN_OR_RETURN(auto* id,
-                     get(R::kVisId, kIdFormat, kColor | kSampled, "vis_id", width, height));
+  // The id per pixel: vis_mlaa's resolve writes it (storage), the visibility pipeline's
+  // visibility pass draws it (colour); one usage for both, as the pool keeps it across modes.
+  if (vis || ShadesVisibility(s)) {
+    ASSIGN_OR_RETURN(auto* id, get(R::kVisId, kIdFormat, kColor | kSampled | kStorage, "vis_id",
+                                   width, height));
     t.vis_id = id->image;
   }
   if (vis || s.aa == AaMode::kTaa) {

@@ -96,6 +96,7 @@ struct FrameStats {
   // its compute invocations (the pixels rounded up to whole workgroups per material).
   uint64_t shaded_pixels = 0;
   uint64_t shading_invocations = 0;
+  uint64_t edge_pixels = 0;  // vis_mlaa: pixels whose samples hit more than one triangle
   uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
   uint32_t local_lights = 0;         // of which point and spot lights (scene + synthetic)
   // Forward+ (when the light-culling pass ran): lights per tile over all tiles.

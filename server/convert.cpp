@@ -184,6 +184,7 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_shadow_evictions(f.stats.shadow_evictions);
   st->set_shaded_pixels(f.stats.shaded_pixels);
   st->set_shading_invocations(f.stats.shading_invocations);
+  st->set_edge_pixels(f.stats.edge_pixels);
 }
 
 absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,

@@ -4,6 +4,7 @@
 #include <utility>
 
 #include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
 
 namespace tessera {
 
@@ -76,6 +77,48 @@ VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout l
   VkDescriptorSet set;
   VK_CHECK(vkAllocateDescriptorSets(ctx.vk->device(), &ai, &set));
   return set;
+}
+
+SetWriter& SetWriter::Sampled(uint32_t binding, VkSampler sampler, VkImageView view,
+                              VkImageLayout layout) {
+  images_.push_back({sampler, view, layout});
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  w.pImageInfo = &images_.back();
+  writes_.push_back(w);
+  return *this;
+}
+
+SetWriter& SetWriter::Storage(uint32_t binding, VkImageView view) {
+  Sampled(binding, VK_NULL_HANDLE, view, VK_IMAGE_LAYOUT_GENERAL);
+  writes_.back().descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+  return *this;
+}
+
+SetWriter& SetWriter::Buffer(uint32_t binding, VkBuffer buffer, VkDescriptorType type) {
+  buffers_.push_back({buffer, 0, VK_WHOLE_SIZE});
+  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  w.dstSet = set_;
+  w.dstBinding = binding;
+  w.descriptorCount = 1;
+  w.descriptorType = type;
+  w.pBufferInfo = &buffers_.back();
+  writes_.push_back(w);
+  return *this;
+}
+
+SetWriter& SetWriter::VisibilityBuffers(const PassContext& ctx) {
+  return Buffer(gpu::kVisBindingIndices, ctx.scene->indices().handle())
+      .Buffer(gpu::kVisBindingVertices, ctx.scene->vertices().handle())
+      .Buffer(gpu::kShadeBindingEntries, ctx.shade->entries)
+      .Buffer(gpu::kShadeBindingPixels, ctx.shade->pixels);
+}
+
+void SetWriter::Update() {
+  vkUpdateDescriptorSets(device_, uint32_t(writes_.size()), writes_.data(), 0, nullptr);
 }
 
 VkDescriptorSet PassLayout::Allocate(const PassContext& ctx) const {

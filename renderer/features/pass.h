@@ -6,6 +6,7 @@
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <deque>
 #include <map>
 #include <memory>
 #include <vector>
@@ -137,8 +138,9 @@ struct LightCullBuffers {
 };
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a
-// GpuShadeEntry and one more for the sky (entry `materials`), the pixel lists (a uint per pixel
-// of the frame), and a host copy of the entries for the frame's statistics.
+// GpuShadeEntry, one more for the sky (entry `materials`) and one for vis_mlaa's edge list
+// (`materials + 1`), the pixel lists (a uint per pixel of the frame; vis_mlaa's resolve lists
+// its edge pixels there first), and a host copy of the entries for the frame's statistics.
 struct ShadeBuffers {
   VkBuffer entries = VK_NULL_HANDLE;
   VkBuffer pixels = VK_NULL_HANDLE;
@@ -240,6 +242,29 @@ struct PassContext {
 // A pass's own descriptor set layout and pipeline layout (one set), destroyed together.
 // A descriptor set of `layout` from the frame's pool (reset every frame).
 VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout layout);
+
+// Writes the bindings of a descriptor set: combined image samplers, storage images (general
+// layout) and whole buffers, in one vkUpdateDescriptorSets.
+class SetWriter {
+ public:
+  SetWriter(VkDevice device, VkDescriptorSet set) : device_(device), set_(set) {}
+  SetWriter& Sampled(uint32_t binding, VkSampler sampler, VkImageView view,
+                     VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
+  SetWriter& Storage(uint32_t binding, VkImageView view);
+  SetWriter& Buffer(uint32_t binding, VkBuffer buffer,
+                    VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+  // The visibility passes' buffers: the scene's index and vertex buffers (kVisBindingIndices,
+  // kVisBindingVertices) and the shading's entries and pixel lists (kShadeBinding*).
+  SetWriter& VisibilityBuffers(const PassContext& ctx);
+  void Update();
+
+ private:
+  VkDevice device_;
+  VkDescriptorSet set_;
+  std::deque<VkDescriptorImageInfo> images_;  // stable addresses for the writes
+  std::deque<VkDescriptorBufferInfo> buffers_;
+  std::vector<VkWriteDescriptorSet> writes_;
+};
 
 class PassLayout {
  public:

@@ -4,8 +4,9 @@
 //    frame's single-sampled depth for light culling, the depth pyramid and transparency). The
 //    visibility pipeline (vis_shade.cpp) uses the same pass at one sample, straight into the
 //    frame's depth and ids;
-//  - vis_resolve: per pixel, groups the samples by surface and picks the surface to shade, a
-//    triangle of it, and its coverage mask and mean sample position.
+//  - vis_resolve (compute): per pixel, groups the samples by surface and picks the surface to
+//    shade, a triangle of it, and its coverage mask and mean sample position; only the edge
+//    pixels are grouped, listed by a first pass over the frame (shaders/vis_resolve.comp).
 // Then the visibility pipeline's classification and compute shading (vis_shade.cpp) shade each
 // pixel's surface once, at that mean position, and the geometric AA pass (post.cpp) blends the
 // partly covered pixels.
@@ -97,101 +98,96 @@ class VisibilityPass final : public Pass {
   PerSampleCount<Pipelines> pipelines_;
 };
 
-// The resolve pass's layout: the scene's sets 0 and 1 plus a set 2 of its own (gpu::kVisSet):
-// the visibility samples and the scene's index and vertex buffers.
-class VisLayout {
+// The resolve pass (compute): the scene's sets 0 and 1 plus a set 2 of its own (gpu::kVisSet):
+// the visibility samples, the ids and coverage words it writes, the scene's index and vertex
+// buffers, and the shading's entries and pixel lists (for its edge list).
+class VisResolvePass final : public Pass {
  public:
-  static absl::StatusOr<VisLayout> Create(const vk::Context& ctx, const SceneLayout& scene) {
-    VisLayout l;
-    l.device_ = ctx.device();
+  static absl::StatusOr<std::unique_ptr<VisResolvePass>> Create(const vk::Context& ctx,
+                                                                const SceneLayout& scene) {
+    auto p = std::unique_ptr<VisResolvePass>(new VisResolvePass);
+    p->device_ = ctx.device();
+    constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
     const VkDescriptorSetLayoutBinding b[] = {
-        {gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-         VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
-        {gpu::kVisBindingIndices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-         VK_SHADER_STAGE_FRAGMENT_BIT, nullptr},
-        {gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-         VK_SHADER_STAGE_FRAGMENT_BIT, nullptr}};
+        {gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute, nullptr},
+        {gpu::kResolveBindingId, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCompute, nullptr},
+        {gpu::kVisBindingIndices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kShadeBindingEntries, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kShadeBindingPixels, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
+        {gpu::kResolveBindingCoverage, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCompute, nullptr}};
     VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     li.bindingCount = uint32_t(std::size(b));
     li.pBindings = b;
     VK_RETURN_IF_ERROR(
-        vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)),
-        "vis set layout");
+        vkCreateDescriptorSetLayout(p->device_, &li, nullptr, p->set_layout_.Replace(p->device_)),
+        "vis_resolve set layout");
     const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout,
-                                          l.set_layout_.get()};
+                                          p->set_layout_.get()};
+    const VkPushConstantRange push{kCompute, 0, sizeof(gpu::ShadePush)};
     VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pli.setLayoutCount = 3;
     pli.pSetLayouts = sets;
+    pli.pushConstantRangeCount = 1;
+    pli.pPushConstantRanges = &push;
     VK_RETURN_IF_ERROR(
-        vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
-        "vis pipeline layout");
-    return l;
+        vkCreatePipelineLayout(p->device_, &pli, nullptr, p->layout_.Replace(p->device_)),
+        "vis_resolve pipeline layout");
+    ASSIGN_OR_RETURN(p->pipeline_, vk::CreateComputePipeline(ctx, "vis_resolve",
+                                                             "vis_resolve.comp", p->layout_.get()));
+    ASSIGN_OR_RETURN(p->sampler_, CreateClampSampler(ctx, false, "vis_resolve"));
+    return p;
   }
-  VkPipelineLayout pipeline_layout() const { return layout_.get(); }
-
-  // Set 2 for this frame: the samples, and the scene's index and vertex buffers.
-  VkDescriptorSet Write(const PassContext& ctx, const VkDescriptorImageInfo& samples) {
-    const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
-    VkWriteDescriptorSet w[3];
-    for (VkWriteDescriptorSet& x : w) {
-      x = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-      x.dstSet = set;
-      x.descriptorCount = 1;
-      x.descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    }
-    w[0].dstBinding = gpu::kVisBindingSamples;
-    w[0].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    w[0].pImageInfo = &samples;
-    const VkDescriptorBufferInfo buffers[] = {
-        {ctx.scene->indices().handle(), 0, VK_WHOLE_SIZE},
-        {ctx.scene->vertices().handle(), 0, VK_WHOLE_SIZE}};
-    for (uint32_t i = 0; i < 2; ++i) {
-      w[1 + i].dstBinding = gpu::kVisBindingIndices + i;
-      w[1 + i].pBufferInfo = &buffers[i];
-    }
-    vkUpdateDescriptorSets(device_, 3, w, 0, nullptr);
-    return set;
-  }
-
- private:
-  VkDevice device_ = VK_NULL_HANDLE;
-  vk::UniqueDescriptorSetLayout set_layout_;
-  vk::UniquePipelineLayout layout_;
-};
-
-class VisResolvePass final : public Pass {
- public:
-  VisResolvePass(VisLayout layout, vk::Pipeline pipeline, vk::Sampler sampler)
-      : layout_(std::move(layout)), pipeline_(std::move(pipeline)), sampler_(std::move(sampler)) {}
   PassId id() const override { return PassId::kVisResolve; }
 
   void Record(PassContext& ctx) override {
-    const VkDescriptorSet set =
-        layout_.Write(ctx, {sampler_.handle(), ctx.targets->vis_ms.view(),
-                            VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL});
-    VkRenderingAttachmentInfo colors[2];
-    const VkImageView views[2] = {ctx.targets->vis_id.view(), ctx.targets->vis_coverage.view()};
-    for (int i = 0; i < 2; ++i) {
-      colors[i] = {VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-      colors[i].imageView = views[i];
-      colors[i].imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
-      colors[i].loadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;  // every pixel is written
-      colors[i].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
-    }
-    BeginRendering(ctx, colors, 2, nullptr);
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
-    const VkPipelineLayout layout = layout_.pipeline_layout();
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1, &ctx.scene_set,
-                            0, nullptr);
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, gpu::kVisSet, 1, &set,
-                            0, nullptr);
-    vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
-    vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
-    vkCmdEndRendering(ctx.cmd);
+    const ShadeBuffers& sb = *ctx.shade;
+    const uint32_t edges = sb.materials + 1;  // the entry after the sky's
+    const VkDeviceSize entry = VkDeviceSize(edges) * sizeof(gpu::GpuShadeEntry);
+    vkCmdFillBuffer(ctx.cmd, sb.entries, entry, sizeof(gpu::GpuShadeEntry), 0);
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                         VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                         VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+    WriteSet(ctx);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+    auto push = [&](uint32_t mode) {
+      const gpu::ShadePush p{glm::uvec4(mode, edges, 0u, 0u)};
+      vkCmdPushConstants(ctx.cmd, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(p), &p);
+    };
+    push(gpu::kResolveUniform);
+    vkCmdDispatch(ctx.cmd, (ctx.targets->width + 7) / 8, (ctx.targets->height + 7) / 8, 1);
+    const VkPipelineStageFlags2 compute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+    const VkAccessFlags2 rw = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
+    vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, compute, rw);
+    push(gpu::kResolveArgs);
+    vkCmdDispatch(ctx.cmd, 1, 1, 1);
+    vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                         compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                         rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+    push(gpu::kResolveEdges);
+    vkCmdDispatchIndirect(ctx.cmd, sb.entries, entry);
   }
 
  private:
-  VisLayout layout_;
+  VisResolvePass() = default;
+
+  void WriteSet(const PassContext& ctx) {
+    const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
+    SetWriter(device_, set)
+        .Sampled(gpu::kVisBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view())
+        .Storage(gpu::kResolveBindingId, ctx.targets->vis_id.view())
+        .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
+        .VisibilityBuffers(ctx)
+        .Update();
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1,
+                            &ctx.scene_set, 0, nullptr);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), gpu::kVisSet,
+                            1, &set, 0, nullptr);
+  }
+
+  VkDevice device_ = VK_NULL_HANDLE;
+  vk::UniqueDescriptorSetLayout set_layout_;
+  vk::UniquePipelineLayout layout_;
   vk::Pipeline pipeline_;
   vk::Sampler sampler_;
 };
@@ -206,20 +202,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisibilityPass(const vk::Context& ct
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ctx,
                                                            const SceneLayout& scene) {
-  ASSIGN_OR_RETURN(VisLayout layout, VisLayout::Create(ctx, scene));
-  vk::GraphicsPipelineDesc d;
-  d.name = "vis_resolve";
-  d.vertex_shader = "fullscreen.vert";
-  d.fragment_shader = "vis_resolve.frag";
-  d.layout = layout.pipeline_layout();
-  d.scene_vertex_input = false;
-  d.color_formats = {kIdFormat, kIdFormat};
-  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateGraphicsPipeline(ctx, d);
-  if (!pipeline.ok()) return pipeline.status();
-  absl::StatusOr<vk::Sampler> sampler = CreateClampSampler(ctx, false, "vis_resolve");
-  if (!sampler.ok()) return sampler.status();
-  return std::make_unique<VisResolvePass>(std::move(layout), std::move(*pipeline),
-                                          std::move(*sampler));
+  ASSIGN_OR_RETURN(std::unique_ptr<VisResolvePass> pass, VisResolvePass::Create(ctx, scene));
+  return pass;
 }
 
 void AddVisibilityPass(GraphBuilder& b, bool late) {
@@ -238,10 +222,13 @@ void SetupVisMlaa(GraphBuilder& b) {
   if (b.settings().aa != AaMode::kVisMlaa) return;
   using R = Resource;
   using A = Access;
+  // The edge list borrows the shading's pixel lists (rewritten whole each frame).
+  b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
   b.Pass(PassId::kVisResolve)
-      .Use(R::kVisMs, A::kSampled)
-      .Use(R::kVisId, A::kColorWrite)
-      .Use(R::kVisCoverage, A::kColorWrite);
+      .Use(R::kVisMs, A::kComputeRead)
+      .Use(R::kShadeLists, A::kComputeWrite)
+      .Use(R::kVisId, A::kComputeWrite)
+      .Use(R::kVisCoverage, A::kComputeWrite);
   // The shading of the resolved ids: SetupVisibilityShading (vis_shade.cpp).
 }
 

@@ -76,47 +76,15 @@ class ShadeLayout {
   // Writes this frame's set 2 and binds it with the scene's set 0.
   void Bind(const PassContext& ctx) const {
     const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
-    const VkDescriptorImageInfo ids{sampler_.handle(), ctx.targets->vis_id.view(),
-                                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    const VkDescriptorImageInfo color{VK_NULL_HANDLE, ctx.targets->hdr.view(),
-                                      VK_IMAGE_LAYOUT_GENERAL};
-    const VkDescriptorBufferInfo buffers[] = {
-        {ctx.scene->indices().handle(), 0, VK_WHOLE_SIZE},
-        {ctx.scene->vertices().handle(), 0, VK_WHOLE_SIZE},
-        {ctx.shade->entries, 0, VK_WHOLE_SIZE},
-        {ctx.shade->pixels, 0, VK_WHOLE_SIZE}};
-    const uint32_t buffer_bindings[] = {gpu::kVisBindingIndices, gpu::kVisBindingVertices,
-                                        gpu::kShadeBindingEntries, gpu::kShadeBindingPixels};
-    const bool vis_mlaa = vis_mlaa_;  // its targets exist
-    const VkDescriptorImageInfo coverage{
-        sampler_.handle(), vis_mlaa ? ctx.targets->vis_coverage.view() : VK_NULL_HANDLE,
-        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    const VkDescriptorImageInfo samples{
-        sampler_.handle(), vis_mlaa ? ctx.targets->vis_ms.view() : VK_NULL_HANDLE,
-        VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    VkWriteDescriptorSet w[8];
-    for (VkWriteDescriptorSet& x : w) {
-      x = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-      x.dstSet = set;
-      x.descriptorCount = 1;
+    SetWriter w(device_, set);
+    w.Sampled(gpu::kShadeBindingId, sampler_.handle(), ctx.targets->vis_id.view())
+        .Storage(gpu::kShadeBindingColor, ctx.targets->hdr.view())
+        .VisibilityBuffers(ctx);
+    if (vis_mlaa_) {  // its targets exist
+      w.Sampled(gpu::kShadeBindingCoverage, sampler_.handle(), ctx.targets->vis_coverage.view())
+          .Sampled(gpu::kShadeBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view());
     }
-    w[0].dstBinding = gpu::kShadeBindingId;
-    w[0].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    w[0].pImageInfo = &ids;
-    w[1].dstBinding = gpu::kShadeBindingColor;
-    w[1].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-    w[1].pImageInfo = &color;
-    for (int i = 0; i < 4; ++i) {
-      w[2 + i].dstBinding = buffer_bindings[i];
-      w[2 + i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-      w[2 + i].pBufferInfo = &buffers[i];
-    }
-    w[6].dstBinding = gpu::kShadeBindingCoverage;
-    w[6].pImageInfo = &coverage;
-    w[7].dstBinding = gpu::kShadeBindingSamples;
-    w[7].pImageInfo = &samples;
-    for (int i = 6; i < 8; ++i) w[i].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    vkUpdateDescriptorSets(device_, vis_mlaa ? 8 : 6, w, 0, nullptr);
+    w.Update();
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1,
                             &ctx.scene_set, 0, nullptr);
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), gpu::kVisSet,
@@ -146,7 +114,8 @@ class VisClassifyPass final : public Pass {
 
   void Record(PassContext& ctx) override {
     const ShadeBuffers& sb = *ctx.shade;
-    // The scene's materials and the sky's entry.
+    // The scene's materials and the sky's entry (and, copied for the statistics, vis_mlaa's
+    // edge list's).
     const VkDeviceSize entry_bytes =
         VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry);
     // The counts start at zero (the graph ordered this after the last frame's reads).
@@ -174,7 +143,7 @@ class VisClassifyPass final : public Pass {
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COPY_BIT,
                          VK_ACCESS_2_TRANSFER_READ_BIT);
-    const VkBufferCopy copy{0, 0, entry_bytes};
+    const VkBufferCopy copy{0, 0, entry_bytes + sizeof(gpu::GpuShadeEntry)};
     vkCmdCopyBuffer(ctx.cmd, sb.entries, sb.entries_readback, 1, &copy);
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                          VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
@@ -272,7 +241,7 @@ void SetupVisibilityShading(GraphBuilder& b) {
   using R = Resource;
   using A = Access;
   // The entries and lists are rewritten whole each frame.
-  b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
+  if (!b.Imported(R::kShadeLists)) b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
   b.Pass(PassId::kVisClassify)
       .Use(R::kVisId, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite);
@@ -291,8 +260,9 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
   if (!ShadesVisibility(f.s) && f.s.aa != AaMode::kVisMlaa) return absl::OkStatus();
   const uint32_t materials = f.gs.material_count();
   const uint64_t pixels = uint64_t(f.s.width) * f.s.height;
-  if (materials + 1 > shade_material_capacity) {  // and the sky's entry
-    const uint32_t cap = std::max(materials + 1, shade_material_capacity * 2);
+  // And the sky's entry, and vis_mlaa's edge list's (vis_mlaa.cpp).
+  if (materials + 2 > shade_material_capacity) {
+    const uint32_t cap = std::max(materials + 2, shade_material_capacity * 2);
     const VkDeviceSize bytes = VkDeviceSize(cap) * sizeof(gpu::GpuShadeEntry);
     RETURN_IF_ERROR(MakeBuffer(*ctx, bytes,
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |

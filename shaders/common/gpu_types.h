@@ -142,6 +142,15 @@ TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 1] 
 TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
 TS_CONST uint kShadeBindingCoverage = 6;  // vis_mlaa: usampler2D, the resolve's coverage word
 TS_CONST uint kShadeBindingSamples = 7;   // vis_mlaa: usampler2DMS, the visibility samples
+// vis_resolve.comp's set 2: the samples (kVisBindingSamples), the ids and coverage words it
+// writes (r32ui storage images), the index and vertex buffers, and the entries and pixel lists
+// of the shading (the edge list borrows the pixel lists and the entry after the sky's).
+TS_CONST uint kResolveBindingId = 1;
+TS_CONST uint kResolveBindingCoverage = 6;
+// vis_resolve.comp's modes (push params.x; params.y is the edge list's entry).
+TS_CONST uint kResolveUniform = 0;  // per pixel: samples that agree are written, others listed
+TS_CONST uint kResolveArgs = 1;     // one workgroup: the edge dispatch's size
+TS_CONST uint kResolveEdges = 2;    // per listed edge pixel: group the samples by surface
 TS_CONST uint kClassifyTile = 8;         // vis_classify: 8x8 pixels per workgroup
 TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // A material's dispatch is at most this many workgroups wide (more rows above: the indirect
@@ -369,7 +378,8 @@ struct GpuShadeEntry {
 // shadow.vert, shadow_mask.vert: world -> the face's clip space.
 #define TS_PUSH_SHADOW mat4 view_proj;
 // vis_classify.comp: x mode (kClassify*), y materials (the sky's entry is the next);
-// vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry.
+// vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry; vis_resolve.comp:
+// x mode (kResolve*), y the edge list's entry.
 #define TS_PUSH_SHADE uvec4 params;
 
 #ifdef __cplusplus

@@ -162,7 +162,8 @@ int main(int argc, char** argv) {
                   {"drawables_culled", last.stats.drawables_culled},
                   {"fragment_invocations_per_pixel", double(last.stats.fragment_invocations) / pixels},
                   {"shaded_pixels", last.stats.shaded_pixels},
-                  {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels}};
+                  {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels},
+                  {"edge_pixels", last.stats.edge_pixels}};
     out["results"].push_back(r);
   }
   std::printf("%s\n", out.dump(2).c_str());

@@ -5,16 +5,30 @@
 // same drawable that share a vertex: the same index, or two vertices at almost the same
 // position whose normals are within 8.1 degrees (dot > 0.99). The surface owning the most
 // samples wins (ties: the one holding the lowest sample). Writes, per pixel:
-//  - out_id: the id of the winning sample nearest the mean position of the winning samples
-//    (the triangle the shading pass intersects);
-//  - out_coverage: the winning samples' mask and their mean position (PackCoverage).
+//  - u_id: the id of the winning sample nearest the mean position of the winning samples
+//    (the triangle the shading intersects);
+//  - u_coverage: the winning samples' mask and their mean position (PackCoverage).
+// Only edge pixels (samples on more than one triangle) are grouped, so the cost comes from the
+// edges: mode kResolveUniform writes every pixel whose samples agree and lists the others,
+// kResolveArgs sizes the indirect dispatch over that list, kResolveEdges groups the listed
+// pixels, every invocation one edge pixel (lavapipe runs masked-off lanes at full cost: as a
+// full-screen fragment pass the grouping cost every 8-pixel block that held an edge pixel).
 // The shading (vis_classify.comp, vis_shade_mlaa.comp) then lists and shades each pixel's id.
 #include "common/scene.glsl"
 #include "common/vis.glsl"
 
+layout(local_size_x = kShadeGroupSize) in;
+
+layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
 layout(set = kVisSet, binding = kVisBindingSamples) uniform usampler2DMS u_vis;
-layout(location = 0) out uint out_id;
-layout(location = 1) out uint out_coverage;
+layout(set = kVisSet, binding = kResolveBindingId, r32ui) uniform writeonly uimage2D u_id;
+layout(set = kVisSet, binding = kResolveBindingCoverage, r32ui) uniform writeonly uimage2D u_coverage;
+layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
+  GpuShadeEntry entries[];
+};
+layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
+  uint pixels[];
+};
 
 bool SameSurface(uint a, uint b) {
   if (a == b) return true;
@@ -42,7 +56,7 @@ bool SameSurface(uint a, uint b) {
 
 
 // Groups the samples by surface and writes the outputs for the surface with the most.
-void Group(uint n, uint ids[8]) {
+void Group(ivec2 p, uint n, uint ids[8]) {
   // Label each sample with the first earlier sample on its surface.
   uint label[8];
   for (uint i = 0u; i < n; ++i) {
@@ -90,12 +104,34 @@ void Group(uint n, uint ids[8]) {
       nearest = s;
     }
   }
-  out_id = ids[nearest];
-  out_coverage = PackCoverage(mask, mean);
+  imageStore(u_id, p, uvec4(ids[nearest]));
+  imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
 }
 
 void main() {
-  ivec2 p = ivec2(gl_FragCoord.xy);
+  uint mode = push.params.x;
+  uint edges = push.params.y;  // the edge list's entry
+  if (mode == kResolveArgs) {
+    if (gl_LocalInvocationIndex == 0u) {
+      uint groups = (entries[edges].dispatch.w + kShadeGroupSize - 1u) / kShadeGroupSize;
+      uint width = min(groups, kShadeDispatchWidth);
+      entries[edges].dispatch.xyz =
+          uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
+    }
+    return;
+  }
+  ivec2 p;
+  if (mode == kResolveUniform) {  // an 8x8 tile per workgroup
+    uint l = gl_LocalInvocationIndex;
+    p = ivec2(gl_WorkGroupID.xy) * 8 + ivec2(l % 8u, l / 8u);
+    if (any(greaterThanEqual(p, ivec2(frame.counts.zw)))) return;
+  } else {  // kResolveEdges: one listed pixel per invocation
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
+    if (i >= entries[edges].dispatch.w) return;
+    uint packed = pixels[i];
+    p = ivec2(packed & 0xffffu, packed >> 16);
+  }
   uint n = frame.aa.y;
   uint ids[8];
   bool uniform_id = true;
@@ -103,10 +139,12 @@ void main() {
     ids[s] = texelFetch(u_vis, p, int(s)).r;
     uniform_id = uniform_id && ids[s] == ids[0];
   }
-  // One triangle covers the pixel (or none): shade it at the pixel centre.
-  out_id = ids[0];
-  out_coverage = PackCoverage((1u << n) - 1u, vec2(0.5));
-  // (On llvmpipe the grouping still costs every 8-pixel block holding an edge pixel; written as a
-  // zero-or-one-trip loop it measured the same.)
-  if (!uniform_id) Group(n, ids);
+  if (mode == kResolveEdges) {
+    Group(p, n, ids);
+  } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
+    imageStore(u_id, p, uvec4(ids[0]));
+    imageStore(u_coverage, p, uvec4(PackCoverage((1u << n) - 1u, vec2(0.5))));
+  } else {
+    pixels[atomicAdd(entries[edges].dispatch.w, 1u)] = uint(p.x) | (uint(p.y) << 16);
+  }
 }
