@@ -115,7 +115,8 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
     t.vis_id = id->image;
   }
   if (vis || s.aa == AaMode::kTaa) {
-    ASSIGN_OR_RETURN(auto* post, get(R::kPostHdr, kHdrFormat, kColor | kSampled | kCopy, "post_hdr",
+    ASSIGN_OR_RETURN(auto* post, get(R::kPostHdr, kHdrFormat,
+                                     kColor | kSampled | kCopy | kStorage, "post_hdr",
                                      width, height));
     t.post_hdr = post->image;
   }
@@ -290,7 +291,9 @@ absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& 
     desc.width = targets.width;
     desc.height = targets.height;
     desc.format = kHdrFormat;
-    desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT;
+    // Storage: TAA writes it in compute (post_stage compute).
+    desc.usage = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_SAMPLED_BIT |
+                 VK_IMAGE_USAGE_STORAGE_BIT;
     ASSIGN_OR_RETURN(image, vk::Image::Create(*ctx, desc, "taa_history"));
   }
   v.taa = std::move(h);

@@ -45,6 +45,11 @@ const std::vector<std::string_view>& EnumNames<Pipeline>() {
   static const std::vector<std::string_view> names{"auto", "forward", "visibility"};
   return names;
 }
+template <>
+const std::vector<std::string_view>& EnumNames<PostStage>() {
+  static const std::vector<std::string_view> names{"auto", "fragment", "compute"};
+  return names;
+}
 
 namespace {
 
@@ -75,6 +80,7 @@ std::string_view ToString(ExposureMode v) { return NameOf(v); }
 std::string_view ToString(DebugView v) { return NameOf(v); }
 std::string_view ToString(Tonemapper v) { return NameOf(v); }
 std::string_view ToString(Pipeline v) { return NameOf(v); }
+std::string_view ToString(PostStage v) { return NameOf(v); }
 absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s) {
   return Parse<Tonemapper>("tonemapper", s);
 }
@@ -158,6 +164,11 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     // plain frames (its rasterizer skips hidden fragments cheaply, and rebuilding each pixel's
     // surface from its id costs more than interpolating it); on GPUs the visibility pipeline.
     e.pipeline = caps.cpu ? Pipeline::kForward : Pipeline::kVisibility;
+  }
+  if (e.post_stage == PostStage::kAuto) {
+    // Measured (README, "The visibility pipeline"): GPUs run full-screen fragment work on their
+    // graphics part only (an H200's TAA at 4K: 6.0 ms as a fragment pass, 0.x in compute).
+    e.post_stage = caps.cpu ? PostStage::kFragment : PostStage::kCompute;
   }
   if (ShadesVisibility(e) && !caps.visibility_buffer) {
     not_applied("pipeline", "the visibility buffer needs gl_PrimitiveID in fragment shaders "

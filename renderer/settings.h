@@ -24,6 +24,10 @@ enum class Tonemapper : uint32_t { kPbrNeutral = 0, kPhotographic };
 // measured faster on the device (ResolveSettings: forward on CPU devices, visibility elsewhere).
 // msaa always shades forward; vis_mlaa always uses its multisampled visibility buffer.
 enum class Pipeline : uint32_t { kAuto = 0, kForward, kVisibility };
+// Where the full-screen post passes that write HDR colour (TAA, vis_mlaa's geometric AA) run: as
+// fragment shaders or as compute shaders. auto: the one measured faster on the device
+// (ResolveSettings).
+enum class PostStage : uint32_t { kAuto = 0, kFragment, kCompute };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
   kNone = 0,
@@ -81,6 +85,7 @@ struct Settings {
   float exposure_ev = 0.0f;  // stops, -20..20 (0 = x1)
   Tonemapper tonemapper = Tonemapper::kPbrNeutral;
   Pipeline pipeline = Pipeline::kAuto;
+  PostStage post_stage = PostStage::kAuto;
   DebugView debug_view = DebugView::kNone;
   uint32_t jpeg_quality = 90;  // 1..100
   bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
@@ -96,7 +101,7 @@ struct DeviceCaps {
   // Usable sample counts, bit n = 2^n samples; 0: every power of two up to max_samples.
   uint32_t sample_counts = 0;
   bool visibility_buffer = true;  // vis_mlaa can run (else it falls back to msaa)
-  bool cpu = false;               // a CPU device (lavapipe, SwiftShader): pipeline auto -> forward
+  bool cpu = false;  // a CPU device (lavapipe, SwiftShader): pipeline auto -> forward, ...
 };
 
 // One field the renderer changed or could not honour.
@@ -134,6 +139,8 @@ template <>
 const std::vector<std::string_view>& EnumNames<DebugView>();
 template <>
 const std::vector<std::string_view>& EnumNames<Pipeline>();
+template <>
+const std::vector<std::string_view>& EnumNames<PostStage>();
 
 // Names used by the CLI, JSON output and the proto ("invalid" for a value out of range).
 std::string_view ToString(AaMode v);
@@ -142,6 +149,7 @@ std::string_view ToString(ExposureMode v);
 std::string_view ToString(Tonemapper v);
 std::string_view ToString(DebugView v);
 std::string_view ToString(Pipeline v);
+std::string_view ToString(PostStage v);
 absl::StatusOr<AaMode> ParseAaMode(std::string_view s);
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s);
 absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s);

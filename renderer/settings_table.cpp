@@ -242,6 +242,10 @@ std::vector<SettingRow> BuildTable() {
                                       "(each pixel shaded once), forward, or auto (the faster "
                                       "on the device)"),
                     {Value("pipeline", "P")}));
+  t.push_back(Flags(Row<&S::post_stage>("post_stage", "Post passes",
+                                        "where TAA and geometric AA run: fragment, compute, or "
+                                        "auto (the faster on the device)"),
+                    {Value("post-stage", "S")}));
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),
                     {Value("debug", "VIEW")}));

@@ -257,6 +257,7 @@ class SetWriter {
   // kVisBindingVertices) and the shading's entries and pixel lists (kShadeBinding*).
   SetWriter& VisibilityBuffers(const PassContext& ctx);
   void Update();
+  VkDescriptorSet set() const { return set_; }
 
  private:
   VkDevice device_;
@@ -353,12 +354,18 @@ inline uint32_t ForwardSamples(const PassContext& ctx) {
 class FullscreenProgram {
  public:
   FullscreenProgram() = default;
+  // With `compute_shader` (shaders/common/post_io.glsl) the program can also run as a compute
+  // shader: the same inputs, the outputs storage images at the bindings after them.
   static absl::StatusOr<FullscreenProgram> Create(const vk::Context& ctx, const char* name,
                                                   const char* fragment_shader, uint32_t inputs,
                                                   uint32_t push_size,
-                                                  std::vector<VkFormat> outputs);
-  // One full-screen triangle into `outputs` (cleared contents are not loaded: every pixel is
-  // written).
+                                                  std::vector<VkFormat> outputs,
+                                                  const char* compute_shader = nullptr);
+  // Whether Draw runs the compute shader for these settings (it has one, and post_stage is
+  // compute): the pass's graph uses follow (Access::kComputeRead / kComputeWrite).
+  static bool Compute(const Settings& s) { return s.post_stage == PostStage::kCompute; }
+  // Every pixel of `outputs` written once (cleared contents are not loaded): one full-screen
+  // triangle, or in compute one invocation per pixel (outputs in the general layout).
   // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's).
   void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
             const std::vector<VkImageView>& outputs, const void* push,
@@ -368,6 +375,8 @@ class FullscreenProgram {
   VkDevice device_ = VK_NULL_HANDLE;
   PassLayout layout_;
   vk::Pipeline pipeline_;
+  PassLayout compute_layout_;
+  vk::Pipeline compute_pipeline_;  // null without a compute shader
   uint32_t inputs_ = 0;
   uint32_t push_size_ = 0;
 };

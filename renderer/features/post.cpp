@@ -26,7 +26,8 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
                                                             const char* name,
                                                             const char* fragment_shader,
                                                             uint32_t inputs, uint32_t push_size,
-                                                            std::vector<VkFormat> outputs) {
+                                                            std::vector<VkFormat> outputs,
+                                                            const char* compute_shader) {
   FullscreenProgram p;
   p.device_ = ctx.device();
   p.inputs_ = inputs;
@@ -45,14 +46,45 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
   d.fragment_shader = fragment_shader;
   d.layout = p.layout_.pipeline_layout();
   d.scene_vertex_input = false;
+  const uint32_t output_count = uint32_t(outputs.size());
   d.color_formats = std::move(outputs);
   ASSIGN_OR_RETURN(p.pipeline_, vk::CreateGraphicsPipeline(ctx, d));
+  if (compute_shader == nullptr) return p;
+  for (VkDescriptorSetLayoutBinding& b : bindings) b.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+  for (uint32_t i = 0; i < output_count; ++i)
+    bindings.push_back({inputs + i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1,
+                        VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
+  for (VkPushConstantRange& r : push) r.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
+  const std::string compute_name = std::string(name) + ".compute";
+  ASSIGN_OR_RETURN(p.compute_layout_,
+                   PassLayout::Create(ctx, bindings, push, compute_name.c_str()));
+  ASSIGN_OR_RETURN(p.compute_pipeline_,
+                   vk::CreateComputePipeline(ctx, compute_name, compute_shader,
+                                             p.compute_layout_.pipeline_layout()));
   return p;
 }
 
 void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
                              const std::vector<VkImageView>& outputs, const void* push,
                              VkExtent2D extent) const {
+  if (compute_pipeline_.handle() != VK_NULL_HANDLE && Compute(*ctx.settings)) {
+    SetWriter w(device_, compute_layout_.Allocate(ctx));
+    for (uint32_t i = 0; i < inputs_; ++i)
+      w.Sampled(i, inputs[i].sampler, inputs[i].view, inputs[i].layout);
+    for (uint32_t i = 0; i < outputs.size(); ++i) w.Storage(inputs_ + i, outputs[i]);
+    w.Update();
+    const VkPipelineLayout layout = compute_layout_.pipeline_layout();
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compute_pipeline_.handle());
+    const VkDescriptorSet set = w.set();
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0,
+                            nullptr);
+    if (push_size_ > 0)
+      vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_size_, push);
+    const uint32_t width = extent.width ? extent.width : ctx.targets->width;
+    const uint32_t height = extent.height ? extent.height : ctx.targets->height;
+    vkCmdDispatch(ctx.cmd, (width + 7) / 8, (height + 7) / 8, 1);
+    return;
+  }
   const VkDescriptorSet set = layout_.Allocate(ctx);
   std::vector<VkDescriptorImageInfo> images;
   images.reserve(inputs.size());
@@ -115,10 +147,11 @@ class PostPass : public Pass {
 template <typename T>
 absl::StatusOr<std::unique_ptr<Pass>> MakePost(const vk::Context& ctx, const char* name,
                                                const char* fragment, uint32_t inputs,
-                                               uint32_t push_size, std::vector<VkFormat> outputs) {
-  ASSIGN_OR_RETURN(
-      FullscreenProgram program,
-      FullscreenProgram::Create(ctx, name, fragment, inputs, push_size, std::move(outputs)));
+                                               uint32_t push_size, std::vector<VkFormat> outputs,
+                                               const char* compute = nullptr) {
+  ASSIGN_OR_RETURN(FullscreenProgram program,
+                   FullscreenProgram::Create(ctx, name, fragment, inputs, push_size,
+                                             std::move(outputs), compute));
   absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, name);
   if (!nearest.ok()) return nearest.status();
   absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, name);
@@ -215,11 +248,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) 
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
   return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,
-                                   sizeof(gpu::GeometricAaPush), {kHdrFormat});
+                                   sizeof(gpu::GeometricAaPush), {kHdrFormat},
+                                   "geometric_aa.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
   return MakePost<TaaPass>(ctx, "taa", "taa.frag", 3, sizeof(gpu::TaaPush),
-                           {kHdrFormat, kHdrFormat});
+                           {kHdrFormat, kHdrFormat}, "taa.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx) {
   return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, sizeof(gpu::FxaaPush), {kLdrFormat});
@@ -232,12 +266,15 @@ void SetupTaa(GraphBuilder& b) {
   b.Import(Resource::kTaaHistory, b.features().taa_history_valid ? Access::kSampled : Access::kNone,
            Access::kSampled);
   b.Import(Resource::kTaaHistoryNext, Access::kNone, Access::kSampled);
+  const bool compute = FullscreenProgram::Compute(b.settings());
+  const Access read = compute ? Access::kComputeRead : Access::kSampled;
+  const Access write = compute ? Access::kComputeWrite : Access::kColorWrite;
   b.Pass(PassId::kTaa)
-      .Use(Resource::kHdrColor, Access::kSampled)
-      .Use(Resource::kDepth, Access::kSampled)
-      .Use(Resource::kTaaHistory, Access::kSampled)
-      .Use(Resource::kPostHdr, Access::kColorWrite)
-      .Use(Resource::kTaaHistoryNext, Access::kColorWrite);
+      .Use(Resource::kHdrColor, read)
+      .Use(Resource::kDepth, read)
+      .Use(Resource::kTaaHistory, read)
+      .Use(Resource::kPostHdr, write)
+      .Use(Resource::kTaaHistoryNext, write);
 }
 
 void SetupTonemap(GraphBuilder& b) {

@@ -235,12 +235,13 @@ void SetupVisMlaa(GraphBuilder& b) {
 void SetupGeometricAa(GraphBuilder& b) {
   if (b.settings().aa != AaMode::kVisMlaa) return;
   using R = Resource;
-  using A = Access;
+  const bool compute = FullscreenProgram::Compute(b.settings());
+  const Access read = compute ? Access::kComputeRead : Access::kSampled;
   b.Pass(PassId::kGeometricAa)
-      .Use(R::kHdrColor, A::kSampled)
-      .Use(R::kVisCoverage, A::kSampled)
-      .Use(R::kVisId, A::kSampled)
-      .Use(R::kPostHdr, A::kColorWrite);
+      .Use(R::kHdrColor, read)
+      .Use(R::kVisCoverage, read)
+      .Use(R::kVisId, read)
+      .Use(R::kPostHdr, compute ? Access::kComputeWrite : Access::kColorWrite);
 }
 
 

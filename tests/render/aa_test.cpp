@@ -286,6 +286,45 @@ TEST(AaTest, VisMlaaGolden) {
   CompareWithGolden("vis_mlaa_demo", vis->image, kGoldenMinPsnr);
 }
 
+// TAA and vis_mlaa's geometric AA run as fragment or compute shaders (post_stage): the same
+// pixels either way, for both pipelines, and the aa_mask view too.
+TEST(AaTest, PostStagesGiveTheSamePixels) {
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  struct Case {
+    AaMode aa;
+    Pipeline pipeline;
+    DebugView view;
+  };
+  uint64_t view = 4200;
+  for (const Case& c : {Case{AaMode::kTaa, Pipeline::kForward, DebugView::kNone},
+                        Case{AaMode::kTaa, Pipeline::kVisibility, DebugView::kNone},
+                        Case{AaMode::kVisMlaa, Pipeline::kAuto, DebugView::kNone},
+                        Case{AaMode::kVisMlaa, Pipeline::kAuto, DebugView::kAaMask}}) {
+    Settings s;
+    s.width = 200;
+    s.height = 120;
+    s.aa = c.aa;
+    s.pipeline = c.pipeline;
+    s.debug_view = c.view;
+    std::vector<uint8_t> pixels[2];
+    for (int i = 0; i < 2; ++i) {
+      s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
+      // Two frames of a fresh view each, so TAA blends a real history.
+      absl::StatusOr<Frame> f = r.Render(*scene, camera, s, ++view);
+      ASSERT_TRUE(f.ok()) << f.status();
+      f = r.Render(*scene, camera, s, view);
+      ASSERT_TRUE(f.ok()) << f.status();
+      EXPECT_EQ(f->settings.effective.post_stage, s.post_stage);
+      pixels[i] = f->image.pixels;
+    }
+    EXPECT_EQ(pixels[0], pixels[1]) << ToString(c.aa) << " " << ToString(c.pipeline) << " "
+                                    << ToString(c.view);
+  }
+  ExpectNoValidationMessages(r);
+}
+
 // The aa_mask debug view: white where one surface owns every sample, darker on the edges; it
 // exists for vis_mlaa only, and asking for it otherwise is reported and renders normally.
 TEST(AaTest, AaMaskDebugView) {

@@ -52,12 +52,14 @@ Access InitialAccess(const FramePlan& plan, Resource r) {
 // without local lights to cull.
 std::vector<Settings> SettingsVariants() {
   std::vector<Settings> out;
-  for (uint32_t aa = 0; aa < 10; ++aa) {  // each AA mode with both pipelines
+  // Each AA mode with both pipelines and both post stages.
+  for (uint32_t aa = 0; aa < 20; ++aa) {
     for (uint32_t c = 0; c < 4; ++c) {
       for (uint32_t effects = 0; effects < 64; ++effects) {
         Settings s;
         s.aa = static_cast<AaMode>(aa % 5);
-        s.pipeline = aa < 5 ? Pipeline::kForward : Pipeline::kVisibility;
+        s.pipeline = (aa / 5) % 2 == 0 ? Pipeline::kForward : Pipeline::kVisibility;
+        s.post_stage = aa < 10 ? PostStage::kFragment : PostStage::kCompute;
         s.culling = static_cast<CullingMode>(c);
         s.shadows = effects & 1;
         s.ssao = effects & 2;

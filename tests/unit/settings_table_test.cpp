@@ -168,6 +168,7 @@ std::optional<std::string> TypedName(std::string_view row, const Settings& s) {
   if (row == "tonemapper") return std::string(ToString(s.tonemapper));
   if (row == "debug_view") return std::string(ToString(s.debug_view));
   if (row == "pipeline") return std::string(ToString(s.pipeline));
+  if (row == "post_stage") return std::string(ToString(s.post_stage));
   return std::nullopt;
 }
 
@@ -195,7 +196,7 @@ TEST(SettingsTableTest, EveryEnumValueOfEveryRowRoundTrips) {
               absl::StrCat("settings.", std::string(row.name), ": ", row.choices.size(),
                            " is out of range (", row.RangeText(), ")"));
   }
-  EXPECT_EQ(enums, 6);
+  EXPECT_EQ(enums, 7);
 }
 
 // --- command line -----------------------------------------------------------------------------

@@ -140,6 +140,9 @@ const std::vector<Field>& AllFields() {
                        if (row.name == "pipeline" && a.pipeline == Pipeline::kAuto &&
                            b.pipeline != Pipeline::kAuto)
                          return true;
+                       if (row.name == "post_stage" && a.post_stage == PostStage::kAuto &&
+                           b.post_stage != PostStage::kAuto)
+                         return true;
                        return row.get(a) == row.get(b);
                      }});
     }
@@ -297,8 +300,11 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
     s.ssao_radius = 0.5f;
     s.ssao_strength = 2.0f;
   });
-  for (uint32_t v = 0; v < 3; ++v)
+  for (uint32_t v = 0; v < 3; ++v) {
     add("pipeline " + std::to_string(v), [v](Settings& s) { s.pipeline = static_cast<Pipeline>(v); });
+    add("post_stage " + std::to_string(v),
+        [v](Settings& s) { s.post_stage = static_cast<PostStage>(v); });
+  }
   add("jpeg_quality", [](Settings& s) { s.jpeg_quality = 37; });
   add("jpeg_444", [](Settings& s) { s.jpeg_444 = true; });
   add("everything", [](Settings& s) {
@@ -341,9 +347,11 @@ TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(r->effective.pipeline, Pipeline::kVisibility);
   EXPECT_TRUE(r->notes.empty());
+  EXPECT_EQ(r->effective.post_stage, PostStage::kCompute);
   r = ResolveSettings(Settings{}, cpu);
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
+  EXPECT_EQ(r->effective.post_stage, PostStage::kFragment);
   EXPECT_TRUE(r->notes.empty());
   // Asked for explicitly, each is honoured on either device.
   for (Pipeline p : {Pipeline::kForward, Pipeline::kVisibility}) {

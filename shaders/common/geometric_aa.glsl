@@ -1,0 +1,81 @@
+#include "common/gpu_types.h"
+#include "common/post_io.glsl"
+// vis_mlaa geometric AA. A pixel whose shaded surface owns every sample passes through. In any
+// other pixel the mean position of the surface's samples lies off the pixel centre, towards
+// the surface; the other surface lies the opposite way. That direction (the "compass") picks
+// the two of the 8 neighbours it falls between and how much of each (by angle); the blend of
+// the two is mixed into the pixel by the share of samples the surface does not own. Linear HDR
+// colour in and out. The aa_mask debug view shows the share the surface owns (black: few).
+// A neighbour shading the pixel's own triangle tells nothing about the other surface (e.g. where
+// an edge ends at a corner); it is replaced by the nearest neighbour, by angle within 90 degrees
+// of the compass, that shows another triangle.
+layout(set = 0, binding = 0) uniform sampler2D u_color;
+layout(set = 0, binding = 1) uniform usampler2D u_coverage;
+layout(set = 0, binding = 2) uniform usampler2D u_id;
+layout(push_constant) uniform Push { TS_PUSH_GEOMETRIC_AA } push;  // common/gpu_types.h
+#ifdef TESSERA_COMPUTE
+vec4 out_color;
+#else
+layout(location = 0) out vec4 out_color;
+#endif
+
+const float kPi = 3.14159265359;
+// The 8 neighbours by angle, counter-clockwise from +x in framebuffer coordinates (y down).
+const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
+                                      ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
+
+vec3 Fetch(ivec2 p) {
+  ivec2 size = textureSize(u_color, 0);
+  return texelFetch(u_color, clamp(p, ivec2(0), size - 1), 0).rgb;
+}
+
+// The visibility id (drawable and triangle; 0 the sky) a pixel shades.
+uint IdAt(ivec2 p) {
+  ivec2 size = textureSize(u_id, 0);
+  return texelFetch(u_id, clamp(p, ivec2(0), size - 1), 0).r;
+}
+
+void PostMain() {
+  ivec2 p = ivec2(FRAG_COORD);
+  vec4 color = texelFetch(u_color, p, 0);
+  uint word = texelFetch(u_coverage, p, 0).r;
+  uint full = (1u << push.samples) - 1u;
+  uint mask = word & full;
+  float owned = float(bitCount(mask)) / float(push.samples);
+  if (push.show_mask != 0u) {
+    out_color = vec4(vec3(owned), 1.0);
+    return;
+  }
+  vec2 away = vec2(0.5) - vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0;
+  if (mask == full || dot(away, away) < 1e-6) {
+    out_color = color;
+    return;
+  }
+  float sector = atan(away.y, away.x) / (0.25 * kPi);
+  if (sector < 0.0) sector += 8.0;
+  int i0 = int(floor(sector)) & 7;
+  int i1 = (i0 + 1) & 7;
+  float t = sector - floor(sector);
+  uint own = IdAt(p);
+  bool use0 = IdAt(p + kNeighbours[i0]) != own;
+  bool use1 = IdAt(p + kNeighbours[i1]) != own;
+  vec3 other;
+  if (use0 && use1) {
+    other = mix(Fetch(p + kNeighbours[i0]), Fetch(p + kNeighbours[i1]), t);
+  } else if (use0 || use1) {
+    other = Fetch(p + kNeighbours[use0 ? i0 : i1]);
+  } else {  // the next neighbours out on either side, the nearer in angle first
+    int a = (i0 + 7) & 7, b = (i1 + 1) & 7;
+    bool a_first = t < 0.5;
+    int first = a_first ? a : b, second = a_first ? b : a;
+    if (IdAt(p + kNeighbours[first]) != own) {
+      other = Fetch(p + kNeighbours[first]);
+    } else if (IdAt(p + kNeighbours[second]) != own) {
+      other = Fetch(p + kNeighbours[second]);
+    } else {
+      out_color = color;  // no other surface in sight: nothing to blend with
+      return;
+    }
+  }
+  out_color = vec4(mix(color.rgb, other, 1.0 - owned), 1.0);
+}
