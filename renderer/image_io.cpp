@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <thread>
 #include <utility>
 
 #include "absl/status/status.h"
@@ -38,6 +39,76 @@ class TjHandle {
 };
 
 std::string TjError(tjhandle h) { return tjGetErrorStr2(h); }
+
+// ---- JPEG in strips ------------------------------------------------------------------------
+//
+// A large frame is encoded as horizontal strips on several threads and spliced into one baseline
+// JPEG: strip 0's headers (its SOF's height patched to the whole image's, and a DRI segment
+// whose restart interval is one strip's MCUs), then each strip's entropy-coded data with a
+// restart marker between strips. A restart only resets the DC predictors, and the strips are cut
+// at MCU rows (chroma 4:2:0 is averaged over 2x2 pixels inside a strip's rows), so the decoded
+// pixels are those of a one-strip encode.
+
+// One encoded strip: the whole JPEG, and where its entropy-coded data lies.
+struct EncodedStrip {
+  std::vector<uint8_t> jpeg;
+  size_t sof = 0;           // offset of the SOF0 marker
+  size_t sos = 0;           // offset of the SOS marker
+  size_t data_begin = 0;    // first byte after the SOS segment
+  size_t data_end = 0;      // the EOI marker
+};
+
+// Finds the SOF0 and SOS segments and the scan data of a TurboJPEG baseline encode.
+absl::Status IndexStrip(EncodedStrip& s) {
+  const std::vector<uint8_t>& j = s.jpeg;
+  if (j.size() < 4 || j[0] != 0xFF || j[1] != 0xD8 || j[j.size() - 2] != 0xFF ||
+      j[j.size() - 1] != 0xD9) {
+    return absl::InternalError("EncodeJpeg: a strip is not a complete JPEG");
+  }
+  size_t p = 2;
+  while (p + 4 <= j.size()) {
+    if (j[p] != 0xFF) return absl::InternalError("EncodeJpeg: a strip's markers are malformed");
+    const uint8_t marker = j[p + 1];
+    const size_t length = (size_t(j[p + 2]) << 8) | j[p + 3];
+    if (marker == 0xC0) s.sof = p;
+    if (marker == 0xDD || (marker >= 0xC1 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 &&
+                           marker != 0xCC)) {
+      return absl::InternalError("EncodeJpeg: a strip is not a plain baseline JPEG");
+    }
+    if (marker == 0xDA) {
+      s.sos = p;
+      s.data_begin = p + 2 + length;
+      s.data_end = j.size() - 2;
+      return s.sof != 0 && s.data_begin <= s.data_end
+                 ? absl::OkStatus()
+                 : absl::InternalError("EncodeJpeg: a strip has no frame header");
+    }
+    p += 2 + length;
+  }
+  return absl::InternalError("EncodeJpeg: a strip has no scan");
+}
+
+absl::StatusOr<std::vector<uint8_t>> CompressRows(const RgbaImage& image, uint32_t y0,
+                                                  uint32_t rows, int quality, int samp) {
+  TjHandle tj(tjInitCompress());
+  if (tj.get() == nullptr) {
+    return absl::InternalError(absl::StrCat("tjInitCompress: ", TjError(nullptr)));
+  }
+  unsigned char* jpeg = nullptr;
+  unsigned long jpeg_size = 0;
+  const size_t pitch = size_t(image.width) * 4;
+  const int rc = tjCompress2(tj.get(), image.pixels.data() + y0 * pitch,
+                             static_cast<int>(image.width), static_cast<int>(pitch),
+                             static_cast<int>(rows), TJPF_RGBA, &jpeg, &jpeg_size, samp, quality,
+                             TJFLAG_ACCURATEDCT);
+  if (rc != 0) {
+    tjFree(jpeg);  // TurboJPEG may have allocated the buffer before failing
+    return absl::InternalError(absl::StrCat("tjCompress2: ", TjError(tj.get())));
+  }
+  std::vector<uint8_t> out(jpeg, jpeg + jpeg_size);
+  tjFree(jpeg);
+  return out;
+}
 
 // ---- libpng ------------------------------------------------------------------------------
 //
@@ -184,29 +255,76 @@ bool DecodePngImpl(PngReadState* st) {
 
 absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
                                                 ChromaSubsampling subsampling) {
+  return EncodeJpeg(image, quality, subsampling, 1);
+}
+
+uint32_t AutoJpegStrips(const RgbaImage& image) {
+  constexpr uint64_t kMinPixels = uint64_t{1} << 21;  // 2 Mpixel: 1920x1080 and up
+  if (uint64_t(image.width) * image.height < kMinPixels) return 1;
+  return std::clamp(std::thread::hardware_concurrency(), 1u, kMaxJpegStrips);
+}
+
+absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
+                                                ChromaSubsampling subsampling, uint32_t strips) {
   if (quality < 1 || quality > 100) {
     return absl::InvalidArgumentError(
         absl::StrCat("EncodeJpeg: quality ", quality, " outside 1..100"));
   }
   RETURN_IF_ERROR(ValidateImage(image, "EncodeJpeg"));
+  const bool s444 = subsampling == ChromaSubsampling::k444;
+  const int samp = s444 ? TJSAMP_444 : TJSAMP_420;
+  const uint32_t mcu = s444 ? 8 : 16;  // an MCU's side in pixels
+  const uint32_t mcu_rows = (image.height + mcu - 1) / mcu;
+  const uint32_t mcus_per_row = (image.width + mcu - 1) / mcu;
+  if (strips == 0) strips = AutoJpegStrips(image);
+  strips = std::clamp(strips, 1u, std::min(mcu_rows, kMaxJpegStrips));
+  // Every strip but the last holds `rows` MCU rows; a restart interval (16 bits) is one strip.
+  const uint32_t rows = std::min((mcu_rows + strips - 1) / strips,
+                                 std::max(1u, 65535u / mcus_per_row));
+  const uint32_t count = (mcu_rows + rows - 1) / rows;
+  if (count == 1) return CompressRows(image, 0, image.height, quality, samp);
 
-  TjHandle tj(tjInitCompress());
-  if (tj.get() == nullptr) {
-    return absl::InternalError(absl::StrCat("tjInitCompress: ", TjError(nullptr)));
+  std::vector<EncodedStrip> parts(count);
+  std::vector<absl::Status> status(count);
+  const uint32_t threads = std::min(count, strips);
+  auto work = [&](uint32_t first) {
+    for (uint32_t k = first; k < count; k += threads) {
+      const uint32_t y0 = k * rows * mcu;
+      absl::StatusOr<std::vector<uint8_t>> jpeg =
+          CompressRows(image, y0, std::min(rows * mcu, image.height - y0), quality, samp);
+      if (!jpeg.ok()) {
+        status[k] = jpeg.status();
+        continue;
+      }
+      parts[k].jpeg = std::move(*jpeg);
+      status[k] = IndexStrip(parts[k]);
+    }
+  };
+  {
+    std::vector<std::jthread> pool;
+    for (uint32_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    work(0);
   }
-  unsigned char* jpeg = nullptr;
-  unsigned long jpeg_size = 0;
-  const int samp = subsampling == ChromaSubsampling::k444 ? TJSAMP_444 : TJSAMP_420;
-  const int rc = tjCompress2(tj.get(), image.pixels.data(), static_cast<int>(image.width),
-                             static_cast<int>(image.width * 4), static_cast<int>(image.height),
-                             TJPF_RGBA, &jpeg, &jpeg_size, samp, quality, TJFLAG_ACCURATEDCT);
-  if (rc != 0) {
-    // TurboJPEG may have allocated the buffer before failing.
-    tjFree(jpeg);
-    return absl::InternalError(absl::StrCat("tjCompress2: ", TjError(tj.get())));
+  for (const absl::Status& st : status) RETURN_IF_ERROR(st);
+
+  const EncodedStrip& head = parts[0];
+  std::vector<uint8_t> out(head.jpeg.begin(), head.jpeg.begin() + head.sos);
+  out[head.sof + 5] = uint8_t(image.height >> 8);  // SOF0: length, precision, height, width
+  out[head.sof + 6] = uint8_t(image.height & 0xFF);
+  const uint32_t interval = rows * mcus_per_row;
+  const uint8_t dri[] = {0xFF, 0xDD, 0x00, 0x04, uint8_t(interval >> 8), uint8_t(interval & 0xFF)};
+  out.insert(out.end(), std::begin(dri), std::end(dri));
+  out.insert(out.end(), head.jpeg.begin() + head.sos, head.jpeg.begin() + head.data_begin);
+  for (uint32_t k = 0; k < count; ++k) {
+    const EncodedStrip& s = parts[k];
+    out.insert(out.end(), s.jpeg.begin() + s.data_begin, s.jpeg.begin() + s.data_end);
+    if (k + 1 < count) {
+      out.push_back(0xFF);
+      out.push_back(uint8_t(0xD0 + k % 8));  // RST0..RST7, in turn
+    }
   }
-  std::vector<uint8_t> out(jpeg, jpeg + jpeg_size);
-  tjFree(jpeg);
+  out.push_back(0xFF);
+  out.push_back(0xD9);
   return out;
 }
 

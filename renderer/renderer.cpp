@@ -250,7 +250,8 @@ absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat forma
           ? EncodePng(frame.image)
           : EncodeJpeg(frame.image, int(frame.settings.effective.jpeg_quality),
                        frame.settings.effective.jpeg_444 ? ChromaSubsampling::k444
-                                                         : ChromaSubsampling::k420);
+                                                         : ChromaSubsampling::k420,
+                       /*strips=*/0);  // large frames in strips on several threads
   frame.cpu.encode_ms = MsSince(t0);
   return bytes;
 }

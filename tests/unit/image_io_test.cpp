@@ -1,6 +1,8 @@
 #include "renderer/image_io.h"
 
 #include <gtest/gtest.h>
+
+#include <algorithm>
 #include <png.h>
 
 #include <cmath>
@@ -167,6 +169,79 @@ TEST(ImageIo, JpegSubsamplingModesDecodeToSize) {
     ASSERT_TRUE(psnr.ok());
     EXPECT_GT(*psnr, 30.0);
   }
+}
+
+// A gradient with deterministic noise: every DCT coefficient band in use.
+RgbaImage Textured(uint32_t w, uint32_t h) {
+  RgbaImage img = Gradient(w, h);
+  uint32_t state = 12345;
+  for (size_t i = 0; i < img.pixels.size(); ++i) {
+    if (i % 4 == 3) continue;
+    state = state * 1664525u + 1013904223u;
+    img.pixels[i] = uint8_t((img.pixels[i] + (state >> 27)) & 0xFF);
+  }
+  return img;
+}
+
+// The markers of a baseline JPEG after its scan header: how many RSTn, in order.
+int CountRestarts(const std::vector<uint8_t>& jpeg, bool* in_order) {
+  int n = 0;
+  *in_order = true;
+  for (size_t i = 0; i + 1 < jpeg.size(); ++i) {
+    if (jpeg[i] != 0xFF || jpeg[i + 1] < 0xD0 || jpeg[i + 1] > 0xD7) continue;
+    *in_order = *in_order && jpeg[i + 1] == 0xD0 + n % 8;
+    ++n;
+  }
+  return n;
+}
+
+// Strips encoded on several threads and spliced with restart markers decode to exactly the
+// pixels of the one-strip encode (strips are cut at MCU rows; a restart only resets the DC
+// prediction), for both subsamplings, sizes that are not multiples of an MCU, and more strips
+// than MCU rows.
+TEST(ImageIo, JpegStripsDecodeToTheOneStripPixels) {
+  const RgbaImage src = Textured(301, 203);
+  for (ChromaSubsampling s : {ChromaSubsampling::k420, ChromaSubsampling::k444}) {
+    auto one = EncodeJpeg(src, 85, s, 1);
+    ASSERT_TRUE(one.ok()) << one.status();
+    auto one_img = DecodeJpeg(*one);
+    ASSERT_TRUE(one_img.ok()) << one_img.status();
+    bool in_order = false;
+    EXPECT_EQ(CountRestarts(*one, &in_order), 0);
+    for (uint32_t strips : {2u, 3u, 5u, 8u, 100u}) {
+      auto split = EncodeJpeg(src, 85, s, strips);
+      ASSERT_TRUE(split.ok()) << split.status();
+      auto img = DecodeJpeg(*split);
+      ASSERT_TRUE(img.ok()) << img.status() << " strips " << strips;
+      EXPECT_EQ(img->width, src.width);
+      EXPECT_EQ(img->height, src.height);
+      EXPECT_EQ(img->pixels, one_img->pixels) << "strips " << strips;
+      const uint32_t mcu_rows = (src.height + (s == ChromaSubsampling::k444 ? 7 : 15)) /
+                                (s == ChromaSubsampling::k444 ? 8 : 16);
+      const uint32_t expected = std::min({strips, mcu_rows, kMaxJpegStrips});
+      // Rows are split evenly in whole MCU rows: the strip count can come out one lower.
+      const int restarts = CountRestarts(*split, &in_order);
+      EXPECT_GE(restarts + 1, int(expected) - 1) << "strips " << strips;
+      EXPECT_LE(restarts + 1, int(expected)) << "strips " << strips;
+      EXPECT_TRUE(in_order);
+    }
+  }
+}
+
+// A restart interval is 16 bits of MCUs: a wide image gets more, shorter strips than asked,
+// still on the asked number of threads.
+TEST(ImageIo, JpegStripsOfAWideImageFitTheRestartInterval) {
+  const RgbaImage src = Gradient(16384, 512);  // 4:4:4: 2048 MCUs a row, 31 rows a strip
+  auto one = EncodeJpeg(src, 75, ChromaSubsampling::k444, 1);
+  auto split = EncodeJpeg(src, 75, ChromaSubsampling::k444, 2);
+  ASSERT_TRUE(one.ok() && split.ok());
+  bool in_order = false;
+  EXPECT_EQ(CountRestarts(*split, &in_order), 2);  // 64 MCU rows: strips of 31, 31, 2
+  EXPECT_TRUE(in_order);
+  auto a = DecodeJpeg(*one);
+  auto b = DecodeJpeg(*split);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_EQ(a->pixels, b->pixels);
 }
 
 TEST(ImageIo, JpegRejectsBadQuality) {
