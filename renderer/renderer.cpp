@@ -225,13 +225,33 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
   return absl::OkStatus();
 }
 
+void Renderer::RecyclePixels(std::vector<uint8_t>&& pixels) {
+  std::vector<uint8_t> taken = std::move(pixels);  // the caller's vector is left empty
+  if (taken.capacity() == 0) return;
+  std::lock_guard lock(impl_->spare_mutex);
+  auto& spare = impl_->spare_pixels;
+  if (spare.size() >= kSparePixelBuffers) spare.erase(spare.begin());
+  spare.push_back(std::move(taken));
+}
+
 void Renderer::Impl::ReadBack(Frame& frame) {
   const auto t_readback = Clock::now();
   const Settings& s = frame.settings.effective;
   readback->InvalidateForRead();
   frame.image.width = s.width;
   frame.image.height = s.height;
-  frame.image.pixels.resize(size_t(s.width) * s.height * 4);
+  const size_t bytes = size_t(s.width) * s.height * 4;
+  {
+    // The newest given-back buffer that holds the frame without wasting more than its size.
+    std::lock_guard lock(spare_mutex);
+    for (auto it = spare_pixels.rbegin(); it != spare_pixels.rend(); ++it) {
+      if (it->capacity() < bytes || it->capacity() > 2 * bytes) continue;
+      frame.image.pixels = std::move(*it);
+      spare_pixels.erase(std::next(it).base());
+      break;
+    }
+  }
+  frame.image.pixels.resize(bytes);
   std::memcpy(frame.image.pixels.data(), readback->mapped(), frame.image.pixels.size());
   frame.cpu.readback_ms = MsSince(t_readback);
 }

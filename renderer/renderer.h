@@ -181,6 +181,13 @@ class Renderer {
   // rendered before, and how they give the memory back afterwards.
   void ForgetView(const Scene& scene, uint64_t view);
 
+  // Gives back the pixel memory of a frame the caller is done with (after encoding it): the
+  // next frames are read back into it instead of into fresh memory (a 4K frame's 33 MB,
+  // page-faulted anew each time, cost half of its readback). Thread-safe (encoder threads call
+  // it while another frame renders); at most kSparePixelBuffers are kept, the newest.
+  void RecyclePixels(std::vector<uint8_t>&& pixels);
+  static constexpr size_t kSparePixelBuffers = 2;
+
   // Validation-layer messages so far (tests require zero).
   uint64_t validation_message_count() const;
   std::vector<std::string> validation_messages() const;

@@ -124,6 +124,10 @@ struct Renderer::Impl {
   uint64_t shade_pixel_capacity = 0;
   vk::Pipeline id_pipeline;  // FrameCapture::want_ids, made on first use
   uint64_t frame_counter = 0;
+  // Pixel memory given back by RecyclePixels, newest last (its own mutex: encoder threads give
+  // it back while a frame renders under `mutex`).
+  std::mutex spare_mutex;
+  std::vector<std::vector<uint8_t>> spare_pixels;
   TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
   FrameTargets targets;    // this frame's, from the pool
   const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool

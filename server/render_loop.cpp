@@ -15,8 +15,10 @@ double MsBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-// Upscales an interactive frame to the work's output size and encodes it; `frame` is consumed.
-absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double queue_wait_ms) {
+// Upscales an interactive frame to the work's output size and encodes it; `frame` is consumed,
+// its pixel memory given back to `renderer` for the next frames' readback.
+absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double queue_wait_ms,
+                                    Renderer& renderer) {
   EncodedFrame out;
   out.render_width = frame.image.width;
   out.render_height = frame.image.height;
@@ -24,13 +26,15 @@ absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double
   if (work.output_width != 0 && work.output_height != 0 &&
       (work.output_width != out.render_width || work.output_height != out.render_height)) {
     const Clock::time_point t0 = Clock::now();
-    ASSIGN_OR_RETURN(frame.image, ResizeBicubic(frame.image, work.output_width,
-                                                work.output_height));
+    ASSIGN_OR_RETURN(RgbaImage upscaled, ResizeBicubic(frame.image, work.output_width,
+                                                       work.output_height));
+    renderer.RecyclePixels(std::move(frame.image.pixels));
+    frame.image = std::move(upscaled);
     upscale_ms = MsBetween(t0, Clock::now());
   }
   ASSIGN_OR_RETURN(out.data, EncodeFrame(frame, work.format));
   frame.cpu.encode_ms += upscale_ms;  // the upscale is part of encoding
-  frame.image.pixels = {};            // the bytes are what goes on
+  renderer.RecyclePixels(std::move(frame.image.pixels));  // the bytes are what goes on
   out.frame = std::move(frame);
   out.format = work.format;
   out.camera = work.camera;
@@ -293,7 +297,7 @@ void RenderLoop::Accumulate(Accumulation acc, bool background) {
 
 void RenderLoop::EncodeAndDeliver(const std::shared_ptr<RenderClient>& client,
                                   const RenderWork& work, Frame& frame, double queue_wait_ms) {
-  absl::StatusOr<EncodedFrame> encoded = Encode(work, frame, queue_wait_ms);
+  absl::StatusOr<EncodedFrame> encoded = Encode(work, frame, queue_wait_ms, *renderer_);
   if (encoded.ok() && options_.metrics) {
     std::vector<std::pair<std::string, double>> passes;
     passes.reserve(encoded->frame.passes.size());

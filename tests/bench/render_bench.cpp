@@ -143,6 +143,7 @@ int main(int argc, char** argv) {
       double stamp_total = 0.0;
       for (const PassTiming& p : frame->passes) stamp_total += p.timestamp_ms;
       ratio.push_back(stamp_total / std::max(1e-6, frame->cpu.submit_wait_ms));
+      (*renderer)->RecyclePixels(std::move(last.image.pixels));  // as the server gives them back
       last = std::move(*frame);
     }
     nlohmann::json r;

@@ -197,6 +197,31 @@ TEST(RenderTest, TargetsArePooledPerSizeAndMode) {
   ExpectNoValidationMessages(r);
 }
 
+// Pixel memory given back is what the next frames are read back into (no fresh 33 MB per 4K
+// frame), and the pixels are the frame's all the same.
+TEST(RenderTest, RecycledPixelMemoryIsReused) {
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  const Settings s = SmallSettings(96, 64);
+  absl::StatusOr<Frame> a = r.Render(*scene, camera, s);
+  ASSERT_TRUE(a.ok()) << a.status();
+  const std::vector<uint8_t> pixels = a->image.pixels;
+  const uint8_t* memory = a->image.pixels.data();
+  r.RecyclePixels(std::move(a->image.pixels));
+  EXPECT_TRUE(a->image.pixels.empty());
+  absl::StatusOr<Frame> b = r.Render(*scene, camera, s);
+  ASSERT_TRUE(b.ok()) << b.status();
+  EXPECT_EQ(b->image.pixels.data(), memory);
+  EXPECT_EQ(b->image.pixels, pixels);
+  // A buffer far larger than the frame is not used for it.
+  r.RecyclePixels(std::vector<uint8_t>(96 * 64 * 4 * 3));
+  absl::StatusOr<Frame> c = r.Render(*scene, camera, s);
+  ASSERT_TRUE(c.ok()) << c.status();
+  EXPECT_EQ(c->image.pixels.size(), 96u * 64u * 4u);
+  EXPECT_EQ(c->image.pixels.capacity(), 96u * 64u * 4u);
+}
+
 // Every pass reports a GPU time; the passes fit inside the frame's total, and the total fits
 // inside the wall-clock time from submit to fence (the timestamps measure real time).
 TEST(RenderTest, TimingsAreConsistent) {
