@@ -128,9 +128,10 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   if (s.ssao) {  // half (or full) resolution
     const uint32_t div = s.ssao_half_res ? 2 : 1;
     const uint32_t w = std::max(1u, width / div), h = std::max(1u, height / div);
-    ASSIGN_OR_RETURN(auto* ao, get(R::kAo, kAoFormat, kColor | kSampled, "ao", w, h));
+    ASSIGN_OR_RETURN(auto* ao, get(R::kAo, kAoFormat, kColor | kSampled | kStorage, "ao", w, h));
     t.ao = ao->image;
-    ASSIGN_OR_RETURN(auto* temp, get(R::kAoTemp, kAoFormat, kColor | kSampled, "ao_temp", w, h));
+    ASSIGN_OR_RETURN(auto* temp,
+                     get(R::kAoTemp, kAoFormat, kColor | kSampled | kStorage, "ao_temp", w, h));
     t.ao_temp = temp->image;
   }
   if (s.bloom) {
@@ -138,12 +139,12 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
     // exists (a tiny frame's bloom is then magnified).
     constexpr uint32_t kMin = 1u << (kBloomLevels - 1);
     const uint32_t w = std::max(kMin, width / 2), h = std::max(kMin, height / 2);
-    ASSIGN_OR_RETURN(auto* down, get(R::kBloomDown, kHdrFormat, kColor | kSampled, "bloom_down", w,
-                                     h, 1, kBloomLevels));
+    ASSIGN_OR_RETURN(auto* down, get(R::kBloomDown, kHdrFormat, kColor | kSampled | kStorage,
+                                     "bloom_down", w, h, 1, kBloomLevels));
     t.bloom_down = down->image;
     t.bloom_down_levels = down->mips;
-    ASSIGN_OR_RETURN(auto* up, get(R::kBloomUp, kHdrFormat, kColor | kSampled, "bloom_up", w, h, 1,
-                                   kBloomLevels - 1));
+    ASSIGN_OR_RETURN(auto* up, get(R::kBloomUp, kHdrFormat, kColor | kSampled | kStorage,
+                                   "bloom_up", w, h, 1, kBloomLevels - 1));
     t.bloom_up = up->image;
     t.bloom_up_levels = up->mips;
   }

@@ -43,6 +43,17 @@ class BloomPass final : public Pass {
       return VkExtent2D{std::max(1u, t.bloom_down.desc().width >> level),
                         std::max(1u, t.bloom_down.desc().height >> level)};
     };
+    const bool compute = FullscreenProgram::Compute(*ctx.settings);
+    // In compute both chains stay in the general layout; a mip is read after the dispatch that
+    // wrote it.
+    const VkImageLayout read = compute ? VK_IMAGE_LAYOUT_GENERAL
+                                       : VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL;
+    auto written = [&](const vk::Image& image, uint32_t level) {
+      if (!compute) return ToRead(ctx, image, level);
+      const VkPipelineStageFlags2 cs = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+      vk::CmdMemoryBarrier(ctx.cmd, cs, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, cs,
+                           VK_ACCESS_2_SHADER_SAMPLED_READ_BIT);
+    };
     const PostInput exposure{ctx.exposure->view, nearest_.handle(), ctx.exposure->layout};
     gpu::BloomDownPush down{glm::vec4(0.0f), glm::vec4(kThreshold, kKnee, 0.0f, 0.0f),
                             ctx.exposure->params};
@@ -51,9 +62,10 @@ class BloomPass final : public Pass {
       down.src = glm::vec4(1.0f / float(src.width), 1.0f / float(src.height), i == 0 ? 1.0f : 0.0f,
                            0.0f);
       const PostInput in{i == 0 ? PostColor(ctx).view() : t.bloom_down_levels[i - 1],
-                         linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+                         linear_.handle(),
+                         i == 0 ? VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL : read};
       down_.Draw(ctx, {in, exposure}, {t.bloom_down_levels[i]}, &down, extent(i));
-      ToRead(ctx, t.bloom_down, i);
+      written(t.bloom_down, i);
     }
     // Up: level i of bloom_up = tent(the level below, magnified) + level i of bloom_down; the
     // level below is bloom_down's last for the first step.
@@ -64,14 +76,12 @@ class BloomPass final : public Pass {
       const VkImageView low_view =
           i + 1 == levels - 1 ? t.bloom_down_levels[i + 1] : t.bloom_up_levels[i + 1];
       up_.Draw(ctx,
-               {{low_view, linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-                {t.bloom_down_levels[i], linear_.handle(),
-                 VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}},
+               {{low_view, linear_.handle(), read}, {t.bloom_down_levels[i], linear_.handle(), read}},
                {t.bloom_up_levels[i]}, &push, extent(i));
-      if (i > 0) ToRead(ctx, t.bloom_up, i);
+      if (i > 0) written(t.bloom_up, i);
     }
     // Levels 1.. were read above (after their writes): back to the target layout, for the graph.
-    if (levels > 2) {
+    if (!compute && levels > 2) {
       const VkImageMemoryBarrier2 b = vk::MakeImageBarrier(
           t.bloom_up,
           {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_NONE,
@@ -101,11 +111,12 @@ class BloomPass final : public Pass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx) {
-  absl::StatusOr<FullscreenProgram> down = FullscreenProgram::Create(
-      ctx, "bloom_down", "bloom_down.frag", 2, sizeof(gpu::BloomDownPush), {kHdrFormat});
+  absl::StatusOr<FullscreenProgram> down =
+      FullscreenProgram::Create(ctx, "bloom_down", "bloom_down.frag", 2,
+                                sizeof(gpu::BloomDownPush), {kHdrFormat}, "bloom_down.comp");
   if (!down.ok()) return down.status();
   absl::StatusOr<FullscreenProgram> up = FullscreenProgram::Create(
-      ctx, "bloom_up", "bloom_up.frag", 2, sizeof(gpu::BloomUpPush), {kHdrFormat});
+      ctx, "bloom_up", "bloom_up.frag", 2, sizeof(gpu::BloomUpPush), {kHdrFormat}, "bloom_up.comp");
   if (!up.ok()) return up.status();
   ASSIGN_OR_RETURN(vk::Sampler linear, CreateClampSampler(ctx, true, "bloom.linear"));
   absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, "bloom.nearest");
@@ -119,11 +130,14 @@ void SetupBloom(GraphBuilder& b) {
   const Resource color = b.SceneColor();
   // The pass makes its own per-mip barriers inside the chains; the graph sees the chains as
   // colour targets, all mips, so its transition to the tonemap's read covers them.
+  const bool compute = FullscreenProgram::Compute(b.settings());
+  const Access write = compute ? Access::kComputeWrite : Access::kColorWrite;
   b.Pass(PassId::kBloom)
-      .Use(color, Access::kSampled)
-      .Use(Resource::kBloomDown, Access::kColorWrite)
-      .Use(Resource::kBloomUp, Access::kColorWrite)
-      .UseIfPresent(Resource::kExposureState, Access::kSampledGeneral);
+      .Use(color, compute ? Access::kComputeRead : Access::kSampled)
+      .Use(Resource::kBloomDown, write)
+      .Use(Resource::kBloomUp, write)
+      .UseIfPresent(Resource::kExposureState,
+                    compute ? Access::kComputeReadGeneral : Access::kSampledGeneral);
 }
 
 }  // namespace tessera

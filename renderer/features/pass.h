@@ -28,7 +28,9 @@ inline constexpr VkFormat kLdrFormat = VK_FORMAT_R8G8B8A8_SRGB;
 inline constexpr VkFormat kHizFormat = VK_FORMAT_R32_SFLOAT;
 inline constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
 inline constexpr VkFormat kShadowFormat = VK_FORMAT_D16_UNORM;  // the shadow atlas (16-bit)
-inline constexpr VkFormat kAoFormat = VK_FORMAT_R16G16_SFLOAT;  // ssao: visibility + depth
+// ssao: visibility + depth (RGBA16F, not RG16F: a storage format without
+// shaderStorageImageExtendedFormats, for post_stage compute).
+inline constexpr VkFormat kAoFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 inline constexpr VkFormat kExposureFormat = VK_FORMAT_R32_SFLOAT;  // adapted log2 luma, 1x1
 // Bloom's downsample chain: this many levels, the first at half the frame's size (the upsample
 // chain has one fewer). Six levels reach 1/64 of the frame: a glow about a tenth of its width.

@@ -1,6 +1,7 @@
 // SSAO: Scalable Ambient Obscurance (shaders/ssao.frag) from the frame's depth alone (normals
 // are reconstructed from it), at the size of FrameTargets::ao (half the frame by default), into
-// AO + view depth packed in one RG16F texel; then a separable bilateral blur (ssao_blur.frag)
+// AO + view depth packed in one RGBA16F texel (RGBA: a storage format every device has, for
+// the compute variant); then a separable bilateral blur (ssao_blur.frag)
 // that reads both in one tap: ao -> ao_temp (horizontal) -> ao (vertical). The shading passes
 // multiply their ambient light by it. The two intermediate barriers are the pass's own: the
 // frame graph sees one pass that writes ao.
@@ -32,6 +33,20 @@ class SsaoPass final : public Pass {
              {t.ao.view()}, &push, extent);
     gpu::SsaoBlurPush blur{glm::ivec4(1, 0, extent.width, extent.height),
                            glm::vec4(kDepthSharpness, 0, 0, 0)};
+    if (FullscreenProgram::Compute(*ctx.settings)) {  // both images stay in the general layout
+      const VkPipelineStageFlags2 cs = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
+      const VkAccessFlags2 rw = VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+                                VK_ACCESS_2_SHADER_SAMPLED_READ_BIT;
+      const VkImageLayout general = VK_IMAGE_LAYOUT_GENERAL;
+      vk::CmdMemoryBarrier(ctx.cmd, cs, rw, cs, rw);
+      blur_.Draw(ctx, {{t.ao.view(), nearest_.handle(), general}}, {t.ao_temp.view()}, &blur,
+                 extent);
+      vk::CmdMemoryBarrier(ctx.cmd, cs, rw, cs, rw);
+      blur.dir = glm::ivec4(0, 1, extent.width, extent.height);
+      blur_.Draw(ctx, {{t.ao_temp.view(), nearest_.handle(), general}}, {t.ao.view()}, &blur,
+                 extent);
+      return;
+    }
     ToRead(ctx, t.ao);
     blur_.Draw(ctx, {{t.ao.view(), nearest_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}},
                {t.ao_temp.view()}, &blur, extent);
@@ -70,11 +85,12 @@ class SsaoPass final : public Pass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx) {
-  absl::StatusOr<FullscreenProgram> ao =
-      FullscreenProgram::Create(ctx, "ssao", "ssao.frag", 1, sizeof(gpu::SsaoPush), {kAoFormat});
+  absl::StatusOr<FullscreenProgram> ao = FullscreenProgram::Create(
+      ctx, "ssao", "ssao.frag", 1, sizeof(gpu::SsaoPush), {kAoFormat}, "ssao.comp");
   if (!ao.ok()) return ao.status();
-  absl::StatusOr<FullscreenProgram> blur = FullscreenProgram::Create(
-      ctx, "ssao_blur", "ssao_blur.frag", 1, sizeof(gpu::SsaoBlurPush), {kAoFormat});
+  absl::StatusOr<FullscreenProgram> blur =
+      FullscreenProgram::Create(ctx, "ssao_blur", "ssao_blur.frag", 1, sizeof(gpu::SsaoBlurPush),
+                                {kAoFormat}, "ssao_blur.comp");
   if (!blur.ok()) return blur.status();
   ASSIGN_OR_RETURN(vk::Sampler nearest, CreateClampSampler(ctx, false, "ssao"));
   return std::unique_ptr<Pass>(new SsaoPass(std::move(*ao), std::move(*blur), std::move(nearest)));
@@ -82,10 +98,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx) {
 
 void SetupSsao(GraphBuilder& b) {
   if (!b.settings().ssao) return;
+  const bool compute = FullscreenProgram::Compute(b.settings());
+  const Access write = compute ? Access::kComputeWrite : Access::kColorWrite;
   b.Pass(PassId::kSsao)
-      .Use(Resource::kDepth, Access::kSampled)
-      .Use(Resource::kAo, Access::kColorWrite)
-      .Use(Resource::kAoTemp, Access::kColorWrite);
+      .Use(Resource::kDepth, compute ? Access::kComputeRead : Access::kSampled)
+      .Use(Resource::kAo, write)
+      .Use(Resource::kAoTemp, write);
 }
 
 

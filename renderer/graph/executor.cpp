@@ -72,6 +72,9 @@ AccessInfo ToVulkan(Access a) {
     case Access::kSampledGeneral:
       return {VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
               VK_IMAGE_LAYOUT_GENERAL};
+    case Access::kComputeReadGeneral:
+      return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
+              VK_IMAGE_LAYOUT_GENERAL};
     case Access::kIndirectRead:  // buffers only
     case Access::kHostWrite:
     case Access::kHostRead:

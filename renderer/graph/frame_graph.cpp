@@ -77,6 +77,7 @@ int LayoutClass(Access a) {
       return 4;
     case Access::kComputeWrite:
     case Access::kSampledGeneral:
+    case Access::kComputeReadGeneral:
       return 5;
     case Access::kIndirectRead:
       return 6;

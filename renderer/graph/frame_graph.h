@@ -75,6 +75,7 @@ enum class Access : uint8_t {
   kTransferSrc,     // copied from
   kDepthResolve,    // written by the multisample resolve of a depth attachment
   kSampledGeneral,  // read in a fragment shader in the general layout (auto exposure's state)
+  kComputeReadGeneral,  // read (sampled) in a compute shader in the general layout
   // Buffers only (kComputeWrite, kComputeRead and kSampled apply to buffers too: storage writes
   // and clears, storage reads in compute, storage reads in fragment shaders).
   kIndirectRead,  // indirect draw and dispatch commands and counts

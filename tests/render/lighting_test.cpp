@@ -513,3 +513,43 @@ TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
 
 }  // namespace
 }  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// SSAO and bloom run as fragment or compute shaders (post_stage): the same picture. (Compute
+// derives each pixel's uv from its index where the fragment shader interpolates it, so bloom's
+// bilinear taps may differ in the last bit.)
+TEST(PostStageTest, SsaoAndBloomAgreeInBothStages) {
+  const SceneHandle& scene = SharedDemoScene();
+  Settings s = Lit(false, true);
+  s.bloom = true;
+  s.exposure_mode = ExposureMode::kAuto;
+  Frame frames[2];
+  for (int i = 0; i < 2; ++i) {
+    s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
+    frames[i] = RenderOrDie(*scene, BackCamera(), s, 950 + i);
+    EXPECT_EQ(frames[i].settings.effective.post_stage, s.post_stage);
+  }
+  absl::StatusOr<double> psnr = Psnr(frames[0].image, frames[1].image);
+  ASSERT_TRUE(psnr.ok()) << psnr.status();
+  EXPECT_GE(*psnr, 55.0);
+  s.debug_view = DebugView::kSsao;  // the AO itself
+  for (int i = 0; i < 2; ++i) {
+    s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
+    frames[i] = RenderOrDie(*scene, BackCamera(), s, 960 + i);
+  }
+  EXPECT_EQ(frames[0].image.pixels, frames[1].image.pixels);
+  s.debug_view = DebugView::kBloom;  // the bloom itself
+  for (int i = 0; i < 2; ++i) {
+    s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
+    frames[i] = RenderOrDie(*scene, BackCamera(), s, 970 + i);
+  }
+  psnr = Psnr(frames[0].image, frames[1].image);
+  ASSERT_TRUE(psnr.ok()) << psnr.status();
+  EXPECT_GE(*psnr, 55.0);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+}  // namespace
+}  // namespace tessera

@@ -36,7 +36,8 @@ bool IsWrite(Access a) {
 }
 bool IsRead(Access a) {
   return a == Access::kDepthTest || a == Access::kSampled || a == Access::kTransferSrc ||
-         a == Access::kComputeRead || a == Access::kSampledGeneral || a == Access::kIndirectRead ||
+         a == Access::kComputeRead || a == Access::kSampledGeneral ||
+         a == Access::kComputeReadGeneral || a == Access::kIndirectRead ||
          a == Access::kHostRead;
 }
 
