@@ -22,13 +22,7 @@
 layout(set = 0, binding = 0) uniform sampler2D u_src;
 layout(set = 0, binding = 1) uniform sampler2D u_exposure;  // auto exposure's state (NEAREST)
 layout(push_constant) uniform Push { TS_PUSH_BLOOM_DOWN } push;  // common/gpu_types.h
-#ifdef TESSERA_COMPUTE
-vec2 v_uv;  // the pixel centre in uv, set by the compute wrapper
-vec4 out_color;
-#else
-layout(location = 0) in vec2 v_uv;  // from fullscreen.vert: the target pixel's centre
-layout(location = 0) out vec4 out_color;
-#endif
+POST_IO(out_color)  // from fullscreen.vert: the target pixel's centre
 
 const float kMaxHalf = 65504.0;  // largest finite RGBA16F value
 

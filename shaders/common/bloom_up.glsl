@@ -10,13 +10,7 @@ layout(set = 0, binding = 0) uniform sampler2D u_low;
 // This level of the downsample chain (the target's size); LINEAR.
 layout(set = 0, binding = 1) uniform sampler2D u_this;
 layout(push_constant) uniform Push { TS_PUSH_BLOOM_UP } push;  // common/gpu_types.h
-#ifdef TESSERA_COMPUTE
-vec2 v_uv;  // the pixel centre in uv, set by the compute wrapper
-vec4 out_color;
-#else
-layout(location = 0) in vec2 v_uv;  // from fullscreen.vert: the target pixel's centre
-layout(location = 0) out vec4 out_color;
-#endif
+POST_IO(out_color)  // from fullscreen.vert: the target pixel's centre
 
 void PostMain() {
   vec2 step = push.params.xy * push.params.z;  // one tent step in uv

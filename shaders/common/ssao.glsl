@@ -15,13 +15,7 @@
 // D32, reverse Z (1 near, 0 sky), NEAREST sampler (texelFetch only).
 layout(set = 0, binding = 0) uniform sampler2D u_depth;
 layout(push_constant) uniform Push { TS_PUSH_SSAO } push;  // common/gpu_types.h
-#ifdef TESSERA_COMPUTE
-vec2 v_uv;  // the pixel centre in uv, set by the compute wrapper
-vec4 out_ao;
-#else
-layout(location = 0) in vec2 v_uv;  // from fullscreen.vert; unused: pixels come from gl_FragCoord
-layout(location = 0) out vec4 out_ao;
-#endif
+POST_IO(out_ao)  // from fullscreen.vert; unused: pixels come from gl_FragCoord
 
 const int kSamples = 12;          // taps per pixel
 const float kSpiralTurns = 7.0;   // turns of the spiral over the taps (SAO: coprime with 12)

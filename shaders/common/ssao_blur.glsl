@@ -11,13 +11,7 @@
 // RGBA16F: r visibility, g view distance (0: sky); NEAREST sampler (texelFetch only).
 layout(set = 0, binding = 0) uniform sampler2D u_ao;
 layout(push_constant) uniform Push { TS_PUSH_SSAO_BLUR } push;  // common/gpu_types.h
-#ifdef TESSERA_COMPUTE
-vec2 v_uv;  // the pixel centre in uv, set by the compute wrapper
-vec4 out_ao;
-#else
-layout(location = 0) in vec2 v_uv;  // from fullscreen.vert; unused: pixels come from gl_FragCoord
-layout(location = 0) out vec4 out_ao;
-#endif
+POST_IO(out_ao)  // from fullscreen.vert; unused: pixels come from gl_FragCoord
 
 const int kRadius = 4;  // taps each side of the centre
 // Gaussian weights for offsets 0..4 (SAO's blur kernel, sigma ~ 2.6; they sum to 1 over 9 taps).
