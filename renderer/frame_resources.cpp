@@ -71,8 +71,13 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat, kColor | kSampled | kCopy | kStorage,
                                   "hdr_color", width, height));
   t.hdr = hdr->image;
-  ASSIGN_OR_RETURN(auto* ldr, get(R::kLdrColor, kLdrFormat, kColor | kSampled | kCopy, "ldr_color",
-                                  width, height));
+  // A compute tonemap writes the sRGB bytes into a UNORM storage image (the pool keeps one of
+  // each format).
+  const bool compute_ldr = FullscreenProgram::TonemapCompute(s);
+  ASSIGN_OR_RETURN(auto* ldr,
+                   get(R::kLdrColor, compute_ldr ? kLdrComputeFormat : kLdrFormat,
+                       kColor | kSampled | kCopy | (compute_ldr ? kStorage : 0u), "ldr_color",
+                       width, height));
   t.ldr = ldr->image;
   ASSIGN_OR_RETURN(
       readback, target_pool.AcquireBuffer(*ctx, uint64_t(width) * height * 4, "readback", frame));

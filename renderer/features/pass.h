@@ -9,6 +9,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -25,6 +26,8 @@ namespace tessera {
 inline constexpr VkFormat kDepthFormat = VK_FORMAT_D32_SFLOAT;
 inline constexpr VkFormat kHdrFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 inline constexpr VkFormat kLdrFormat = VK_FORMAT_R8G8B8A8_SRGB;
+// The tonemap's target when it runs in compute: the same bytes, sRGB-encoded by the shader.
+inline constexpr VkFormat kLdrComputeFormat = VK_FORMAT_R8G8B8A8_UNORM;
 inline constexpr VkFormat kHizFormat = VK_FORMAT_R32_SFLOAT;
 inline constexpr VkFormat kIdFormat = VK_FORMAT_R32_UINT;
 inline constexpr VkFormat kShadowFormat = VK_FORMAT_D16_UNORM;  // the shadow atlas (16-bit)
@@ -366,12 +369,19 @@ class FullscreenProgram {
   // Whether Draw runs the compute shader for these settings (it has one, and post_stage is
   // compute): the pass's graph uses follow (Access::kComputeRead / kComputeWrite).
   static bool Compute(const Settings& s) { return s.post_stage == PostStage::kCompute; }
+  // The tonemap runs in compute with post_stage compute unless FXAA follows it (FXAA reads the
+  // tonemapped image through an sRGB sampler; compute writes the sRGB bytes into an RGBA8 UNORM
+  // image, kLdrComputeFormat).
+  static bool TonemapCompute(const Settings& s) {
+    return Compute(s) && s.aa != AaMode::kFxaa;
+  }
   // Every pixel of `outputs` written once (cleared contents are not loaded): one full-screen
   // triangle, or in compute one invocation per pixel (outputs in the general layout).
   // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's).
+  // `compute` overrides Compute(settings) (the tonemap's own rule).
   void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
             const std::vector<VkImageView>& outputs, const void* push,
-            VkExtent2D extent = {0, 0}) const;
+            VkExtent2D extent = {0, 0}, std::optional<bool> compute = std::nullopt) const;
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;

@@ -66,8 +66,8 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
 
 void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
                              const std::vector<VkImageView>& outputs, const void* push,
-                             VkExtent2D extent) const {
-  if (compute_pipeline_.handle() != VK_NULL_HANDLE && Compute(*ctx.settings)) {
+                             VkExtent2D extent, std::optional<bool> compute) const {
+  if (compute_pipeline_.handle() != VK_NULL_HANDLE && compute.value_or(Compute(*ctx.settings))) {
     SetWriter w(device_, compute_layout_.Allocate(ctx));
     for (uint32_t i = 0; i < inputs_; ++i)
       w.Sampled(i, inputs[i].sampler, inputs[i].view, inputs[i].layout);
@@ -189,7 +189,7 @@ class TonemapPass final : public PostPass {
                   {Nearest(PostColor(ctx)), Linear(*ctx.ao_view),
                    Nearest(*ctx.shadow_atlas_view), bloom_in,
                    {e.view, nearest_.handle(), e.layout}},
-                  {ctx.targets->ldr.view()}, &push);
+                  {ctx.targets->ldr.view()}, &push, {0, 0}, FullscreenProgram::TonemapCompute(s));
   }
 };
 
@@ -244,7 +244,7 @@ class FxaaPass final : public PostPass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
   return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 5, sizeof(gpu::TonemapPush),
-                               {kLdrFormat});
+                               {kLdrFormat}, "tonemap.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
   return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,
@@ -279,13 +279,16 @@ void SetupTaa(GraphBuilder& b) {
 
 void SetupTonemap(GraphBuilder& b) {
   const Resource color = b.SceneColor();
+  const bool compute = FullscreenProgram::TonemapCompute(b.settings());
+  const Access read = compute ? Access::kComputeRead : Access::kSampled;
   b.Pass(PassId::kTonemap)
-      .Use(color, Access::kSampled)
-      .Use(Resource::kLdrColor, Access::kColorWrite)
-      .UseIfPresent(Resource::kAo, Access::kSampled)  // the ssao debug view
-      .UseIfPresent(Resource::kBloomUp, Access::kSampled)
-      .UseIfPresent(Resource::kShadowAtlas, Access::kSampled)  // the shadow_atlas debug view
-      .UseIfPresent(Resource::kExposureState, Access::kSampledGeneral);
+      .Use(color, read)
+      .Use(Resource::kLdrColor, compute ? Access::kComputeWrite : Access::kColorWrite)
+      .UseIfPresent(Resource::kAo, read)  // the ssao debug view
+      .UseIfPresent(Resource::kBloomUp, read)
+      .UseIfPresent(Resource::kShadowAtlas, read)  // the shadow_atlas debug view
+      .UseIfPresent(Resource::kExposureState,
+                    compute ? Access::kComputeReadGeneral : Access::kSampledGeneral);
 }
 
 void SetupFxaa(GraphBuilder& b) {
