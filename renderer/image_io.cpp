@@ -259,7 +259,7 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
 }
 
 uint32_t AutoJpegStrips(const RgbaImage& image) {
-  constexpr uint64_t kMinPixels = uint64_t{1} << 21;  // 2 Mpixel: 1920x1080 and up
+  constexpr uint64_t kMinPixels = 1920 * 1080;
   if (uint64_t(image.width) * image.height < kMinPixels) return 1;
   return std::clamp(std::thread::hardware_concurrency(), 1u, kMaxJpegStrips);
 }
@@ -302,10 +302,27 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
   };
   {
     std::vector<std::jthread> pool;
-    for (uint32_t t = 1; t < threads; ++t) pool.emplace_back(work, t);
+    uint32_t started = 1;
+    try {
+      for (; started < threads; ++started) pool.emplace_back(work, started);
+    } catch (const std::system_error&) {
+      // No thread to be had: this thread encodes the strips of those not started too.
+    }
+    for (uint32_t t = started; t < threads; ++t) work(t);
     work(0);
   }
   for (const absl::Status& st : status) RETURN_IF_ERROR(st);
+  // Every strip must carry strip 0's tables (TurboJPEG's standard Huffman tables; not so when
+  // e.g. TJ_OPTIMIZE in the environment makes each strip's its own): else one strip after all.
+  for (uint32_t k = 1; k < count; ++k) {
+    const EncodedStrip& s = parts[k];
+    const EncodedStrip& h = parts[0];
+    const bool same = s.sos == h.sos && s.sof == h.sof && s.data_begin == h.data_begin &&
+                      std::equal(h.jpeg.begin(), h.jpeg.begin() + h.sof + 5, s.jpeg.begin()) &&
+                      std::equal(h.jpeg.begin() + h.sof + 7, h.jpeg.begin() + h.data_begin,
+                                 s.jpeg.begin() + h.sof + 7);
+    if (!same) return CompressRows(image, 0, image.height, quality, samp);
+  }
 
   const EncodedStrip& head = parts[0];
   std::vector<uint8_t> out(head.jpeg.begin(), head.jpeg.begin() + head.sos);

@@ -28,8 +28,8 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
 absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
                                                 ChromaSubsampling subsampling, uint32_t strips);
 inline constexpr uint32_t kMaxJpegStrips = 8;
-// One strip below 2 Mpixel (the encoder pool already spreads sessions over the cores), else one
-// per hardware thread, at most kMaxJpegStrips.
+// One strip below 1920x1080 pixels (the encoder pool already spreads sessions over the cores),
+// else one per hardware thread, at most kMaxJpegStrips.
 uint32_t AutoJpegStrips(const RgbaImage& image);
 // Larger than any frame we render; also stops a tiny file from declaring gigapixels.
 inline constexpr uint32_t kMaxImageSide = 16384;

@@ -200,7 +200,7 @@ class Renderer {
 
 // Encodes the frame's pixels (JPEG with its settings' quality and chroma subsampling, or
 // PNG) and records the time in frame.cpu.encode_ms.
-// JPEG frames of 2 Mpixel and more are encoded in strips on several threads (image_io.h).
+// JPEG frames of 1920x1080 pixels and more are encoded in strips on several threads (image_io.h).
 absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat format);
 
 }  // namespace tessera

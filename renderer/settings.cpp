@@ -159,11 +159,23 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
                       "standard sample locations; rendered with msaa");
     e.aa = AaMode::kMsaa;
   }
-  if (e.pipeline == Pipeline::kAuto) {
-    // Measured (README, "The visibility pipeline"): on lavapipe the forward path is faster for
-    // plain frames (its rasterizer skips hidden fragments cheaply, and rebuilding each pixel's
-    // surface from its id costs more than interpolating it); on GPUs the visibility pipeline.
-    e.pipeline = caps.cpu ? Pipeline::kForward : Pipeline::kVisibility;
+  // The pipeline that runs, as the effective settings report it: msaa shades forward, vis_mlaa
+  // its visibility buffer; auto picks what measured faster on the device (README, "The
+  // visibility pipeline": on lavapipe the forward path for plain frames, its rasterizer skipping
+  // hidden fragments cheaply and interpolation being cheaper than rebuilding each pixel's
+  // surface from its id; on GPUs the visibility pipeline). A request the mode or the device
+  // cannot honour is noted.
+  const bool asked = e.pipeline != Pipeline::kAuto;
+  if (e.aa == AaMode::kMsaa) {
+    if (e.pipeline == Pipeline::kVisibility)
+      not_applied("pipeline", "msaa shades forward (vis_mlaa is the multisampled visibility buffer)");
+    e.pipeline = Pipeline::kForward;
+  } else if (e.aa == AaMode::kVisMlaa) {
+    if (e.pipeline == Pipeline::kForward)
+      not_applied("pipeline", "vis_mlaa shades its visibility buffer");
+    e.pipeline = Pipeline::kVisibility;
+  } else if (!asked) {
+    e.pipeline = caps.cpu || !caps.visibility_buffer ? Pipeline::kForward : Pipeline::kVisibility;
   }
   if (e.post_stage == PostStage::kAuto) {
     // Measured (README, "The visibility pipeline"): GPUs run full-screen fragment work on their

@@ -289,6 +289,7 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
     return triangle_bits;
   }
   s.aa = AaMode::kMsaa;
+  s.pipeline = Pipeline::kForward;  // what msaa runs (the effective settings say so)
   if (s.debug_view == DebugView::kAaMask) {
     settings.notes.push_back({"debug_view", "not applied: aa_mask needs vis_mlaa"});
     s.debug_view = DebugView::kNone;

@@ -138,7 +138,7 @@ TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, 
 // and the pixel lists.
 TS_CONST uint kShadeBindingId = 0;       // usampler2D: the visibility id per pixel
 TS_CONST uint kShadeBindingColor = 1;    // image2D rgba16f: the HDR colour (written)
-TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 1] (+1: the sky)
+TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 2] (sky, edges)
 TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
 TS_CONST uint kShadeBindingCoverage = 6;  // vis_mlaa: usampler2D, the resolve's coverage word
 TS_CONST uint kShadeBindingSamples = 7;   // vis_mlaa: usampler2DMS, the visibility samples
@@ -157,7 +157,7 @@ TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // dispatch stays inside maxComputeWorkGroupCount, 65535, at any frame size).
 TS_CONST uint kShadeDispatchWidth = 4096;
 // vis_classify's modes (push constant params.x).
-TS_CONST uint kClassifyCount = 0;  // count each material's pixels; write the sky
+TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
 

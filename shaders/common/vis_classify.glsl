@@ -3,7 +3,7 @@
 // of its pixels, so that the shading pass runs one indirect dispatch per material over exactly
 // its pixels (every invocation shades a pixel; lavapipe runs masked-off lanes at full cost, so a
 // dispatch over tiles would shade tiles' other pixels too). Three modes (push params.x):
-//  - kClassifyCount: count each material's pixels; write the sky where no surface is;
+//  - kClassifyCount: count each material's pixels (and the sky's);
 //  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size;
 //  - kClassifyFill: append each pixel to its material's list.
 // The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by

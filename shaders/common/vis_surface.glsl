@@ -2,7 +2,7 @@
 // point of the frame meets the triangle's plane at barycentrics that give every attribute, and
 // the rays through the next pixel right and down give the uv gradients for texture filtering
 // (there are no neighbouring fragments of the same triangle to difference). Shared by
-// vis_mlaa's shading (vis_shade.frag) and the visibility pipeline's (vis_shade.comp). Needs
+// vis_mlaa's shading (vis_shade_mlaa.comp) and the visibility pipeline's (vis_shade.comp). Needs
 // scene.glsl, textures.glsl and vis.glsl.
 #ifndef TESSERA_VIS_SURFACE_GLSL
 #define TESSERA_VIS_SURFACE_GLSL

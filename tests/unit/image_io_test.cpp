@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <png.h>
 
 #include <cmath>
@@ -242,6 +243,24 @@ TEST(ImageIo, JpegStripsOfAWideImageFitTheRestartInterval) {
   auto b = DecodeJpeg(*split);
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_EQ(a->pixels, b->pixels);
+}
+
+// Strips are spliced only when they share strip 0's tables: with TurboJPEG's TJ_OPTIMIZE each
+// strip gets its own Huffman tables, and the encode falls back to one strip (a valid JPEG, not a
+// corrupt one).
+TEST(ImageIo, JpegStripsWithTheirOwnTablesFallBackToOneStrip) {
+  const RgbaImage src = Textured(301, 203);
+  ASSERT_EQ(setenv("TJ_OPTIMIZE", "1", 1), 0);
+  auto split = EncodeJpeg(src, 85, ChromaSubsampling::k420, 4);
+  auto one = EncodeJpeg(src, 85, ChromaSubsampling::k420, 1);
+  unsetenv("TJ_OPTIMIZE");
+  ASSERT_TRUE(split.ok() && one.ok());
+  bool in_order = false;
+  EXPECT_EQ(CountRestarts(*split, &in_order), 0);
+  EXPECT_EQ(*split, *one);
+  auto img = DecodeJpeg(*split);
+  ASSERT_TRUE(img.ok()) << img.status();
+  EXPECT_EQ(img->width, src.width);
 }
 
 TEST(ImageIo, JpegRejectsBadQuality) {

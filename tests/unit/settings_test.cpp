@@ -363,6 +363,30 @@ TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
       EXPECT_EQ(r->effective.pipeline, p);
     }
   }
+  // The effective pipeline is the one that runs: msaa shades forward, vis_mlaa its visibility
+  // buffer; asked for the other, the frame says why not.
+  for (AaMode aa : {AaMode::kMsaa, AaMode::kVisMlaa}) {
+    const Pipeline runs = aa == AaMode::kMsaa ? Pipeline::kForward : Pipeline::kVisibility;
+    for (Pipeline p : {Pipeline::kAuto, Pipeline::kForward, Pipeline::kVisibility}) {
+      Settings s;
+      s.aa = aa;
+      s.pipeline = p;
+      r = ResolveSettings(s, gpu);
+      ASSERT_TRUE(r.ok());
+      EXPECT_EQ(r->effective.pipeline, runs) << ToString(aa) << " " << ToString(p);
+      const bool noted = r->notes.size() == 1 && r->notes[0].field == "pipeline";
+      EXPECT_EQ(noted, p != Pipeline::kAuto && p != runs) << ToString(aa) << " " << ToString(p);
+    }
+  }
+  // auto on a device without gl_PrimitiveID in fragment shaders: forward, without a note.
+  {
+    DeviceCaps no_ids = gpu;
+    no_ids.visibility_buffer = false;
+    r = ResolveSettings(Settings{}, no_ids);
+    ASSERT_TRUE(r.ok());
+    EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
+    EXPECT_TRUE(r->notes.empty());
+  }
   // Without gl_PrimitiveID in fragment shaders there are no visibility ids: forward, noted.
   DeviceCaps no_vis = gpu;
   no_vis.visibility_buffer = false;
