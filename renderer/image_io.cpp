@@ -260,8 +260,7 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
 
 uint32_t AutoJpegStrips(const RgbaImage& image) {
   constexpr uint64_t kMinPixels = 1920 * 1080;
-  if (uint64_t(image.width) * image.height < kMinPixels) return 1;
-  return std::clamp(std::thread::hardware_concurrency(), 1u, kMaxJpegStrips);
+  return uint64_t(image.width) * image.height < kMinPixels ? 1 : kMaxJpegStrips;
 }
 
 absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
@@ -286,7 +285,8 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
 
   std::vector<EncodedStrip> parts(count);
   std::vector<absl::Status> status(count);
-  const uint32_t threads = std::min(count, strips);
+  // The bytes depend on the strips alone; the threads only on the machine.
+  const uint32_t threads = std::clamp(std::thread::hardware_concurrency(), 1u, count);
   auto work = [&](uint32_t first) {
     for (uint32_t k = first; k < count; k += threads) {
       const uint32_t y0 = k * rows * mcu;

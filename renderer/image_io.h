@@ -22,14 +22,15 @@ enum class ChromaSubsampling { k420, k444 };
 // Encodes RGBA8 (alpha ignored) as baseline JPEG. quality 1..100; INVALID_ARGUMENT otherwise.
 absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
                                                 ChromaSubsampling subsampling);
-// The same, as `strips` horizontal strips encoded on as many threads (at most kMaxJpegStrips,
-// and one per MCU row) and spliced into one JPEG with restart markers between them; the decoded
-// pixels equal the one-strip encode's. strips 0: AutoJpegStrips.
+// The same, as `strips` horizontal strips (at most kMaxJpegStrips, and one per MCU row) encoded on
+// up to one thread per hardware thread and spliced into one JPEG with restart markers between
+// them; the decoded pixels equal the one-strip encode's, and the bytes do not depend on the
+// machine (a render-farm frame is byte-identical on every daemon). strips 0: AutoJpegStrips.
 absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
                                                 ChromaSubsampling subsampling, uint32_t strips);
 inline constexpr uint32_t kMaxJpegStrips = 8;
 // One strip below 1920x1080 pixels (the encoder pool already spreads sessions over the cores),
-// else one per hardware thread, at most kMaxJpegStrips.
+// else kMaxJpegStrips, whatever the machine.
 uint32_t AutoJpegStrips(const RgbaImage& image);
 // Larger than any frame we render; also stops a tiny file from declaring gigapixels.
 inline constexpr uint32_t kMaxImageSide = 16384;
