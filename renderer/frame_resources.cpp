@@ -114,7 +114,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   }
   // The id per pixel: vis_mlaa's resolve writes it (storage), the visibility pipeline's
   // visibility pass draws it (colour); one usage for both, as the pool keeps it across modes.
-  if (vis || ShadesVisibility(s)) {
+  if (DrawsVisibility(s)) {
     ASSIGN_OR_RETURN(auto* id, get(R::kVisId, kIdFormat, kColor | kSampled | kStorage, "vis_id",
                                    width, height));
     t.vis_id = id->image;
@@ -315,71 +315,30 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadow
   ai.pSetLayouts = &scene_layout.set_layout;
   VkDescriptorSet set;
   VK_CHECK(vkAllocateDescriptorSets(ctx->device(), &ai, &set));
-  const VkDescriptorBufferInfo buffers[] = {
-      {frame_ubo.handle(), 0, VK_WHOLE_SIZE},
-      {lights_ubo.handle(), 0, VK_WHOLE_SIZE},
-      {scene.drawables().handle(), 0, VK_WHOLE_SIZE},
-      {scene.materials().handle(), 0, VK_WHOLE_SIZE},
-      {local_lights.handle(), 0, VK_WHOLE_SIZE},
-      {tile_counts.handle(), 0, VK_WHOLE_SIZE},
-      {tile_lights.handle(), 0, VK_WHOLE_SIZE},
-  };
-  const VkDescriptorType types[] = {
-      VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
-      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
-      VK_DESCRIPTOR_TYPE_STORAGE_BUFFER};
-  std::vector<VkWriteDescriptorSet> writes;
-  for (uint32_t i = 0; i < 7; ++i) {
-    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    w.dstSet = set;
-    w.dstBinding = i;
-    w.descriptorCount = 1;
-    w.descriptorType = types[i];
-    w.pBufferInfo = &buffers[i];
-    writes.push_back(w);
-  }
-  const VkDescriptorBufferInfo shadow_info{shadow_ubo.handle(), 0, VK_WHOLE_SIZE};
+  constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   const vk::Image& atlas = shadows && shadow_atlas ? shadow_atlas : shadow_placeholder;
-  const VkDescriptorImageInfo images[] = {
-      {shadow_sampler.handle(), atlas.view(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-      {linear_sampler.handle(), (ssao ? targets.ao.get() : ao_placeholder).view(),
-       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set;
-  w.descriptorCount = 1;
-  w.dstBinding = gpu::kBindingShadows;
-  w.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-  w.pBufferInfo = &shadow_info;
-  writes.push_back(w);
-  w.pBufferInfo = nullptr;
-  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  w.dstBinding = gpu::kBindingShadowAtlas;
-  w.pImageInfo = &images[0];
-  writes.push_back(w);
-  w.dstBinding = gpu::kBindingAo;
-  w.pImageInfo = &images[1];
-  writes.push_back(w);
   const bool on = with_ibl && ibl;
   const VkSampler ibl_sampler = on ? ibl->sampler() : linear_sampler.handle();
-  const VkDescriptorImageInfo ibl_images[] = {
-      {ibl_sampler, (on ? ibl->irradiance() : cube_placeholder).view(),
-       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-      {ibl_sampler, (on ? ibl->specular() : cube_placeholder).view(),
-       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-      {ibl_sampler, (on ? ibl->brdf_lut() : ao_placeholder).view(),
-       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL},
-      {ibl_sampler, (on ? ibl->environment() : cube_placeholder).view(),
-       VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}};
-  const uint32_t ibl_bindings[] = {gpu::kBindingIrradiance, gpu::kBindingSpecular,
-                                   gpu::kBindingBrdfLut, gpu::kBindingEnvironment};
-  for (int i = 0; i < 4; ++i) {
-    w.dstBinding = ibl_bindings[i];
-    w.pImageInfo = &ibl_images[i];
-    writes.push_back(w);
-  }
-  vkUpdateDescriptorSets(ctx->device(), static_cast<uint32_t>(writes.size()), writes.data(), 0,
-                         nullptr);
+  SetWriter(ctx->device(), set)
+      .Buffer(gpu::kBindingFrame, frame_ubo.handle(), kUniform)
+      .Buffer(gpu::kBindingLights, lights_ubo.handle(), kUniform)
+      .Buffer(gpu::kBindingDrawables, scene.drawables().handle())
+      .Buffer(gpu::kBindingMaterials, scene.materials().handle())
+      .Buffer(gpu::kBindingLocalLights, local_lights.handle())
+      .Buffer(gpu::kBindingTileCounts, tile_counts.handle())
+      .Buffer(gpu::kBindingTileLights, tile_lights.handle())
+      .Buffer(gpu::kBindingShadows, shadow_ubo.handle(), kUniform)
+      .Sampled(gpu::kBindingShadowAtlas, shadow_sampler.handle(), atlas.view())
+      .Sampled(gpu::kBindingAo, linear_sampler.handle(),
+               (ssao ? targets.ao.get() : ao_placeholder).view())
+      .Sampled(gpu::kBindingIrradiance, ibl_sampler,
+               (on ? ibl->irradiance() : cube_placeholder).view())
+      .Sampled(gpu::kBindingSpecular, ibl_sampler,
+               (on ? ibl->specular() : cube_placeholder).view())
+      .Sampled(gpu::kBindingBrdfLut, ibl_sampler, (on ? ibl->brdf_lut() : ao_placeholder).view())
+      .Sampled(gpu::kBindingEnvironment, ibl_sampler,
+               (on ? ibl->environment() : cube_placeholder).view())
+      .Update();
   return set;
 }
 }  // namespace tessera

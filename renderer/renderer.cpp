@@ -118,7 +118,6 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   RETURN_IF_ERROR(m.WriteLightBins(f));
   m.WriteFrameUniforms(f, frame);
   RETURN_IF_ERROR(m.PrepareDraws(f));
-  m.PrepareVis(f);
   RETURN_IF_ERROR(m.PrepareShade(f));
 
   // The frame's passes, from the features' Setup; each builds what it lacks for the settings.

@@ -215,8 +215,8 @@ struct Renderer::Impl {
   absl::Status WriteLightBins(FrameData& f);               // forward_plus.cpp
   void WriteFrameUniforms(FrameData& f, Frame& frame);     // forward_plus.cpp
   absl::Status PrepareDraws(FrameData& f);                 // culling.cpp
-  void PrepareVis(FrameData& f);                           // vis_mlaa.cpp
-  absl::Status PrepareShade(FrameData& f);                 // vis_shade.cpp
+  // vis_shade.cpp: the materials in view, the entries and pixel lists.
+  absl::Status PrepareShade(FrameData& f);
   // culling.cpp: none / cpu_frustum: the CPU writes phase 0's lists.
   void WriteCpuLists(const GpuScene& scene, const DrawLists& lists, const Frustum* frustum);
   // culling.cpp: what the frame drew, from the lists it executed.

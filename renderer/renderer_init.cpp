@@ -14,35 +14,24 @@ absl::Status Renderer::Impl::InitLayouts() {
   // shading (features/vis_shade.cpp).
   constexpr VkShaderStageFlags kPixel = VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
   constexpr VkShaderStageFlags kVertexPixel = VK_SHADER_STAGE_VERTEX_BIT | kPixel;
+  constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+  constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   std::vector<VkDescriptorSetLayoutBinding> bindings = {
-      {gpu::kBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
-       kVertexPixel, nullptr},
-      {gpu::kBindingLights, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kPixel,
-       nullptr},
-      {gpu::kBindingDrawables, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       kVertexPixel, nullptr},
-      {gpu::kBindingMaterials, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       kVertexPixel, nullptr},
-      {gpu::kBindingLocalLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kPixel,
-       nullptr},
-      {gpu::kBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kPixel,
-       nullptr},
-      {gpu::kBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kPixel,
-       nullptr},
-      {gpu::kBindingShadows, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, kPixel,
-       nullptr},
-      {gpu::kBindingShadowAtlas, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       kPixel, nullptr},
-      {gpu::kBindingAo, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kPixel,
-       nullptr},
-      {gpu::kBindingIrradiance, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       kPixel, nullptr},
-      {gpu::kBindingSpecular, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       kPixel, nullptr},
-      {gpu::kBindingBrdfLut, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       kPixel, nullptr},
-      {gpu::kBindingEnvironment, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       kPixel, nullptr},
+      LayoutBinding(gpu::kBindingFrame, kUniform, kVertexPixel),
+      LayoutBinding(gpu::kBindingLights, kUniform, kPixel),
+      LayoutBinding(gpu::kBindingDrawables, kBuffer, kVertexPixel),
+      LayoutBinding(gpu::kBindingMaterials, kBuffer, kVertexPixel),
+      LayoutBinding(gpu::kBindingLocalLights, kBuffer, kPixel),
+      LayoutBinding(gpu::kBindingTileCounts, kBuffer, kPixel),
+      LayoutBinding(gpu::kBindingTileLights, kBuffer, kPixel),
+      LayoutBinding(gpu::kBindingShadows, kUniform, kPixel),
+      LayoutBinding(gpu::kBindingShadowAtlas, kSampled, kPixel),
+      LayoutBinding(gpu::kBindingAo, kSampled, kPixel),
+      LayoutBinding(gpu::kBindingIrradiance, kSampled, kPixel),
+      LayoutBinding(gpu::kBindingSpecular, kSampled, kPixel),
+      LayoutBinding(gpu::kBindingBrdfLut, kSampled, kPixel),
+      LayoutBinding(gpu::kBindingEnvironment, kSampled, kPixel),
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
@@ -50,12 +39,9 @@ absl::Status Renderer::Impl::InitLayouts() {
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, scene_set_layout.Replace(d)),
                      "scene set layout");
   std::vector<VkDescriptorSetLayoutBinding> texture_bindings = {
-      {gpu::kBindingMaterialUniform, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1,
-       kPixel, nullptr}};
+      LayoutBinding(gpu::kBindingMaterialUniform, kUniform, kPixel)};
   for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k)
-    texture_bindings.push_back({gpu::kBindingBaseColorTex + k,
-                                VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-                                kPixel, nullptr});
+    texture_bindings.push_back(LayoutBinding(gpu::kBindingBaseColorTex + k, kSampled, kPixel));
   li.bindingCount = static_cast<uint32_t>(texture_bindings.size());
   li.pBindings = texture_bindings.data();
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, material_set_layout.Replace(d)),

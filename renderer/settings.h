@@ -162,5 +162,10 @@ inline bool ShadesVisibility(const Settings& s) {
   return s.pipeline == Pipeline::kVisibility &&
          (s.aa == AaMode::kNone || s.aa == AaMode::kFxaa || s.aa == AaMode::kTaa);
 }
+// Whether the frame draws visibility ids and shades them: vis_mlaa (multisampled) or the
+// visibility pipeline.
+inline bool DrawsVisibility(const Settings& s) {
+  return s.aa == AaMode::kVisMlaa || ShadesVisibility(s);
+}
 
 }  // namespace tessera

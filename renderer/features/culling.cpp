@@ -37,33 +37,18 @@ class CullPass final : public Pass {
     const CullBuffers& cb = *ctx.cull;
     const uint32_t phase = id_ == PassId::kCullLate ? 1 : 0;
     const VkDescriptorSet set = layout_.Allocate(ctx);
-    const VkDescriptorBufferInfo buffers[kBindings] = {
-        {cb.uniforms, cb.uniform_stride * phase, sizeof(gpu::CullUniforms)},
-        {ctx.scene->cull_items().handle(), 0, VK_WHOLE_SIZE},
-        {ctx.scene->drawables().handle(), 0, VK_WHOLE_SIZE},
-        {lists.commands, 0, VK_WHOLE_SIZE},
-        {lists.counts, 0, VK_WHOLE_SIZE},
-        {cb.bases, 0, VK_WHOLE_SIZE},
-        {cb.vis_prev, 0, VK_WHOLE_SIZE},
-        {cb.vis_next, 0, VK_WHOLE_SIZE},
-        {},
-    };
-    const VkDescriptorImageInfo hiz{sampler_.handle(), ctx.targets->hiz.view(),
-                                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    VkWriteDescriptorSet w[kBindings];
-    for (uint32_t i = 0; i < kBindings; ++i) {
-      w[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-      w[i].dstSet = set;
-      w[i].dstBinding = i;
-      w[i].descriptorCount = 1;
-      w[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-      w[i].pBufferInfo = &buffers[i];
-    }
-    w[gpu::kCullBindingUniforms].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-    w[gpu::kCullBindingHiz].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    w[gpu::kCullBindingHiz].pBufferInfo = nullptr;
-    w[gpu::kCullBindingHiz].pImageInfo = &hiz;
-    vkUpdateDescriptorSets(device_, kBindings, w, 0, nullptr);
+    SetWriter(device_, set)
+        .Buffer(gpu::kCullBindingUniforms, cb.uniforms, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+                cb.uniform_stride * phase, sizeof(gpu::CullUniforms))
+        .Buffer(gpu::kCullBindingItems, ctx.scene->cull_items().handle())
+        .Buffer(gpu::kCullBindingDrawables, ctx.scene->drawables().handle())
+        .Buffer(gpu::kCullBindingCommands, lists.commands)
+        .Buffer(gpu::kCullBindingCounts, lists.counts)
+        .Buffer(gpu::kCullBindingBases, cb.bases)
+        .Buffer(gpu::kCullBindingVisPrev, cb.vis_prev)
+        .Buffer(gpu::kCullBindingVisNext, cb.vis_next)
+        .Sampled(gpu::kCullBindingHiz, sampler_.handle(), ctx.targets->hiz.view())
+        .Update();
 
     // The graph ordered the lists and visibility bits after their earlier uses (SetupCulling);
     // the clears below come before this pass's dispatch.

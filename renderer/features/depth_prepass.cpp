@@ -98,7 +98,7 @@ absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const Scen
 
 void AddDepthPass(GraphBuilder& b, bool late) {
   // vis_mlaa's and the visibility pipeline's visibility pass is their depth pass.
-  if (b.settings().aa == AaMode::kVisMlaa || ShadesVisibility(b.settings())) {
+  if (DrawsVisibility(b.settings())) {
     AddVisibilityPass(b, late);
     return;
   }

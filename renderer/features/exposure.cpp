@@ -38,21 +38,10 @@ class ExposurePass final : public Pass {
     const vk::Image& state = *e.state;  // imported (SetupExposure)
 
     const VkDescriptorSet set = layout_.Allocate(ctx);
-    const VkDescriptorImageInfo src{linear_.handle(), PostColor(ctx).view(),
-                                    VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    const VkDescriptorImageInfo dst{VK_NULL_HANDLE, state.view(), VK_IMAGE_LAYOUT_GENERAL};
-    VkWriteDescriptorSet w[2] = {{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET},
-                                 {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET}};
-    w[0].dstSet = w[1].dstSet = set;
-    w[0].dstBinding = 0;
-    w[0].descriptorCount = 1;
-    w[0].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    w[0].pImageInfo = &src;
-    w[1].dstBinding = 1;
-    w[1].descriptorCount = 1;
-    w[1].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-    w[1].pImageInfo = &dst;
-    vkUpdateDescriptorSets(device_, 2, w, 0, nullptr);
+    SetWriter(device_, set)
+        .Sampled(0, linear_.handle(), PostColor(ctx).view())
+        .Storage(1, state.view())
+        .Update();
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
                             1, &set, 0, nullptr);

@@ -161,7 +161,7 @@ void UseForwardTargets(GraphBuilder& b, Resource color) {
 
 void SetupForward(GraphBuilder& b) {
   // vis_mlaa and the visibility pipeline shade their visibility buffers.
-  if (b.settings().aa == AaMode::kVisMlaa || ShadesVisibility(b.settings())) return;
+  if (DrawsVisibility(b.settings())) return;
   b.Pass(PassId::kForward);
   UseForwardTargets(b, Resource::kHdrColor);
 }

@@ -29,30 +29,14 @@ class LightCullPass final : public Pass {
   void Record(PassContext& ctx) override {
     const LightCullBuffers& lb = *ctx.light_buffers;
     const VkDescriptorSet set = layout_.Allocate(ctx);
-    const VkDescriptorBufferInfo frame{lb.frame_ubo, 0, VK_WHOLE_SIZE};
-    const VkDescriptorBufferInfo bounds{lb.bounds, 0, VK_WHOLE_SIZE};
-    const VkDescriptorImageInfo depth{sampler_.handle(), ctx.targets->depth.view(),
-                                      VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
-    const VkDescriptorBufferInfo counts{lb.tile_counts, 0, VK_WHOLE_SIZE};
-    const VkDescriptorBufferInfo lists{lb.tile_lights, 0, VK_WHOLE_SIZE};
-    const VkDescriptorBufferInfo rows{lb.row_lights, 0, VK_WHOLE_SIZE};
-    VkWriteDescriptorSet w[6];
-    for (uint32_t i = 0; i < 6; ++i) {
-      w[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-      w[i].dstSet = set;
-      w[i].dstBinding = i;
-      w[i].descriptorCount = 1;
-      w[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    }
-    w[gpu::kCullBindingFrame].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
-    w[gpu::kCullBindingFrame].pBufferInfo = &frame;
-    w[gpu::kCullBindingLightBounds].pBufferInfo = &bounds;
-    w[gpu::kCullBindingDepth].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    w[gpu::kCullBindingDepth].pImageInfo = &depth;
-    w[gpu::kCullBindingTileCounts].pBufferInfo = &counts;
-    w[gpu::kCullBindingTileLights].pBufferInfo = &lists;
-    w[gpu::kCullBindingRowLights].pBufferInfo = &rows;
-    vkUpdateDescriptorSets(device_, 6, w, 0, nullptr);
+    SetWriter(device_, set)
+        .Buffer(gpu::kCullBindingFrame, lb.frame_ubo, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER)
+        .Buffer(gpu::kCullBindingLightBounds, lb.bounds)
+        .Sampled(gpu::kCullBindingDepth, sampler_.handle(), ctx.targets->depth.view())
+        .Buffer(gpu::kCullBindingTileCounts, lb.tile_counts)
+        .Buffer(gpu::kCullBindingTileLights, lb.tile_lights)
+        .Buffer(gpu::kCullBindingRowLights, lb.row_lights)
+        .Update();
 
     // The graph ordered the lists after their earlier uses (SetupLightCulling).
 
@@ -87,20 +71,15 @@ class LightCullPass final : public Pass {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx) {
+  constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
+  constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   const std::vector<VkDescriptorSetLayoutBinding> bindings = {
-      {gpu::kCullBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT,
-       nullptr},
-      {gpu::kCullBindingLightBounds, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-      {gpu::kCullBindingDepth, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1,
-       VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-      {gpu::kCullBindingTileCounts, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-      {gpu::kCullBindingTileLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-      {gpu::kCullBindingRowLights, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
-       VK_SHADER_STAGE_COMPUTE_BIT, nullptr},
-  };
+      LayoutBinding(gpu::kCullBindingFrame, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, kCompute),
+      LayoutBinding(gpu::kCullBindingLightBounds, kBuffer, kCompute),
+      LayoutBinding(gpu::kCullBindingDepth, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kCompute),
+      LayoutBinding(gpu::kCullBindingTileCounts, kBuffer, kCompute),
+      LayoutBinding(gpu::kCullBindingTileLights, kBuffer, kCompute),
+      LayoutBinding(gpu::kCullBindingRowLights, kBuffer, kCompute)};
   absl::StatusOr<PassLayout> layout = PassLayout::Create(ctx, bindings, {}, "light cull layout");
   if (!layout.ok()) return layout.status();
   absl::StatusOr<vk::Pipeline> pipeline = vk::CreateComputePipeline(

@@ -34,25 +34,15 @@ class HizBuildPass final : public Pass {
       const uint32_t dst_w = std::max(1u, t.hiz_width >> level);
       const uint32_t dst_h = std::max(1u, t.hiz_height >> level);
       const VkDescriptorSet set = layout_.Allocate(ctx);
-      const VkDescriptorImageInfo src =
-          level == 0 ? VkDescriptorImageInfo{depth_sampler_.handle(), t.depth.view(),
-                                             VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL}
-                     : VkDescriptorImageInfo{minmax_ ? min_sampler_.handle()
-                                                     : depth_sampler_.handle(),
-                                             t.hiz_levels[level - 1], VK_IMAGE_LAYOUT_GENERAL};
-      const VkDescriptorImageInfo dst{VK_NULL_HANDLE, t.hiz_levels[level], VK_IMAGE_LAYOUT_GENERAL};
-      VkWriteDescriptorSet w[2] = {{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET},
-                                   {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET}};
-      w[0].dstSet = w[1].dstSet = set;
-      w[0].dstBinding = gpu::kHizBindingSource;
-      w[0].descriptorCount = 1;
-      w[0].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-      w[0].pImageInfo = &src;
-      w[1].dstBinding = gpu::kHizBindingDest;
-      w[1].descriptorCount = 1;
-      w[1].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
-      w[1].pImageInfo = &dst;
-      vkUpdateDescriptorSets(device_, 2, w, 0, nullptr);
+      SetWriter w(device_, set);
+      if (level == 0) {
+        w.Sampled(gpu::kHizBindingSource, depth_sampler_.handle(), t.depth.view());
+      } else {
+        w.Sampled(gpu::kHizBindingSource,
+                  minmax_ ? min_sampler_.handle() : depth_sampler_.handle(),
+                  t.hiz_levels[level - 1], VK_IMAGE_LAYOUT_GENERAL);
+      }
+      w.Storage(gpu::kHizBindingDest, t.hiz_levels[level]).Update();
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(),
                               0, 1, &set, 0, nullptr);
       // Each level view has one mip, so the source level is 0 in its view.

@@ -50,7 +50,8 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
 
 absl::StatusOr<PassLayout> PassLayout::Create(
     const vk::Context& ctx, const std::vector<VkDescriptorSetLayoutBinding>& bindings,
-    const std::vector<VkPushConstantRange>& push, const char* name) {
+    const std::vector<VkPushConstantRange>& push, const char* name,
+    const std::vector<VkDescriptorSetLayout>& before) {
   PassLayout l;
   l.device_ = ctx.device();
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
@@ -58,10 +59,11 @@ absl::StatusOr<PassLayout> PassLayout::Create(
   li.pBindings = bindings.data();
   VK_RETURN_IF_ERROR(
       vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)), name);
-  const VkDescriptorSetLayout set_layout = l.set_layout_.get();
+  std::vector<VkDescriptorSetLayout> sets = before;
+  sets.push_back(l.set_layout_.get());
   VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  pli.setLayoutCount = 1;
-  pli.pSetLayouts = &set_layout;
+  pli.setLayoutCount = static_cast<uint32_t>(sets.size());
+  pli.pSetLayouts = sets.data();
   pli.pushConstantRangeCount = static_cast<uint32_t>(push.size());
   pli.pPushConstantRanges = push.data();
   VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
@@ -98,8 +100,9 @@ SetWriter& SetWriter::Storage(uint32_t binding, VkImageView view) {
   return *this;
 }
 
-SetWriter& SetWriter::Buffer(uint32_t binding, VkBuffer buffer, VkDescriptorType type) {
-  buffers_.push_back({buffer, 0, VK_WHOLE_SIZE});
+SetWriter& SetWriter::Buffer(uint32_t binding, VkBuffer buffer, VkDescriptorType type,
+                             VkDeviceSize offset, VkDeviceSize range) {
+  buffers_.push_back({buffer, offset, range});
   VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
   w.dstSet = set_;
   w.dstBinding = binding;

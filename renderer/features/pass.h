@@ -9,7 +9,6 @@
 #include <deque>
 #include <map>
 #include <memory>
-#include <optional>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -257,7 +256,8 @@ class SetWriter {
                      VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL);
   SetWriter& Storage(uint32_t binding, VkImageView view);
   SetWriter& Buffer(uint32_t binding, VkBuffer buffer,
-                    VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER);
+                    VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
+                    VkDeviceSize offset = 0, VkDeviceSize range = VK_WHOLE_SIZE);
   // The visibility passes' buffers: the scene's index and vertex buffers (kVisBindingIndices,
   // kVisBindingVertices) and the shading's entries and pixel lists (kShadeBinding*).
   SetWriter& VisibilityBuffers(const PassContext& ctx);
@@ -272,12 +272,21 @@ class SetWriter {
   std::vector<VkWriteDescriptorSet> writes_;
 };
 
+// One binding of a descriptor set layout: a single descriptor of `type` for `stages`.
+inline VkDescriptorSetLayoutBinding LayoutBinding(uint32_t binding, VkDescriptorType type,
+                                                  VkShaderStageFlags stages) {
+  return {binding, type, 1, stages, nullptr};
+}
+
 class PassLayout {
  public:
   PassLayout() = default;
+  // The pass's set of `bindings`, after the sets `before` (e.g. the scene's sets 0 and 1: the
+  // pass's set is then set 2) in the pipeline layout.
   static absl::StatusOr<PassLayout> Create(
       const vk::Context& ctx, const std::vector<VkDescriptorSetLayoutBinding>& bindings,
-      const std::vector<VkPushConstantRange>& push, const char* name);
+      const std::vector<VkPushConstantRange>& push, const char* name,
+      const std::vector<VkDescriptorSetLayout>& before = {});
 
   VkPipelineLayout pipeline_layout() const { return layout_.get(); }
   // Allocates a set of this layout from the frame's pool (reset every frame).
@@ -359,15 +368,9 @@ inline uint32_t ForwardSamples(const PassContext& ctx) {
 class FullscreenProgram {
  public:
   FullscreenProgram() = default;
-  // With `compute_shader` (shaders/common/post_io.glsl) the program can also run as a compute
-  // shader: the same inputs, the outputs storage images at the bindings after them.
-  static absl::StatusOr<FullscreenProgram> Create(const vk::Context& ctx, const char* name,
-                                                  const char* fragment_shader, uint32_t inputs,
-                                                  uint32_t push_size,
-                                                  std::vector<VkFormat> outputs,
-                                                  const char* compute_shader = nullptr);
-  // Whether Draw runs the compute shader for these settings (it has one, and post_stage is
-  // compute): the pass's graph uses follow (Access::kComputeRead / kComputeWrite).
+  // Whether a program runs its compute shader for these settings; the pass's Setup declares its
+  // graph uses with the same rule (Access::kComputeRead / kComputeWrite).
+  using ComputeRule = bool (*)(const Settings&);
   static bool Compute(const Settings& s) { return s.post_stage == PostStage::kCompute; }
   // The tonemap runs in compute with post_stage compute unless FXAA follows it (FXAA reads the
   // tonemapped image through an sRGB sampler; compute writes the sRGB bytes into an RGBA8 UNORM
@@ -375,13 +378,21 @@ class FullscreenProgram {
   static bool TonemapCompute(const Settings& s) {
     return Compute(s) && s.aa != AaMode::kFxaa;
   }
+  // With `compute_shader` (shaders/common/post_io.glsl) the program also runs as a compute
+  // shader where `rule` says so: the same inputs, the outputs storage images at the bindings
+  // after them.
+  static absl::StatusOr<FullscreenProgram> Create(const vk::Context& ctx, const char* name,
+                                                  const char* fragment_shader, uint32_t inputs,
+                                                  uint32_t push_size,
+                                                  std::vector<VkFormat> outputs,
+                                                  const char* compute_shader = nullptr,
+                                                  ComputeRule rule = &Compute);
   // Every pixel of `outputs` written once (cleared contents are not loaded): one full-screen
   // triangle, or in compute one invocation per pixel (outputs in the general layout).
   // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's).
-  // `compute` overrides Compute(settings) (the tonemap's own rule).
   void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
             const std::vector<VkImageView>& outputs, const void* push,
-            VkExtent2D extent = {0, 0}, std::optional<bool> compute = std::nullopt) const;
+            VkExtent2D extent = {0, 0}) const;
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
@@ -389,6 +400,7 @@ class FullscreenProgram {
   vk::Pipeline pipeline_;
   PassLayout compute_layout_;
   vk::Pipeline compute_pipeline_;  // null without a compute shader
+  ComputeRule rule_ = &Compute;
   uint32_t inputs_ = 0;
   uint32_t push_size_ = 0;
 };

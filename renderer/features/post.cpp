@@ -27,9 +27,11 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
                                                             const char* fragment_shader,
                                                             uint32_t inputs, uint32_t push_size,
                                                             std::vector<VkFormat> outputs,
-                                                            const char* compute_shader) {
+                                                            const char* compute_shader,
+                                                            ComputeRule rule) {
   FullscreenProgram p;
   p.device_ = ctx.device();
+  p.rule_ = rule;
   p.inputs_ = inputs;
   p.push_size_ = push_size;
   std::vector<VkDescriptorSetLayoutBinding> bindings;
@@ -66,8 +68,8 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
 
 void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
                              const std::vector<VkImageView>& outputs, const void* push,
-                             VkExtent2D extent, std::optional<bool> compute) const {
-  if (compute_pipeline_.handle() != VK_NULL_HANDLE && compute.value_or(Compute(*ctx.settings))) {
+                             VkExtent2D extent) const {
+  if (compute_pipeline_.handle() != VK_NULL_HANDLE && rule_(*ctx.settings)) {
     SetWriter w(device_, compute_layout_.Allocate(ctx));
     for (uint32_t i = 0; i < inputs_; ++i)
       w.Sampled(i, inputs[i].sampler, inputs[i].view, inputs[i].layout);
@@ -86,20 +88,10 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
     return;
   }
   const VkDescriptorSet set = layout_.Allocate(ctx);
-  std::vector<VkDescriptorImageInfo> images;
-  images.reserve(inputs.size());
-  for (const PostInput& in : inputs) images.push_back({in.sampler, in.view, in.layout});
-  std::vector<VkWriteDescriptorSet> writes;
-  for (uint32_t i = 0; i < inputs_; ++i) {
-    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-    w.dstSet = set;
-    w.dstBinding = i;
-    w.descriptorCount = 1;
-    w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-    w.pImageInfo = &images[i];
-    writes.push_back(w);
-  }
-  vkUpdateDescriptorSets(device_, uint32_t(writes.size()), writes.data(), 0, nullptr);
+  SetWriter w(device_, set);
+  for (uint32_t i = 0; i < inputs_; ++i)
+    w.Sampled(i, inputs[i].sampler, inputs[i].view, inputs[i].layout);
+  w.Update();
 
   std::vector<VkRenderingAttachmentInfo> colors;
   for (VkImageView v : outputs) {
@@ -148,10 +140,12 @@ template <typename T>
 absl::StatusOr<std::unique_ptr<Pass>> MakePost(const vk::Context& ctx, const char* name,
                                                const char* fragment, uint32_t inputs,
                                                uint32_t push_size, std::vector<VkFormat> outputs,
-                                               const char* compute = nullptr) {
+                                               const char* compute = nullptr,
+                                               FullscreenProgram::ComputeRule rule =
+                                                   &FullscreenProgram::Compute) {
   ASSIGN_OR_RETURN(FullscreenProgram program,
                    FullscreenProgram::Create(ctx, name, fragment, inputs, push_size,
-                                             std::move(outputs), compute));
+                                             std::move(outputs), compute, rule));
   absl::StatusOr<vk::Sampler> nearest = CreateClampSampler(ctx, false, name);
   if (!nearest.ok()) return nearest.status();
   absl::StatusOr<vk::Sampler> linear = CreateClampSampler(ctx, true, name);
@@ -189,7 +183,7 @@ class TonemapPass final : public PostPass {
                   {Nearest(PostColor(ctx)), Linear(*ctx.ao_view),
                    Nearest(*ctx.shadow_atlas_view), bloom_in,
                    {e.view, nearest_.handle(), e.layout}},
-                  {ctx.targets->ldr.view()}, &push, {0, 0}, FullscreenProgram::TonemapCompute(s));
+                  {ctx.targets->ldr.view()}, &push);
   }
 };
 
@@ -244,7 +238,7 @@ class FxaaPass final : public PostPass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
   return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 5, sizeof(gpu::TonemapPush),
-                               {kLdrFormat}, "tonemap.comp");
+                               {kLdrFormat}, "tonemap.comp", &FullscreenProgram::TonemapCompute);
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
   return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,

@@ -10,7 +10,6 @@
 // Then the visibility pipeline's classification and compute shading (vis_shade.cpp) shade each
 // pixel's surface once, at that mean position, and the geometric AA pass (post.cpp) blends the
 // partly covered pixels.
-#include <algorithm>
 #include <bit>
 
 #include "absl/strings/str_cat.h"
@@ -33,7 +32,7 @@ class VisibilityPass final : public Pass {
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    if (s.aa != AaMode::kVisMlaa && !ShadesVisibility(s)) return absl::OkStatus();
+    if (!DrawsVisibility(s)) return absl::OkStatus();
     return pipelines_.Ensure(Samples(s, s.samples),
                              [&](uint32_t samples) { return Create(ctx, samples); });
   }
@@ -108,33 +107,25 @@ class VisResolvePass final : public Pass {
     auto p = std::unique_ptr<VisResolvePass>(new VisResolvePass);
     p->device_ = ctx.device();
     constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
-    const VkDescriptorSetLayoutBinding b[] = {
-        {gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute, nullptr},
-        {gpu::kResolveBindingId, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCompute, nullptr},
-        {gpu::kVisBindingIndices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kShadeBindingEntries, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kShadeBindingPixels, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kResolveBindingCoverage, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCompute, nullptr}};
-    VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    li.bindingCount = uint32_t(std::size(b));
-    li.pBindings = b;
-    VK_RETURN_IF_ERROR(
-        vkCreateDescriptorSetLayout(p->device_, &li, nullptr, p->set_layout_.Replace(p->device_)),
-        "vis_resolve set layout");
-    const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout,
-                                          p->set_layout_.get()};
-    const VkPushConstantRange push{kCompute, 0, sizeof(gpu::ShadePush)};
-    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    pli.setLayoutCount = 3;
-    pli.pSetLayouts = sets;
-    pli.pushConstantRangeCount = 1;
-    pli.pPushConstantRanges = &push;
-    VK_RETURN_IF_ERROR(
-        vkCreatePipelineLayout(p->device_, &pli, nullptr, p->layout_.Replace(p->device_)),
-        "vis_resolve pipeline layout");
-    ASSIGN_OR_RETURN(p->pipeline_, vk::CreateComputePipeline(ctx, "vis_resolve",
-                                                             "vis_resolve.comp", p->layout_.get()));
+    constexpr VkDescriptorType kImage = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
+    constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    ASSIGN_OR_RETURN(
+        p->layout_,
+        PassLayout::Create(
+            ctx,
+            {LayoutBinding(gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                           kCompute),
+             LayoutBinding(gpu::kResolveBindingId, kImage, kCompute),
+             LayoutBinding(gpu::kVisBindingIndices, kBuffer, kCompute),
+             LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
+             LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
+             LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute),
+             LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute)},
+            {{kCompute, 0, sizeof(gpu::ShadePush)}}, "vis_resolve layout",
+            {scene.set_layout, scene.material_set_layout}));
+    ASSIGN_OR_RETURN(p->pipeline_,
+                     vk::CreateComputePipeline(ctx, "vis_resolve", "vis_resolve.comp",
+                                               p->layout_.pipeline_layout()));
     ASSIGN_OR_RETURN(p->sampler_, CreateClampSampler(ctx, false, "vis_resolve"));
     return p;
   }
@@ -152,7 +143,8 @@ class VisResolvePass final : public Pass {
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
     auto push = [&](uint32_t mode) {
       const gpu::ShadePush p{glm::uvec4(mode, edges, 0u, 0u)};
-      vkCmdPushConstants(ctx.cmd, layout_.get(), VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(p), &p);
+      vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                         sizeof(p), &p);
     };
     push(gpu::kResolveUniform);
     vkCmdDispatch(ctx.cmd, (ctx.targets->width + 7) / 8, (ctx.targets->height + 7) / 8, 1);
@@ -172,22 +164,22 @@ class VisResolvePass final : public Pass {
   VisResolvePass() = default;
 
   void WriteSet(const PassContext& ctx) {
-    const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
+    const VkDescriptorSet set = layout_.Allocate(ctx);
     SetWriter(device_, set)
         .Sampled(gpu::kVisBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view())
         .Storage(gpu::kResolveBindingId, ctx.targets->vis_id.view())
         .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
         .VisibilityBuffers(ctx)
         .Update();
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1,
-                            &ctx.scene_set, 0, nullptr);
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), gpu::kVisSet,
-                            1, &set, 0, nullptr);
+    const VkPipelineLayout layout = layout_.pipeline_layout();
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &ctx.scene_set,
+                            0, nullptr);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, gpu::kVisSet, 1, &set,
+                            0, nullptr);
   }
 
   VkDevice device_ = VK_NULL_HANDLE;
-  vk::UniqueDescriptorSetLayout set_layout_;
-  vk::UniquePipelineLayout layout_;
+  PassLayout layout_;
   vk::Pipeline pipeline_;
   vk::Sampler sampler_;
 };
@@ -254,19 +246,6 @@ uint32_t VisTriangleBits(uint32_t drawables) {
   return 32 - drawable_bits;
 }
 
-// The materials of the opaque and alpha-mask drawables in the frustum, ascending: the only
-// ones a visibility id can show.
-std::vector<uint32_t> MaterialsInFrustum(const GpuScene& gs, const Frustum& frustum) {
-  std::vector<uint32_t> out;
-  for (const DrawItem& d : gs.draws()) {
-    if (d.alpha == AlphaMode::kBlend || !AabbIntersectsFrustum(d.world_bounds, frustum)) continue;
-    out.push_back(d.material);
-  }
-  std::sort(out.begin(), out.end());
-  out.erase(std::unique(out.begin(), out.end()), out.end());
-  return out;
-}
-
 }  // namespace
 
 uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings& settings) {
@@ -277,7 +256,7 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
   Settings& s = settings.effective;
   const uint32_t most = gs.max_draw_triangles();
   const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
-  if (most <= (uint64_t(1) << triangle_bits) || (!vis_mlaa && !ShadesVisibility(s)))
+  if (most <= (uint64_t(1) << triangle_bits) || !DrawsVisibility(s))
     return triangle_bits;
   settings.notes.push_back(
       {vis_mlaa ? "aa" : "pipeline",
@@ -295,12 +274,6 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
     s.debug_view = DebugView::kNone;
   }
   return triangle_bits;
-}
-
-void Renderer::Impl::PrepareVis(FrameData& f) {
-  // The materials the shading dispatches for (the others have no pixels).
-  if (f.s.aa != AaMode::kVisMlaa && !ShadesVisibility(f.s)) return;
-  f.vis.materials = MaterialsInFrustum(f.gs, FrustumFromViewProj(f.fu.view_proj));
 }
 
 }  // namespace tessera

@@ -15,6 +15,8 @@
 // masked-off lanes, so writing it there cost every pixel of the frame (33 -> 20 ms for the
 // classification of DamagedHelmet at 1280x720).
 // Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
+#include <algorithm>
+
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
 #include "renderer/features/features.h"
@@ -39,43 +41,31 @@ class ShadeLayout {
     l.device_ = ctx.device();
     l.vis_mlaa_ = vis_mlaa;
     constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
-    const VkDescriptorSetLayoutBinding b[] = {
-        {gpu::kShadeBindingId, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute, nullptr},
-        {gpu::kShadeBindingColor, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1, kCompute, nullptr},
-        {gpu::kVisBindingIndices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kVisBindingVertices, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kShadeBindingEntries, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kShadeBindingPixels, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, kCompute, nullptr},
-        {gpu::kShadeBindingCoverage, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute,
-         nullptr},
-        {gpu::kShadeBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 1, kCompute,
-         nullptr},
-    };
-    VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    li.bindingCount = vis_mlaa ? 8 : 6;
-    li.pBindings = b;
-    VK_RETURN_IF_ERROR(
-        vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)),
-        "shade set layout");
-    const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout,
-                                          l.set_layout_.get()};
-    const VkPushConstantRange push{kCompute, 0, sizeof(gpu::ShadePush)};
-    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    pli.setLayoutCount = 3;
-    pli.pSetLayouts = sets;
-    pli.pushConstantRangeCount = 1;
-    pli.pPushConstantRanges = &push;
-    VK_RETURN_IF_ERROR(
-        vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
-        "shade pipeline layout");
+    constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    std::vector<VkDescriptorSetLayoutBinding> b = {
+        LayoutBinding(gpu::kShadeBindingId, kSampled, kCompute),
+        LayoutBinding(gpu::kShadeBindingColor, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute),
+        LayoutBinding(gpu::kVisBindingIndices, kBuffer, kCompute),
+        LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
+        LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
+        LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute)};
+    if (vis_mlaa) {
+      b.push_back(LayoutBinding(gpu::kShadeBindingCoverage, kSampled, kCompute));
+      b.push_back(LayoutBinding(gpu::kShadeBindingSamples, kSampled, kCompute));
+    }
+    ASSIGN_OR_RETURN(l.layout_,
+                     PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
+                                        "shade layout",
+                                        {scene.set_layout, scene.material_set_layout}));
     ASSIGN_OR_RETURN(l.sampler_, CreateClampSampler(ctx, false, "shade.ids"));
     return l;
   }
-  VkPipelineLayout pipeline_layout() const { return layout_.get(); }
+  VkPipelineLayout pipeline_layout() const { return layout_.pipeline_layout(); }
 
   // Writes this frame's set 2 and binds it with the scene's set 0.
   void Bind(const PassContext& ctx) const {
-    const VkDescriptorSet set = AllocateFrameSet(ctx, set_layout_.get());
+    const VkDescriptorSet set = layout_.Allocate(ctx);
     SetWriter w(device_, set);
     w.Sampled(gpu::kShadeBindingId, sampler_.handle(), ctx.targets->vis_id.view())
         .Storage(gpu::kShadeBindingColor, ctx.targets->hdr.view())
@@ -85,17 +75,16 @@ class ShadeLayout {
           .Sampled(gpu::kShadeBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view());
     }
     w.Update();
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), 0, 1,
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout(), 0, 1,
                             &ctx.scene_set, 0, nullptr);
-    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.get(), gpu::kVisSet,
-                            1, &set, 0, nullptr);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout(),
+                            gpu::kVisSet, 1, &set, 0, nullptr);
   }
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
   bool vis_mlaa_ = false;
-  vk::UniqueDescriptorSetLayout set_layout_;
-  vk::UniquePipelineLayout layout_;
+  PassLayout layout_;
   vk::Sampler sampler_;
 };
 
@@ -236,8 +225,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
 }
 
 void SetupVisibilityShading(GraphBuilder& b) {
+  if (!DrawsVisibility(b.settings())) return;
   const bool vis_mlaa = b.settings().aa == AaMode::kVisMlaa;
-  if (!vis_mlaa && !ShadesVisibility(b.settings())) return;
   using R = Resource;
   using A = Access;
   // The entries and lists are rewritten whole each frame.
@@ -256,8 +245,27 @@ void SetupVisibilityShading(GraphBuilder& b) {
 }
 
 
+namespace {
+
+// The materials of the opaque and alpha-mask drawables in the frustum, ascending: the only
+// ones a visibility id can show.
+std::vector<uint32_t> MaterialsInFrustum(const GpuScene& gs, const Frustum& frustum) {
+  std::vector<uint32_t> out;
+  for (const DrawItem& d : gs.draws()) {
+    if (d.alpha == AlphaMode::kBlend || !AabbIntersectsFrustum(d.world_bounds, frustum)) continue;
+    out.push_back(d.material);
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
+}
+
+}  // namespace
+
 absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
-  if (!ShadesVisibility(f.s) && f.s.aa != AaMode::kVisMlaa) return absl::OkStatus();
+  if (!DrawsVisibility(f.s)) return absl::OkStatus();
+  // The materials the shading dispatches for (the others have no pixels).
+  f.vis.materials = MaterialsInFrustum(f.gs, FrustumFromViewProj(f.fu.view_proj));
   const uint32_t materials = f.gs.material_count();
   const uint64_t pixels = uint64_t(f.s.width) * f.s.height;
   // And the sky's entry, and vis_mlaa's edge list's (vis_mlaa.cpp).
