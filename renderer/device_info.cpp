@@ -27,6 +27,13 @@ int TypeRank(std::string_view type) {
 
 }  // namespace
 
+const std::vector<std::string>& DisableableFeatures() {
+  static const std::vector<std::string> names = {
+      "draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic", "subgroup_ballot",
+      "sampler_minmax",      "visibility_buffer",   "pipeline_statistics"};
+  return names;
+}
+
 absl::StatusOr<size_t> ChooseDevice(const std::vector<DeviceCandidate>& devices,
                                     std::string_view wanted) {
   const std::string needle = Lower(wanted);

@@ -10,6 +10,19 @@
 
 namespace tessera {
 
+// An optional Vulkan feature the device lacks (or a test disabled), and the path Tessera takes
+// instead. GetServerInfo lists them.
+struct DeviceFallback {
+  std::string missing;  // e.g. "drawIndirectCount"
+  std::string path;     // e.g. "indirect draws over fixed-size lists ..."
+};
+
+// Optional features a test or user may turn off to exercise their fallbacks on a device that has
+// them (RendererOptions::disable_features, TESSERA_DISABLE_FEATURES=a,b): draw_indirect_count,
+// multi_draw_indirect, subgroup_arithmetic, subgroup_ballot, sampler_minmax, visibility_buffer,
+// pipeline_statistics.
+const std::vector<std::string>& DisableableFeatures();
+
 // What the server and clients need to know about the device.
 struct DeviceInfo {
   std::string name;                  // VkPhysicalDeviceProperties::deviceName
@@ -37,6 +50,17 @@ struct DeviceInfo {
   // Compute shaders have subgroup basic and ballot operations (the visibility pipeline's
   // classification aggregates its atomics per subgroup with them).
   bool subgroup_ballot = false;
+  // Compute shaders have subgroup arithmetic (the culling's prefix sum; else shared memory).
+  bool subgroup_arithmetic = false;
+  // vkCmdDrawIndexedIndirectCount (drawIndirectCount); else every indirect draw runs its list's
+  // whole capacity, and the commands past the count draw nothing.
+  bool draw_indirect_count = false;
+  // More than one command per indirect call (multiDrawIndirect, up to maxDrawIndirectCount);
+  // else one call per command.
+  bool multi_draw_indirect = false;
+  uint32_t max_draw_indirect_count = 1;
+  // What the device lacks and the path taken instead, in a fixed order.
+  std::vector<DeviceFallback> fallbacks;
 };
 
 // A physical device as the chooser sees it.

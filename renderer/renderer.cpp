@@ -31,7 +31,9 @@ Renderer::~Renderer() = default;
 
 absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions& options) {
   auto impl = std::make_unique<Impl>();
-  ASSIGN_OR_RETURN(impl->ctx, vk::Context::Create({options.device_name, options.validation}));
+  ASSIGN_OR_RETURN(impl->ctx, vk::Context::Create(
+                                 {options.device_name, options.validation,
+                                  options.disable_features}));
   RETURN_IF_ERROR(impl->Init());
   return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
 }

@@ -23,6 +23,9 @@ namespace tessera {
 struct RendererOptions {
   std::string device_name;  // substring of the device to use; empty: $TESSERA_DEVICE or best
   bool validation = false;  // Vulkan validation layers (also TESSERA_VALIDATION=1)
+  // Optional device features to treat as absent, to test their fallbacks (DisableableFeatures();
+  // also TESSERA_DISABLE_FEATURES=a,b).
+  std::vector<std::string> disable_features;
 };
 
 // What a loaded scene is, without its geometry.

@@ -319,6 +319,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   dev->set_driver_name(d.driver_name);
   dev->set_driver_info(d.driver_info);
   dev->set_api_version(d.api_version);
+  for (const DeviceFallback& f : d.fallbacks) {
+    v1::DeviceFallback* out = dev->add_fallbacks();
+    out->set_missing(f.missing);
+    out->set_path(f.path);
+  }
   v1::Limits* l = r->mutable_limits();
   const DeviceCaps caps = state_->renderer->caps();
   l->set_max_samples(std::min(caps.max_samples, kMaxSamples));  // as SettingChoices.samples

@@ -50,6 +50,8 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
                HumanDuration(info.uptime_s()));
   absl::PrintF("device     %s (%s)\n", d.name(), d.type());
   absl::PrintF("driver     %s, %s, Vulkan %s\n", d.driver_name(), d.driver_info(), d.api_version());
+  for (const v1::DeviceFallback& f : d.fallbacks())
+    absl::PrintF("fallback   no %s: %s\n", f.missing(), f.path());
   absl::PrintF(
       "load       %u scenes (%s on the device), %u sessions (+%u parked), queue depth %u "
       "(%u background), %u frames in flight, %u frames rendered\n",

@@ -169,7 +169,10 @@ int main(int argc, char** argv) {
                    {"type", dev.type},
                    {"driver", dev.driver_info},
                    {"max_samples", dev.max_samples},
-                   {"max_image_dimension", dev.max_image_dimension}};
+                   {"max_image_dimension", dev.max_image_dimension},
+                   {"fallbacks", nlohmann::json::array()}};
+    for (const DeviceFallback& f : dev.fallbacks)
+      j["device"]["fallbacks"].push_back({{"missing", f.missing}, {"path", f.path}});
     j["scene"] = {{"name", info.name},
                   {"drawables", frame.stats.drawables},
                   {"triangles", info.counts.triangles},
@@ -218,6 +221,8 @@ int main(int argc, char** argv) {
     std::printf("device   %s (%s, %s), max %ux MSAA, max %u px\n", dev.name.c_str(),
                 dev.type.c_str(), dev.driver_info.c_str(), dev.max_samples,
                 dev.max_image_dimension);
+    for (const DeviceFallback& f : dev.fallbacks)
+      std::printf("fallback no %s: %s\n", f.missing.c_str(), f.path.c_str());
     std::printf("scene    %s: %u drawables, %llu triangles, %u culled\n", info.name.c_str(),
                 frame.stats.drawables, (unsigned long long)info.counts.triangles,
                 frame.stats.drawables_culled);

@@ -56,6 +56,12 @@ class CullPass final : public Pass {
                                               ctx.scene->batches().size());
     vkCmdFillBuffer(ctx.cmd, lists.counts, lists.CountOffset(phase, lists_per_phase),
                     gpu::kCullStatCount * sizeof(uint32_t), 0);
+    if (!ctx.vk->info().draw_indirect_count) {  // the draws run the lists' whole capacity
+      vkCmdFillBuffer(ctx.cmd, lists.commands, lists.CommandOffset(phase, false, 0),
+                      lists.CommandOffset(phase + 1, false, 0) -
+                          lists.CommandOffset(phase, false, 0),
+                      0);
+    }
     if (phase == 1) vkCmdFillBuffer(ctx.cmd, cb.vis_next, 0, VK_WHOLE_SIZE, 0);
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                   VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -87,7 +93,9 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateCullPass(const vk::Context& ctx, Pas
   if (!layout.ok()) return layout.status();
   const char* name = id == PassId::kCullLate ? "cull_late" : "cull";
   absl::StatusOr<vk::Pipeline> pipeline =
-      vk::CreateComputePipeline(ctx, name, "cull.comp", layout->pipeline_layout());
+      vk::CreateComputePipeline(ctx, name,
+                                ctx.info().subgroup_arithmetic ? "cull.comp" : "cull_shared_scan.comp",
+                                layout->pipeline_layout());
   VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
   si.magFilter = si.minFilter = VK_FILTER_NEAREST;
   si.mipmapMode = VK_SAMPLER_MIPMAP_MODE_NEAREST;
@@ -244,6 +252,8 @@ void Renderer::Impl::WriteCpuLists(const GpuScene& scene, const DrawLists& lists
       out[n++] = {d.index_count, 1, d.first_index, d.vertex_offset, d.drawable};
     }
     counts[lists.CountOffset(0, count_index) / 4] = n;
+    // Without drawIndirectCount the draws run the whole list: the rest draws nothing.
+    std::fill(out + n, out + count, VkDrawIndexedIndirectCommand{});
   };
   const uint32_t segments = uint32_t(scene.segments().size());
   for (uint32_t s = 0; s < segments; ++s)

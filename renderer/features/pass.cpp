@@ -1,6 +1,7 @@
 // Helpers shared by the passes: beginning a rendering over the frame, and drawing scene items.
 #include "renderer/features/pass.h"
 
+#include <algorithm>
 #include <utility>
 
 #include "renderer/vk/vk_check.h"
@@ -152,10 +153,23 @@ struct DrawState {
 void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t first_item,
                   uint32_t capacity, uint32_t count_index) {
   const DrawLists& d = *ctx.draws;
-  vkCmdDrawIndexedIndirectCount(ctx.cmd, d.commands, d.CommandOffset(phase, batch, first_item),
-                                d.counts, d.CountOffset(phase, count_index), capacity,
-                                sizeof(VkDrawIndexedIndirectCommand));
-  ctx.stats->indirect_draws++;
+  const VkDeviceSize offset = d.CommandOffset(phase, batch, first_item);
+  constexpr uint32_t kStride = sizeof(VkDrawIndexedIndirectCommand);
+  const DeviceInfo& info = ctx.vk->info();
+  if (info.draw_indirect_count) {
+    vkCmdDrawIndexedIndirectCount(ctx.cmd, d.commands, offset, d.counts,
+                                  d.CountOffset(phase, count_index), capacity, kStride);
+    ctx.stats->indirect_draws++;
+    return;
+  }
+  // No GPU-written count: the list's whole capacity, whose commands past the count are zero
+  // (DrawLists) and draw nothing; as few calls as maxDrawIndirectCount allows.
+  const uint32_t per_call = std::max(info.max_draw_indirect_count, 1u);
+  for (uint32_t done = 0; done < capacity; done += per_call) {
+    vkCmdDrawIndexedIndirect(ctx.cmd, d.commands, offset + VkDeviceSize(done) * kStride,
+                             std::min(per_call, capacity - done), kStride);
+    ctx.stats->indirect_draws++;
+  }
 }
 
 }  // namespace

@@ -102,7 +102,8 @@ struct FrameTargets {
 // and batch of the scene's DrawPlan. gpu_occlusion has two phases, the other modes one.
 // Phase p's segment commands start at command 2p * items (each segment at its first item), its
 // batch commands at (2p + 1) * items; its counts at p * count_stride: segments, then batches,
-// then the kCullStat* statistics.
+// then the kCullStat* statistics. A device without drawIndirectCount draws every list's whole
+// capacity: the commands past a list's count are all zero (indexCount 0 draws nothing).
 struct DrawLists {
   VkBuffer commands = VK_NULL_HANDLE;
   VkBuffer counts = VK_NULL_HANDLE;

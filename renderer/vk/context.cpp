@@ -10,8 +10,11 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "absl/strings/ascii.h"
 #include "common/status_macros.h"
 #include "renderer/log.h"
+#include "renderer/settings.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
@@ -154,12 +157,25 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   const bool validation = options.validation || EnvFlag("TESSERA_VALIDATION");
   std::string wanted = options.device_name;
   if (wanted.empty() && std::getenv("TESSERA_DEVICE")) wanted = std::getenv("TESSERA_DEVICE");
+  std::vector<std::string> disabled = options.disable_features;
+  if (const char* env = std::getenv("TESSERA_DISABLE_FEATURES"))
+    for (absl::string_view name : absl::StrSplit(env, ',', absl::SkipWhitespace()))
+      disabled.emplace_back(std::string(absl::StripAsciiWhitespace(name)));
+  for (const std::string& name : disabled) {
+    const auto& known = DisableableFeatures();
+    if (std::find(known.begin(), known.end(), name) == known.end())
+      return absl::InvalidArgumentError(
+          absl::StrCat("disable_features: unknown feature \"", name, "\" (known: ",
+                       absl::StrJoin(known, ", "), ")"));
+  }
   RETURN_IF_ERROR(ctx->InitInstance(validation));
   RETURN_IF_ERROR(ctx->PickDevice(wanted));
-  RETURN_IF_ERROR(ctx->InitDevice(validation));
+  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled));
   const DeviceInfo& info = ctx->info_;
   Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name, info.type,
              info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
+  for (const DeviceFallback& f : info.fallbacks)
+    Log().info("vulkan device lacks {}: {}", f.missing, f.path);
   return ctx;
 }
 
@@ -318,8 +334,11 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
     info.subgroup_size = sub.subgroupSize;
     constexpr VkSubgroupFeatureFlags kBallot =
         VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
-    info.subgroup_ballot = (sub.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) != 0 &&
-                           (sub.supportedOperations & kBallot) == kBallot;
+    const bool compute = (sub.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT) != 0;
+    info.subgroup_ballot = compute && (sub.supportedOperations & kBallot) == kBallot;
+    constexpr VkSubgroupFeatureFlags kArithmetic =
+        VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
+    info.subgroup_arithmetic = compute && (sub.supportedOperations & kArithmetic) == kArithmetic;
   }
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;
@@ -331,7 +350,44 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
   info.validation = validation;
 }
 
-absl::Status Context::InitDevice(bool validation) {
+namespace {
+
+// What the device lacks, and the path taken instead (DeviceInfo::fallbacks).
+std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
+  std::vector<DeviceFallback> out;
+  if (!info.draw_indirect_count)
+    out.push_back({"drawIndirectCount",
+                   "indirect draws run each list's whole capacity; commands past the count are "
+                   "zeroed and draw nothing"});
+  if (!info.multi_draw_indirect)
+    out.push_back({"multiDrawIndirect", "one indirect draw call per command"});
+  if (!info.subgroup_arithmetic)
+    out.push_back({"subgroup arithmetic in compute shaders",
+                   "geometry culling's prefix sum in shared memory"});
+  if (!info.subgroup_ballot)
+    out.push_back({"subgroup ballot in compute shaders",
+                   "visibility classification with one atomic per pixel"});
+  if (!info.sampler_minmax)
+    out.push_back({"samplerFilterMinmax on R32_SFLOAT",
+                   "the depth pyramid reads four texels and takes their minimum"});
+  if (!info.visibility_buffer)
+    out.push_back({"gl_PrimitiveID in fragment shaders (geometryShader) or standard sample "
+                   "locations",
+                   "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
+  if (!info.pipeline_statistics)
+    out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
+  if (info.max_samples < kMaxSamples)
+    out.push_back({absl::StrCat(kMaxSamples, "x multisampling"),
+                   absl::StrCat("samples clamped to ", info.max_samples)});
+  return out;
+}
+
+}  // namespace
+
+absl::Status Context::InitDevice(bool validation, const std::vector<std::string>& disabled) {
+  auto off = [&](const char* name) {
+    return std::find(disabled.begin(), disabled.end(), name) != disabled.end();
+  };
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
   props2.pNext = &driver;
@@ -354,6 +410,13 @@ absl::Status Context::InitDevice(bool validation) {
 
   DescribeDevice(p, driver, supported, validation);
   DeviceInfo& info = info_;
+  if (off("subgroup_arithmetic")) info.subgroup_arithmetic = false;
+  if (off("subgroup_ballot")) info.subgroup_ballot = false;
+  if (off("visibility_buffer")) info.visibility_buffer = false;
+  if (off("pipeline_statistics")) supported.pipelineStatisticsQuery = VK_FALSE;
+  if (off("multi_draw_indirect")) supported.multiDrawIndirect = VK_FALSE;
+  info.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;
+  info.max_draw_indirect_count = info.multi_draw_indirect ? p.limits.maxDrawIndirectCount : 1;
   VkPhysicalDeviceFeatures enabled{};
   enabled.samplerAnisotropy = info.max_anisotropy > 1.0f ? VK_TRUE : VK_FALSE;
   enabled.multiDrawIndirect = supported.multiDrawIndirect;
@@ -364,6 +427,7 @@ absl::Status Context::InitDevice(bool validation) {
   enabled.geometryShader = supported.geometryShader;  // gl_PrimitiveID in fragment shaders
   enabled.sampleRateShading = supported.sampleRateShading;
   info.pipeline_statistics = supported.pipelineStatisticsQuery == VK_TRUE;
+
   VkPhysicalDeviceVulkan13Features f13{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_VULKAN_1_3_FEATURES};
   f13.dynamicRendering = VK_TRUE;
   f13.synchronization2 = VK_TRUE;
@@ -375,22 +439,25 @@ absl::Status Context::InitDevice(bool validation) {
   VkPhysicalDeviceFeatures2 q{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_FEATURES_2};
   q.pNext = &f12_supported;
   vkGetPhysicalDeviceFeatures2(physical_, &q);
-  // Every scene draw is an indexed indirect draw with a GPU-written count.
-  if (!f12_supported.drawIndirectCount || !supported.drawIndirectFirstInstance) {
+  // Every scene draw is an indexed indirect draw whose firstInstance is its drawable. The count
+  // is GPU-written where the device has drawIndirectCount; else the lists are zero-padded.
+  if (!supported.drawIndirectFirstInstance) {
     return absl::FailedPreconditionError(absl::StrCat(
-        p.deviceName, " lacks drawIndirectCount or drawIndirectFirstInstance, which every draw uses"));
+        p.deviceName, " lacks drawIndirectFirstInstance, which every draw uses"));
   }
-  f12.drawIndirectCount = VK_TRUE;
-  f12.samplerFilterMinmax = f12_supported.samplerFilterMinmax;
+  info.draw_indirect_count = f12_supported.drawIndirectCount && !off("draw_indirect_count");
+  f12.drawIndirectCount = info.draw_indirect_count ? VK_TRUE : VK_FALSE;
   {
     VkFormatProperties fp{};
     vkGetPhysicalDeviceFormatProperties(physical_, VK_FORMAT_R32_SFLOAT, &fp);
     info.sampler_minmax =
-        f12_supported.samplerFilterMinmax &&
+        f12_supported.samplerFilterMinmax && !off("sampler_minmax") &&
         (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT) != 0;
   }
+  f12.samplerFilterMinmax = info.sampler_minmax ? VK_TRUE : VK_FALSE;
   f12.hostQueryReset = f12_supported.hostQueryReset;
   f12.scalarBlockLayout = f12_supported.scalarBlockLayout;
+  info.fallbacks = ListFallbacks(info);
 
   const float priority = 1.0f;
   VkDeviceQueueCreateInfo qci{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};

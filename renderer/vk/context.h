@@ -23,6 +23,10 @@ struct ContextOptions {
   std::string device_name;
   // Enable VK_LAYER_KHRONOS_validation. Also enabled by TESSERA_VALIDATION=1.
   bool validation = false;
+  // Optional features to treat as absent (DisableableFeatures(); also
+  // $TESSERA_DISABLE_FEATURES, comma-separated), so that their fallbacks can be tested on a
+  // device that has them. An unknown name is INVALID_ARGUMENT.
+  std::vector<std::string> disable_features;
 };
 
 class Context {
@@ -68,7 +72,7 @@ class Context {
   // its queue family, then the device with the features Tessera uses (and DeviceInfo).
   absl::Status InitInstance(bool validation);
   absl::Status PickDevice(const std::string& wanted);
-  absl::Status InitDevice(bool validation);
+  absl::Status InitDevice(bool validation, const std::vector<std::string>& disabled);
   void DescribeDevice(const VkPhysicalDeviceProperties& p,
                       const VkPhysicalDeviceDriverProperties& driver,
                       const VkPhysicalDeviceFeatures& supported, bool validation);

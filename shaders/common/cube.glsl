@@ -37,7 +37,9 @@ vec3 CubeDirection(uint face, vec2 uv) {
 // antiderivative in both x and y is atan(x * y / sqrt(1 + x^2 + y^2)); the rectangle's integral
 // is that function's signed sum over its four corners. Exact, so a face's texels sum to 4 pi / 6.
 float CubeAreaElement(float x, float y) {
-  return atan(x * y, sqrt(x * x + y * y + 1.0));
+  // atan(x y / r), the same as atan(x y, r) since r > 0: SwiftShader's two-argument atan gets
+  // the sign wrong for some negative x y, which blacked out half the irradiance cube.
+  return atan(x * y / sqrt(x * x + y * y + 1.0));
 }
 
 float CubeRectSolidAngle(float x0, float y0, float x1, float y1) {

@@ -222,11 +222,88 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
     // The passes of the two-phase frame are all reported.
     std::vector<std::string> names;
     for (const PassTiming& p : second->passes) names.push_back(p.pass);
-    const bool forward = pipeline == Pipeline::kForward;
+    // A device without the visibility buffer renders the visibility request forward.
+    const bool forward = second->settings.effective.pipeline == Pipeline::kForward;
+    EXPECT_EQ(forward, pipeline == Pipeline::kForward || !r.device_info().visibility_buffer);
     for (const char* want : {"cull", forward ? "depth_prepass" : "visibility", "hiz_build",
                              "cull_late", forward ? "depth_prepass_late" : "visibility_late"})
       EXPECT_NE(std::find(names.begin(), names.end(), want), names.end()) << want;
   }
+}
+
+// The fallbacks for optional device features, forced on a device that has the features: draws
+// without drawIndirectCount (and one command per call without multiDrawIndirect), culling's
+// prefix sum without subgroup arithmetic, classification without ballots, the depth pyramid
+// without min/max samplers. Each frame must equal the one the full feature set renders, pixel
+// for pixel, in every culling mode and both pipelines; and the frame stats must agree.
+TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
+  Renderer& r = SharedRenderer();
+  absl::StatusOr<std::unique_ptr<Renderer>> lean = Renderer::Create(
+      {.validation = true,
+       .disable_features = {"draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic",
+                            "subgroup_ballot", "sampler_minmax"}});
+  ASSERT_TRUE(lean.ok()) << lean.status();
+  const DeviceInfo& info = (*lean)->device_info();
+  EXPECT_FALSE(info.draw_indirect_count);
+  EXPECT_FALSE(info.multi_draw_indirect);
+  EXPECT_FALSE(info.subgroup_arithmetic);
+  EXPECT_FALSE(info.sampler_minmax);
+  std::vector<std::string> missing;
+  for (const DeviceFallback& f : info.fallbacks) missing.push_back(f.missing);
+  for (const char* want : {"drawIndirectCount", "multiDrawIndirect"})
+    EXPECT_NE(std::find(missing.begin(), missing.end(), want), missing.end()) << want;
+
+  absl::StatusOr<GltfSource> src =
+      LoadGltfSourceFromDisk(AssetsDir() + "/Sponza/glTF/Sponza.gltf");
+  ASSERT_TRUE(src.ok()) << src.status();
+  absl::StatusOr<SceneHandle> full_scene = r.LoadScene(*src);
+  ASSERT_TRUE(full_scene.ok()) << full_scene.status();
+  absl::StatusOr<SceneHandle> lean_scene = (*lean)->LoadScene(*src);
+  ASSERT_TRUE(lean_scene.ok()) << lean_scene.status();
+  Camera cam;  // the atrium: some of Sponza is out of the frustum, some hidden
+  cam.eye = {9.0f, 1.6f, -0.4f};
+  cam.target = {-5.0f, 3.5f, 0.3f};
+  std::vector<Pipeline> pipelines = {Pipeline::kForward};
+  if (r.device_info().visibility_buffer) pipelines.push_back(Pipeline::kVisibility);
+  for (Pipeline pipeline : pipelines) {
+    for (CullingMode mode : {CullingMode::kNone, CullingMode::kCpuFrustum,
+                             CullingMode::kGpuFrustum, CullingMode::kGpuOcclusion}) {
+      Settings s = Small(mode);
+      s.width = 160;
+      s.height = 96;
+      s.pipeline = pipeline;
+      const std::string what = std::string(ToString(mode)) + " " + std::string(ToString(pipeline));
+      const uint64_t view = 300 + uint64_t(mode) * 4 + uint64_t(pipeline);
+      for (int frame = 0; frame < 2; ++frame) {  // gpu_occlusion: the second has a history
+        absl::StatusOr<Frame> a = r.Render(**full_scene, cam, s, view);
+        absl::StatusOr<Frame> b = (*lean)->Render(**lean_scene, cam, s, view);
+        ASSERT_TRUE(a.ok()) << a.status();
+        ASSERT_TRUE(b.ok()) << b.status();
+        EXPECT_EQ(a->image.pixels, b->image.pixels) << what << " frame " << frame;
+        EXPECT_EQ(a->stats.drawables_drawn, b->stats.drawables_drawn) << what;
+        EXPECT_EQ(a->stats.drawables_in_frustum, b->stats.drawables_in_frustum) << what;
+        EXPECT_EQ(a->stats.drawables_late, b->stats.drawables_late) << what;
+        EXPECT_EQ(a->stats.triangles_submitted, b->stats.triangles_submitted) << what;
+        EXPECT_EQ(a->stats.shaded_pixels, b->stats.shaded_pixels) << what;
+        if (frame == 0) {
+          std::printf("%-26s indirect draw calls %u with drawIndirectCount, %u without\n",
+                      what.c_str(), a->stats.indirect_draws, b->stats.indirect_draws);
+        }
+      }
+    }
+  }
+  ExpectNoValidationMessages(r);
+  ExpectNoValidationMessages(**lean);
+}
+
+// Feature names are checked: a typo must not silently test the full path.
+TEST(FallbackTest, UnknownFeatureIsRefused) {
+  absl::StatusOr<std::unique_ptr<Renderer>> r =
+      Renderer::Create({.disable_features = {"draw_indirect_cnt"}});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(r.status().message().find("draw_indirect_cnt"), std::string::npos) << r.status();
+  EXPECT_NE(r.status().message().find("draw_indirect_count"), std::string::npos) << r.status();
 }
 
 }  // namespace

@@ -21,11 +21,6 @@ namespace {
 
 constexpr uint32_t kWidth = 320, kHeight = 180;
 
-void ExpectNoValidationMessages(const Renderer& r) {
-  EXPECT_EQ(r.validation_message_count(), 0u);
-  for (const std::string& m : r.validation_messages()) ADD_FAILURE() << "validation: " << m;
-}
-
 // The demo scene from behind, where the sun's shadows fall towards the camera.
 Camera BackCamera() {
   Camera c;
@@ -490,6 +485,7 @@ namespace {
 // The visibility pipeline shades with the same lighting as the forward path: shadows (sun and
 // local), SSAO, IBL, forward+ light lists, bloom, auto exposure; and under fxaa and taa.
 TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
+  TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(SharedRenderer());
   const SceneHandle& scene = SharedDemoScene();
   for (AaMode aa : {AaMode::kNone, AaMode::kFxaa, AaMode::kTaa}) {
     Settings s = Lit(true, true, aa);

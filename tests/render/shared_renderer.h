@@ -5,6 +5,7 @@
 
 #include <cstdlib>
 #include <memory>
+#include <string>
 
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
@@ -21,6 +22,20 @@ inline Renderer& SharedRenderer() {
     return std::move(*r);
   }();
   return *renderer;
+}
+
+// vis_mlaa and the visibility pipeline need gl_PrimitiveID in fragment shaders; a device without
+// it (SwiftShader: no geometryShader) renders those requests as msaa and forward, with a note
+// (the settings and fallback tests check that). Tests of the visibility paths themselves skip.
+#define TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(renderer)                             \
+  if (!(renderer).device_info().visibility_buffer)                                  \
+  GTEST_SKIP() << (renderer).device_info().name                                     \
+               << " cannot draw the visibility buffer (no gl_PrimitiveID in fragment shaders)"
+
+// Every validation message a renderer's device reported, as test failures.
+inline void ExpectNoValidationMessages(const Renderer& r) {
+  EXPECT_EQ(r.validation_message_count(), 0u);
+  for (const std::string& m : r.validation_messages()) ADD_FAILURE() << "validation: " << m;
 }
 
 inline const SceneHandle& SharedDemoScene() {
