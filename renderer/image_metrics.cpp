@@ -311,6 +311,70 @@ absl::StatusOr<double> PsnrMasked(const RgbaImage& a, const RgbaImage& b,
   return 10.0 * std::log10(255.0 * 255.0 / mse);
 }
 
+namespace {
+
+// Per pixel, the largest amount by which a channel of `a` lies outside the range of `b`'s
+// channel over the (2 radius + 1)^2 neighbourhood (clamped at the borders). The range is a
+// separable min/max: rows first, then columns.
+std::vector<int> Excess(const RgbaImage& a, const RgbaImage& b, uint32_t radius) {
+  const uint32_t w = a.width, h = a.height;
+  const size_t n = size_t{w} * h;
+  std::vector<int> excess(n, 0);
+  std::vector<uint8_t> row_lo(n), row_hi(n);
+  for (int c = 0; c < 3; ++c) {
+    for (uint32_t y = 0; y < h; ++y) {
+      for (uint32_t x = 0; x < w; ++x) {
+        uint8_t lo = 255, hi = 0;
+        const uint32_t x0 = x >= radius ? x - radius : 0, x1 = std::min(w - 1, x + radius);
+        for (uint32_t xx = x0; xx <= x1; ++xx) {
+          const uint8_t v = b.pixels[(size_t{y} * w + xx) * 4 + c];
+          lo = std::min(lo, v);
+          hi = std::max(hi, v);
+        }
+        row_lo[size_t{y} * w + x] = lo;
+        row_hi[size_t{y} * w + x] = hi;
+      }
+    }
+    for (uint32_t y = 0; y < h; ++y) {
+      const uint32_t y0 = y >= radius ? y - radius : 0, y1 = std::min(h - 1, y + radius);
+      for (uint32_t x = 0; x < w; ++x) {
+        int lo = 255, hi = 0;
+        for (uint32_t yy = y0; yy <= y1; ++yy) {
+          lo = std::min<int>(lo, row_lo[size_t{yy} * w + x]);
+          hi = std::max<int>(hi, row_hi[size_t{yy} * w + x]);
+        }
+        const size_t i = size_t{y} * w + x;
+        const int v = a.pixels[i * 4 + c];
+        excess[i] = std::max(excess[i], v < lo ? lo - v : (v > hi ? v - hi : 0));
+      }
+    }
+  }
+  return excess;
+}
+
+}  // namespace
+
+absl::StatusOr<NeighbourhoodError> CompareNeighbourhood(const RgbaImage& actual,
+                                                        const RgbaImage& expected,
+                                                        uint32_t radius, int threshold) {
+  RETURN_IF_ERROR(ValidatePair(actual, expected, "CompareNeighbourhood"));
+  const std::vector<int> ab = Excess(actual, expected, radius);
+  const std::vector<int> ba = Excess(expected, actual, radius);
+  NeighbourhoodError out;
+  uint64_t sum_sq = 0, outliers = 0;
+  for (size_t i = 0; i < ab.size(); ++i) {
+    const int e = std::max(ab[i], ba[i]);
+    sum_sq += uint64_t(e) * uint64_t(e);
+    outliers += e > threshold ? 1 : 0;
+    out.max_excess = std::max(out.max_excess, e);
+  }
+  const double pixels = static_cast<double>(ab.size());
+  out.outlier_fraction = pixels > 0 ? static_cast<double>(outliers) / pixels : 0.0;
+  out.psnr = sum_sq == 0 ? std::numeric_limits<double>::infinity()
+                         : 10.0 * std::log10(255.0 * 255.0 / (static_cast<double>(sum_sq) / pixels));
+  return out;
+}
+
 absl::StatusOr<double> SsimMasked(const RgbaImage& a, const RgbaImage& b,
                                   const std::vector<uint8_t>& mask) {
   RETURN_IF_ERROR(ValidatePair(a, b, "SsimMasked"));

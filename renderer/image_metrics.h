@@ -37,6 +37,21 @@ uint64_t MaskCount(const std::vector<uint8_t>& mask);
 absl::StatusOr<double> PsnrMasked(const RgbaImage& a, const RgbaImage& b,
                                   const std::vector<uint8_t>& mask = {});
 
+// A golden-image comparison that holds across drivers. Each pixel of one image may take any value
+// between the smallest and the largest of the other image's pixels within `radius` (per RGB
+// channel); how far it lies outside that range is its excess. Both directions are checked, and a
+// pixel's excess is the larger. Texture filtering and LOD selection that differ between drivers
+// (an edge a pixel sharper or softer, a checkerboard filtered a little differently) stay within
+// the range; a missing light, a flipped normal or a shifted texture leaves it.
+struct NeighbourhoodError {
+  double psnr = 0.0;              // of the excess over RGB (8-bit peak); +infinity when none
+  double outlier_fraction = 0.0;  // pixels whose excess exceeds `threshold` on some channel
+  int max_excess = 0;
+};
+absl::StatusOr<NeighbourhoodError> CompareNeighbourhood(const RgbaImage& actual,
+                                                        const RgbaImage& expected,
+                                                        uint32_t radius = 1, int threshold = 16);
+
 // Mean SSIM (Wang et al. 2004: 11x11 Gaussian window, sigma 1.5, K1 0.01, K2 0.03, L 255) of
 // the Rec. 709 luma of the 8-bit values, averaged over the selected pixels (each pixel's SSIM
 // is that of the window centred on it; windows are clamped at the image border). NaN when the

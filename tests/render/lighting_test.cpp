@@ -113,7 +113,7 @@ TEST(ShadowTest, SunShadowFallsWhereTheRayMeetsTheFloor) {
 
 TEST(ShadowTest, MatchesGolden) {
   const SceneHandle& scene = SharedDemoScene();
-  CompareWithGolden("shadows", RenderOrDie(*scene, BackCamera(), Lit(true, false)).image, 35.0);
+  CompareWithGolden("shadows", RenderOrDie(*scene, BackCamera(), Lit(true, false)).image);
   ExpectNoValidationMessages(SharedRenderer());
 }
 
@@ -128,7 +128,7 @@ TEST(ShadowTest, LocalLightsMatchGolden) {
   EXPECT_EQ(on.stats.shadowed_lights, 4u);
   EXPECT_EQ(on.stats.shadow_views, 3u * 6u + 1u);
   ExpectOnlyDarker(on.image, off.image, "local shadows");
-  CompareWithGolden("shadows_local", on.image, 35.0);
+  CompareWithGolden("shadows_local", on.image);
   // The atlas view: a square of depths at the left (the atlas also holds faces other tests
   // cached, so no golden), black beside it.
   Settings atlas = Lit(true, false);
@@ -238,10 +238,10 @@ TEST(SsaoTest, DarkensAmbientOnlyAndMatchesGolden) {
   const Frame off = RenderOrDie(*scene, BackCamera(), Lit(false, false));
   const Frame on = RenderOrDie(*scene, BackCamera(), Lit(false, true));
   ExpectOnlyDarker(on.image, off.image, "ssao");
-  CompareWithGolden("ssao", on.image, 35.0);
+  CompareWithGolden("ssao", on.image);
   Settings debug = Lit(false, true);
   debug.debug_view = DebugView::kSsao;
-  CompareWithGolden("ssao_debug", RenderOrDie(*scene, BackCamera(), debug).image, 30.0);
+  CompareWithGolden("ssao_debug", RenderOrDie(*scene, BackCamera(), debug).image);
   ExpectNoValidationMessages(SharedRenderer());
 }
 
@@ -317,9 +317,9 @@ TEST(BloomTest, AddsLightAroundWhatIsBrighterThanWhite) {
   EXPECT_GT(near_gain / near, 2.0) << "no glow next to the highlights";
   // The glow reaches far (six levels: 1/64 of the frame) but falls off.
   EXPECT_GT(near_gain / near, 2.5 * (far_gain / far)) << "the glow does not fall off";
-  CompareWithGolden("bloom", on.image, 35.0);
+  CompareWithGolden("bloom", on.image);
   s.debug_view = DebugView::kBloom;
-  CompareWithGolden("bloom_debug", RenderOrDie(*scene, BackCamera(), s).image, 30.0);
+  CompareWithGolden("bloom_debug", RenderOrDie(*scene, BackCamera(), s).image);
   ExpectNoValidationMessages(SharedRenderer());
 }
 
@@ -374,7 +374,7 @@ TEST(AutoExposureTest, MapsTheAverageToMiddleGreyAtOnce) {
   brighter.exposure_ev = 1.0f;
   const Frame b = RenderOrDie(*scene, BackCamera(), brighter, 102);
   ExpectOnlyDarker(autof->image, b.image, "one stop less");
-  CompareWithGolden("auto_exposure", autof->image, 35.0);
+  CompareWithGolden("auto_exposure", autof->image);
   SharedRenderer().ForgetView(*scene, 101);
   SharedRenderer().ForgetView(*scene, 102);
   ExpectNoValidationMessages(SharedRenderer());
@@ -419,7 +419,7 @@ Settings Ibl(AaMode aa = AaMode::kNone) {
 TEST(IblTest, MatchesGoldenInBothPaths) {
   const SceneHandle& scene = SharedDemoScene();
   const Frame forward = RenderOrDie(*scene, BackCamera(), Ibl());
-  CompareWithGolden("ibl", forward.image, 35.0);
+  CompareWithGolden("ibl", forward.image);
   const Frame vis = RenderOrDie(*scene, BackCamera(), Ibl(AaMode::kVisMlaa));
   absl::StatusOr<double> psnr = Psnr(vis.image, forward.image);
   ASSERT_TRUE(psnr.ok());

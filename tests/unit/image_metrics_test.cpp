@@ -566,5 +566,45 @@ TEST(BusiestCropsTest, ReachesTheRightAndBottomEdges) {
   EXPECT_TRUE(Contains(crops[1], 0, 0, 1, 1));
 }
 
+// An edge a pixel sharper, softer or shifted stays within the other image's neighbourhood; a
+// change of level does not, and it is measured by how far it leaves the range.
+TEST(CompareNeighbourhoodTest, ToleratesEdgeShiftsNotLevelChanges) {
+  auto edge = [](uint32_t at, uint8_t mid) {
+    RgbaImage img = Solid(16, 8, 20, 20, 20);
+    for (uint32_t y = 0; y < 8; ++y) {
+      for (uint32_t x = at; x < 16; ++x) {
+        uint8_t* p = &img.pixels[(size_t{y} * 16 + x) * 4];
+        p[0] = p[1] = p[2] = x == at ? mid : 220;
+      }
+    }
+    return img;
+  };
+  const RgbaImage golden = edge(8, 220);
+  for (const RgbaImage& other : {edge(8, 120), edge(7, 220), edge(9, 220), edge(7, 60)}) {
+    absl::StatusOr<NeighbourhoodError> e = CompareNeighbourhood(other, golden);
+    ASSERT_TRUE(e.ok()) << e.status();
+    EXPECT_EQ(e->max_excess, 0);
+    EXPECT_TRUE(std::isinf(e->psnr));
+    EXPECT_EQ(e->outlier_fraction, 0.0);
+  }
+  // Two pixels off is outside a 3x3 neighbourhood: column 9 of the shifted edge is 200 below
+  // its golden neighbours, and column 8 of the golden 200 above the shifted edge's.
+  absl::StatusOr<NeighbourhoodError> far = CompareNeighbourhood(edge(10, 220), golden);
+  ASSERT_TRUE(far.ok());
+  EXPECT_EQ(far->max_excess, 200);
+  EXPECT_DOUBLE_EQ(far->outlier_fraction, 16.0 / 128.0);  // two columns of 16
+  // Brighter by 10 everywhere: every pixel 10 out (not an outlier at 16), 28.13 dB.
+  RgbaImage brighter = golden;
+  for (size_t i = 0; i < brighter.pixels.size(); ++i)
+    if (i % 4 != 3) brighter.pixels[i] = uint8_t(brighter.pixels[i] + 10);
+  absl::StatusOr<NeighbourhoodError> b = CompareNeighbourhood(brighter, golden);
+  ASSERT_TRUE(b.ok());
+  EXPECT_EQ(b->max_excess, 10);
+  EXPECT_EQ(b->outlier_fraction, 0.0);
+  EXPECT_NEAR(b->psnr, 10.0 * std::log10(255.0 * 255.0 / 100.0), 1e-9);
+  EXPECT_EQ(CompareNeighbourhood(Solid(4, 4, 0, 0, 0), golden).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
 }  // namespace
 }  // namespace tessera
