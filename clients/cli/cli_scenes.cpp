@@ -49,7 +49,8 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
   absl::PrintF("server     %s: tesserad %s, up %s\n", inv.global.server, info.version(),
                HumanDuration(info.uptime_s()));
   absl::PrintF("device     %s (%s)\n", d.name(), d.type());
-  absl::PrintF("driver     %s, %s, Vulkan %s\n", d.driver_name(), d.driver_info(), d.api_version());
+  absl::PrintF("driver     %s%s, Vulkan %s\n", d.driver_name(),
+               d.driver_info().empty() ? "" : ", " + d.driver_info(), d.api_version());
   for (const v1::DeviceFallback& f : d.fallbacks())
     absl::PrintF("fallback   no %s: %s\n", f.missing(), f.path());
   absl::PrintF(
