@@ -275,7 +275,13 @@ std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::str
   grpc::ChannelArguments args;
   // Frames can be far larger than gRPC's 4 MiB default (a 4K PNG is ~30 MB).
   args.SetMaxReceiveMessageSize(-1);
-  if (round_robin) args.SetLoadBalancingPolicyName("round_robin");
+  if (round_robin) {
+    args.SetLoadBalancingPolicyName("round_robin");
+    // A daemon that comes back (or starts late) is reconnected within ~2 s, not gRPC's default
+    // of up to 2 minutes.
+    args.SetInt(GRPC_ARG_INITIAL_RECONNECT_BACKOFF_MS, 500);
+    args.SetInt(GRPC_ARG_MAX_RECONNECT_BACKOFF_MS, 2000);
+  }
   std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
   if (inv.global.tls) {
     grpc::SslCredentialsOptions ssl;
@@ -300,9 +306,9 @@ std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::str
                                                                  std::move(hooks));
 }
 
-std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
+absl::StatusOr<std::shared_ptr<grpc::Channel>> TryConnect(const Invocation& inv) {
   std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, inv.global.server, false);
-  if (!channel) return nullptr;
+  if (!channel) return absl::InvalidArgumentError("the TLS options could not be read");
   const auto deadline = std::chrono::system_clock::now() +
                         std::chrono::duration_cast<std::chrono::system_clock::duration>(
                             std::chrono::duration<double>(inv.global.connect_timeout_s));
@@ -311,27 +317,31 @@ std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
     // A refused connection or an unresolvable name shows up as TRANSIENT_FAILURE at once;
     // gRPC would keep retrying with backoff, but the user wants to hear about it now.
     if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN) {
-      ReportError(inv,
-                  absl::StrCat("cannot connect to tesserad at ", inv.global.server,
-                               ": connection failed (is tesserad running there? set the "
-                               "address with --server or $TESSERA_SERVER",
-                               inv.global.tls ? "; does it speak TLS with a certificate "
-                                                "your --tls-ca trusts?"
-                                              : "; does it need --tls?",
-                               ")"),
-                  "UNAVAILABLE");
-      return nullptr;
+      return absl::UnavailableError(
+          absl::StrCat("cannot connect to tesserad at ", inv.global.server,
+                       ": connection failed (is tesserad running there? set the "
+                       "address with --server or $TESSERA_SERVER",
+                       inv.global.tls ? "; does it speak TLS with a certificate "
+                                        "your --tls-ca trusts?"
+                                      : "; does it need --tls?",
+                       ")"));
     }
     if (!channel->WaitForStateChange(state, deadline)) {
-      ReportError(inv,
-                  absl::StrFormat("cannot connect to tesserad at %s: no answer within %g s",
-                                  inv.global.server, inv.global.connect_timeout_s),
-                  "DEADLINE_EXCEEDED");
-      return nullptr;
+      return absl::DeadlineExceededError(
+          absl::StrFormat("cannot connect to tesserad at %s: no answer within %g s",
+                          inv.global.server, inv.global.connect_timeout_s));
     }
     state = channel->GetState(/*try_to_connect=*/true);
   }
   return channel;
+}
+
+std::shared_ptr<grpc::Channel> Connect(const Invocation& inv) {
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = TryConnect(inv);
+  if (channel.ok()) return *channel;
+  // MakeChannel has said why when the TLS files could not be read.
+  if (!absl::IsInvalidArgument(channel.status())) ReportError(inv, channel.status());
+  return nullptr;
 }
 
 std::unique_ptr<v1::RenderService::Stub> ConnectStub(const Invocation& inv) {

@@ -120,6 +120,10 @@ absl::string_view StatusCodeName(grpc::StatusCode code);
 // A channel to inv.global.server that is READY, or nullptr after printing why not (the address
 // and whether it refused or did not answer in time).
 std::shared_ptr<grpc::Channel> Connect(const Invocation& inv);
+// The same without printing: UNAVAILABLE (refused, unresolvable) or DEADLINE_EXCEEDED (no answer
+// within --connect-timeout) naming the address; INVALID_ARGUMENT when a TLS file could not be
+// read (MakeChannel printed why).
+absl::StatusOr<std::shared_ptr<grpc::Channel>> TryConnect(const Invocation& inv);
 // A channel to `target` with the global TLS and token options, not waited for (nullptr after
 // printing why when a TLS file cannot be read). round_robin: gRPC's client-side load
 // balancing over every address the target resolves to (an "ipv4:a,b" list or a dns:/// name).

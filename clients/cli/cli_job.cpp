@@ -473,19 +473,35 @@ bool Retryable(const grpc::Status& st) {
   }
 }
 
+// How often a farm tries the daemons of --servers that did not answer.
+constexpr double kFarmProbeSeconds = 2.0;
+
 int RunFarm(const Invocation& inv, const SubmitOptions& o) {
   std::string lb_target;
   std::vector<std::string> addresses;
   if (absl::Status st = ResolveServers(o.servers, &lb_target, &addresses); !st.ok())
     return ReportError(inv, st);
-  // The scene on every daemon (content-addressed: a daemon that has it is skipped).
+  // The scene on every daemon that answers (content-addressed: a daemon that has it is
+  // skipped). One that does not answer is left out and probed while the job runs: when it
+  // answers it gets the scene, and round_robin gives it frames.
   std::string scene_id = o.scene;
   std::unique_ptr<v1::RenderService::Stub> first_stub;
+  std::vector<std::string> down, down_why;
+  absl::Status down_status;
   for (const std::string& address : addresses) {
     Invocation one = inv;
     one.global.server = address;
-    auto stub = ConnectStub(one);
-    if (!stub) return kExitError;
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = TryConnect(one);
+    if (!channel.ok()) {
+      if (absl::IsInvalidArgument(channel.status())) return kExitError;  // TLS files: said
+      down.push_back(address);
+      down_status = channel.status();
+      down_why.push_back(absl::IsDeadlineExceeded(channel.status())
+                             ? absl::StrFormat("nothing within %g s", inv.global.connect_timeout_s)
+                             : std::string("connection failed"));
+      continue;
+    }
+    auto stub = v1::RenderService::NewStub(*channel);
     if (!o.scene_file.empty()) {
       if (!UploadSceneFile(one, stub.get(), o.scene_file, &scene_id)) return kExitError;
     } else {
@@ -502,6 +518,16 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
     }
     if (!first_stub) first_stub = std::move(stub);
   }
+  if (!first_stub) {
+    return ReportError(inv, absl::Status(down_status.code(),
+                                         absl::StrCat("no daemon of --servers answers (",
+                                                      absl::StrJoin(addresses, ", "),
+                                                      "): is tesserad running there?")));
+  }
+  for (size_t i = 0; i < down.size(); ++i)
+    absl::FPrintF(stderr, "tessera: job: tesserad at %s does not answer (%s); starting without "
+                  "it, and trying it again every %g s\n", down[i], down_why[i],
+                  kFarmProbeSeconds);
   absl::StatusOr<v1::JobSpec> spec = BuildSpec(first_stub.get(), o, scene_id);
   if (!spec.ok()) return ReportError(inv, spec.status());
   absl::StatusOr<std::vector<uint32_t>> frames = jobs::FrameNumbers(spec->frames(), 100000);
@@ -586,9 +612,49 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
       cv.notify_all();
     }
   };
+  // The daemons that did not answer at the start, tried again until the job ends. One that
+  // answers gets the scene (when the job uploads it); frames reach it through round_robin,
+  // and a frame that lands there before its scene does is retried (NOT_FOUND scene_id).
+  bool finished = false;
+  std::thread prober([&] {
+    std::unique_lock lock(mu);
+    while (!down.empty()) {
+      if (cv.wait_for(lock, std::chrono::duration<double>(kFarmProbeSeconds),
+                      [&] { return finished; }))
+        return;
+      const std::vector<std::string> candidates = down;
+      lock.unlock();
+      std::vector<std::string> back;
+      for (const std::string& address : candidates) {
+        Invocation one = inv;
+        one.global.server = address;
+        one.global.connect_timeout_s = std::min(one.global.connect_timeout_s, kFarmProbeSeconds);
+        absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = TryConnect(one);
+        if (!channel.ok()) continue;
+        auto probe_stub = v1::RenderService::NewStub(*channel);
+        std::string id;
+        if (!o.scene_file.empty() && !UploadSceneFile(one, probe_stub.get(), o.scene_file, &id))
+          continue;  // tried again at the next probe
+        back.push_back(address);
+      }
+      lock.lock();
+      for (const std::string& address : back) {
+        down.erase(std::find(down.begin(), down.end(), address));
+        bar.Clear();
+        absl::FPrintF(stderr, "tessera: job: tesserad at %s answers now; it takes frames too\n",
+                      address);
+      }
+    }
+  });
   std::vector<std::thread> threads;
   for (uint32_t i = 0; i < parallel; ++i) threads.emplace_back(worker);
   for (std::thread& t : threads) t.join();
+  {
+    std::lock_guard lock(mu);
+    finished = true;
+  }
+  cv.notify_all();
+  prober.join();
   bar.Clear();
   const double seconds = SecondsSince(start);
   if (!fatal.empty()) return ReportError(inv, fatal, StatusCodeName(fatal_code));
@@ -601,11 +667,14 @@ int RunFarm(const Invocation& inv, const SubmitOptions& o) {
                {"seconds", seconds},
                {"frame_ms_median", Median(frame_ms)},
                {"retried", retried},
-               {"servers", servers}});
+               {"servers", servers},
+               {"servers_down", down}});
   } else {
     absl::FPrintF(stderr, "%u frames to %s in %s (%.0f ms/frame median per call), %u retried\n",
                   written.size(), o.out, HumanDuration(seconds), Median(frame_ms), retried);
     for (const auto& [peer, n] : by_server) absl::FPrintF(stderr, "  %-28s %u frames\n", peer, n);
+    for (const std::string& address : down)
+      absl::FPrintF(stderr, "  %-28s did not answer\n", address);
   }
   return 0;
 }

@@ -63,3 +63,28 @@ for f in "$work"/single/*.png; do
 done
 [[ $(find "$work/single" -name '*.png' | wc -l) -eq 60 ]] || fail "single run: not 60 frames"
 echo "farm: 60 frames over 3 daemons with one killed, identical to one daemon's"
+
+# A farm whose second daemon is down at the start (the killed one's port): it starts with the
+# daemon that answers, and the second, started mid-job, is found by the probes and takes frames.
+"$tessera" --json "${job[@]/0..59/0..79}" --servers "${ports[0]},${ports[1]}" --out "$work/late" \
+  > "$work/late.json" 2> "$work/late.err" &
+client=$!
+for _ in $(seq 600); do
+  n=$( (find "$work/late" -name '*.png' 2>/dev/null || true) | wc -l)
+  ((n >= 4)) && break
+  sleep 0.05
+done
+grep -q "starting without it" "$work/late.err" || fail "no word of the daemon that is down: $(cat "$work/late.err")"
+"$tesserad" --listen="${ports[1]}" --log_level=warn 2> "$work/log_late" &
+pids+=($!)
+wait "$client" || fail "the farm job with a daemon down failed: $(cat "$work/late.err")"
+python3 - "$work/late.json" "${ports[1]}" <<'PY' || fail "late farm --json: $(cat "$work/late.json") $(cat "$work/late.err")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["frames"] == 80 and sum(d["servers"].values()) == 80, d
+assert d["servers_down"] == [], d
+assert any(sys.argv[2] in peer for peer in d["servers"]), "the late daemon took no frame: %s" % d
+PY
+grep -q "answers now" "$work/late.err" || fail "the late daemon was not reported: $(cat "$work/late.err")"
+[[ $(find "$work/late" -name '*.png' | wc -l) -eq 80 ]] || fail "late farm: not 80 frames"
+echo "farm: started with one of two daemons; the other, started mid-job, took frames"
