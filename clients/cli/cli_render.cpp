@@ -1,6 +1,7 @@
 // tessera render: one frame to a file (Render), with its per-pass timings.
 #include <cerrno>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "absl/strings/ascii.h"
@@ -46,8 +47,16 @@ RenderOptions ParseRenderOptions(const Invocation& inv) {
   return o;
 }
 
-// The status names the file and the system's reason (its code from errno).
+// The status names the file and the system's reason (its code from errno). The file's directory
+// is made if missing (-o renders/shot.jpg).
 absl::Status WriteFile(const std::string& path, const std::string& bytes) {
+  if (const std::filesystem::path dir = std::filesystem::path(path).parent_path(); !dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec)
+      return absl::Status(absl::StatusCode::kFailedPrecondition,
+                          absl::StrCat(path, ": cannot create its directory: ", ec.message()));
+  }
   FILE* f = std::fopen(path.c_str(), "wb");
   if (!f) return absl::ErrnoToStatus(errno, absl::StrCat(path, ": cannot create"));
   const bool ok = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();

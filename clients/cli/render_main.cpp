@@ -3,6 +3,7 @@
 // tool runs the same renderer in-process, for deploy/run.sh, benchmarks and debugging.
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <cstdlib>
 #include <glm/glm.hpp>
 #include <nlohmann/json.hpp>
@@ -160,6 +161,13 @@ int main(int argc, char** argv) {
   for (uint32_t f = 0; f < frames; ++f) frame = OrFail(renderer->Render(*scene, camera, settings));
   const std::vector<uint8_t> bytes =
       OrFail(EncodeFrame(frame, png ? ImageFormat::kPng : ImageFormat::kJpeg));
+  // The output's directory is made if missing (tessera-render --out renders/shot.jpg).
+  if (const std::filesystem::path dir = std::filesystem::path(out_path).parent_path();
+      !dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(dir, ec);
+    if (ec) Fail("cannot create the directory " + dir.string() + ": " + ec.message());
+  }
   if (absl::Status st = WriteFileBytes(out_path, bytes); !st.ok()) Fail(std::string(st.message()));
 
   const DeviceInfo& dev = renderer->device_info();
