@@ -6,9 +6,15 @@
 #include "renderer/renderer.h"
 
 #include <chrono>
+#include <cstdlib>
 #include <cstring>
+#include <thread>
 
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
+#include "renderer/log.h"
 #include "renderer/features/features.h"
 #include "renderer/renderer_impl.h"
 #include "renderer/vk/vk_check.h"
@@ -35,6 +41,14 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
                                  {options.device_name, options.validation,
                                   options.disable_features}));
   RETURN_IF_ERROR(impl->Init());
+  if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
+    int64_t frames = -1;
+    if (!absl::SimpleAtoi(n, &frames) || frames < 0)
+      return absl::InvalidArgumentError(absl::StrCat(
+          "TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES: '", n, "' is not a frame count"));
+    impl->frames_until_loss = frames;
+    Log().warn("test hook: the device will be lost after {} frames", frames);
+  }
   return std::unique_ptr<Renderer>(new Renderer(std::move(impl)));
 }
 
@@ -89,9 +103,43 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   return Render(scene, camera, settings, 0, capture);
 }
 
+bool IsDeviceLost(const absl::Status& status) {
+  // vk::VkStatus's message for VK_ERROR_DEVICE_LOST (no payload: statuses end up in logs and
+  // job errors through ToString, which would print it).
+  return absl::IsUnavailable(status) &&
+         absl::StrContains(status.message(), vk::ResultName(VK_ERROR_DEVICE_LOST));
+}
+
+bool Renderer::device_lost() const { return impl_->device_lost.load(); }
+
+void Renderer::SimulateDeviceLossForTesting() { impl_->simulate_loss = true; }
+
+void Renderer::StallNextRenderForTesting(uint32_t ms) { impl_->stall_ms = ms; }
+
 absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
                                        const Settings& settings, uint64_t view,
                                        FrameCapture* capture) {
+  Impl& m = *impl_;
+  if (m.device_lost) {
+    return vk::VkStatus(VK_ERROR_DEVICE_LOST, "an earlier frame");
+  }
+  if (const uint32_t ms = m.stall_ms.exchange(0))
+    std::this_thread::sleep_for(std::chrono::milliseconds(ms));
+  if (m.simulate_loss.exchange(false) || m.frames_until_loss.fetch_sub(1) == 0) {
+    m.device_lost = true;
+    return vk::VkStatus(VK_ERROR_DEVICE_LOST, "vkQueueSubmit (simulated by a test hook)");
+  }
+  absl::StatusOr<Frame> frame = RenderFrame(scene, camera, settings, view, capture);
+  if (!frame.ok() && IsDeviceLost(frame.status())) {
+    m.device_lost = true;
+    Log().critical("the GPU device was lost: {}", std::string(frame.status().message()));
+  }
+  return frame;
+}
+
+absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& camera,
+                                            const Settings& settings, uint64_t view,
+                                            FrameCapture* capture) {
   ASSIGN_OR_RETURN(ResolvedSettings resolved, ResolveSettings(settings, caps()));
   RETURN_IF_ERROR(ValidateCamera(camera));
 

@@ -149,6 +149,9 @@ struct Frame {
 
 enum class ImageFormat { kJpeg, kPng };
 
+// Whether `status` says the Vulkan device was lost (Renderer::device_lost).
+bool IsDeviceLost(const absl::Status& status);
+
 class Renderer {
  public:
   // Opens the Vulkan device. Errors are one line: no Vulkan, no device matching the name...
@@ -191,6 +194,16 @@ class Renderer {
   void RecyclePixels(std::vector<uint8_t>&& pixels);
   static constexpr size_t kSparePixelBuffers = 2;
 
+  // The device was lost (VK_ERROR_DEVICE_LOST: a GPU reset, a driver failure). The frame that
+  // met it and every later one fail with UNAVAILABLE (IsDeviceLost), and this renderer does not
+  // recover: tesserad exits so that its supervisor starts a fresh process.
+  bool device_lost() const;
+  // Test hooks: the next Render fails as if the device had been lost; the next Render first
+  // blocks for `ms` (a wedged driver). Also TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES=N at Create:
+  // the (N+1)th Render meets a lost device.
+  void SimulateDeviceLossForTesting();
+  void StallNextRenderForTesting(uint32_t ms);
+
   // Validation-layer messages so far (tests require zero).
   uint64_t validation_message_count() const;
   std::vector<std::string> validation_messages() const;
@@ -198,6 +211,9 @@ class Renderer {
  private:
   struct Impl;
   explicit Renderer(std::unique_ptr<Impl> impl);
+  absl::StatusOr<Frame> RenderFrame(const Scene& scene, const Camera& camera,
+                                    const Settings& settings, uint64_t view,
+                                    FrameCapture* capture);
   std::unique_ptr<Impl> impl_;
 };
 

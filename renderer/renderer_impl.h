@@ -4,6 +4,7 @@
 // frame_resources.cpp the targets and buffers, frame_capture.cpp the test captures, and each
 // feature in renderer/features/ prepares its own part of the frame).
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -81,6 +82,10 @@ struct FrameData {
 struct Renderer::Impl {
   std::shared_ptr<vk::Context> ctx;  // shared with the scenes, which may outlive the renderer
   std::mutex mutex;                  // the queue and everything below
+  std::atomic<bool> device_lost{false};
+  std::atomic<bool> simulate_loss{false};  // test hooks (Renderer::...ForTesting)
+  std::atomic<uint32_t> stall_ms{0};
+  std::atomic<int64_t> frames_until_loss{-1};  // TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES
   // Command buffer, fence, timestamps, statistics and submission (declared after ctx: destroyed
   // before it).
   std::unique_ptr<GraphExecutor> executor;

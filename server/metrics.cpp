@@ -94,7 +94,7 @@ class GaugeCollectable : public prometheus::Collectable {
   std::vector<prometheus::MetricFamily> Collect() const override {
     const MetricsGauges g = gauges_ ? gauges_() : MetricsGauges{};
     std::vector<prometheus::MetricFamily> families;
-    families.reserve(9);
+    families.reserve(14);
     auto add = [&families](const char* name, const char* help, double value) {
       prometheus::MetricFamily& family = families.emplace_back();
       family.name = name;
@@ -118,6 +118,17 @@ class GaugeCollectable : public prometheus::Collectable {
     add("tessera_pending_frame_bytes", "Encoded frame bytes held for slow clients.",
         static_cast<double>(g.pending_frame_bytes));
     add("tessera_jobs_active", "Render-farm jobs queued or running.", g.jobs_active);
+    add("tessera_serving",
+        "1 while grpc.health.v1 says SERVING; 0 when the render thread is stalled "
+        "(tessera_render_busy_seconds) or the device is lost (tessera_device_lost).",
+        g.serving);
+    add("tessera_render_busy_seconds",
+        "Seconds the render thread has spent in the frame it is rendering now (0: idle).",
+        g.render_busy_seconds);
+    add("tessera_device_lost", "1 once the Vulkan device is lost (tesserad then exits).",
+        g.device_lost);
+    add("tessera_render_stalls", "Times health turned NOT_SERVING because a frame took longer "
+        "than --render_stall_s.", static_cast<double>(g.render_stalls));
     return families;
   }
 

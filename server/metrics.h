@@ -40,6 +40,10 @@ struct MetricsGauges {
   uint64_t scene_memory_budget_bytes = 0;  // 0 = unlimited
   uint64_t pending_frame_bytes = 0;        // encoded frames held for slow clients
   uint32_t jobs_active = 0;                // queued or running render-farm jobs
+  uint32_t serving = 1;                    // grpc.health.v1: 1 SERVING, 0 NOT_SERVING
+  double render_busy_seconds = 0.0;        // time in the current frame's Render; 0 when idle
+  uint32_t device_lost = 0;                // 1 once the Vulkan device is lost
+  uint64_t render_stalls = 0;              // times health turned NOT_SERVING for a stall
 };
 
 // The canonical upper-case name of a gRPC status code ("OK", "INVALID_ARGUMENT", ...,

@@ -148,6 +148,14 @@ uint64_t RenderLoop::frames_rendered() const {
   return frames_rendered_;
 }
 
+double RenderLoop::busy_seconds() const {
+  const int64_t since = busy_since_ns_.load();
+  if (since == 0) return 0.0;
+  return std::chrono::duration<double>(Clock::now().time_since_epoch() -
+                                       Clock::duration(since))
+      .count();
+}
+
 void RenderLoop::Stop() {
   std::lock_guard stop_lock(stop_mu_);  // one Stop at a time: join once
   std::deque<std::shared_ptr<RenderClient>> abandoned;
@@ -258,8 +266,13 @@ void RenderLoop::Accumulate(Accumulation acc, bool background) {
   const uint32_t total = std::max(1u, work->accumulate);
   absl::StatusOr<Frame> frame;
   for (;;) {
+    busy_since_ns_ = Clock::now().time_since_epoch().count();
     frame = renderer_->Render(*work->scene, work->camera, work->settings, work->view);
+    busy_since_ns_ = 0;
     ++acc.rendered;
+    if (!frame.ok() && IsDeviceLost(frame.status()) && !device_lost_reported_.exchange(true) &&
+        options_.on_device_lost)
+      options_.on_device_lost();
     if (!frame.ok() || acc.rendered >= total) break;
     // A viewer's frame does not wait behind a whole accumulation: the rest of it waits.
     if (background) {

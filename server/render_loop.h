@@ -15,6 +15,7 @@
 // rendered frames wait for or run on the encoders; the render thread waits when that many are
 // out, which bounds the memory a slow encoder can pile up. With pipelined = false the render
 // thread encodes each frame itself (the benchmark's serial baseline).
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -112,6 +113,9 @@ struct RenderLoopOptions {
   // rate drops by about this much while a job runs. 1: background runs whenever nothing else
   // waits (and never ahead of normal work).
   double background_share = 0.12;
+  // Called once, on the render thread, when a frame fails because the Vulkan device was lost
+  // (the renderer cannot go on; the server turns unhealthy and exits).
+  std::function<void()> on_device_lost;
 };
 
 class RenderClient {
@@ -143,6 +147,9 @@ class RenderLoop {
   uint32_t background_queue_depth() const;
   uint32_t frames_in_flight() const;        // rendered, not yet encoded and delivered
   uint64_t frames_rendered() const;
+  // How long the render thread has been inside the one Render call it is in now; 0 when it is
+  // not rendering. A frame takes milliseconds to seconds: much longer is a wedged device.
+  double busy_seconds() const;
   const RenderLoopOptions& options() const { return options_; }
 
  private:
@@ -183,6 +190,8 @@ class RenderLoop {
   Clock::time_point last_normal_{};         // when a normal frame last finished rendering
   Clock::time_point background_not_before_{};  // background_share: the next background start
   std::unique_ptr<ThreadPool> encoders_;
+  std::atomic<int64_t> busy_since_ns_{0};  // steady-clock time the current Render began; 0: idle
+  std::atomic<bool> device_lost_reported_{false};
   std::thread thread_;
 };
 

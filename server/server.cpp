@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "common/status_macros.h"
 #include "renderer/log.h"
 #include "renderer/scene/demo_scene.h"
@@ -85,7 +86,13 @@ struct Server::Impl {
   std::mutex shutdown_mu;
   bool shut_down = false;
 
-  // Housekeeping: drops parked sessions past their grace period.
+  // Health: what grpc.health.v1 says now, and why not SERVING.
+  mutable std::mutex health_mu;
+  ServerHealth health_now;
+  uint64_t stalls = 0;  // times the render thread was found stalled
+  void CheckHealth();
+
+  // Housekeeping: drops parked sessions past their grace period, checks health.
   std::thread sweeper;
   std::mutex sweeper_mu;
   std::condition_variable sweeper_cv;
@@ -143,6 +150,8 @@ absl::Status CheckOptions(const ServerOptions& options) {
     return absl::InvalidArgumentError("max_jobs, max_job_frames: must be > 0");
   if (!(options.background_share > 0.0 && options.background_share <= 1.0))
     return absl::InvalidArgumentError("background_share: must be in (0, 1]");
+  if (!(options.render_stall_s > 0.0))
+    return absl::InvalidArgumentError("render_stall_s: must be more than 0 seconds");
   return absl::OkStatus();
 }
 
@@ -186,6 +195,13 @@ void Server::Impl::StartMetricsAndLoop() {
     g.scene_memory_budget_bytes = raw->store->memory_budget();
     g.pending_frame_bytes = raw->state.pending_frame_bytes;
     g.jobs_active = raw->jobs ? raw->jobs->active() : 0;
+    g.render_busy_seconds = raw->loop->busy_seconds();
+    g.device_lost = raw->renderer->device_lost() ? 1 : 0;
+    {
+      std::lock_guard lock(raw->health_mu);
+      g.serving = raw->health_now.serving ? 1 : 0;
+      g.render_stalls = raw->stalls;
+    }
     return g;
   });
   store->set_eviction_listener([raw](const StoredScene& s) {
@@ -198,6 +214,10 @@ void Server::Impl::StartMetricsAndLoop() {
   loop_options.pipelined = options.pipelined;
   loop_options.metrics = metrics.get();
   loop_options.background_share = options.background_share;
+  loop_options.on_device_lost = [this] {
+    CheckHealth();  // NOT_SERVING at once, before the process winds down
+    if (options.on_device_lost) options.on_device_lost();
+  };
   loop = std::make_unique<RenderLoop>(renderer.get(), loop_options);
 }
 
@@ -243,6 +263,10 @@ void Server::Impl::StartService() {
   state.auth = auth.get();
   state.metrics = metrics.get();
   state.jobs = jobs.get();
+  state.health = [this] {
+    std::lock_guard lock(health_mu);
+    return health_now;
+  };
   service = std::make_unique<RenderServiceImpl>(&state);
   std::vector<std::string> lines;
   jobs->Restore(&lines);
@@ -283,8 +307,37 @@ void Server::Impl::StartSweeper() {
     std::unique_lock lock(sweeper_mu);
     while (!sweeper_cv.wait_for(lock, std::chrono::milliseconds(250),
                                 [this] { return sweeper_stop; }))
+    {
       state.SweepParked();
+      CheckHealth();
+    }
   });
+}
+
+void Server::Impl::CheckHealth() {
+  ServerHealth h;
+  const double busy = loop ? loop->busy_seconds() : 0.0;
+  if (renderer->device_lost()) {
+    h = {false, "the GPU device was lost; tesserad exits so that a fresh process takes over"};
+  } else if (busy > options.render_stall_s) {
+    h = {false, absl::StrFormat("the render thread has been in one frame for %.0f s "
+                                "(--render_stall_s %g): the device or its driver is stuck",
+                                busy, options.render_stall_s)};
+  }
+  std::lock_guard lock(health_mu);
+  if (h.serving == health_now.serving && h.reason == health_now.reason) return;
+  if (h.serving != health_now.serving) {
+    if (h.serving) {
+      Log().info("health: SERVING again");
+    } else {
+      Log().error("health: NOT_SERVING: {}", h.reason);
+      if (!renderer->device_lost()) ++stalls;
+    }
+    // After Shutdown the service reports NOT_SERVING whatever is set here.
+    if (grpc_server)
+      if (auto* service = grpc_server->GetHealthCheckService()) service->SetServingStatus(h.serving);
+  }
+  health_now = std::move(h);
 }
 
 absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& options) {
@@ -340,6 +393,19 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
       "stopped in {:.0f} ms",
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
+
+ServerHealth Server::health() const {
+  std::lock_guard lock(impl_->health_mu);
+  return impl_->health_now;
+}
+
+void Server::CheckHealth() { impl_->CheckHealth(); }
+
+void Server::StallNextRenderForTesting(uint32_t ms) {
+  impl_->renderer->StallNextRenderForTesting(ms);
+}
+
+void Server::SimulateDeviceLossForTesting() { impl_->renderer->SimulateDeviceLossForTesting(); }
 
 ServerStats Server::stats() const {
   const ServiceState& st = impl_->state;

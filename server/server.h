@@ -8,6 +8,7 @@
 // encoder pool turns pixels into JPEG/PNG; a loader pool parses uploaded glTF files.
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
@@ -64,6 +65,20 @@ struct ServerOptions {
   // While viewers are active, background frames (jobs, background renders) take at most this
   // share of the render thread.
   double background_share = 0.12;
+  // Health (grpc.health.v1, what the Kubernetes probes ask): NOT_SERVING while the render thread
+  // has been inside one frame for longer than this (a wedged device or driver), and for good
+  // once the device is lost.
+  double render_stall_s = 60.0;
+  // Called once, from the render thread, when the Vulkan device is lost. tesserad raises a
+  // signal in itself and exits with status 75 after a graceful shutdown, so that its supervisor
+  // starts a fresh process (journalled jobs resume there).
+  std::function<void()> on_device_lost;
+};
+
+// What grpc.health.v1 says and why (GetServerInfo, metrics).
+struct ServerHealth {
+  bool serving = true;
+  std::string reason;  // empty when serving
 };
 
 // Counters for tests, benchmarks and logs.
@@ -99,6 +114,13 @@ class Server {
   void Shutdown(std::chrono::milliseconds grace = std::chrono::milliseconds(3000));
 
   ServerStats stats() const;
+  ServerHealth health() const;
+  // Re-evaluates health now (the housekeeping thread does every 250 ms).
+  void CheckHealth();
+  // Test hooks (Renderer::...ForTesting): the next frame blocks for `ms`; the next frame meets
+  // a lost device.
+  void StallNextRenderForTesting(uint32_t ms);
+  void SimulateDeviceLossForTesting();
 
   // Re-reads the token file (SIGHUP). On error the old tokens stay in use.
   absl::Status ReloadTokens();

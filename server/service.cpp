@@ -361,6 +361,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   r->set_job_output_root(!o.job_output_root.empty());
   r->set_jobs_persistent(!o.state_dir.empty());
   r->set_device_memory_bytes(Renderer::DeviceMemoryBytes());
+  if (state_->health) {
+    const ServerHealth h = state_->health();
+    r->set_serving(h.serving);
+    r->set_unhealthy_reason(h.reason);
+  }
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }

@@ -4,6 +4,7 @@
 // thread on rendering, parsing or device uploads.
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -48,6 +49,7 @@ struct ServiceState {
   Authenticator* auth = nullptr;
   Metrics* metrics = nullptr;  // may be null
   JobManager* jobs = nullptr;
+  std::function<ServerHealth()> health;  // what grpc.health.v1 says now, and why
   Clock::time_point started = Clock::now();
   Settings default_settings;
   UsageCounter principal_sessions;  // open streams per principal (token limits)

@@ -2,6 +2,7 @@
 // set the address, the device and the limits; SIGTERM/SIGINT stop it cleanly; SIGHUP reloads
 // the token file.
 #include <signal.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -13,6 +14,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "renderer/log.h"
+#include "renderer/vk/vk_check.h"
 #include "server/server.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:50051",
@@ -66,6 +68,10 @@ ABSL_FLAG(uint32_t, max_job_frames, 100000, "limit: frames in one job");
 ABSL_FLAG(double, background_share, 0.12,
           "while viewers are active, the share of the render thread jobs and background renders "
           "may take (0..1]");
+ABSL_FLAG(double, render_stall_s, 60.0,
+          "health turns NOT_SERVING while one frame has been rendering for longer than this "
+          "(a stuck device or driver), and back once it finishes; a lost device makes tesserad "
+          "exit with status 75 so that its supervisor restarts it");
 ABSL_FLAG(uint32_t, shutdown_grace_ms, 3000,
           "on SIGTERM, how long open calls may take to finish before they are cancelled");
 ABSL_FLAG(std::string, port_file, "",
@@ -92,6 +98,7 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGHUP);
+  sigaddset(&signals, SIGUSR1);  // raised by the server itself when the device is lost
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   tessera::server::ServerOptions options;
@@ -127,6 +134,8 @@ int main(int argc, char** argv) {
   options.max_jobs = absl::GetFlag(FLAGS_max_jobs);
   options.max_job_frames = absl::GetFlag(FLAGS_max_job_frames);
   options.background_share = absl::GetFlag(FLAGS_background_share);
+  options.render_stall_s = absl::GetFlag(FLAGS_render_stall_s);
+  options.on_device_lost = [] { kill(getpid(), SIGUSR1); };
 
   auto server = tessera::server::Server::Start(options);
   if (!server.ok()) {
@@ -149,6 +158,16 @@ int main(int argc, char** argv) {
                                                              ? "nothing (no --token_file)"
                                                              : options.token_file);
     (void)(*server)->ReloadTokens();
+  }
+  if (sig == SIGUSR1) {
+    // The device is lost and will not come back in this process: health is NOT_SERVING, open
+    // calls end with UNAVAILABLE, and a non-zero exit makes systemd (Restart=on-failure) or
+    // Kubernetes start a fresh tesserad; journalled jobs resume there.
+    tessera::Log().critical("the GPU device was lost: shutting down, exit status {}",
+                            tessera::vk::kDeviceLostExitCode);
+    (*server)->Shutdown(std::chrono::milliseconds(absl::GetFlag(FLAGS_shutdown_grace_ms)));
+    server->reset();
+    return tessera::vk::kDeviceLostExitCode;
   }
   tessera::Log().info("{} received", sig == SIGTERM ? "SIGTERM" : "SIGINT");
   (*server)->Shutdown(std::chrono::milliseconds(absl::GetFlag(FLAGS_shutdown_grace_ms)));

@@ -51,6 +51,8 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
   absl::PrintF("device     %s (%s)\n", d.name(), d.type());
   absl::PrintF("driver     %s%s, Vulkan %s\n", d.driver_name(),
                d.driver_info().empty() ? "" : ", " + d.driver_info(), d.api_version());
+  absl::PrintF("health     %s\n", info.serving() ? std::string("SERVING")
+                                                   : "NOT_SERVING: " + info.unhealthy_reason());
   for (const v1::DeviceFallback& f : d.fallbacks())
     absl::PrintF("fallback   no %s: %s\n", f.missing(), f.path());
   absl::PrintF(

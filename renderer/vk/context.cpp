@@ -49,11 +49,21 @@ const char* ResultName(VkResult result) {
 
 void FatalVkError(VkResult result, const char* expr, const char* file, int line) {
   Log().critical("{}:{}: {} failed: {}", file, line, expr, ResultName(result));
+  if (result == VK_ERROR_DEVICE_LOST) {
+    // Not a bug of ours to debug from a core dump: the GPU was reset or its driver failed. Exit
+    // non-zero so that the supervisor (systemd, Kubernetes) starts a fresh process.
+    Log().critical("the GPU device was lost: exiting with status {}", kDeviceLostExitCode);
+    std::_Exit(kDeviceLostExitCode);
+  }
   std::abort();
 }
 
 absl::Status VkStatus(VkResult result, const char* what) {
   const std::string msg = absl::StrCat(what, ": ", ResultName(result));
+  if (result == VK_ERROR_DEVICE_LOST) {
+    return absl::UnavailableError(
+        absl::StrCat(msg, " (the GPU device was lost; the renderer cannot go on)"));
+  }
   if (result == VK_ERROR_OUT_OF_DEVICE_MEMORY || result == VK_ERROR_OUT_OF_HOST_MEMORY ||
       result == VK_ERROR_TOO_MANY_OBJECTS || result == VK_ERROR_OUT_OF_POOL_MEMORY) {
     return absl::ResourceExhaustedError(msg);

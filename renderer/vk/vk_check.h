@@ -12,9 +12,13 @@ const char* ResultName(VkResult result);
 
 [[noreturn]] void FatalVkError(VkResult result, const char* expr, const char* file, int line);
 
-// Status for a failed Vulkan call that can fail for reasons outside our control
-// (out of device memory, device lost): RESOURCE_EXHAUSTED / INTERNAL with the result name.
+// Status for a failed Vulkan call that can fail for reasons outside our control: out of memory
+// is RESOURCE_EXHAUSTED, device lost UNAVAILABLE (tessera::IsDeviceLost), anything else
+// INTERNAL, each with the result name.
 absl::Status VkStatus(VkResult result, const char* what);
+// A VK_CHECK that fails with VK_ERROR_DEVICE_LOST exits the process with this status (75,
+// EX_TEMPFAIL: try again) instead of aborting.
+inline constexpr int kDeviceLostExitCode = 75;
 
 }  // namespace tessera::vk
 

@@ -509,7 +509,80 @@ bool HealthServing(const std::string& address,
                     });
   std::unique_lock lock(mu);
   cv.wait(lock, [&] { return done; });
-  return status.ok();
+  if (!status.ok()) return false;
+  // HealthCheckResponse {status = SERVING (1)}: field 1, varint 1; NOT_SERVING is 2.
+  std::vector<grpc::Slice> slices;
+  if (!response.Dump(&slices).ok()) return false;
+  std::string bytes;
+  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  return bytes == std::string("\x08\x01", 2);
+}
+
+// Health means something: a frame stuck on the device turns it NOT_SERVING (and back when the
+// frame ends), a lost device for good; GetServerInfo and the metrics say why, renders fail with
+// UNAVAILABLE naming the lost device, and the server's device-lost callback runs once.
+TEST(Health, AStalledRenderAndALostDeviceTurnHealthNotServing) {
+  ServerOptions o = BaseOptions();
+  o.render_stall_s = 0.5;
+  std::atomic<int> lost_calls{0};
+  o.on_device_lost = [&] { lost_calls++; };
+  std::unique_ptr<Server> server = StartServer(o);
+  ASSERT_NE(server, nullptr);
+  auto stub = Connect(server->address());
+  auto info = [&] {
+    grpc::ClientContext ctx;
+    v1::ServerInfo i;
+    EXPECT_TRUE(stub->GetServerInfo(&ctx, {}, &i).ok());
+    return i;
+  };
+  EXPECT_TRUE(HealthServing(server->address()));
+  EXPECT_TRUE(info().serving());
+  EXPECT_EQ(ParseMetrics(server->MetricsText()).at("tessera_serving"), 1.0);
+
+  // A frame that blocks for 3 s: NOT_SERVING within a second, SERVING again after it.
+  server->StallNextRenderForTesting(3000);
+  std::thread slow([&] {
+    grpc::ClientContext ctx;
+    v1::Frame f;
+    EXPECT_TRUE(stub->Render(&ctx, DemoRequest(16, 16), &f).ok());
+  });
+  const auto t0 = std::chrono::steady_clock::now();
+  bool went_down = false;
+  while (std::chrono::steady_clock::now() - t0 < std::chrono::seconds(2) && !went_down) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    went_down = !HealthServing(server->address());
+  }
+  EXPECT_TRUE(went_down) << "health stayed SERVING while a frame was stuck";
+  const v1::ServerInfo stalled = info();
+  EXPECT_FALSE(stalled.serving());
+  EXPECT_NE(stalled.unhealthy_reason().find("render thread"), std::string::npos)
+      << stalled.unhealthy_reason();
+  std::map<std::string, double> m = ParseMetrics(server->MetricsText());
+  EXPECT_EQ(m.at("tessera_serving"), 0.0);
+  EXPECT_GT(m.at("tessera_render_busy_seconds"), 0.5);
+  slow.join();
+  server->CheckHealth();
+  EXPECT_TRUE(HealthServing(server->address()));
+  EXPECT_TRUE(info().serving());
+  EXPECT_EQ(ParseMetrics(server->MetricsText()).at("tessera_render_stalls"), 1.0);
+
+  // The device is lost: that frame and every later one fail with UNAVAILABLE, for good.
+  server->SimulateDeviceLossForTesting();
+  for (int i = 0; i < 2; ++i) {
+    grpc::ClientContext ctx;
+    v1::Frame f;
+    EXPECT_CODE(stub->Render(&ctx, DemoRequest(16, 16), &f), UNAVAILABLE, "device was lost");
+  }
+  server->CheckHealth();
+  EXPECT_FALSE(HealthServing(server->address()));
+  const v1::ServerInfo lost = info();
+  EXPECT_FALSE(lost.serving());
+  EXPECT_NE(lost.unhealthy_reason().find("device was lost"), std::string::npos)
+      << lost.unhealthy_reason();
+  m = ParseMetrics(server->MetricsText());
+  EXPECT_EQ(m.at("tessera_device_lost"), 1.0);
+  EXPECT_EQ(m.at("tessera_serving"), 0.0);
+  EXPECT_EQ(lost_calls.load(), 1);
 }
 
 constexpr char kOpsToken[] = "ops-token-0123456789abcdef";
@@ -746,6 +819,55 @@ TEST(TesseradProcess, SighupReloadsTheTokenFile) {
   waitpid(pid, &status, 0);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
   fs::remove(tokens);
+  fs::remove(port_file);
+}
+
+// A lost device ends the process with status 75 after a graceful shutdown, so that its
+// supervisor starts a fresh one (TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES=1: the second frame meets
+// the lost device).
+TEST(TesseradProcess, ALostDeviceExitsWithStatus75) {
+  const std::string port_file = TempPath("lost_port");
+  fs::remove(port_file);
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    setenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES", "1", 1);
+    execl(TESSERAD_PATH, TESSERAD_PATH, "--listen=127.0.0.1:0",
+          ("--port_file=" + port_file).c_str(), "--log_level=warn", (char*)nullptr);
+    _exit(127);
+  }
+  int port = 0;
+  for (int i = 0; i < 600 && port == 0; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::ifstream in(port_file);
+    in >> port;
+  }
+  ASSERT_GT(port, 0) << "tesserad did not start";
+  auto stub = Connect(absl::StrCat("127.0.0.1:", port));
+  {
+    grpc::ClientContext ctx;
+    v1::Frame f;
+    EXPECT_TRUE(stub->Render(&ctx, DemoRequest(16, 16), &f).ok());
+  }
+  {
+    grpc::ClientContext ctx;
+    v1::Frame f;
+    EXPECT_CODE(stub->Render(&ctx, DemoRequest(16, 16), &f), UNAVAILABLE, "device was lost");
+  }
+  int status = 0;
+  pid_t done = 0;
+  for (int i = 0; i < 200 && done == 0; ++i) {  // 20 s at most
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    done = waitpid(pid, &status, WNOHANG);
+  }
+  if (done == 0) {
+    kill(pid, SIGKILL);
+    waitpid(pid, &status, 0);
+    ADD_FAILURE() << "tesserad did not exit after losing its device";
+  } else {
+    EXPECT_TRUE(WIFEXITED(status)) << "killed by a signal instead of exiting: " << status;
+    EXPECT_EQ(WEXITSTATUS(status), 75);
+  }
   fs::remove(port_file);
 }
 
