@@ -5,12 +5,14 @@
 // that shares one in-process server.
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <thread>
@@ -31,6 +33,39 @@
   } while (0)
 
 namespace tessera::test_client {
+
+#ifdef TESSERAD_PATH
+// A tesserad process on a free loopback port (--port_file), with `args` after the defaults and
+// `env` (NAME=VALUE) in its environment; port 0 when it did not start within 60 s.
+struct TesseradChild {
+  pid_t pid = -1;
+  int port = 0;
+};
+inline TesseradChild SpawnTesserad(const std::string& port_file,
+                                   const std::vector<std::string>& args = {},
+                                   const std::vector<std::string>& env = {}) {
+  std::filesystem::remove(port_file);
+  std::vector<std::string> argv = {TESSERAD_PATH, "--listen=127.0.0.1:0",
+                                   "--port_file=" + port_file, "--log_level=warn"};
+  argv.insert(argv.end(), args.begin(), args.end());
+  TesseradChild child;
+  child.pid = fork();
+  if (child.pid == 0) {
+    for (const std::string& e : env) putenv(const_cast<char*>(e.c_str()));
+    std::vector<char*> raw;
+    for (std::string& a : argv) raw.push_back(a.data());
+    raw.push_back(nullptr);
+    execv(TESSERAD_PATH, raw.data());
+    _exit(127);
+  }
+  for (int i = 0; child.pid > 0 && i < 600 && child.port == 0; ++i) {  // 60 s on a busy machine
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    std::ifstream in(port_file);
+    in >> child.port;
+  }
+  return child;
+}
+#endif
 
 using StreamRW = grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>;
 

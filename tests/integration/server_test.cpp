@@ -800,20 +800,8 @@ TEST(ImportLimits, ReportedAndEnforcedNamingTheLimit) {
 TEST(TesseradProcess, SigtermDuringAStreamEndsItWithUnavailableAndExitsZero) {
   const std::string port_file =
       (fs::temp_directory_path() / absl::StrCat("tesserad_port_", getpid())).string();
-  fs::remove(port_file);
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    execl(TESSERAD_PATH, TESSERAD_PATH, "--listen=127.0.0.1:0",
-          ("--port_file=" + port_file).c_str(), "--log_level=warn", (char*)nullptr);
-    _exit(127);
-  }
-  int port = 0;
-  for (int i = 0; i < 600 && port == 0; ++i) {  // up to 60 s on a busy machine
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    std::ifstream in(port_file);
-    in >> port;
-  }
+  const auto [pid, port] = SpawnTesserad(port_file);
+  ASSERT_GT(pid, 0);
   ASSERT_GT(port, 0) << "tesserad did not start";
   auto stub = Connect(absl::StrCat("127.0.0.1:", port));
   grpc::ClientContext ctx;

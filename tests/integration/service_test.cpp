@@ -781,20 +781,8 @@ TEST(TesseradProcess, SighupReloadsTheTokenFile) {
   const std::string tokens = TempPath("sighup_tokens.txt");
   const std::string port_file = TempPath("sighup_port");
   WriteFile(tokens, absl::StrCat(kOpsToken, " ops\n"));
-  fs::remove(port_file);
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    execl(TESSERAD_PATH, TESSERAD_PATH, "--listen=127.0.0.1:0", ("--port_file=" + port_file).c_str(),
-          ("--token_file=" + tokens).c_str(), "--log_level=warn", (char*)nullptr);
-    _exit(127);
-  }
-  int port = 0;
-  for (int i = 0; i < 600 && port == 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    std::ifstream in(port_file);
-    in >> port;
-  }
+  const auto [pid, port] = SpawnTesserad(port_file, {"--token_file=" + tokens});
+  ASSERT_GT(pid, 0);
   ASSERT_GT(port, 0) << "tesserad did not start";
   auto stub = Connect(absl::StrCat("127.0.0.1:", port));
   auto render_with = [&](const std::string& token) {
@@ -827,21 +815,9 @@ TEST(TesseradProcess, SighupReloadsTheTokenFile) {
 // the lost device).
 TEST(TesseradProcess, ALostDeviceExitsWithStatus75) {
   const std::string port_file = TempPath("lost_port");
-  fs::remove(port_file);
-  const pid_t pid = fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    setenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES", "1", 1);
-    execl(TESSERAD_PATH, TESSERAD_PATH, "--listen=127.0.0.1:0",
-          ("--port_file=" + port_file).c_str(), "--log_level=warn", (char*)nullptr);
-    _exit(127);
-  }
-  int port = 0;
-  for (int i = 0; i < 600 && port == 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    std::ifstream in(port_file);
-    in >> port;
-  }
+  const auto [pid, port] =
+      SpawnTesserad(port_file, {}, {"TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES=1"});
+  ASSERT_GT(pid, 0);
   ASSERT_GT(port, 0) << "tesserad did not start";
   auto stub = Connect(absl::StrCat("127.0.0.1:", port));
   {
