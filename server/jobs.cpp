@@ -9,6 +9,7 @@
 #include <optional>
 #include <set>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "common/job_spec.h"
 #include "common/scene_id.h"
@@ -461,18 +462,38 @@ JobManager::JobManager(const JobManagerOptions& options, std::unique_ptr<JobJour
 
 JobManager::~JobManager() { Shutdown(); }
 
-std::shared_ptr<Job> JobManager::FindJob(const std::string& job_id) const {
-  std::lock_guard lock(mu_);
-  auto it = jobs_.find(job_id);
-  return it == jobs_.end() ? nullptr : it->second;
-}
-
 namespace {
 absl::Status UnknownJob(const std::string& job_id) {
-  return absl::NotFoundError(
-      absl::StrCat("job_id: no job \"", job_id.substr(0, 64), "\" (ListJobs lists them)"));
+  return absl::NotFoundError(absl::StrCat(
+      "job_id: no job \"", job_id.substr(0, 64), "\"",
+      job_id.size() < kMinIdPrefix ? absl::StrCat(" (a prefix needs at least ", kMinIdPrefix,
+                                                  " characters; ListJobs lists the ids)")
+                                   : " (ListJobs lists them)"));
 }
 }  // namespace
+
+absl::StatusOr<std::map<std::string, std::shared_ptr<Job>>::const_iterator>
+JobManager::ResolveLocked(const std::string& job_id) const {
+  auto it = jobs_.find(job_id);
+  if (it != jobs_.end()) return it;
+  if (job_id.size() >= kMinIdPrefix) {
+    // A unique prefix, as `tessera job list` shows them shortened.
+    it = jobs_.lower_bound(job_id);
+    if (it != jobs_.end() && absl::StartsWith(it->first, job_id)) {
+      auto next = std::next(it);
+      if (next == jobs_.end() || !absl::StartsWith(next->first, job_id)) return it;
+      return absl::InvalidArgumentError(
+          absl::StrCat("job_id: prefix \"", job_id, "\" matches more than one job"));
+    }
+  }
+  return UnknownJob(job_id);
+}
+
+absl::StatusOr<std::shared_ptr<Job>> JobManager::FindJob(const std::string& job_id) const {
+  std::lock_guard lock(mu_);
+  ASSIGN_OR_RETURN(auto it, ResolveLocked(job_id));
+  return it->second;
+}
 
 void JobManager::LoadArchived(
     const std::string& scene_id,
@@ -631,21 +652,20 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
 }
 
 absl::StatusOr<v1::Job> JobManager::Cancel(const std::string& job_id) {
-  std::shared_ptr<Job> job = FindJob(job_id);
-  if (!job) return UnknownJob(job_id);
+  ASSIGN_OR_RETURN(std::shared_ptr<Job> job, FindJob(job_id));
   return job->Cancel();
 }
 
 absl::Status JobManager::Delete(const std::string& job_id) {
   std::lock_guard lock(mu_);
-  auto it = jobs_.find(job_id);
-  if (it == jobs_.end()) return UnknownJob(job_id);
+  ASSIGN_OR_RETURN(auto it, ResolveLocked(job_id));
+  const std::string id = it->first;
   if (!it->second->terminal())
     return absl::FailedPreconditionError(
-        absl::StrCat("job ", job_id, ": is still running; cancel it first"));
-  RETURN_IF_ERROR(journal_->RemoveJob(job_id));
+        absl::StrCat("job ", id, ": is still running; cancel it first"));
+  RETURN_IF_ERROR(journal_->RemoveJob(id));
   jobs_.erase(it);
-  std::erase(order_, job_id);
+  std::erase(order_, id);
   return absl::OkStatus();
 }
 
@@ -661,23 +681,20 @@ std::vector<v1::Job> JobManager::List() const {
 }
 
 absl::StatusOr<v1::Job> JobManager::Get(const std::string& job_id) const {
-  std::shared_ptr<Job> job = FindJob(job_id);
-  if (!job) return UnknownJob(job_id);
+  ASSIGN_OR_RETURN(std::shared_ptr<Job> job, FindJob(job_id));
   return job->Snapshot();
 }
 
 absl::Status JobManager::Watch(const std::string& job_id, std::shared_ptr<JobWatcher> watcher) {
   if (shutting_down_) return absl::UnavailableError("server is shutting down");
-  std::shared_ptr<Job> job = FindJob(job_id);
-  if (!job) return UnknownJob(job_id);
+  ASSIGN_OR_RETURN(std::shared_ptr<Job> job, FindJob(job_id));
   job->AddWatcher(std::move(watcher));
   return absl::OkStatus();
 }
 
 absl::StatusOr<std::vector<JobManager::StoredFrame>> JobManager::Frames(
     const std::string& job_id, const std::vector<uint32_t>& frames) const {
-  std::shared_ptr<Job> job = FindJob(job_id);
-  if (!job) return UnknownJob(job_id);
+  ASSIGN_OR_RETURN(std::shared_ptr<Job> job, FindJob(job_id));
   if (frames.empty()) return job->DoneFrames();
   std::vector<uint32_t> wanted = frames;
   std::sort(wanted.begin(), wanted.end());
@@ -694,9 +711,9 @@ absl::StatusOr<std::vector<JobManager::StoredFrame>> JobManager::Frames(
 }
 
 v1::ImageEncoding JobManager::Encoding(const std::string& job_id) const {
-  std::shared_ptr<Job> job = FindJob(job_id);
-  if (!job) return v1::IMAGE_JPEG;
-  return job->Snapshot().spec().encoding() == v1::IMAGE_PNG ? v1::IMAGE_PNG : v1::IMAGE_JPEG;
+  absl::StatusOr<std::shared_ptr<Job>> job = FindJob(job_id);
+  if (!job.ok()) return v1::IMAGE_JPEG;
+  return (*job)->Snapshot().spec().encoding() == v1::IMAGE_PNG ? v1::IMAGE_PNG : v1::IMAGE_JPEG;
 }
 
 void JobManager::ArchiveScene(const std::string& scene_id, const GltfSource& source) {

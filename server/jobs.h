@@ -128,7 +128,11 @@ class JobManager {
                     std::function<void(absl::StatusOr<std::shared_ptr<StoredScene>>)> done);
 
  private:
-  std::shared_ptr<Job> FindJob(const std::string& job_id) const;
+  // The job with this id or unique prefix of kMinIdPrefix+ characters; NOT_FOUND (saying how
+  // long a prefix must be when it is shorter), INVALID_ARGUMENT when ambiguous.
+  absl::StatusOr<std::shared_ptr<Job>> FindJob(const std::string& job_id) const;
+  absl::StatusOr<std::map<std::string, std::shared_ptr<Job>>::const_iterator> ResolveLocked(
+      const std::string& job_id) const;
   absl::Status MakeRoomLocked();  // drops the oldest finished job when max_jobs are kept
 
   const JobManagerOptions options_;

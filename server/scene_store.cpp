@@ -119,7 +119,7 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Find(const std::string&
   if (id.empty()) return absl::InvalidArgumentError("scene_id: is empty");
   if (auto s = FindExact(id)) return s;
   std::lock_guard lock(mu_);
-  if (id.size() >= 8) {
+  if (id.size() >= kMinIdPrefix) {
     // A unique prefix, as people copy ids from `tessera scenes`.
     auto it = scenes_.lower_bound(id);
     if (it != scenes_.end() && absl::StartsWith(it->first, id)) {
@@ -132,8 +132,11 @@ absl::StatusOr<std::shared_ptr<StoredScene>> SceneStore::Find(const std::string&
           absl::StrCat("scene_id: prefix \"", id, "\" matches more than one scene"));
     }
   }
-  return absl::NotFoundError(absl::StrCat("scene_id: no scene \"", id.substr(0, 80),
-                                          "\" (ListScenes shows what is loaded)"));
+  return absl::NotFoundError(absl::StrCat(
+      "scene_id: no scene \"", id.substr(0, 80), "\"",
+      id.size() < kMinIdPrefix ? absl::StrCat(" (a prefix needs at least ", kMinIdPrefix,
+                                              " characters; ListScenes shows the ids)")
+                               : " (ListScenes shows what is loaded)"));
 }
 
 SceneListing SceneStore::Describe(const StoredScene& s) {

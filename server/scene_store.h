@@ -22,6 +22,10 @@
 
 namespace tessera::server {
 
+// The shortest id prefix that names a scene or a job (ids are 64 and 16 hex digits; `tessera
+// scenes` and `job list` show them shortened).
+inline constexpr size_t kMinIdPrefix = 8;
+
 inline constexpr char kDemoSceneId[] = "demo";
 
 // What the store keeps of a scene beside its handle; handlers make the wire's SceneInfo of it.

@@ -189,9 +189,14 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
                        state_->options.max_concurrent_uploads, ") at once; retry later"));
     } else if (!state_->principal_uploads.TryAcquire((*principal)->name,
                                                      (*principal)->max_uploads)) {
+      const uint32_t allowed = (*principal)->max_uploads.value_or(0);
       admission = absl::ResourceExhaustedError(
-          absl::StrCat("uploads: token \"", (*principal)->name, "\" has its max_uploads (",
-                       (*principal)->max_uploads.value_or(0), ") uploads in progress"));
+          allowed == 0
+              ? absl::StrCat("uploads: token \"", (*principal)->name,
+                             "\" may not upload (max_uploads=0 in the token file)")
+              : absl::StrCat("uploads: token \"", (*principal)->name, "\" already has ",
+                             allowed, " uploads in progress, its max_uploads; retry when one "
+                             "ends"));
     } else {
       principal_ = (*principal)->name;
       counted_ = true;

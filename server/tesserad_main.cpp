@@ -148,7 +148,13 @@ int main(int argc, char** argv) {
       std::fclose(f);
     }
   }
-  tessera::Log().info("ready: try `tessera --server {} info`", (*server)->address());
+  // The hint has what a client needs for this daemon: TLS and its CA, a token.
+  std::string hint = absl::StrCat("tessera --server ", (*server)->address());
+  if (!options.tls_cert_file.empty())
+    absl::StrAppend(&hint, " --tls --tls-ca CA.pem (the CA that signed ", options.tls_cert_file,
+                    ")");
+  if (!options.token_file.empty()) absl::StrAppend(&hint, " --token-file FILE");
+  tessera::Log().info("ready: try `{} info`", hint);
 
   int sig = 0;
   for (;;) {

@@ -1,5 +1,7 @@
 // tessera: the command-line client of tesserad. `tessera COMMAND ...` with the subcommands in
 // cli_commands.h; this file only reads the global flags, picks the command and prints usage.
+#include <grpc/support/log.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <string>
@@ -147,6 +149,10 @@ ParsedLine ParseLine(int argc, char** argv) {
 
 int main(int argc, char** argv) {
   using namespace tessera::cli;
+  // gRPC's own log lines ("ssl_transport_security.cc:1501] Handshake failed ...") would come
+  // before the CLI's message, which already says what failed and what to check.
+  // GRPC_VERBOSITY=debug (or any value) brings them back.
+  if (std::getenv("GRPC_VERBOSITY") == nullptr) gpr_set_log_function([](gpr_log_func_args*) {});
   const ParsedLine line = ParseLine(argc, argv);
   if (line.help) {
     if (line.command) {

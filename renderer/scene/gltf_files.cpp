@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <map>
 #include <set>
 #include <string>
 #include <string_view>
@@ -143,27 +144,35 @@ absl::StatusOr<GltfSource> LoadGltfSourceFromDisk(const std::string& asset_path)
   }
   if (!j.is_object()) return source;
 
-  std::set<std::string> uris;
+  std::map<std::string, std::string> uris;  // uri -> the first field that names it
   for (const char* array : {"buffers", "images"}) {
     auto it = j.find(array);
     if (it == j.end() || !it->is_array()) continue;
-    for (const nlohmann::json& item : *it) {
+    for (size_t i = 0; i < it->size(); ++i) {
+      const nlohmann::json& item = (*it)[i];
       if (!item.is_object()) continue;
       auto uri = item.find("uri");
       if (uri == item.end() || !uri->is_string()) continue;
       const std::string u = uri->get<std::string>();
-      if (u.rfind("data:", 0) != 0) uris.insert(u);
+      if (u.rfind("data:", 0) != 0) uris.emplace(u, absl::StrCat(array, "[", i, "].uri"));
     }
   }
   const fs::path dir = file.parent_path();
-  for (const std::string& uri : uris) {
+  for (const auto& [uri, field] : uris) {
     const std::string key = PercentDecode(uri);
     if (!IsSafeRelative(key)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(path, ": URI '", uri, "' is absolute or leaves the asset directory"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          path, ": ", field, " '", uri, "' is absolute or leaves the asset directory"));
     }
     if (source.files.count(key)) continue;
-    ASSIGN_OR_RETURN(source.files[key], ReadFile(dir / key));
+    absl::StatusOr<std::vector<uint8_t>> bytes = ReadFile(dir / key);
+    if (!bytes.ok()) {
+      return absl::Status(bytes.status().code(),
+                          absl::StrCat(path, ": ", field, " '", uri, "': ",
+                                       bytes.status().message(),
+                                       " (the files a .gltf names must be where it says)"));
+    }
+    source.files[key] = *std::move(bytes);
   }
   return source;
 }

@@ -13,6 +13,7 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/numbers.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
@@ -487,6 +488,17 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
   const std::vector<uint8_t>& bytes = main->second;
   if (bytes.empty()) return Invalid(file, "file", "the file is empty");
   const bool is_glb = bytes.size() >= 4 && std::memcmp(bytes.data(), "glTF", 4) == 0;
+  if (!is_glb && absl::EndsWithIgnoreCase(file, ".glb")) {
+    // A .glb that is not one (a renamed .gltf, a text or HTML error page): say so, instead of
+    // a JSON error from whatever the file holds.
+    std::string head;
+    for (size_t i = 0; i < std::min<size_t>(bytes.size(), 4); ++i)
+      absl::StrAppend(&head, i ? " " : "", absl::Hex(bytes[i], absl::kZeroPad2));
+    return Invalid(file, "file",
+                   absl::StrCat("not a GLB container: it starts with bytes ", head,
+                                ", not the magic 'glTF' (67 6c 54 46); a JSON glTF file is "
+                                "named .gltf"));
+  }
   GlbChunks glb;
   absl::string_view text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   if (is_glb) {

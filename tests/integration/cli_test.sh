@@ -26,6 +26,13 @@ for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.1; done
 [[ -s $work/port ]] || fail "tesserad did not start"
 export TESSERA_SERVER="127.0.0.1:$(cat "$work/port")"
 
+# TLS asked of a plaintext daemon: one message from the CLI, no gRPC log lines before it.
+run --tls info
+[[ $rc -ne 0 ]] || fail "--tls against a plaintext daemon succeeded"
+grep -q "does it speak TLS" "$work/err" || fail "--tls message: $(cat "$work/err")"
+! grep -q "ssl_transport_security\|\.cc:[0-9]" "$work/err" || fail "gRPC's log leaked: $(cat "$work/err")"
+[[ $(wc -l < "$work/err") -eq 1 ]] || fail "--tls: more than one line: $(cat "$work/err")"
+
 "$tessera" --json info > "$work/info.json"
 python3 - "$work/info.json" <<'PY' || fail "info --json"
 import json, sys

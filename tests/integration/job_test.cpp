@@ -168,10 +168,19 @@ TEST_F(JobTest, SubmitWatchFetchAndTheSamePixelsAsRenderJobFrame) {
   EXPECT_EQ(job.frames_total(), 6u);
   EXPECT_EQ(job.scene_id(), "demo");
 
-  const Watched w = WatchToEnd(stub_.get(), job.job_id());
+  // Watched by the 8-character prefix `tessera job list` shows; a shorter one is refused and
+  // says how long a prefix must be.
+  const Watched w = WatchToEnd(stub_.get(), job.job_id().substr(0, 8));
   ASSERT_TRUE(w.status.ok()) << w.status.error_message();
   ASSERT_FALSE(w.events.empty());
   EXPECT_FALSE(w.events.front().has_frame()) << "the first message is the job's state";
+  {
+    grpc::ClientContext ctx;
+    v1::DeleteJobRequest r;
+    r.set_job_id(job.job_id().substr(0, 7));
+    v1::DeleteJobResponse got;
+    EXPECT_CODE(stub_->DeleteJob(&ctx, r, &got), NOT_FOUND, "at least 8 characters");
+  }
   const v1::Job& last = w.events.back().job();
   EXPECT_EQ(last.state(), v1::JOB_SUCCEEDED);
   EXPECT_EQ(last.frames_done(), 6u);

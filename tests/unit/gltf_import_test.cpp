@@ -520,7 +520,30 @@ TEST(GltfImportFiles, DiskLoaderRefusesEscapingUris) {
   absl::StatusOr<GltfSource> missing = LoadGltfSourceFromDisk((dir / "nope.gltf").string());
   ASSERT_FALSE(missing.ok());
   EXPECT_NE(missing.status().message().find("nope.gltf"), absl::string_view::npos);
+  // A file the .gltf names that is not beside it: the message names the field that names it.
+  std::ofstream(dir / "lone.gltf") << R"({"asset":{"version":"2.0"},"buffers":[{"byteLength":4}],
+      "images":[{"uri":"a.png"},{"uri":"gone%20too.png"}]})";
+  std::ofstream(dir / "a.png") << "x";
+  absl::StatusOr<GltfSource> lone = LoadGltfSourceFromDisk((dir / "lone.gltf").string());
+  ASSERT_FALSE(lone.ok());
+  EXPECT_EQ(lone.status().code(), absl::StatusCode::kNotFound) << lone.status();
+  for (const char* needle : {"lone.gltf", "images[1].uri", "gone%20too.png", "gone too.png"})
+    EXPECT_NE(lone.status().message().find(needle), absl::string_view::npos)
+        << "'" << needle << "' not in: " << lone.status().message();
   fs::remove_all(dir);
+}
+
+// A .glb that is not one (a renamed .gltf, a text or HTML page) says so, with its first bytes,
+// instead of a JSON error about whatever it holds.
+TEST(GltfImportMalformed, GlbWithoutTheMagic) {
+  GltfSource src;
+  src.main_file = "model.glb";
+  const std::string text = R"({"asset": {"version": "2.0"}, "scenes": [)";
+  src.files["model.glb"].assign(text.begin(), text.end());
+  ExpectInvalid(ImportGltf(src), {"model.glb", "not a GLB container", "7b 22 61 73", "'glTF'"});
+  src.main_file = "model.GLB";
+  src.files["model.GLB"] = src.files["model.glb"];
+  ExpectInvalid(ImportGltf(src), {"model.GLB", "not a GLB container"});
 }
 
 // A directory stands for the glTF file in it (a multi-file asset is usually handed over as its

@@ -1020,7 +1020,7 @@ TEST(SceneStoreTest, AmbiguousShortUnknownAndEmptyIds) {
                       {"scene_id", "abcdef01", "more than one"}));
   // Shorter than 8 characters: not a prefix, even when unique.
   EXPECT_TRUE(IsError(store.Find("1234567").status(), absl::StatusCode::kNotFound,
-                      {"scene_id", "1234567"}));
+                      {"scene_id", "1234567", "at least 8 characters"}));
   EXPECT_TRUE(IsError(store.Find(IdOf("ffff", 'f')).status(), absl::StatusCode::kNotFound,
                       {"scene_id", "ffff"}));
   EXPECT_TRUE(IsError(store.Find("123456789").status(), absl::StatusCode::kNotFound, {"scene_id"}));
