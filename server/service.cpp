@@ -10,6 +10,7 @@
 #include "renderer/log.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/convert.h"
+#include "common/job_spec.h"
 #include "server/jobs.h"
 #include "server/metrics.h"
 #include "server/upload.h"
@@ -113,6 +114,14 @@ absl::StatusOr<RenderWork> RenderRequestWork(const ServiceState& state,
   work.format = req.encoding() == v1::IMAGE_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;
   work.sequence = 1;
   work.kind = req.background() ? "background" : "render";
+  if (work.settings.aa == AaMode::kTaa) {
+    // TAA in one call: a view of its own, from an empty history, accumulated as a resting
+    // stream or a job frame would be, so the same request gives the same bytes (not whatever
+    // the shared default view's last frame left).
+    work.view = state.jobs->NewView();
+    work.fresh_view = true;
+    work.accumulate = jobs::kDefaultTaaFrames;
+  }
   return work;
 }
 

@@ -220,6 +220,25 @@ TEST_F(ServerTest, RenderDemoAsJpegAndPng) {
   EXPECT_EQ(p->width, 64u);
 }
 
+// TAA in a unary Render starts from an empty history of its own: the same request gives the
+// same bytes whatever was rendered before, and differs from the frame without AA (the 8
+// accumulated renders smooth the edges).
+TEST_F(ServerTest, UnaryTaaRendersAreReproducible) {
+  v1::RenderRequest taa = DemoRequest(96, 64);
+  taa.mutable_settings()->set_aa(v1::AA_TAA);
+  v1::Frame a, b, other, none;
+  ASSERT_TRUE(Render(taa, &a).ok());
+  v1::RenderRequest moved = taa;
+  moved.mutable_camera()->mutable_frame()->mutable_direction()->set_x(-0.6f);
+  moved.mutable_camera()->mutable_frame()->mutable_direction()->set_y(0.5f);
+  moved.mutable_camera()->mutable_frame()->mutable_direction()->set_z(0.6f);
+  ASSERT_TRUE(Render(moved, &other).ok());
+  ASSERT_TRUE(Render(taa, &b).ok());
+  EXPECT_EQ(a.data(), b.data()) << "two identical taa renders differ";
+  ASSERT_TRUE(Render(DemoRequest(96, 64), &none).ok());
+  EXPECT_NE(a.data(), none.data());
+}
+
 TEST_F(ServerTest, SettingsTheDeviceCannotDoAreClampedAndReported) {
   v1::RenderRequest req = DemoRequest(64, 48);
   req.mutable_settings()->set_aa(v1::AA_MSAA);
