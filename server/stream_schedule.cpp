@@ -35,6 +35,7 @@ bool StreamSchedule::Fail(const absl::Status& status) {
 
 void StreamSchedule::Changed(Clock::time_point now) {
   if (!dirty_since_) dirty_since_ = now;
+  settled_ = 0;
 }
 
 bool StreamSchedule::CanRender() const {
@@ -55,6 +56,10 @@ std::optional<Clock::time_point> StreamSchedule::Wake() const {
   if (dirty_since_) earliest(Clock::time_point::min());
   if (Continuous()) earliest(next_due_);
   if (owed_ == Owed::kRestFrame && last_motion_) earliest(*last_motion_ + pacing_.rest);
+  if (settled_ < pacing_.settle_frames) {  // once the camera rests (interactive sessions)
+    earliest(pacing_.interactive && last_motion_ ? *last_motion_ + pacing_.rest
+                                                 : Clock::time_point::min());
+  }
   if (!t) return std::nullopt;
   if (last_start_) return std::max(*t, *last_start_ + min_interval_);
   return t;
@@ -75,6 +80,7 @@ std::optional<FrameStart> StreamSchedule::Take(Clock::time_point now) {
   } else {
     frame.profile = FrameProfile::kFull;
     owed_ = Owed::kNothing;
+    ++settled_;
   }
   frame.requested = dirty_since_ ? *dirty_since_ : Continuous() ? std::min(now, next_due_) : now;
   dirty_since_.reset();

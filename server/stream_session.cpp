@@ -225,6 +225,10 @@ absl::Status StreamSession::CheckTargetFpsLocked(float fps, const char* field) {
   return absl::OkStatus();
 }
 
+// TAA on a resting camera: full frames after the newest change until this many reflect it
+// (the history is then within a few tenths of a dB of converged; aa_test's convergence table).
+constexpr uint32_t kTaaSettleFrames = 16;
+
 StreamPacing StreamSession::PacingLocked() const {
   const InteractiveProfile& p = st_.profile;
   StreamPacing pacing;
@@ -232,6 +236,7 @@ StreamPacing StreamSession::PacingLocked() const {
   pacing.interactive =
       p.enabled && (p.render_scale < 1.0f || p.jpeg_quality < st_.settings.jpeg_quality);
   pacing.rest = std::chrono::milliseconds(p.rest_ms);
+  pacing.settle_frames = st_.settings.aa == AaMode::kTaa ? kTaaSettleFrames : 0;
   return pacing;
 }
 

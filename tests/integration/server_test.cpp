@@ -590,6 +590,34 @@ TEST_F(ServerTest, StreamSettingsUpdatesMergeAndBadEventsEndTheStream) {
   EXPECT_CODE(rw3->Finish(), NOT_FOUND, "scene_id");
 }
 
+// TAA on a resting camera keeps refining: after the open (and after each change) 16 full
+// frames arrive, each closer to the converged picture, and then nothing until a change. The
+// client half-closes after the first change's frames; the stream then ends OK.
+TEST_F(ServerTest, TaaStreamConvergesWhileTheCameraRests) {
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  v1::ClientEvent open = OpenEvent("demo", 64, 48);
+  open.mutable_open()->mutable_settings()->set_aa(v1::AA_TAA);
+  ASSERT_TRUE(rw->Write(open));
+  std::vector<std::string> frames;
+  v1::Frame f;
+  for (int i = 0; i < 16; ++i) {
+    ASSERT_TRUE(rw->Read(&f)) << "frame " << i;
+    EXPECT_EQ(f.event_id(), 0u);
+    frames.push_back(f.data());
+  }
+  EXPECT_NE(frames.front(), frames.back()) << "the resting frames did not change";
+  // Nothing more comes while nothing changes: a camera event's frame is the next one.
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(rw->Write(CameraEvent(1)));
+  ASSERT_TRUE(rw->Read(&f));
+  EXPECT_EQ(f.event_id(), 1u) << "a frame came without a change";
+  rw->WritesDone();
+  while (rw->Read(&f)) {
+  }
+  EXPECT_TRUE(rw->Finish().ok());
+}
+
 // A reader much slower than the render rate gets fewer frames, each recent, while the frames
 // the server holds for it stay bounded.
 TEST_F(ServerTest, SlowReaderGetsRecentFramesAndServerMemoryStaysBounded) {

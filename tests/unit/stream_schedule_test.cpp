@@ -402,5 +402,57 @@ TEST(StreamScheduleTest, ARefusedStreamDecidesNothing) {
   EXPECT_TRUE(Quiet(s.Next(T(0))));
 }
 
+// TAA's settling: after a change, full frames keep coming (once the camera rests) until
+// settle_frames of them reflect it, then nothing until the next change.
+TEST(StreamScheduleTest, SettleFramesFollowTheNewestChangeThenStop) {
+  StreamPacing pacing = Pacing(0);
+  pacing.settle_frames = 3;
+  StreamSchedule s(milliseconds(0), true);
+  s.Open(T(0), pacing);
+  EXPECT_TRUE(s.Next(T(0)).enqueue);
+  uint64_t seq = 0;
+  for (int i = 0; i < 3; ++i) {  // the open's frame and two more, back to back
+    MustTake(s, T(10 * i), FrameProfile::kFull);
+    const StreamDecision d = DeliverAndWrite(s, ++seq, T(10 * i + 5));
+    EXPECT_EQ(d.enqueue, i < 2) << "frame " << i;
+  }
+  EXPECT_TRUE(Quiet(s.Next(T(40))));
+  EXPECT_FALSE(s.Take(T(1000)));  // settled: nothing more
+  s.Changed(T(2000));             // a change starts it again
+  EXPECT_TRUE(s.Next(T(2000)).enqueue);
+  for (int i = 0; i < 3; ++i) {
+    MustTake(s, T(2000 + 10 * i), FrameProfile::kFull);
+    DeliverAndWrite(s, ++seq, T(2000 + 10 * i + 5));
+  }
+  EXPECT_FALSE(s.Take(T(3000)));
+}
+
+TEST(StreamScheduleTest, SettleFramesWaitForTheCameraToRest) {
+  StreamPacing pacing = Pacing(0, /*interactive=*/true, /*rest_ms=*/250);
+  pacing.settle_frames = 2;
+  StreamSchedule s(milliseconds(0), true);
+  s.Open(T(0), pacing);
+  s.Next(T(0));
+  MustTake(s, T(0), FrameProfile::kFull);
+  DeliverAndWrite(s, 1, T(5));
+  MustTake(s, T(6), FrameProfile::kFull);  // the second settle frame
+  DeliverAndWrite(s, 2, T(10));
+  EXPECT_FALSE(s.Take(T(50)));
+
+  s.CameraMoved(T(100));
+  s.Changed(T(100));
+  s.Next(T(100));
+  MustTake(s, T(100), FrameProfile::kInteractive);
+  const StreamDecision d = DeliverAndWrite(s, 3, T(110));
+  ASSERT_TRUE(d.enqueue_at);
+  EXPECT_EQ(*d.enqueue_at, T(350));  // nothing more while the camera moves
+  EXPECT_FALSE(s.Take(T(200)));
+  MustTake(s, T(350), FrameProfile::kFull);  // at rest: the rest frame, then one more
+  DeliverAndWrite(s, 4, T(360));
+  MustTake(s, T(361), FrameProfile::kFull);
+  DeliverAndWrite(s, 5, T(370));
+  EXPECT_FALSE(s.Take(T(1000)));
+}
+
 }  // namespace
 }  // namespace tessera::server
