@@ -222,7 +222,7 @@ void PrintTable(const Invocation& inv, const BenchOptions& o, const v1::ServerIn
   }
   absl::PrintF(
       "run      scene %s at %s, %u warm-up + %u measured frames per configuration, "
-      "medians\n",
+      "medians and p10-p90\n",
       o.scene, size, o.warmup, o.frames);
   // A fast configuration measures the cap, not the renderer; the gpu ms column still tells.
   absl::PrintF(
@@ -234,8 +234,9 @@ void PrintTable(const Invocation& inv, const BenchOptions& o, const v1::ServerIn
 
   int width = 6;
   for (const Result& r : results) width = std::max<int>(width, r.config->name.size());
-  absl::PrintF("%-*s %7s %8s %8s %8s %8s %9s  %s\n", width, "config", "fps", "gpu ms", "cpu ms",
-               "lat p50", "lat p95", "KB/frame", "most expensive passes (gpu ms)");
+  absl::PrintF("%-*s %7s %8s %13s %8s %8s %8s %9s  %s\n", width, "config", "fps", "gpu ms",
+               "gpu p10-p90", "cpu ms", "lat p50", "lat p95", "KB/frame",
+               "most expensive passes (gpu ms)");
   for (const Result& r : results) {
     if (!r.status.ok()) {
       absl::PrintF("%-*s FAILED  %s: %s\n", width, r.config->name,
@@ -243,9 +244,11 @@ void PrintTable(const Invocation& inv, const BenchOptions& o, const v1::ServerIn
       continue;
     }
     const Summary& s = r.summary;
-    absl::PrintF("%-*s %7.1f %8.2f %8.2f %8.1f %8.1f %9.1f  %s\n", width, r.config->name, r.fps,
-                 s.gpu_total_median_ms, s.cpu_total_median_ms, Median(s.latencies_ms),
-                 Percentile(s.latencies_ms, 95), s.bytes_median / 1000.0, TopPasses(s));
+    absl::PrintF("%-*s %7.1f %8.2f %13s %8.2f %8.1f %8.1f %9.1f  %s\n", width, r.config->name,
+                 r.fps, s.gpu_total_median_ms,
+                 absl::StrFormat("%.2f-%.2f", s.gpu_total_p10_ms, s.gpu_total_p90_ms),
+                 s.cpu_total_median_ms, Median(s.latencies_ms), Percentile(s.latencies_ms, 95),
+                 s.bytes_median / 1000.0, TopPasses(s));
   }
   for (const Result& r : results) {
     for (const v1::SettingNote& n : r.last.notes()) {
@@ -269,6 +272,8 @@ Json ResultJson(const Result& r) {
   j["fps"] = r.fps;
   j["dropped"] = s.dropped;
   j["gpu_total_median_ms"] = s.gpu_total_median_ms;
+  j["gpu_total_p10_ms"] = s.gpu_total_p10_ms;
+  j["gpu_total_p90_ms"] = s.gpu_total_p90_ms;
   j["cpu_total_median_ms"] = s.cpu_total_median_ms;
   j["pass_median_ms"] = PassMediansJson(s);
   j["latency_ms"] = LatencyJson(s);
@@ -395,7 +400,8 @@ measured so far).
 fps cannot exceed the server's max_session_fps (tessera info), whatever the GPU time.
 --json: {"server", "version", "device", "scene", "scene_id", "suite", "warmup", "frames",
 "settings", "max_session_fps", "results": [{"config", "suite", "setting", "ok", "frames", "fps", "dropped",
-"gpu_total_median_ms", "cpu_total_median_ms", "pass_median_ms": [{"pass", "median_ms"}],
+"gpu_total_median_ms", "gpu_total_p10_ms", "gpu_total_p90_ms", "cpu_total_median_ms",
+"pass_median_ms": [{"pass", "median_ms", "p10_ms", "p90_ms"}],
 "latency_ms": {"median", "p95", "events", "samples"}, "bytes_median", "timing_source",
 "width", "height", "settings" (effective), "notes"} or {"config", "suite", "setting", "ok":
 false, "error": {"code", "message"}}], "failed"}.

@@ -152,8 +152,13 @@ Summary Summarize(const std::vector<FrameRecord>& records,
     cpu.push_back(r.frame.cpu().total_ms());
     bytes.push_back(r.bytes);
   }
-  for (const std::string& name : order) s.pass_median_ms.emplace_back(name, Median(per_pass[name]));
+  for (const std::string& name : order) {
+    s.pass_median_ms.emplace_back(name, Median(per_pass[name]));
+    s.pass_p10_p90_ms.emplace_back(Percentile(per_pass[name], 10), Percentile(per_pass[name], 90));
+  }
   s.gpu_total_median_ms = Median(gpu);
+  s.gpu_total_p10_ms = Percentile(gpu, 10);
+  s.gpu_total_p90_ms = Percentile(gpu, 90);
   s.cpu_total_median_ms = Median(cpu);
   s.bytes_median = Median(bytes);
   return s;
@@ -168,8 +173,11 @@ Json LatencyJson(const Summary& s) {
 
 Json PassMediansJson(const Summary& s) {
   Json passes = Json::array();
-  for (const auto& [name, ms] : s.pass_median_ms) {
-    passes.push_back({{"pass", name}, {"median_ms", ms}});
+  for (size_t i = 0; i < s.pass_median_ms.size(); ++i) {
+    const auto& [name, ms] = s.pass_median_ms[i];
+    const auto [p10, p90] =
+        i < s.pass_p10_p90_ms.size() ? s.pass_p10_p90_ms[i] : std::pair<double, double>{ms, ms};
+    passes.push_back({{"pass", name}, {"median_ms", ms}, {"p10_ms", p10}, {"p90_ms", p90}});
   }
   return passes;
 }

@@ -97,7 +97,9 @@ struct Summary {
   std::optional<double> first_frame_ms;
   std::vector<double> latencies_ms;                            // events after the open event
   std::vector<std::pair<std::string, double>> pass_median_ms;  // in pass order
+  std::vector<std::pair<double, double>> pass_p10_p90_ms;      // the same passes' spread
   double gpu_total_median_ms = 0;
+  double gpu_total_p10_ms = 0, gpu_total_p90_ms = 0;  // the spread: one slow frame shows here
   double cpu_total_median_ms = 0;
   double bytes_median = 0;
 };
@@ -109,7 +111,7 @@ Summary Summarize(const std::vector<FrameRecord>& records,
 
 // {"median", "p95", "events", "samples"} of a run's latencies (ms), for --json.
 Json LatencyJson(const Summary& s);
-// [{"pass", "median_ms"}, ...] in pass order, for --json.
+// [{"pass", "median_ms", "p10_ms", "p90_ms"}, ...] in pass order, for --json.
 Json PassMediansJson(const Summary& s);
 
 }  // namespace tessera::cli
