@@ -119,6 +119,26 @@ for path, d in workloads:
             if m["name"] not in volumes:
                 fail(f"{name}: volumeMount {m['name']} has no volume")
         ports = {p.get("name"): p["containerPort"] for p in c.get("ports", []) or []}
+        # tesserad with TLS (the commented flags turned on): gRPC probes cannot speak TLS, so
+        # they must ask the plaintext --health_listen port, never the service port.
+        args = c.get("args", []) or []
+        health = [a.split("=", 1)[1] for a in args if a.startswith("--health_listen=")]
+        if "tesserad" in (c.get("name") or ""):
+            if not health:
+                fail(f"{name}: tesserad without --health_listen: its gRPC probes would fail once "
+                     "TLS is on")
+            hport = int(health[0].rsplit(":", 1)[1])
+            if hport not in ports.values():
+                fail(f"{name}: --health_listen port {hport} is not a container port")
+            for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
+                g = (c.get(probe) or {}).get("grpc")
+                if g is None:
+                    fail(f"{name}: no gRPC {probe}")
+                port = ports.get(g["port"], g["port"])
+                if port != hport:
+                    fail(f"{name}: {probe} asks port {g['port']}, not the plaintext health port "
+                         f"{hport}: it fails once --tls_cert is on")
+            print(f"ok    k8s {name}: probes ask the plaintext health port {hport} (TLS-safe)")
         for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
             pr = c.get(probe)
             if not pr:

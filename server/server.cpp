@@ -81,7 +81,9 @@ struct Server::Impl {
   ServiceState state;
   std::unique_ptr<RenderServiceImpl> service;
   std::unique_ptr<grpc::Server> grpc_server;
+  std::unique_ptr<grpc::Server> health_server;  // --health_listen: grpc.health.v1 only
   int port = 0;
+  int health_port = 0;
   std::string host;
   std::mutex shutdown_mu;
   bool shut_down = false;
@@ -290,6 +292,21 @@ absl::Status Server::Impl::Listen(const std::shared_ptr<grpc::ServerCredentials>
                                                "\" (in use or not an address)"));
   host = options.listen.substr(0, options.listen.rfind(':'));
   if (host.empty() || host == "0.0.0.0" || host == "[::]") host = "127.0.0.1";
+  if (!options.health_listen.empty()) {
+    // grpc.health.v1 alone, in plaintext: what Kubernetes' gRPC probes (which cannot speak TLS)
+    // ask when the service port has TLS. No other service is registered on it.
+    grpc::ServerBuilder health_builder;
+    health_builder.AddListeningPort(options.health_listen, grpc::InsecureServerCredentials(),
+                                    &health_port);
+    health_server = health_builder.BuildAndStart();
+    if (!health_server || health_port == 0) {
+      grpc_server->Shutdown();
+      return absl::UnavailableError(absl::StrCat("health_listen: cannot listen on \"",
+                                                 options.health_listen,
+                                                 "\" (in use or not an address)"));
+    }
+    Log().info("health (grpc.health.v1, plaintext): {}:{}", host, health_port);
+  }
   if (!options.metrics_listen.empty()) {
     absl::StatusOr<int> serving = metrics->Serve(options.metrics_listen);
     if (!serving.ok()) {
@@ -334,8 +351,9 @@ void Server::Impl::CheckHealth() {
       if (!renderer->device_lost()) ++stalls;
     }
     // After Shutdown the service reports NOT_SERVING whatever is set here.
-    if (grpc_server)
-      if (auto* service = grpc_server->GetHealthCheckService()) service->SetServingStatus(h.serving);
+    for (grpc::Server* server : {grpc_server.get(), health_server.get()})
+      if (server)
+        if (auto* service = server->GetHealthCheckService()) service->SetServingStatus(h.serving);
   }
   health_now = std::move(h);
 }
@@ -370,6 +388,8 @@ Server::~Server() { Shutdown(); }
 
 int Server::port() const { return impl_->port; }
 
+int Server::health_port() const { return impl_->health_port; }
+
 std::string Server::address() const { return absl::StrCat(impl_->host, ":", impl_->port); }
 
 void Server::Shutdown(std::chrono::milliseconds grace) {
@@ -379,7 +399,9 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
   const auto t0 = std::chrono::steady_clock::now();
   Log().info("shutting down: {} sessions, {} frames queued", impl_->state.session_count(),
              impl_->loop->queue_depth());
-  if (auto* health = impl_->grpc_server->GetHealthCheckService()) health->Shutdown();
+  for (grpc::Server* server : {impl_->grpc_server.get(), impl_->health_server.get()})
+    if (server)
+      if (auto* health = server->GetHealthCheckService()) health->Shutdown();
   // Streams end with UNAVAILABLE after their in-flight frame; queued renders fail.
   impl_->state.ShutdownSessions();
   impl_->jobs->Shutdown();  // watches end; running jobs stay in the journal
@@ -387,6 +409,7 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
   // Waits for every call to finish; calls still open at the deadline are cancelled.
   impl_->grpc_server->Shutdown(std::chrono::system_clock::now() + grace);
   impl_->grpc_server->Wait();
+  if (impl_->health_server) impl_->health_server->Shutdown(std::chrono::system_clock::now());
   impl_->loader.reset();
   impl_->StopSweeper();
   Log().info(

@@ -69,6 +69,9 @@ struct ServerOptions {
   // has been inside one frame for longer than this (a wedged device or driver), and for good
   // once the device is lost.
   double render_stall_s = 60.0;
+  // host:port serving grpc.health.v1 alone, in plaintext (empty: off), for probes that cannot
+  // speak TLS (Kubernetes' gRPC probes) when the service port has TLS.
+  std::string health_listen;
   // Called once, from the render thread, when the Vulkan device is lost. tesserad raises a
   // signal in itself and exits with status 75 after a graceful shutdown, so that its supervisor
   // starts a fresh process (journalled jobs resume there).
@@ -106,6 +109,7 @@ class Server {
   ~Server();  // Shutdown() if not done
 
   int port() const;             // the bound port (useful with port 0)
+  int health_port() const;      // --health_listen's bound port; 0 when off
   std::string address() const;  // "host:port" to connect to
 
   // Stops accepting, ends open streams with UNAVAILABLE after their in-flight frame, fails

@@ -68,6 +68,9 @@ ABSL_FLAG(uint32_t, max_job_frames, 100000, "limit: frames in one job");
 ABSL_FLAG(double, background_share, 0.12,
           "while viewers are active, the share of the render thread jobs and background renders "
           "may take (0..1]");
+ABSL_FLAG(std::string, health_listen, "",
+          "host:port serving grpc.health.v1 alone, in plaintext, for probes that cannot speak "
+          "TLS (Kubernetes gRPC probes when --tls_cert is set); empty: off");
 ABSL_FLAG(double, render_stall_s, 60.0,
           "health turns NOT_SERVING while one frame has been rendering for longer than this "
           "(a stuck device or driver), and back once it finishes; a lost device makes tesserad "
@@ -135,6 +138,7 @@ int main(int argc, char** argv) {
   options.max_job_frames = absl::GetFlag(FLAGS_max_job_frames);
   options.background_share = absl::GetFlag(FLAGS_background_share);
   options.render_stall_s = absl::GetFlag(FLAGS_render_stall_s);
+  options.health_listen = absl::GetFlag(FLAGS_health_listen);
   options.on_device_lost = [] { kill(getpid(), SIGUSR1); };
 
   auto server = tessera::server::Server::Start(options);

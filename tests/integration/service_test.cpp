@@ -735,8 +735,15 @@ TEST(Security, TlsAndMutualTls) {
     ServerOptions o = BaseOptions();
     o.tls_cert_file = cert;
     o.tls_key_file = key;
+    o.health_listen = "127.0.0.1:0";  // plaintext health for the probes, nothing else
     std::unique_ptr<Server> server = StartServer(o);
     ASSERT_NE(server, nullptr);
+    ASSERT_GT(server->health_port(), 0);
+    const std::string health = absl::StrCat("127.0.0.1:", server->health_port());
+    EXPECT_TRUE(HealthServing(health));
+    EXPECT_EQ(render(health, grpc::InsecureChannelCredentials()).error_code(),
+              grpc::StatusCode::UNIMPLEMENTED)
+        << "the plaintext health port serves nothing but health";
     EXPECT_TRUE(render(server->address(), tls_client(pki.ca_cert_pem, false)).ok());
     EXPECT_EQ(render(server->address(), tls_client(pki.other_ca_cert_pem, false)).error_code(),
               grpc::StatusCode::UNAVAILABLE)
