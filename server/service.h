@@ -26,8 +26,28 @@ class Metrics;
 class JobManager;
 
 // A session apart from its stream: what a resumed stream gets back.
+// A session's renderer view (its TAA history, occlusion bits, exposure): forgotten when the last
+// holder lets go, i.e. when the session ends for good (closed, or parked and not resumed).
+// Streams never rendered with fresh views, so each one's state used to stay with the scene.
+class ViewLease {
+ public:
+  ViewLease(Renderer* renderer, SceneHandle scene, uint64_t view)
+      : renderer_(renderer), scene_(std::move(scene)), view_(view) {}
+  ~ViewLease() {
+    if (renderer_ && scene_) renderer_->ForgetView(*scene_, view_);
+  }
+  ViewLease(const ViewLease&) = delete;
+  ViewLease& operator=(const ViewLease&) = delete;
+
+ private:
+  Renderer* renderer_;
+  SceneHandle scene_;
+  uint64_t view_;
+};
+
 struct SessionState {
   uint64_t id = 0;        // the session id, also its renderer view (TAA, occlusion history)
+  std::shared_ptr<ViewLease> view;  // forgets the view with the last holder (see ViewLease)
   std::string token;      // resume token: 128 random bits, hex
   std::string principal;  // who opened it: only they can resume it
   std::shared_ptr<SceneLease> lease;

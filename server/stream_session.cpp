@@ -122,12 +122,15 @@ void StreamSession::OnDone() {
         it != state_->live_tokens.end() && it->second.lock() == keep)
       state_->live_tokens.erase(it);
   }
-  {
+  std::shared_ptr<ViewLease> view;  // released after unlocking: ForgetView waits for the frame
+  {                                  // being rendered, if any
     std::lock_guard lock(mu_);
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
     st_.lease.reset();  // a deleted scene is freed with its last session
+    view = std::move(st_.view);
   }
+  view.reset();
   Log().info("Stream session={} ended: {} frames sent, {} dropped, {:.1f} s, {}", st_.id,
              frames_sent_, frames_dropped_, MsSince(opened_at_) / 1000.0, end_status_);
 }
@@ -251,6 +254,7 @@ absl::Status StreamSession::OpenLocked(Clock::time_point now) {
                    MergeProfile(InteractiveProfile{}, open.interactive(), "open.interactive"));
   RETURN_IF_ERROR(CheckTargetFpsLocked(open.target_fps(), "open.target_fps"));
   st_.lease = std::make_shared<SceneLease>(scene);
+  st_.view = std::make_shared<ViewLease>(state_->renderer, scene->scene, st_.id);
   st_.settings = settings;
   st_.camera = open.camera();
   st_.profile = profile;

@@ -618,6 +618,44 @@ TEST_F(ServerTest, TaaStreamConvergesWhileTheCameraRests) {
   EXPECT_TRUE(rw->Finish().ok());
 }
 
+// A stream's renderer view (here its TAA history, a pair of frame-sized images) is given back
+// when the stream ends, not kept with the renderer until 64 other views push it out.
+TEST_F(ServerTest, AnEndedStreamGivesBackItsView) {
+  auto device_bytes = [&] {
+    grpc::ClientContext ctx;
+    v1::ServerInfo info;
+    EXPECT_TRUE(stub_->GetServerInfo(&ctx, {}, &info).ok());
+    return info.device_memory_bytes();
+  };
+  // A size no other test uses, so the frame targets are this test's too; a first stream makes
+  // them (they stay in the pool), the second one's history is what must go.
+  auto run = [&] {
+    grpc::ClientContext ctx;
+    std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+    v1::ClientEvent open = OpenEvent("demo", 200, 150);
+    open.mutable_open()->mutable_settings()->set_aa(v1::AA_TAA);
+    EXPECT_TRUE(rw->Write(open));
+    v1::Frame f;
+    EXPECT_TRUE(rw->Read(&f));
+    const uint64_t during = device_bytes();
+    rw->WritesDone();
+    while (rw->Read(&f)) {
+    }
+    EXPECT_TRUE(rw->Finish().ok());
+    return during;
+  };
+  run();
+  const uint64_t before = device_bytes();
+  const uint64_t during = run();
+  EXPECT_GT(during, before) << "the stream's view holds no device memory: the test shows nothing";
+  uint64_t after = device_bytes();
+  for (int i = 0; i < 50 && after > before; ++i) {  // the session ends just after the call
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    after = device_bytes();
+  }
+  EXPECT_EQ(after, before) << "during the stream: " << during;
+}
+
 // A reader much slower than the render rate gets fewer frames, each recent, while the frames
 // the server holds for it stay bounded.
 TEST_F(ServerTest, SlowReaderGetsRecentFramesAndServerMemoryStaysBounded) {
