@@ -38,7 +38,7 @@ class CullPass final : public Pass {
     const uint32_t phase = id_ == PassId::kCullLate ? 1 : 0;
     const VkDescriptorSet set = layout_.Allocate(ctx);
     SetWriter(device_, set)
-        .Buffer(gpu::kCullBindingUniforms, cb.uniforms, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER,
+        .Buffer(gpu::kCullBindingUniforms, cb.uniforms, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
                 cb.uniform_stride * phase, sizeof(gpu::CullUniforms))
         .Buffer(gpu::kCullBindingItems, ctx.scene->cull_items().handle())
         .Buffer(gpu::kCullBindingDrawables, ctx.scene->drawables().handle())
@@ -87,7 +87,6 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateCullPass(const vk::Context& ctx, Pas
   std::vector<VkDescriptorSetLayoutBinding> bindings(kBindings);
   for (uint32_t i = 0; i < kBindings; ++i)
     bindings[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
-  bindings[gpu::kCullBindingUniforms].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   bindings[gpu::kCullBindingHiz].descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
   absl::StatusOr<PassLayout> layout = PassLayout::Create(ctx, bindings, {}, "cull layout");
   if (!layout.ok()) return layout.status();

@@ -21,7 +21,10 @@
 
 layout(local_size_x = kCullGroupSize) in;
 
-layout(set = 0, binding = kCullBindingUniforms, std140) uniform CullBlock { CullUniforms cull; };
+// A storage buffer rather than a uniform one: see renderer_init.cpp (a lavapipe leak).
+layout(set = 0, binding = kCullBindingUniforms, std430) readonly buffer CullBlock {
+  CullUniforms cull;
+};
 layout(set = 0, binding = kCullBindingItems, std430) readonly buffer ItemBlock {
   GpuCullItem items[];
 };

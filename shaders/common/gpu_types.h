@@ -75,7 +75,7 @@ TS_CONST uint kCullBindingRowLights = 5;
 // One workgroup walks the cull items in order, so the commands it appends come out in item
 // order: frames are reproducible and equal, pixel for pixel, whatever the mode.
 TS_CONST uint kCullGroupSize = 256;
-TS_CONST uint kCullBindingUniforms = 0;  // uniform CullUniforms
+TS_CONST uint kCullBindingUniforms = 0;  // readonly buffer CullUniforms
 TS_CONST uint kCullBindingItems = 1;     // buffer GpuCullItem[] (read)
 TS_CONST uint kCullBindingDrawables = 2; // buffer GpuDrawable[] (bounds; read)
 TS_CONST uint kCullBindingCommands = 3;  // buffer uint[] VkDrawIndexedIndirectCommand (written)
