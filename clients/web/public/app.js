@@ -449,7 +449,7 @@ function maybeInitCamera(frame) {
 
 function renderStats() {
   const rows = statsRows(state.lastFrame, {
-    fps: fps.fps(performance.now()),
+    fps: fps.label(performance.now()),
     latencyMs: latency.median(),
   });
   const dl = el('dl');

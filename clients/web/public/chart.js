@@ -74,11 +74,14 @@ export class FpsMeter {
   constructor(windowMs = 2000) {
     this.windowMs = windowMs;
     this.times = [];
+    this.last = 0;  // the newest non-zero rate: what the stream ran at before it went idle
   }
 
   tick(now) {
     this.times.push(now);
     this.#trim(now);
+    const rate = this.fps(now);
+    if (rate > 0) this.last = rate;
   }
 
   /** Frames per second at `now`; 0 when fewer than two frames are in the window. */
@@ -87,6 +90,16 @@ export class FpsMeter {
     if (this.times.length < 2) return 0;
     const span = now - this.times[0];
     return span > 0 ? (this.times.length - 1) / (span / 1000) : 0;
+  }
+
+  /**
+   * The rate as the stats show it: "24.8" while frames come; "idle (last 24.8)" once they stop
+   * (a resting camera gets no frames, which is not a frame rate of 0); "–" before any.
+   */
+  label(now) {
+    const rate = this.fps(now);
+    if (rate > 0) return rate.toFixed(1);
+    return this.last > 0 ? `idle (last ${this.last.toFixed(1)})` : '–';
   }
 
   #trim(now) {
@@ -267,7 +280,7 @@ const count = (n) => (Number.isFinite(Number(n)) ? Number(n).toLocaleString('en-
  */
 export function statsRows(frame, { fps = 0, latencyMs = null } = {}) {
   const rows = [
-    ['fps', fps.toFixed(1)],
+    ['fps', typeof fps === 'string' ? fps : fps.toFixed(1)],
     ['latency (median)', latencyMs === null ? '–' : `${formatMs(latencyMs)} ms`],
   ];
   if (!frame) return rows;
