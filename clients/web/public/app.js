@@ -114,6 +114,13 @@ function showError(err, context) {
   if (shown.hint) parts.push(el('strong', shown.hint));
   parts.push(document.createTextNode(`${context}: ${shown.message} `));
   if (!['UPLOAD', 'ERROR'].includes(shown.code)) parts.push(el('span', `(${shown.code})`, 'code'));
+  if (err?.details?.length > 0) {  // many files: one line each, folded away
+    const list = el('ul');
+    for (const line of err.details) list.append(el('li', line));
+    const details = el('details');
+    details.append(el('summary', `${err.details.length} files`), list);
+    parts.push(details);
+  }
   ui.errorText.replaceChildren(...parts);
   ui.error.hidden = false;
 }

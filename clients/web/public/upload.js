@@ -13,9 +13,11 @@
 
 /** An upload that cannot go ahead; `message` is a plain sentence for the user. */
 export class UploadError extends Error {
-  constructor(message) {
+  /** `details`: one line per file when there are several problems (the page lists them). */
+  constructor(message, details = []) {
     super(message);
     this.name = 'UploadError';
+    this.details = details;
   }
 }
 
@@ -158,6 +160,7 @@ export async function planUpload(entries, readJson = (e) => e.text) {
   const others = all.filter((e) => e !== mainEntry);
   const files = [{ name: mainName, size: mainEntry.size, entry: mainEntry }];
   const problems = [];
+  let missing = 0;
   for (const { uri } of externalUris(gltf)) {
     const bad = uriProblem(uri);
     if (bad) {
@@ -169,15 +172,33 @@ export async function planUpload(entries, readJson = (e) => e.text) {
       files.push({ name: uri, size: found.entry.size, entry: found.entry });
     } else if (found.problem === 'it was not among the files') {
       problems.push(`${mainName} needs '${uri}', which was not among the files.`);
+      ++missing;
     } else {
       problems.push(`${mainName} needs '${uri}', but ${found.problem}.`);
     }
   }
-  if (problems.length > 0) throw new UploadError(problems.join(' '));
+  if (problems.length === 1) throw new UploadError(problems[0]);
+  if (problems.length > 1) throw new UploadError(missingSummary(mainName, missing, problems.length - missing), problems);
 
   const used = new Set(files.map((f) => f.entry));
   const unused = all.filter((e) => !used.has(e)).map((e) => e.path);
   return { main: mainName, files, unused };
+}
+
+/**
+ * One sentence for many problems (a .gltf chosen without its files names every texture):
+ * what is missing and how to fix it; the files themselves go in the error's details.
+ */
+function missingSummary(mainName, missing, other) {
+  const parts = [];
+  if (missing > 0) {
+    parts.push(`${missing} ${missing === 1 ? 'file that was' : 'files that were'} not among the files chosen`);
+  }
+  if (other > 0) parts.push(`${other} ${other === 1 ? 'file' : 'files'} that cannot be used`);
+  const fix = missing > 0
+    ? ' Choose the .gltf together with all its files, or drop its whole folder.'
+    : '';
+  return `${mainName} needs ${parts.join(' and ')}.${fix}`;
 }
 
 /**

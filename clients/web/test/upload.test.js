@@ -102,11 +102,21 @@ test('missing, ambiguous and unusable files are all named before anything is sen
     e.message === "Sponza.gltf needs 'textures/foo.png', which was not among the files.");
 
   const two = gltf({ buffers: [{ uri: 'a.bin' }], images: [{ uri: 'x.png' }, { uri: '../up.png' }] });
+  // Several problems: one sentence saying what is missing and how to fix it; each file in the
+  // details (the page folds them away), not 71 sentences in the banner.
   await assert.rejects(
     planUpload([file('s.gltf', 1, two), file('p/x.png'), file('q/x.png')]),
-    (e) => /needs 'a\.bin', which was not among the files/.test(e.message) &&
-      /needs 'x\.png', but several files are called 'x\.png' \('p\/x\.png', 'q\/x\.png'\)/.test(e.message) &&
-      /needs '\.\.\/up\.png', which cannot be uploaded: it points outside/.test(e.message));
+    (e) => e.message === 's.gltf needs 1 file that was not among the files chosen and 2 files ' +
+        'that cannot be used. Choose the .gltf together with all its files, or drop its whole ' +
+        'folder.' &&
+      e.details.length === 3 &&
+      e.details.some((d) => /needs 'a\.bin', which was not among the files/.test(d)) &&
+      e.details.some((d) => /needs 'x\.png', but several files are called 'x\.png' \('p\/x\.png', 'q\/x\.png'\)/.test(d)) &&
+      e.details.some((d) => /needs '\.\.\/up\.png', which cannot be uploaded: it points outside/.test(d)));
+  const many = gltf({ images: Array.from({ length: 71 }, (_, i) => ({ uri: `t/${i}.png` })) });
+  await assert.rejects(planUpload([file('Sponza.gltf', 1, many)]), (e) =>
+    e.message === 'Sponza.gltf needs 71 files that were not among the files chosen. Choose the ' +
+      '.gltf together with all its files, or drop its whole folder.' && e.details.length === 71);
 });
 
 test('resolveUri: exact path first, then a unique basename', () => {
