@@ -113,6 +113,15 @@ void StreamSession::OnCancel() {
 
 void StreamSession::OnDone() {
   std::shared_ptr<StreamSession> keep = std::move(self_);
+  std::shared_ptr<ViewLease> view;  // released after unlocking: ForgetView waits for the frame
+  {                                  // being rendered, if any
+    std::lock_guard lock(mu_);
+    if (slot_) state_->pending_frame_bytes -= slot_->data().size();
+    slot_.reset();
+    st_.lease.reset();  // a deleted scene is freed with its last session
+    view = std::move(st_.view);
+  }
+  view.reset();  // before the session stops counting as open: its memory goes first
   {
     std::lock_guard lock(state_->sessions_mu);
     // principal_, not st_.principal: the state may have moved to a parked or resumed session.
@@ -122,15 +131,6 @@ void StreamSession::OnDone() {
         it != state_->live_tokens.end() && it->second.lock() == keep)
       state_->live_tokens.erase(it);
   }
-  std::shared_ptr<ViewLease> view;  // released after unlocking: ForgetView waits for the frame
-  {                                  // being rendered, if any
-    std::lock_guard lock(mu_);
-    if (slot_) state_->pending_frame_bytes -= slot_->data().size();
-    slot_.reset();
-    st_.lease.reset();  // a deleted scene is freed with its last session
-    view = std::move(st_.view);
-  }
-  view.reset();
   Log().info("Stream session={} ended: {} frames sent, {} dropped, {:.1f} s, {}", st_.id,
              frames_sent_, frames_dropped_, MsSince(opened_at_) / 1000.0, end_status_);
 }

@@ -621,11 +621,19 @@ TEST_F(ServerTest, TaaStreamConvergesWhileTheCameraRests) {
 // A stream's renderer view (here its TAA history, a pair of frame-sized images) is given back
 // when the stream ends, not kept with the renderer until 64 other views push it out.
 TEST_F(ServerTest, AnEndedStreamGivesBackItsView) {
-  auto device_bytes = [&] {
+  auto info = [&] {
     grpc::ClientContext ctx;
-    v1::ServerInfo info;
-    EXPECT_TRUE(stub_->GetServerInfo(&ctx, {}, &info).ok());
-    return info.device_memory_bytes();
+    v1::ServerInfo i;
+    EXPECT_TRUE(stub_->GetServerInfo(&ctx, {}, &i).ok());
+    return i;
+  };
+  auto device_bytes = [&] { return info().device_memory_bytes(); };
+  // A session ends just after its call does: wait until none is open.
+  auto settled = [&] {
+    for (int i = 0; i < 250 && info().active_sessions() != 0; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    EXPECT_EQ(info().active_sessions(), 0u);
+    return device_bytes();
   };
   // A size no other test uses, so the frame targets are this test's too; a first stream makes
   // them (they stay in the pool), the second one's history is what must go.
@@ -645,15 +653,10 @@ TEST_F(ServerTest, AnEndedStreamGivesBackItsView) {
     return during;
   };
   run();
-  const uint64_t before = device_bytes();
+  const uint64_t before = settled();
   const uint64_t during = run();
   EXPECT_GT(during, before) << "the stream's view holds no device memory: the test shows nothing";
-  uint64_t after = device_bytes();
-  for (int i = 0; i < 50 && after > before; ++i) {  // the session ends just after the call
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-    after = device_bytes();
-  }
-  EXPECT_EQ(after, before) << "during the stream: " << during;
+  EXPECT_EQ(settled(), before) << "during the stream: " << during;
 }
 
 // A reader much slower than the render rate gets fewer frames, each recent, while the frames
