@@ -36,6 +36,7 @@ bool StreamSchedule::Fail(const absl::Status& status) {
 void StreamSchedule::Changed(Clock::time_point now) {
   if (!dirty_since_) dirty_since_ = now;
   settled_ = 0;
+  last_change_ = now;
 }
 
 bool StreamSchedule::CanRender() const {
@@ -56,9 +57,8 @@ std::optional<Clock::time_point> StreamSchedule::Wake() const {
   if (dirty_since_) earliest(Clock::time_point::min());
   if (Continuous()) earliest(next_due_);
   if (owed_ == Owed::kRestFrame && last_motion_) earliest(*last_motion_ + pacing_.rest);
-  if (settled_ < pacing_.settle_frames) {  // once the camera rests (interactive sessions)
-    earliest(pacing_.interactive && last_motion_ ? *last_motion_ + pacing_.rest
-                                                 : Clock::time_point::min());
+  if (settled_ < pacing_.settle_frames) {  // once nothing has changed for the rest time
+    earliest(last_change_ ? *last_change_ + pacing_.rest : Clock::time_point::min());
   }
   if (!t) return std::nullopt;
   if (last_start_) return std::max(*t, *last_start_ + min_interval_);

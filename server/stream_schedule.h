@@ -13,8 +13,8 @@
 //  - Idle refinement: while the camera moved within the rest time, frames use the interactive
 //    profile (when the session has one that reduces anything); after an interactive frame one
 //    full-quality frame follows once the camera rests. A resumed session's first frame is full.
-//  - Settling: with settle_frames (TAA), full frames keep coming after the newest change, once
-//    the camera rests, until that many full frames reflect it; then nothing until a change.
+//  - Settling: with settle_frames (TAA), full frames keep coming once nothing has changed for
+//    the rest time, until that many full frames reflect the newest change; then nothing.
 //  - Never sooner than the max_session_fps interval after the previous frame started.
 //  - Back-pressure: at most kMaxFramesInPipeline frames rendering or encoding, and nothing
 //    new while an encoded frame waits for the client (a slow reader gets fewer frames). A frame
@@ -41,9 +41,10 @@ struct StreamPacing {
   bool interactive = false;
   // The camera rests this long after its newest event (InteractiveProfile.rest_ms).
   Clock::duration rest = std::chrono::milliseconds(250);
-  // Full-quality frames owed after the newest change once the camera rests, one after another
-  // (within the fps cap): TAA's history converges on a resting camera instead of stopping at
-  // the first frame (aa = taa: 16; 0 otherwise).
+  // Full-quality frames owed after the newest change once the camera rests (`rest` after it),
+  // one after another (within the fps cap): TAA's history converges on a resting camera
+  // instead of stopping at the first frame (aa = taa: 16; 0 otherwise). A camera that keeps
+  // moving gets one frame per change, as without settling.
   uint32_t settle_frames = 0;
 };
 
@@ -170,6 +171,7 @@ class StreamSchedule {
   std::optional<Clock::time_point> last_motion_;  // the newest camera event
   std::optional<Clock::time_point> last_start_;   // the newest frame's start (fps cap)
   uint32_t settled_ = 0;  // full frames taken since the newest change (settle_frames)
+  std::optional<Clock::time_point> last_change_;  // the newest change (settling starts at rest)
 
   // The render loop's hold on the session.
   bool in_ready_ = false;                      // in the ready queue

@@ -402,29 +402,37 @@ TEST(StreamScheduleTest, ARefusedStreamDecidesNothing) {
   EXPECT_TRUE(Quiet(s.Next(T(0))));
 }
 
-// TAA's settling: after a change, full frames keep coming (once the camera rests) until
-// settle_frames of them reflect it, then nothing until the next change.
-TEST(StreamScheduleTest, SettleFramesFollowTheNewestChangeThenStop) {
-  StreamPacing pacing = Pacing(0);
+// TAA's settling: once nothing has changed for the rest time, full frames keep coming until
+// settle_frames of them reflect the newest change, then nothing until the next change; a
+// camera that keeps moving gets one frame per change.
+TEST(StreamScheduleTest, SettleFramesFollowTheNewestChangeOnceItRests) {
+  StreamPacing pacing = Pacing(0, /*interactive=*/false, /*rest_ms=*/250);
   pacing.settle_frames = 3;
   StreamSchedule s(milliseconds(0), true);
   s.Open(T(0), pacing);
   EXPECT_TRUE(s.Next(T(0)).enqueue);
-  uint64_t seq = 0;
-  for (int i = 0; i < 3; ++i) {  // the open's frame and two more, back to back
-    MustTake(s, T(10 * i), FrameProfile::kFull);
-    const StreamDecision d = DeliverAndWrite(s, ++seq, T(10 * i + 5));
-    EXPECT_EQ(d.enqueue, i < 2) << "frame " << i;
-  }
-  EXPECT_TRUE(Quiet(s.Next(T(40))));
+  MustTake(s, T(0), FrameProfile::kFull);  // the open's frame, at once
+  StreamDecision d = DeliverAndWrite(s, 1, T(5));
+  ASSERT_TRUE(d.enqueue_at);
+  EXPECT_EQ(*d.enqueue_at, T(250));  // settling waits for the rest time
+  EXPECT_FALSE(s.Take(T(100)));
+  MustTake(s, T(250), FrameProfile::kFull);
+  EXPECT_TRUE(DeliverAndWrite(s, 2, T(255)).enqueue);  // then back to back
+  MustTake(s, T(256), FrameProfile::kFull);
+  DeliverAndWrite(s, 3, T(260));
+  EXPECT_TRUE(Quiet(s.Next(T(270))));
   EXPECT_FALSE(s.Take(T(1000)));  // settled: nothing more
-  s.Changed(T(2000));             // a change starts it again
-  EXPECT_TRUE(s.Next(T(2000)).enqueue);
-  for (int i = 0; i < 3; ++i) {
-    MustTake(s, T(2000 + 10 * i), FrameProfile::kFull);
-    DeliverAndWrite(s, ++seq, T(2000 + 10 * i + 5));
+
+  // A camera that moves every 50 ms: one frame per change, no settling in between.
+  uint64_t seq = 3;
+  for (int t = 2000; t < 2200; t += 50) {
+    s.Changed(T(t));
+    s.Next(T(t));
+    MustTake(s, T(t), FrameProfile::kFull);
+    DeliverAndWrite(s, ++seq, T(t + 5));
+    EXPECT_FALSE(s.Take(T(t + 10))) << "a settle frame while the camera moves, at " << t;
   }
-  EXPECT_FALSE(s.Take(T(3000)));
+  MustTake(s, T(2150 + 250), FrameProfile::kFull);  // at rest, settling resumes
 }
 
 TEST(StreamScheduleTest, SettleFramesWaitForTheCameraToRest) {
@@ -435,23 +443,23 @@ TEST(StreamScheduleTest, SettleFramesWaitForTheCameraToRest) {
   s.Next(T(0));
   MustTake(s, T(0), FrameProfile::kFull);
   DeliverAndWrite(s, 1, T(5));
-  MustTake(s, T(6), FrameProfile::kFull);  // the second settle frame
-  DeliverAndWrite(s, 2, T(10));
-  EXPECT_FALSE(s.Take(T(50)));
+  MustTake(s, T(250), FrameProfile::kFull);  // the second settle frame, at rest
+  DeliverAndWrite(s, 2, T(255));
+  EXPECT_FALSE(s.Take(T(300)));
 
-  s.CameraMoved(T(100));
-  s.Changed(T(100));
-  s.Next(T(100));
-  MustTake(s, T(100), FrameProfile::kInteractive);
-  const StreamDecision d = DeliverAndWrite(s, 3, T(110));
+  s.CameraMoved(T(400));
+  s.Changed(T(400));
+  s.Next(T(400));
+  MustTake(s, T(400), FrameProfile::kInteractive);
+  const StreamDecision d = DeliverAndWrite(s, 3, T(410));
   ASSERT_TRUE(d.enqueue_at);
-  EXPECT_EQ(*d.enqueue_at, T(350));  // nothing more while the camera moves
-  EXPECT_FALSE(s.Take(T(200)));
-  MustTake(s, T(350), FrameProfile::kFull);  // at rest: the rest frame, then one more
-  DeliverAndWrite(s, 4, T(360));
-  MustTake(s, T(361), FrameProfile::kFull);
-  DeliverAndWrite(s, 5, T(370));
-  EXPECT_FALSE(s.Take(T(1000)));
+  EXPECT_EQ(*d.enqueue_at, T(650));  // nothing more while the camera moves
+  EXPECT_FALSE(s.Take(T(500)));
+  MustTake(s, T(650), FrameProfile::kFull);  // at rest: the rest frame, then one more
+  DeliverAndWrite(s, 4, T(660));
+  MustTake(s, T(661), FrameProfile::kFull);
+  DeliverAndWrite(s, 5, T(670));
+  EXPECT_FALSE(s.Take(T(2000)));
 }
 
 }  // namespace
