@@ -193,10 +193,14 @@ void RenderLoop::Run() {
     }
     if (stopping_) return;
     if (ready_.empty() && background_.empty() && !accumulating_) {
-      if (timers_.empty())
+      if (timers_.empty()) {
         cv_.wait(lock);
-      else
-        cv_.wait_until(lock, timers_.top().first);
+      } else {
+        // A copy: wait_until keeps reading its deadline while the lock is released, and an
+        // EnqueueAt meanwhile may move the queue's storage (ASan caught the reference).
+        const Clock::time_point due = timers_.top().first;
+        cv_.wait_until(lock, due);
+      }
       continue;
     }
     // Back-pressure from the encoders: a frame rendered now would only wait in their queue.
