@@ -232,6 +232,21 @@ test('a broken glTF is refused with the server\'s words, and the page carries on
   await page.waitForFunction((k) => window.tessera.frames > k, n, { timeout: 30_000 });
 });
 
+test('a .gltf chosen without its files: one sentence on what to do, the files folded away', async () => {
+  const before = await page.evaluate(() => window.tessera.errors.length);
+  await page.setInputFiles('#upload-input', path.join(ASSETS, 'Sponza/glTF/Sponza.gltf'));
+  await page.waitForFunction((n) => window.tessera.errors.length > n, before, { timeout: 30_000 });
+  await page.waitForSelector('#error:not([hidden])');
+  const text = await page.textContent('#error-text');
+  assert.match(text, /Sponza\.gltf needs \d+ files that were not among the files chosen\. Choose the \.gltf together with all its files, or drop its whole folder\./, text);
+  // One sentence in view; the file list is folded (closed <details>) and says how many.
+  assert.equal(await page.locator('#error-text details').count(), 1);
+  assert.equal(await page.locator('#error-text details').evaluate((d) => d.open), false);
+  assert.match(await page.textContent('#error-text details summary'), /^\d+ files$/);
+  await shot('06b-missing-files');
+  await page.click('#error-dismiss');
+});
+
 test('the page reconnects by itself when its gateway dies, and resumes its session', async () => {
   const before = await lastFrame();
   gateway.proc.kill('SIGKILL');
