@@ -93,6 +93,10 @@ struct Server::Impl {
   ServerHealth health_now;
   uint64_t stalls = 0;  // times the render thread was found stalled
   void CheckHealth();
+  ServerHealth Health() const {
+    std::lock_guard lock(health_mu);
+    return health_now;
+  }
 
   // Housekeeping: drops parked sessions past their grace period, checks health.
   std::thread sweeper;
@@ -265,10 +269,7 @@ void Server::Impl::StartService() {
   state.auth = auth.get();
   state.metrics = metrics.get();
   state.jobs = jobs.get();
-  state.health = [this] {
-    std::lock_guard lock(health_mu);
-    return health_now;
-  };
+  state.health = [this] { return Health(); };
   service = std::make_unique<RenderServiceImpl>(&state);
   std::vector<std::string> lines;
   jobs->Restore(&lines);
@@ -417,10 +418,7 @@ void Server::Shutdown(std::chrono::milliseconds grace) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
 }
 
-ServerHealth Server::health() const {
-  std::lock_guard lock(impl_->health_mu);
-  return impl_->health_now;
-}
+ServerHealth Server::health() const { return impl_->Health(); }
 
 void Server::CheckHealth() { impl_->CheckHealth(); }
 

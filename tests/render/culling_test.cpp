@@ -131,8 +131,7 @@ std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>&
       res.triangles += st.triangles_submitted;
     }
   }
-  EXPECT_EQ(r.validation_message_count(), 0u);
-  for (const std::string& m : r.validation_messages()) ADD_FAILURE() << m;
+  ExpectNoValidationMessages(r);
   return results;
 }
 

@@ -289,7 +289,7 @@ TEST(ForwardPlus, TiledImageEqualsBruteForce) {
   absl::StatusOr<Frame> b = SharedRenderer().Render(*DemoScene(), DemoCamera(), some);
   ASSERT_TRUE(a.ok() && b.ok());
   EXPECT_LT(Psnr(a->image, b->image).value(), 45.0);
-  EXPECT_EQ(SharedRenderer().validation_message_count(), 0u);
+  ExpectNoValidationMessages(SharedRenderer());
 }
 
 // Without the 2.5D mask lists can only grow (the mask only rejects), and the image is the same.

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 
@@ -508,12 +509,6 @@ TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
   ExpectNoValidationMessages(SharedRenderer());
 }
 
-}  // namespace
-}  // namespace tessera
-
-namespace tessera {
-namespace {
-
 // SSAO and bloom run as fragment or compute shaders (post_stage): the same picture. (Compute
 // derives each pixel's uv from its index where the fragment shader interpolates it, so bloom's
 // bilinear taps may differ in the last bit.)
@@ -522,33 +517,30 @@ TEST(PostStageTest, SsaoAndBloomAgreeInBothStages) {
   Settings s = Lit(false, true);
   s.bloom = true;
   s.exposure_mode = ExposureMode::kAuto;
-  Frame frames[2];
-  for (int i = 0; i < 2; ++i) {
-    s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
-    frames[i] = RenderOrDie(*scene, BackCamera(), s, 950 + i);
-    EXPECT_EQ(frames[i].settings.effective.post_stage, s.post_stage);
-  }
-  absl::StatusOr<double> psnr = Psnr(frames[0].image, frames[1].image);
-  ASSERT_TRUE(psnr.ok()) << psnr.status();
-  EXPECT_GE(*psnr, 55.0);
-  s.debug_view = DebugView::kSsao;  // the AO itself
-  for (int i = 0; i < 2; ++i) {
-    s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
-    frames[i] = RenderOrDie(*scene, BackCamera(), s, 960 + i);
-  }
-  // The same AO; the tonemap's sRGB encoding (its own in compute, the target's in fragment)
-  // may round differently (see TonemapInComputeGivesTheSamePicture).
-  psnr = Psnr(frames[0].image, frames[1].image);
-  ASSERT_TRUE(psnr.ok()) << psnr.status();
-  EXPECT_GE(*psnr, 55.0);
+  // The frame in each stage (views `view` and `view + 1`), and the two compared.
+  constexpr PostStage kStages[2] = {PostStage::kFragment, PostStage::kCompute};
+  auto in_both_stages = [&](uint64_t view) {
+    std::array<Frame, 2> frames;
+    for (int i = 0; i < 2; ++i) {
+      s.post_stage = kStages[i];
+      frames[i] = RenderOrDie(*scene, BackCamera(), s, view + i);
+    }
+    return frames;
+  };
+  auto expect_same = [](const std::array<Frame, 2>& frames) {
+    absl::StatusOr<double> psnr = Psnr(frames[0].image, frames[1].image);
+    ASSERT_TRUE(psnr.ok()) << psnr.status();
+    EXPECT_GE(*psnr, 55.0);
+  };
+  const std::array<Frame, 2> picture = in_both_stages(950);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(picture[i].settings.effective.post_stage, kStages[i]);
+  expect_same(picture);
+  // The AO itself: the same; the tonemap's sRGB encoding (its own in compute, the target's in
+  // fragment) may round differently (see TonemapInComputeGivesTheSamePicture).
+  s.debug_view = DebugView::kSsao;
+  expect_same(in_both_stages(960));
   s.debug_view = DebugView::kBloom;  // the bloom itself
-  for (int i = 0; i < 2; ++i) {
-    s.post_stage = i == 0 ? PostStage::kFragment : PostStage::kCompute;
-    frames[i] = RenderOrDie(*scene, BackCamera(), s, 970 + i);
-  }
-  psnr = Psnr(frames[0].image, frames[1].image);
-  ASSERT_TRUE(psnr.ok()) << psnr.status();
-  EXPECT_GE(*psnr, 55.0);
+  expect_same(in_both_stages(970));
   ExpectNoValidationMessages(SharedRenderer());
 }
 
