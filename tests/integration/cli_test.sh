@@ -4,14 +4,8 @@
 # Usage: cli_test.sh TESSERAD TESSERA ASSETS_DIR
 set -euo pipefail
 tesserad=$1 tessera=$2 assets=$3
-work=$(mktemp -d)
-pid=""
-cleanup() {
-  if [[ -n $pid ]]; then kill -TERM "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; fi
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+# shellcheck source=daemon.sh
+source "$(dirname "$0")/daemon.sh"
 # Runs tessera with stdout in $work/out and stderr in $work/err; its exit status in $rc.
 run() { set +e; "$tessera" "$@" > "$work/out" 2> "$work/err"; rc=$?; set -e; }
 # Checks that $work/out is exactly one JSON document d for which the Python expression $1 holds.
@@ -20,11 +14,7 @@ json_is() {
     "$work/out" "$1" || fail "$2: $(head -c 600 "$work/out")"
 }
 
-"$tesserad" --listen=127.0.0.1:0 --port_file="$work/port" --log_level=warn &
-pid=$!
-for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.1; done
-[[ -s $work/port ]] || fail "tesserad did not start"
-export TESSERA_SERVER="127.0.0.1:$(cat "$work/port")"
+start_tesserad "$tesserad"
 
 # TLS asked of a plaintext daemon: one message from the CLI, no gRPC log lines before it.
 run --tls info

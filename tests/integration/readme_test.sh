@@ -9,14 +9,8 @@
 # Usage: readme_test.sh README TESSERAD BUILD_DIR ASSETS_DIR
 set -euo pipefail
 readme=$1 tesserad=$2 build=$3 assets=$4
-work=$(mktemp -d)
-pid=""
-cleanup() {
-  if [[ -n $pid ]]; then kill -TERM "$pid" 2>/dev/null || true; wait "$pid" 2>/dev/null || true; fi
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; exit 1; }
+# shellcheck source=daemon.sh
+source "$(dirname "$0")/daemon.sh"
 
 python3 - "$readme" > "$work/commands" <<'PY'
 import re, sys
@@ -39,11 +33,7 @@ for block in re.findall(r"```[a-z]*\n(.*?)```", text, re.S):
 PY
 [[ $(wc -l < "$work/commands") -ge 10 ]] || fail "found only $(wc -l < "$work/commands") commands"
 
-"$tesserad" --listen=127.0.0.1:0 --port_file="$work/port" --log_level=warn &
-pid=$!
-for _ in $(seq 600); do [[ -s $work/port ]] && break; sleep 0.1; done
-[[ -s $work/port ]] || fail "tesserad did not start"
-export TESSERA_SERVER="127.0.0.1:$(cat "$work/port")"
+start_tesserad "$tesserad"
 
 # Run from a scratch directory, so out/... lands there; the README's paths are relative to the
 # checkout: ./build/default and ../shared/assets.
