@@ -20,8 +20,8 @@ PACKAGES=(
   prometheus-cpp-dev
   # image encoding, logging
   libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
-  # tests and benchmarks; deploy/validate.sh (YAML, systemd unit)
-  libgtest-dev libgmock-dev libbenchmark-dev python3-yaml systemd
+  # tests and benchmarks; deploy/validate.sh (YAML, kustomize patches, systemd unit)
+  libgtest-dev libgmock-dev libbenchmark-dev python3-yaml python3-jsonpatch systemd
   # fuzzing (tests/fuzz/run.sh): clang with libFuzzer and the sanitizer runtimes
   clang libclang-rt-14-dev
   # the web viewer's browser tests (tests/web): headless Chromium, driven by playwright-core

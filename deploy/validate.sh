@@ -40,171 +40,52 @@ if grep -q -- '^    --listen (' <<<"$help"; then real_tesserad=1; fi
 if ((real_tesserad)); then info "binary: $bin (a tesserad)"; else info "binary: $bin (not a tesserad: binary checks skipped)"; fi
 
 # --- Kubernetes manifests ------------------------------------------------------------------
-command -v python3 >/dev/null || fail "k8s: python3 is missing"
-python3 -c 'import yaml' 2>/dev/null || fail "k8s: the python3 yaml module is missing (apt-get install python3-yaml)"
-
-python3 - deploy/k8s <<'PY' || exit 1
-import glob, os, sys
-import yaml
-
-root = sys.argv[1]
-files = sorted(glob.glob(os.path.join(root, "*.yaml")) + glob.glob(os.path.join(root, "*.yml")))
-if not files:
-    print(f"FAIL  k8s: no YAML files under {root}"); sys.exit(1)
-
-docs = []  # (file, doc)
-for path in files:
-    try:
-        with open(path) as f:
-            loaded = [d for d in yaml.safe_load_all(f) if d is not None]
-    except yaml.YAMLError as e:
-        print(f"FAIL  yaml {path}: {e}"); sys.exit(1)
-    if not loaded:
-        print(f"FAIL  yaml {path}: no documents"); sys.exit(1)
-    names = []
-    for i, d in enumerate(loaded):
-        where = f"{path} document {i + 1}"
-        if not isinstance(d, dict):
-            print(f"FAIL  yaml {where}: not a mapping"); sys.exit(1)
-        for key in ("apiVersion", "kind"):
-            if not isinstance(d.get(key), str) or not d[key]:
-                print(f"FAIL  yaml {where}: no {key}"); sys.exit(1)
-        meta = d.get("metadata")
-        if not isinstance(meta, dict) or not isinstance(meta.get("name"), str) or not meta["name"]:
-            print(f"FAIL  yaml {where} ({d['kind']}): no metadata.name"); sys.exit(1)
-        names.append(f"{d['kind']}/{meta['name']}")
-        docs.append((path, d))
-    print(f"ok    yaml {path}: {len(loaded)} document(s): {', '.join(names)}")
-
-def fail(msg):
-    print(f"FAIL  k8s {msg}"); sys.exit(1)
-
-def pod_template(d):
-    if d["kind"] in ("Deployment", "StatefulSet", "DaemonSet", "Job", "ReplicaSet"):
-        return d.get("spec", {}).get("template")
-    return None
-
-workloads = [(p, d) for p, d in docs if pod_template(d)]
-claims = {d["metadata"]["name"] for _, d in docs if d["kind"] == "PersistentVolumeClaim"}
-configmaps = {d["metadata"]["name"]: d for _, d in docs if d["kind"] == "ConfigMap"}
-import json
-for name, cm in configmaps.items():
-    for key, value in (cm.get("data") or {}).items():
-        if key.endswith(".json"):
-            try:
-                json.loads(value)
-            except ValueError as e:
-                print(f"FAIL  k8s ConfigMap/{name}: {key} is not JSON: {e}"); sys.exit(1)
-            print(f"ok    k8s ConfigMap/{name}: {key} parses as JSON")
-
-for path, d in workloads:
-    name = f"{d['kind']}/{d['metadata']['name']}"
-    tpl = pod_template(d)
-    labels = tpl.get("metadata", {}).get("labels", {}) or {}
-    sel = d["spec"].get("selector", {}).get("matchLabels")
-    if d["kind"] != "Job":
-        if not sel:
-            fail(f"{name}: no spec.selector.matchLabels")
-        if any(labels.get(k) != v for k, v in sel.items()):
-            fail(f"{name}: selector {sel} does not match the pod labels {labels}")
-    pod = tpl.get("spec", {})
-    containers = pod.get("containers") or []
-    if not containers:
-        fail(f"{name}: no containers")
-    volumes = {v["name"]: v for v in pod.get("volumes", []) or []}
-    for c in containers:
-        if not c.get("image"):
-            fail(f"{name}: container {c.get('name')} has no image")
-        for m in c.get("volumeMounts", []) or []:
-            if m["name"] not in volumes:
-                fail(f"{name}: volumeMount {m['name']} has no volume")
-        ports = {p.get("name"): p["containerPort"] for p in c.get("ports", []) or []}
-        # tesserad with TLS (the commented flags turned on): gRPC probes cannot speak TLS, so
-        # they must ask the plaintext --health_listen port, never the service port.
-        args = c.get("args", []) or []
-        health = [a.split("=", 1)[1] for a in args if a.startswith("--health_listen=")]
-        if "tesserad" in (c.get("name") or ""):
-            if not health:
-                fail(f"{name}: tesserad without --health_listen: its gRPC probes would fail once "
-                     "TLS is on")
-            hport = int(health[0].rsplit(":", 1)[1])
-            if hport not in ports.values():
-                fail(f"{name}: --health_listen port {hport} is not a container port")
-            for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
-                g = (c.get(probe) or {}).get("grpc")
-                if g is None:
-                    fail(f"{name}: no gRPC {probe}")
-                port = ports.get(g["port"], g["port"])
-                if port != hport:
-                    fail(f"{name}: {probe} asks port {g['port']}, not the plaintext health port "
-                         f"{hport}: it fails once --tls_cert is on")
-            print(f"ok    k8s {name}: probes ask the plaintext health port {hport} (TLS-safe)")
-        for probe in ("startupProbe", "readinessProbe", "livenessProbe"):
-            pr = c.get(probe)
-            if not pr:
-                continue
-            for kind in ("grpc", "httpGet", "tcpSocket"):
-                if kind in pr:
-                    port = pr[kind].get("port")
-                    if port not in ports and port not in ports.values():
-                        fail(f"{name}: {probe} {kind} port {port} is not a container port")
-    for v in volumes.values():
-        pvc = v.get("persistentVolumeClaim")
-        if pvc and pvc["claimName"] not in claims:
-            fail(f"{name}: volume {v['name']} claims {pvc['claimName']}, which no file defines")
-        cmv = v.get("configMap")
-        if cmv and cmv["name"] not in configmaps and not cmv.get("optional"):
-            fail(f"{name}: volume {v['name']} uses ConfigMap {cmv['name']}, which no file defines")
-    print(f"ok    k8s {name}: selector, volumes, probe ports")
-
-for path, d in docs:
-    if d["kind"] != "Service":
-        continue
-    name = f"Service/{d['metadata']['name']}"
-    sel = d["spec"].get("selector") or {}
-    targets = []
-    for _, w in workloads:
-        labels = pod_template(w).get("metadata", {}).get("labels", {}) or {}
-        if sel and all(labels.get(k) == v for k, v in sel.items()):
-            targets.append(w)
-    if not targets:
-        fail(f"{name}: selector {sel} selects no workload's pods")
-    for port in d["spec"].get("ports", []):
-        tp = port.get("targetPort", port["port"])
-        for w in targets:
-            cports = [p for c in pod_template(w)["spec"]["containers"] for p in c.get("ports", []) or []]
-            if not any(tp == p.get("name") or tp == p["containerPort"] for p in cports):
-                fail(f"{name}: targetPort {tp} is not a port of {w['kind']}/{w['metadata']['name']}")
-    print(f"ok    k8s {name}: selects {', '.join(w['kind'] + '/' + w['metadata']['name'] for w in targets)}; target ports exist")
-
-kfile = os.path.join(root, "kustomization.yaml")
-if os.path.exists(kfile):
-    with open(kfile) as f:
-        k = yaml.safe_load(f)
-    listed = k.get("resources", [])
-    for r in listed:
-        if not os.path.exists(os.path.join(root, r)):
-            fail(f"kustomization.yaml: resource {r} does not exist")
-    others = {os.path.basename(p) for p in files} - {"kustomization.yaml"} - set(listed)
-    if others:
-        fail(f"kustomization.yaml does not list {sorted(others)}")
-    print(f"ok    k8s kustomization.yaml lists every manifest: {', '.join(listed)}")
-PY
-
-if command -v kubectl >/dev/null; then
-  if out=$(timeout 120 kubectl kustomize deploy/k8s 2>&1); then
-    ok "kubectl kustomize deploy/k8s: builds ($(grep -c '^kind:' <<<"$out") objects)"
-  else
-    echo "$out"
-    fail "kubectl kustomize deploy/k8s"
+# Debian's python3 is where install-deps.sh puts yaml and jsonpatch; another python3 first on
+# PATH (pyenv, a virtualenv) is used only if it has both.
+py=""
+for cand in /usr/bin/python3 python3; do
+  if command -v "$cand" >/dev/null && "$cand" -c 'import yaml, jsonpatch' 2>/dev/null; then
+    py=$cand
+    break
   fi
-else
-  skip "kubectl kustomize: kubectl is not installed"
-fi
+done
+[[ -n $py ]] || fail "k8s: no python3 with the yaml and jsonpatch modules (apt-get install python3-yaml python3-jsonpatch)"
+kubectl=$(command -v kubectl || true)
+if [[ -n $kubectl ]] && ! timeout 20 "$kubectl" kustomize --help >/dev/null 2>&1; then kubectl=""; fi
+[[ -n $kubectl ]] || skip "k8s: kubectl is not installed: builds not compared with kubectl kustomize"
+"$py" deploy/k8s_check.py deploy/k8s $kubectl || exit 1
+
+# Planted faults: each copy of deploy/k8s with one mistake must fail with the expected message
+# (so the checks above can fail).
+planted() { # description, expected message, sed script, file under deploy/k8s
+  rm -rf "$tmp/k8s" && cp -r deploy/k8s "$tmp/k8s"
+  sed -i "$3" "$tmp/k8s/$4"
+  cmp -s "deploy/k8s/$4" "$tmp/k8s/$4" && fail "planted fault '$1': the sed script changed nothing"
+  local out
+  if out=$("$py" deploy/k8s_check.py "$tmp/k8s" 2>&1); then
+    fail "planted fault '$1': the checks passed"
+  fi
+  grep -qF -- "$2" <<<"$out" || fail "planted fault '$1': failed, but not with '$2': $(tail -1 <<<"$out")"
+  ok "k8s planted fault caught: $1"
+}
+planted "gateway without TLS while tesserad has it" "speaks TLS but the gateway does not" \
+  's#value: --tls-ca=/etc/tessera/ca/ca.crt#value: --max-upload-mb=64#' components/tls/kustomization.yaml
+planted "readiness probe on the TLS port" "not the plaintext health port" \
+  '/readinessProbe:/,/port:/s/port: 50052/port: 50051/' base/tesserad.yaml
+planted "base flags reordered under the local overlay" "patch on Deployment/tesserad" \
+  's/- --encoder_threads=4/- --encoder_threads=3/' base/tesserad.yaml
+planted "TLS key outside every mount" "is in no volume mount" \
+  's#--tls_key=/etc/tessera/tls/tls.key#--tls_key=/etc/tls.key#' components/tls/kustomization.yaml
+planted "gateway's CA not projected from the Secret" "projects only" \
+  's#items: \[{key: ca.crt, path: ca.crt}\]#items: [{key: ca.crt, path: root.crt}]#' components/tls/kustomization.yaml
+planted "a manifest no kustomization uses" "used by no kustomization" \
+  '/^  - farm-job.yaml$/d' examples/farm-job/kustomization.yaml
+planted "a Service targeting a missing port" "is not a port of" \
+  's/targetPort: metrics/targetPort: prometheus/' base/tesserad.yaml
 
 # The farm job's script, run for every index with a stub tessera that prints its arguments,
 # in the job's environment (Kubernetes' $(VAR) references expanded, namespace "default").
-python3 - deploy/k8s/farm-job.yaml "$tmp/farm" <<'PY' || exit 1
+"$py" - deploy/k8s/examples/farm-job/farm-job.yaml "$tmp/farm" <<'PY' || exit 1
 import os, re, sys, yaml
 path, out = sys.argv[1], sys.argv[2]
 docs = [d for d in yaml.safe_load_all(open(path)) if d]
@@ -341,7 +222,7 @@ for k in ENTRYPOINT EXPOSE HEALTHCHECK USER VOLUME; do
 done
 ok "docker: ENTRYPOINT, EXPOSE, HEALTHCHECK, USER, VOLUME present"
 
-python3 - "$df" .dockerignore <<'PY' || exit 1
+"$py" - "$df" .dockerignore <<'PY' || exit 1
 import fnmatch, os, shlex, sys
 df, ignore = sys.argv[1], sys.argv[2]
 patterns = []
@@ -387,7 +268,7 @@ print(f"ok    docker: {n} COPY source(s) from the context exist and are not .doc
 PY
 
 # The runtime stage's packages: all of them must exist in Debian 12 (this machine's lists).
-pkgs=$(python3 - "$df" <<'PY'
+pkgs=$("$py" - "$df" <<'PY'
 import re, sys
 text = open(sys.argv[1]).read().replace("\\\n", " ")
 stages = re.split(r"(?m)^FROM\s", text)
