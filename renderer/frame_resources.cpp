@@ -71,13 +71,20 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   ASSIGN_OR_RETURN(auto* hdr, get(R::kHdrColor, kHdrFormat, kColor | kSampled | kCopy | kStorage,
                                   "hdr_color", width, height));
   t.hdr = hdr->image;
-  // A compute tonemap writes the sRGB bytes into a UNORM storage image (the pool keeps one of
-  // each format).
-  const bool compute_ldr = FullscreenProgram::TonemapCompute(s);
-  ASSIGN_OR_RETURN(auto* ldr,
-                   get(R::kLdrColor, compute_ldr ? kLdrComputeFormat : kLdrFormat,
-                       kColor | kSampled | kCopy | (compute_ldr ? kStorage : 0u), "ldr_color",
-                       width, height));
+  // Compute post passes write the sRGB bytes into UNORM storage images (an sRGB format is no
+  // storage format); FXAA then samples the tonemapped one through an sRGB view, so that
+  // filtering blends linear light as the fragment path's sRGB image does. The pool keeps one of
+  // each format.
+  const bool compute_ldr = FullscreenProgram::Compute(s);
+  const bool fxaa = s.aa == AaMode::kFxaa;
+  vk::ImageDesc ldr_desc;
+  ldr_desc.width = width;
+  ldr_desc.height = height;
+  ldr_desc.format = compute_ldr ? kLdrComputeFormat : kLdrFormat;
+  ldr_desc.usage = kColor | kSampled | kCopy | (compute_ldr ? kStorage : 0u);
+  if (compute_ldr && fxaa) ldr_desc.sampled_view_format = kLdrFormat;
+  ASSIGN_OR_RETURN(auto* ldr, target_pool.Acquire(*ctx, R::kLdrColor, ldr_desc, "ldr_color",
+                                                  false, frame));
   t.ldr = ldr->image;
   ASSIGN_OR_RETURN(
       readback, target_pool.AcquireBuffer(*ctx, uint64_t(width) * height * 4, "readback", frame));
@@ -125,9 +132,10 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
                                      width, height));
     t.post_hdr = post->image;
   }
-  if (s.aa == AaMode::kFxaa) {
-    ASSIGN_OR_RETURN(auto* fx,
-                     get(R::kFxaaColor, kLdrFormat, kColor | kCopy, "fxaa", width, height));
+  if (fxaa) {
+    ASSIGN_OR_RETURN(auto* fx, get(R::kFxaaColor, compute_ldr ? kLdrComputeFormat : kLdrFormat,
+                                   (compute_ldr ? kStorage : kColor) | kCopy, "fxaa", width,
+                                   height));
     t.fxaa = fx->image;
   }
   if (s.ssao) {  // half (or full) resolution

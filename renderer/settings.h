@@ -24,9 +24,9 @@ enum class Tonemapper : uint32_t { kPbrNeutral = 0, kPhotographic };
 // measured faster on the device (ResolveSettings: forward on CPU devices, visibility elsewhere).
 // msaa always shades forward; vis_mlaa always uses its multisampled visibility buffer.
 enum class Pipeline : uint32_t { kAuto = 0, kForward, kVisibility };
-// Where the full-screen passes TAA, vis_mlaa's geometric AA, SSAO (and its blur), bloom and the
-// tonemap (unless FXAA follows it) run: as fragment shaders or as compute shaders. auto: the one
-// measured faster on the device (ResolveSettings).
+// Where the full-screen passes TAA, vis_mlaa's geometric AA, SSAO (and its blur), bloom, the
+// tonemap and FXAA run: as fragment shaders or as compute shaders. auto: the one measured faster
+// on the device (ResolveSettings).
 enum class PostStage : uint32_t { kAuto = 0, kFragment, kCompute };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {

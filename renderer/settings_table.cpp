@@ -243,9 +243,9 @@ std::vector<SettingRow> BuildTable() {
                                       "on the device)"),
                     {Value("pipeline", "P")}));
   t.push_back(Flags(Row<&S::post_stage>("post_stage", "Post passes",
-                                        "where TAA, geometric AA, SSAO, bloom and the tonemap "
-                                        "run: fragment, compute, or auto (the faster on the "
-                                        "device)"),
+                                        "where TAA, geometric AA, SSAO, bloom, the tonemap and "
+                                        "FXAA run: fragment, compute, or auto (the faster on "
+                                        "the device)"),
                     {Value("post-stage", "S")}));
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),

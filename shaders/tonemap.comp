@@ -4,14 +4,9 @@
 // encoded here (an sRGB format is no storage format): the bytes the sRGB target would hold.
 #define TESSERA_COMPUTE
 #include "common/tonemap.glsl"
+#include "common/srgb.glsl"
 
 layout(set = 0, binding = 5, rgba8) uniform writeonly image2D u_out;
-
-// The sRGB transfer function (IEC 61966-2-1), per channel.
-vec3 EncodeSrgb(vec3 c) {
-  c = clamp(c, 0.0, 1.0);
-  return mix(c * 12.92, 1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, greaterThan(c, vec3(0.0031308)));
-}
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);

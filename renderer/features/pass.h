@@ -373,12 +373,6 @@ class FullscreenProgram {
   // graph uses with the same rule (Access::kComputeRead / kComputeWrite).
   using ComputeRule = bool (*)(const Settings&);
   static bool Compute(const Settings& s) { return s.post_stage == PostStage::kCompute; }
-  // The tonemap runs in compute with post_stage compute unless FXAA follows it (FXAA reads the
-  // tonemapped image through an sRGB sampler; compute writes the sRGB bytes into an RGBA8 UNORM
-  // image, kLdrComputeFormat).
-  static bool TonemapCompute(const Settings& s) {
-    return Compute(s) && s.aa != AaMode::kFxaa;
-  }
   // With `compute_shader` (shaders/common/post_io.glsl) the program also runs as a compute
   // shader where `rule` says so: the same inputs, the outputs storage images at the bindings
   // after them.

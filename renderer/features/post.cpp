@@ -1,6 +1,7 @@
 // Full-screen post passes: tonemapping, and the anti-aliasing passes that work on whole images
-// (vis_mlaa's geometric AA, TAA, FXAA). Each is one fragment shader over a full-screen triangle
-// (shaders/fullscreen.vert) reading images through combined samplers.
+// (vis_mlaa's geometric AA, TAA, FXAA). Each is one FullscreenProgram: a fragment shader over a
+// full-screen triangle (shaders/fullscreen.vert), or its compute twin where post_stage says so,
+// reading images through combined samplers.
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -129,8 +130,9 @@ class PostPass : public Pass {
                     VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL) const {
     return {image.view(), nearest_.handle(), layout};
   }
+  // Through the image's sampled view (an sRGB view of the compute tonemap's UNORM image).
   PostInput Linear(const vk::Image& image) const {
-    return {image.view(), linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    return {image.sampled_view(), linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   }
   FullscreenProgram program_;
   vk::Sampler nearest_, linear_;
@@ -222,7 +224,8 @@ class TaaPass final : public PostPass {
   }
 };
 
-// FXAA (shaders/fxaa.frag) on the tonemapped image, read through a bilinear sampler.
+// FXAA (shaders/common/fxaa.glsl) on the tonemapped image, read through a bilinear sampler and
+// an sRGB view (filtering in linear light in both stages).
 class FxaaPass final : public PostPass {
  public:
   using PostPass::PostPass;
@@ -238,7 +241,7 @@ class FxaaPass final : public PostPass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) {
   return MakePost<TonemapPass>(ctx, "tonemap", "tonemap.frag", 5, sizeof(gpu::TonemapPush),
-                               {kLdrFormat}, "tonemap.comp", &FullscreenProgram::TonemapCompute);
+                               {kLdrFormat}, "tonemap.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
   return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,
@@ -250,7 +253,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
                            {kHdrFormat, kHdrFormat}, "taa.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx) {
-  return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, sizeof(gpu::FxaaPush), {kLdrFormat});
+  return MakePost<FxaaPass>(ctx, "fxaa", "fxaa.frag", 1, sizeof(gpu::FxaaPush), {kLdrFormat},
+                            "fxaa.comp");
 }
 
 void SetupTaa(GraphBuilder& b) {
@@ -273,7 +277,7 @@ void SetupTaa(GraphBuilder& b) {
 
 void SetupTonemap(GraphBuilder& b) {
   const Resource color = b.SceneColor();
-  const bool compute = FullscreenProgram::TonemapCompute(b.settings());
+  const bool compute = FullscreenProgram::Compute(b.settings());
   const Access read = compute ? Access::kComputeRead : Access::kSampled;
   b.Pass(PassId::kTonemap)
       .Use(color, read)
@@ -287,9 +291,10 @@ void SetupTonemap(GraphBuilder& b) {
 
 void SetupFxaa(GraphBuilder& b) {
   if (b.settings().aa != AaMode::kFxaa) return;
+  const bool compute = FullscreenProgram::Compute(b.settings());
   b.Pass(PassId::kFxaa)
-      .Use(Resource::kLdrColor, Access::kSampled)
-      .Use(Resource::kFxaaColor, Access::kColorWrite);
+      .Use(Resource::kLdrColor, compute ? Access::kComputeRead : Access::kSampled)
+      .Use(Resource::kFxaaColor, compute ? Access::kComputeWrite : Access::kColorWrite);
 }
 
 

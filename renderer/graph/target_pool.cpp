@@ -9,8 +9,8 @@ absl::StatusOr<const TargetPool::Target*> TargetPool::Acquire(const vk::Context&
                                                               const vk::ImageDesc& desc,
                                                               const std::string& name,
                                                               bool mip_views, uint64_t frame) {
-  const Key key{resource,        desc.width, desc.height, uint32_t(desc.samples),
-                desc.mip_levels, desc.format};
+  const Key key{resource,        desc.width,  desc.height, uint32_t(desc.samples),
+                desc.mip_levels, desc.format, desc.sampled_view_format};
   auto it = targets_.find(key);
   if (it == targets_.end()) {
     Target t;

@@ -43,7 +43,7 @@ class TargetPool {
   uint64_t created() const { return created_; }
 
  private:
-  using Key = std::tuple<Resource, uint32_t, uint32_t, uint32_t, uint32_t, VkFormat>;
+  using Key = std::tuple<Resource, uint32_t, uint32_t, uint32_t, uint32_t, VkFormat, VkFormat>;
   std::map<Key, Target> targets_;
   struct Buffer {
     vk::Buffer buffer;

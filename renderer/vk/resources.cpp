@@ -126,6 +126,7 @@ absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
   VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
   ii.imageType = VK_IMAGE_TYPE_2D;
   if (desc.view_type == VK_IMAGE_VIEW_TYPE_CUBE) ii.flags = VK_IMAGE_CREATE_CUBE_COMPATIBLE_BIT;
+  if (desc.sampled_view_format != VK_FORMAT_UNDEFINED) ii.flags |= VK_IMAGE_CREATE_MUTABLE_FORMAT_BIT;
   ii.format = desc.format;
   ii.extent = {desc.width, desc.height, 1};
   ii.mipLevels = desc.mip_levels;
@@ -152,6 +153,16 @@ absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
   vi.subresourceRange = {img.aspect(), 0, desc.mip_levels, 0, desc.array_layers};
   VK_RETURN_IF_ERROR(vkCreateImageView(img.device_, &vi, nullptr, &img.view_), name.c_str());
   ctx.SetName(img.view_, VK_OBJECT_TYPE_IMAGE_VIEW, name + ".view");
+  if (desc.sampled_view_format != VK_FORMAT_UNDEFINED) {
+    // Sampling only: the image's other usages (storage) need not hold for this format.
+    VkImageViewUsageCreateInfo usage{VK_STRUCTURE_TYPE_IMAGE_VIEW_USAGE_CREATE_INFO};
+    usage.usage = VK_IMAGE_USAGE_SAMPLED_BIT;
+    vi.pNext = &usage;
+    vi.format = desc.sampled_view_format;
+    VK_RETURN_IF_ERROR(vkCreateImageView(img.device_, &vi, nullptr, &img.sampled_view_),
+                       name.c_str());
+    ctx.SetName(img.sampled_view_, VK_OBJECT_TYPE_IMAGE_VIEW, name + ".sampled_view");
+  }
   return img;
 }
 
@@ -161,6 +172,7 @@ Image& Image::operator=(Image&& o) noexcept {
     device_ = std::exchange(o.device_, VK_NULL_HANDLE);
     image_ = std::exchange(o.image_, VK_NULL_HANDLE);
     view_ = std::exchange(o.view_, VK_NULL_HANDLE);
+    sampled_view_ = std::exchange(o.sampled_view_, VK_NULL_HANDLE);
     memory_ = std::exchange(o.memory_, VK_NULL_HANDLE);
     memory_bytes_ = std::exchange(o.memory_bytes_, 0);
     desc_ = o.desc_;
@@ -171,10 +183,12 @@ Image& Image::operator=(Image&& o) noexcept {
 void Image::Reset() {
   if (device_ == VK_NULL_HANDLE) return;
   if (view_) vkDestroyImageView(device_, view_, nullptr);
+  if (sampled_view_) vkDestroyImageView(device_, sampled_view_, nullptr);
   if (image_) vkDestroyImage(device_, image_, nullptr);
   if (memory_) vkFreeMemory(device_, memory_, nullptr);
   g_allocated_bytes -= std::exchange(memory_bytes_, 0);
   view_ = VK_NULL_HANDLE;
+  sampled_view_ = VK_NULL_HANDLE;
   image_ = VK_NULL_HANDLE;
   memory_ = VK_NULL_HANDLE;
   device_ = VK_NULL_HANDLE;

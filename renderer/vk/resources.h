@@ -62,6 +62,10 @@ struct ImageDesc {
   VkSampleCountFlagBits samples = VK_SAMPLE_COUNT_1_BIT;
   VkImageUsageFlags usage = 0;
   VkImageViewType view_type = VK_IMAGE_VIEW_TYPE_2D;
+  // Not VK_FORMAT_UNDEFINED: the image is made mutable-format and gets a second view in this
+  // format for sampling only (e.g. an sRGB view of a UNORM image written as storage, so that
+  // filtering decodes sRGB before it blends).
+  VkFormat sampled_view_format = VK_FORMAT_UNDEFINED;
 };
 
 class Image {
@@ -77,6 +81,8 @@ class Image {
 
   VkImage handle() const { return image_; }
   VkImageView view() const { return view_; }
+  // The view to sample through: desc().sampled_view_format's when there is one, else view().
+  VkImageView sampled_view() const { return sampled_view_ ? sampled_view_ : view_; }
   const ImageDesc& desc() const { return desc_; }
   VkImageAspectFlags aspect() const;
   explicit operator bool() const { return image_ != VK_NULL_HANDLE; }
@@ -86,6 +92,7 @@ class Image {
   VkDevice device_ = VK_NULL_HANDLE;
   VkImage image_ = VK_NULL_HANDLE;
   VkImageView view_ = VK_NULL_HANDLE;
+  VkImageView sampled_view_ = VK_NULL_HANDLE;
   VkDeviceMemory memory_ = VK_NULL_HANDLE;
   VkDeviceSize memory_bytes_ = 0;
   ImageDesc desc_;
@@ -118,6 +125,7 @@ class ImageRef {
   const Image& get() const { return *image_; }
   VkImage handle() const { return image_ ? image_->handle() : VK_NULL_HANDLE; }
   VkImageView view() const { return image_ ? image_->view() : VK_NULL_HANDLE; }
+  VkImageView sampled_view() const { return image_ ? image_->sampled_view() : VK_NULL_HANDLE; }
   const ImageDesc& desc() const { return image_->desc(); }
   explicit operator bool() const { return image_ != nullptr && bool(*image_); }
 

@@ -322,7 +322,7 @@ struct GpuShadeEntry {
 #define TS_PUSH_TAA \
   mat4 reproject;   \
   vec4 params;
-// fxaa.frag: 1/width, 1/height.
+// fxaa.frag / fxaa.comp: 1/width, 1/height.
 #define TS_PUSH_FXAA vec2 inv_size;
 // ssao.frag: proj x: proj[0][0], y: proj[1][1] (negative: Vulkan clip y is down), z: proj[2][2],
 // w: proj[3][2]; params x: radius (world units), y: intensity (1 = default), z: bias (world
