@@ -10,6 +10,26 @@
 
 namespace tessera {
 
+namespace {
+
+// Makes every earlier write (the frame's) visible to copies, with `images`' transitions.
+void WritesBeforeCopies(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images = nullptr,
+                        uint32_t image_count = 0) {
+  VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+  mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
+  mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
+  mb.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+  mb.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
+  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  dep.memoryBarrierCount = 1;
+  dep.pMemoryBarriers = &mb;
+  dep.imageMemoryBarrierCount = image_count;
+  dep.pImageMemoryBarriers = images;
+  vkCmdPipelineBarrier2(cmd, &dep);
+}
+
+}  // namespace
+
 absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
                                           const PassContext& pc, FrameCapture* capture) {
   const Access depth_access = plan.FinalAccess(Resource::kDepth);
@@ -20,8 +40,33 @@ absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
                           plan.FinalAccess(plan.scene_color),
                           capture->want_ids ? Access::kDepthTest : depth_access, f.exposure.state));
   capture->local_lights = f.local;
+  if (f.tiled) RETURN_IF_ERROR(CaptureLightBins(f.light_buffers, capture));
   capture->view = f.fu.view;
   capture->proj = f.fu.proj;
+  return absl::OkStatus();
+}
+
+// After a frame (tests): the light bounds and row bins the light culling read.
+absl::Status Renderer::Impl::CaptureLightBins(const LightCullBuffers& lb, FrameCapture* capture) {
+  const VkDeviceSize bounds_bytes = VkDeviceSize(lb.lights) * sizeof(gpu::GpuLightBounds);
+  const VkDeviceSize row_bytes = VkDeviceSize(lb.row_entries) * 4;
+  ASSIGN_OR_RETURN(vk::Buffer host, vk::Buffer::Create(*ctx, bounds_bytes + row_bytes,
+                                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                       vk::MemoryUsage::kReadback, "bins"));
+  executor->BeginOneTime();
+  const VkCommandBuffer cmd = executor->cmd();
+  WritesBeforeCopies(cmd);
+  const VkBufferCopy bounds{0, 0, bounds_bytes};
+  if (bounds_bytes > 0) vkCmdCopyBuffer(cmd, lb.bounds, host.handle(), 1, &bounds);
+  const VkBufferCopy rows{0, bounds_bytes, row_bytes};
+  if (row_bytes > 0) vkCmdCopyBuffer(cmd, lb.row_lights, host.handle(), 1, &rows);
+  RETURN_IF_ERROR(executor->SubmitAndWait(/*host_read=*/true));
+  host.InvalidateForRead();
+  const auto* bytes = static_cast<const uint8_t*>(host.mapped());
+  capture->light_bounds.resize(lb.lights);
+  std::memcpy(capture->light_bounds.data(), bytes, bounds_bytes);
+  capture->row_lights.resize(lb.row_entries);
+  std::memcpy(capture->row_lights.data(), bytes + bounds_bytes, row_bytes);
   return absl::OkStatus();
 }
 
@@ -109,17 +154,7 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
   VkImageMemoryBarrier2 b[2] = {
       vk::MakeImageBarrier(targets.depth, Between(depth_access, Access::kTransferSrc)),
       vk::MakeImageBarrier(hdr, Between(hdr_access, Access::kTransferSrc))};
-  VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-  mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
-  mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
-  mb.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
-  mb.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
-  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-  dep.memoryBarrierCount = 1;
-  dep.pMemoryBarriers = &mb;
-  dep.imageMemoryBarrierCount = 2;
-  dep.pImageMemoryBarriers = b;
-  vkCmdPipelineBarrier2(cmd, &dep);
+  WritesBeforeCopies(cmd, b, 2);
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
   region.imageExtent = {targets.width, targets.height, 1};

@@ -246,7 +246,8 @@ absl::StatusOr<GpuScene::ViewVisibility*> Renderer::Impl::Visibility(const GpuSc
 absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
   if (entries <= row_capacity) return absl::OkStatus();
   const uint32_t cap = uint32_t(std::max<size_t>(entries, size_t(row_capacity) * 2));
-  RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * 4, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+  RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * 4,
+                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                              vk::MemoryUsage::kUpload, "row_lights", &row_lights));
   row_capacity = cap;
   return absl::OkStatus();
@@ -261,8 +262,9 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
                                "local_lights", &local_lights));
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
-                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
-                               "light_bounds", &light_bounds));
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                   VK_BUFFER_USAGE_TRANSFER_SRC_BIT,  // captures
+                               vk::MemoryUsage::kUpload, "light_bounds", &light_bounds));
     light_capacity = cap;
   }
   if (tiles > tile_capacity) {

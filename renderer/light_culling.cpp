@@ -152,18 +152,22 @@ gpu::GpuLightBounds BoundLight(const Light& light, const glm::mat4& view, const 
 
 std::vector<uint32_t> BinLightsByRow(const std::vector<gpu::GpuLightBounds>& bounds,
                                      uint32_t rows) {
-  std::vector<uint32_t> out(rows + 1, 0u);
+  // Counts per row, then each row's [begin, end) after the 2 * rows header entries.
+  std::vector<uint32_t> count(rows, 0u);
   for (const gpu::GpuLightBounds& b : bounds)
     if (b.tiles.x <= b.tiles.z)
-      for (int y = std::max(b.tiles.y, 0); y <= std::min(b.tiles.w, int(rows) - 1); ++y) ++out[y];
-  uint32_t offset = rows + 1;  // counts -> offsets
-  for (uint32_t r = 0; r <= rows; ++r) {
-    const uint32_t n = r < rows ? out[r] : 0u;
-    out[r] = offset;
-    offset += n;
+      for (int y = std::max(b.tiles.y, 0); y <= std::min(b.tiles.w, int(rows) - 1); ++y)
+        ++count[y];
+  std::vector<uint32_t> out(2 * size_t(rows));
+  uint32_t offset = 2 * rows;
+  for (uint32_t r = 0; r < rows; ++r) {
+    out[2 * r] = offset;
+    offset += count[r];
+    out[2 * r + 1] = offset;
   }
   out.resize(offset);
-  std::vector<uint32_t> fill(out.begin(), out.begin() + rows);
+  std::vector<uint32_t> fill(rows);
+  for (uint32_t r = 0; r < rows; ++r) fill[r] = out[2 * r];
   for (uint32_t i = 0; i < bounds.size(); ++i) {
     const gpu::GpuLightBounds& b = bounds[i];
     if (b.tiles.x <= b.tiles.z)

@@ -46,7 +46,8 @@ gpu::GpuLightBounds BoundLight(const Light& light, const glm::mat4& view, const 
                                float znear, const TileGrid& grid);
 
 // The lights binned by tile row, in index order, as shaders/light_cull.comp reads them:
-// entries 0..rows are offsets into the same array; row r's lights are [out[r], out[r + 1]).
+// row r's lights are [out[2r], out[2r + 1]) of the same array (light_bins.comp makes the same
+// lists on the GPU, each row at 2 * rows + r * lights).
 std::vector<uint32_t> BinLightsByRow(const std::vector<gpu::GpuLightBounds>& bounds, uint32_t rows);
 
 // View depth (distance along -Z) of a depth-buffer value, from the projection: reverse Z with a

@@ -15,6 +15,7 @@
 #include "renderer/device_info.h"
 #include "renderer/image_io.h"
 #include "renderer/scene/cpu_scene.h"
+#include "shaders/common/gpu_types.h"  // GpuLightBounds (glm only, no Vulkan)
 #include "renderer/scene/gltf_import.h"
 #include "renderer/settings.h"
 
@@ -132,6 +133,11 @@ struct FrameCapture {
   std::vector<uint32_t> tile_counts;  // per tile (| overflow bit)
   std::vector<uint32_t> tile_lights;  // tile * 256 + k
   std::vector<Light> local_lights;    // in the order the lists index
+  // What the light culling read: each local light's bounds, and the row bins (row r's lights
+  // are row_lights[row_lights[2r] .. row_lights[2r + 1])); made on the CPU or the GPU as the
+  // effective light_binning says.
+  std::vector<gpu::GpuLightBounds> light_bounds;
+  std::vector<uint32_t> row_lights;
   std::vector<float> hdr;  // the tonemap's input (post-AA HDR colour), RGBA, width x height
   float exposure_log2 = 0.0f;  // auto exposure: the view's adapted average log2 luma (else NaN)
   glm::mat4 view{1.0f}, proj{1.0f};

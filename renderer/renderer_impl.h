@@ -106,6 +106,11 @@ struct Renderer::Impl {
   vk::Buffer tile_counts_readback;
   vk::Buffer row_lights;  // lights binned by tile row (light_cull.comp)
   uint32_t row_capacity = 0;
+  // light_binning gpu: the bounds and row lists the GPU writes (device-local).
+  vk::Buffer gpu_light_bounds;
+  vk::Buffer gpu_row_lights;
+  uint32_t gpu_bounds_capacity = 0;
+  uint64_t gpu_row_capacity = 0;
   uint32_t light_capacity = 0;
   uint32_t tile_capacity = 0;
   // Geometry culling (grown to the largest scene drawn): the draw lists, the culling pass's
@@ -218,6 +223,7 @@ struct Renderer::Impl {
   absl::StatusOr<bool> EnsureIbl(const SkyParams& sky);    // bakes `sky` unless held
   absl::Status PrepareExposure(FrameData& f);              // exposure.cpp
   absl::Status WriteLightBins(FrameData& f);               // forward_plus.cpp
+  absl::Status EnsureGpuBinBuffers(uint32_t lights, uint64_t row_entries);  // forward_plus.cpp
   void WriteFrameUniforms(FrameData& f, Frame& frame);     // forward_plus.cpp
   absl::Status PrepareDraws(FrameData& f);                 // culling.cpp
   // vis_shade.cpp: the materials in view, the entries and pixel lists.
@@ -239,6 +245,7 @@ struct Renderer::Impl {
                        Access hdr_access, Access depth_access, const vk::Image* exposure);
   absl::Status CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set, Access depth_access,
                           FrameCapture* capture);
+  absl::Status CaptureLightBins(const LightCullBuffers& lb, FrameCapture* capture);
 };
 
 }  // namespace tessera

@@ -50,6 +50,11 @@ const std::vector<std::string_view>& EnumNames<PostStage>() {
   static const std::vector<std::string_view> names{"auto", "fragment", "compute"};
   return names;
 }
+template <>
+const std::vector<std::string_view>& EnumNames<LightBinning>() {
+  static const std::vector<std::string_view> names{"auto", "cpu", "gpu"};
+  return names;
+}
 
 namespace {
 
@@ -81,6 +86,7 @@ std::string_view ToString(DebugView v) { return NameOf(v); }
 std::string_view ToString(Tonemapper v) { return NameOf(v); }
 std::string_view ToString(Pipeline v) { return NameOf(v); }
 std::string_view ToString(PostStage v) { return NameOf(v); }
+std::string_view ToString(LightBinning v) { return NameOf(v); }
 absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s) {
   return Parse<Tonemapper>("tonemapper", s);
 }
@@ -181,6 +187,11 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     // Measured (README, "The visibility pipeline"): GPUs run full-screen fragment work on their
     // graphics part only (an H200's TAA at 4K: 6.0 ms as a fragment pass, 0.x in compute).
     e.post_stage = caps.cpu ? PostStage::kFragment : PostStage::kCompute;
+  }
+  if (e.light_binning == LightBinning::kAuto) {
+    // Measured (README, "Forward+"): on lavapipe the two compute steps cost more GPU time than
+    // BoundLight and BinLightsByRow cost the CPU; a GPU does them in microseconds.
+    e.light_binning = caps.cpu ? LightBinning::kCpu : LightBinning::kGpu;
   }
   if (ShadesVisibility(e) && !caps.visibility_buffer) {
     not_applied("pipeline", "the visibility buffer needs gl_PrimitiveID in fragment shaders "

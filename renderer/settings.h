@@ -28,6 +28,11 @@ enum class Pipeline : uint32_t { kAuto = 0, kForward, kVisibility };
 // tonemap and FXAA run: as fragment shaders or as compute shaders. auto: the one measured faster
 // on the device (ResolveSettings).
 enum class PostStage : uint32_t { kAuto = 0, kFragment, kCompute };
+// Where forward+ projects the local lights into tile rectangles and bins them by tile row: on
+// the CPU each frame (uploaded), or on the GPU (shaders/light_bounds.comp, light_bins.comp)
+// from the lights alone. auto: cpu on CPU devices (the GPU steps cost lavapipe more than the
+// CPU spends), gpu elsewhere.
+enum class LightBinning : uint32_t { kAuto = 0, kCpu, kGpu };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
   kNone = 0,
@@ -60,6 +65,7 @@ struct Settings {
   float light_time = 0.0f;       // seconds; where animated lights are (deterministic)
   bool light_culling = true;     // forward+ tile lists; false: every light for every pixel
   bool tile_depth_mask = true;   // 2.5D depth mask per tile (false: min/max depth bounds only)
+  LightBinning light_binning = LightBinning::kAuto;
   // Shadows: the sun's cascades and the `shadow_lights` most important point and spot lights,
   // in one depth atlas of shadow_atlas_size^2 texels (a power of two, 512..8192; clamped to the
   // device). With shadow_cache, a map is re-rendered only when its view changed.
@@ -141,6 +147,8 @@ template <>
 const std::vector<std::string_view>& EnumNames<Pipeline>();
 template <>
 const std::vector<std::string_view>& EnumNames<PostStage>();
+template <>
+const std::vector<std::string_view>& EnumNames<LightBinning>();
 
 // Names used by the CLI, JSON output and the proto ("invalid" for a value out of range).
 std::string_view ToString(AaMode v);
@@ -150,6 +158,7 @@ std::string_view ToString(Tonemapper v);
 std::string_view ToString(DebugView v);
 std::string_view ToString(Pipeline v);
 std::string_view ToString(PostStage v);
+std::string_view ToString(LightBinning v);
 absl::StatusOr<AaMode> ParseAaMode(std::string_view s);
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s);
 absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s);

@@ -183,6 +183,11 @@ std::vector<SettingRow> BuildTable() {
   t.push_back(Flags(Row<&S::tile_depth_mask>("tile_depth_mask", "Tile depth mask",
                                              "2.5D depth mask per tile (off: depth bounds only)"),
                     {Toggle("tile-depth-mask")}));
+  t.push_back(Flags(Row<&S::light_binning>("light_binning", "Light binning",
+                                           "where the lights are projected into tiles and "
+                                           "binned by tile row: cpu, gpu, or auto (the faster "
+                                           "on the device)"),
+                    {Value("light-binning", "WHERE")}));
   t.push_back(Flags(Row<&S::shadows>("shadows", "Shadows", "sun cascades + point/spot shadows"),
                     {Toggle("shadows")}));
   {

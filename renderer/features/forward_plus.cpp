@@ -1,5 +1,6 @@
 // Light culling (forward+): one compute dispatch builds every tile's light list from the
-// prepass depth and the per-light bounds the CPU prepared; a buffer barrier then hands the
+// prepass depth and the per-light bounds and row bins (prepared on the CPU, or, with
+// light_binning gpu, by two compute dispatches before it); a buffer barrier then hands the
 // lists to the fragment shaders, and the counts are copied out for the frame's statistics.
 #include <cmath>
 #include <cstring>
@@ -19,10 +20,13 @@ namespace {
 
 class LightCullPass final : public Pass {
  public:
-  LightCullPass(VkDevice device, PassLayout layout, vk::Pipeline pipeline, vk::Sampler sampler)
+  LightCullPass(VkDevice device, PassLayout layout, vk::Pipeline pipeline, vk::Pipeline bounds,
+                vk::Pipeline bins, vk::Sampler sampler)
       : device_(device),
         layout_(std::move(layout)),
         pipeline_(std::move(pipeline)),
+        bounds_(std::move(bounds)),
+        bins_(std::move(bins)),
         sampler_(std::move(sampler)) {}
   PassId id() const override { return PassId::kLightCull; }
 
@@ -36,13 +40,30 @@ class LightCullPass final : public Pass {
         .Buffer(gpu::kCullBindingTileCounts, lb.tile_counts)
         .Buffer(gpu::kCullBindingTileLights, lb.tile_lights)
         .Buffer(gpu::kCullBindingRowLights, lb.row_lights)
+        .Buffer(gpu::kCullBindingLocalLights, lb.local_lights)
         .Update();
 
     // The graph ordered the lists after their earlier uses (SetupLightCulling).
 
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(), 0,
                             1, &set, 0, nullptr);
+    if (lb.gpu_binning) {
+      // Each light's bounds, then the row lists from them, then the tile lists (below).
+      auto compute_to_compute = [&](VkBuffer buffer) {
+        const VkBufferMemoryBarrier2 b = vk::MakeBufferBarrier(
+            buffer, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+            VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+        vk::CmdBarrier(ctx.cmd, nullptr, 0, &b, 1);
+      };
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, bounds_.handle());
+      vkCmdDispatch(ctx.cmd, (lb.lights + gpu::kLightCullGroupSize - 1) / gpu::kLightCullGroupSize,
+                    1, 1);
+      compute_to_compute(lb.bounds);
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, bins_.handle());
+      vkCmdDispatch(ctx.cmd, lb.rows, 1, 1);
+      compute_to_compute(lb.row_lights);
+    }
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
     vkCmdDispatch(ctx.cmd, (lb.tiles + gpu::kLightCullGroupSize - 1) / gpu::kLightCullGroupSize, 1,
                   1);
 
@@ -64,7 +85,7 @@ class LightCullPass final : public Pass {
  private:
   VkDevice device_;
   PassLayout layout_;
-  vk::Pipeline pipeline_;
+  vk::Pipeline pipeline_, bounds_, bins_;
   vk::Sampler sampler_;
 };
 
@@ -79,19 +100,22 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateLightCullPass(const vk::Context& ctx
       LayoutBinding(gpu::kCullBindingDepth, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, kCompute),
       LayoutBinding(gpu::kCullBindingTileCounts, kBuffer, kCompute),
       LayoutBinding(gpu::kCullBindingTileLights, kBuffer, kCompute),
-      LayoutBinding(gpu::kCullBindingRowLights, kBuffer, kCompute)};
-  absl::StatusOr<PassLayout> layout = PassLayout::Create(ctx, bindings, {}, "light cull layout");
-  if (!layout.ok()) return layout.status();
-  absl::StatusOr<vk::Pipeline> pipeline = vk::CreateComputePipeline(
-      ctx, "light_cull", "light_cull.comp", layout->pipeline_layout());
+      LayoutBinding(gpu::kCullBindingRowLights, kBuffer, kCompute),
+      LayoutBinding(gpu::kCullBindingLocalLights, kBuffer, kCompute)};
+  ASSIGN_OR_RETURN(PassLayout layout, PassLayout::Create(ctx, bindings, {}, "light cull layout"));
+  const VkPipelineLayout pl = layout.pipeline_layout();
+  ASSIGN_OR_RETURN(vk::Pipeline pipeline,
+                   vk::CreateComputePipeline(ctx, "light_cull", "light_cull.comp", pl));
+  ASSIGN_OR_RETURN(vk::Pipeline bounds,
+                   vk::CreateComputePipeline(ctx, "light_bounds", "light_bounds.comp", pl));
+  ASSIGN_OR_RETURN(vk::Pipeline bins,
+                   vk::CreateComputePipeline(ctx, "light_bins", "light_bins.comp", pl));
   VkSamplerCreateInfo si{VK_STRUCTURE_TYPE_SAMPLER_CREATE_INFO};
   si.magFilter = si.minFilter = VK_FILTER_NEAREST;
   si.addressModeU = si.addressModeV = si.addressModeW = VK_SAMPLER_ADDRESS_MODE_CLAMP_TO_EDGE;
-  absl::StatusOr<vk::Sampler> sampler = vk::Sampler::Create(ctx, si, "light_cull.depth_sampler");
-  if (!pipeline.ok()) return pipeline.status();
-  if (!sampler.ok()) return sampler.status();
-  return std::make_unique<LightCullPass>(ctx.device(), std::move(*layout), std::move(*pipeline),
-                                         std::move(*sampler));
+  ASSIGN_OR_RETURN(vk::Sampler sampler, vk::Sampler::Create(ctx, si, "light_cull.depth_sampler"));
+  return std::make_unique<LightCullPass>(ctx.device(), std::move(layout), std::move(pipeline),
+                                         std::move(bounds), std::move(bins), std::move(sampler));
 }
 
 void SetupLightCulling(GraphBuilder& b) {
@@ -177,6 +201,19 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
     frame.settings.effective.light_culling = false;
     f.tiled = false;
   }
+  if (f.tiled && s.light_binning == LightBinning::kGpu) {
+    // Every row list has room for every light: rows x lights entries after the header.
+    const uint64_t bytes = (2 + uint64_t(local.size())) * f.grid.tiles_y() * 4;
+    const uint64_t range = ctx->limits().maxStorageBufferRange;
+    if (bytes > range) {
+      frame.settings.notes.push_back(
+          {"light_binning", absl::StrCat("binned on the CPU: ", f.grid.tiles_y(), " tile rows x ",
+                                         local.size(), " lights need ", bytes,
+                                         " bytes of row lists, more than the device's storage "
+                                         "buffer range (", range, ")")});
+      frame.settings.effective.light_binning = LightBinning::kCpu;
+    }
+  }
   RETURN_IF_ERROR(EnsureLightBuffers(uint32_t(local.size()), f.tiled ? f.grid.tiles() : 1));
   auto* gl = static_cast<gpu::GpuLight*>(lights_ubo.mapped());
   for (size_t i = 0; i < global.size(); ++i) gl[i] = ToGpu(global[i]);
@@ -193,12 +230,46 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
   lb.tile_lights = tile_lights.handle();
   lb.counts_readback = tile_counts_readback.handle();
   lb.row_lights = row_lights.handle();
+  lb.local_lights = local_lights.handle();
   lb.tiles = f.grid.tiles();
+  lb.lights = uint32_t(local.size());
+  lb.rows = f.grid.tiles_y();
+  lb.gpu_binning = f.tiled && s.light_binning == LightBinning::kGpu;
+  return absl::OkStatus();
+}
+
+absl::Status Renderer::Impl::EnsureGpuBinBuffers(uint32_t lights, uint64_t row_entries) {
+  constexpr VkBufferUsageFlags kUsage =
+      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT;  // + captures
+  if (lights > gpu_bounds_capacity) {
+    const uint32_t cap = std::max(lights, gpu_bounds_capacity * 2);
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds), kUsage,
+                               vk::MemoryUsage::kDeviceLocal, "gpu_light_bounds",
+                               &gpu_light_bounds));
+    gpu_bounds_capacity = cap;
+  }
+  if (row_entries > gpu_row_capacity) {
+    const uint64_t cap = std::max(row_entries, gpu_row_capacity * 2);
+    const uint64_t range = ctx->limits().maxStorageBufferRange / 4;
+    const uint64_t entries = std::min(cap, std::max(row_entries, range));
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(entries) * 4, kUsage,
+                               vk::MemoryUsage::kDeviceLocal, "gpu_row_lights", &gpu_row_lights));
+    gpu_row_capacity = entries;
+  }
   return absl::OkStatus();
 }
 
 absl::Status Renderer::Impl::WriteLightBins(FrameData& f) {
   if (!f.tiled) return absl::OkStatus();
+  LightCullBuffers& lb = f.light_buffers;
+  if (lb.gpu_binning) {  // the light-culling pass bounds and bins them (light_binning gpu)
+    RETURN_IF_ERROR(EnsureGpuBinBuffers(
+        uint32_t(f.local.size()), (2 + uint64_t(f.local.size())) * f.grid.tiles_y()));
+    lb.bounds = gpu_light_bounds.handle();
+    lb.row_lights = gpu_row_lights.handle();
+    lb.row_entries = (2 + uint64_t(f.local.size())) * f.grid.tiles_y();
+    return absl::OkStatus();
+  }
   // What the light-culling pass reads: each light projected once, binned by row.
   std::vector<gpu::GpuLightBounds> bounds(f.local.size());
   for (size_t i = 0; i < f.local.size(); ++i)
@@ -207,7 +278,8 @@ absl::Status Renderer::Impl::WriteLightBins(FrameData& f) {
   const std::vector<uint32_t> rows = BinLightsByRow(bounds, f.grid.tiles_y());
   RETURN_IF_ERROR(EnsureRowBuffer(rows.size()));
   std::memcpy(row_lights.mapped(), rows.data(), rows.size() * sizeof(uint32_t));
-  f.light_buffers.row_lights = row_lights.handle();
+  lb.row_lights = row_lights.handle();
+  lb.row_entries = rows.size();
   return absl::OkStatus();
 }
 

@@ -139,7 +139,14 @@ struct LightCullBuffers {
   VkBuffer tile_lights = VK_NULL_HANDLE;      // uint per tile x kMaxLightsPerTile
   VkBuffer counts_readback = VK_NULL_HANDLE;  // host copy of tile_counts
   VkBuffer row_lights = VK_NULL_HANDLE;       // lights binned by tile row (gpu_types.h)
+  VkBuffer local_lights = VK_NULL_HANDLE;     // GpuLight per local light
   uint32_t tiles = 0;
+  // light_binning gpu: the pass first fills `bounds` (light_bounds.comp) and `row_lights`
+  // (light_bins.comp, `rows` workgroups) from the `lights` local lights.
+  bool gpu_binning = false;
+  uint32_t lights = 0;
+  uint32_t rows = 0;
+  uint64_t row_entries = 0;  // of row_lights in use (header and lists)
 };
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a

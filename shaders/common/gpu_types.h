@@ -68,9 +68,10 @@ TS_CONST uint kCullBindingLightBounds = 1;  // buffer GpuLightBounds[]
 TS_CONST uint kCullBindingDepth = 2;        // sampler2D: the depth prepass
 TS_CONST uint kCullBindingTileCounts = 3;   // buffer uint[] (written)
 TS_CONST uint kCullBindingTileLights = 4;   // buffer uint[] (written)
-// The lights binned by tile row on the CPU: entries 0..rows are offsets into the same array,
-// row r's lights (sorted) are at [offset[r], offset[r + 1]).
+// The lights binned by tile row (on the CPU, or on the GPU by light_bins.comp): entries 2r and
+// 2r + 1 are where row r's lights (sorted) begin and end in the same array.
 TS_CONST uint kCullBindingRowLights = 5;
+TS_CONST uint kCullBindingLocalLights = 6;  // buffer GpuLight[]: light_bounds.comp reads them
 // ---- geometry culling (cull.comp, its own set 0) ----------------------------------------------
 // One workgroup walks the cull items in order, so the commands it appends come out in item
 // order: frames are reproducible and equal, pixel for pixel, whatever the mode.
@@ -268,9 +269,9 @@ struct ShadowUniforms {
   GpuShadowView views[kMaxShadowViews];
 };
 
-// What the light-culling pass needs of a local light, prepared on the CPU (each light is
-// projected once, not once per tile): the view-space bounding sphere, the rectangle of tiles it
-// can touch, and for spots the cone.
+// What the light-culling pass needs of a local light, each light projected once, not once per
+// tile (by BoundLight on the CPU, or light_bounds.comp): the view-space bounding sphere, the
+// rectangle of tiles it can touch, and for spots the cone.
 struct GpuLightBounds {
   vec4 sphere;  // view space: xyz centre, w radius (a spot's cone is bounded by this sphere)
   ivec4 tiles;  // inclusive tile rectangle x0, y0, x1, y1 (x0 > x1: off screen)

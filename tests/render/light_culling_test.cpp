@@ -170,6 +170,7 @@ TEST(TileMask, RejectsLightsInTheDepthGap) {
 struct Case {
   uint32_t lights;
   uint32_t tile_size;
+  LightBinning binning = LightBinning::kCpu;
 };
 
 class CullingTest : public ::testing::TestWithParam<Case> {};
@@ -183,9 +184,11 @@ TEST_P(CullingTest, NoFalseNegativesAndMatchesTheCpuReference) {
   const Settings s = LightSettings(384, 216, c.lights);
   Settings st = s;
   st.tile_size = c.tile_size;
+  st.light_binning = c.binning;
   FrameCapture cap;
   absl::StatusOr<Frame> f = SharedRenderer().Render(*DemoScene(), DemoCamera(), st, &cap);
   ASSERT_TRUE(f.ok()) << f.status();
+  EXPECT_EQ(f->settings.effective.light_binning, c.binning);
   const TileGrid grid{st.width, st.height, st.tile_size};
   ASSERT_EQ(cap.tile_counts.size(), grid.tiles());
   ASSERT_GE(cap.local_lights.size(), c.lights);
@@ -254,13 +257,112 @@ TEST_P(CullingTest, NoFalseNegativesAndMatchesTheCpuReference) {
   if (c.lights >= 100) EXPECT_LT(f->stats.tile_lights_avg, 0.25 * double(cap.local_lights.size()));
 }
 
-INSTANTIATE_TEST_SUITE_P(Lights, CullingTest,
-                         ::testing::Values(Case{1, 16}, Case{100, 16}, Case{4096, 16},
-                                           Case{4096, 8}, Case{100, 32}),
-                         [](const auto& info) {
-                           return "lights" + std::to_string(info.param.lights) + "_tile" +
-                                  std::to_string(info.param.tile_size);
-                         });
+INSTANTIATE_TEST_SUITE_P(
+    Lights, CullingTest,
+    ::testing::Values(Case{1, 16}, Case{100, 16}, Case{4096, 16}, Case{4096, 8}, Case{100, 32},
+                      Case{1, 16, LightBinning::kGpu}, Case{4096, 16, LightBinning::kGpu},
+                      Case{4096, 8, LightBinning::kGpu}, Case{100, 32, LightBinning::kGpu}),
+    [](const auto& info) {
+      return "lights" + std::to_string(info.param.lights) + "_tile" +
+             std::to_string(info.param.tile_size) + "_" +
+             std::string(ToString(info.param.binning));
+    });
+
+// The rows a light's tile rectangle covers (none when it is off screen), as both binnings see it.
+bool CoversRow(const gpu::GpuLightBounds& b, uint32_t row) {
+  return b.tiles.x <= b.tiles.z && b.tiles.y <= int(row) && int(row) <= b.tiles.w;
+}
+
+// Row r's list from a captured row_lights array.
+std::vector<uint32_t> RowList(const std::vector<uint32_t>& rows, uint32_t r) {
+  return std::vector<uint32_t>(rows.begin() + rows[2 * r], rows.begin() + rows[2 * r + 1]);
+}
+
+// light_binning gpu: light_bounds.comp projects each light as BoundLight does (to float
+// precision; a tile rectangle may differ by one tile where a projected edge falls on a tile
+// border), light_bins.comp lists exactly the lights whose rectangle covers each row, in index
+// order, and the frame shades the same picture as with the CPU's bins. The demo scene's spot
+// light is among the local lights, and some synthetic lights cross the near plane.
+TEST(GpuLightBinning, BoundsAndBinsMatchTheCpu) {
+  Settings s = LightSettings(384, 216, 4096);
+  s.tile_size = 8;
+  s.light_binning = LightBinning::kGpu;
+  FrameCapture gpu_cap, cpu_cap;
+  absl::StatusOr<Frame> g = SharedRenderer().Render(*DemoScene(), DemoCamera(), s, &gpu_cap);
+  ASSERT_TRUE(g.ok()) << g.status();
+  s.light_binning = LightBinning::kCpu;
+  absl::StatusOr<Frame> c = SharedRenderer().Render(*DemoScene(), DemoCamera(), s, &cpu_cap);
+  ASSERT_TRUE(c.ok()) << c.status();
+  EXPECT_EQ(g->settings.effective.light_binning, LightBinning::kGpu);
+  EXPECT_EQ(c->settings.effective.light_binning, LightBinning::kCpu);
+  const TileGrid grid{s.width, s.height, s.tile_size};
+  const size_t n = gpu_cap.local_lights.size();
+  ASSERT_EQ(gpu_cap.light_bounds.size(), n);
+  ASSERT_EQ(cpu_cap.light_bounds.size(), n);
+
+  size_t spots = 0, near_crossing = 0, off_screen = 0, rect_differs = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const gpu::GpuLightBounds& a = gpu_cap.light_bounds[i];
+    const gpu::GpuLightBounds b =
+        BoundLight(gpu_cap.local_lights[i], gpu_cap.view, gpu_cap.proj, DemoCamera().znear, grid);
+    const float scale = std::max(1.0f, glm::length(glm::vec3(b.sphere)) + b.sphere.w);
+    ASSERT_LE(glm::length(a.sphere - b.sphere), 1e-5f * scale) << "light " << i;
+    ASSERT_LE(glm::length(a.cone - b.cone), 1e-5f * scale) << "light " << i;
+    if (b.cone.w > -1.5f) {
+      ++spots;
+      ASSERT_LE(glm::length(a.cone2 - b.cone2), 1e-5f * scale) << "light " << i;
+    }
+    const bool a_off = a.tiles.x > a.tiles.z, b_off = b.tiles.x > b.tiles.z;
+    off_screen += b_off;
+    near_crossing += b.tiles == glm::ivec4(0, 0, grid.tiles_x() - 1, grid.tiles_y() - 1);
+    if (a.tiles != b.tiles) {
+      ++rect_differs;
+      ASSERT_EQ(a_off, b_off) << "light " << i;
+      const glm::ivec4 d = glm::abs(a.tiles - b.tiles);
+      ASSERT_LE(std::max(std::max(d.x, d.y), std::max(d.z, d.w)), 1) << "light " << i;
+    }
+    // What the CPU-binned frame read is BoundLight's.
+    ASSERT_EQ(cpu_cap.light_bounds[i].tiles, b.tiles) << "light " << i;
+  }
+  EXPECT_GE(spots, 1u) << "the demo scene's spot light";
+  EXPECT_GE(near_crossing, 1u);
+  EXPECT_GE(off_screen, 1u);
+  EXPECT_LE(rect_differs, n / 100) << "rectangles differ only at tile borders";
+  std::printf("gpu bounds: %zu lights (%zu spots, %zu crossing the near plane, %zu off screen), "
+              "%zu rectangles differ from BoundLight's by one tile\n",
+              n, spots, near_crossing, off_screen, rect_differs);
+
+  // The row lists: exactly the lights covering each row, sorted; rows of the GPU layout.
+  const uint32_t rows = grid.tiles_y();
+  ASSERT_EQ(gpu_cap.row_lights.size(), (2 + n) * rows);
+  for (uint32_t r = 0; r < rows; ++r) {
+    std::vector<uint32_t> want;
+    for (uint32_t i = 0; i < n; ++i)
+      if (CoversRow(gpu_cap.light_bounds[i], r)) want.push_back(i);
+    ASSERT_EQ(gpu_cap.row_lights[2 * r], 2 * rows + r * n) << "row " << r;
+    ASSERT_EQ(RowList(gpu_cap.row_lights, r), want) << "row " << r;
+    std::vector<uint32_t> cpu_want;
+    for (uint32_t i = 0; i < n; ++i)
+      if (CoversRow(cpu_cap.light_bounds[i], r)) cpu_want.push_back(i);
+    ASSERT_EQ(RowList(cpu_cap.row_lights, r), cpu_want) << "row " << r << " (CPU bins)";
+  }
+
+  // The tile lists and the picture: the same but for lights at tile borders.
+  size_t same_tiles = 0;
+  for (uint32_t t = 0; t < grid.tiles(); ++t) {
+    same_tiles += gpu_cap.tile_counts[t] == cpu_cap.tile_counts[t] &&
+                  std::equal(gpu_cap.tile_lights.begin() + t * gpu::kMaxLightsPerTile,
+                             gpu_cap.tile_lights.begin() + t * gpu::kMaxLightsPerTile +
+                                 (cpu_cap.tile_counts[t] & ~gpu::kTileOverflowBit),
+                             cpu_cap.tile_lights.begin() + t * gpu::kMaxLightsPerTile);
+  }
+  EXPECT_GE(same_tiles, grid.tiles() * 99 / 100);
+  const double psnr = Psnr(g->image, c->image).value();
+  std::printf("gpu vs cpu binning: %zu of %u tile lists equal, image %.1f dB\n", same_tiles,
+              grid.tiles(), psnr);
+  EXPECT_GE(psnr, 60.0);
+  ExpectNoValidationMessages(SharedRenderer());
+}
 
 // Shading from the tile lists gives the brute-force image.
 TEST(ForwardPlus, TiledImageEqualsBruteForce) {

@@ -169,6 +169,7 @@ std::optional<std::string> TypedName(std::string_view row, const Settings& s) {
   if (row == "debug_view") return std::string(ToString(s.debug_view));
   if (row == "pipeline") return std::string(ToString(s.pipeline));
   if (row == "post_stage") return std::string(ToString(s.post_stage));
+  if (row == "light_binning") return std::string(ToString(s.light_binning));
   return std::nullopt;
 }
 
@@ -196,7 +197,7 @@ TEST(SettingsTableTest, EveryEnumValueOfEveryRowRoundTrips) {
               absl::StrCat("settings.", std::string(row.name), ": ", row.choices.size(),
                            " is out of range (", row.RangeText(), ")"));
   }
-  EXPECT_EQ(enums, 7);
+  EXPECT_EQ(enums, 8);
 }
 
 // --- command line -----------------------------------------------------------------------------

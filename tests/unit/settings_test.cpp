@@ -143,6 +143,10 @@ const std::vector<Field>& AllFields() {
                        if (row.name == "post_stage" && a.post_stage == PostStage::kAuto &&
                            b.post_stage != PostStage::kAuto)
                          return true;
+                       if (row.name == "light_binning" &&
+                           a.light_binning == LightBinning::kAuto &&
+                           b.light_binning != LightBinning::kAuto)
+                         return true;
                        return row.get(a) == row.get(b);
                      }});
     }
@@ -304,6 +308,8 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
     add("pipeline " + std::to_string(v), [v](Settings& s) { s.pipeline = static_cast<Pipeline>(v); });
     add("post_stage " + std::to_string(v),
         [v](Settings& s) { s.post_stage = static_cast<PostStage>(v); });
+    add("light_binning " + std::to_string(v),
+        [v](Settings& s) { s.light_binning = static_cast<LightBinning>(v); });
   }
   add("jpeg_quality", [](Settings& s) { s.jpeg_quality = 37; });
   add("jpeg_444", [](Settings& s) { s.jpeg_444 = true; });
@@ -348,10 +354,12 @@ TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
   EXPECT_EQ(r->effective.pipeline, Pipeline::kVisibility);
   EXPECT_TRUE(r->notes.empty());
   EXPECT_EQ(r->effective.post_stage, PostStage::kCompute);
+  EXPECT_EQ(r->effective.light_binning, LightBinning::kGpu);
   r = ResolveSettings(Settings{}, cpu);
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
   EXPECT_EQ(r->effective.post_stage, PostStage::kFragment);
+  EXPECT_EQ(r->effective.light_binning, LightBinning::kCpu);
   EXPECT_TRUE(r->notes.empty());
   // Asked for explicitly, each is honoured on either device.
   for (Pipeline p : {Pipeline::kForward, Pipeline::kVisibility}) {
