@@ -151,6 +151,7 @@ export class Connection {
   handlers = {
     info: this.info,
     scenes: this.scenes,
+    has_scene: this.hasScene,
     delete: this.deleteScene,
     render: this.render,
     open: this.open,
@@ -193,6 +194,16 @@ export class Connection {
 
   async scenes(id) {
     this.reply(id, await this.unary('ListScenes', {}));
+  }
+
+  /** HasScene: whether tesserad holds a scene id (the page asks before uploading). */
+  async hasScene(id, msg) {
+    const sceneId = msg.scene_id;
+    // The full content hash only (HasScene looks up no prefixes): 64 lowercase hex, or "demo".
+    if (typeof sceneId !== 'string' || !(sceneId === 'demo' || /^[0-9a-f]{64}$/.test(sceneId))) {
+      throw invalid(`scene_id: ${show(sceneId)} is not a scene id (64 lowercase hex digits, or "demo")`);
+    }
+    this.reply(id, await this.unary('HasScene', { scene_id: sceneId }));
   }
 
   async deleteScene(id, msg) {

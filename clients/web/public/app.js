@@ -1,40 +1,49 @@
 // Tessera's web viewer: the page's entry point. It wires the modules together:
 //   protocol.js  the gateway's WebSocket (requests, frames, reconnects)
-//   camera.js    orbit / fly camera math and pointer gestures
-//   chart.js     per-pass timing chart, fps, latency and the stats text
-//   upload.js    which files an upload needs, and sending them
+//   camera.js    orbit / fly camera math, pointer gestures, the view in the URL
+//   chart.js     per-pass timing chart, fps, bitrate, latency and the stats text
+//   settings.js  the settings panel, in sections, from the server's description
+//   upload.js    which files an upload needs, its scene id, and sending them
 // Sections below: state, errors and status, the stream session, frames, camera input,
-// viewport size, settings panel, scenes and uploads, test hooks, start-up.
+// the view in the URL, stats overlay and fullscreen, viewport size, settings panel, scenes and
+// uploads, test hooks, start-up.
 // Nothing is global except window.tessera (the hooks the headless-browser tests read).
 
 import { Connection } from './protocol.js';
 import { el } from './dom.js';
 import { SettingsPanel, validNumber } from './settings.js';
-import { OrbitCamera, PointerGestures, flyVector, isFlyKey, wheelFactor } from './camera.js';
 import {
-  FpsMeter, LatencyTracker, TimingChart, TimingHistory, statsRows,
+  OrbitCamera, PointerGestures, flyVector, formatViewLink, isFlyKey, parseViewLink, wheelFactor,
+} from './camera.js';
+import {
+  BitrateMeter, FpsMeter, LatencyTracker, MAIN_STATS, TimingChart, TimingHistory, statsRows,
 } from './chart.js';
 import {
-  UploadError, checkLimits, collectDropped, collectInput, formatBytes, planUpload, readSceneJson,
-  sendUpload,
+  UploadError, checkLimits, collectDropped, collectInput, computeSceneId, formatBytes, planUpload,
+  readSceneJson, sendUpload,
 } from './upload.js';
 
 const $ = (id) => document.getElementById(id);
 const ui = {
+  viewport: $('viewport'), toolbar: $('toolbar'),
   view: $('view'), status: $('status'), flyToggle: $('fly-toggle'), resetView: $('reset-view'),
   save: $('save'), panelToggle: $('panel-toggle'), flyHelp: $('fly-help'),
+  copyLink: $('copy-link'), overlayToggle: $('overlay-toggle'), fullscreen: $('fullscreen'),
+  overlay: $('overlay'), linkNote: $('link-note'),
   error: $('error'), errorText: $('error-text'), errorDismiss: $('error-dismiss'),
   dropOverlay: $('drop-overlay'),
   sceneSelect: $('scene-select'), uploadInput: $('upload-input'), uploadBox: $('upload-box'),
   uploadStatus: $('upload-status'), uploadProgress: $('upload-progress'),
   uploadCancel: $('upload-cancel'), uploadNote: $('upload-note'), sceneWarnings: $('scene-warnings'),
-  resolution: $('resolution'), settings: $('settings'), notes: $('notes'),
+  resolution: $('resolution'), resolutionField: $('resolution-field'), settings: $('settings'),
+  notes: $('notes'),
   interactiveEnabled: $('interactive-enabled'), interactiveScale: $('interactive-scale'),
   interactiveQuality: $('interactive-quality'),
   chart: $('chart'), chartLegend: $('chart-legend'), stats: $('stats'),
 };
 
 const RESIZE_DEBOUNCE_MS = 150;
+const LINK_DEBOUNCE_MS = 400;  // the URL follows the camera once it rests this long
 const RETRY_MIN_MS = 500;    // stream retries: 0.5 s doubling to 5 s (as the socket's)
 const RETRY_MAX_MS = 5000;
 
@@ -45,13 +54,20 @@ const conn = new Connection(`${location.protocol === 'https:' ? 'wss' : 'ws'}://
 const timings = new TimingHistory();
 const chart = new TimingChart(ui.chart, ui.chartLegend, timings);
 const fps = new FpsMeter();
+const bitrate = new BitrateMeter();
 const latency = new LatencyTracker();
 const gestures = new PointerGestures();
+
+// The view a link asked for (#scene=…&eye=…, camera.js parseViewLink), applied once the scene
+// list is known. ?scene= is what older links carry.
+const startLink = parseViewLink(location.hash);
 
 const state = {
   info: null,            // ServerInfo
   scenes: [],            // SceneInfo list
-  sceneId: new URLSearchParams(location.search).get('scene') || 'demo',
+  scenesListed: false,   // state.scenes came from the server
+  sceneId: startLink.sceneId || new URLSearchParams(location.search).get('scene') || 'demo',
+  pendingLink: startLink,  // the page's link, until applied
 
   // The stream. `gen` grows whenever a stream starts or stops, so that late async results
   // (open replies, decodes, timers) can tell they belong to a stream that is gone.
@@ -76,7 +92,9 @@ const state = {
   camera: null,          // OrbitCamera, once initialised from a frame
   cameraInitAfter: 0,    // > 0: re-initialise from the first frame reflecting this event id
   cameraDirty: false,
+  linkLookAt: null,      // a link's LookAt (its up may not be +Y), sent as is until the camera moves
   yfov: 0.8,
+  fovSet: false,         // yfov came from a link: every camera message carries it
   fly: false,
   keys: new Set(),       // KeyboardEvent.code values held (fly mode)
 
@@ -88,7 +106,8 @@ const state = {
   decodeFailed: false,
   chartDirty: false,
 
-  upload: null,          // {id, cancel, cancelled} while an upload runs
+  upload: null,          // {id, cancel, cancelled} while an upload (or its check) runs
+  overlay: true,         // the stats overlay shows
   errors: [],            // every error shown (test hook)
 };
 let nextEventId = 1;     // ClientEvent.event_id: one increasing counter for the page
@@ -170,9 +189,14 @@ async function onSocketOpen() {
   if (firstTime) {
     // A CPU device (lavapipe) renders full device pixels slowly: start at half resolution.
     ui.resolution.value = state.info.device?.type === 'cpu' ? '50' : '100';
-    panel.build(result.schema ?? [], state.info);
+    panel.build(result.schema ?? [], state.info, { image: [ui.resolutionField] });
+    restoreSections();
   }
   await refreshScenes();
+  if (state.pendingLink) {
+    applyLink(state.pendingLink);
+    state.pendingLink = null;
+  }
   if (epoch === state.epoch) await startStream({ resume: true });
 }
 
@@ -201,12 +225,13 @@ function freshOpen() {
   };
   // No camera on a new scene: the server frames its bounds and the first frame says how.
   if (state.camera && !state.cameraInitAfter) {
-    open.camera = { look_at: state.camera.lookAt() };
+    open.camera = cameraMessage();
   } else {
     // A re-frame still pending (its event went to a stream that died) is this open's job now:
     // its frames carry event id 0, so wait for any frame rather than for that event.
     state.camera = null;
     state.cameraInitAfter = 0;
+    if (state.fovSet) open.camera = cameraMessage({});  // framed, with the link's field of view
   }
   if (state.interactive) open.interactive = { ...state.interactive };
   return open;
@@ -264,7 +289,7 @@ async function startStream({ resume }) {
 /** After a resume, what changed while the stream was down goes to the session in one event. */
 function resyncSession() {
   const event = { settings: { ...state.userSettings, ...renderSize() } };
-  if (state.camera && !state.cameraInitAfter) event.camera = { look_at: state.camera.lookAt() };
+  if (state.camera && !state.cameraInitAfter) event.camera = cameraMessage();
   if (state.interactive) event.interactive = { ...state.interactive };
   state.cameraDirty = false;
   sendEvent(event);
@@ -281,7 +306,11 @@ function onStreamFailed(err) {
   }
   if (err.code === 'ABORTED') state.token = null;  // another stream took the session over
   // Do not send a refused value again: first the settings, then (if those were not it) the camera.
-  if (err.code === 'INVALID_ARGUMENT' && !revertSettings()) state.camera = null;
+  if (err.code === 'INVALID_ARGUMENT' && !revertSettings()) {
+    state.camera = null;
+    state.linkLookAt = null;
+    state.fovSet = false;
+  }
   if (!isTransient(err.code)) showError(err, 'The server could not stream the scene');
   if (!conn.connected) return;  // the socket reconnects and restarts the stream itself
   const delay = state.retryDelay;
@@ -310,24 +339,25 @@ function onStreamEnd(msg) {
   }
 }
 
-/** Switches scene: a new session with the same settings, framed by the server. */
-function switchScene(sceneId) {
+/**
+ * Switches scene: a new session with the same settings, framed by the server, or with the
+ * camera of `link` (a parsed view link for this scene).
+ */
+function switchScene(sceneId, link = null) {
   state.sceneId = sceneId;
   state.token = null;
   state.camera = null;
   state.cameraInitAfter = 0;
   state.cameraDirty = false;
+  state.linkLookAt = null;
+  if (link) applyLinkCamera(link);
   syncSceneUi();
   guard(startStream, 'Could not open the scene')({ resume: false });
 }
 
-/** ?scene= in the URL and the picker follow the current scene. */
+/** The URL (#scene=…) and the picker follow the current scene. */
 function syncSceneUi() {
-  const url = new URL(location.href);
-  if (url.searchParams.get('scene') !== state.sceneId) {
-    url.searchParams.set('scene', state.sceneId);
-    window.history.replaceState(window.history.state, '', url);
-  }
+  writeLink();
   renderSceneOptions();
 }
 
@@ -402,7 +432,9 @@ function onFrame({ header, payload }) {
     state.sceneId = frame.scene_id;  // e.g. an 8-character prefix resolved to the full id
     syncSceneUi();
   }
-  const latencyMs = latency.frameArrived(Number(frame.event_id ?? 0), performance.now());
+  const now = performance.now();
+  bitrate.add(now, payload.byteLength);
+  const latencyMs = latency.frameArrived(Number(frame.event_id ?? 0), now);
   maybeInitCamera(frame);
   decodeAndDraw(state.gen, frame, payload, latencyMs).catch((err) => {
     if (!state.decodeFailed) showError(err, 'A frame could not be shown');
@@ -452,16 +484,33 @@ function maybeInitCamera(frame) {
   state.camera = OrbitCamera.fromLookAt(frame.camera);
   state.cameraInitAfter = 0;
   state.cameraDirty = false;
+  scheduleLinkUpdate();  // the server's framing is the view a link shares now
 }
 
+// The overlay's stats: the main rows, then the rest folded under "More" (kept open or shut
+// across updates).
+const statsMain = el('dl');
+const statsMore = el('dl');
+const statsMoreBox = el('details');
+statsMoreBox.id = 'stats-more';
+statsMoreBox.append(el('summary', 'More'), statsMore);
+ui.stats.replaceChildren(statsMain, statsMoreBox);
+
 function renderStats() {
+  const now = performance.now();
   const rows = statsRows(state.lastFrame, {
-    fps: fps.label(performance.now()),
+    fps: fps.label(now),
     latencyMs: latency.median(),
+    bitrate: bitrate.label(now),
   });
-  const dl = el('dl');
-  for (const [label, value] of rows) dl.append(el('dt', label), el('dd', value));
-  ui.stats.replaceChildren(dl);
+  const main = [];
+  const more = [];
+  for (const [label, value] of rows) {
+    (MAIN_STATS.has(label) ? main : more).push(el('dt', label), el('dd', value));
+  }
+  statsMain.replaceChildren(...main);
+  statsMore.replaceChildren(...more);
+  statsMoreBox.hidden = more.length === 0;
 }
 
 function saveImage() {
@@ -500,23 +549,37 @@ function tick(now) {
     const dt = lastTickTime ? Math.min(0.1, (now - lastTickTime) / 1000) : 1 / 60;
     const fast = state.keys.has('ShiftLeft') || state.keys.has('ShiftRight');
     state.camera.fly(flyVector(state.keys), dt, fast);
+    state.linkLookAt = null;
     state.cameraDirty = true;
+    scheduleLinkUpdate();
   }
   lastTickTime = moving ? now : 0;
   if (state.cameraDirty && usable() && state.streamId !== null) {
-    sendEvent({ camera: { look_at: state.camera.lookAt() } });
+    sendEvent({ camera: cameraMessage() });
     state.cameraDirty = false;
   }
-  if (state.chartDirty) {
+  if (state.chartDirty && state.overlay) {  // a hidden chart is drawn when it shows again
     chart.draw();
     state.chartDirty = false;
   }
   if (moving) requestTick();  // continuous movement while keys are held
 }
 
+/** The user moved the camera: send it (next animation frame), and the URL follows at rest. */
 function cameraChanged() {
+  state.linkLookAt = null;
   state.cameraDirty = true;
+  scheduleLinkUpdate();
   requestTick();
+}
+
+/**
+ * A Camera message for the server: `placement` (default: the current LookAt, or a link's own
+ * until the camera moves), with the link's field of view when one set it (the server takes a
+ * camera without yfov as its default field of view).
+ */
+function cameraMessage(placement = { look_at: state.linkLookAt ?? state.camera.lookAt() }) {
+  return state.fovSet ? { ...placement, yfov: state.yfov } : placement;
 }
 
 const pointerOf = (e) => ({
@@ -552,10 +615,27 @@ function typingIn(target) {
   return target.tagName === 'INPUT' && !['checkbox', 'radio', 'button', 'file'].includes(target.type);
 }
 
+/** Whether Enter on this element is the element's own (a button, a link, a form control). */
+function ownsEnter(target) {
+  if (!(target instanceof HTMLElement)) return false;
+  return ['BUTTON', 'A', 'SUMMARY', 'INPUT', 'SELECT', 'TEXTAREA'].includes(target.tagName) ||
+    target.isContentEditable || target.getAttribute('role') === 'button';
+}
+
+/**
+ * Keys: F fly, W A S D Q E (and arrows, Shift) move in fly mode, I the stats overlay, Enter
+ * fullscreen (unless a button or field has the focus). None while typing in a field.
+ */
 function onKeyDown(e) {
   if (typingIn(e.target) || e.ctrlKey || e.metaKey || e.altKey) return;
   if (e.code === 'KeyF' && !e.repeat) {
     setFly(!state.fly);
+    e.preventDefault();
+  } else if ((e.key === 'i' || e.key === 'I') && !e.repeat) {
+    setOverlay(!state.overlay);
+    e.preventDefault();
+  } else if (e.key === 'Enter' && !e.repeat && !ownsEnter(e.target) && !ui.fullscreen.hidden) {
+    guard(toggleFullscreen, 'Fullscreen did not work')();
     e.preventDefault();
   } else if (state.fly && (isFlyKey(e.code) || e.code.startsWith('Shift'))) {
     state.keys.add(e.code);
@@ -576,13 +656,210 @@ function setFly(on) {
 /** Reset view: the server frames the scene, and the orbit restarts from the frame it sends. */
 function resetView() {
   state.cameraDirty = false;
-  const eventId = sendEvent({ camera: { frame: {} } });
+  state.linkLookAt = null;
+  const eventId = sendEvent({ camera: cameraMessage({ frame: {} }) });
   if (eventId !== null) {
     state.cameraInitAfter = eventId;
   } else {
     state.camera = null;  // no stream now: the next session opens without a camera
     state.cameraInitAfter = 0;
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The view in the URL: #scene=<id>&eye=x,y,z&target=x,y,z[&up=x,y,z]&fov=<degrees>, written
+// with replaceState once the camera rests, read on load and when the hash is edited
+
+let linkTimer = null;
+let linkWritten = null;  // the hash this page wrote last (a hashchange to it is our own)
+
+/** A scene the server listed: the id, or a prefix of one. */
+const sceneListed = (id) => id === 'demo' ||
+  state.scenes.some((s) => !s.deleted && (s.scene_id === id || s.scene_id.startsWith(id)));
+
+/** The current view as a hash (without '#'). */
+function currentLink() {
+  const lookAt = state.linkLookAt ?? (usable() ? state.camera.lookAt() : null);
+  const yfov = lookAt || state.fovSet ? state.yfov : undefined;
+  return formatViewLink({ sceneId: state.sceneId, lookAt, yfov });
+}
+
+/** Puts the current view in the URL now (no history entry, no navigation). */
+function writeLink() {
+  clearTimeout(linkTimer);
+  linkTimer = null;
+  const url = new URL(location.href);
+  url.searchParams.delete('scene');  // older links' ?scene=: the hash has it now
+  url.hash = currentLink();
+  linkWritten = url.hash;
+  if (url.href !== location.href) window.history.replaceState(window.history.state, '', url);
+}
+
+/** The URL follows the camera once it has rested LINK_DEBOUNCE_MS (not every frame). */
+function scheduleLinkUpdate() {
+  clearTimeout(linkTimer);
+  linkTimer = setTimeout(guard(writeLink, 'Could not update the link'), LINK_DEBOUNCE_MS);
+}
+
+/** The note under the scene picker about the page's link; '' hides it. */
+function setLinkNote(text) {
+  ui.linkNote.textContent = text;
+  ui.linkNote.hidden = text === '';
+}
+
+/** The camera and field of view of a parsed link (its scene is the caller's business). */
+function applyLinkCamera(link) {
+  if (link.yfov) {
+    state.yfov = link.yfov;
+    state.fovSet = true;
+  }
+  if (link.lookAt) {
+    state.camera = OrbitCamera.fromLookAt(link.lookAt);
+    state.cameraInitAfter = 0;
+    state.linkLookAt = link.lookAt.up ? link.lookAt : null;  // the orbit itself keeps +Y up
+  }
+}
+
+/**
+ * Applies the page's link once the scenes are listed (before the first stream opens): its
+ * scene when the server has it, then its camera instead of the server's framing. What cannot
+ * be used is ignored, with a note.
+ */
+function applyLink(link) {
+  const notes = [];
+  if (link.problems.length > 0) notes.push(`Ignored in the link: ${link.problems.join('; ')}.`);
+  if (link.sceneId && state.scenesListed && !sceneListed(link.sceneId)) {
+    notes.push(`The link's scene ${short(link.sceneId)} is not on this server: showing "demo", ` +
+      'framed by the server.');
+    state.sceneId = 'demo';
+    renderSceneOptions();
+  } else {
+    applyLinkCamera(link);
+  }
+  setLinkNote(notes.join(' '));
+}
+
+/** A hash edited by hand (or a link followed within the page): show that view. */
+function onHashChange() {
+  if (location.hash === linkWritten) return;
+  const link = parseViewLink(location.hash);
+  const notes = link.problems.length > 0 ? [`Ignored in the link: ${link.problems.join('; ')}.`] : [];
+  if (link.sceneId && state.scenesListed && !sceneListed(link.sceneId)) {
+    notes.push(`The link's scene ${short(link.sceneId)} is not on this server.`);
+    setLinkNote(notes.join(' '));
+    writeLink();  // the URL says what is shown
+    return;
+  }
+  setLinkNote(notes.join(' '));
+  if (link.sceneId && !state.sceneId.startsWith(link.sceneId)) {
+    switchScene(link.sceneId, link);
+    return;
+  }
+  applyLinkCamera(link);
+  if (link.lookAt || link.yfov) {
+    state.cameraDirty = true;
+    requestTick();
+  }
+}
+
+/** "Copy link": the current view's URL to the clipboard (or, failing that, in the note). */
+async function copyLink() {
+  writeLink();
+  const url = location.href;
+  let copied = false;
+  try {
+    await navigator.clipboard.writeText(url);
+    copied = true;
+  } catch {
+    // No clipboard API (plain http) or no permission: the old way, then the note.
+    const area = el('textarea');
+    area.value = url;
+    area.setAttribute('readonly', '');
+    area.style.position = 'fixed';
+    area.style.opacity = '0';
+    document.body.append(area);
+    area.select();
+    try {
+      copied = document.execCommand('copy');
+    } catch {
+      copied = false;
+    }
+    area.remove();
+  }
+  if (!copied) setLinkNote(`Copy this link: ${url}`);
+  ui.copyLink.textContent = copied ? 'Link copied' : 'Copy link';
+  ui.copyLink.dataset.copied = String(copied);
+  setTimeout(() => { ui.copyLink.textContent = 'Copy link'; }, 1500);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Stats overlay (I) and fullscreen (Enter) of the viewport: canvas, toolbar and overlay
+
+const STORAGE_OVERLAY = 'tessera.overlay';
+const STORAGE_SECTIONS = 'tessera.sections';
+
+/** localStorage, which may be missing or refuse (private modes, disabled storage). */
+function loadStored(key) {
+  try {
+    return window.localStorage.getItem(key);
+  } catch {
+    return null;
+  }
+}
+function saveStored(key, value) {
+  try {
+    window.localStorage.setItem(key, value);
+  } catch {
+    // not remembered: no harm
+  }
+}
+
+function setOverlay(on, remember = true) {
+  state.overlay = on;
+  ui.overlay.hidden = !on;
+  ui.overlayToggle.setAttribute('aria-pressed', String(on));
+  if (remember) saveStored(STORAGE_OVERLAY, on ? '1' : '0');
+  if (on) {
+    renderStats();
+    state.chartDirty = true;
+    requestTick();
+  }
+}
+
+/** Settings sections open or shut as the user left them. */
+function restoreSections() {
+  let saved = {};
+  try {
+    const parsed = JSON.parse(loadStored(STORAGE_SECTIONS) ?? '{}');
+    if (parsed && typeof parsed === 'object') saved = parsed;
+  } catch {
+    // unreadable: the defaults
+  }
+  for (const details of document.querySelectorAll('#panel details.group')) {
+    if (typeof saved[details.id] === 'boolean') details.open = saved[details.id];
+    details.addEventListener('toggle', () => {
+      saved[details.id] = details.open;
+      saveStored(STORAGE_SECTIONS, JSON.stringify(saved));
+    });
+  }
+}
+
+async function toggleFullscreen() {
+  if (document.fullscreenElement) await document.exitFullscreen();
+  else await ui.viewport.requestFullscreen({ navigationUI: 'hide' });
+}
+
+/** The button follows the state (Esc, the browser's own controls); the canvas resizes itself. */
+function onFullscreenChange() {
+  const on = document.fullscreenElement === ui.viewport;
+  ui.fullscreen.setAttribute('aria-pressed', String(on));
+  ui.fullscreen.textContent = on ? 'Exit fullscreen' : 'Fullscreen';
+}
+
+/** The overlay and the error banner start below the toolbar, however many rows it wraps to. */
+function onToolbarResize() {
+  const bottom = ui.toolbar.offsetTop + ui.toolbar.offsetHeight;
+  ui.viewport.style.setProperty('--hud-top', `${bottom + 8}px`);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -648,6 +925,7 @@ function onInteractiveChanged() {
 async function refreshScenes() {
   try {
     state.scenes = (await conn.request('scenes')).scenes ?? [];
+    state.scenesListed = true;
   } catch (err) {
     if (!isTransient(err.code)) showError(err, 'The server did not list its scenes');
   }
@@ -689,7 +967,48 @@ function onUploadProgress({ phase, done, total }) {
   ui.uploadStatus.textContent = `${PHASES[phase] ?? phase}${amount}`;
 }
 
-/** Uploads a scene from file descriptors [{path, size, file}], then switches to it. */
+/**
+ * Whether the server already has a planned upload's scene: its id computed here (the content
+ * hash, as the server and the CLI compute it), then HasScene. Resolves to the SceneInfo when
+ * it does; null when it does not or cannot be asked (no WebCrypto outside https and
+ * localhost, an older gateway or server, a file that cannot be read: the upload goes ahead and
+ * says what is wrong); 'cancelled' when the user cancelled meanwhile.
+ */
+async function findOnServer(plan) {
+  const subtle = window.isSecureContext ? globalThis.crypto?.subtle : undefined;
+  if (!subtle) return null;
+  const check = { id: null, cancelled: false, cancel: () => {} };
+  state.upload = check;
+  const total = plan.files.reduce((sum, f) => sum + f.size, 0);
+  ui.uploadProgress.max = Math.max(1, total);
+  ui.uploadProgress.value = 0;
+  ui.uploadStatus.textContent = `checking: hashing ${plan.main}…`;
+  try {
+    const sceneId = await computeSceneId(plan, {
+      subtle,
+      onFile: (index, done) => {
+        ui.uploadProgress.value = done;
+        const next = plan.files[index + 1];
+        if (next) ui.uploadStatus.textContent = `checking: hashing ${next.name}…`;
+      },
+    });
+    if (check.cancelled) return 'cancelled';
+    ui.uploadStatus.textContent = 'checking: does the server have it?';
+    ui.uploadProgress.removeAttribute('value');
+    const reply = await conn.request('has_scene', { scene_id: sceneId });
+    if (check.cancelled) return 'cancelled';
+    return reply.present ? { ...reply.info, scene_id: sceneId } : null;
+  } catch {
+    return check.cancelled ? 'cancelled' : null;
+  } finally {
+    state.upload = null;
+  }
+}
+
+/**
+ * Uploads a scene from file descriptors [{path, size, file}], then switches to it; a scene the
+ * server already has (findOnServer) is selected without sending it again.
+ */
 async function uploadFiles(entries) {
   if (state.upload) throw new UploadError('An upload is already running; wait for it or cancel it.');
   if (entries.length === 0) return;
@@ -699,6 +1018,21 @@ async function uploadFiles(entries) {
   ui.sceneWarnings.hidden = true;
   ui.uploadNote.hidden = true;
   ui.uploadBox.hidden = false;
+  const skipped = plan.unused.length
+    ? ` ${plan.unused.length} file(s) the scene does not use were left out.` : '';
+  const known = await findOnServer(plan);
+  if (known) ui.uploadBox.hidden = true;
+  if (known === 'cancelled') return;
+  if (known) {
+    ui.uploadNote.textContent =
+      `${plan.main} is already on the server: not uploaded (${short(known.scene_id)}).${skipped}`;
+    ui.uploadNote.hidden = false;
+    showWarnings(known.warnings);
+    await refreshScenes();
+    switchScene(known.scene_id);
+    return;
+  }
+
   ui.uploadProgress.value = 0;
   ui.uploadStatus.textContent = `starting ${plan.main} (${plan.files.length} files)…`;
   const upload = sendUpload(conn, plan, { onProgress: onUploadProgress });
@@ -714,15 +1048,17 @@ async function uploadFiles(entries) {
     ui.uploadBox.hidden = true;
   }
 
-  const skipped = plan.unused.length
-    ? ` ${plan.unused.length} file(s) the scene does not use were left out.` : '';
   ui.uploadNote.textContent = `Uploaded ${scene.name} (${short(scene.scene_id)}).${skipped}`;
   ui.uploadNote.hidden = false;
-  const warnings = scene.warnings ?? [];
-  ui.sceneWarnings.querySelector('ul').replaceChildren(...warnings.map((w) => el('li', w)));
-  ui.sceneWarnings.hidden = warnings.length === 0;
+  showWarnings(scene.warnings);
   await refreshScenes();
   switchScene(scene.scene_id);
+}
+
+/** The importer's warnings about the scene shown, if any. */
+function showWarnings(warnings = []) {
+  ui.sceneWarnings.querySelector('ul').replaceChildren(...warnings.map((w) => el('li', w)));
+  ui.sceneWarnings.hidden = warnings.length === 0;
 }
 
 function cancelUpload() {
@@ -776,6 +1112,7 @@ window.tessera = {
       passes: [...timings.passes],
       frames: timings.frames.map((f) => ({ ...f, passes: { ...f.passes } })),
       fps: fps.fps(performance.now()),
+      bitrate_bps: bitrate.bitsPerSecond(performance.now()),
       latency_ms: latency.median(),
       bytes: state.lastFrame ? Number(state.lastFrame.bytes ?? state.lastPayload.byteLength) : null,
     };
@@ -810,6 +1147,11 @@ function wire() {
   window.addEventListener('blur', () => state.keys.clear());  // keys released elsewhere
 
   ui.flyToggle.addEventListener('click', () => setFly(!state.fly));
+  ui.copyLink.addEventListener('click', guard(copyLink, 'The link could not be copied'));
+  ui.overlayToggle.addEventListener('click', () => setOverlay(!state.overlay));
+  ui.fullscreen.addEventListener('click', guard(toggleFullscreen, 'Fullscreen did not work'));
+  document.addEventListener('fullscreenchange', onFullscreenChange);
+  window.addEventListener('hashchange', guard(onHashChange, 'The link could not be shown'));
   ui.resetView.addEventListener('click', guard(resetView));
   ui.save.addEventListener('click', guard(saveImage, 'The image could not be saved'));
   ui.errorDismiss.addEventListener('click', () => { ui.error.hidden = true; });
@@ -837,14 +1179,21 @@ function wire() {
   new ResizeObserver(guard(onViewportResize)).observe(view);
   window.addEventListener('resize', guard(onViewportResize));  // devicePixelRatio changes (zoom)
   new ResizeObserver(() => { state.chartDirty = true; requestTick(); }).observe(ui.chart);
+  new ResizeObserver(onToolbarResize).observe(ui.toolbar);
   setInterval(guard(renderStats), 500);  // fps decays while no frames come
 }
 
-// Phones and narrow windows start with the panel folded away.
-if (window.matchMedia('(max-width: 720px)').matches) {
+// Phones and narrow windows start with the panel folded away, and without the overlay unless
+// it was turned on there before.
+const narrow = window.matchMedia('(max-width: 720px)').matches;
+if (narrow) {
   document.body.classList.add('panel-collapsed');
   ui.panelToggle.setAttribute('aria-expanded', 'false');
 }
+const overlayStored = loadStored(STORAGE_OVERLAY);
+setOverlay(overlayStored === null ? !narrow : overlayStored === '1', false);
+ui.fullscreen.hidden = !document.fullscreenEnabled;  // iPhone Safari, some embedded views
+if (startLink.problems.length > 0) setLinkNote(`Ignored in the link: ${startLink.problems.join('; ')}.`);
 wire();
 onViewportResize();
 renderStats();

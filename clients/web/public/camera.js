@@ -335,3 +335,129 @@ export class PointerGestures {
     if (this.mode === 'orbit' || this.mode === 'look') this.mode = fly ? 'look' : 'orbit';
   }
 }
+
+// ---- the view in the page's URL (location.hash) ----
+//
+//   #scene=<id>&eye=x,y,z&target=x,y,z[&up=x,y,z]&fov=<degrees>
+//
+// Every part is optional; `up` is written only when it is not +Y. Links come from anyone, so
+// parsing checks everything and drops what it cannot use, saying why in `problems`.
+
+/** The largest |coordinate| a link may carry (world units), and the longest link read. */
+export const LINK_MAX_COORD = 1e7;
+export const LINK_MAX_LENGTH = 2048;
+/** Vertical field of view a link may ask for, in degrees (the server takes (0, 3.1) radians). */
+export const LINK_FOV_MIN = 1;
+export const LINK_FOV_MAX = 170;
+
+const SCENE_ID = /^(demo|[0-9a-f]{8,64})$/;
+const NUMBER = /^[+-]?(\d+\.?\d*|\.\d+)(e[+-]?\d+)?$/i;
+
+/** A number as a link writes it: 6 significant digits, no exponent for link-sized values. */
+const linkNumber = (v) => String(Number(v.toPrecision(6)) + 0);  // + 0 turns -0 into 0
+
+/** "x,y,z" as a vector within the link's bounds, or a problem (a string). */
+function linkVec3(text, key) {
+  const parts = text.split(',');
+  if (parts.length !== 3 || !parts.every((p) => NUMBER.test(p.trim()))) {
+    return `${key}: wants three numbers x,y,z`;
+  }
+  const [x, y, z] = parts.map(Number);
+  if (![x, y, z].every((v) => Number.isFinite(v) && Math.abs(v) <= LINK_MAX_COORD)) {
+    return `${key}: numbers must be finite and within ±${LINK_MAX_COORD}`;
+  }
+  return { x, y, z };
+}
+
+/**
+ * Reads a view from a URL hash ("#scene=...&eye=..."). Returns
+ *   {sceneId?, lookAt?: {eye, target, up?}, yfov? (radians), problems: [string]}
+ * with only the parts that are valid: a scene id (64 hex digits, an 8+ digit prefix, or
+ * "demo"), eye and target together (distinct, finite, bounded), an up that is not zero or
+ * parallel to the view, a field of view in [1, 170] degrees. Unknown keys are ignored. Never
+ * throws.
+ */
+export function parseViewLink(hash) {
+  const out = { problems: [] };
+  const text = String(hash ?? '').replace(/^#/, '');
+  if (text === '') return out;
+  if (text.length > LINK_MAX_LENGTH) {
+    out.problems.push(`the link's view is longer than ${LINK_MAX_LENGTH} characters`);
+    return out;
+  }
+  const params = new Map();
+  for (const pair of text.split('&')) {
+    if (pair === '') continue;
+    const at = pair.indexOf('=');
+    const key = at < 0 ? pair : pair.slice(0, at);
+    let value = at < 0 ? '' : pair.slice(at + 1);
+    try {
+      value = decodeURIComponent(value);
+    } catch {
+      out.problems.push(`${key}: not readable`);
+      continue;
+    }
+    if (!params.has(key)) params.set(key, value);
+  }
+
+  if (params.has('scene')) {
+    const id = params.get('scene');
+    if (SCENE_ID.test(id)) out.sceneId = id;
+    else out.problems.push('scene: not a scene id');
+  }
+  if (params.has('fov')) {
+    const deg = NUMBER.test(params.get('fov')) ? Number(params.get('fov')) : NaN;
+    if (deg >= LINK_FOV_MIN && deg <= LINK_FOV_MAX) out.yfov = (deg * Math.PI) / 180;
+    else out.problems.push(`fov: wants degrees from ${LINK_FOV_MIN} to ${LINK_FOV_MAX}`);
+  }
+  const hasEye = params.has('eye');
+  const hasTarget = params.has('target');
+  if (!hasEye && !hasTarget) {
+    if (params.has('up')) out.problems.push('up: needs eye and target');
+    return out;
+  }
+  if (hasEye !== hasTarget) {
+    out.problems.push(`${hasEye ? 'eye' : 'target'}: needs ${hasEye ? 'target' : 'eye'} too`);
+    return out;
+  }
+  const eye = linkVec3(params.get('eye'), 'eye');
+  const target = linkVec3(params.get('target'), 'target');
+  const up = params.has('up') ? linkVec3(params.get('up'), 'up') : null;
+  const bad = [eye, target, up].filter((v) => typeof v === 'string');
+  if (bad.length > 0) {
+    out.problems.push(...bad);
+    return out;
+  }
+  const view = vec3.sub(target, eye);
+  const size = Math.max(1, vec3.length(eye), vec3.length(target));
+  if (!(vec3.length(view) > 1e-6 * size)) {
+    out.problems.push('target: equals eye');
+    return out;
+  }
+  if (up) {
+    const side = vec3.length(vec3.cross(vec3.normalize(view), vec3.normalize(up, { x: 0, y: 0, z: 0 })));
+    if (!(side > 1e-3)) {
+      out.problems.push('up: zero or parallel to the view');
+      return out;
+    }
+  }
+  out.lookAt = up ? { eye, target, up } : { eye, target };
+  return out;
+}
+
+/**
+ * The hash for a view {sceneId, lookAt?: {eye, target, up?}, yfov? (radians)}, without the
+ * '#': what parseViewLink reads back (to 6 significant digits). `up` is left out when +Y.
+ */
+export function formatViewLink({ sceneId, lookAt, yfov } = {}) {
+  const parts = [];
+  if (sceneId) parts.push(`scene=${encodeURIComponent(sceneId)}`);
+  const vec = (v) => [v.x, v.y, v.z].map(linkNumber).join(',');
+  if (lookAt && vec3.isFinite(lookAt.eye) && vec3.isFinite(lookAt.target)) {
+    parts.push(`eye=${vec(lookAt.eye)}`, `target=${vec(lookAt.target)}`);
+    const up = lookAt.up;
+    if (vec3.isFinite(up) && !(up.x === 0 && up.z === 0 && up.y > 0)) parts.push(`up=${vec(up)}`);
+  }
+  if (Number.isFinite(yfov) && yfov > 0) parts.push(`fov=${linkNumber((yfov * 180) / Math.PI)}`);
+  return parts.join('&');
+}

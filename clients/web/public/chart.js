@@ -1,5 +1,5 @@
 // The live timing chart: per-pass GPU times of the last N frames as stacked bars, plus the
-// small data models behind the stats (frame history, fps, input-to-frame latency).
+// small data models behind the stats (frame history, fps, bitrate, input-to-frame latency).
 // The models are pure; TimingChart draws them on a <canvas> and fills a legend list.
 
 /** Frames kept by the chart. */
@@ -107,6 +107,45 @@ export class FpsMeter {
   }
 }
 
+/** Bits per second as the stats show them: "3.52 Mbit/s" ("0.042 Mbit/s" below 0.1). */
+export function formatBitrate(bitsPerSecond) {
+  if (!Number.isFinite(bitsPerSecond) || bitsPerSecond < 0) return '–';
+  const mbit = bitsPerSecond / 1e6;
+  return `${mbit.toFixed(mbit > 0 && mbit < 0.1 ? 3 : 2)} Mbit/s`;
+}
+
+/**
+ * The bitrate of the stream: bytes of frames received in a sliding window (default 2 s), per
+ * second, in bits. Times in ms.
+ */
+export class BitrateMeter {
+  constructor(windowMs = 2000) {
+    this.windowMs = windowMs;
+    this.samples = [];  // [time, bytes]
+    this.last = 0;      // the rate when the newest frame came: what it ran at before going idle
+  }
+
+  add(now, bytes) {
+    const n = Number(bytes);
+    this.samples.push([now, Number.isFinite(n) && n > 0 ? n : 0]);
+    this.last = this.bitsPerSecond(now);
+  }
+
+  /** Bits per second over the window ending at `now`; 0 when no frame came in it. */
+  bitsPerSecond(now) {
+    while (this.samples.length > 0 && this.samples[0][0] <= now - this.windowMs) this.samples.shift();
+    const bytes = this.samples.reduce((sum, [, b]) => sum + b, 0);
+    return (bytes * 8) / (this.windowMs / 1000);
+  }
+
+  /** "3.52 Mbit/s" while frames come; "idle (last 3.52 Mbit/s)" once they stop; "–" before any. */
+  label(now) {
+    const rate = this.bitsPerSecond(now);
+    if (rate > 0) return formatBitrate(rate);
+    return this.last > 0 ? `idle (last ${formatBitrate(this.last)})` : '–';
+  }
+}
+
 /**
  * Input-to-frame latency. sent(id, t) remembers when each event left; frameArrived(eventId, t)
  * takes the newest pending event the frame reflects (id <= eventId), records t minus its send
@@ -159,6 +198,15 @@ export function niceCeil(v) {
   return 10 * p;
 }
 
+/**
+ * Grid lines for an axis from 0 to `max` (a niceCeil value): 5 steps for 5 x 10^k, else 4, so
+ * every line is a round number (0, 10, 20, ... 50 rather than 0, 12.5, 25, ... 50).
+ */
+export function gridSteps(max) {
+  const lead = max / 10 ** Math.floor(Math.log10(max));
+  return Math.abs(lead - 5) < 1e-9 ? 5 : 4;
+}
+
 /** Draws a TimingHistory on a canvas and keeps a legend <ul> in step. */
 export class TimingChart {
   constructor(canvas, legend, history) {
@@ -200,8 +248,9 @@ export class TimingChart {
     ctx.font = '10px system-ui, sans-serif';
     ctx.textAlign = 'right';
     ctx.textBaseline = 'middle';
-    for (let i = 0; i <= 4; i++) {
-      const ms = (yMax * i) / 4;
+    const steps = gridSteps(yMax);
+    for (let i = 0; i <= steps; i++) {
+      const ms = (yMax * i) / steps;
       const yy = Math.round(y(ms)) + 0.5;
       ctx.strokeStyle = i === 0 ? '#5a6270' : '#2c323c';
       ctx.beginPath();
@@ -274,14 +323,19 @@ export function formatMs(ms) {
 
 const count = (n) => (Number.isFinite(Number(n)) ? Number(n).toLocaleString('en-US') : '–');
 
+/** The rows of statsRows the overlay always shows; the others fold away under "More". */
+export const MAIN_STATS = new Set(['fps', 'latency (median)', 'bitrate', 'frame size', 'resolution', 'GPU total']);
+
 /**
  * The text stats of the frame shown, as [label, value] rows: fps, input-to-frame latency,
- * size, resolution, profile, GPU time and the frame's draw stats.
+ * bitrate (a label from BitrateMeter), size, resolution, profile, GPU time and the frame's
+ * draw stats.
  */
-export function statsRows(frame, { fps = 0, latencyMs = null } = {}) {
+export function statsRows(frame, { fps = 0, latencyMs = null, bitrate = '–' } = {}) {
   const rows = [
     ['fps', typeof fps === 'string' ? fps : fps.toFixed(1)],
     ['latency (median)', latencyMs === null ? '–' : `${formatMs(latencyMs)} ms`],
+    ['bitrate', bitrate],
   ];
   if (!frame) return rows;
   const bytes = Number(frame.bytes ?? 0);

@@ -229,6 +229,58 @@ export function formatBytes(n) {
   return `${(n / 1e9).toFixed(2)} GB`;
 }
 
+// ---- the scene id, computed before uploading (scene.proto SceneInfo.scene_id) ----
+
+const utf8 = new TextEncoder();
+
+/**
+ * Orders names as the server does (std::map<std::string>: byte-wise on UTF-8). JavaScript's
+ * own string order compares UTF-16 code units, which puts characters past U+FFFF before
+ * U+E000..U+FFFF; byte order does not.
+ */
+export function compareUtf8(a, b) {
+  const x = utf8.encode(a);
+  const y = utf8.encode(b);
+  const n = Math.min(x.length, y.length);
+  for (let i = 0; i < n; i++) if (x[i] !== y[i]) return x[i] - y[i];
+  return x.length - y.length;
+}
+
+const hex = (buffer) => [...new Uint8Array(buffer)].map((b) => b.toString(16).padStart(2, '0')).join('');
+
+/**
+ * The text the scene id hashes: for every file sorted by name (UTF-8 bytes),
+ * `name "\n" sha256hex "\n"`, then `"main " main "\n"`. `hashes`: [{name, sha256}].
+ */
+export function sceneIdText(hashes, main) {
+  const sorted = [...hashes].sort((a, b) => compareUtf8(a.name, b.name));
+  return `${sorted.map((h) => `${h.name}\n${h.sha256}\n`).join('')}main ${main}\n`;
+}
+
+/**
+ * The scene id the server will give a planned upload ({main, files: [{name, size, entry}]}):
+ * lowercase hex SHA-256 of sceneIdText over the files' SHA-256s, the same content hash as
+ * tesserad's and the CLI's. One digest per file (WebCrypto's digest takes the whole file);
+ * `onFile(index, bytesDone)` after each. `subtle` is WebCrypto's SubtleCrypto (only in secure
+ * contexts: https and localhost); `read(file)` gives a file's bytes.
+ */
+export async function computeSceneId(plan, {
+  subtle = globalThis.crypto?.subtle,
+  read = (file) => file.entry.file.arrayBuffer(),
+  onFile = () => {},
+} = {}) {
+  if (!subtle) throw new Error('WebCrypto is not available here (it needs https or localhost)');
+  const hashes = [];
+  let done = 0;
+  for (const [index, file] of plan.files.entries()) {
+    const bytes = await read(file);
+    hashes.push({ name: file.name, sha256: hex(await subtle.digest('SHA-256', bytes)) });
+    done += file.size;
+    onFile(index, done);
+  }
+  return hex(await subtle.digest('SHA-256', utf8.encode(sceneIdText(hashes, plan.main))));
+}
+
 // ---- sending (protocol: clients/web/README.md, "Uploads") ----
 
 /** Bytes of file data in one chunk message, and the socket buffer level that pauses sending. */

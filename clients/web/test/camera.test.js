@@ -3,8 +3,8 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 
 import {
-  FLY_FAST, OrbitCamera, PITCH_LIMIT, PointerGestures, anglePerPixel, flyVector, isFlyKey,
-  pinchGesture, vec3, wheelFactor,
+  FLY_FAST, LINK_MAX_LENGTH, OrbitCamera, PITCH_LIMIT, PointerGestures, anglePerPixel, flyVector,
+  formatViewLink, isFlyKey, parseViewLink, pinchGesture, vec3, wheelFactor,
 } from '../public/camera.js';
 
 const near = (a, b, eps = 1e-9, what = '') =>
@@ -277,4 +277,79 @@ test('pointer gestures: drag orbits, right-drag and Shift pan, two fingers pinch
   // Without a camera (not initialised yet) moves are tracked but change nothing.
   g.down({ id: 6, x: 0, y: 0 });
   assert.equal(g.move({ id: 6, x: 10, y: 0 }, null, view), false);
+});
+
+// ---- the view in the URL ----
+
+const ID = '6ee6ae2ad53a1f796384aa426563c203807a4c1e0c1ff089089cfa25d8a4e89a';
+
+test('a view link round-trips: scene, eye, target, fov; up only when it is not +Y', () => {
+  const lookAt = { eye: { x: 3, y: 2.5, z: -5 }, target: { x: 0, y: 0.57, z: 0 }, up: { x: 0, y: 1, z: 0 } };
+  const hash = formatViewLink({ sceneId: ID, lookAt, yfov: Math.PI / 3 });
+  assert.equal(hash, `scene=${ID}&eye=3,2.5,-5&target=0,0.57,0&fov=60`);
+  const back = parseViewLink(`#${hash}`);
+  assert.deepEqual(back.problems, []);
+  assert.equal(back.sceneId, ID);
+  assert.deepEqual(back.lookAt, { eye: lookAt.eye, target: lookAt.target });
+  near(back.yfov, Math.PI / 3, 1e-9);
+
+  const tilted = { ...lookAt, up: { x: 1, y: 0, z: 0 } };
+  const withUp = parseViewLink(formatViewLink({ sceneId: 'demo', lookAt: tilted }));
+  assert.deepEqual(withUp.lookAt.up, { x: 1, y: 0, z: 0 });
+  assert.equal(formatViewLink({ sceneId: 'demo' }), 'scene=demo');
+  assert.deepEqual(parseViewLink(''), { problems: [] });
+  assert.deepEqual(parseViewLink('#'), { problems: [] });
+});
+
+test('a view link carries 6 significant digits, never NaN, -0 or an exponent for ordinary values', () => {
+  const cam = sample();
+  cam.orbit(0.3, 0.1);
+  const hash = formatViewLink({ sceneId: 'demo', lookAt: cam.lookAt(), yfov: 0.8 });
+  assert.doesNotMatch(hash, /NaN|Infinity|e\+|-0[,&]/);
+  const back = parseViewLink(hash);
+  nearVec(back.lookAt.eye, cam.eye, 1e-5);
+  assert.equal(formatViewLink({ lookAt: { eye: { x: -0, y: 1e-7, z: 0 }, target: { x: 0, y: 0, z: 1 } } }),
+    'eye=0,1e-7,0&target=0,0,1');
+});
+
+test('hostile or malformed links: bad parts are dropped with a reason, never thrown', () => {
+  const cases = [
+    ['#eye=1,2&target=0,0,0', /eye: wants three numbers/],
+    ['#eye=1,2,3,4&target=0,0,0', /eye: wants three numbers/],
+    ['#eye=NaN,1,1&target=0,0,0', /eye: wants three numbers/],
+    ['#eye=Infinity,1,1&target=0,0,0', /eye: wants three numbers/],
+    ['#eye=0x10,1,1&target=0,0,0', /eye: wants three numbers/],
+    ['#eye=1e300,1,1&target=0,0,0', /eye: numbers must be finite and within/],
+    ['#eye=1,1,1&target=1,1,1', /target: equals eye/],
+    ['#eye=1,1,1', /eye: needs target too/],
+    ['#target=1,1,1', /target: needs eye too/],
+    ['#eye=0,0,5&target=0,0,0&up=0,0,1', /up: zero or parallel/],
+    ['#eye=0,0,5&target=0,0,0&up=0,0,0', /up: zero or parallel/],
+    ['#up=0,1,0', /up: needs eye and target/],
+    ['#fov=0', /fov: wants degrees/],
+    ['#fov=180', /fov: wants degrees/],
+    ['#fov=abc', /fov: wants degrees/],
+    ['#scene=../../etc', /scene: not a scene id/],
+    ['#scene=<script>', /scene: not a scene id/],
+    ['#scene=ABCDEF12', /scene: not a scene id/],
+    ['#scene=abc', /scene: not a scene id/],
+    ['#eye=%E0%A4%A,1,1&target=0,0,0', /eye: not readable/],
+    [`#scene=demo&x=${'a'.repeat(LINK_MAX_LENGTH)}`, /longer than/],
+  ];
+  for (const [hash, why] of cases) {
+    const link = parseViewLink(hash);
+    assert.equal(link.lookAt, undefined, hash);
+    assert.ok(link.problems.some((p) => why.test(p)), `${hash}: ${JSON.stringify(link.problems)}`);
+  }
+  // What is valid in a partly bad link is kept; unknown keys are ignored; the first of a
+  // repeated key counts.
+  const partly = parseViewLink('#scene=demo&eye=0,1,5&target=0,0,0&fov=999&zoom=3&eye=9,9,9');
+  assert.equal(partly.sceneId, 'demo');
+  assert.deepEqual(partly.lookAt, { eye: { x: 0, y: 1, z: 5 }, target: { x: 0, y: 0, z: 0 } });
+  assert.equal(partly.yfov, undefined);
+  assert.deepEqual(partly.problems, ['fov: wants degrees from 1 to 170']);
+  assert.equal(parseViewLink('#scene=6ee6ae2a').sceneId, '6ee6ae2a');  // a prefix, as ?scene= takes
+  for (const junk of [null, undefined, 42, {}, '#&&&', '#=', '#eye', '#%']) {
+    assert.doesNotThrow(() => parseViewLink(junk));
+  }
 });

@@ -2,10 +2,12 @@
 // gets, and that nothing a page sends hurts the gateway or another page.
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
+import { webcrypto } from 'node:crypto';
 import fs from 'node:fs';
 import path from 'node:path';
 import net from 'node:net';
 import { ASSETS, PageClient, binaryMessage, startGateway, startTesserad } from './harness.js';
+import { computeSceneId } from '../public/upload.js';
 
 let tesserad, gateway;
 
@@ -195,6 +197,50 @@ test('upload: a .glb in chunks, with progress, is loaded and renders; a re-uploa
   assert.ok(rendered.ok);
   const again = await uploadFile(page, 'Box.glb', glb);
   assert.equal(again.reply.result.scene_id, reply.result.scene_id);
+  page.close();
+});
+
+/** Uploads several files [{name, data}] with `main`; resolves to the reply. */
+async function uploadFiles(page, files, main) {
+  const id = page.nextId++;
+  const done = page.request('upload', { files: files.map((f) => ({ name: f.name, size: f.data.length })), main_file: main }, id);
+  files.forEach((f, index) => page.sendRaw(binaryMessage({ upload: id, file: index, offset: 0 }, f.data)));
+  return done;
+}
+
+test('has_scene: the id the page computes is the server\'s, even for names JavaScript sorts otherwise', async () => {
+  const page = await PageClient.connect(gateway.wsUrl);
+  const dir = path.join(ASSETS, 'BoxTextured/glTF');
+  // Names past U+FFFF sort before U+FF01 in UTF-16 but after it in UTF-8 (the server's order).
+  const files = [
+    { name: 'BoxTextured.gltf', data: fs.readFileSync(path.join(dir, 'BoxTextured.gltf')) },
+    { name: 'BoxTextured0.bin', data: fs.readFileSync(path.join(dir, 'BoxTextured0.bin')) },
+    { name: 'CesiumLogoFlat.png', data: fs.readFileSync(path.join(dir, 'CesiumLogoFlat.png')) },
+    { name: '\u{1F600}.txt', data: Buffer.from('four-byte UTF-8') },
+    { name: '\uFF01.txt', data: Buffer.from('three-byte UTF-8') },
+    { name: 'caf\u00e9.txt', data: Buffer.from('two-byte UTF-8') },
+  ];
+  const plan = { main: 'BoxTextured.gltf', files: files.map((f) => ({ name: f.name, size: f.data.length, entry: { file: new Blob([f.data]) } })) };
+  const computed = await computeSceneId(plan, { subtle: webcrypto.subtle });
+
+  const before = await page.request('has_scene', { scene_id: computed });
+  assert.ok(before.ok, JSON.stringify(before.error));
+  assert.equal(before.result.present, false);
+  const uploaded = await uploadFiles(page, files, plan.main);
+  assert.ok(uploaded.ok, JSON.stringify(uploaded.error));
+  assert.equal(uploaded.result.scene_id, computed);
+  const after = await page.request('has_scene', { scene_id: computed });
+  assert.equal(after.result.present, true);
+  assert.equal(after.result.info.name, 'BoxTextured.gltf');
+  assert.equal((await page.request('has_scene', { scene_id: 'demo' })).result.present, true);
+
+  // Untrusted input: only a full id (or "demo") reaches tesserad.
+  for (const bad of [computed.slice(0, 8), computed.toUpperCase(), `${computed}0`, 5, null, { toString: 1 }, '']) {
+    const reply = await page.request('has_scene', { scene_id: bad });
+    assert.equal(reply.ok, false, JSON.stringify(bad));
+    assert.equal(reply.error.code, 'INVALID_ARGUMENT');
+    assert.match(reply.error.message, /scene_id: .* is not a scene id/);
+  }
   page.close();
 });
 

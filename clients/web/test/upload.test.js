@@ -1,11 +1,17 @@
-// Unit tests of the viewer's upload planning and sending (public/upload.js): no browser needed.
+// Unit tests of the viewer's upload planning, scene id and sending (public/upload.js): no
+// browser needed.
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
+import { webcrypto } from 'node:crypto';
+import fs from 'node:fs';
+import path from 'node:path';
 
 import {
-  UploadError, checkLimits, collectInput, externalUris, findMainFile, normalizePath, percentDecode,
-  planUpload, readSceneJson, resolveUri, sendUpload, uriProblem,
+  UploadError, checkLimits, collectInput, compareUtf8, computeSceneId, externalUris, findMainFile,
+  normalizePath, percentDecode, planUpload, readSceneJson, resolveUri, sceneIdText,
+  sendUpload, uriProblem,
 } from '../public/upload.js';
+import { ASSETS } from './harness.js';
 
 /** A file descriptor as the page makes them; `text` stands in for reading the file. */
 const file = (path, size = 10, text) => ({ path, size, text });
@@ -291,4 +297,58 @@ test('sendUpload: a file that cannot be read cancels the upload on the gateway',
   const upload = sendUpload(conn, plan);
   await assert.rejects(upload.result, /file changed on disk/);
   assert.deepEqual(conn.notes, [{ op: 'cancel', fields: { target: 7 } }]);
+});
+
+// ---- the scene id (scene.proto SceneInfo.scene_id), computed before uploading ----
+
+const { subtle } = webcrypto;  // globalThis.crypto only from Node 19
+
+/** A plan as planUpload makes them, from {name: bytes}. */
+const planOf = (main, contents) => ({
+  main,
+  files: Object.entries(contents).map(([name, data]) => ({
+    name, size: data.length, entry: { file: new Blob([data]) },
+  })),
+});
+
+test('names sort by UTF-8 bytes, as the server\'s std::map does, not by UTF-16 code units', () => {
+  const names = ['\u{1F600}.bin', '\uFF01.bin', 'caf\u00e9.png', 'a.gltf', 'Z.bin'];
+  assert.deepEqual([...names].sort(compareUtf8), ['Z.bin', 'a.gltf', 'caf\u00e9.png', '\uFF01.bin', '\u{1F600}.bin']);
+  // JavaScript's own order differs here: the surrogate pair (0xD83D) sorts before U+FF01.
+  assert.deepEqual([...names].sort().slice(3), ['\u{1F600}.bin', '\uFF01.bin']);
+  assert.equal(compareUtf8('ab', 'abc') < 0, true);
+  assert.equal(compareUtf8('same', 'same'), 0);
+});
+
+test('the text hashed for the id: name, file hash, newline each, sorted; then the main file', () => {
+  assert.equal(sceneIdText([{ name: 'b.bin', sha256: '22' }, { name: 'a.gltf', sha256: '11' }], 'a.gltf'),
+    'a.gltf\n11\nb.bin\n22\nmain a.gltf\n');
+});
+
+test('the scene id of a multi-file glTF is the one the server and the CLI give it', async () => {
+  // `tessera upload --json MultiUVTest/glTF/MultiUVTest.gltf` against tesserad printed this id.
+  const dir = path.join(ASSETS, 'MultiUVTest/glTF');
+  const names = ['MultiUVTest.gltf', 'MultiUVTest.bin', 'uv0.png', 'uv1.png'];
+  const plan = planOf('MultiUVTest.gltf', Object.fromEntries(names.map((n) => [n, fs.readFileSync(path.join(dir, n))])));
+  const seen = [];
+  const id = await computeSceneId(plan, { subtle, onFile: (index, done) => seen.push([index, done]) });
+  assert.equal(id, '6ee6ae2ad53a1f796384aa426563c203807a4c1e0c1ff089089cfa25d8a4e89a');
+  assert.deepEqual(seen.map(([i]) => i), [0, 1, 2, 3]);
+  assert.equal(seen.at(-1)[1], plan.files.reduce((sum, f) => sum + f.size, 0));
+});
+
+test('the scene id with names outside ASCII matches the definition (computed with Python\'s hashlib)', async () => {
+  const text = (t) => new TextEncoder().encode(t);
+  const plan = planOf('a.gltf', {
+    'a.gltf': text('{"asset":{"version":"2.0"}}'),
+    '\u{1F600}.bin': text('four'),
+    '\uFF01.bin': text('three'),
+    'caf\u00e9.png': text('two'),
+    'Z.bin': text(''),
+  });
+  assert.equal(await computeSceneId(plan, { subtle }), 'd5987ef009488a6cea1586edd786ce2686c9b05158f573475c4139bee0c3d51a');
+});
+
+test('no WebCrypto (plain http on another host): computeSceneId says so (the page then uploads)', async () => {
+  await assert.rejects(computeSceneId(planOf('a.glb', { 'a.glb': new Uint8Array(1) }), { subtle: null }), /WebCrypto/);
 });
