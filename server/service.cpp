@@ -380,6 +380,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
     r->set_serving(h.serving);
     r->set_unhealthy_reason(h.reason);
   }
+  for (std::string_view e : SupportedGltfExtensions()) r->add_gltf_extensions(std::string(e));
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <deque>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtc/type_ptr.hpp>
@@ -250,17 +251,46 @@ uint32_t ReadUint(const AccessorView& a, uint64_t i, int c = 0) {
   }
 }
 
-// Float, or normalized unsigned byte/short (the only other types attributes are allowed).
+// One component as a float: FLOAT as stored; integers normalized (glTF 2.0 3.11: unsigned
+// c / max, signed max(c / max, -1)) or, unnormalized (KHR_mesh_quantization), their value.
+float ReadComponent(const AccessorView& a, uint64_t i, int c) {
+  const uint8_t* p = a.data + i * a.stride + c * a.component_size;
+  switch (a.component_type) {
+    case TINYGLTF_COMPONENT_TYPE_FLOAT:
+      return Load<float>(p);
+    case TINYGLTF_COMPONENT_TYPE_BYTE: {
+      const float v = float(Load<int8_t>(p));
+      return a.normalized ? std::max(v / 127.0f, -1.0f) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_SHORT: {
+      const float v = float(Load<int16_t>(p));
+      return a.normalized ? std::max(v / 32767.0f, -1.0f) : v;
+    }
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+      return a.normalized ? float(p[0]) / 255.0f : float(p[0]);
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+      return a.normalized ? float(Load<uint16_t>(p)) / 65535.0f : float(Load<uint16_t>(p));
+    default:
+      return float(Load<uint32_t>(p));
+  }
+}
+
 glm::vec4 ReadVec(const AccessorView& a, uint64_t i) {
   glm::vec4 out(0.0f);
-  for (int c = 0; c < std::min(a.components, 4); ++c) {
-    if (a.component_type == TINYGLTF_COMPONENT_TYPE_FLOAT) {
-      out[c] = Load<float>(a.data + i * a.stride + c * 4);
-    } else {
-      out[c] = float(ReadUint(a, i, c)) / (a.component_size == 1 ? 255.0f : 65535.0f);
-    }
-  }
+  for (int c = 0; c < std::min(a.components, 4); ++c) out[c] = ReadComponent(a, i, c);
   return out;
+}
+
+const char* ComponentTypeName(int t) {
+  switch (t) {
+    case TINYGLTF_COMPONENT_TYPE_BYTE: return "BYTE";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE: return "UNSIGNED_BYTE";
+    case TINYGLTF_COMPONENT_TYPE_SHORT: return "SHORT";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT: return "UNSIGNED_SHORT";
+    case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT: return "UNSIGNED_INT";
+    case TINYGLTF_COMPONENT_TYPE_FLOAT: return "FLOAT";
+    default: return "an unknown componentType";
+  }
 }
 
 bool Finite(const glm::vec3& v) {
@@ -422,21 +452,44 @@ class Converter {
     if (s_.warnings.size() < kMaxWarnings) s_.warnings.push_back(std::move(msg));
   }
 
-  absl::StatusOr<AccessorView> View(int index, const std::string& use) {
-    RETURN_IF_ERROR(CheckIndex(use, index, m_.accessors.size(), "accessor"));
-    const tinygltf::Accessor& a = m_.accessors[index];
-    const std::string field = absl::StrCat("accessors[", index, "]");
-    if (a.sparse.isSparse) return Err(field, "sparse accessors are not supported");
-    RETURN_IF_ERROR(
-        CheckIndex(field + ".bufferView", a.bufferView, m_.bufferViews.size(), "bufferView"));
-    const tinygltf::BufferView& bv = m_.bufferViews[a.bufferView];
-    const std::string bv_field = absl::StrCat("bufferViews[", a.bufferView, "]");
+  // The bytes of bufferView `index` for `field`, checked against its buffer.
+  absl::StatusOr<std::span<const uint8_t>> ViewBytes(const std::string& field, int index) {
+    RETURN_IF_ERROR(CheckIndex(field, index, m_.bufferViews.size(), "bufferView"));
+    const tinygltf::BufferView& bv = m_.bufferViews[index];
+    const std::string bv_field = absl::StrCat("bufferViews[", index, "]");
     RETURN_IF_ERROR(CheckIndex(bv_field + ".buffer", bv.buffer, m_.buffers.size(), "buffer"));
     const size_t have = m_.buffers[bv.buffer].data.size();
     if (bv.byteOffset > have || bv.byteLength > have - bv.byteOffset) {
       return Err(bv_field, "byteOffset + byteLength exceeds buffers[", bv.buffer, "] (", have,
                  " bytes)");
     }
+    return std::span<const uint8_t>(m_.buffers[bv.buffer].data.data() + bv.byteOffset,
+                                    bv.byteLength);
+  }
+
+  // `count` tightly packed elements of `size` bytes at `offset` in bufferView `view` (sparse
+  // indices and values: glTF gives them no byteStride).
+  absl::StatusOr<const uint8_t*> PackedRange(const std::string& field, int view, uint64_t offset,
+                                             uint64_t count, uint64_t size) {
+    ASSIGN_OR_RETURN(std::span<const uint8_t> bytes, ViewBytes(field + ".bufferView", view));
+    if (m_.bufferViews[view].byteStride != 0) {
+      return Err(field + ".bufferView", "bufferViews[", view,
+                 "] has a byteStride; sparse indices and values are tightly packed");
+    }
+    uint64_t end = 0;
+    if (__builtin_mul_overflow(count, size, &end) || __builtin_add_overflow(end, offset, &end) ||
+        end > bytes.size()) {
+      return Err(field, "byteOffset ", offset, " + ", count, " x ", size,
+                 " bytes exceeds bufferViews[", view, "].byteLength (", bytes.size(), ")");
+    }
+    return bytes.data() + offset;
+  }
+
+  absl::StatusOr<AccessorView> View(int index, const std::string& use) {
+    RETURN_IF_ERROR(CheckIndex(use, index, m_.accessors.size(), "accessor"));
+    if (const auto it = views_.find(index); it != views_.end()) return it->second;
+    const tinygltf::Accessor& a = m_.accessors[index];
+    const std::string field = absl::StrCat("accessors[", index, "]");
     if (a.count > limits_.max_accessor_elements) {
       return OverMax(field + ".count", "element count", a.count, "max_accessor_elements",
                      limits_.max_accessor_elements);
@@ -446,46 +499,147 @@ class Converter {
     v.components = tinygltf::GetNumComponentsInType(uint32_t(a.type));
     if (v.component_size <= 0 || v.components <= 0) return Err(field, "invalid type/componentType");
     const uint64_t elem = uint64_t(v.component_size) * uint64_t(v.components);
-    v.stride = bv.byteStride ? bv.byteStride : elem;
-    if (v.stride < elem) {
-      return Err(bv_field + ".byteStride", v.stride, " is smaller than the ", elem,
-                 "-byte elements of ", field);
-    }
-    if (a.count > 0) {
-      uint64_t span = 0, end = 0;
-      const bool overflow = __builtin_mul_overflow(uint64_t(a.count - 1), v.stride, &span) ||
-                            __builtin_add_overflow(span, elem, &end) ||
-                            __builtin_add_overflow(end, uint64_t(a.byteOffset), &end);
-      if (overflow || end > bv.byteLength) {
-        return Err(field, "byteOffset + count*stride (",
-                   overflow ? "overflows 64 bits" : absl::StrCat(end), ") exceeds ", bv_field,
-                   ".byteLength (", bv.byteLength, ")");
-      }
-    }
-    v.data = m_.buffers[bv.buffer].data.data() + bv.byteOffset + a.byteOffset;
     v.count = a.count;
     v.component_type = a.componentType;
     v.type = a.type;
     v.normalized = a.normalized;
     v.index = index;
+    v.stride = elem;
+    if (a.bufferView >= 0) {
+      ASSIGN_OR_RETURN(std::span<const uint8_t> bytes, ViewBytes(field + ".bufferView", a.bufferView));
+      const tinygltf::BufferView& bv = m_.bufferViews[a.bufferView];
+      const std::string bv_field = absl::StrCat("bufferViews[", a.bufferView, "]");
+      v.stride = bv.byteStride ? bv.byteStride : elem;
+      if (v.stride < elem) {
+        return Err(bv_field + ".byteStride", v.stride, " is smaller than the ", elem,
+                   "-byte elements of ", field);
+      }
+      if (a.count > 0) {
+        uint64_t span = 0, end = 0;
+        const bool overflow = __builtin_mul_overflow(uint64_t(a.count - 1), v.stride, &span) ||
+                              __builtin_add_overflow(span, elem, &end) ||
+                              __builtin_add_overflow(end, uint64_t(a.byteOffset), &end);
+        if (overflow || end > bytes.size()) {
+          return Err(field, "byteOffset + count*stride (",
+                     overflow ? "overflows 64 bits" : absl::StrCat(end), ") exceeds ", bv_field,
+                     ".byteLength (", bytes.size(), ")");
+        }
+      }
+      v.data = bytes.data() + a.byteOffset;
+    } else if (a.byteOffset != 0) {
+      return Err(field + ".byteOffset", "set without a bufferView");
+    }
+    if (a.bufferView < 0 || a.sparse.isSparse) {
+      // glTF 2.0 3.6.2.3: without a bufferView the elements are zeros; a sparse block then
+      // replaces some of them. Both are made into a packed copy, bounded like every accessor
+      // (max_accessor_bytes, also checked before parsing).
+      uint64_t bytes = 0;
+      if (__builtin_mul_overflow(uint64_t(a.count), elem, &bytes) ||
+          bytes > limits_.max_accessor_bytes) {
+        return OverMax(field, "size in bytes", bytes, "max_accessor_bytes",
+                       limits_.max_accessor_bytes);
+      }
+      std::vector<uint8_t>& dense = owned_.emplace_back(bytes, uint8_t(0));
+      if (v.data != nullptr) {
+        for (uint64_t i = 0; i < a.count; ++i)
+          std::memcpy(dense.data() + i * elem, v.data + i * v.stride, elem);
+      }
+      if (a.sparse.isSparse) RETURN_IF_ERROR(ApplySparse(a, field, elem, dense.data()));
+      v.data = dense.data();
+      v.stride = elem;
+    }
+    views_[index] = v;
     return v;
   }
 
-  // An optional vertex attribute: VEC`n`, float (or normalized unsigned byte/short for UVs),
-  // and, unless it is POSITION, as many elements as POSITION.
+  // glTF 2.0 3.6.2.3: sparse.count elements replaced, at indices that strictly increase, each
+  // below the accessor's count.
+  absl::Status ApplySparse(const tinygltf::Accessor& a, const std::string& field, uint64_t elem,
+                           uint8_t* dense) {
+    const auto& sp = a.sparse;
+    const std::string sparse = field + ".sparse";
+    if (sp.count < 1 || uint64_t(sp.count) > a.count) {
+      return Err(sparse + ".count", sp.count, " is not in 1..", a.count, " (the accessor's count)");
+    }
+    const uint64_t n = uint64_t(sp.count);
+    const int it = sp.indices.componentType;
+    if (it != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE && it != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
+        it != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) {
+      return Err(sparse + ".indices.componentType", ComponentTypeName(it),
+                 " (", it, "): wants UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT");
+    }
+    if (sp.indices.byteOffset < 0 || sp.values.byteOffset < 0)
+      return Err(sparse, "negative byteOffset");
+    const uint64_t isize = uint64_t(tinygltf::GetComponentSizeInBytes(uint32_t(it)));
+    ASSIGN_OR_RETURN(const uint8_t* indices,
+                     PackedRange(sparse + ".indices", sp.indices.bufferView,
+                                 uint64_t(sp.indices.byteOffset), n, isize));
+    ASSIGN_OR_RETURN(const uint8_t* values,
+                     PackedRange(sparse + ".values", sp.values.bufferView,
+                                 uint64_t(sp.values.byteOffset), n, elem));
+    AccessorView iv;
+    iv.data = indices;
+    iv.stride = isize;
+    iv.component_type = it;
+    iv.component_size = int(isize);
+    uint64_t previous = 0;
+    for (uint64_t k = 0; k < n; ++k) {
+      const uint64_t i = ReadUint(iv, k);
+      if (i >= a.count) {
+        return Err(sparse + ".indices", "index ", i, " at position ", k,
+                   " is out of range (count ", a.count, ")");
+      }
+      if (k > 0 && i <= previous) {
+        return Err(sparse + ".indices", "index ", i, " at position ", k,
+                   " does not increase (previous ", previous, ")");
+      }
+      previous = i;
+      std::memcpy(dense + i * elem, values + k * elem, elem);
+    }
+    return absl::OkStatus();
+  }
+
+  // Whether `a` may hold attribute `name`: FLOAT; texture coordinates also normalized unsigned
+  // byte/short (core glTF); with KHR_mesh_quantization in extensionsUsed, positions any byte or
+  // short type, normals and tangents normalized signed ones, texture coordinates any byte or
+  // short type.
+  bool AllowedComponents(const AccessorView& a, const std::string& name, bool* needs_ext) const {
+    *needs_ext = false;
+    const int t = a.component_type;
+    if (t == TINYGLTF_COMPONENT_TYPE_FLOAT) return true;
+    const bool small = t == TINYGLTF_COMPONENT_TYPE_BYTE ||
+                       t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                       t == TINYGLTF_COMPONENT_TYPE_SHORT ||
+                       t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+    const bool is_signed = t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT;
+    if (!small) return false;
+    const bool uv = name.rfind("TEXCOORD_", 0) == 0;
+    if (uv && a.normalized && !is_signed) return true;  // core
+    *needs_ext = true;
+    if (name == "POSITION" || uv) return true;
+    return a.normalized && is_signed;  // NORMAL, TANGENT
+  }
+
+  // An optional vertex attribute: VEC`n` of an allowed component type (AllowedComponents) and,
+  // unless it is POSITION, as many elements as POSITION.
   absl::StatusOr<AccessorView> Attribute(const tinygltf::Primitive& p, const std::string& path,
                                          const char* name, int type, uint64_t count) {
     const auto it = p.attributes.find(name);
     if (it == p.attributes.end()) return AccessorView{};
     absl::StatusOr<AccessorView> v = View(it->second, absl::StrCat(path, ".attributes.", name));
     if (!v.ok()) return v;
-    const bool unorm =
-        v->normalized && (v->component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
-                          v->component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT);
     const std::string field = absl::StrCat("accessors[", v->index, "]");
-    if (v->type != type || (v->component_type != TINYGLTF_COMPONENT_TYPE_FLOAT &&
-                            !(unorm && type == TINYGLTF_TYPE_VEC2))) {
-      return Err(field, "unsupported type/componentType for ", name);
+    bool needs_ext = false;
+    const bool allowed = AllowedComponents(*v, name, &needs_ext);
+    const std::string what =
+        absl::StrCat(v->normalized ? "normalized " : "", ComponentTypeName(v->component_type));
+    if (v->type != type || !allowed) {
+      return Err(field, "unsupported type/componentType for ", name, " (",
+                 tinygltf::GetNumComponentsInType(uint32_t(v->type)), " x ", what, ")");
+    }
+    if (needs_ext && !quantization_) {
+      return Err(field, name, " as ", what,
+                 " needs KHR_mesh_quantization in extensionsUsed (else FLOAT)");
     }
     if (count != UINT64_MAX && v->count != count) {
       return Err(field, name, " count ", v->count, " differs from POSITION count ", count);
@@ -938,9 +1092,23 @@ class Converter {
   std::map<int, uint32_t> mesh_cache_;  // glTF mesh -> CpuScene::meshes
   std::map<std::pair<int, bool>, int32_t> texture_cache_;
   std::map<int, std::shared_ptr<const Image>> image_cache_;
+  // Accessors as read (View), and the packed copies made of sparse and bufferView-less ones.
+  std::map<int, AccessorView> views_;
+  std::deque<std::vector<uint8_t>> owned_;
+  // KHR_mesh_quantization is in extensionsUsed: attributes may be quantized.
+  const bool quantization_ =
+      std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(), "KHR_mesh_quantization") !=
+      m_.extensionsUsed.end();
 };
 
 }  // namespace
+
+const std::vector<std::string_view>& SupportedGltfExtensions() {
+  static const std::vector<std::string_view> names{
+      "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
+      "KHR_texture_transform"};
+  return names;
+}
 
 absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits& limits) {
   const std::string& file = source.main_file;

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -24,6 +25,10 @@ struct GltfSource {
 // "Box.gltf: accessors[2]: byteOffset + count*stride exceeds bufferViews[1]", or
 // RESOURCE_EXHAUSTED naming the limit in `limits` (import_limits.h) the asset exceeds.
 absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits& limits = {});
+
+// The glTF extensions the importer reads (a file may also require them); any other one in
+// extensionsUsed is ignored with a warning, and a file that requires one is refused.
+const std::vector<std::string_view>& SupportedGltfExtensions();
 
 // Builds a GltfSource from a file on disk: the .gltf/.glb itself plus every buffer and image
 // URI it names that resolves to a file in the same directory tree. A directory means the one

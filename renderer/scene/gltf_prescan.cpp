@@ -27,8 +27,8 @@ using nlohmann::json;
 constexpr size_t kMaxQuoted = 120;  // longest string quoted in a message
 
 bool IsSupportedExtension(const std::string& name) {
-  return name == "KHR_texture_transform" || name == "KHR_materials_emissive_strength" ||
-         name == "KHR_lights_punctual";
+  const std::vector<std::string_view>& all = SupportedGltfExtensions();
+  return std::find(all.begin(), all.end(), name) != all.end();
 }
 
 int HexValue(char c) {

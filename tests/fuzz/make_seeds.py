@@ -105,7 +105,7 @@ def gltf_seeds(assets):
     js += b" " * (-len(js) % 4)
     body = struct.pack("<I", len(js)) + b"JSON" + js + struct.pack("<I", len(tri)) + b"BIN\0" + tri
     write("gltf", "features_glb", b"glTF" + struct.pack("<II", 2, 12 + len(body)) + body)
-    # A data: URI buffer and a sparse accessor (refused, but its path is worth covering).
+    # A data: URI buffer and a sparse accessor.
     import base64
     embedded = dict(doc, buffers=[dict(buffer, uri="data:application/octet-stream;base64," +
                                        base64.b64encode(tri).decode())])
@@ -114,6 +114,35 @@ def gltf_seeds(assets):
                                           "indices": {"bufferView": 1, "componentType": 5123},
                                           "values": {"bufferView": 0}}}]
     write("gltf", "embedded_sparse.gltf", json.dumps(embedded).encode())
+    # Sparse without a base bufferView (zeros, then the block).
+    zeros = dict(embedded)
+    zeros["accessors"] = accessors + [{"componentType": 5126, "count": 3, "type": "VEC3",
+                                       "sparse": {"count": 2,
+                                                  "indices": {"bufferView": 1, "componentType": 5123},
+                                                  "values": {"bufferView": 0}}}]
+    zeros["meshes"] = [{"primitives": [{"attributes": {"POSITION": 2}, "indices": 1}]}]
+    write("gltf", "sparse_zeros.gltf", json.dumps(zeros).encode())
+    # KHR_mesh_quantization: SHORT positions (stride 8), normalized BYTE normals (stride 4),
+    # UNSIGNED_SHORT texture coordinates, dequantized by the node's scale.
+    qbin = (struct.pack("<12h", 0, 0, 0, 0, 100, 0, 0, 0, 0, 100, 0, 0) +
+            struct.pack("<12b", 0, 0, 127, 0, 0, 127, 0, 0, -128, 0, 0, 0) +
+            struct.pack("<6H", 0, 0, 2, 0, 0, 3))
+    quant = {
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_mesh_quantization"],
+        "extensionsRequired": ["KHR_mesh_quantization"],
+        "nodes": [{"mesh": 0, "scale": [0.01, 0.01, 0.01]}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 2}}]}],
+        "buffers": [{"byteLength": len(qbin), "uri": "q.bin"}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 24, "byteStride": 8},
+                        {"buffer": 0, "byteOffset": 24, "byteLength": 12, "byteStride": 4},
+                        {"buffer": 0, "byteOffset": 36, "byteLength": 12}],
+        "accessors": [{"bufferView": 0, "componentType": 5122, "count": 3, "type": "VEC3"},
+                      {"bufferView": 1, "componentType": 5120, "normalized": True, "count": 3,
+                       "type": "VEC3"},
+                      {"bufferView": 2, "componentType": 5123, "count": 3, "type": "VEC2"}],
+    }
+    write("gltf", "quantized.tsfs", pack([("quantized.gltf", json.dumps(quant).encode()), ("q.bin", qbin)]))
     # A chain of nodes 40 deep.
     chain = dict(doc)
     chain["nodes"] = [{"children": [i + 1], "translation": [0.1, 0, 0]} for i in range(39)] + [{"mesh": 0}]

@@ -22,6 +22,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "renderer/image_io.h"
+#include "renderer/scene/gltf_import.h"
 #include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 #include "tests/integration/client_helpers.h"
@@ -97,7 +98,12 @@ TEST_F(ServerTest, ServerInfoDescribesDeviceLimitsAndChoices) {
   EXPECT_TRUE(has(info.choices().aa(), "msaa"));
   EXPECT_TRUE(has(info.choices().culling(), "gpu_occlusion"));
   EXPECT_TRUE(has(info.choices().debug_view(), "normals"));
+  EXPECT_TRUE(has(info.choices().light_binning(), "gpu"));
   EXPECT_EQ(info.default_settings().width(), 1280u);
+  // The glTF extensions the importer reads, as SupportedGltfExtensions() lists them.
+  EXPECT_TRUE(has(info.gltf_extensions(), "KHR_mesh_quantization"));
+  EXPECT_TRUE(has(info.gltf_extensions(), "KHR_lights_punctual"));
+  EXPECT_EQ(size_t(info.gltf_extensions_size()), SupportedGltfExtensions().size());
 }
 
 // grpc.health.v1.Health/Check with an empty request; the reply is HealthCheckResponse

@@ -846,6 +846,19 @@ TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
   EXPECT_TRUE(ImportGltf(Edited(box, [](json& j) {
                 j["extensionsRequired"] = {"KHR_texture_transform"};
               })).ok());
+  // Every supported extension may be required; one only used (not required) and unsupported is
+  // ignored, and the scene's warnings name it.
+  for (std::string_view ext : SupportedGltfExtensions()) {
+    EXPECT_TRUE(ImportGltf(Edited(box, [&](json& j) {
+                  j["extensionsRequired"] = {std::string(ext)};
+                })).ok())
+        << ext;
+  }
+  absl::StatusOr<CpuScene> used = ImportGltf(
+      Edited(box, [](json& j) { j["extensionsUsed"] = {"KHR_materials_unlit"}; }));
+  ASSERT_TRUE(used.ok()) << used.status();
+  ASSERT_EQ(used->warnings.size(), 1u);
+  EXPECT_NE(used->warnings[0].find("KHR_materials_unlit"), std::string::npos) << used->warnings[0];
 }
 
 TEST(GltfImportMalformed, AssetVersion) {
@@ -934,6 +947,183 @@ TEST(GltfImportMalformed, IndicesOutOfRange) {
     SCOPED_TRACE("case " + std::to_string(i) + ": " + cases[i].second);
     ExpectInvalid(ImportGltf(Edited(box, cases[i].first)), {"BoxTextured.gltf: ", cases[i].second});
   }
+}
+
+}  // namespace
+}  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// ----- Sparse accessors and KHR_mesh_quantization ----------------------------------------------
+
+// Binary data for a hand-built glTF: values appended at 4-byte aligned offsets.
+struct Bin {
+  std::vector<uint8_t> bytes;
+  template <typename T>
+  size_t Add(std::initializer_list<T> values) {
+    bytes.resize((bytes.size() + 3) & ~size_t(3), 0);
+    const size_t at = bytes.size();
+    for (T v : values) {
+      const auto* p = reinterpret_cast<const uint8_t*>(&v);
+      bytes.insert(bytes.end(), p, p + sizeof(T));
+    }
+    return at;
+  }
+};
+
+// One triangle primitive with `attributes`, the accessors and views given, data in data.bin,
+// and a node placing the mesh with `node` (e.g. a scale).
+GltfSource TriangleSource(const Bin& bin, json views, json accessors, json attributes,
+                          json node = json::object(), json extensions = json::array()) {
+  for (json& v : views) v["buffer"] = 0;
+  node["mesh"] = 0;
+  json j = {{"asset", {{"version", "2.0"}}},
+            {"buffers", {{{"byteLength", bin.bytes.size()}, {"uri", "data.bin"}}}},
+            {"bufferViews", views},
+            {"accessors", accessors},
+            {"meshes", {{{"primitives", {{{"attributes", attributes}}}}}}},
+            {"nodes", {node}}};
+  if (!extensions.empty()) j["extensionsUsed"] = extensions;
+  const std::string text = j.dump();
+  GltfSource src;
+  src.main_file = "t.gltf";
+  src.files["t.gltf"].assign(text.begin(), text.end());
+  src.files["data.bin"] = bin.bytes;
+  return src;
+}
+
+// The positions of the one flat-shaded triangle (no normals: a vertex per corner).
+std::vector<glm::vec3> Positions(const CpuScene& s) {
+  std::vector<glm::vec3> out;
+  for (const Vertex& v : s.vertices) out.push_back(v.position);
+  return out;
+}
+
+TEST(GltfImportSparse, ReplacesElementsOfTheBufferView) {
+  Bin bin;
+  const size_t base = bin.Add<float>({0, 0, 0, 1, 0, 0, 0, 1, 0});
+  const size_t idx = bin.Add<uint16_t>({0, 2});
+  const size_t val = bin.Add<float>({0, 0, 1, 0, 2, 0});
+  const json views = {{{"byteOffset", base}, {"byteLength", 36}},
+                      {{"byteOffset", idx}, {"byteLength", 4}},
+                      {{"byteOffset", val}, {"byteLength", 24}}};
+  const json accessors = {{{"bufferView", 0}, {"componentType", 5126}, {"count", 3},
+                           {"type", "VEC3"},
+                           {"sparse", {{"count", 2},
+                                       {"indices", {{"bufferView", 1}, {"componentType", 5123}}},
+                                       {"values", {{"bufferView", 2}}}}}}};
+  absl::StatusOr<CpuScene> s = ImportGltf(TriangleSource(bin, views, accessors, {{"POSITION", 0}}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(Positions(*s), (std::vector<glm::vec3>{{0, 0, 1}, {1, 0, 0}, {0, 2, 0}}));
+}
+
+TEST(GltfImportSparse, WithoutABufferViewStartsFromZeros) {
+  Bin bin;
+  const size_t idx = bin.Add<uint8_t>({1, 2});
+  const size_t val = bin.Add<float>({1, 0, 0, 0, 1, 0});
+  const json views = {{{"byteOffset", idx}, {"byteLength", 2}},
+                      {{"byteOffset", val}, {"byteLength", 24}}};
+  const json accessors = {{{"componentType", 5126}, {"count", 3}, {"type", "VEC3"},
+                           {"sparse", {{"count", 2},
+                                       {"indices", {{"bufferView", 0}, {"componentType", 5121}}},
+                                       {"values", {{"bufferView", 1}}}}}}};
+  absl::StatusOr<CpuScene> s = ImportGltf(TriangleSource(bin, views, accessors, {{"POSITION", 0}}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(Positions(*s), (std::vector<glm::vec3>{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}));
+  // And an accessor without bufferView or sparse block is all zeros (here: UVs).
+  json zero_uv = accessors;
+  zero_uv.push_back({{"componentType", 5126}, {"count", 3}, {"type", "VEC2"}});
+  s = ImportGltf(TriangleSource(bin, views, zero_uv, {{"POSITION", 0}, {"TEXCOORD_0", 1}}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  for (const Vertex& v : s->vertices) EXPECT_EQ(v.uv0, glm::vec2(0.0f));
+}
+
+TEST(GltfImportSparse, MalformedBlocksAreRefusedNamingTheField) {
+  Bin bin;
+  const size_t idx = bin.Add<uint16_t>({2, 1});
+  const size_t val = bin.Add<float>({1, 0, 0, 0, 1, 0});
+  const json views = {{{"byteOffset", idx}, {"byteLength", 4}},
+                      {{"byteOffset", val}, {"byteLength", 24}}};
+  auto accessor = [](json sparse) {
+    return json{{{"componentType", 5126}, {"count", 3}, {"type", "VEC3"}, {"sparse", sparse}}};
+  };
+  const json indices = {{"bufferView", 0}, {"componentType", 5123}};
+  const json values = {{"bufferView", 1}};
+  auto import = [&](json sparse, json v = json()) {
+    return ImportGltf(TriangleSource(bin, v.is_null() ? views : v, accessor(sparse),
+                                     {{"POSITION", 0}}));
+  };
+  ExpectInvalid(import({{"count", 2}, {"indices", indices}, {"values", values}}),
+                {"t.gltf", "accessors[0].sparse.indices", "index 1 at position 1 does not increase"});
+  ExpectInvalid(import({{"count", 4}, {"indices", indices}, {"values", values}}),
+                {"accessors[0].sparse.count", "4 is not in 1..3"});
+  json float_indices = indices;
+  float_indices["componentType"] = 5126;
+  ExpectInvalid(import({{"count", 2}, {"indices", float_indices}, {"values", values}}),
+                {"accessors[0].sparse.indices.componentType", "FLOAT"});
+  json short_values = views;
+  short_values[1]["byteLength"] = 20;
+  ExpectInvalid(import({{"count", 2}, {"indices", indices}, {"values", values}}, short_values),
+                {"accessors[0].sparse.values", "exceeds bufferViews[1].byteLength (20)"});
+  json far = {{"bufferView", 7}};
+  ExpectInvalid(import({{"count", 2}, {"indices", indices}, {"values", far}}),
+                {"accessors[0].sparse.values.bufferView", "out of range"});
+  Bin big;
+  const size_t at = big.Add<uint16_t>({0, 9});
+  big.Add<float>({1, 0, 0, 0, 1, 0});
+  const json big_views = {{{"byteOffset", at}, {"byteLength", 4}},
+                          {{"byteOffset", at + 4}, {"byteLength", 24}}};
+  ExpectInvalid(ImportGltf(TriangleSource(big, big_views,
+                                          accessor({{"count", 2}, {"indices", indices},
+                                                    {"values", values}}),
+                                          {{"POSITION", 0}})),
+                {"accessors[0].sparse.indices", "index 9 at position 1 is out of range (count 3)"});
+}
+
+// KHR_mesh_quantization (what gltfpack writes): SHORT positions dequantized by the node's
+// scale, normalized BYTE normals, unnormalized UNSIGNED_SHORT texture coordinates; refused
+// without the extension in extensionsUsed, and types it does not allow are refused with it.
+TEST(GltfImportQuantization, QuantizedAttributesAreDequantized) {
+  Bin bin;
+  const size_t pos = bin.Add<int16_t>({0, 0, 0, 0, 100, 0, 0, 0, 0, 100, 0, 0});  // stride 8
+  const size_t nrm = bin.Add<int8_t>({0, 0, 127, 0, 0, 127, 0, 0, -128, 0, 0, 0});  // stride 4
+  const size_t uv = bin.Add<uint16_t>({0, 0, 2, 0, 0, 3});
+  const json views = {{{"byteOffset", pos}, {"byteLength", 24}, {"byteStride", 8}},
+                      {{"byteOffset", nrm}, {"byteLength", 12}, {"byteStride", 4}},
+                      {{"byteOffset", uv}, {"byteLength", 12}}};
+  const json accessors = {
+      {{"bufferView", 0}, {"componentType", 5122}, {"count", 3}, {"type", "VEC3"}},
+      {{"bufferView", 1}, {"componentType", 5120}, {"normalized", true}, {"count", 3},
+       {"type", "VEC3"}},
+      {{"bufferView", 2}, {"componentType", 5123}, {"count", 3}, {"type", "VEC2"}}};
+  const json attributes = {{"POSITION", 0}, {"NORMAL", 1}, {"TEXCOORD_0", 2}};
+  const json scale = {{"scale", {0.01, 0.01, 0.01}}};
+  const json ext = {"KHR_mesh_quantization"};
+  absl::StatusOr<CpuScene> s =
+      ImportGltf(TriangleSource(bin, views, accessors, attributes, scale, ext));
+  ASSERT_TRUE(s.ok()) << s.status();
+  ASSERT_EQ(s->vertices.size(), 3u);
+  EXPECT_EQ(Positions(*s), (std::vector<glm::vec3>{{0, 0, 0}, {100, 0, 0}, {0, 100, 0}}));
+  EXPECT_NEAR(s->bounds.max.x, 1.0f, 1e-5f);  // world bounds: the node's scale dequantizes
+  EXPECT_NEAR(s->bounds.max.y, 1.0f, 1e-5f);
+  EXPECT_EQ(s->vertices[0].normal, glm::vec3(0, 0, 1));
+  EXPECT_EQ(s->vertices[1].normal, glm::vec3(0, 1, 0));
+  EXPECT_EQ(s->vertices[2].normal, glm::vec3(-1, 0, 0));  // -128 clamps to -1
+  EXPECT_EQ(s->vertices[1].uv0, glm::vec2(2, 0));
+  EXPECT_EQ(s->vertices[2].uv0, glm::vec2(0, 3));
+
+  ExpectInvalid(ImportGltf(TriangleSource(bin, views, accessors, attributes, scale)),
+                {"accessors[0]", "POSITION as SHORT needs KHR_mesh_quantization"});
+  json unsigned_normals = accessors;
+  unsigned_normals[1]["componentType"] = 5121;
+  ExpectInvalid(ImportGltf(TriangleSource(bin, views, unsigned_normals, attributes, scale, ext)),
+                {"accessors[1]", "unsupported type/componentType for NORMAL",
+                 "normalized UNSIGNED_BYTE"});
+  // Required is fine too: the extension is supported.
+  GltfSource required = Edited(TriangleSource(bin, views, accessors, attributes, scale, ext),
+                               [](json& j) { j["extensionsRequired"] = {"KHR_mesh_quantization"}; });
+  EXPECT_TRUE(ImportGltf(required).ok());
 }
 
 }  // namespace
