@@ -123,9 +123,16 @@ def apply_transformers(kpath, k, docs, used):
     for img in k.get("images", []) or []:
         for d in docs:
             for c in containers_of(d):
-                name, _, tag = c["image"].partition(":")
+                # name[:tag]: the tag is after the last '/', so a registry port is no tag.
+                image = c["image"]
+                if "@" in image:
+                    fail(f"{kpath}: image {image}: digests not supported by this check")
+                slash = image.rfind("/")
+                colon = image.rfind(":")
+                name, tag = (image[:colon], image[colon + 1:]) if colon > slash else (image, "")
                 if name == img["name"]:
-                    c["image"] = f"{img.get('newName', name)}:{img.get('newTag', tag)}"
+                    new_tag = img.get("newTag", tag)
+                    c["image"] = img.get("newName", name) + (f":{new_tag}" if new_tag else "")
     for lab in k.get("labels", []) or []:
         if set(lab) - {"pairs"}:
             fail(f"{kpath}: labels with {sorted(set(lab) - {'pairs'})} not supported")

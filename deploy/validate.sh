@@ -50,9 +50,20 @@ for cand in /usr/bin/python3 python3; do
   fi
 done
 [[ -n $py ]] || fail "k8s: no python3 with the yaml and jsonpatch modules (apt-get install python3-yaml python3-jsonpatch)"
+# The comparison needs kustomize >= 4 (components, labels); kubectl 1.14-1.20 (Debian 12's
+# kubernetes-client) embeds 2.0 and does not report kustomizeVersion.
 kubectl=$(command -v kubectl || true)
-if [[ -n $kubectl ]] && ! timeout 20 "$kubectl" kustomize --help >/dev/null 2>&1; then kubectl=""; fi
-[[ -n $kubectl ]] || skip "k8s: kubectl is not installed: builds not compared with kubectl kustomize"
+kversion=""
+if [[ -n $kubectl ]]; then
+  kversion=$(timeout 20 "$kubectl" version --client -o json 2>/dev/null |
+    "$py" -c 'import json, sys; print(json.load(sys.stdin).get("kustomizeVersion", ""))' 2>/dev/null || true)
+fi
+if [[ -z $kubectl ]]; then
+  skip "k8s: kubectl is not installed: builds not compared with kubectl kustomize"
+elif [[ ! $kversion =~ ^v([0-9]+) ]] || ((BASH_REMATCH[1] < 4)); then
+  skip "k8s: $kubectl has kustomize '${kversion:-2.x}', older than 4: builds not compared"
+  kubectl=""
+fi
 "$py" deploy/k8s_check.py deploy/k8s $kubectl || exit 1
 
 # Planted faults: each copy of deploy/k8s with one mistake must fail with the expected message

@@ -24,7 +24,7 @@ glm::vec3 Hue(float h) {
 glm::vec4 WorldSphere(const Light& l) {
   if (l.type != LightType::kSpot) return glm::vec4(l.position, l.range);
   const float a = l.outer_cone_angle, r = l.range;
-  if (a > 0.785398f) {  // wide cone: the sphere of the cap's circle
+  if (std::cos(a) < gpu::kWideSpotCos) {  // wide cone: the sphere of the cap's circle
     return glm::vec4(l.position + std::cos(a) * r * l.direction, std::sin(a) * r);
   }
   const float half = r / (2.0f * std::cos(a) * std::cos(a));

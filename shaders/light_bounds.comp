@@ -30,7 +30,7 @@ void main() {
   // The world-space bounding sphere (a spot's cone inside its own sphere).
   vec4 ws = vec4(position, range);
   if (spot) {
-    if (cos_outer < 0.70710677) {  // wide cone (outer angle > 45 degrees): the cap's circle
+    if (cos_outer < kWideSpotCos) {  // wide cone: the cap's circle
       float sin_outer = sqrt(max(0.0, 1.0 - cos_outer * cos_outer));
       ws = vec4(position + cos_outer * range * direction, sin_outer * range);
     } else {

@@ -130,8 +130,12 @@ class PostPass : public Pass {
                     VkImageLayout layout = VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL) const {
     return {image.view(), nearest_.handle(), layout};
   }
-  // Through the image's sampled view (an sRGB view of the compute tonemap's UNORM image).
   PostInput Linear(const vk::Image& image) const {
+    return {image.view(), linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+  }
+  // The tonemapped image, filtered in linear light: through its sRGB view where a compute
+  // tonemap wrote it as UNORM (ImageDesc::sampled_view_format), else its own sRGB view.
+  PostInput LinearSrgb(const vk::Image& image) const {
     return {image.sampled_view(), linear_.handle(), VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
   }
   FullscreenProgram program_;
@@ -233,7 +237,7 @@ class FxaaPass final : public PostPass {
   void Record(PassContext& ctx) override {
     const gpu::FxaaPush push{
         glm::vec2(1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height))};
-    program_.Draw(ctx, {Linear(ctx.targets->ldr)}, {ctx.targets->fxaa.view()}, &push);
+    program_.Draw(ctx, {LinearSrgb(ctx.targets->ldr)}, {ctx.targets->fxaa.view()}, &push);
   }
 };
 

@@ -370,13 +370,15 @@ void ReadNumbers(const tinygltf::Value& obj, const char* key, int n, float* out)
 class Converter {
  public:
   Converter(const std::string& file, const ImportLimits& limits, tinygltf::Model* model,
-            CpuScene* scene)
+            CpuScene* scene, uint64_t source_bytes)
       : file_(file),
         limits_(limits),
         m_(*model),
         s_(*scene),
         max_vertices_(std::min<uint64_t>(limits.max_vertices, UINT32_MAX)),
-        max_indices_(std::min<uint64_t>(limits.max_indices, UINT32_MAX)) {}
+        max_indices_(std::min<uint64_t>(limits.max_indices, UINT32_MAX)),
+        generated_budget_(std::max<uint64_t>(kMinGeneratedBytes,
+                                             kGeneratedPerSourceByte * source_bytes)) {}
 
   absl::Status Run() {
     SceneCounts& c = s_.counts;
@@ -539,6 +541,15 @@ class Converter {
         return OverMax(field, "size in bytes", bytes, "max_accessor_bytes",
                        limits_.max_accessor_bytes);
       }
+      // Zeros and sparse blocks cost nothing to upload: what they expand to is bounded by the
+      // upload's size, so a few hundred bytes of JSON cannot ask for gigabytes.
+      if (bytes > generated_budget_ - generated_bytes_) {
+        return OverLimit(file_, field, "expands to ", bytes, " bytes of zeros or sparse data; "
+                         "all such accessors may hold ", generated_budget_, " bytes (",
+                         kGeneratedPerSourceByte, "x the uploaded files, at least ",
+                         kMinGeneratedBytes, ")");
+      }
+      generated_bytes_ += bytes;
       std::vector<uint8_t>& dense = owned_.emplace_back(bytes, uint8_t(0));
       if (v.data != nullptr) {
         for (uint64_t i = 0; i < a.count; ++i)
@@ -1092,7 +1103,12 @@ class Converter {
   std::map<int, uint32_t> mesh_cache_;  // glTF mesh -> CpuScene::meshes
   std::map<std::pair<int, bool>, int32_t> texture_cache_;
   std::map<int, std::shared_ptr<const Image>> image_cache_;
-  // Accessors as read (View), and the packed copies made of sparse and bufferView-less ones.
+  // Accessors as read (View), and the packed copies made of sparse and bufferView-less ones,
+  // bounded by the upload's size.
+  static constexpr uint64_t kGeneratedPerSourceByte = 16;
+  static constexpr uint64_t kMinGeneratedBytes = 16ull << 20;
+  const uint64_t generated_budget_;
+  uint64_t generated_bytes_ = 0;
   std::map<int, AccessorView> views_;
   std::deque<std::vector<uint8_t>> owned_;
   // KHR_mesh_quantization is in extensionsUsed: attributes may be quantized.
@@ -1152,7 +1168,9 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
     }
   }
   try {
-    RETURN_IF_ERROR(Converter(file, limits, &model, &scene).Run());
+    uint64_t source_bytes = 0;
+    for (const auto& [name, data] : source.files) source_bytes += data.size();
+    RETURN_IF_ERROR(Converter(file, limits, &model, &scene, source_bytes).Run());
   } catch (const std::bad_alloc&) {
     return Invalid(file, "file", "too large to import (out of memory)");
   }

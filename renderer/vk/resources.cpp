@@ -126,7 +126,15 @@ absl::StatusOr<Image> Image::Create(const Context& ctx, const ImageDesc& desc,
   VkImageCreateInfo ii{VK_STRUCTURE_TYPE_IMAGE_CREATE_INFO};
   ii.imageType = VK_IMAGE_TYPE_2D;
   if (desc.view_type == VK_IMAGE_VIEW_TYPE_CUBE) ii.flags = VK_IMAGE_CREATE_CUBE_COMPATIBLE_BIT;
-  if (desc.sampled_view_format != VK_FORMAT_UNDEFINED) ii.flags |= VK_IMAGE_CREATE_MUTABLE_FORMAT_BIT;
+  // The two formats its views use, listed so drivers can keep compression (e.g. AMD's DCC).
+  const VkFormat view_formats[2] = {desc.format, desc.sampled_view_format};
+  VkImageFormatListCreateInfo format_list{VK_STRUCTURE_TYPE_IMAGE_FORMAT_LIST_CREATE_INFO};
+  if (desc.sampled_view_format != VK_FORMAT_UNDEFINED) {
+    ii.flags |= VK_IMAGE_CREATE_MUTABLE_FORMAT_BIT;
+    format_list.viewFormatCount = 2;
+    format_list.pViewFormats = view_formats;
+    ii.pNext = &format_list;
+  }
   ii.format = desc.format;
   ii.extent = {desc.width, desc.height, 1};
   ii.mipLevels = desc.mip_levels;

@@ -171,6 +171,11 @@ TS_CONST uint kAlphaBlend = 2;
 TS_CONST uint kLightDirectional = 0;
 TS_CONST uint kLightPoint = 1;
 TS_CONST uint kLightSpot = 2;
+// A spot whose outer cone is wider than this (cos below it; 0.8 rad) is bounded by the sphere
+// of its cap's circle, a narrower one by its own sphere (both bound the cone beyond 45 degrees).
+// Not at 45 degrees itself: that is glTF's default outer angle, where the CPU's cos and the
+// GPU's would fall on either side of the line.
+TS_CONST float kWideSpotCos = 0.69670671;
 
 TS_CONST uint kDebugNone = 0;
 TS_CONST uint kDebugNormals = 1;

@@ -260,7 +260,8 @@ TEST_P(CullingTest, NoFalseNegativesAndMatchesTheCpuReference) {
 INSTANTIATE_TEST_SUITE_P(
     Lights, CullingTest,
     ::testing::Values(Case{1, 16}, Case{100, 16}, Case{4096, 16}, Case{4096, 8}, Case{100, 32},
-                      Case{1, 16, LightBinning::kGpu}, Case{4096, 16, LightBinning::kGpu},
+                      Case{1, 16, LightBinning::kGpu}, Case{100, 16, LightBinning::kGpu},
+                      Case{4096, 16, LightBinning::kGpu},
                       Case{4096, 8, LightBinning::kGpu}, Case{100, 32, LightBinning::kGpu}),
     [](const auto& info) {
       return "lights" + std::to_string(info.param.lights) + "_tile" +
@@ -281,17 +282,41 @@ std::vector<uint32_t> RowList(const std::vector<uint32_t>& rows, uint32_t r) {
 // light_binning gpu: light_bounds.comp projects each light as BoundLight does (to float
 // precision; a tile rectangle may differ by one tile where a projected edge falls on a tile
 // border), light_bins.comp lists exactly the lights whose rectangle covers each row, in index
-// order, and the frame shades the same picture as with the CPU's bins. The demo scene's spot
-// light is among the local lights, and some synthetic lights cross the near plane.
+// order, and the frame shades the same picture as with the CPU's bins. Spots of narrow, 45
+// degree (glTF's default) and wide cones are among the local lights, and some synthetic lights
+// cross the near plane.
+// The demo scene with spots of narrow, default (45 degrees) and wide outer cones.
+const SceneHandle& SpotScene() {
+  static const SceneHandle scene = [] {
+    CpuScene cpu = BuildDemoScene();
+    for (float angle : {0.3f, 0.7853982f, 1.2f}) {
+      Light spot;
+      spot.type = LightType::kSpot;
+      spot.range = 4.0f;
+      spot.intensity = 20.0f;
+      spot.position = glm::vec3(-2.0f + 2.0f * angle, 2.5f, 0.5f);
+      spot.direction = glm::normalize(glm::vec3(0.1f, -1.0f, -0.2f));
+      spot.inner_cone_angle = 0.5f * angle;
+      spot.outer_cone_angle = angle;
+      cpu.lights.push_back(spot);
+    }
+    absl::StatusOr<SceneHandle> s = SharedRenderer().LoadScene(std::move(cpu));
+    EXPECT_TRUE(s.ok()) << s.status();
+    return s.ok() ? *s : SceneHandle{};
+  }();
+  return scene;
+}
+
 TEST(GpuLightBinning, BoundsAndBinsMatchTheCpu) {
+  ASSERT_TRUE(SpotScene());
   Settings s = LightSettings(384, 216, 4096);
   s.tile_size = 8;
   s.light_binning = LightBinning::kGpu;
   FrameCapture gpu_cap, cpu_cap;
-  absl::StatusOr<Frame> g = SharedRenderer().Render(*DemoScene(), DemoCamera(), s, &gpu_cap);
+  absl::StatusOr<Frame> g = SharedRenderer().Render(*SpotScene(), DemoCamera(), s, &gpu_cap);
   ASSERT_TRUE(g.ok()) << g.status();
   s.light_binning = LightBinning::kCpu;
-  absl::StatusOr<Frame> c = SharedRenderer().Render(*DemoScene(), DemoCamera(), s, &cpu_cap);
+  absl::StatusOr<Frame> c = SharedRenderer().Render(*SpotScene(), DemoCamera(), s, &cpu_cap);
   ASSERT_TRUE(c.ok()) << c.status();
   EXPECT_EQ(g->settings.effective.light_binning, LightBinning::kGpu);
   EXPECT_EQ(c->settings.effective.light_binning, LightBinning::kCpu);
@@ -324,7 +349,7 @@ TEST(GpuLightBinning, BoundsAndBinsMatchTheCpu) {
     // What the CPU-binned frame read is BoundLight's.
     ASSERT_EQ(cpu_cap.light_bounds[i].tiles, b.tiles) << "light " << i;
   }
-  EXPECT_GE(spots, 1u) << "the demo scene's spot light";
+  EXPECT_EQ(spots, 4u) << "the demo scene's spot light and the three added";
   EXPECT_GE(near_crossing, 1u);
   EXPECT_GE(off_screen, 1u);
   EXPECT_LE(rect_differs, n / 100) << "rectangles differ only at tile borders";

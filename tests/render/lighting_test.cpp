@@ -606,7 +606,7 @@ TEST(PostStageTest, TonemapInComputeGivesTheSamePicture) {
     EXPECT_EQ(with_fxaa[i].settings.effective.post_stage, fxaa.post_stage);
   }
   // A one-step difference in the tonemapped input can tip FXAA's edge test or its search, so
-  // a few bytes differ by more; they must stay few.
+  // a few bytes differ by more; they must stay few (0.5 %; the sRGB view's absence makes 74 %).
   const size_t bytes = with_fxaa[0].image.pixels.size();
   size_t far = 0;
   for (size_t k = 0; k < bytes; ++k)
@@ -615,7 +615,7 @@ TEST(PostStageTest, TonemapInComputeGivesTheSamePicture) {
   ASSERT_TRUE(psnr.ok()) << psnr.status();
   std::printf("fxaa: compute vs fragment %.2f dB, %zu of %zu bytes differ by more than 3\n",
               *psnr, far, bytes);
-  EXPECT_LE(far, bytes / 1000);
+  EXPECT_LE(far, bytes / 200);  // measured on lavapipe: 200 of 230400 (0.09 %)
   EXPECT_GE(*psnr, 50.0);
   // FXAA changed the picture (it found edges), so the comparison above covers its work.
   Settings plain = fxaa;

@@ -1039,6 +1039,32 @@ TEST(GltfImportSparse, WithoutABufferViewStartsFromZeros) {
   for (const Vertex& v : s->vertices) EXPECT_EQ(v.uv0, glm::vec2(0.0f));
 }
 
+// A bufferView-less accessor costs nothing to upload: what such accessors expand to is bounded
+// by the upload's size (16x, at least 16 MiB), so a few hundred bytes cannot ask for gigabytes.
+// An accessor used twice is read (and expanded) once.
+TEST(GltfImportSparse, ZerosAreBoundedByTheUploadAndReadOnce) {
+  Bin bin;
+  bin.Add<float>({0});
+  const json huge = {{{"componentType", 5126}, {"count", 40000000}, {"type", "VEC3"}}};
+  ExpectOverLimit(ImportGltf(TriangleSource(bin, json::array(), huge, {{"POSITION", 0}})),
+                  {"accessors[0]", "expands to 480000000 bytes of zeros or sparse data",
+                   "16x the uploaded files"});
+  Bin tri;
+  tri.Add<float>({0, 0, 0, 1, 0, 0, 0, 1, 0});
+  GltfSource twice = Edited(
+      TriangleSource(tri, {{{"byteOffset", 0}, {"byteLength", 36}}},
+                     {{{"bufferView", 0}, {"componentType", 5126}, {"count", 3}, {"type", "VEC3"}},
+                      {{"componentType", 5126}, {"count", 3}, {"type", "VEC2"}}},
+                     {{"POSITION", 0}, {"TEXCOORD_0", 1}}),
+      [](json& j) { j["meshes"][0]["primitives"].push_back(j["meshes"][0]["primitives"][0]); });
+  absl::StatusOr<CpuScene> s = ImportGltf(twice);
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->primitives.size(), 2u);
+  // Without a bufferView a byteOffset means nothing: refused.
+  ExpectInvalid(ImportGltf(Edited(twice, [](json& j) { j["accessors"][1]["byteOffset"] = 4; })),
+                {"accessors[1].byteOffset", "set without a bufferView"});
+}
+
 TEST(GltfImportSparse, MalformedBlocksAreRefusedNamingTheField) {
   Bin bin;
   const size_t idx = bin.Add<uint16_t>({2, 1});
@@ -1066,6 +1092,10 @@ TEST(GltfImportSparse, MalformedBlocksAreRefusedNamingTheField) {
   short_values[1]["byteLength"] = 20;
   ExpectInvalid(import({{"count", 2}, {"indices", indices}, {"values", values}}, short_values),
                 {"accessors[0].sparse.values", "exceeds bufferViews[1].byteLength (20)"});
+  json strided = views;
+  strided[1]["byteStride"] = 12;
+  ExpectInvalid(import({{"count", 2}, {"indices", indices}, {"values", values}}, strided),
+                {"accessors[0].sparse.values.bufferView", "has a byteStride"});
   json far = {{"bufferView", 7}};
   ExpectInvalid(import({{"count", 2}, {"indices", indices}, {"values", far}}),
                 {"accessors[0].sparse.values.bufferView", "out of range"});
@@ -1109,9 +1139,33 @@ TEST(GltfImportQuantization, QuantizedAttributesAreDequantized) {
   EXPECT_NEAR(s->bounds.max.y, 1.0f, 1e-5f);
   EXPECT_EQ(s->vertices[0].normal, glm::vec3(0, 0, 1));
   EXPECT_EQ(s->vertices[1].normal, glm::vec3(0, 1, 0));
-  EXPECT_EQ(s->vertices[2].normal, glm::vec3(-1, 0, 0));  // -128 clamps to -1
+  EXPECT_EQ(s->vertices[2].normal, glm::vec3(-1, 0, 0));
   EXPECT_EQ(s->vertices[1].uv0, glm::vec2(2, 0));
   EXPECT_EQ(s->vertices[2].uv0, glm::vec2(0, 3));
+
+  // Normalized BYTE texture coordinates (not renormalized afterwards, so the clamp of -128 to -1
+  // shows) and normalized SHORT tangents.
+  Bin more = bin;
+  const size_t uv8 = more.Add<int8_t>({0, 64, -128, 127, 127, -127});
+  const size_t tng = more.Add<int16_t>({32767, 0, 0, 32767, 0, 32767, 0, -32767, 0, 0, 32767, 32767});
+  json more_views = views;
+  more_views.push_back({{"byteOffset", uv8}, {"byteLength", 6}});
+  more_views.push_back({{"byteOffset", tng}, {"byteLength", 24}});
+  json more_accessors = accessors;
+  more_accessors.push_back({{"bufferView", 3}, {"componentType", 5120}, {"normalized", true},
+                            {"count", 3}, {"type", "VEC2"}});
+  more_accessors.push_back({{"bufferView", 4}, {"componentType", 5122}, {"normalized", true},
+                            {"count", 3}, {"type", "VEC4"}});
+  s = ImportGltf(TriangleSource(more, more_views, more_accessors,
+                                {{"POSITION", 0}, {"NORMAL", 1}, {"TEXCOORD_0", 3}, {"TANGENT", 4}},
+                                scale, ext));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->vertices[0].uv0, glm::vec2(0.0f, 64.0f / 127.0f));
+  EXPECT_EQ(s->vertices[1].uv0, glm::vec2(-1.0f, 1.0f));  // -128 clamps to -1
+  EXPECT_EQ(s->vertices[2].uv0, glm::vec2(1.0f, -1.0f));
+  EXPECT_EQ(s->vertices[0].tangent, glm::vec4(1, 0, 0, 1));
+  EXPECT_EQ(s->vertices[1].tangent, glm::vec4(0, 1, 0, -1));  // w: the bitangent sign
+  EXPECT_EQ(s->vertices[2].tangent, glm::vec4(0, 0, 1, 1));
 
   ExpectInvalid(ImportGltf(TriangleSource(bin, views, accessors, attributes, scale)),
                 {"accessors[0]", "POSITION as SHORT needs KHR_mesh_quantization"});
