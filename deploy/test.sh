@@ -5,7 +5,8 @@
 #     cases) and every RPC handler (the in-process server, service and job tests);
 #  2. fuzzes each libFuzzer target for $FUZZ_SECONDS (30) on its corpus (tests/fuzz/run.sh);
 #  3. builds everything with the default preset (RelWithDebInfo) and runs every test with ctest,
-#     the web viewer's too (its Node packages come from clients/web/package-lock.json, `npm ci`).
+#     the web viewer's too (its Node packages come from clients/web/package-lock.json, `npm ci`)
+#     and the glTF-Validator agreement (tests/gltf/package-lock.json).
 # Used by .ci/run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -29,6 +30,7 @@ FUZZ_SECONDS="${FUZZ_SECONDS:-30}" tests/fuzz/run.sh
 
 # 3. Everything, with Vulkan validation layers on for the render tests.
 (cd clients/web && npm ci --no-audit --no-fund --loglevel=error)
+(cd tests/gltf && npm ci --no-audit --no-fund --loglevel=error)  # the glTF-Validator, test-only
 cmake --preset default
 cmake --build --preset default -j "$jobs"
 ctest --preset default -j "$jobs"

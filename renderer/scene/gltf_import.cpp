@@ -516,6 +516,21 @@ class Converter {
         return Err(bv_field + ".byteStride", v.stride, " is smaller than the ", elem,
                    "-byte elements of ", field);
       }
+      // glTF 2.0 3.6.2.4: offsets into the bufferView and into the buffer, and the stride, are
+      // multiples of the component size.
+      const uint64_t cs = uint64_t(v.component_size);
+      if (a.byteOffset % cs != 0) {
+        return Err(field + ".byteOffset", a.byteOffset, " is not a multiple of the ", cs,
+                   "-byte component size");
+      }
+      if ((bv.byteOffset + a.byteOffset) % cs != 0) {
+        return Err(field, "its offset in buffers[", bv.buffer, "] (", bv.byteOffset, " + ",
+                   a.byteOffset, ") is not a multiple of the ", cs, "-byte component size");
+      }
+      if (v.stride % cs != 0) {
+        return Err(bv_field + ".byteStride", v.stride, " is not a multiple of the ", cs,
+                   "-byte component size of ", field);
+      }
       if (a.count > 0) {
         uint64_t span = 0, end = 0;
         const bool overflow = __builtin_mul_overflow(uint64_t(a.count - 1), v.stride, &span) ||
@@ -639,7 +654,9 @@ class Converter {
     if (it == p.attributes.end()) return AccessorView{};
     absl::StatusOr<AccessorView> v = View(it->second, absl::StrCat(path, ".attributes.", name));
     if (!v.ok()) return v;
-    const std::string field = absl::StrCat("accessors[", v->index, "]");
+    // Named as both the primitive's attribute and the accessor.
+    const std::string field =
+        absl::StrCat(path, ".attributes.", name, " (accessors[", v->index, "])");
     bool needs_ext = false;
     const bool allowed = AllowedComponents(*v, name, &needs_ext);
     const std::string what =
@@ -668,7 +685,8 @@ class Converter {
     }
     absl::StatusOr<AccessorView> iv = View(p.indices, path + ".indices");
     if (!iv.ok()) return iv.status();
-    const std::string field = absl::StrCat("accessors[", p.indices, "]");
+    const std::string accessor = absl::StrCat("accessors[", p.indices, "]");
+    const std::string field = absl::StrCat(path, ".indices (", accessor, ")");
     if (iv->type != TINYGLTF_TYPE_SCALAR ||
         (iv->component_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE &&
          iv->component_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT &&
@@ -676,7 +694,7 @@ class Converter {
       return Err(field, "indices must be unsigned byte/short/int scalars");
     }
     if (iv->count > max_indices_)
-      return OverMax(field, "index count", iv->count, "max_indices", max_indices_);
+      return OverMax(accessor, "index count", iv->count, "max_indices", max_indices_);
     idx.resize(iv->count);
     for (uint64_t i = 0; i < iv->count; ++i) {
       idx[i] = ReadUint(*iv, i);

@@ -1,0 +1,236 @@
+// The Khronos glTF-Validator as the oracle for Tessera's importer.
+//
+//   node tests/gltf/agreement.mjs --import-check BUILD/tests/tessera-import-check \
+//       --assets ../shared/assets [--out DIR]
+//
+// Over a corpus (every .gltf/.glb of the sample assets, and files generated here from Box that
+// each break one of the validator's rules for what the importer reads, or use a feature it must
+// accept), it runs the validator and tessera-import-check and holds them to this agreement:
+//   - a file with validator ERRORs is refused by Tessera, with a message naming the same place
+//     (the validator's JSON pointer /accessors/2/count becomes accessors[2]: the object);
+//   - a file without errors is loaded, or refused only for a documented reason (a required
+//     extension Tessera does not support; an import limit: RESOURCE_EXHAUSTED).
+// Known disagreements are listed in KNOWN below with their reason (and in the README). Prints a
+// JSON summary; exits 1 on any other disagreement. Needs `npm ci` in tests/gltf.
+import { execFileSync } from 'node:child_process';
+import fs from 'node:fs';
+import os from 'node:os';
+import path from 'node:path';
+import { createRequire } from 'node:module';
+
+const require = createRequire(import.meta.url);
+const validator = require('gltf-validator');
+
+function parseArgs(argv) {
+  const o = { out: fs.mkdtempSync(path.join(os.tmpdir(), 'gltf-agreement-')) };
+  for (let i = 0; i < argv.length; i += 2) {
+    const key = argv[i].replace(/^--/, '').replace(/-(.)/g, (_, c) => c.toUpperCase());
+    if (!(key in { importCheck: 1, assets: 1, out: 1 })) throw new Error(`unknown flag ${argv[i]}`);
+    o[key] = argv[i + 1];
+  }
+  if (!o.importCheck || !o.assets) throw new Error('usage: --import-check BIN --assets DIR [--out DIR]');
+  return o;
+}
+const args = parseArgs(process.argv.slice(2));
+
+// Files Tessera refuses (or loads) against the validator's verdict, with the reason. Keyed by
+// corpus name. Empty today: every case below agrees.
+const KNOWN = {};
+
+// ---- the corpus ----------------------------------------------------------------------------
+
+function sampleFiles(dir) {
+  const out = [];
+  for (const model of fs.readdirSync(dir).sort()) {
+    for (const variant of ['glTF', 'glTF-Binary', 'glTF-Embedded']) {
+      const d = path.join(dir, model, variant);
+      if (!fs.existsSync(d)) continue;
+      for (const f of fs.readdirSync(d).sort()) {
+        if (/\.(gltf|glb)$/i.test(f)) out.push({ name: `${model}/${variant}/${f}`, file: path.join(d, f) });
+      }
+    }
+  }
+  return out;
+}
+
+// Box.gltf with an edit: `edit(json, bin)` changes the JSON and may return a new .bin (Buffer).
+const boxDir = path.join(args.assets, 'Box', 'glTF');
+const boxJson = JSON.parse(fs.readFileSync(path.join(boxDir, 'Box.gltf'), 'utf8'));
+const boxBin = fs.readFileSync(path.join(boxDir, 'Box0.bin'));
+
+function generated(name, edit) {
+  const dir = path.join(args.out, 'cases', name);
+  fs.mkdirSync(dir, { recursive: true });
+  const j = structuredClone(boxJson);
+  let bin = Buffer.from(boxBin);
+  const newBin = edit(j, bin);
+  if (newBin) bin = newBin;
+  j.buffers[0].byteLength = bin.length;
+  fs.writeFileSync(path.join(dir, 'Box0.bin'), bin);
+  fs.writeFileSync(path.join(dir, 'Box.gltf'), JSON.stringify(j));
+  return { name: `generated/${name}`, file: path.join(dir, 'Box.gltf') };
+}
+
+// Appends `bytes` to the buffer (4-byte aligned), adds a bufferView for them, returns its index.
+function appendView(j, bin, bytes) {
+  const pad = (4 - (bin.length % 4)) % 4;
+  const offset = bin.length + pad;
+  const out = Buffer.concat([bin, Buffer.alloc(pad), bytes]);
+  j.bufferViews.push({ buffer: 0, byteOffset: offset, byteLength: bytes.length });
+  return { bin: out, view: j.bufferViews.length - 1 };
+}
+const u16 = (values) => Buffer.from(new Uint16Array(values).buffer);
+const f32 = (values) => Buffer.from(new Float32Array(values).buffer);
+// Box's positions (accessor 2), to make sparse values that keep its min/max exact.
+const boxPositions = new Float32Array(boxBin.buffer.slice(boxBin.byteOffset + 288, boxBin.byteOffset + 576));
+const vertex = (i) => Array.from(boxPositions.slice(3 * i, 3 * i + 3));
+
+// A sparse block on POSITION (accessor 2) with these indices; values: vertices 5 and 6.
+function sparse(indices) {
+  return (j, bin) => {
+    const a = appendView(j, bin, u16(indices));
+    const b = appendView(j, a.bin, f32([...vertex(5), ...vertex(6)]));
+    j.accessors[2].sparse = { count: indices.length, indices: { bufferView: a.view, componentType: 5123 },
+      values: { bufferView: b.view } };
+    return b.bin;
+  };
+}
+
+// POSITION as SHORT (KHR_mesh_quantization): positions x 1000, with exact min/max.
+function quantized(declare) {
+  return (j, bin) => {
+    const q = Int16Array.from(boxPositions, (v) => Math.round(v * 1000));
+    const data = Buffer.alloc(24 * 8);
+    for (let i = 0; i < 24; i++) for (let c = 0; c < 3; c++) data.writeInt16LE(q[3 * i + c], 8 * i + 2 * c);
+    const a = appendView(j, bin, data);
+    j.bufferViews[a.view].byteStride = 8;
+    j.bufferViews[a.view].target = 34962;
+    j.accessors[2] = { bufferView: a.view, componentType: 5122, count: 24, type: 'VEC3',
+      min: [0, 1, 2].map((c) => Math.min(...Array.from({ length: 24 }, (_, i) => q[3 * i + c]))),
+      max: [0, 1, 2].map((c) => Math.max(...Array.from({ length: 24 }, (_, i) => q[3 * i + c]))) };
+    j.nodes[1].scale = [0.001, 0.001, 0.001];
+    if (declare) {
+      j.extensionsUsed = ['KHR_mesh_quantization'];
+      j.extensionsRequired = ['KHR_mesh_quantization'];
+    }
+    return a.bin;
+  };
+}
+
+function glbWith(name, edit) {
+  const src = fs.readFileSync(path.join(args.assets, 'Box', 'glTF-Binary', 'Box.glb'));
+  const out = Buffer.from(src);
+  edit(out);
+  const dir = path.join(args.out, 'cases', name);
+  fs.mkdirSync(dir, { recursive: true });
+  fs.writeFileSync(path.join(dir, 'Box.glb'), out);
+  return { name: `generated/${name}`, file: path.join(dir, 'Box.glb') };
+}
+
+const cases = [
+  // Must be refused: each breaks one rule of the structures the importer reads.
+  generated('accessor_too_long', (j) => { j.accessors[2].count = 100; }),
+  generated('accessor_offset_unaligned', (j) => { j.accessors[1].byteOffset = 2; }),
+  generated('buffer_view_offset_unaligned', (j) => {
+    j.bufferViews[1].byteOffset = 2;
+    j.bufferViews[1].byteLength = 574;
+    j.accessors[2].count = 23;
+  }),
+  generated('buffer_view_too_long', (j) => { j.bufferViews[0].byteLength = 1000; }),
+  generated('index_out_of_range', (j, bin) => { bin.writeUInt16LE(999, 576); }),
+  generated('normal_unnormalized_bytes', (j) => { j.accessors[1].componentType = 5121; }),
+  generated('attribute_accessor_missing', (j) => { j.meshes[0].primitives[0].attributes.NORMAL = 9; }),
+  generated('material_missing', (j) => { j.meshes[0].primitives[0].material = 5; }),
+  generated('node_loop', (j) => { j.nodes[1].children = [0]; }),
+  generated('scene_non_root_node', (j) => { j.scenes[0].nodes = [0, 1]; }),
+  generated('sparse_indices_non_increasing', sparse([3, 1])),
+  generated('sparse_index_out_of_range', sparse([3, 99])),
+  generated('quantized_without_extension', quantized(false)),
+  glbWith('glb_json_chunk_too_long', (b) => { b.writeUInt32LE(b.readUInt32LE(12) + 400, 12); }),
+  glbWith('glb_bad_magic', (b) => { b.write('gLTF', 0); }),
+  // Must be loaded: valid uses of what the importer supports.
+  generated('sparse_valid', sparse([1, 3])),
+  generated('quantized_valid', quantized(true)),
+  generated('accessor_without_buffer_view', (j) => {
+    j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
+    j.meshes[0].primitives[0].attributes.TEXCOORD_0 = 3;
+  }),
+  // Valid, refused for a documented reason: a required extension Tessera does not read.
+  generated('required_extension_unsupported', (j) => {
+    j.extensionsUsed = ['KHR_materials_unlit'];
+    j.extensionsRequired = ['KHR_materials_unlit'];
+    j.materials[0].extensions = { KHR_materials_unlit: {} };
+  }),
+];
+
+const corpus = [...sampleFiles(args.assets), ...cases];
+
+// ---- the two verdicts -------------------------------------------------------------------------
+
+async function validate(file) {
+  const report = await validator.validateBytes(new Uint8Array(fs.readFileSync(file)), {
+    uri: path.basename(file),
+    maxIssues: 0,
+    externalResourceFunction: (uri) =>
+      new Promise((resolve, reject) => {
+        fs.readFile(path.resolve(path.dirname(file), decodeURIComponent(uri)), (err, data) =>
+          (err ? reject(err.toString()) : resolve(new Uint8Array(data))));
+      }),
+  });
+  const errors = report.issues.messages.filter((m) => m.severity === 0);
+  return { errors: report.issues.numErrors, first: errors[0], all: errors };
+}
+
+// /accessors/2/sparse/indices -> accessors[2] (the object the issue is in).
+function place(pointer) {
+  const m = /^\/([A-Za-z]+)\/(\d+)/.exec(pointer ?? '');
+  return m ? `${m[1]}[${m[2]}]` : null;
+}
+
+const tessera = new Map();
+const lines = execFileSync(args.importCheck, corpus.map((c) => c.file), { maxBuffer: 64 << 20 })
+  .toString().trim().split('\n');
+for (const line of lines) {
+  const r = JSON.parse(line);
+  tessera.set(r.file, r);
+}
+
+const results = [];
+let failures = 0;
+for (const c of corpus) {
+  const v = await validate(c.file);
+  const t = tessera.get(c.file);
+  let verdict;
+  if (v.errors > 0) {
+    // Tessera stops at its first error; the validator lists them all: one of its places will do.
+    const places = v.all.map((m) => place(m.pointer)).filter(Boolean);
+    if (t.ok) verdict = 'validator errors, Tessera loads it';
+    else if (places.length && !places.some((p) => t.message.includes(p)))
+      verdict = `refused, but naming none of ${[...new Set(places)].join(', ')}`;
+    else verdict = 'agree: refused';
+  } else if (t.ok) {
+    verdict = 'agree: loaded';
+  } else if (/unsupported required extension/.test(t.message) || t.code === 'RESOURCE_EXHAUSTED') {
+    verdict = 'agree: refused for a documented reason';
+  } else {
+    verdict = 'valid, Tessera refuses it';
+  }
+  const agreed = verdict.startsWith('agree');
+  const known = KNOWN[c.name];
+  if (!agreed && !known) failures++;
+  results.push({
+    name: c.name, verdict, known: known ?? undefined,
+    validator: { errors: v.errors, code: v.first?.code, pointer: v.first?.pointer },
+    tessera: t.ok ? { ok: true } : { ok: false, code: t.code, message: t.message.slice(0, 200) },
+  });
+}
+const summary = {
+  files: results.length,
+  agree: results.filter((r) => r.verdict.startsWith('agree')).length,
+  known: results.filter((r) => !r.verdict.startsWith('agree') && r.known).length,
+  disagree: failures,
+  results,
+};
+fs.writeFileSync(path.join(args.out, 'agreement.json'), JSON.stringify(summary, null, 2));
+console.log(JSON.stringify(summary, null, 2));
+process.exit(failures > 0 ? 1 : 0);
