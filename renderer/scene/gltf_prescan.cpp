@@ -5,6 +5,7 @@
 #include "renderer/scene/gltf_prescan.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -184,6 +185,7 @@ class PreScan {
     RETURN_IF_ERROR(Asset(j));
     RETURN_IF_ERROR(Counts(j));
     RETURN_IF_ERROR(Accessors(j));
+    RETURN_IF_ERROR(ValueRanges(j));
     for (const char* list : {"extensionsRequired", "extensionsUsed"}) {
       const json* exts = Member(j, list);
       for (size_t i = 0; exts && exts->is_array() && i < exts->size(); ++i) {
@@ -240,6 +242,139 @@ class PreScan {
     RETURN_IF_ERROR(check("extensions.KHR_lights_punctual.lights",
                           lights ? ArraySize(*lights, "lights") : 0, "lights", "max_lights",
                           limits_.max_lights));
+    return absl::OkStatus();
+  }
+
+  // ---- value ranges of what the importer reads (the glTF 2.0 schema's and the extensions'):
+  // a file the spec forbids is refused, naming the value, rather than clamped into shape.
+
+  // `v` (when present) is a number in [lo, hi]; `open_lo`/`open_hi` exclude that end.
+  absl::Status Number(const json* v, const std::string& field, double lo, double hi,
+                      bool open_lo = false, bool open_hi = false) {
+    if (v == nullptr) return absl::OkStatus();
+    if (!v->is_number()) return Invalid(file_, field, "not a number");
+    const double x = v->get<double>();
+    const bool below = open_lo ? x <= lo : x < lo;
+    const bool above = open_hi ? x >= hi : x > hi;
+    if (below || above) {
+      return Invalid(file_, field, x, " is out of range ", open_lo ? "(" : "[", lo, ", ",
+                     hi == kUnbounded ? std::string("inf") : absl::StrCat(hi),
+                     open_hi || hi == kUnbounded ? ")" : "]");
+    }
+    return absl::OkStatus();
+  }
+  // `v` (when present) is an array of `n` numbers in [lo, hi].
+  absl::Status Numbers(const json* v, const std::string& field, size_t n, double lo, double hi) {
+    if (v == nullptr) return absl::OkStatus();
+    if (!v->is_array() || v->size() != n)
+      return Invalid(file_, field, "wants an array of ", n, " numbers");
+    for (size_t i = 0; i < n; ++i)
+      RETURN_IF_ERROR(Number(&(*v)[i], absl::StrCat(field, "[", i, "]"), lo, hi));
+    return absl::OkStatus();
+  }
+  static constexpr double kUnbounded = std::numeric_limits<double>::infinity();
+  static constexpr double kHalfPi = 1.5707963267948966;
+
+  absl::Status TextureInfo(const json* info, const std::string& field) {
+    if (info == nullptr) return absl::OkStatus();
+    const json* exts = Member(*info, "extensions");
+    const json* tt = exts ? Member(*exts, "KHR_texture_transform") : nullptr;
+    if (tt == nullptr) return absl::OkStatus();
+    const std::string f = field + ".extensions.KHR_texture_transform";
+    RETURN_IF_ERROR(Numbers(Member(*tt, "offset"), f + ".offset", 2, -kUnbounded, kUnbounded));
+    RETURN_IF_ERROR(Numbers(Member(*tt, "scale"), f + ".scale", 2, -kUnbounded, kUnbounded));
+    return Number(Member(*tt, "rotation"), f + ".rotation", -kUnbounded, kUnbounded);
+  }
+
+  absl::Status ValueRanges(const json& j) {
+    for (size_t i = 0; i < ArraySize(j, "materials"); ++i) {
+      const json& m = j["materials"][i];
+      const std::string f = absl::StrCat("materials[", i, "]");
+      if (const json* pbr = Member(m, "pbrMetallicRoughness")) {
+        const std::string p = f + ".pbrMetallicRoughness";
+        RETURN_IF_ERROR(Numbers(Member(*pbr, "baseColorFactor"), p + ".baseColorFactor", 4, 0, 1));
+        RETURN_IF_ERROR(Number(Member(*pbr, "metallicFactor"), p + ".metallicFactor", 0, 1));
+        RETURN_IF_ERROR(Number(Member(*pbr, "roughnessFactor"), p + ".roughnessFactor", 0, 1));
+        RETURN_IF_ERROR(TextureInfo(Member(*pbr, "baseColorTexture"), p + ".baseColorTexture"));
+        RETURN_IF_ERROR(TextureInfo(Member(*pbr, "metallicRoughnessTexture"),
+                                    p + ".metallicRoughnessTexture"));
+      }
+      RETURN_IF_ERROR(Numbers(Member(m, "emissiveFactor"), f + ".emissiveFactor", 3, 0, 1));
+      RETURN_IF_ERROR(Number(Member(m, "alphaCutoff"), f + ".alphaCutoff", 0, kUnbounded));
+      if (const json* occ = Member(m, "occlusionTexture"))
+        RETURN_IF_ERROR(Number(Member(*occ, "strength"), f + ".occlusionTexture.strength", 0, 1));
+      for (const char* slot : {"normalTexture", "occlusionTexture", "emissiveTexture"})
+        RETURN_IF_ERROR(TextureInfo(Member(m, slot), f + "." + slot));
+      const json* exts = Member(m, "extensions");
+      if (const json* es = exts ? Member(*exts, "KHR_materials_emissive_strength") : nullptr) {
+        RETURN_IF_ERROR(Number(Member(*es, "emissiveStrength"),
+                               f + ".extensions.KHR_materials_emissive_strength.emissiveStrength",
+                               0, kUnbounded));
+      }
+    }
+    const json* exts = Member(j, "extensions");
+    const json* lights = exts ? Member(*exts, "KHR_lights_punctual") : nullptr;
+    for (size_t i = 0; lights && i < ArraySize(*lights, "lights"); ++i) {
+      const json& l = (*lights)["lights"][i];
+      const std::string f = absl::StrCat("extensions.KHR_lights_punctual.lights[", i, "]");
+      RETURN_IF_ERROR(Numbers(Member(l, "color"), f + ".color", 3, 0, 1));
+      RETURN_IF_ERROR(Number(Member(l, "intensity"), f + ".intensity", 0, kUnbounded));
+      RETURN_IF_ERROR(Number(Member(l, "range"), f + ".range", 0, kUnbounded, /*open_lo=*/true));
+      if (const json* spot = Member(l, "spot")) {
+        const json* inner = Member(*spot, "innerConeAngle");
+        const json* outer = Member(*spot, "outerConeAngle");
+        RETURN_IF_ERROR(Number(inner, f + ".spot.innerConeAngle", 0, kHalfPi, false, true));
+        RETURN_IF_ERROR(Number(outer, f + ".spot.outerConeAngle", 0, kHalfPi, true, false));
+        const double in = inner && inner->is_number() ? inner->get<double>() : 0.0;
+        const double out = outer && outer->is_number() ? outer->get<double>() : kHalfPi / 2;
+        if (in >= out)
+          return Invalid(file_, f + ".spot", "innerConeAngle ", in,
+                         " is not less than outerConeAngle ", out);
+      }
+    }
+    for (size_t i = 0; i < ArraySize(j, "cameras"); ++i) {
+      const json& c = j["cameras"][i];
+      const std::string f = absl::StrCat("cameras[", i, "]");
+      if (const json* p = Member(c, "perspective")) {
+        RETURN_IF_ERROR(Number(Member(*p, "yfov"), f + ".perspective.yfov", 0, kUnbounded, true));
+        RETURN_IF_ERROR(Number(Member(*p, "znear"), f + ".perspective.znear", 0, kUnbounded, true));
+        RETURN_IF_ERROR(
+            Number(Member(*p, "aspectRatio"), f + ".perspective.aspectRatio", 0, kUnbounded, true));
+        const json* zfar = Member(*p, "zfar");
+        const json* znear = Member(*p, "znear");
+        RETURN_IF_ERROR(Number(zfar, f + ".perspective.zfar", 0, kUnbounded, true));
+        if (zfar && znear && znear->is_number() && zfar->get<double>() <= znear->get<double>())
+          return Invalid(file_, f + ".perspective", "zfar ", zfar->get<double>(),
+                         " is not greater than znear ", znear->get<double>());
+      }
+      if (const json* o = Member(c, "orthographic")) {
+        RETURN_IF_ERROR(Number(Member(*o, "znear"), f + ".orthographic.znear", 0, kUnbounded));
+        RETURN_IF_ERROR(Number(Member(*o, "zfar"), f + ".orthographic.zfar", 0, kUnbounded, true));
+        const json* zfar = Member(*o, "zfar");
+        const json* znear = Member(*o, "znear");
+        if (zfar && znear && zfar->is_number() && znear->is_number() &&
+            zfar->get<double>() <= znear->get<double>())
+          return Invalid(file_, f + ".orthographic", "zfar ", zfar->get<double>(),
+                         " is not greater than znear ", znear->get<double>());
+      }
+    }
+    for (size_t i = 0; i < ArraySize(j, "nodes"); ++i) {
+      const json& n = j["nodes"][i];
+      const std::string f = absl::StrCat("nodes[", i, "]");
+      if (Member(n, "matrix") &&
+          (Member(n, "translation") || Member(n, "rotation") || Member(n, "scale")))
+        return Invalid(file_, f + ".matrix", "given together with translation, rotation or scale");
+      const json* r = Member(n, "rotation");
+      RETURN_IF_ERROR(Numbers(r, f + ".rotation", 4, -1, 1));
+      if (r != nullptr) {
+        double len2 = 0;
+        for (const json& c : *r) len2 += c.get<double>() * c.get<double>();
+        // The validator's tolerance for a unit quaternion.
+        if (std::abs(std::sqrt(len2) - 1.0) > 0.00005)
+          return Invalid(file_, f + ".rotation", "is not a unit quaternion (length ",
+                         std::sqrt(len2), ")");
+      }
+    }
     return absl::OkStatus();
   }
 

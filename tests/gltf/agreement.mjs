@@ -146,6 +146,58 @@ const cases = [
   generated('sparse_indices_non_increasing', sparse([3, 1])),
   generated('sparse_index_out_of_range', sparse([3, 99])),
   generated('quantized_without_extension', quantized(false)),
+  generated('texture_reference_missing', (j) => {
+    j.materials[0].pbrMetallicRoughness.baseColorTexture = { index: 5 };
+  }),
+  generated('metallic_factor_out_of_range', (j) => { j.materials[0].pbrMetallicRoughness.metallicFactor = 2; }),
+  generated('base_color_factor_length', (j) => { j.materials[0].pbrMetallicRoughness.baseColorFactor = [1, 0, 0]; }),
+  generated('alpha_cutoff_negative', (j) => { j.materials[0].alphaMode = 'MASK'; j.materials[0].alphaCutoff = -1; }),
+  generated('emissive_strength_negative', (j) => {
+    j.extensionsUsed = ['KHR_materials_emissive_strength'];
+    j.materials[0].emissiveFactor = [1, 1, 1];
+    j.materials[0].extensions = { KHR_materials_emissive_strength: { emissiveStrength: -1 } };
+  }),
+  generated('texture_transform_scale_length', (j, bin) => {
+    j.extensionsUsed = ['KHR_texture_transform'];
+    j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
+    j.meshes[0].primitives[0].attributes.TEXCOORD_0 = 3;
+    j.images = [{ uri: 'data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==' }];
+    j.textures = [{ source: 0 }];
+    j.materials[0].pbrMetallicRoughness.baseColorTexture = {
+      index: 0, extensions: { KHR_texture_transform: { scale: [2] } } };
+  }),
+  generated('texture_source_missing', (j) => {
+    j.textures = [{ source: 4 }];
+    j.materials[0].pbrMetallicRoughness.baseColorTexture = { index: 0 };
+  }),
+  generated('light_spot_cone_out_of_range', (j) => {
+    j.extensionsUsed = ['KHR_lights_punctual'];
+    j.extensions = { KHR_lights_punctual: { lights: [
+      { type: 'spot', spot: { innerConeAngle: 0.2, outerConeAngle: 2.0 } }] } };
+    j.nodes[0].extensions = { KHR_lights_punctual: { light: 0 } };
+  }),
+  generated('light_range_zero', (j) => {
+    j.extensionsUsed = ['KHR_lights_punctual'];
+    j.extensions = { KHR_lights_punctual: { lights: [{ type: 'point', range: 0 }] } };
+    j.nodes[0].extensions = { KHR_lights_punctual: { light: 0 } };
+  }),
+  generated('light_reference_missing', (j) => {
+    j.extensionsUsed = ['KHR_lights_punctual'];
+    j.extensions = { KHR_lights_punctual: { lights: [{ type: 'point' }] } };
+    j.nodes[0].extensions = { KHR_lights_punctual: { light: 3 } };
+  }),
+  generated('camera_yfov_zero', (j) => {
+    j.cameras = [{ type: 'perspective', perspective: { yfov: 0, znear: 0.1 } }];
+    j.nodes[0].camera = 0;
+  }),
+  generated('camera_zfar_below_znear', (j) => {
+    j.cameras = [{ type: 'perspective', perspective: { yfov: 1, znear: 1, zfar: 0.5 } }];
+    j.nodes[0].camera = 0;
+  }),
+  generated('camera_reference_missing', (j) => { j.nodes[0].camera = 2; }),
+  generated('node_matrix_and_trs', (j) => { j.nodes[0].translation = [1, 0, 0]; }),
+  generated('node_rotation_not_unit', (j) => { j.nodes[1].rotation = [0, 0, 0, 2]; }),
+  generated('scene_reference_missing', (j) => { j.scene = 3; }),
   glbWith('glb_json_chunk_too_long', (b) => { b.writeUInt32LE(b.readUInt32LE(12) + 400, 12); }),
   glbWith('glb_bad_magic', (b) => { b.write('gLTF', 0); }),
   // Must be loaded: valid uses of what the importer supports.
