@@ -10,63 +10,18 @@
 
 namespace tessera {
 
-namespace {
-
-// Makes every earlier write (the frame's) visible to copies, with `images`' transitions.
-void WritesBeforeCopies(VkCommandBuffer cmd, const VkImageMemoryBarrier2* images = nullptr,
-                        uint32_t image_count = 0) {
-  VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
-  mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
-  mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
-  mb.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
-  mb.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
-  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
-  dep.memoryBarrierCount = 1;
-  dep.pMemoryBarriers = &mb;
-  dep.imageMemoryBarrierCount = image_count;
-  dep.pImageMemoryBarriers = images;
-  vkCmdPipelineBarrier2(cmd, &dep);
-}
-
-}  // namespace
-
 absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
                                           const PassContext& pc, FrameCapture* capture) {
   const Access depth_access = plan.FinalAccess(Resource::kDepth);
   if (capture->want_ids) RETURN_IF_ERROR(CaptureIds(f.gs, f.scene_set, depth_access, capture));
   // The tonemap's input as the post passes left it; CaptureIds left the depth in the
   // depth-test layout.
-  RETURN_IF_ERROR(Capture(capture, f.tiled ? f.grid.tiles() : 0, PostColor(pc),
+  RETURN_IF_ERROR(Capture(capture, f.tiled ? &f.light_buffers : nullptr, PostColor(pc),
                           plan.FinalAccess(plan.scene_color),
                           capture->want_ids ? Access::kDepthTest : depth_access, f.exposure.state));
   capture->local_lights = f.local;
-  if (f.tiled) RETURN_IF_ERROR(CaptureLightBins(f.light_buffers, capture));
   capture->view = f.fu.view;
   capture->proj = f.fu.proj;
-  return absl::OkStatus();
-}
-
-// After a frame (tests): the light bounds and row bins the light culling read.
-absl::Status Renderer::Impl::CaptureLightBins(const LightCullBuffers& lb, FrameCapture* capture) {
-  const VkDeviceSize bounds_bytes = VkDeviceSize(lb.lights) * sizeof(gpu::GpuLightBounds);
-  const VkDeviceSize row_bytes = VkDeviceSize(lb.row_entries) * 4;
-  ASSIGN_OR_RETURN(vk::Buffer host, vk::Buffer::Create(*ctx, bounds_bytes + row_bytes,
-                                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                                       vk::MemoryUsage::kReadback, "bins"));
-  executor->BeginOneTime();
-  const VkCommandBuffer cmd = executor->cmd();
-  WritesBeforeCopies(cmd);
-  const VkBufferCopy bounds{0, 0, bounds_bytes};
-  if (bounds_bytes > 0) vkCmdCopyBuffer(cmd, lb.bounds, host.handle(), 1, &bounds);
-  const VkBufferCopy rows{0, bounds_bytes, row_bytes};
-  if (row_bytes > 0) vkCmdCopyBuffer(cmd, lb.row_lights, host.handle(), 1, &rows);
-  RETURN_IF_ERROR(executor->SubmitAndWait(/*host_read=*/true));
-  host.InvalidateForRead();
-  const auto* bytes = static_cast<const uint8_t*>(host.mapped());
-  capture->light_bounds.resize(lb.lights);
-  std::memcpy(capture->light_bounds.data(), bytes, bounds_bytes);
-  capture->row_lights.resize(lb.row_entries);
-  std::memcpy(capture->row_lights.data(), bytes + bounds_bytes, row_bytes);
   return absl::OkStatus();
 }
 
@@ -135,10 +90,12 @@ absl::Status Renderer::Impl::CaptureIds(const GpuScene& scene, VkDescriptorSet s
   return absl::OkStatus();
 }
 
-// After a frame: copies the prepass depth and the tile lists to the host (tests only).
-absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, const vk::Image& hdr,
-                                     Access hdr_access, Access depth_access,
-                                     const vk::Image* exposure) {
+// After a frame: copies the prepass depth, the HDR colour, the exposure and, when the light
+// culling ran (`lights`), its tile lists, light bounds and row bins to the host (tests only).
+absl::Status Renderer::Impl::Capture(FrameCapture* capture, const LightCullBuffers* lights,
+                                     const vk::Image& hdr, Access hdr_access,
+                                     Access depth_access, const vk::Image* exposure) {
+  const uint32_t tiles = lights ? lights->tiles : 0;
   const VkDeviceSize depth_bytes = VkDeviceSize(targets.width) * targets.height * 4;
   const VkDeviceSize count_bytes = VkDeviceSize(tiles) * 4;
   const VkDeviceSize list_bytes = count_bytes * gpu::kMaxLightsPerTile;
@@ -146,15 +103,30 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
   // RGBA16F copies want offsets in whole texels: 16-byte aligned.
   const VkDeviceSize hdr_at = (depth_bytes + count_bytes + list_bytes + 15) & ~VkDeviceSize(15);
   const VkDeviceSize exposure_at = hdr_at + hdr_bytes;
-  ASSIGN_OR_RETURN(vk::Buffer host,
-                   vk::Buffer::Create(*ctx, exposure_at + 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                      vk::MemoryUsage::kReadback, "capture"));
+  const VkDeviceSize bounds_at = exposure_at + 16;
+  const VkDeviceSize bounds_bytes =
+      lights ? VkDeviceSize(lights->lights) * sizeof(gpu::GpuLightBounds) : 0;
+  const VkDeviceSize rows_at = bounds_at + bounds_bytes;
+  const VkDeviceSize row_bytes = lights ? VkDeviceSize(lights->row_entries) * 4 : 0;
+  ASSIGN_OR_RETURN(vk::Buffer host, vk::Buffer::Create(*ctx, rows_at + row_bytes,
+                                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                                       vk::MemoryUsage::kReadback, "capture"));
   executor->BeginOneTime();
   const VkCommandBuffer cmd = executor->cmd();
   VkImageMemoryBarrier2 b[2] = {
       vk::MakeImageBarrier(targets.depth, Between(depth_access, Access::kTransferSrc)),
       vk::MakeImageBarrier(hdr, Between(hdr_access, Access::kTransferSrc))};
-  WritesBeforeCopies(cmd, b, 2);
+  VkMemoryBarrier2 mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER_2};
+  mb.srcStageMask = VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT;
+  mb.srcAccessMask = VK_ACCESS_2_MEMORY_WRITE_BIT;
+  mb.dstStageMask = VK_PIPELINE_STAGE_2_COPY_BIT;
+  mb.dstAccessMask = VK_ACCESS_2_TRANSFER_READ_BIT;
+  VkDependencyInfo dep{VK_STRUCTURE_TYPE_DEPENDENCY_INFO};
+  dep.memoryBarrierCount = 1;
+  dep.pMemoryBarriers = &mb;
+  dep.imageMemoryBarrierCount = 2;
+  dep.pImageMemoryBarriers = b;
+  vkCmdPipelineBarrier2(cmd, &dep);
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_DEPTH_BIT, 0, 0, 1};
   region.imageExtent = {targets.width, targets.height, 1};
@@ -180,11 +152,15 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
                     VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_GENERAL});
     vk::CmdBarrier(cmd, &eb, 1);
   }
-  if (tiles > 0) {  // the lists exist only when the light-culling pass ran
-    const VkBufferCopy counts{0, depth_bytes, count_bytes};
-    vkCmdCopyBuffer(cmd, tile_counts.handle(), host.handle(), 1, &counts);
-    const VkBufferCopy lists{0, depth_bytes + count_bytes, list_bytes};
-    vkCmdCopyBuffer(cmd, tile_lights.handle(), host.handle(), 1, &lists);
+  if (lights) {  // the lists exist only when the light-culling pass ran
+    const VkBufferCopy copies[4] = {{0, depth_bytes, count_bytes},
+                                    {0, depth_bytes + count_bytes, list_bytes},
+                                    {0, bounds_at, bounds_bytes},
+                                    {0, rows_at, row_bytes}};
+    const VkBuffer sources[4] = {lights->tile_counts, lights->tile_lights, lights->bounds,
+                                 lights->row_lights};
+    for (int i = 0; i < 4; ++i)
+      if (copies[i].size > 0) vkCmdCopyBuffer(cmd, sources[i], host.handle(), 1, &copies[i]);
   }
   RETURN_IF_ERROR(executor->SubmitAndWait(/*host_read=*/true));
   host.InvalidateForRead();
@@ -200,6 +176,10 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, uint32_t tiles, cons
   for (size_t i = 0; i < capture->hdr.size(); ++i) capture->hdr[i] = glm::unpackHalf1x16(halves[i]);
   capture->exposure_log2 = std::numeric_limits<float>::quiet_NaN();
   if (exposure) std::memcpy(&capture->exposure_log2, bytes + exposure_at, 4);
+  capture->light_bounds.resize(bounds_bytes / sizeof(gpu::GpuLightBounds));
+  std::memcpy(capture->light_bounds.data(), bytes + bounds_at, bounds_bytes);
+  capture->row_lights.resize(row_bytes / 4);
+  std::memcpy(capture->row_lights.data(), bytes + rows_at, row_bytes);
   return absl::OkStatus();
 }
 

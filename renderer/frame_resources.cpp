@@ -44,10 +44,12 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   FrameTargets t;
   t.width = width;
   t.height = height;
-  // One target of the frame from the pool: `resource` at `w` x `h`, `samples`, `mips`.
+  // One target of the frame from the pool: `resource` at `w` x `h`, `samples`, `mips`, with a
+  // sampling view in `sampled_view` when that is not VK_FORMAT_UNDEFINED.
   auto get = [&](Resource resource, VkFormat format, VkImageUsageFlags usage, const char* name,
-                 uint32_t w, uint32_t h, uint32_t samples = 1,
-                 uint32_t mips = 1) -> absl::StatusOr<const TargetPool::Target*> {
+                 uint32_t w, uint32_t h, uint32_t samples = 1, uint32_t mips = 1,
+                 VkFormat sampled_view = VK_FORMAT_UNDEFINED)
+      -> absl::StatusOr<const TargetPool::Target*> {
     vk::ImageDesc desc;
     desc.width = w;
     desc.height = h;
@@ -55,6 +57,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
     desc.samples = static_cast<VkSampleCountFlagBits>(samples);
     desc.mip_levels = mips;
     desc.usage = usage;
+    desc.sampled_view_format = sampled_view;
     return target_pool.Acquire(*ctx, resource, desc, name, mips > 1, frame);
   };
   constexpr VkImageUsageFlags kColor = VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT;
@@ -77,14 +80,11 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
   // each format.
   const bool compute_ldr = FullscreenProgram::Compute(s);
   const bool fxaa = s.aa == AaMode::kFxaa;
-  vk::ImageDesc ldr_desc;
-  ldr_desc.width = width;
-  ldr_desc.height = height;
-  ldr_desc.format = compute_ldr ? kLdrComputeFormat : kLdrFormat;
-  ldr_desc.usage = kColor | kSampled | kCopy | (compute_ldr ? kStorage : 0u);
-  if (compute_ldr && fxaa) ldr_desc.sampled_view_format = kLdrFormat;
-  ASSIGN_OR_RETURN(auto* ldr, target_pool.Acquire(*ctx, R::kLdrColor, ldr_desc, "ldr_color",
-                                                  false, frame));
+  ASSIGN_OR_RETURN(auto* ldr,
+                   get(R::kLdrColor, compute_ldr ? kLdrComputeFormat : kLdrFormat,
+                       kColor | kSampled | kCopy | (compute_ldr ? kStorage : 0u), "ldr_color",
+                       width, height, 1, 1,
+                       compute_ldr && fxaa ? kLdrFormat : VK_FORMAT_UNDEFINED));
   t.ldr = ldr->image;
   ASSIGN_OR_RETURN(
       readback, target_pool.AcquireBuffer(*ctx, uint64_t(width) * height * 4, "readback", frame));

@@ -241,11 +241,11 @@ struct Renderer::Impl {
   // exposure's state; with want_ids also every drawable's id against the frame's depth.
   absl::Status CaptureFrame(FrameData& f, const FramePlan& plan, const PassContext& pc,
                             FrameCapture* capture);
-  absl::Status Capture(FrameCapture* capture, uint32_t tiles, const vk::Image& hdr,
-                       Access hdr_access, Access depth_access, const vk::Image* exposure);
+  absl::Status Capture(FrameCapture* capture, const LightCullBuffers* lights,
+                       const vk::Image& hdr, Access hdr_access, Access depth_access,
+                       const vk::Image* exposure);
   absl::Status CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set, Access depth_access,
                           FrameCapture* capture);
-  absl::Status CaptureLightBins(const LightCullBuffers& lb, FrameCapture* capture);
 };
 
 }  // namespace tessera

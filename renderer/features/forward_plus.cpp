@@ -201,9 +201,10 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
     frame.settings.effective.light_culling = false;
     f.tiled = false;
   }
+  // light_binning gpu: every row list has room for every light, after the 2-entry row headers.
+  const uint64_t gpu_row_entries = (2 + uint64_t(local.size())) * f.grid.tiles_y();
   if (f.tiled && s.light_binning == LightBinning::kGpu) {
-    // Every row list has room for every light: rows x lights entries after the header.
-    const uint64_t bytes = (2 + uint64_t(local.size())) * f.grid.tiles_y() * 4;
+    const uint64_t bytes = gpu_row_entries * 4;
     const uint64_t range = ctx->limits().maxStorageBufferRange;
     if (bytes > range) {
       frame.settings.notes.push_back(
@@ -235,6 +236,12 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
   lb.lights = uint32_t(local.size());
   lb.rows = f.grid.tiles_y();
   lb.gpu_binning = f.tiled && s.light_binning == LightBinning::kGpu;
+  if (lb.gpu_binning) {  // the light-culling pass bounds and bins them into these
+    RETURN_IF_ERROR(EnsureGpuBinBuffers(lb.lights, gpu_row_entries));
+    lb.bounds = gpu_light_bounds.handle();
+    lb.row_lights = gpu_row_lights.handle();
+    lb.row_entries = gpu_row_entries;
+  }
   return absl::OkStatus();
 }
 
@@ -249,27 +256,19 @@ absl::Status Renderer::Impl::EnsureGpuBinBuffers(uint32_t lights, uint64_t row_e
     gpu_bounds_capacity = cap;
   }
   if (row_entries > gpu_row_capacity) {
-    const uint64_t cap = std::max(row_entries, gpu_row_capacity * 2);
-    const uint64_t range = ctx->limits().maxStorageBufferRange / 4;
-    const uint64_t entries = std::min(cap, std::max(row_entries, range));
-    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(entries) * 4, kUsage,
+    // Doubling, but within the storage-buffer range (PrepareLights keeps row_entries in it).
+    const uint64_t cap = std::min(std::max(row_entries, gpu_row_capacity * 2),
+                                  uint64_t(ctx->limits().maxStorageBufferRange) / 4);
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * 4, kUsage,
                                vk::MemoryUsage::kDeviceLocal, "gpu_row_lights", &gpu_row_lights));
-    gpu_row_capacity = entries;
+    gpu_row_capacity = cap;
   }
   return absl::OkStatus();
 }
 
 absl::Status Renderer::Impl::WriteLightBins(FrameData& f) {
-  if (!f.tiled) return absl::OkStatus();
   LightCullBuffers& lb = f.light_buffers;
-  if (lb.gpu_binning) {  // the light-culling pass bounds and bins them (light_binning gpu)
-    RETURN_IF_ERROR(EnsureGpuBinBuffers(
-        uint32_t(f.local.size()), (2 + uint64_t(f.local.size())) * f.grid.tiles_y()));
-    lb.bounds = gpu_light_bounds.handle();
-    lb.row_lights = gpu_row_lights.handle();
-    lb.row_entries = (2 + uint64_t(f.local.size())) * f.grid.tiles_y();
-    return absl::OkStatus();
-  }
+  if (!f.tiled || lb.gpu_binning) return absl::OkStatus();  // gpu: the pass bins them
   // What the light-culling pass reads: each light projected once, binned by row.
   std::vector<gpu::GpuLightBounds> bounds(f.local.size());
   for (size_t i = 0; i < f.local.size(); ++i)

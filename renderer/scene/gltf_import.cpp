@@ -907,23 +907,21 @@ class Converter {
     const tinygltf::PbrMetallicRoughness& pbr = gm.pbrMetallicRoughness;
     const std::string path = absl::StrCat("materials[", index, "]");
     Material m{.name = gm.name};
-    // Factors are clamped to the ranges the glTF spec gives them (and NaN becomes 0), so no
-    // shader multiplies by an infinity.
-    for (size_t i = 0; pbr.baseColorFactor.size() == 4 && i < 4; ++i) {
-      m.base_color_factor[int(i)] = std::clamp(ToFloat(pbr.baseColorFactor[i]), 0.0f, 1.0f);
-    }
-    for (size_t i = 0; gm.emissiveFactor.size() == 3 && i < 3; ++i) {
-      m.emissive_factor[int(i)] = std::clamp(ToFloat(gm.emissiveFactor[i]), 0.0f, 1.0f);
-    }
-    m.metallic_factor = std::clamp(ToFloat(pbr.metallicFactor), 0.0f, 1.0f);
-    m.roughness_factor = std::clamp(ToFloat(pbr.roughnessFactor), 0.0f, 1.0f);
+    // The pre-scan refused factors outside the ranges the spec gives them (ValueRanges); the
+    // ones the spec leaves unbounded are clamped here, so no shader multiplies by a huge number.
+    for (size_t i = 0; pbr.baseColorFactor.size() == 4 && i < 4; ++i)
+      m.base_color_factor[int(i)] = ToFloat(pbr.baseColorFactor[i]);
+    for (size_t i = 0; gm.emissiveFactor.size() == 3 && i < 3; ++i)
+      m.emissive_factor[int(i)] = ToFloat(gm.emissiveFactor[i]);
+    m.metallic_factor = ToFloat(pbr.metallicFactor);
+    m.roughness_factor = ToFloat(pbr.roughnessFactor);
     if (const auto it = gm.extensions.find("KHR_materials_emissive_strength");
         it != gm.extensions.end()) {
       m.emissive_strength =
           std::clamp(ToFloat(NumberOr(it->second, "emissiveStrength", 1)), 0.0f, kMaxFactor);
     }
     m.normal_scale = std::clamp(ToFloat(gm.normalTexture.scale), -kMaxFactor, kMaxFactor);
-    m.occlusion_strength = std::clamp(ToFloat(gm.occlusionTexture.strength), 0.0f, 1.0f);
+    m.occlusion_strength = ToFloat(gm.occlusionTexture.strength);
     if (gm.alphaMode == "MASK") {
       m.alpha_mode = AlphaMode::kMask;
     } else if (gm.alphaMode == "BLEND") {
