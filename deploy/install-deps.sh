@@ -12,6 +12,8 @@ PACKAGES=(
   glslang-tools spirv-tools
   # math, glTF import (tinygltf uses nlohmann-json and stb_image)
   libglm-dev libtinygltf-dev nlohmann-json3-dev libstb-dev
+  # compressed glTF meshes: KHR_draco_mesh_compression, EXT_meshopt_compression
+  libdraco-dev libmeshoptimizer-dev
   # service: gRPC + Protobuf with protoc and the C++ grpc plugin
   libgrpc++-dev libprotobuf-dev protobuf-compiler protobuf-compiler-grpc libabsl-dev
   # SHA-256 of uploaded files (scene ids)

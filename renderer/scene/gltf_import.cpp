@@ -16,6 +16,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <set>
 #include <span>
 #include <utility>
 
@@ -370,7 +371,7 @@ void ReadNumbers(const tinygltf::Value& obj, const char* key, int n, float* out)
 class Converter {
  public:
   Converter(const std::string& file, const ImportLimits& limits, tinygltf::Model* model,
-            CpuScene* scene, uint64_t source_bytes)
+            CpuScene* scene, uint64_t source_bytes, const gltf_internal::PreScanResult& pre)
       : file_(file),
         limits_(limits),
         m_(*model),
@@ -378,9 +379,21 @@ class Converter {
         max_vertices_(std::min<uint64_t>(limits.max_vertices, UINT32_MAX)),
         max_indices_(std::min<uint64_t>(limits.max_indices, UINT32_MAX)),
         generated_budget_(std::max<uint64_t>(kMinGeneratedBytes,
-                                             kGeneratedPerSourceByte * source_bytes)) {}
+                                             kGeneratedPerSourceByte * source_bytes)),
+        pre_(pre) {}
 
   absl::Status Run() {
+    // EXT_meshopt_compression fallback buffers: the memory the compressed bufferViews decode
+    // into (their sum is bounded by max_decoded_bytes in the pre-scan).
+    for (const auto& [index, length] : pre_.fallback_buffers) {
+      RETURN_IF_ERROR(CheckIndex("buffers", index, m_.buffers.size(), "buffer"));
+      m_.buffers[index].data.assign(length, 0);
+    }
+    for (const auto& [primitive, accessor] : pre_.draco_indices) {
+      const auto [mesh, prim] = primitive;
+      if (mesh < m_.meshes.size() && prim < m_.meshes[mesh].primitives.size())
+        m_.meshes[mesh].primitives[prim].indices = int(accessor);
+    }
     SceneCounts& c = s_.counts;
     c.nodes = uint32_t(m_.nodes.size());
     c.meshes = uint32_t(m_.meshes.size());
@@ -465,8 +478,132 @@ class Converter {
       return Err(bv_field, "byteOffset + byteLength exceeds buffers[", bv.buffer, "] (", have,
                  " bytes)");
     }
-    return std::span<const uint8_t>(m_.buffers[bv.buffer].data.data() + bv.byteOffset,
-                                    bv.byteLength);
+    const std::span<uint8_t> bytes(m_.buffers[bv.buffer].data.data() + bv.byteOffset,
+                                   bv.byteLength);
+    if (const auto mv = pre_.meshopt_views.find(uint32_t(index));
+        mv != pre_.meshopt_views.end() && decoded_views_.insert(index).second) {
+      RETURN_IF_ERROR(DecodeMeshoptView(index, mv->second, bytes));
+    }
+    return std::span<const uint8_t>(bytes);
+  }
+
+  // EXT_meshopt_compression: decodes bufferViews[index] into its own bytes (in a fallback
+  // buffer, or over the uncompressed copy), once, the first time the view is read.
+  absl::Status DecodeMeshoptView(int index, const gltf_internal::MeshoptView& mv,
+                                 std::span<uint8_t> out) {
+    const std::string field =
+        absl::StrCat("bufferViews[", index, "].extensions.EXT_meshopt_compression");
+    RETURN_IF_ERROR(CheckIndex(field + ".buffer", mv.buffer, m_.buffers.size(), "buffer"));
+    const std::vector<unsigned char>& src = m_.buffers[mv.buffer].data;
+    if (mv.byte_offset > src.size() || mv.byte_length > src.size() - mv.byte_offset) {
+      return Err(field, "byteOffset + byteLength exceeds buffers[", mv.buffer, "] (", src.size(),
+                 " bytes)");
+    }
+    const absl::Status decoded = gltf_internal::DecodeMeshopt(
+        mv, std::span<const uint8_t>(src.data() + mv.byte_offset, mv.byte_length), out);
+    if (!decoded.ok()) return Err(field, decoded.message());
+    return absl::OkStatus();
+  }
+
+  // KHR_draco_mesh_compression: decodes the primitive's Draco bufferView into packed copies of
+  // the accessors it names (and its indices), which View() then returns. The accessors' declared
+  // sizes count against max_decoded_bytes before the decoder runs; what it decodes must match
+  // them (points = the attributes' count, 3 x faces = the indices' count).
+  absl::Status DecodeDracoPrimitive(const tinygltf::Primitive& p, const std::string& path) {
+    const auto it = p.extensions.find("KHR_draco_mesh_compression");
+    if (!draco_ || it == p.extensions.end()) return absl::OkStatus();
+    const std::string field = path + ".extensions.KHR_draco_mesh_compression";
+    const tinygltf::Value& ext = it->second;
+    if (!ext.IsObject()) return Err(field, "not an object");
+    const tinygltf::Value& view = ext.Get("bufferView");
+    const tinygltf::Value& attributes = ext.Get("attributes");
+    if (!view.IsInt()) return Err(field + ".bufferView", "missing or not an integer");
+    if (!attributes.IsObject()) return Err(field + ".attributes", "missing or not an object");
+    if (p.indices < 0) return Err(path, "a Draco-compressed primitive needs indices");
+    RETURN_IF_ERROR(CheckIndex(path + ".indices", p.indices, m_.accessors.size(), "accessor"));
+    ASSIGN_OR_RETURN(std::span<const uint8_t> bytes, ViewBytes(field + ".bufferView",
+                                                               view.GetNumberAsInt()));
+    struct Target {
+      int accessor;
+      std::vector<uint8_t>* data;
+    };
+    std::vector<Target> targets;
+    std::vector<gltf_internal::DracoAttributeRequest> requests;
+    uint64_t points = 0, budget = 0;
+    for (const std::string& name : attributes.Keys()) {
+      const std::string at = absl::StrCat(field, ".attributes.", name);
+      const tinygltf::Value& id = attributes.Get(name);
+      if (!id.IsInt() || id.GetNumberAsInt() < 0) return Err(at, "not a non-negative integer");
+      const auto a = p.attributes.find(name);
+      if (a == p.attributes.end()) return Err(at, "the primitive has no ", name, " attribute");
+      RETURN_IF_ERROR(CheckIndex(at, a->second, m_.accessors.size(), "accessor"));
+      const tinygltf::Accessor& acc = m_.accessors[a->second];
+      const int components = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+      const int size = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+      if (components <= 0 || size <= 0) {
+        return Err(absl::StrCat("accessors[", a->second, "]"), "invalid type/componentType");
+      }
+      if (targets.empty()) points = acc.count;
+      if (acc.count != points) {
+        return Err(at, "accessors[", a->second, "] has ", acc.count, " elements where ",
+                   "the primitive's other Draco attributes have ", points);
+      }
+      budget += uint64_t(acc.count) * uint64_t(components * size);  // each <= 1 GiB (pre-scan)
+      targets.push_back({a->second, &owned_.emplace_back()});
+      requests.push_back({.unique_id = uint32_t(id.GetNumberAsInt()),
+                          .component_type = acc.componentType,
+                          .components = components,
+                          .out = targets.back().data});
+    }
+    const uint64_t index_count = m_.accessors[p.indices].count;
+    budget += index_count * 4;
+    if (budget > limits_.max_decoded_bytes - std::min(decoded_bytes_, limits_.max_decoded_bytes)) {
+      return OverLimit(file_, field, "decodes to ", budget, " bytes, which with the ",
+                       decoded_bytes_, " decoded before exceed the max_decoded_bytes limit (",
+                       limits_.max_decoded_bytes, ")");
+    }
+    decoded_bytes_ += budget;
+    absl::StatusOr<gltf_internal::DracoMesh> mesh =
+        gltf_internal::DecodeDraco(bytes, std::span(requests), points, index_count);
+    if (!mesh.ok()) {
+      return absl::Status(mesh.status().code(),
+                          absl::StrCat(file_, ": ", field, ": ", mesh.status().message()));
+    }
+    if (mesh->points != points) {
+      return Err(field, "the Draco data has ", mesh->points, " points where the accessors have ",
+                 points);
+    }
+    if (mesh->indices.size() != index_count) {
+      return Err(field, "the Draco data has ", mesh->indices.size(), " indices where accessors[",
+                 p.indices, "] has ", index_count);
+    }
+    for (const Target& t : targets) {
+      const tinygltf::Accessor& acc = m_.accessors[t.accessor];
+      AccessorView v;
+      v.component_size = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
+      v.components = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
+      v.count = acc.count;
+      v.component_type = acc.componentType;
+      v.type = acc.type;
+      v.normalized = acc.normalized;
+      v.index = t.accessor;
+      v.stride = uint64_t(v.component_size) * uint64_t(v.components);
+      v.data = t.data->data();
+      views_[t.accessor] = v;
+    }
+    std::vector<uint8_t>& idx = owned_.emplace_back(index_count * 4);
+    std::memcpy(idx.data(), mesh->indices.data(), idx.size());
+    AccessorView iv;
+    iv.data = idx.data();
+    iv.count = index_count;
+    iv.stride = 4;
+    iv.component_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+    iv.component_size = 4;
+    iv.type = TINYGLTF_TYPE_SCALAR;
+    iv.components = 1;
+    iv.index = p.indices;
+    views_[p.indices] = iv;
+    return absl::OkStatus();
   }
 
   // `count` tightly packed elements of `size` bytes at `offset` in bufferView `view` (sparse
@@ -715,6 +852,7 @@ class Converter {
       return absl::OkStatus();
     }
     if (mode > TINYGLTF_MODE_TRIANGLE_FAN) return Err(path + ".mode", "invalid mode ", mode);
+    RETURN_IF_ERROR(DecodeDracoPrimitive(p, path));
     absl::StatusOr<AccessorView> pos =
         Attribute(p, path, "POSITION", TINYGLTF_TYPE_VEC3, UINT64_MAX);
     if (!pos.ok()) return pos.status();
@@ -1127,6 +1265,18 @@ class Converter {
   uint64_t generated_bytes_ = 0;
   std::map<int, AccessorView> views_;
   std::deque<std::vector<uint8_t>> owned_;
+  // Compressed geometry: meshopt bufferViews decoded so far, and what Draco decoded (bounded by
+  // max_decoded_bytes together with the meshopt fallback buffers the pre-scan counted).
+  const gltf_internal::PreScanResult& pre_;
+  std::set<int> decoded_views_;
+  uint64_t decoded_bytes_ = [this] {
+    uint64_t fallback = 0;
+    for (const auto& [index, length] : pre_.fallback_buffers) fallback += length;
+    return fallback;
+  }();
+  // KHR_draco_mesh_compression is in extensionsUsed: primitives may be Draco-compressed.
+  const bool draco_ = std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(),
+                                "KHR_draco_mesh_compression") != m_.extensionsUsed.end();
   // KHR_mesh_quantization is in extensionsUsed: attributes may be quantized.
   const bool quantization_ =
       std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(), "KHR_mesh_quantization") !=
@@ -1137,8 +1287,8 @@ class Converter {
 
 const std::vector<std::string_view>& SupportedGltfExtensions() {
   static const std::vector<std::string_view> names{
-      "KHR_lights_punctual", "KHR_materials_emissive_strength", "KHR_mesh_quantization",
-      "KHR_texture_transform"};
+      "EXT_meshopt_compression", "KHR_draco_mesh_compression", "KHR_lights_punctual",
+      "KHR_materials_emissive_strength", "KHR_mesh_quantization", "KHR_texture_transform"};
   return names;
 }
 
@@ -1146,7 +1296,7 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
   const std::string& file = source.main_file;
   absl::StatusOr<gltf_internal::PreScanResult> pre = gltf_internal::PreScanGltf(source, limits);
   if (!pre.ok()) return pre.status();
-  const std::vector<uint8_t>& bytes = *pre->bytes;
+  const std::vector<uint8_t>& bytes = pre->main_bytes();
   const absl::string_view text = pre->text;
   const bool is_glb = pre->is_glb;
   CpuScene scene;
@@ -1186,7 +1336,7 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
   try {
     uint64_t source_bytes = 0;
     for (const auto& [name, data] : source.files) source_bytes += data.size();
-    RETURN_IF_ERROR(Converter(file, limits, &model, &scene, source_bytes).Run());
+    RETURN_IF_ERROR(Converter(file, limits, &model, &scene, source_bytes, *pre).Run());
   } catch (const std::bad_alloc&) {
     return Invalid(file, "file", "too large to import (out of memory)");
   }

@@ -154,6 +154,8 @@ const json* Member(const json& o, const char* key) {
   return it == o.end() ? nullptr : &*it;
 }
 
+const json* Member(const json* o, const char* key) { return o ? Member(*o, key) : nullptr; }
+
 size_t ArraySize(const json& o, const char* key) {
   const json* a = Member(o, key);
   return a != nullptr && a->is_array() ? a->size() : 0;
@@ -197,6 +199,8 @@ class PreScan {
         result_->warnings.push_back(absl::StrCat("extension ", Quote(name), " is not supported"));
       }
     }
+    meshopt_ = Lists(j, "extensionsUsed", "EXT_meshopt_compression");
+    if (Lists(j, "extensionsUsed", "KHR_draco_mesh_compression")) DracoIndices(j);
     RETURN_IF_ERROR(Buffers(j));
     RETURN_IF_ERROR(BufferViews(j));
     RETURN_IF_ERROR(Images(j));
@@ -479,6 +483,21 @@ class PreScan {
       if (!JsonUint(Member(b, "byteLength"), &length)) {
         return Invalid(file_, field + ".byteLength", "missing or not a non-negative integer");
       }
+      ASSIGN_OR_RETURN(const bool fallback, MeshoptFallback(b, field));
+      fallback_.push_back(fallback && Member(b, "uri") == nullptr);
+      if (fallback_.back()) {
+        // EXT_meshopt_compression: a buffer with no data that the compressed bufferViews decode
+        // into. Its memory is the decoded size, bounded here before anything is allocated.
+        if (__builtin_add_overflow(decoded_bytes_, length, &decoded_bytes_) ||
+            decoded_bytes_ > limits_.max_decoded_bytes) {
+          return OverLimit(file_, field, "meshopt fallback buffers of ", decoded_bytes_,
+                           " bytes exceed the max_decoded_bytes limit (",
+                           limits_.max_decoded_bytes, ")");
+        }
+        result_->fallback_buffers[uint32_t(i)] = length;
+        buffer_lengths_.push_back(length);
+        continue;
+      }
       if (const json* uri = Member(b, "uri")) {
         absl::StatusOr<size_t> have = Uri(field + ".uri", *uri);
         if (!have.ok()) return have.status();
@@ -548,23 +567,142 @@ class PreScan {
       const json& v = j["bufferViews"][i];
       const std::string field = absl::StrCat("bufferViews[", i, "]");
       uint64_t buffer = 0, offset = 0, length = 0;
-      if (!JsonUint(Member(v, "buffer"), &buffer) || buffer >= buffer_lengths_.size()) {
-        return Invalid(file_, field + ".buffer", "missing or out of range (",
-                       buffer_lengths_.size(), " buffers)");
-      }
-      if (Member(v, "byteOffset") && !JsonUint(Member(v, "byteOffset"), &offset)) {
-        return Invalid(file_, field + ".byteOffset", "not a non-negative integer");
-      }
-      if (!JsonUint(Member(v, "byteLength"), &length) || length == 0) {
-        return Invalid(file_, field + ".byteLength", "missing or not a positive integer");
-      }
-      const uint64_t have = buffer_lengths_[buffer];
-      if (offset > have || length > have - offset) {
-        return Invalid(file_, field, "byteOffset + byteLength (",
-                       offset > UINT64_MAX - length ? "overflow" : absl::StrCat(offset + length),
-                       ") exceeds buffers[", buffer, "].byteLength (", have, ")");
+      RETURN_IF_ERROR(BufferRange(v, field, &buffer, &offset, &length));
+      const json* ext = meshopt_ ? Member(Member(v, "extensions"), "EXT_meshopt_compression")
+                                 : nullptr;
+      if (ext != nullptr) {
+        RETURN_IF_ERROR(MeshoptBufferView(*ext, field + ".extensions.EXT_meshopt_compression",
+                                          uint32_t(i), length));
+      } else if (fallback_[buffer]) {
+        return Invalid(file_, field + ".buffer", "buffers[", buffer,
+                       "] is a meshopt fallback buffer (no data), but this bufferView is not "
+                       "compressed");
       }
     }
+    return absl::OkStatus();
+  }
+
+  // KHR_draco_mesh_compression: the indices of a compressed primitive are an accessor without a
+  // bufferView, which tinygltf refuses ("invalid bufferView"); they are handed to the importer
+  // aside (PreScanResult::draco_indices) and removed from the JSON tinygltf reads.
+  void DracoIndices(const json& j) {
+    const size_t accessors = ArraySize(j, "accessors");
+    for (size_t m = 0; m < ArraySize(j, "meshes"); ++m) {
+      const json* prims = Member(j["meshes"][m], "primitives");
+      for (size_t p = 0; prims && prims->is_array() && p < prims->size(); ++p) {
+        const json& prim = (*prims)[p];
+        uint64_t index = 0;
+        if (Member(Member(prim, "extensions"), "KHR_draco_mesh_compression") != nullptr &&
+            JsonUint(Member(prim, "indices"), &index) && index < accessors &&
+            Member(j["accessors"][index], "bufferView") == nullptr) {
+          result_->draco_indices[{uint32_t(m), uint32_t(p)}] = uint32_t(index);
+        }
+      }
+    }
+  }
+
+  // `o`'s buffer, byteOffset and byteLength (a bufferView, or the compressed range of a meshopt
+  // one): an existing buffer and a non-empty range inside it.
+  absl::Status BufferRange(const json& o, const std::string& field, uint64_t* buffer,
+                           uint64_t* offset, uint64_t* length) {
+    if (!JsonUint(Member(o, "buffer"), buffer) || *buffer >= buffer_lengths_.size()) {
+      return Invalid(file_, field + ".buffer", "missing or out of range (",
+                     buffer_lengths_.size(), " buffers)");
+    }
+    if (Member(o, "byteOffset") && !JsonUint(Member(o, "byteOffset"), offset)) {
+      return Invalid(file_, field + ".byteOffset", "not a non-negative integer");
+    }
+    if (!JsonUint(Member(o, "byteLength"), length) || *length == 0) {
+      return Invalid(file_, field + ".byteLength", "missing or not a positive integer");
+    }
+    const uint64_t have = buffer_lengths_[*buffer];
+    if (*offset > have || *length > have - *offset) {
+      return Invalid(file_, field, "byteOffset + byteLength (",
+                     *offset > UINT64_MAX - *length ? "overflow" : absl::StrCat(*offset + *length),
+                     ") exceeds buffers[", *buffer, "].byteLength (", have, ")");
+    }
+    return absl::OkStatus();
+  }
+
+  // Whether `name` is in the top-level array `list`.
+  static bool Lists(const json& j, const char* list, const char* name) {
+    const json* a = Member(j, list);
+    if (a == nullptr || !a->is_array()) return false;
+    return std::any_of(a->begin(), a->end(), [&](const json& e) { return e == name; });
+  }
+
+  // buffers[i].extensions.EXT_meshopt_compression.fallback (false when absent, or when
+  // EXT_meshopt_compression is not in extensionsUsed: then the extension is ignored).
+  absl::StatusOr<bool> MeshoptFallback(const json& b, const std::string& field) {
+    const json* ext = meshopt_ ? Member(Member(b, "extensions"), "EXT_meshopt_compression")
+                               : nullptr;
+    const json* fallback = ext ? Member(*ext, "fallback") : nullptr;
+    if (fallback == nullptr) return false;
+    if (!fallback->is_boolean()) {
+      return Invalid(file_, field + ".extensions.EXT_meshopt_compression.fallback",
+                     "not a boolean");
+    }
+    return fallback->get<bool>();
+  }
+
+  // bufferViews[view].extensions.EXT_meshopt_compression: where the compressed bytes are and
+  // what they decode to (count x byteStride = the bufferView's byteLength).
+  absl::Status MeshoptBufferView(const json& ext, const std::string& field, uint32_t view,
+                                 uint64_t view_length) {
+    MeshoptView m;
+    uint64_t buffer = 0, offset = 0, length = 0, stride = 0, count = 0;
+    RETURN_IF_ERROR(BufferRange(ext, field, &buffer, &offset, &length));
+    if (fallback_[buffer]) {
+      return Invalid(file_, field + ".buffer", "buffers[", buffer,
+                     "] is a fallback buffer with no data to decode");
+    }
+    if (!JsonUint(Member(ext, "byteStride"), &stride) || stride == 0 || stride > 256) {
+      return Invalid(file_, field + ".byteStride", "missing or not in 1..256");
+    }
+    if (!JsonUint(Member(ext, "count"), &count) || count == 0) {
+      return Invalid(file_, field + ".count", "missing or not a positive integer");
+    }
+    const json* mode = Member(ext, "mode");
+    const std::string mode_name = mode && mode->is_string() ? mode->get<std::string>() : "";
+    if (mode_name == "ATTRIBUTES") {
+      m.mode = MeshoptView::Mode::kAttributes;
+    } else if (mode_name == "TRIANGLES") {
+      m.mode = MeshoptView::Mode::kTriangles;
+    } else if (mode_name == "INDICES") {
+      m.mode = MeshoptView::Mode::kIndices;
+    } else {
+      return Invalid(file_, field + ".mode", mode ? Quote(mode->dump()) : "missing",
+                     ": wants ATTRIBUTES, TRIANGLES or INDICES");
+    }
+    if (const json* filter = Member(ext, "filter")) {
+      const std::string name = filter->is_string() ? filter->get<std::string>() : "";
+      if (name == "NONE") {
+        m.filter = MeshoptView::Filter::kNone;
+      } else if (name == "OCTAHEDRAL") {
+        m.filter = MeshoptView::Filter::kOctahedral;
+      } else if (name == "QUATERNION") {
+        m.filter = MeshoptView::Filter::kQuaternion;
+      } else if (name == "EXPONENTIAL") {
+        m.filter = MeshoptView::Filter::kExponential;
+      } else {
+        return Invalid(file_, field + ".filter", Quote(filter->dump()),
+                       ": wants NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL");
+      }
+    }
+    m.buffer = uint32_t(buffer);
+    m.byte_offset = offset;
+    m.byte_length = length;
+    m.byte_stride = uint32_t(stride);
+    m.count = count;
+    if (const std::string bad = CheckMeshoptParameters(m); !bad.empty()) {
+      return Invalid(file_, field, bad);
+    }
+    uint64_t decoded = 0;
+    if (__builtin_mul_overflow(count, stride, &decoded) || decoded != view_length) {
+      return Invalid(file_, field, "count x byteStride (", count, " x ", stride,
+                     ") is not the bufferView's byteLength (", view_length, ")");
+    }
+    result_->meshopt_views[view] = m;
     return absl::OkStatus();
   }
 
@@ -587,6 +725,10 @@ class PreScan {
       } else if (const json* bv = Member(im, "bufferView");
                  bv && (!JsonUint(bv, &view) || view >= views)) {
         return Invalid(file_, field + ".bufferView", "out of range (", views, " bufferViews)");
+      } else if (bv && result_->meshopt_views.count(uint32_t(view))) {
+        // tinygltf reads image bytes straight from the buffer, before anything is decoded.
+        return Invalid(file_, field + ".bufferView", "bufferViews[", view,
+                       "] is meshopt-compressed; images cannot be");
       }
     }
     result_->image_needed.assign(count, false);
@@ -605,9 +747,53 @@ class PreScan {
   const ImportLimits& limits_;
   PreScanResult* result_;
   std::vector<uint64_t> buffer_lengths_;
+  std::vector<bool> fallback_;  // per buffer: a meshopt fallback buffer without data
+  bool meshopt_ = false;        // EXT_meshopt_compression is in extensionsUsed
+  uint64_t decoded_bytes_ = 0;  // what the fallback buffers hold together
   const uint64_t file_set_bytes_;
   uint64_t copied_bytes_ = 0;  // what tinygltf will copy out of the file set
 };
+
+// What tinygltf 2.7 cannot read of the compression extensions, taken out of the JSON it reads:
+//  - a buffer without a uri it refuses in a .gltf and hands the BIN chunk in a .glb; neither
+//    fits a meshopt fallback buffer, which has no data. Each gets a 1-byte data: URI instead; the
+//    importer sizes them (PreScanResult::fallback_buffers) and decodes into them.
+//  - a Draco primitive's indices (an accessor without a bufferView) it refuses; they are removed
+//    and the importer puts them back (PreScanResult::draco_indices).
+// A .glb is rebuilt around the new JSON chunk with its BIN chunk as it was.
+void RewriteForTinygltf(const std::vector<uint8_t>& bytes, const GlbChunks& glb, json* j,
+                        PreScanResult* result) {
+  for (const auto& [index, length] : result->fallback_buffers) {
+    json& b = (*j)["buffers"][index];
+    b["uri"] = "data:application/octet-stream;base64,AA==";
+    b["byteLength"] = 1;
+  }
+  for (const auto& [primitive, accessor] : result->draco_indices) {
+    (*j)["meshes"][primitive.first]["primitives"][primitive.second].erase("indices");
+  }
+  std::string text = j->dump();
+  std::vector<uint8_t>& out = result->rewritten;
+  if (!result->is_glb) {
+    out.assign(text.begin(), text.end());
+    result->text = absl::string_view(reinterpret_cast<const char*>(out.data()), out.size());
+    return;
+  }
+  text.resize((text.size() + 3) & ~size_t(3), ' ');
+  const size_t length = ReadU32(&bytes[8]);
+  const size_t rest_at = 20 + glb.json.size();  // the BIN chunk's header, if any
+  const size_t rest = length > rest_at ? length - rest_at : 0;
+  out.resize(20 + text.size() + rest);
+  auto put32 = [&](size_t at, uint32_t v) {
+    for (int k = 0; k < 4; ++k) out[at + k] = uint8_t(v >> (8 * k));
+  };
+  std::memcpy(out.data(), bytes.data(), 8);  // magic, version
+  put32(8, uint32_t(out.size()));
+  put32(12, uint32_t(text.size()));
+  put32(16, 0x4E4F534Au);
+  std::memcpy(out.data() + 20, text.data(), text.size());
+  if (rest > 0) std::memcpy(out.data() + 20 + text.size(), bytes.data() + rest_at, rest);
+  result->text = absl::string_view(reinterpret_cast<const char*>(out.data() + 20), text.size());
+}
 
 }  // namespace
 
@@ -657,8 +843,11 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
   }
   PreScanResult result{.is_glb = is_glb, .bytes = &bytes, .text = text};
   try {
-    const json j = json::parse(text.begin(), text.end());
+    json j = json::parse(text.begin(), text.end());
     RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, limits, &result).Run(j));
+    if (!result.fallback_buffers.empty() || !result.draco_indices.empty()) {
+      RewriteForTinygltf(bytes, glb, &j, &result);
+    }
   } catch (const std::exception& e) {  // nlohmann reports parse and type errors by throwing
     return Invalid(file, "JSON", Quote(e.what()));
   }

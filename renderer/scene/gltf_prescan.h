@@ -12,6 +12,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
+#include "renderer/scene/gltf_decode.h"
 #include "renderer/scene/gltf_import.h"
 
 namespace tessera::gltf_internal {
@@ -37,7 +38,16 @@ absl::Status OverLimit(absl::string_view file, absl::string_view field, const Ar
 struct PreScanResult {
   bool is_glb = false;                          // the main file starts with the GLB magic
   const std::vector<uint8_t>* bytes = nullptr;  // the main file, as in the file set
-  absl::string_view text;                       // its JSON: the whole file or the GLB JSON chunk
+  absl::string_view text;                       // the JSON tinygltf reads: the whole file or
+                                                // the GLB JSON chunk, or in `rewritten`
+  // The main file as tinygltf is to read it, when the JSON had to change for it (meshopt
+  // fallback buffers); `text` then points into it (its heap buffer survives moves).
+  std::vector<uint8_t> rewritten;
+  const std::vector<uint8_t>& main_bytes() const { return rewritten.empty() ? *bytes : rewritten; }
+  std::map<uint32_t, uint64_t> fallback_buffers;  // buffer index -> byteLength (no data)
+  std::map<uint32_t, MeshoptView> meshopt_views;  // bufferView index -> what it decodes
+  // (mesh, primitive) -> its indices accessor, for Draco primitives (taken out of the JSON).
+  std::map<std::pair<uint32_t, uint32_t>, uint32_t> draco_indices;
   std::map<std::string, std::string> alias;     // tinygltf-decoded URI -> key in source.files
   std::vector<bool> image_needed;               // per image: referenced by some texture
   std::vector<std::string> warnings;            // unsupported extensionsUsed, in order

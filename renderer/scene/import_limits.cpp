@@ -32,6 +32,7 @@ const std::vector<ImportLimitField>& ImportLimitFields() {
       u32("max_materials", &L::max_materials),
       u32("max_lights", &L::max_lights),
       u32("max_drawables", &L::max_drawables),
+      u64("max_decoded_bytes", &L::max_decoded_bytes),
   };
   return fields;
 }

@@ -31,6 +31,8 @@ struct ImportLimits {
   uint32_t max_materials = 16384;
   uint32_t max_lights = 4096;                      // KHR_lights_punctual lights
   uint32_t max_drawables = 1u << 20;               // mesh primitives placed by nodes
+  uint64_t max_decoded_bytes = 1ull << 30;         // what Draco and meshopt data decode to,
+                                                   // all together (compressed meshes)
 };
 
 // The name (as in flags and messages) and address of every limit, in declaration order.

@@ -27,6 +27,7 @@ inline ImportLimits FuzzImportLimits() {
   limits.max_image_bytes = 64u << 20;
   limits.max_total_image_bytes = 128u << 20;
   limits.max_drawables = 1u << 16;
+  limits.max_decoded_bytes = 64u << 20;
   return limits;
 }
 

@@ -255,6 +255,26 @@ def request_seeds(assets):
         "RenderJobFrameRequest", jobs["job_path"].replace("spec {", "frame: 12 spec {", 1)))
 
 
+def compressed_seeds(assets):
+    """Box compressed by glTF Transform (tests/gltf, `npm ci` there first): Draco and meshopt
+    .glb files, and meshopt as a .gltf + .bin file set (its fallback buffer has no uri)."""
+    cli = os.path.join(ROOT, "tests", "gltf", "node_modules", "@gltf-transform", "cli", "bin", "cli.js")
+    if not os.path.exists(cli):
+        print("skipping the compressed seeds: run `npm ci` in tests/gltf", file=sys.stderr)
+        return
+    box = os.path.join(assets, "Box", "glTF", "Box.gltf")
+    tmp = os.path.join(ROOT, "build", "seeds")
+    os.makedirs(tmp, exist_ok=True)
+    for variant in ("draco", "meshopt"):
+        out = os.path.join(tmp, f"box_{variant}.glb")
+        subprocess.run(["node", cli, variant, box, out], check=True, stdout=subprocess.DEVNULL)
+        with open(out, "rb") as f:
+            write("gltf", f"box_{variant}_glb", f.read())
+    out = os.path.join(tmp, "box_meshopt.gltf")
+    subprocess.run(["node", cli, "meshopt", box, out], check=True, stdout=subprocess.DEVNULL)
+    write("gltf", "box_meshopt.tsfs", pack(gltf_file_set(out)))
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--assets", default=os.path.join(os.path.dirname(ROOT), "shared", "assets"))
@@ -262,6 +282,7 @@ def main():
     for kind in ("gltf", "image", "request"):
         os.makedirs(os.path.join(HERE, "corpus", kind), exist_ok=True)
     gltf_seeds(args.assets)
+    compressed_seeds(args.assets)
     image_seeds(args.assets)
     request_seeds(args.assets)
     for kind in ("gltf", "image", "request"):

@@ -1,11 +1,13 @@
 // The Khronos glTF-Validator as the oracle for Tessera's importer.
 //
 //   node tests/gltf/agreement.mjs --import-check BUILD/tests/tessera-import-check \
-//       --assets ../shared/assets [--out DIR]
+//       --assets ../shared/assets [--out DIR] [--transformed DIR]
 //
-// Over a corpus (every .gltf/.glb of the sample assets, and files generated here from Box that
+// Over a corpus (every .gltf/.glb of the sample assets, files generated here from Box that
 // each break one of the validator's rules for what the importer reads, or use a feature it must
-// accept), it runs the validator and tessera-import-check and holds them to this agreement:
+// accept, and with --transformed the Draco, meshopt, quantized and sparse files tests/gltf/
+// transform.mjs made with glTF Transform), it runs the validator and tessera-import-check and
+// holds them to this agreement:
 //   - a file with validator ERRORs is refused by Tessera, with a message naming the same place
 //     (the validator's JSON pointer /accessors/2/count becomes accessors[2]: the object);
 //   - a file without errors is loaded, or refused only for a documented reason (a required
@@ -25,7 +27,7 @@ function parseArgs(argv) {
   const o = { out: fs.mkdtempSync(path.join(os.tmpdir(), 'gltf-agreement-')) };
   for (let i = 0; i < argv.length; i += 2) {
     const key = argv[i].replace(/^--/, '').replace(/-(.)/g, (_, c) => c.toUpperCase());
-    if (!(key in { importCheck: 1, assets: 1, out: 1 })) throw new Error(`unknown flag ${argv[i]}`);
+    if (!(key in { importCheck: 1, assets: 1, out: 1, transformed: 1 })) throw new Error(`unknown flag ${argv[i]}`);
     o[key] = argv[i + 1];
   }
   if (!o.importCheck || !o.assets) throw new Error('usage: --import-check BIN --assets DIR [--out DIR]');
@@ -215,7 +217,17 @@ const cases = [
   }),
 ];
 
-const corpus = [...sampleFiles(args.assets), ...cases];
+// The glTF Transform outputs (tests/gltf/transform.mjs): valid files the importer must load. The
+// validator does not look inside EXT_meshopt_compression or KHR_draco_mesh_compression data, so
+// for those extensions it only vouches for the rest of the file; the extensions' own rules are
+// checked by the importer's unit tests (tests/unit/gltf_import_test.cpp, GltfCompressed*).
+function transformedFiles(dir) {
+  if (!dir) return [];
+  const manifest = JSON.parse(fs.readFileSync(path.join(dir, 'manifest.json'), 'utf8'));
+  return manifest.files.map((f) => ({ name: `transformed/${path.basename(f.file)}`, file: f.file }));
+}
+
+const corpus = [...sampleFiles(args.assets), ...cases, ...transformedFiles(args.transformed)];
 
 // ---- the two verdicts -------------------------------------------------------------------------
 

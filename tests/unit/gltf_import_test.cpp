@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "tests/unit/compressed_sources.h"
 
 namespace tessera {
 namespace {
@@ -712,6 +713,7 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");  // 2 nodes (depth 2), 1 mesh, 24 vertices
   const GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");  // a 256x256 image
+  const GltfSource meshopt = testing::MeshoptFile(testing::WavyGrid(4)).Glb();
   const GltfSource lit = Edited(box, [](json& j) {
     j["extensionsUsed"] = {"KHR_lights_punctual"};
     j["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}}, {{"type", "point"}}};
@@ -743,6 +745,7 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
       {"max_textures", 0, &textured, {"textures: 1 textures exceed the max_textures limit (0)"}},
       {"max_lights", 1, &lit, {"KHR_lights_punctual.lights", "max_lights limit (1)"}},
       {"max_drawables", 0, &box, {"nodes[1]", "max_drawables limit (0)"}},
+      {"max_decoded_bytes", 100, &meshopt, {"buffers[1]", "max_decoded_bytes limit (100)"}},
   };
   std::set<std::string> tested;
   for (const Case& c : cases) {
@@ -845,7 +848,7 @@ TEST(GltfImportMalformed, CopiesBoundedByTheFileSet) {
 TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");
-  for (const char* ext : {"KHR_draco_mesh_compression", "KHR_materials_unlit"}) {
+  for (const char* ext : {"EXT_texture_webp", "KHR_materials_unlit"}) {
     ExpectInvalid(ImportGltf(Edited(box, [&](json& j) { j["extensionsRequired"] = {ext}; })),
                   {"extensionsRequired", std::string("unsupported required extension ") + ext});
   }
