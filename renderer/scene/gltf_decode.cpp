@@ -19,7 +19,8 @@ std::string CheckMeshoptParameters(const MeshoptView& v) {
   switch (v.mode) {
     case Mode::kAttributes:
       if (s == 0 || s > 256 || s % 4 != 0) {
-        return absl::StrCat("byteStride ", s, " for mode ATTRIBUTES: wants a multiple of 4 up to 256");
+        return absl::StrCat("byteStride ", s,
+                            " for mode ATTRIBUTES: wants a multiple of 4 up to 256");
       }
       break;
     case Mode::kTriangles:
@@ -116,7 +117,8 @@ absl::StatusOr<DracoMesh> DecodeDraco(std::span<const uint8_t> bytes,
                                       uint64_t max_points, uint64_t max_indices) {
   draco::DecoderBuffer buffer;
   buffer.Init(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-  draco::StatusOr<draco::EncodedGeometryType> type = draco::Decoder::GetEncodedGeometryType(&buffer);
+  draco::StatusOr<draco::EncodedGeometryType> type =
+      draco::Decoder::GetEncodedGeometryType(&buffer);
   if (!type.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("Draco: ", type.status().error_msg_string()));
   }

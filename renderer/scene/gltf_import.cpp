@@ -17,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <set>
+#include <tuple>
 #include <span>
 #include <utility>
 
@@ -275,6 +276,18 @@ float ReadComponent(const AccessorView& a, uint64_t i, int c) {
       return float(Load<uint32_t>(p));
   }
 }
+
+// One component as stored (never normalized), as accessor.min and accessor.max give it.
+double RawComponent(const AccessorView& a, uint64_t i, int c) {
+  if (a.component_type == TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT) return double(ReadUint(a, i, c));
+  AccessorView raw = a;
+  raw.normalized = false;
+  return double(ReadComponent(raw, i, c));
+}
+
+// The validator's bound on |length - 1| of a unit vector ("slightly greater than the maximum
+// error of signed 8-bit quantization"), for normals and tangents.
+constexpr float kUnitLengthError = 0.00674f;
 
 glm::vec4 ReadVec(const AccessorView& a, uint64_t i) {
   glm::vec4 out(0.0f);
@@ -711,8 +724,43 @@ class Converter {
       v.data = dense.data();
       v.stride = elem;
     }
+    RETURN_IF_ERROR(CheckMinMax(a, v, field));
     views_[index] = v;
     return v;
+  }
+
+  // glTF 2.0 3.6.2.5: an accessor's min and max, when given, are its data's per component (as
+  // stored, compared at the component type's precision). Not for Draco-decoded accessors
+  // (DecodeDracoPrimitive), whose min and max describe the data before its lossy coding.
+  absl::Status CheckMinMax(const tinygltf::Accessor& a, const AccessorView& v,
+                           const std::string& field) {
+    if (a.minValues.empty() && a.maxValues.empty()) return absl::OkStatus();
+    std::vector<double> lo(v.components, std::numeric_limits<double>::infinity());
+    std::vector<double> hi(v.components, -std::numeric_limits<double>::infinity());
+    for (uint64_t i = 0; i < v.count; ++i) {
+      for (int c = 0; c < v.components; ++c) {
+        const double x = RawComponent(v, i, c);
+        lo[c] = std::min(lo[c], x);
+        hi[c] = std::max(hi[c], x);
+      }
+    }
+    const bool is_float = v.component_type == TINYGLTF_COMPONENT_TYPE_FLOAT;
+    for (const auto& [name, declared, actual] :
+         {std::tuple{"min", &a.minValues, &lo}, std::tuple{"max", &a.maxValues, &hi}}) {
+      if (declared->empty()) continue;
+      if (declared->size() != size_t(v.components)) {
+        return Err(absl::StrCat(field, ".", name), declared->size(), " values for ",
+                   v.components, " components");
+      }
+      for (int c = 0; c < v.components && v.count > 0; ++c) {
+        const double d = (*declared)[c], x = (*actual)[c];
+        if (is_float ? float(d) != float(x) : d != x) {
+          return Err(absl::StrCat(field, ".", name, "[", c, "]"), d,
+                     " is not the data's ", name, "imum (", x, ")");
+        }
+      }
+    }
+    return absl::OkStatus();
   }
 
   // glTF 2.0 3.6.2.3: sparse.count elements replaced, at indices that strictly increase, each
@@ -899,8 +947,27 @@ class Converter {
       if (!Finite(v.position)) {
         return Err(absl::StrCat("accessors[", pos->index, "]"), "non-finite POSITION value");
       }
-      if (has_normals) v.normal = glm::vec3(ReadVec(nrm, i));
-      if (has_tangents) v.tangent = ReadVec(tng, i);
+      if (has_normals) {
+        v.normal = glm::vec3(ReadVec(nrm, i));
+        const float length = glm::length(v.normal);
+        if (!(std::abs(length - 1.0f) <= kUnitLengthError)) {
+          return Err(absl::StrCat(path, ".attributes.NORMAL (accessors[", nrm.index, "])"),
+                     "element ", i, " is not of unit length (", length, ")");
+        }
+      }
+      if (tng.data != nullptr) {
+        const glm::vec4 t = ReadVec(tng, i);
+        const float length = glm::length(glm::vec3(t));
+        const std::string field =
+            absl::StrCat(path, ".attributes.TANGENT (accessors[", tng.index, "])");
+        if (!(std::abs(length - 1.0f) <= kUnitLengthError)) {
+          return Err(field, "element ", i, " is not of unit length (", length, ")");
+        }
+        if (t.w != 1.0f && t.w != -1.0f) {
+          return Err(field, "element ", i, " has w ", t.w, " (the bitangent sign: 1 or -1)");
+        }
+        if (has_tangents) v.tangent = t;
+      }
       if (uv0.data) v.uv0 = finite_uv(ReadVec(uv0, i));
       if (uv1.data) v.uv1 = finite_uv(ReadVec(uv1, i));
     }

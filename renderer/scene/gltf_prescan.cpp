@@ -199,6 +199,7 @@ class PreScan {
         result_->warnings.push_back(absl::StrCat("extension ", Quote(name), " is not supported"));
       }
     }
+    RETURN_IF_ERROR(DeclaredExtensions(j, j, ""));
     meshopt_ = Lists(j, "extensionsUsed", "EXT_meshopt_compression");
     if (Lists(j, "extensionsUsed", "KHR_draco_mesh_compression")) DracoIndices(j);
     RETURN_IF_ERROR(Buffers(j));
@@ -352,6 +353,11 @@ class PreScan {
                          " is not greater than znear ", znear->get<double>());
       }
       if (const json* o = Member(c, "orthographic")) {
+        for (const char* key : {"xmag", "ymag"}) {  // signed (a mirrored view), never zero
+          const json* mag = Member(*o, key);
+          if (mag && mag->is_number() && mag->get<double>() == 0.0)
+            return Invalid(file_, absl::StrCat(f, ".orthographic.", key), "must not be zero");
+        }
         RETURN_IF_ERROR(Number(Member(*o, "znear"), f + ".orthographic.znear", 0, kUnbounded));
         RETURN_IF_ERROR(Number(Member(*o, "zfar"), f + ".orthographic.zfar", 0, kUnbounded, true));
         const json* zfar = Member(*o, "zfar");
@@ -566,8 +572,13 @@ class PreScan {
     for (size_t i = 0; i < ArraySize(j, "bufferViews"); ++i) {
       const json& v = j["bufferViews"][i];
       const std::string field = absl::StrCat("bufferViews[", i, "]");
-      uint64_t buffer = 0, offset = 0, length = 0;
+      uint64_t buffer = 0, offset = 0, length = 0, stride = 0;
       RETURN_IF_ERROR(BufferRange(v, field, &buffer, &offset, &length));
+      if (const json* s = Member(v, "byteStride");
+          s && (!JsonUint(s, &stride) || stride < 4 || stride > 252 || stride % 4 != 0)) {
+        return Invalid(file_, field + ".byteStride", Quote(s->dump()),
+                       " is not a multiple of 4 in 4..252");
+      }
       const json* ext = meshopt_ ? Member(Member(v, "extensions"), "EXT_meshopt_compression")
                                  : nullptr;
       if (ext != nullptr) {
@@ -620,6 +631,30 @@ class PreScan {
       return Invalid(file_, field, "byteOffset + byteLength (",
                      *offset > UINT64_MAX - *length ? "overflow" : absl::StrCat(*offset + *length),
                      ") exceeds buffers[", *buffer, "].byteLength (", have, ")");
+    }
+    return absl::OkStatus();
+  }
+
+  // Every extension object in the document (outside extras) is named in extensionsUsed, as
+  // glTF 2.0 3.12 requires; `path` is where `o` is, e.g. "materials[0]".
+  absl::Status DeclaredExtensions(const json& root, const json& o, const std::string& path) {
+    if (o.is_array()) {
+      for (size_t i = 0; i < o.size(); ++i)
+        RETURN_IF_ERROR(DeclaredExtensions(root, o[i], absl::StrCat(path, "[", i, "]")));
+      return absl::OkStatus();
+    }
+    if (!o.is_object()) return absl::OkStatus();
+    for (const auto& [key, value] : o.items()) {
+      if (key == "extras") continue;
+      const std::string at = path.empty() ? key : absl::StrCat(path, ".", key);
+      if (key == "extensions" && value.is_object()) {
+        for (const auto& [name, ext] : value.items()) {
+          if (!Lists(root, "extensionsUsed", name.c_str())) {
+            return Invalid(file_, at + "." + Quote(name), "not declared in extensionsUsed");
+          }
+        }
+      }
+      RETURN_IF_ERROR(DeclaredExtensions(root, value, at));
     }
     return absl::OkStatus();
   }
@@ -725,6 +760,8 @@ class PreScan {
       } else if (const json* bv = Member(im, "bufferView");
                  bv && (!JsonUint(bv, &view) || view >= views)) {
         return Invalid(file_, field + ".bufferView", "out of range (", views, " bufferViews)");
+      } else if (bv && Member(im, "mimeType") == nullptr) {
+        return Invalid(file_, field + ".bufferView", "needs a mimeType (image/png or image/jpeg)");
       } else if (bv && result_->meshopt_views.count(uint32_t(view))) {
         // tinygltf reads image bytes straight from the buffer, before anything is decoded.
         return Invalid(file_, field + ".bufferView", "bufferViews[", view,

@@ -202,6 +202,49 @@ const cases = [
   generated('scene_reference_missing', (j) => { j.scene = 3; }),
   glbWith('glb_json_chunk_too_long', (b) => { b.writeUInt32LE(b.readUInt32LE(12) + 400, 12); }),
   glbWith('glb_bad_magic', (b) => { b.write('gLTF', 0); }),
+  generated('position_max_mismatch', (j) => { j.accessors[2].max = [0.6, 0.5, 0.5]; }),
+  generated('normal_not_unit', (j, bin) => { bin.writeFloatLE(0.5, 0); }),
+  generated('buffer_view_stride_not_multiple_of_4', (j) => {
+    j.bufferViews[1].byteStride = 14;
+    j.bufferViews[1].byteLength = 576;
+    j.accessors[1].count = 20;
+    j.accessors[2].byteOffset = 288;
+    j.accessors[2].count = 2;
+  }),
+  generated('undeclared_extension', (j) => {
+    j.materials[0].emissiveFactor = [1, 1, 1];
+    j.materials[0].extensions = { KHR_materials_emissive_strength: { emissiveStrength: 2 } };
+  }),
+  generated('sampler_mag_filter_invalid', (j) => {
+    j.samplers = [{ magFilter: 9999 }];
+  }),
+  generated('sampler_wrap_invalid', (j) => {
+    j.samplers = [{ wrapS: 1234 }];
+  }),
+  generated('image_buffer_view_without_mime_type', (j, bin) => {
+    const a = appendView(j, bin, Buffer.from('89504e470d0a1a0a', 'hex'));
+    j.images = [{ bufferView: a.view }];
+    return a.bin;
+  }),
+  generated('camera_orthographic_zfar_below_znear', (j) => {
+    j.cameras = [{ type: 'orthographic', orthographic: { xmag: 1, ymag: 1, znear: 1, zfar: 0.5 } }];
+    j.nodes[0].camera = 0;
+  }),
+  generated('camera_orthographic_ymag_zero', (j) => {
+    j.cameras = [{ type: 'orthographic', orthographic: { xmag: 1, ymag: 0, znear: 0.1, zfar: 10 } }];
+    j.nodes[0].camera = 0;
+  }),
+  generated('tangent_w_invalid', (j, bin) => {
+    const t = [];
+    for (let i = 0; i < 24; i++) t.push(1, 0, 0, 0.5);
+    const a = appendView(j, bin, f32(t));
+    j.accessors.push({ bufferView: a.view, componentType: 5126, count: 24, type: 'VEC4' });
+    j.meshes[0].primitives[0].attributes.TANGENT = 3;
+    return a.bin;
+  }),
+  glbWith('glb_version_1', (b) => { b.writeUInt32LE(1, 4); }),
+  glbWith('glb_length_mismatch', (b) => { b.writeUInt32LE(b.readUInt32LE(8) - 4, 8); }),
+  glbWith('glb_first_chunk_not_json', (b) => { b.write('BIN\0', 16); }),
   // Must be loaded: valid uses of what the importer supports.
   generated('sparse_valid', sparse([1, 3])),
   generated('quantized_valid', quantized(true)),

@@ -103,6 +103,8 @@ TEST_F(ServerTest, ServerInfoDescribesDeviceLimitsAndChoices) {
   // The glTF extensions the importer reads, as SupportedGltfExtensions() lists them.
   EXPECT_TRUE(has(info.gltf_extensions(), "KHR_mesh_quantization"));
   EXPECT_TRUE(has(info.gltf_extensions(), "KHR_lights_punctual"));
+  EXPECT_TRUE(has(info.gltf_extensions(), "EXT_meshopt_compression"));
+  EXPECT_TRUE(has(info.gltf_extensions(), "KHR_draco_mesh_compression"));
   EXPECT_EQ(size_t(info.gltf_extensions_size()), SupportedGltfExtensions().size());
 }
 

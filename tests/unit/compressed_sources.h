@@ -6,6 +6,7 @@
 #include <draco/mesh/triangle_soup_mesh_builder.h>
 #include <meshoptimizer.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -25,6 +26,18 @@ struct TestMesh {
   std::vector<uint32_t> indices;
   size_t vertices() const { return positions.size() / 3; }
 };
+
+// The per-component bounds of the positions, as accessor min and max.
+inline nlohmann::json Bound(const TestMesh& m, bool max) {
+  nlohmann::json out = nlohmann::json::array();
+  for (int c = 0; c < 3; ++c) {
+    float v = m.positions[c];
+    for (size_t i = c; i < m.positions.size(); i += 3)
+      v = max ? std::max(v, m.positions[i]) : std::min(v, m.positions[i]);
+    out.push_back(v);
+  }
+  return out;
+}
 
 inline TestMesh WavyGrid(int n) {
   TestMesh m;
@@ -150,7 +163,7 @@ inline BuiltFile MeshoptFile(const TestMesh& m) {
       {"bufferViews", views},
       {"accessors",
        {{{"bufferView", 0}, {"componentType", 5126}, {"count", n}, {"type", "VEC3"},
-         {"min", {0, 0, -0.1}}, {"max", {1, 1, 0.1}}},
+         {"min", Bound(m, false)}, {"max", Bound(m, true)}},
         {{"bufferView", 1}, {"componentType", 5120}, {"normalized", true}, {"count", n},
          {"type", "VEC3"}},
         {{"bufferView", 2}, {"componentType", 5126}, {"count", n}, {"type", "VEC2"}},
@@ -198,7 +211,7 @@ inline BuiltFile DracoFile(const TestMesh& m) {
          {"bufferViews", {{{"buffer", 0}, {"byteLength", f.bin.size()}}}},
          {"accessors",
           {{{"componentType", 5126}, {"count", points}, {"type", "VEC3"},
-            {"min", {0, 0, -0.1}}, {"max", {1, 1, 0.1}}},
+            {"min", Bound(m, false)}, {"max", Bound(m, true)}},
            {{"componentType", 5126}, {"count", points}, {"type", "VEC3"}},
            {{"componentType", 5126}, {"count", points}, {"type", "VEC2"}},
            {{"componentType", 5125}, {"count", m.indices.size()}, {"type", "SCALAR"}}}},

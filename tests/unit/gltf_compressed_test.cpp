@@ -158,7 +158,7 @@ TEST(GltfCompressedMeshopt, MalformedIsRefusedNamingTheField) {
          f.j["extensionsUsed"] = {"KHR_mesh_quantization"};
          f.j["extensionsRequired"] = {"KHR_mesh_quantization"};
        },
-       {"buffers[1]", "uri is missing"}},
+       {"bufferViews[0].extensions.EXT_meshopt_compression", "not declared in extensionsUsed"}},
   };
   ExpectEachRefused(good, cases);
 }

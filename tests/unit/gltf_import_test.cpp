@@ -666,6 +666,9 @@ TEST(GltfImportMalformed, IndexValueOutOfRange) {
   std::vector<uint8_t>& bin = src.files["Box0.bin"];
   bin[576 + 10] = 0xE7;  // index 5 (uint16 at bufferView 0 offset 576) becomes 999
   bin[576 + 11] = 0x03;
+  // The accessor's declared max (23) no longer matches: refused for that first.
+  ExpectInvalid(ImportGltf(src), {"accessors[0].max[0]", "23 is not the data's maximum (999)"});
+  src = Edited(src, [](json& j) { j["accessors"][0].erase("max"); });
   ExpectInvalid(ImportGltf(src), {"accessors[0]", "index value 999", "vertex count 24"});
 }
 
@@ -939,8 +942,13 @@ TEST(GltfImportMalformed, IndicesOutOfRange) {
          j["images"][0] = {{"bufferView", 9}, {"mimeType", "image/png"}};
        },
        "images[0].bufferView"},
-      {[](json& j) { j["nodes"][1]["extensions"]["KHR_lights_punctual"]["light"] = 0; },
+      {[](json& j) {
+         j["extensionsUsed"] = {"KHR_lights_punctual"};
+         j["nodes"][1]["extensions"]["KHR_lights_punctual"]["light"] = 0;
+       },
        "KHR_lights_punctual.light"},
+      {[](json& j) { j["nodes"][1]["extensions"]["KHR_lights_punctual"]["light"] = 0; },
+       "nodes[1].extensions.KHR_lights_punctual: not declared in extensionsUsed"},
       {[](json& j) {
          j["nodes"][0]["matrix"] = {1, 2, 3};
        },
