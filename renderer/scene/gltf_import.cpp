@@ -193,6 +193,17 @@ absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
 bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::string*, int, int,
                const unsigned char* bytes, int size, void* user) {
   auto* ctx = static_cast<LoadContext*>(user);
+  // The declared type (a bufferView image's mimeType, a data: URI's media type) is the data's.
+  const size_t n = size_t(std::max(size, 0));
+  const char* actual = IsPng(bytes, n) ? "image/png" : IsJpeg(bytes, n) ? "image/jpeg" : nullptr;
+  if (actual != nullptr && !image->mimeType.empty() && image->mimeType != actual) {
+    if (ctx->error.ok()) {
+      ctx->error = Invalid(ctx->source->main_file, absl::StrCat("images[", index, "].mimeType"),
+                           "'", Quote(image->mimeType), "', but the data is ", actual);
+    }
+    if (err) err->append(std::string(ctx->error.message()));
+    return false;
+  }
   if (index < 0 || size_t(index) >= ctx->image_needed.size() || !ctx->image_needed[index]) {
     return true;  // no texture uses it: skip the decode
   }
@@ -810,6 +821,18 @@ class Converter {
     return absl::OkStatus();
   }
 
+  // How many accessors read bufferView `view`.
+  size_t AccessorsOfView(int view) {
+    if (accessors_of_view_.empty()) {
+      accessors_of_view_.assign(m_.bufferViews.size(), 0);
+      for (const tinygltf::Accessor& a : m_.accessors) {
+        if (a.bufferView >= 0 && size_t(a.bufferView) < m_.bufferViews.size())
+          ++accessors_of_view_[a.bufferView];
+      }
+    }
+    return accessors_of_view_[view];
+  }
+
   // Whether `a` may hold attribute `name`: FLOAT; texture coordinates also normalized unsigned
   // byte/short (core glTF); with KHR_mesh_quantization in extensionsUsed, positions any byte or
   // short type, normals and tangents normalized signed ones, texture coordinates any byte or
@@ -857,6 +880,12 @@ class Converter {
     if (count != UINT64_MAX && v->count != count) {
       return Err(field, name, " count ", v->count, " differs from POSITION count ", count);
     }
+    // glTF 2.0 3.6.2.4: a bufferView that several vertex attributes share states its stride.
+    if (const int view = m_.accessors[v->index].bufferView;
+        view >= 0 && m_.bufferViews[view].byteStride == 0 && AccessorsOfView(view) > 1) {
+      return Err(field, "bufferViews[", view, "] holds ", AccessorsOfView(view),
+                 " accessors but has no byteStride");
+    }
     return v;
   }
 
@@ -880,6 +909,10 @@ class Converter {
     }
     if (iv->count > max_indices_)
       return OverMax(accessor, "index count", iv->count, "max_indices", max_indices_);
+    if (const int view = m_.accessors[p.indices].bufferView;
+        view >= 0 && m_.bufferViews[view].byteStride != 0) {
+      return Err(field, "bufferViews[", view, "] has a byteStride; index data is tightly packed");
+    }
     idx.resize(iv->count);
     for (uint64_t i = 0; i < iv->count; ++i) {
       idx[i] = ReadUint(*iv, i);
@@ -1336,6 +1369,7 @@ class Converter {
   // max_decoded_bytes together with the meshopt fallback buffers the pre-scan counted).
   const gltf_internal::PreScanResult& pre_;
   std::set<int> decoded_views_;
+  std::vector<size_t> accessors_of_view_;  // AccessorsOfView, counted on first use
   uint64_t decoded_bytes_ = [this] {
     uint64_t fallback = 0;
     for (const auto& [index, length] : pre_.fallback_buffers) fallback += length;

@@ -200,6 +200,7 @@ class PreScan {
       }
     }
     RETURN_IF_ERROR(DeclaredExtensions(j, j, ""));
+    RETURN_IF_ERROR(Structure(j));
     meshopt_ = Lists(j, "extensionsUsed", "EXT_meshopt_compression");
     if (Lists(j, "extensionsUsed", "KHR_draco_mesh_compression")) DracoIndices(j);
     RETURN_IF_ERROR(Buffers(j));
@@ -395,7 +396,18 @@ class PreScan {
       const json& a = j["accessors"][i];
       const std::string field = absl::StrCat("accessors[", i, "]");
       uint64_t count = 0, component_type = 0;
+      for (const char* key : {"count", "componentType", "type"}) {
+        if (Member(a, key) == nullptr) return Invalid(file_, field + "." + key, "missing");
+      }
       if (!JsonUint(Member(a, "count"), &count)) continue;
+      // glTF 2.0 3.6.2.1: only byte and short components can be normalized.
+      const json* normalized = Member(a, "normalized");
+      if (normalized && normalized->is_boolean() && normalized->get<bool>() &&
+          JsonUint(Member(a, "componentType"), &component_type) &&
+          (component_type == 5125 || component_type == 5126)) {
+        return Invalid(file_, field + ".normalized", "true, but only byte and short components ",
+                       "can be normalized (componentType ", component_type, ")");
+      }
       if (count > limits_.max_accessor_elements) {
         return OverLimit(file_, field + ".count", count,
                          " elements exceed the max_accessor_elements limit (",
@@ -505,6 +517,12 @@ class PreScan {
         continue;
       }
       if (const json* uri = Member(b, "uri")) {
+        if (uri->is_string() && absl::StartsWith(uri->get<std::string>(), "data:") &&
+            !absl::StartsWith(uri->get<std::string>(), "data:application/octet-stream;") &&
+            !absl::StartsWith(uri->get<std::string>(), "data:application/gltf-buffer;")) {
+          return Invalid(file_, field + ".uri", "a data: URI of a buffer must be ",
+                         "application/octet-stream or application/gltf-buffer");
+        }
         absl::StatusOr<size_t> have = Uri(field + ".uri", *uri);
         if (!have.ok()) return have.status();
         // tinygltf insists on an exact match; say so before it reads anything.
@@ -631,6 +649,153 @@ class PreScan {
       return Invalid(file_, field, "byteOffset + byteLength (",
                      *offset > UINT64_MAX - *length ? "overflow" : absl::StrCat(*offset + *length),
                      ") exceeds buffers[", *buffer, "].byteLength (", have, ")");
+    }
+    return absl::OkStatus();
+  }
+
+  // Rules of the glTF 2.0 schema and of section 3.7.2.1 the importer relies on, each refused
+  // naming the place (the Khronos validator's EMPTY_ENTITY, DUPLICATE_ELEMENTS,
+  // UNSATISFIED_DEPENDENCY, MESH_PRIMITIVE_INVALID_ATTRIBUTE, ..._INDEXED_SEMANTIC_CONTINUITY,
+  // ..._TOO_FEW_TEXCOORDS and NODE_MATRIX_NON_TRS).
+  absl::Status Structure(const json& j) {
+    // Arrays the schema gives minItems 1.
+    for (const char* key : {"accessors", "animations", "buffers", "bufferViews", "cameras",
+                            "extensionsUsed", "extensionsRequired", "images", "materials",
+                            "meshes", "nodes", "samplers", "scenes", "skins", "textures"}) {
+      const json* a = Member(j, key);
+      if (a && a->is_array() && a->empty()) return Invalid(file_, key, "an empty array");
+    }
+    for (const char* list : {"extensionsUsed", "extensionsRequired"}) {
+      const json* a = Member(j, list);
+      for (size_t i = 0; a && a->is_array() && i < a->size(); ++i) {
+        for (size_t k = 0; k < i; ++k) {
+          if ((*a)[k] == (*a)[i]) {
+            return Invalid(file_, absl::StrCat(list, "[", i, "]"), Quote((*a)[i].dump()),
+                           " is listed twice");
+          }
+        }
+        if (std::strcmp(list, "extensionsRequired") == 0 && (*a)[i].is_string() &&
+            !Lists(j, "extensionsUsed", (*a)[i].get_ref<const std::string&>().c_str())) {
+          return Invalid(file_, absl::StrCat(list, "[", i, "]"), Quote((*a)[i].dump()),
+                         " is not in extensionsUsed");
+        }
+      }
+    }
+    for (size_t n = 0; n < ArraySize(j, "nodes"); ++n) {
+      const json& node = j["nodes"][n];
+      const std::string field = absl::StrCat("nodes[", n, "]");
+      if (const json* c = Member(node, "children"); c && c->is_array() && c->empty())
+        return Invalid(file_, field + ".children", "an empty array");
+      RETURN_IF_ERROR(MatrixIsTrs(Member(node, "matrix"), field + ".matrix"));
+    }
+    for (size_t s = 0; s < ArraySize(j, "scenes"); ++s) {
+      if (const json* c = Member(j["scenes"][s], "nodes"); c && c->is_array() && c->empty())
+        return Invalid(file_, absl::StrCat("scenes[", s, "].nodes"), "an empty array");
+    }
+    for (size_t m = 0; m < ArraySize(j, "meshes"); ++m) {
+      const json* prims = Member(j["meshes"][m], "primitives");
+      const std::string mesh = absl::StrCat("meshes[", m, "]");
+      if (prims && prims->is_array() && prims->empty())
+        return Invalid(file_, mesh + ".primitives", "an empty array");
+      for (size_t p = 0; prims && prims->is_array() && p < prims->size(); ++p) {
+        RETURN_IF_ERROR(Attributes(j, (*prims)[p], absl::StrCat(mesh, ".primitives[", p, "]")));
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  // A primitive's attribute names are glTF's semantics (or application-specific, "_NAME"); an
+  // indexed one (TEXCOORD_n, COLOR_n, JOINTS_n, WEIGHTS_n) comes with all below n; and its
+  // material reads no texture coordinate set it lacks.
+  absl::Status Attributes(const json& j, const json& prim, const std::string& path) {
+    const json* attrs = Member(prim, "attributes");
+    if (attrs == nullptr || !attrs->is_object()) return absl::OkStatus();
+    std::map<std::string, std::vector<uint32_t>> sets;  // "TEXCOORD" -> the n present
+    for (const auto& [name, value] : attrs->items()) {
+      const std::string field = absl::StrCat(path, ".attributes.", Quote(name));
+      if (name.empty() || name[0] == '_') continue;
+      if (name == "POSITION" || name == "NORMAL" || name == "TANGENT") continue;
+      const size_t us = name.rfind('_');
+      const std::string base = us == std::string::npos ? name : name.substr(0, us);
+      const std::string digits = us == std::string::npos ? "" : name.substr(us + 1);
+      uint32_t n = 0;
+      const bool indexed = base == "TEXCOORD" || base == "COLOR" || base == "JOINTS" ||
+                           base == "WEIGHTS";
+      if (!indexed || digits.empty() || (digits.size() > 1 && digits[0] == '0') ||
+          !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; }) ||
+          !absl::SimpleAtoi(digits, &n)) {
+        return Invalid(file_, field, "not a glTF attribute semantic (POSITION, NORMAL, TANGENT, ",
+                       "TEXCOORD_n, COLOR_n, JOINTS_n, WEIGHTS_n, or _NAME)");
+      }
+      sets[base].push_back(n);
+    }
+    for (auto& [base, indices] : sets) {
+      std::sort(indices.begin(), indices.end());
+      for (size_t k = 0; k < indices.size(); ++k) {
+        if (indices[k] != k) {
+          return Invalid(file_, path + ".attributes", base, "_", indices[k], " without ", base,
+                         "_", k);
+        }
+      }
+    }
+    uint64_t material = 0;
+    if (!JsonUint(Member(prim, "material"), &material) || material >= ArraySize(j, "materials"))
+      return absl::OkStatus();
+    const uint32_t needed = TexCoordSets(j["materials"][material]);
+    const uint32_t have = sets.count("TEXCOORD") ? uint32_t(sets["TEXCOORD"].size()) : 0;
+    if (needed > have) {
+      return Invalid(file_, path + ".material", "materials[", material, "] reads TEXCOORD_",
+                     needed - 1, ", which the primitive lacks (", have,
+                     " texture coordinate sets)");
+    }
+    return absl::OkStatus();
+  }
+
+  // How many texture coordinate sets a material's textures read (the highest texCoord + 1,
+  // KHR_texture_transform's override included); 0 without textures.
+  static uint32_t TexCoordSets(const json& material) {
+    uint32_t sets = 0;
+    auto info = [&](const json* t) {
+      if (t == nullptr || !t->is_object()) return;
+      uint64_t tc = 0;
+      if (!JsonUint(Member(*t, "texCoord"), &tc)) tc = 0;
+      const json* tt = Member(Member(t, "extensions"), "KHR_texture_transform");
+      if (uint64_t over = 0; JsonUint(Member(tt, "texCoord"), &over)) tc = over;
+      sets = std::max<uint32_t>(sets, uint32_t(std::min<uint64_t>(tc, 1u << 20)) + 1);
+    };
+    const json* pbr = Member(material, "pbrMetallicRoughness");
+    info(Member(pbr, "baseColorTexture"));
+    info(Member(pbr, "metallicRoughnessTexture"));
+    for (const char* key : {"normalTexture", "occlusionTexture", "emissiveTexture"})
+      info(Member(material, key));
+    return sets;
+  }
+
+  // A node matrix is a transform glTF can animate as TRS: the bottom row (0, 0, 0, 1) and
+  // orthogonal axes (no shear), within float rounding.
+  absl::Status MatrixIsTrs(const json* m, const std::string& field) {
+    if (m == nullptr || !m->is_array() || m->size() != 16) return absl::OkStatus();
+    double v[16];
+    for (int k = 0; k < 16; ++k) {
+      if (!(*m)[k].is_number()) return absl::OkStatus();  // ValueRanges names it
+      v[k] = (*m)[k].get<double>();
+    }
+    if (v[3] != 0.0 || v[7] != 0.0 || v[11] != 0.0 || v[15] != 1.0) {
+      return Invalid(file_, field, "not a TRS transform: its last row is (", v[3], ", ", v[7],
+                     ", ", v[11], ", ", v[15], "), not (0, 0, 0, 1)");
+    }
+    for (int a = 0; a < 3; ++a) {
+      for (int b = a + 1; b < 3; ++b) {
+        const double* x = &v[4 * a];
+        const double* y = &v[4 * b];
+        const double dot = x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+        const double lx = std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]);
+        const double ly = std::sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]);
+        if (lx > 0.0 && ly > 0.0 && std::abs(dot) > 1e-4 * lx * ly) {
+          return Invalid(file_, field, "not a TRS transform: columns ", a, " and ", b,
+                         " are not orthogonal (sheared)");
+        }
+      }
     }
     return absl::OkStatus();
   }

@@ -245,6 +245,80 @@ const cases = [
   glbWith('glb_version_1', (b) => { b.writeUInt32LE(1, 4); }),
   glbWith('glb_length_mismatch', (b) => { b.writeUInt32LE(b.readUInt32LE(8) - 4, 8); }),
   glbWith('glb_first_chunk_not_json', (b) => { b.write('BIN\0', 16); }),
+  generated('position_nan', (j, bin) => {
+    bin.writeFloatLE(NaN, 288);
+    delete j.accessors[2].min;
+    delete j.accessors[2].max;
+  }),
+  generated('index_primitive_restart', (j, bin) => { bin.writeUInt16LE(65535, 576); delete j.accessors[0].max; }),
+  generated('accessor_float_normalized', (j) => { j.accessors[2].normalized = true; }),
+  generated('sparse_count_too_big', (j, bin) => {
+    const a = appendView(j, bin, u16([1, 3]));
+    const b = appendView(j, a.bin, f32([...vertex(5), ...vertex(6)]));
+    j.accessors[2].sparse = { count: 30, indices: { bufferView: a.view, componentType: 5123 },
+      values: { bufferView: b.view } };
+    return b.bin;
+  }),
+  generated('accessor_stride_smaller_than_element', (j) => {
+    j.bufferViews[1].byteStride = 8;
+  }),
+  generated('buffer_data_uri_text_plain', (j, bin) => {
+    j.buffers[0].uri = `data:text/plain;base64,${bin.toString('base64')}`;
+  }),
+  generated('asset_version_3', (j) => { j.asset.version = '3.0'; }),
+  generated('indices_float', (j) => {
+    j.accessors[0].componentType = 5126;
+    j.accessors[0].count = 18;
+    delete j.accessors[0].max;
+    delete j.accessors[0].min;
+  }),
+  generated('indices_with_byte_stride', (j) => {
+    j.bufferViews[0].byteStride = 4;
+    j.accessors[0].count = 18;
+    delete j.accessors[0].max; delete j.accessors[0].min;
+  }),
+  generated('attributes_share_view_without_stride', (j) => { delete j.bufferViews[1].byteStride; }),
+  generated('attribute_name_invalid', (j) => { j.meshes[0].primitives[0].attributes.NORMAL_1 = 1; }),
+  generated('attribute_count_unequal', (j) => { j.accessors[1].count = 20; }),
+  generated('texcoord_1_without_texcoord_0', (j) => {
+    j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
+    j.meshes[0].primitives[0].attributes.TEXCOORD_1 = 3;
+  }),
+  generated('material_texcoord_missing', (j) => {
+    j.images = [{ uri: 'data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==' }];
+    j.textures = [{ source: 0 }];
+    j.materials[0].pbrMetallicRoughness.baseColorTexture = { index: 0, texCoord: 1 };
+  }),
+  generated('node_matrix_not_trs', (j) => { j.nodes[0].matrix[3] = 1; }),
+  generated('node_two_parents', (j) => { j.nodes.push({ children: [1] }); j.scenes[0].nodes.push(2); }),
+  generated('extension_required_not_used', (j) => { j.extensionsRequired = ['KHR_texture_transform']; }),
+  generated('extensions_used_duplicate', (j) => {
+    j.extensionsUsed = ['KHR_texture_transform', 'KHR_texture_transform'];
+  }),
+  generated('mesh_without_primitives', (j) => { j.meshes.push({ primitives: [] }); }),
+  generated('accessors_empty_array', (j) => { j.samplers = []; }),
+  generated('accessor_count_missing', (j) => { delete j.accessors[1].count; }),
+  generated('image_data_invalid', (j) => {
+    j.images = [{ uri: 'data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAAB' }];
+    j.textures = [{ source: 0 }];
+    j.materials[0].pbrMetallicRoughness.baseColorTexture = { index: 0 };
+    j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
+    j.meshes[0].primitives[0].attributes.TEXCOORD_0 = 3;
+  }),
+  generated('image_mime_type_mismatch', (j, bin) => {
+    const png = Buffer.from('iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==', 'base64');
+    const a = appendView(j, bin, png);
+    j.images = [{ bufferView: a.view, mimeType: 'image/jpeg' }];
+    j.textures = [{ source: 0 }];
+    j.materials[0].pbrMetallicRoughness.baseColorTexture = { index: 0 };
+    j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
+    j.meshes[0].primitives[0].attributes.TEXCOORD_0 = 3;
+    return a.bin;
+  }),
+  glbWith('glb_empty_bin_chunk', (b) => {
+    const n = b.readUInt32LE(12);
+    b.writeUInt32LE(0, 20 + n);
+  }),
   // Must be loaded: valid uses of what the importer supports.
   generated('sparse_valid', sparse([1, 3])),
   generated('quantized_valid', quantized(true)),

@@ -856,13 +856,18 @@ TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
                   {"extensionsRequired", std::string("unsupported required extension ") + ext});
   }
   EXPECT_TRUE(ImportGltf(Edited(box, [](json& j) {
-                j["extensionsRequired"] = {"KHR_texture_transform"};
+                j["extensionsUsed"] = j["extensionsRequired"] = {"KHR_texture_transform"};
               })).ok());
+  // Required but not used is refused (the schema: extensionsRequired is a subset).
+  ExpectInvalid(ImportGltf(Edited(box, [](json& j) {
+                  j["extensionsRequired"] = {"KHR_texture_transform"};
+                })),
+                {"extensionsRequired[0]", "is not in extensionsUsed"});
   // Every supported extension may be required; one only used (not required) and unsupported is
   // ignored, and the scene's warnings name it.
   for (std::string_view ext : SupportedGltfExtensions()) {
     EXPECT_TRUE(ImportGltf(Edited(box, [&](json& j) {
-                  j["extensionsRequired"] = {std::string(ext)};
+                  j["extensionsUsed"] = j["extensionsRequired"] = {std::string(ext)};
                 })).ok())
         << ext;
   }
@@ -997,11 +1002,11 @@ GltfSource TriangleSource(const Bin& bin, json views, json accessors, json attri
   node["mesh"] = 0;
   json j = {{"asset", {{"version", "2.0"}}},
             {"buffers", {{{"byteLength", bin.bytes.size()}, {"uri", "data.bin"}}}},
-            {"bufferViews", views},
             {"accessors", accessors},
             {"meshes", {{{"primitives", {{{"attributes", attributes}}}}}}},
             {"nodes", {node}}};
   if (!extensions.empty()) j["extensionsUsed"] = extensions;
+  if (!views.empty()) j["bufferViews"] = views;  // the schema: no empty arrays
   const std::string text = j.dump();
   GltfSource src;
   src.main_file = "t.gltf";
