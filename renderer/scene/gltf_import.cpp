@@ -544,6 +544,12 @@ class Converter {
     if (!view.IsInt()) return Err(field + ".bufferView", "missing or not an integer");
     if (!attributes.IsObject()) return Err(field + ".attributes", "missing or not an object");
     if (p.indices < 0) return Err(path, "a Draco-compressed primitive needs indices");
+    // Draco decodes a triangle list; the extension also allows strips, which Tessera does not
+    // read from Draco data (refused rather than drawn as the wrong triangles).
+    if (p.mode >= 0 && p.mode != TINYGLTF_MODE_TRIANGLES) {
+      return Err(path + ".mode", "mode ", p.mode, " with KHR_draco_mesh_compression: only ",
+                 "TRIANGLES (4) is supported");
+    }
     RETURN_IF_ERROR(CheckIndex(path + ".indices", p.indices, m_.accessors.size(), "accessor"));
     ASSIGN_OR_RETURN(std::span<const uint8_t> bytes, ViewBytes(field + ".bufferView",
                                                                view.GetNumberAsInt()));

@@ -505,14 +505,9 @@ class PreScan {
       fallback_.push_back(fallback && Member(b, "uri") == nullptr);
       if (fallback_.back()) {
         // EXT_meshopt_compression: a buffer with no data that the compressed bufferViews decode
-        // into. Its memory is the decoded size, bounded here before anything is allocated.
-        if (__builtin_add_overflow(decoded_bytes_, length, &decoded_bytes_) ||
-            decoded_bytes_ > limits_.max_decoded_bytes) {
-          return OverLimit(file_, field, "meshopt fallback buffers of ", decoded_bytes_,
-                           " bytes exceed the max_decoded_bytes limit (",
-                           limits_.max_decoded_bytes, ")");
-        }
-        result_->fallback_buffers[uint32_t(i)] = length;
+        // into. Only the part they reach is allocated (BufferViews sizes it, and bounds it by
+        // max_decoded_bytes before anything is allocated); its byteLength alone costs nothing.
+        result_->fallback_buffers[uint32_t(i)] = 0;
         buffer_lengths_.push_back(length);
         continue;
       }
@@ -600,8 +595,25 @@ class PreScan {
       const json* ext = meshopt_ ? Member(Member(v, "extensions"), "EXT_meshopt_compression")
                                  : nullptr;
       if (ext != nullptr) {
-        RETURN_IF_ERROR(MeshoptBufferView(*ext, field + ".extensions.EXT_meshopt_compression",
-                                          uint32_t(i), length));
+        const std::string ext_field = field + ".extensions.EXT_meshopt_compression";
+        RETURN_IF_ERROR(MeshoptBufferView(*ext, ext_field, uint32_t(i), length));
+        if (Member(v, "byteStride") && stride != result_->meshopt_views[uint32_t(i)].byte_stride) {
+          return Invalid(file_, field + ".byteStride", stride, " is not the extension's byteStride (",
+                         result_->meshopt_views[uint32_t(i)].byte_stride, ")");
+        }
+        if (fallback_[buffer]) {
+          uint64_t& used = result_->fallback_buffers[uint32_t(buffer)];
+          const uint64_t end = offset + length;  // <= the buffer's byteLength (BufferRange)
+          if (end > used) {
+            if (__builtin_add_overflow(decoded_bytes_, end - used, &decoded_bytes_) ||
+                decoded_bytes_ > limits_.max_decoded_bytes) {
+              return OverLimit(file_, field, "meshopt fallback buffers of ", decoded_bytes_,
+                               " bytes exceed the max_decoded_bytes limit (",
+                               limits_.max_decoded_bytes, ")");
+            }
+            used = end;
+          }
+        }
       } else if (fallback_[buffer]) {
         return Invalid(file_, field + ".buffer", "buffers[", buffer,
                        "] is a meshopt fallback buffer (no data), but this bufferView is not "
@@ -902,6 +914,13 @@ class PreScan {
       return Invalid(file_, field, "count x byteStride (", count, " x ", stride,
                      ") is not the bufferView's byteLength (", view_length, ")");
     }
+    // meshopt's codecs compress at most ~64x (vertex data of zeros: 2 bits per 16 bytes; index
+    // data: at least a byte per triangle): more claims bytes the data cannot hold, and would let
+    // a few compressed bytes ask for gigabytes.
+    if (decoded > 128 * length + 65536) {
+      return Invalid(file_, field, "decodes to ", decoded, " bytes from ", length,
+                     " compressed bytes, more than meshopt's codecs can encode");
+    }
     result_->meshopt_views[view] = m;
     return absl::OkStatus();
   }
@@ -963,8 +982,9 @@ class PreScan {
 //  - a Draco primitive's indices (an accessor without a bufferView) it refuses; they are removed
 //    and the importer puts them back (PreScanResult::draco_indices).
 // A .glb is rebuilt around the new JSON chunk with its BIN chunk as it was.
-void RewriteForTinygltf(const std::vector<uint8_t>& bytes, const GlbChunks& glb, json* j,
-                        PreScanResult* result) {
+absl::Status RewriteForTinygltf(const std::string& file, const std::vector<uint8_t>& bytes,
+                                const GlbChunks& glb, const ImportLimits& limits, json* j,
+                                PreScanResult* result) {
   for (const auto& [index, length] : result->fallback_buffers) {
     json& b = (*j)["buffers"][index];
     b["uri"] = "data:application/octet-stream;base64,AA==";
@@ -974,16 +994,24 @@ void RewriteForTinygltf(const std::vector<uint8_t>& bytes, const GlbChunks& glb,
     (*j)["meshes"][primitive.first]["primitives"][primitive.second].erase("indices");
   }
   std::string text = j->dump();
+  // Re-written numbers may take more room than the file's: the limits hold for this text too.
+  if (text.size() > limits.max_json_bytes) {
+    return OverLimit(file, "JSON", "re-written for the compression extensions, ", text.size(),
+                     " bytes exceed the max_json_bytes limit (", limits.max_json_bytes, ")");
+  }
   std::vector<uint8_t>& out = result->rewritten;
   if (!result->is_glb) {
     out.assign(text.begin(), text.end());
     result->text = absl::string_view(reinterpret_cast<const char*>(out.data()), out.size());
-    return;
+    return absl::OkStatus();
   }
   text.resize((text.size() + 3) & ~size_t(3), ' ');
   const size_t length = ReadU32(&bytes[8]);
   const size_t rest_at = 20 + glb.json.size();  // the BIN chunk's header, if any
   const size_t rest = length > rest_at ? length - rest_at : 0;
+  if (20 + text.size() + rest > std::numeric_limits<uint32_t>::max()) {
+    return Invalid(file, "GLB", "re-written for the compression extensions, 4 GiB or larger");
+  }
   out.resize(20 + text.size() + rest);
   auto put32 = [&](size_t at, uint32_t v) {
     for (int k = 0; k < 4; ++k) out[at + k] = uint8_t(v >> (8 * k));
@@ -995,6 +1023,7 @@ void RewriteForTinygltf(const std::vector<uint8_t>& bytes, const GlbChunks& glb,
   std::memcpy(out.data() + 20, text.data(), text.size());
   if (rest > 0) std::memcpy(out.data() + 20 + text.size(), bytes.data() + rest_at, rest);
   result->text = absl::string_view(reinterpret_cast<const char*>(out.data() + 20), text.size());
+  return absl::OkStatus();
 }
 
 }  // namespace
@@ -1048,7 +1077,7 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
     json j = json::parse(text.begin(), text.end());
     RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, limits, &result).Run(j));
     if (!result.fallback_buffers.empty() || !result.draco_indices.empty()) {
-      RewriteForTinygltf(bytes, glb, &j, &result);
+      RETURN_IF_ERROR(RewriteForTinygltf(file, bytes, glb, limits, &j, &result));
     }
   } catch (const std::exception& e) {  // nlohmann reports parse and type errors by throwing
     return Invalid(file, "JSON", Quote(e.what()));

@@ -748,7 +748,7 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
       {"max_textures", 0, &textured, {"textures: 1 textures exceed the max_textures limit (0)"}},
       {"max_lights", 1, &lit, {"KHR_lights_punctual.lights", "max_lights limit (1)"}},
       {"max_drawables", 0, &box, {"nodes[1]", "max_drawables limit (0)"}},
-      {"max_decoded_bytes", 100, &meshopt, {"buffers[1]", "max_decoded_bytes limit (100)"}},
+      {"max_decoded_bytes", 100, &meshopt, {"bufferViews[", "max_decoded_bytes limit (100)"}},
   };
   std::set<std::string> tested;
   for (const Case& c : cases) {
