@@ -144,7 +144,7 @@ absl::StatusOr<DracoMesh> DecodeDraco(std::span<const uint8_t> bytes,
                                                      " indices, more than the accessor's ",
                                                      max_indices));
   }
-  result.indices.resize(index_count);
+  result.index_bytes.resize(index_count * 4);
   for (uint32_t f = 0; f < mesh.num_faces(); ++f) {
     const draco::Mesh::Face& face = mesh.face(draco::FaceIndex(f));
     for (int c = 0; c < 3; ++c) {
@@ -153,7 +153,7 @@ absl::StatusOr<DracoMesh> DecodeDraco(std::span<const uint8_t> bytes,
         return absl::InvalidArgumentError(absl::StrCat("Draco: face ", f, " names point ", i,
                                                        " of ", result.points));
       }
-      result.indices[uint64_t(f) * 3 + c] = i;
+      std::memcpy(&result.index_bytes[(uint64_t(f) * 3 + c) * 4], &i, 4);
     }
   }
   for (DracoAttributeRequest& r : requests) {

@@ -48,7 +48,7 @@ struct DracoAttributeRequest {
 
 struct DracoMesh {
   uint64_t points = 0;            // vertices
-  std::vector<uint32_t> indices;  // a triangle list
+  std::vector<uint8_t> index_bytes;  // a triangle list, UNSIGNED_INT as glTF stores it
 };
 
 // Decodes a Draco mesh and fills each request with `points` elements. Refuses a point cloud, a

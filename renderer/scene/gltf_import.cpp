@@ -603,35 +603,20 @@ class Converter {
       return Err(field, "the Draco data has ", mesh->points, " points where the accessors have ",
                  points);
     }
-    if (mesh->indices.size() != index_count) {
-      return Err(field, "the Draco data has ", mesh->indices.size(), " indices where accessors[",
-                 p.indices, "] has ", index_count);
+    if (mesh->index_bytes.size() != index_count * 4) {
+      return Err(field, "the Draco data has ", mesh->index_bytes.size() / 4,
+                 " indices where accessors[", p.indices, "] has ", index_count);
     }
     for (const Target& t : targets) {
-      const tinygltf::Accessor& acc = m_.accessors[t.accessor];
-      AccessorView v;
-      v.component_size = tinygltf::GetComponentSizeInBytes(uint32_t(acc.componentType));
-      v.components = tinygltf::GetNumComponentsInType(uint32_t(acc.type));
-      v.count = acc.count;
-      v.component_type = acc.componentType;
-      v.type = acc.type;
-      v.normalized = acc.normalized;
-      v.index = t.accessor;
-      v.stride = uint64_t(v.component_size) * uint64_t(v.components);
+      AccessorView v = PackedView(t.accessor);
       v.data = t.data->data();
       views_[t.accessor] = v;
     }
-    std::vector<uint8_t>& idx = owned_.emplace_back(index_count * 4);
-    std::memcpy(idx.data(), mesh->indices.data(), idx.size());
-    AccessorView iv;
-    iv.data = idx.data();
-    iv.count = index_count;
-    iv.stride = 4;
+    // The indices as decoded: UNSIGNED_INT, whatever the accessor declares.
+    AccessorView iv = PackedView(p.indices);
     iv.component_type = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
-    iv.component_size = 4;
-    iv.type = TINYGLTF_TYPE_SCALAR;
-    iv.components = 1;
-    iv.index = p.indices;
+    iv.component_size = iv.stride = 4;
+    iv.data = owned_.emplace_back(std::move(mesh->index_bytes)).data();
     views_[p.indices] = iv;
     return absl::OkStatus();
   }
@@ -663,17 +648,9 @@ class Converter {
       return OverMax(field + ".count", "element count", a.count, "max_accessor_elements",
                      limits_.max_accessor_elements);
     }
-    AccessorView v;
-    v.component_size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
-    v.components = tinygltf::GetNumComponentsInType(uint32_t(a.type));
+    AccessorView v = PackedView(index);
     if (v.component_size <= 0 || v.components <= 0) return Err(field, "invalid type/componentType");
-    const uint64_t elem = uint64_t(v.component_size) * uint64_t(v.components);
-    v.count = a.count;
-    v.component_type = a.componentType;
-    v.type = a.type;
-    v.normalized = a.normalized;
-    v.index = index;
-    v.stride = elem;
+    const uint64_t elem = v.stride;
     if (a.bufferView >= 0) {
       ASSIGN_OR_RETURN(std::span<const uint8_t> bytes, ViewBytes(field + ".bufferView", a.bufferView));
       const tinygltf::BufferView& bv = m_.bufferViews[a.bufferView];
@@ -778,6 +755,21 @@ class Converter {
       }
     }
     return absl::OkStatus();
+  }
+
+  // Accessor `index`'s shape, its elements tightly packed; no data yet.
+  AccessorView PackedView(int index) const {
+    const tinygltf::Accessor& a = m_.accessors[index];
+    AccessorView v;
+    v.component_size = tinygltf::GetComponentSizeInBytes(uint32_t(a.componentType));
+    v.components = tinygltf::GetNumComponentsInType(uint32_t(a.type));
+    v.count = a.count;
+    v.component_type = a.componentType;
+    v.type = a.type;
+    v.normalized = a.normalized;
+    v.index = index;
+    v.stride = uint64_t(std::max(v.component_size, 0)) * uint64_t(std::max(v.components, 0));
+    return v;
   }
 
   // glTF 2.0 3.6.2.3: sparse.count elements replaced, at indices that strictly increase, each
@@ -1382,12 +1374,14 @@ class Converter {
     return fallback;
   }();
   // KHR_draco_mesh_compression is in extensionsUsed: primitives may be Draco-compressed.
-  const bool draco_ = std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(),
-                                "KHR_draco_mesh_compression") != m_.extensionsUsed.end();
+  const bool draco_ = Uses("KHR_draco_mesh_compression");
   // KHR_mesh_quantization is in extensionsUsed: attributes may be quantized.
-  const bool quantization_ =
-      std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(), "KHR_mesh_quantization") !=
-      m_.extensionsUsed.end();
+  const bool quantization_ = Uses("KHR_mesh_quantization");
+
+  bool Uses(const char* extension) const {
+    return std::find(m_.extensionsUsed.begin(), m_.extensionsUsed.end(), extension) !=
+           m_.extensionsUsed.end();
+  }
 };
 
 }  // namespace

@@ -642,6 +642,20 @@ class PreScan {
     }
   }
 
+  // The value of string `v` (e.g. a meshopt mode) among `names`, else what it wants.
+  template <typename T>
+  absl::StatusOr<T> Enum(const json* v, const std::string& field,
+                         std::initializer_list<std::pair<const char*, T>> names) {
+    std::string wants;
+    size_t i = 0;
+    for (const auto& [name, value] : names) {
+      if (v != nullptr && v->is_string() && v->get_ref<const std::string&>() == name) return value;
+      absl::StrAppend(&wants, i == 0 ? "" : i + 1 == names.size() ? " or " : ", ", name);
+      ++i;
+    }
+    return Invalid(file_, field, v ? Quote(v->dump()) : "missing", ": wants ", wants);
+  }
+
   // `o`'s buffer, byteOffset and byteLength (a bufferView, or the compressed range of a meshopt
   // one): an existing buffer and a non-empty range inside it.
   absl::Status BufferRange(const json& o, const std::string& field, uint64_t* buffer,
@@ -874,32 +888,18 @@ class PreScan {
     if (!JsonUint(Member(ext, "count"), &count) || count == 0) {
       return Invalid(file_, field + ".count", "missing or not a positive integer");
     }
-    const json* mode = Member(ext, "mode");
-    const std::string mode_name = mode && mode->is_string() ? mode->get<std::string>() : "";
-    if (mode_name == "ATTRIBUTES") {
-      m.mode = MeshoptView::Mode::kAttributes;
-    } else if (mode_name == "TRIANGLES") {
-      m.mode = MeshoptView::Mode::kTriangles;
-    } else if (mode_name == "INDICES") {
-      m.mode = MeshoptView::Mode::kIndices;
-    } else {
-      return Invalid(file_, field + ".mode", mode ? Quote(mode->dump()) : "missing",
-                     ": wants ATTRIBUTES, TRIANGLES or INDICES");
-    }
+    using Mode = MeshoptView::Mode;
+    using Filter = MeshoptView::Filter;
+    ASSIGN_OR_RETURN(m.mode, Enum<Mode>(Member(ext, "mode"), field + ".mode",
+                                        {{"ATTRIBUTES", Mode::kAttributes},
+                                         {"TRIANGLES", Mode::kTriangles},
+                                         {"INDICES", Mode::kIndices}}));
     if (const json* filter = Member(ext, "filter")) {
-      const std::string name = filter->is_string() ? filter->get<std::string>() : "";
-      if (name == "NONE") {
-        m.filter = MeshoptView::Filter::kNone;
-      } else if (name == "OCTAHEDRAL") {
-        m.filter = MeshoptView::Filter::kOctahedral;
-      } else if (name == "QUATERNION") {
-        m.filter = MeshoptView::Filter::kQuaternion;
-      } else if (name == "EXPONENTIAL") {
-        m.filter = MeshoptView::Filter::kExponential;
-      } else {
-        return Invalid(file_, field + ".filter", Quote(filter->dump()),
-                       ": wants NONE, OCTAHEDRAL, QUATERNION or EXPONENTIAL");
-      }
+      ASSIGN_OR_RETURN(m.filter, Enum<Filter>(filter, field + ".filter",
+                                              {{"NONE", Filter::kNone},
+                                               {"OCTAHEDRAL", Filter::kOctahedral},
+                                               {"QUATERNION", Filter::kQuaternion},
+                                               {"EXPONENTIAL", Filter::kExponential}}));
     }
     m.buffer = uint32_t(buffer);
     m.byte_offset = offset;
