@@ -394,6 +394,10 @@ absl::Status ValidateJobSpec(const v1::JobSpec& spec, const JobLimits& limits) {
   RETURN_IF_ERROR(ValidateFrameRange(spec.frames(), limits.max_frames));
   if (!v1::ImageEncoding_IsValid(spec.encoding()))
     return Invalid("spec.encoding", absl::StrCat("unknown value ", spec.encoding()));
+  if (spec.encoding() == v1::VIDEO_H264)
+    return Invalid("spec.encoding",
+                   "VIDEO_H264 is for Stream sessions; a job writes one image per frame: "
+                   "IMAGE_JPEG or IMAGE_PNG");
   if (!v1::JobOutput_IsValid(spec.output()))
     return Invalid("spec.output", absl::StrCat("unknown value ", spec.output()));
   // Checked whatever the output: a spec is journalled and may be resubmitted with another.

@@ -22,6 +22,9 @@ PACKAGES=(
   prometheus-cpp-dev
   # image encoding, logging
   libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
+  # video streams (h264 sessions; libavcodec with libx264, swscale for RGB->YUV, libavformat for
+  # the CLI's .mp4; Debian builds these with --enable-gpl: see the README's licence section)
+  libavcodec-dev libavformat-dev libswscale-dev libavutil-dev
   # tests and benchmarks; deploy/validate.sh (YAML, kustomize patches, systemd unit)
   libgtest-dev libgmock-dev libbenchmark-dev python3-yaml python3-jsonpatch systemd
   # fuzzing (tests/fuzz/run.sh): clang with libFuzzer and the sanitizer runtimes

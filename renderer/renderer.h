@@ -153,7 +153,9 @@ struct Frame {
   ResolvedSettings settings;  // effective settings and the notes on what changed
 };
 
-enum class ImageFormat { kJpeg, kPng };
+// kRgba: not encoded; the pixels stay in the frame (a video session encodes them in order when
+// its client is ready for them).
+enum class ImageFormat { kJpeg, kPng, kRgba };
 
 // Whether `status` says the Vulkan device was lost (Renderer::device_lost).
 bool IsDeviceLost(const absl::Status& status);

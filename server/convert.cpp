@@ -1,9 +1,13 @@
 #include "server/convert.h"
 
+#include <algorithm>
 #include <cmath>
 #include <glm/gtc/type_ptr.hpp>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "common/video.h"
 #include "common/proto_vec.h"
 #include "common/status_macros.h"
 #include "google/protobuf/descriptor.h"
@@ -214,6 +218,58 @@ absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
   return p;
 }
 
+absl::StatusOr<VideoSettings> MergeVideo(const VideoSettings& base, const v1::VideoSettings& u,
+                                         const std::string& field) {
+  VideoSettings v = base;
+  switch (u.codec()) {
+    case v1::VIDEO_CODEC_UNSPECIFIED:
+      break;
+    case v1::VIDEO_CODEC_JPEG:
+      v.h264 = false;
+      break;
+    case v1::VIDEO_CODEC_H264:
+      v.h264 = true;
+      break;
+    default:
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".codec: ", static_cast<int>(u.codec()), " is not a VideoCodec"));
+  }
+  if (!v1::VideoEncoderKind_IsValid(u.encoder()))
+    return absl::InvalidArgumentError(absl::StrCat(
+        field, ".encoder: ", static_cast<int>(u.encoder()), " is not a VideoEncoderKind"));
+  if (u.encoder() != v1::VIDEO_ENCODER_UNSPECIFIED) v.encoder = u.encoder();
+  auto range = [&](bool has, uint32_t value, uint32_t lo, uint32_t hi, const char* name,
+                   uint32_t* out) -> absl::Status {
+    if (!has) return absl::OkStatus();
+    if (value < lo || value > hi)
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".", name, ": ", value, " is out of range (", lo, "..", hi, ")"));
+    *out = value;
+    return absl::OkStatus();
+  };
+  RETURN_IF_ERROR(range(u.has_crf(), u.crf(), 0, 51, "crf", &v.crf));
+  RETURN_IF_ERROR(
+      range(u.has_interactive_crf(), u.interactive_crf(), 0, 51, "interactive_crf", &v.interactive_crf));
+  RETURN_IF_ERROR(range(u.has_keyframe_interval(), u.keyframe_interval(), 0, 600,
+                        "keyframe_interval", &v.keyframe_interval));
+  if (u.has_max_bitrate_kbps()) {
+    const uint32_t kbps = u.max_bitrate_kbps();
+    if (kbps != 0 && (kbps < 100 || kbps > 500000))
+      return absl::InvalidArgumentError(absl::StrCat(
+          field, ".max_bitrate_kbps: ", kbps, " is out of range (0 for no cap, or 100..500000)"));
+    v.max_bitrate_kbps = kbps;
+  }
+  if (u.has_preset()) {
+    const std::vector<std::string>& presets = video::Presets();
+    if (std::find(presets.begin(), presets.end(), u.preset()) == presets.end())
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, ".preset: \"", absl::CEscape(u.preset().substr(0, 64)),
+                       "\" is not one of ", absl::StrJoin(presets, ", ")));
+    v.preset = u.preset();
+  }
+  return v;
+}
+
 void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out) {
   // By name, so a limit added to ImportLimitFields() without its proto field shows up in the
   // unit test (a missing field is skipped here, never a crash).
@@ -239,6 +295,7 @@ void FrameMetaToProto(const EncodedFrame& f, v1::Frame* o) {
   o->set_event_id(f.event_id);
   o->set_scene_id(f.scene_id);
   o->set_profile(f.profile);
+  // Unencoded (video) frames get VIDEO_H264 when the session encodes them.
   o->set_encoding(f.format == ImageFormat::kPng ? v1::IMAGE_PNG : v1::IMAGE_JPEG);
   v1::CpuTimings* cpu = o->mutable_cpu();
   cpu->set_queue_wait_ms(f.queue_wait_ms);

@@ -27,6 +27,27 @@ absl::StatusOr<InteractiveProfile> MergeProfile(const InteractiveProfile& base,
                                                 const v1::InteractiveProfile& update,
                                                 const std::string& field);
 
+// How a session's frames are coded (v1::VideoSettings with its defaults applied).
+struct VideoSettings {
+  bool h264 = false;  // false: JPEG frames
+  v1::VideoEncoderKind encoder = v1::VIDEO_ENCODER_AUTO;
+  uint32_t crf = 23;
+  uint32_t interactive_crf = 29;
+  uint32_t max_bitrate_kbps = 0;
+  uint32_t keyframe_interval = 0;
+  std::string preset = "superfast";
+  // What a running encoder cannot change: a change of these starts a new video (a keyframe).
+  bool SameStream(const VideoSettings& o) const {
+    return h264 == o.h264 && encoder == o.encoder && max_bitrate_kbps == o.max_bitrate_kbps &&
+           keyframe_interval == o.keyframe_interval && preset == o.preset;
+  }
+};
+
+// `base` with the set fields of `update`; INVALID_ARGUMENT naming `field`.crf etc.
+absl::StatusOr<VideoSettings> MergeVideo(const VideoSettings& base,
+                                         const v1::VideoSettings& update,
+                                         const std::string& field);
+
 // The concrete camera for `camera` in a scene (framing uses the scene bounds and the frame's
 // aspect ratio). INVALID_ARGUMENT naming the field.
 absl::StatusOr<Camera> ResolveCamera(const v1::Camera& camera, const SceneInfo& scene,

@@ -32,9 +32,13 @@ absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double
     frame.image = std::move(upscaled);
     upscale_ms = MsBetween(t0, Clock::now());
   }
-  ASSIGN_OR_RETURN(out.data, EncodeFrame(frame, work.format));
-  frame.cpu.encode_ms += upscale_ms;  // the upscale is part of encoding
-  renderer.RecyclePixels(std::move(frame.image.pixels));  // the bytes are what goes on
+  if (work.format == ImageFormat::kRgba) {
+    frame.cpu.encode_ms = upscale_ms;  // the client's video encoder adds its own time
+  } else {
+    ASSIGN_OR_RETURN(out.data, EncodeFrame(frame, work.format));
+    frame.cpu.encode_ms += upscale_ms;  // the upscale is part of encoding
+    renderer.RecyclePixels(std::move(frame.image.pixels));  // the bytes are what goes on
+  }
   out.frame = std::move(frame);
   out.format = work.format;
   out.camera = work.camera;
@@ -179,7 +183,23 @@ void RenderLoop::Stop() {
   for (auto& c : abandoned)
     c->Deliver(RenderWork{}, absl::UnavailableError("server is shutting down"));
   if (half) half->client->Deliver(half->work, absl::UnavailableError("server is shutting down"));
-  encoders_.reset();  // drains: frames already rendered are still encoded and delivered
+  std::unique_ptr<ThreadPool> encoders;
+  {
+    std::lock_guard lock(mu_);
+    encoders = std::move(encoders_);
+  }
+  encoders.reset();  // drains: frames already rendered are still encoded and delivered
+}
+
+void RenderLoop::SubmitEncode(std::function<void()> task) {
+  {
+    std::lock_guard lock(mu_);
+    if (encoders_) {
+      encoders_->Submit(std::move(task));
+      return;
+    }
+  }
+  task();  // the loop has stopped: the caller's thread does it
 }
 
 void RenderLoop::Run() {

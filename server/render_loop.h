@@ -84,8 +84,8 @@ struct RenderWork {
 // what the work asked for. Clients convert it for the wire themselves (ToProto in convert.h).
 struct EncodedFrame {
   // The renderer's frame: timings (encode_ms includes an interactive frame's upscale), stats,
-  // effective settings. Its pixels are released once encoded; image.width/height stay: the
-  // encoded size.
+  // effective settings. Its pixels are released once encoded (format kRgba: they stay, for
+  // the client to encode); image.width/height stay: the encoded size.
   Frame frame;
   std::vector<uint8_t> data;  // the encoded image
   ImageFormat format = ImageFormat::kJpeg;
@@ -138,6 +138,10 @@ class RenderLoop {
   void Enqueue(std::shared_ptr<RenderClient> client, Priority priority = Priority::kNormal);
   // Enqueues `client` at `when` (continuous streaming at a target fps).
   void EnqueueAt(std::shared_ptr<RenderClient> client, Clock::time_point when);
+
+  // Runs `task` on the encoder pool (a video session's encode, in its own order); on the
+  // calling thread once the loop has stopped.
+  void SubmitEncode(std::function<void()> task);
 
   // Finishes the frame being rendered, fails everything queued with UNAVAILABLE, waits for the
   // encoders, and joins the render thread. Idempotent.

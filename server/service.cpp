@@ -109,6 +109,10 @@ absl::StatusOr<RenderWork> RenderRequestWork(const ServiceState& state,
   if (!v1::ImageEncoding_IsValid(req.encoding()))
     return absl::InvalidArgumentError(
         absl::StrCat("encoding: unknown value ", static_cast<int>(req.encoding())));
+  if (req.encoding() == v1::VIDEO_H264)
+    return absl::InvalidArgumentError(
+        "encoding: VIDEO_H264 is for Stream sessions (OpenSession.video); a Render is one "
+        "image: IMAGE_JPEG or IMAGE_PNG");
   work.scene = scene->scene;
   work.scene_id = scene->id;
   work.format = req.encoding() == v1::IMAGE_PNG ? ImageFormat::kPng : ImageFormat::kJpeg;

@@ -55,6 +55,8 @@ struct SessionState {
   v1::Camera camera;
   float target_fps = 0.0f;
   InteractiveProfile profile;
+  VideoSettings video;
+  uint64_t video_generation = 0;  // counts changes that need a new encoder (SameStream)
   uint64_t sequence = 0;      // of the last frame made
   uint64_t newest_event = 0;  // the newest event applied
 };

@@ -6,6 +6,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
+#include "renderer/image_io.h"
 #include "renderer/log.h"
 #include "server/convert.h"
 #include "server/metrics.h"
@@ -118,6 +119,7 @@ void StreamSession::OnDone() {
     std::lock_guard lock(mu_);
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
+    slot_pixels_.reset();
     st_.lease.reset();  // a deleted scene is freed with its last session
     view = std::move(st_.view);
   }
@@ -152,14 +154,20 @@ std::optional<RenderWork> StreamSession::TakeWork() {
 
 void StreamSession::Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) {
   std::optional<v1::Frame> wire;  // converted before taking the lock
-  if (frame.ok()) ToProto(*frame, &wire.emplace());
+  std::optional<RgbaImage> pixels;
+  if (frame.ok()) {
+    ToProto(*frame, &wire.emplace());
+    if (frame->format == ImageFormat::kRgba) pixels = std::move(frame->frame.image);
+  }
   React([&] {
     const Arrival arrival = schedule_.FrameDone(work.sequence, frame.status());
-    if (wire) KeepFrameLocked(arrival, *std::move(wire));
+    if (wire) KeepFrameLocked(arrival, *std::move(wire), std::move(pixels));
   });
+  if (pixels) state_->renderer->RecyclePixels(std::move(pixels->pixels));  // not kept
 }
 
-void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame) {
+void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame,
+                                    std::optional<RgbaImage> pixels) {
   switch (arrival) {
     case Arrival::kIgnored:
       return;
@@ -181,6 +189,8 @@ void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame) {
     note->set_message(fps_note_);
   }
   slot_ = std::move(frame);
+  if (slot_pixels_) state_->renderer->RecyclePixels(std::move(slot_pixels_->pixels));
+  slot_pixels_ = std::move(pixels);
 }
 
 void StreamSession::Stop() {
@@ -199,6 +209,7 @@ std::optional<SessionState> StreamSession::Handover(const std::string& principal
     st_.token = out->token;
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
+    slot_pixels_.reset();
     decision = DecideLocked(Clock::now());
   }
   Perform(decision);
@@ -237,7 +248,9 @@ StreamPacing StreamSession::PacingLocked() const {
   StreamPacing pacing;
   pacing.target_fps = st_.target_fps;
   pacing.interactive =
-      p.enabled && (p.render_scale < 1.0f || p.jpeg_quality < st_.settings.jpeg_quality);
+      p.enabled && (p.render_scale < 1.0f ||
+                    (st_.video.h264 ? st_.video.interactive_crf > st_.video.crf
+                                    : p.jpeg_quality < st_.settings.jpeg_quality));
   pacing.rest = std::chrono::milliseconds(p.rest_ms);
   pacing.settle_frames = st_.settings.aa == AaMode::kTaa ? kTaaSettleFrames : 0;
   return pacing;
@@ -252,20 +265,24 @@ absl::Status StreamSession::OpenLocked(Clock::time_point now) {
   RETURN_IF_ERROR(ResolveCamera(open.camera(), scene->scene->info(), Aspect(settings)).status());
   ASSIGN_OR_RETURN(InteractiveProfile profile,
                    MergeProfile(InteractiveProfile{}, open.interactive(), "open.interactive"));
+  ASSIGN_OR_RETURN(VideoSettings video, MergeVideo(VideoSettings{}, open.video(), "open.video"));
+  RETURN_IF_ERROR(CheckVideoLocked(video, settings, "open"));
   RETURN_IF_ERROR(CheckTargetFpsLocked(open.target_fps(), "open.target_fps"));
   st_.lease = std::make_shared<SceneLease>(scene);
   st_.view = std::make_shared<ViewLease>(state_->renderer, scene->scene, st_.id);
   st_.settings = settings;
   st_.camera = open.camera();
   st_.profile = profile;
+  st_.video = video;
   st_.token = RandomHex(16);  // 128 bits
   schedule_.Open(now, PacingLocked());
   Register();
   MarkDirtyLocked(now);
   if (state_->metrics) state_->metrics->SessionOpened(false);
-  Log().info("Stream session={} opened scene={} {}x{} fps={} interactive={} peer={}", st_.id,
-             scene->id, st_.settings.width, st_.settings.height, st_.target_fps,
-             st_.profile.enabled ? absl::StrCat(st_.profile.render_scale) : "off", ctx_->peer());
+  Log().info("Stream session={} opened scene={} {}x{} fps={} interactive={} codec={} peer={}",
+             st_.id, scene->id, st_.settings.width, st_.settings.height, st_.target_fps,
+             st_.profile.enabled ? absl::StrCat(st_.profile.render_scale) : "off",
+             st_.video.h264 ? "h264" : "jpeg", ctx_->peer());
   return absl::OkStatus();
 }
 
@@ -297,6 +314,12 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   if (event_.has_interactive()) {
     ASSIGN_OR_RETURN(profile, MergeProfile(st_.profile, event_.interactive(), "interactive"));
   }
+  VideoSettings video = st_.video;
+  if (event_.has_video()) {
+    ASSIGN_OR_RETURN(video, MergeVideo(st_.video, event_.video(), "video"));
+  }
+  if (event_.has_video() || event_.has_settings())
+    RETURN_IF_ERROR(CheckVideoLocked(video, settings, ""));
   if (event_.has_camera()) {
     RETURN_IF_ERROR(
         ResolveCamera(event_.camera(), st_.lease->get().scene->info(), Aspect(settings)).status());
@@ -309,8 +332,15 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   }
   st_.settings = settings;
   if (profile) st_.profile = *profile;
+  if (!video.SameStream(st_.video)) ++st_.video_generation;
+  const bool video_changed = event_.has_video() && !(video.SameStream(st_.video) &&
+                                                     video.crf == st_.video.crf &&
+                                                     video.interactive_crf == st_.video.interactive_crf);
+  st_.video = video;
+  if (event_.keyframe()) keyframe_requested_ = true;
   schedule_.SetPacing(PacingLocked());
-  if (event_.has_settings() || event_.has_camera() || event_.refresh())
+  if (event_.has_settings() || event_.has_camera() || event_.refresh() || event_.keyframe() ||
+      video_changed)
     MarkDirtyLocked(now);
   else if (event_.event_id() > st_.newest_event)
     st_.newest_event = event_.event_id();
@@ -331,7 +361,7 @@ RenderWork StreamSession::MakeWorkLocked(const FrameStart& start) {
   // Validated when the event arrived; framing depends only on the scene and aspect ratio.
   absl::StatusOr<Camera> camera = ResolveCamera(st_.camera, w.scene->info(), Aspect(st_.settings));
   w.camera = camera.ok() ? *camera : Camera{};
-  w.format = ImageFormat::kJpeg;
+  w.format = st_.video.h264 ? ImageFormat::kRgba : ImageFormat::kJpeg;
   w.kind = "stream";
   if (start.profile == FrameProfile::kInteractive) {
     auto scaled = [&](uint32_t v) {
@@ -357,6 +387,16 @@ StreamDecision StreamSession::DecideLocked(Clock::time_point now) {
   if (d.write) {
     writing_frame_ = std::move(*slot_);
     slot_.reset();
+    writing_video_.reset();
+    if (slot_pixels_) {
+      writing_pixels_ = std::move(*slot_pixels_);
+      slot_pixels_.reset();
+      VideoWrite& v = writing_video_.emplace();
+      v.video = st_.video;
+      v.generation = st_.video_generation;
+      v.keyframe = std::exchange(keyframe_requested_, false);
+      v.crf = writing_frame_.profile() == "interactive" ? st_.video.interactive_crf : st_.video.crf;
+    }
   }
   if (d.park) {
     st_.sequence = std::max(st_.sequence, schedule_.newest_delivered());
@@ -370,10 +410,110 @@ StreamDecision StreamSession::DecideLocked(Clock::time_point now) {
 }
 
 void StreamSession::Perform(const StreamDecision& d) {
-  if (d.write) StartWrite(&writing_frame_);
+  if (d.write) {
+    if (writing_video_)
+      state_->loop->SubmitEncode([self = shared_from_this()] { self->EncodeAndWrite(); });
+    else
+      StartWrite(&writing_frame_);
+  }
   if (d.enqueue) state_->loop->Enqueue(shared_from_this());
   if (d.enqueue_at) state_->loop->EnqueueAt(shared_from_this(), *d.enqueue_at);
   if (d.finish) FinishCounted(ToGrpc(*d.finish));
+}
+
+absl::Status StreamSession::CheckVideoLocked(const VideoSettings& video, const Settings& settings,
+                                            const std::string& field) {
+  if (!video.h264) return absl::OkStatus();
+  const std::string prefix = field.empty() ? "" : field + ".";
+  for (auto [name, v] : {std::pair{"width", settings.width}, std::pair{"height", settings.height}})
+    if (v % 2 != 0 || v < 16)
+      return absl::InvalidArgumentError(
+          absl::StrCat(prefix, "settings.", name, ": ", v,
+                       " does not suit an h264 session (H.264 needs an even size of 16 or more)"));
+  if (video.encoder == v1::VIDEO_ENCODER_HARDWARE && !video::HardwareEncoderAvailable())
+    return absl::FailedPreconditionError(
+        absl::StrCat(prefix, "video.encoder: this server has no hardware H.264 encoder "
+                             "(h264_nvenc does not open); use VIDEO_ENCODER_AUTO or SOFTWARE"));
+  return absl::OkStatus();
+}
+
+// On the encoder pool, for a write decided by DecideLocked: encodes the frame, then writes it.
+// The schedule counts the write as outstanding from the decision, so nothing else writes, takes
+// writing_frame_ or finishes the stream meanwhile.
+void StreamSession::EncodeAndWrite() {
+  const VideoWrite& job = *writing_video_;
+  const auto t0 = Clock::now();
+  absl::Status st;
+  bool fresh = false;
+  if (!job.video.h264) {
+    // Rendered for h264, taken after the session switched to JPEG.
+    absl::StatusOr<std::vector<uint8_t>> jpeg = EncodeJpeg(
+        writing_pixels_, static_cast<int>(writing_frame_.settings().jpeg_quality()),
+        writing_frame_.settings().jpeg_444() ? ChromaSubsampling::k444 : ChromaSubsampling::k420);
+    if (jpeg.ok()) {
+      writing_frame_.set_data(jpeg->data(), jpeg->size());
+      writing_frame_.set_encoding(v1::IMAGE_JPEG);
+    } else {
+      st = jpeg.status();
+    }
+    encoder_.reset();
+  } else if (!encoder_ || encoder_generation_ != job.generation ||
+      encoder_->width() != writing_pixels_.width || encoder_->height() != writing_pixels_.height) {
+    video::EncoderOptions o;
+    o.width = writing_pixels_.width;
+    o.height = writing_pixels_.height;
+    o.kind = job.video.encoder == v1::VIDEO_ENCODER_HARDWARE   ? video::EncoderKind::kHardware
+             : job.video.encoder == v1::VIDEO_ENCODER_SOFTWARE ? video::EncoderKind::kSoftware
+                                                               : video::EncoderKind::kAuto;
+    o.crf = job.video.crf;
+    o.max_bitrate_kbps = job.video.max_bitrate_kbps;
+    o.keyframe_interval = job.video.keyframe_interval;
+    o.preset = job.video.preset;
+    encoder_.reset();
+    absl::StatusOr<std::unique_ptr<video::Encoder>> enc = video::Encoder::Create(o);
+    if (enc.ok()) {
+      encoder_ = *std::move(enc);
+      encoder_generation_ = job.generation;
+      fresh = true;
+    } else {
+      st = absl::Status(enc.status().code(), absl::StrCat("video: ", enc.status().message()));
+    }
+  }
+  if (st.ok() && job.video.h264) {
+    absl::StatusOr<video::Packet> packet =
+        encoder_->Encode(writing_pixels_.pixels.data(), size_t{writing_pixels_.width} * 4,
+                         fresh || job.keyframe, job.crf);
+    if (packet.ok()) {
+      const double ms = MsSince(t0);
+      writing_frame_.set_data(packet->data.data(), packet->data.size());
+      writing_frame_.set_encoding(v1::VIDEO_H264);
+      writing_frame_.set_keyframe(packet->keyframe);
+      writing_frame_.set_codec(encoder_->codec_string());
+      writing_frame_.set_encoder(encoder_->name());
+      v1::CpuTimings* cpu = writing_frame_.mutable_cpu();
+      cpu->set_encode_ms(cpu->encode_ms() + ms);
+      cpu->set_total_ms(cpu->total_ms() + ms);
+    } else {
+      encoder_.reset();  // the next frame starts a new video
+      st = packet.status();
+    }
+  }
+  state_->renderer->RecyclePixels(std::move(writing_pixels_.pixels));
+  writing_pixels_ = {};
+  if (!st.ok()) {
+    // As if the write were done: the stream then ends with the error.
+    React([&] {
+      Log().warn("Stream session={}: {}", st_.id, st.ToString());
+      schedule_.Fail(st);
+      schedule_.WriteDone(true);
+    });
+    return;
+  }
+  {
+    std::lock_guard lock(mu_);
+    state_->pending_frame_bytes += writing_frame_.data().size();
+  }
+  StartWrite(&writing_frame_);
 }
 
 // ---------------------------------------------------------------------------------------------

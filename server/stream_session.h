@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "common/video.h"
 #include "server/render_loop.h"
 #include "server/service.h"
 #include "server/stream_schedule.h"
@@ -62,7 +63,10 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
 
   RenderWork MakeWorkLocked(const FrameStart& start);
   // A rendered frame into the slot (or dropped), as the schedule decides.
-  void KeepFrameLocked(Arrival arrival, v1::Frame frame);
+  void KeepFrameLocked(Arrival arrival, v1::Frame frame, std::optional<RgbaImage> pixels);
+  // Checks the session's video settings against its settings (sizes) and this server.
+  absl::Status CheckVideoLocked(const VideoSettings& video, const Settings& settings,
+                                const std::string& field);
   void Drop();
 
   // Applies `change` under mu_, then performs what the schedule decides after unlocking.
@@ -95,6 +99,25 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   std::string fps_note_;           // target_fps was lowered to the cap
   std::optional<v1::Frame> slot_;  // the newest encoded frame not yet written
   v1::Frame writing_frame_;        // owned by gRPC while a write is outstanding
+
+  // Video (h264) sessions. A frame waits in the slot unencoded, with its pixels; a newer one
+  // replaces it (latest wins) before it costs an encode. The write decision takes it with what
+  // its encode needs, and the encode runs on the encoder pool, then the write starts: so the
+  // encoder sees exactly the frames the client gets, in order, and no reference is ever
+  // missing. Only that one encode-and-write touches encoder_ and writing_pixels_.
+  struct VideoWrite {
+    VideoSettings video;
+    uint64_t generation = 0;
+    bool keyframe = false;  // the client asked for one
+    uint32_t crf = 0;       // this frame's: interactive_crf while the camera moves
+  };
+  void EncodeAndWrite();
+  std::optional<RgbaImage> slot_pixels_;
+  RgbaImage writing_pixels_;
+  std::optional<VideoWrite> writing_video_;
+  bool keyframe_requested_ = false;
+  std::unique_ptr<video::Encoder> encoder_;
+  uint64_t encoder_generation_ = 0;
   uint64_t frames_sent_ = 0;
   uint64_t frames_dropped_ = 0;
   std::string end_status_;

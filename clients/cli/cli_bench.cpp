@@ -30,6 +30,7 @@ struct BenchOptions {
   std::string scene = "demo";
   uint32_t warmup = 3;
   uint32_t frames = 30;
+  v1::VideoSettings video;
   RenderFlags flags;
 };
 
@@ -50,6 +51,7 @@ BenchOptions ParseBenchOptions(const Invocation& inv) {
     } else if (args.Is("--frames")) {
       o.frames = args.Uint();
       if (o.frames == 0) args.Fail("--frames wants at least 1");
+    } else if (ParseVideoFlag(args, &o.video)) {
     } else if (!o.flags.Parse(args)) {
       args.Unknown();
     }
@@ -135,6 +137,7 @@ Result RunConfig(v1::RenderService::Stub* stub, const BenchOptions& o, const std
   so.frames = o.warmup + o.frames;
   so.orbit = true;
   so.flags = o.flags;
+  so.video = o.video;
   so.flags.mutable_settings()->MergeFrom(config.over);
   Session session(so,
                   [&](const FrameRecord&, uint32_t index) { bar->Update(done_before + index); });
@@ -234,8 +237,8 @@ void PrintTable(const Invocation& inv, const BenchOptions& o, const v1::ServerIn
 
   int width = 6;
   for (const Result& r : results) width = std::max<int>(width, r.config->name.size());
-  absl::PrintF("%-*s %7s %8s %13s %8s %8s %8s %9s  %s\n", width, "config", "fps", "gpu ms",
-               "gpu p10-p90", "cpu ms", "lat p50", "lat p95", "KB/frame",
+  absl::PrintF("%-*s %7s %8s %13s %8s %8s %8s %9s %8s  %s\n", width, "config", "fps", "gpu ms",
+               "gpu p10-p90", "cpu ms", "lat p50", "lat p95", "KB/frame", "Mbit/s",
                "most expensive passes (gpu ms)");
   for (const Result& r : results) {
     if (!r.status.ok()) {
@@ -244,11 +247,11 @@ void PrintTable(const Invocation& inv, const BenchOptions& o, const v1::ServerIn
       continue;
     }
     const Summary& s = r.summary;
-    absl::PrintF("%-*s %7.1f %8.2f %13s %8.2f %8.1f %8.1f %9.1f  %s\n", width, r.config->name,
-                 r.fps, s.gpu_total_median_ms,
+    absl::PrintF("%-*s %7.1f %8.2f %13s %8.2f %8.1f %8.1f %9.1f %8.2f  %s\n", width,
+                 r.config->name, r.fps, s.gpu_total_median_ms,
                  absl::StrFormat("%.2f-%.2f", s.gpu_total_p10_ms, s.gpu_total_p90_ms),
                  s.cpu_total_median_ms, Median(s.latencies_ms), Percentile(s.latencies_ms, 95),
-                 s.bytes_median / 1000.0, TopPasses(s));
+                 s.bytes_median / 1000.0, s.bitrate_kbps / 1000.0, TopPasses(s));
   }
   for (const Result& r : results) {
     for (const v1::SettingNote& n : r.last.notes()) {
@@ -278,6 +281,9 @@ Json ResultJson(const Result& r) {
   j["pass_median_ms"] = PassMediansJson(s);
   j["latency_ms"] = LatencyJson(s);
   j["bytes_median"] = s.bytes_median;
+  j["bitrate_kbps"] = s.bitrate_kbps;
+  j["codec"] = s.codec;
+  j["keyframes"] = s.keyframes;
   j["timing_source"] = TimingSourceName(r.last.timing_source());
   j["width"] = r.last.width();
   j["height"] = r.last.height();
@@ -378,13 +384,13 @@ int RunBench(const Invocation& inv) {
 const Command kBenchCommand = {
     "bench", "run a benchmark suite on the server and print a table of medians",
     R"(usage: tessera bench [--suite aa|culling|lights|all] [--scene ID] [--warmup W]
-                     [--frames N] [flags]
+                     [--frames N] [--codec jpeg|h264 [video flags]] [flags]
 Runs one live session per configuration of the suite on the server's scene: W warm-up
 frames, then N measured frames, the camera orbiting the scene one step per received frame
 (one event in flight at a time). For each configuration it prints a row of medians over the
 measured frames: frames/s (wall clock), GPU and CPU time per frame, input-to-frame latency
-p50/p95 (a camera event sent -> the frame that reflects it), KB per frame, and the three most
-expensive passes; above the table, the device and where its timings come from (device
+p50/p95 (a camera event sent -> the frame that reflects it), KB per frame, the bitrate (bytes
+of the measured frames over their span), and the three most expensive passes; above the table, the device and where its timings come from (device
 timestamps, or each pass timed by the wall clock on a CPU device). A progress bar over all
 configurations shows on stderr when it is a terminal.
   --suite S           aa: every AA mode the server offers (the default); culling: every
@@ -402,10 +408,11 @@ fps cannot exceed the server's max_session_fps (tessera info), whatever the GPU 
 "settings", "max_session_fps", "results": [{"config", "suite", "setting", "ok", "frames", "fps", "dropped",
 "gpu_total_median_ms", "gpu_total_p10_ms", "gpu_total_p90_ms", "cpu_total_median_ms",
 "pass_median_ms": [{"pass", "median_ms", "p10_ms", "p90_ms"}],
-"latency_ms": {"median", "p95", "events", "samples"}, "bytes_median", "timing_source",
+"latency_ms": {"median", "p95", "events", "samples"}, "bytes_median", "bitrate_kbps", "codec",
+"keyframes", "timing_source",
 "width", "height", "settings" (effective), "notes"} or {"config", "suite", "setting", "ok":
 false, "error": {"code", "message"}}], "failed"}.
-)",
+)" TESSERA_VIDEO_FLAGS_USAGE,
     /*render_flags=*/true, RunBench};
 
 }  // namespace tessera::cli

@@ -3,6 +3,8 @@
 #include <map>
 #include <mutex>
 
+#include "absl/strings/str_cat.h"
+
 namespace tessera::cli {
 
 namespace {
@@ -34,6 +36,7 @@ class Session::Events {
       open->mutable_interactive()->set_render_scale(options_.interactive_scale);
       if (options_.rest_ms >= 0) open->mutable_interactive()->set_rest_ms(options_.rest_ms);
     }
+    if (options_.video.ByteSizeLong() > 0) *open->mutable_video() = options_.video;
     if (options_.orbit && orbit_) {
       *open->mutable_camera() = orbit_->CameraAt(step_++, options_.frames, options_.flags.camera());
     } else if (HasCameraFlags(options_.flags)) {
@@ -120,6 +123,43 @@ void Session::ReadFrames(grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>* s
   }
 }
 
+bool ParseVideoFlag(ArgReader& args, v1::VideoSettings* video) {
+  if (args.Is("--codec")) {
+    const std::string c = args.Value();
+    if (c == "jpeg") {
+      video->set_codec(v1::VIDEO_CODEC_JPEG);
+    } else if (c == "h264") {
+      video->set_codec(v1::VIDEO_CODEC_H264);
+    } else {
+      args.Fail(absl::StrCat("--codec '", c, "': use jpeg or h264"));
+    }
+  } else if (args.Is("--crf")) {
+    video->set_crf(args.Uint());
+  } else if (args.Is("--interactive-crf")) {
+    video->set_interactive_crf(args.Uint());
+  } else if (args.Is("--preset")) {
+    video->set_preset(args.Value());
+  } else if (args.Is("--keyframe-interval")) {
+    video->set_keyframe_interval(args.Uint());
+  } else if (args.Is("--max-bitrate")) {
+    video->set_max_bitrate_kbps(args.Uint());
+  } else if (args.Is("--encoder")) {
+    const std::string e = args.Value();
+    if (e == "auto") {
+      video->set_encoder(v1::VIDEO_ENCODER_AUTO);
+    } else if (e == "software") {
+      video->set_encoder(v1::VIDEO_ENCODER_SOFTWARE);
+    } else if (e == "hardware") {
+      video->set_encoder(v1::VIDEO_ENCODER_HARDWARE);
+    } else {
+      args.Fail(absl::StrCat("--encoder '", e, "': use auto, software or hardware"));
+    }
+  } else {
+    return false;
+  }
+  return true;
+}
+
 Summary Summarize(const std::vector<FrameRecord>& records,
                   const std::vector<std::pair<uint64_t, double>>& latencies) {
   Summary s;
@@ -161,6 +201,18 @@ Summary Summarize(const std::vector<FrameRecord>& records,
   s.gpu_total_p90_ms = Percentile(gpu, 90);
   s.cpu_total_median_ms = Median(cpu);
   s.bytes_median = Median(bytes);
+  for (const FrameRecord& r : records) {
+    s.bytes_total += r.bytes;
+    if (r.frame.keyframe()) ++s.keyframes;
+  }
+  if (records.size() >= 2) {
+    const double span_s = (records.back().received_ms - records.front().received_ms) / 1000.0;
+    if (span_s > 0) s.bitrate_kbps = (s.bytes_total - records.front().bytes) * 8.0 / span_s / 1000.0;
+  }
+  const v1::Frame& last = records.back().frame;
+  s.codec = last.encoding() == v1::VIDEO_H264 ? last.codec()
+            : last.encoding() == v1::IMAGE_PNG ? "png"
+                                                : "jpeg";
   return s;
 }
 

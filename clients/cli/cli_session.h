@@ -33,6 +33,7 @@ struct SessionOptions {
   float fps = 0;
   float interactive_scale = 0;  // > 0: enable the session's interactive profile at this scale
   int rest_ms = -1;             // the profile's rest time; -1: the server's default
+  v1::VideoSettings video;      // --codec, --crf, ... (unset: JPEG frames)
   RenderFlags flags;
 
   Pacing pacing() const {
@@ -48,6 +49,21 @@ struct FrameRecord {
   double received_ms = 0;            // since the open event was sent
   std::optional<double> latency_ms;  // of the newest event this frame answered first
 };
+
+// The video flags of `tessera stream` and `tessera bench` (--codec, --crf, --interactive-crf,
+// --preset, --keyframe-interval, --max-bitrate, --encoder): true when the current argument was
+// one of them. The server checks the ranges and names the field.
+bool ParseVideoFlag(ArgReader& args, v1::VideoSettings* video);
+// Their usage lines (a literal, so the commands' usage texts can include it).
+#define TESSERA_VIDEO_FLAGS_USAGE                                                                 \
+  "  --codec C           jpeg (default) or h264: an H.264 video stream (even sizes only)\n"       \
+  "  --crf N             h264: constant quality 0..51 (server default 23; lower: better, bigger)\n" \
+  "  --interactive-crf N h264 with --interactive: the quality while the camera moves (default 29)\n" \
+  "  --preset P          h264: ultrafast, superfast (default), veryfast, faster, fast, medium\n"  \
+  "  --keyframe-interval N  h264: a keyframe every N frames (default 0: only when needed)\n"     \
+  "  --max-bitrate KBPS  h264: cap the bitrate (1 s buffer; default 0: no cap)\n"                 \
+  "  --encoder E         h264: auto (hardware where the server has it; the default), software,\n" \
+  "                      hardware\n"
 
 // The orbit path when `o.orbit` is set: around the scene bounds (HasScene), or through the
 // explicit --eye/--target. nullopt when the scene could not be described (the first frame's
@@ -102,6 +118,12 @@ struct Summary {
   double gpu_total_p10_ms = 0, gpu_total_p90_ms = 0;  // the spread: one slow frame shows here
   double cpu_total_median_ms = 0;
   double bytes_median = 0;
+  uint64_t bytes_total = 0;
+  // Payload bits per second between the first and the last frame (the first frame's bytes
+  // excluded: they arrived at the start of the span); 0 with fewer than 2 frames.
+  double bitrate_kbps = 0;
+  uint32_t keyframes = 0;  // video frames that were keyframes
+  std::string codec;       // "jpeg", "png" or the video codec string of the last frame
 };
 
 // The figures of `records` (received in order). `latencies` as Session::latencies(); the

@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "clients/cli/cli_commands.h"
@@ -14,6 +15,7 @@
 #include "clients/cli/cli_render_flags.h"
 #include "clients/cli/cli_session.h"
 #include "clients/cli/cli_stream_parts.h"
+#include "common/video.h"
 
 namespace tessera::cli {
 namespace {
@@ -45,11 +47,15 @@ StreamOptions ParseStreamOptions(const Invocation& inv) {
         args.Fail("--interactive wants a render scale in [0.25, 1]");
     } else if (args.Is("--rest-ms")) {
       o.rest_ms = static_cast<int>(args.Uint());
+    } else if (ParseVideoFlag(args, &o.video)) {
     } else if (!o.flags.Parse(args)) {
       args.Unknown();
     }
   }
   o.flags.Finish(args);
+  const bool video_file = absl::EndsWith(o.save_dir, ".mp4") || absl::EndsWith(o.save_dir, ".h264");
+  if (video_file && o.video.codec() != v1::VIDEO_CODEC_H264)
+    args.Fail(absl::StrCat("--save ", o.save_dir, ": a video file needs --codec h264"));
   if (o.orbit && o.flags.has_fixed_placement()) {
     args.Fail("--orbit moves the camera itself; it cannot be combined with --camera or --frame");
   }
@@ -69,10 +75,10 @@ class LiveTable {
     for (int i = 0; i < f.passes_size(); ++i) {
       absl::StrAppendFormat(&row, " %*.2f", widths_[i], f.passes(i).gpu_ms());
     }
-    absl::StrAppendFormat(&row, " %9.2f %9.2f %9s %8.1f %s", f.gpu_total_ms(),
+    absl::StrAppendFormat(&row, " %9.2f %9.2f %9s %8.1f%s %s", f.gpu_total_ms(),
                           f.cpu().total_ms(),
                           r.latency_ms ? absl::StrFormat("%.1f", *r.latency_ms) : "-",
-                          r.bytes / 1024.0,
+                          r.bytes / 1024.0, f.keyframe() ? "K" : " ",
                           f.profile() == "interactive"
                               ? absl::StrFormat("interactive %ux%u", f.render_width(),
                                                 f.render_height())
@@ -110,7 +116,7 @@ class LiveTable {
       widths_.push_back(std::max<int>(7, p.pass().size()));
       absl::StrAppendFormat(&header, " %*s", widths_.back(), p.pass());
     }
-    absl::StrAppendFormat(&header, " %9s %9s %9s %8s %s", "gpu ms", "cpu ms", "lat ms", "KiB",
+    absl::StrAppendFormat(&header, " %9s %9s %9s %8s  %s", "gpu ms", "cpu ms", "lat ms", "KiB",
                           "profile");
     std::printf("%s\n", header.c_str());
     header_printed_ = true;
@@ -137,8 +143,13 @@ void PrintSummary(const Summary& s, const std::vector<FrameRecord>& records) {
   }
   if (!records.empty()) {
     const v1::Frame& last = records.back().frame;
-    absl::PrintF("image    %ux%u, median %s per frame\n", last.width(), last.height(),
-                 HumanBytes(static_cast<uint64_t>(s.bytes_median)));
+    absl::PrintF("image    %ux%u %s, median %s per frame, %s in all", last.width(),
+                 last.height(), s.codec, HumanBytes(static_cast<uint64_t>(s.bytes_median)),
+                 HumanBytes(s.bytes_total));
+    if (s.bitrate_kbps > 0) absl::PrintF(", %.2f Mbit/s", s.bitrate_kbps / 1000.0);
+    if (last.encoding() == v1::VIDEO_H264)
+      absl::PrintF(", %u keyframes (K), %s", s.keyframes, last.encoder());
+    absl::PrintF("\n");
     absl::PrintF("settings %s\n", WrapList(SettingsSummary(last.settings()), 9));
   }
   absl::PrintF("\n%-20s %10s\n", "pass", "median ms");
@@ -168,6 +179,10 @@ Json SummaryJson(const Summary& s, const std::vector<FrameRecord>& records,
   j["gpu_total_median_ms"] = s.gpu_total_median_ms;
   j["cpu_total_median_ms"] = s.cpu_total_median_ms;
   j["bytes_median"] = s.bytes_median;
+  j["bytes_total"] = s.bytes_total;
+  j["bitrate_kbps"] = s.bitrate_kbps;
+  j["codec"] = s.codec;
+  j["keyframes"] = s.keyframes;
   Json frames = Json::array();
   for (const FrameRecord& r : records) {
     Json f = FrameJson(r.frame);
@@ -194,9 +209,57 @@ bool SaveFrame(const std::string& dir, uint32_t index, const v1::Frame& frame, s
   return true;
 }
 
+// `tessera stream --codec h264 --save FILE.mp4|FILE.h264`: the packets into one file, each at
+// its arrival time. A size change (none in a CLI session) would need a new file: refused.
+class VideoSaver {
+ public:
+  explicit VideoSaver(std::string path) : path_(std::move(path)) {}
+  bool Add(const FrameRecord& r, std::string* error) {
+    const v1::Frame& f = r.frame;
+    if (f.encoding() != v1::VIDEO_H264) {
+      *error = absl::StrCat(path_, ": frame ", f.sequence(), " is not H.264");
+      return false;
+    }
+    if (!writer_) {
+      absl::StatusOr<std::unique_ptr<video::VideoFileWriter>> w =
+          video::VideoFileWriter::Open(path_, f.width(), f.height());
+      if (!w.ok()) {
+        *error = std::string(w.status().message());
+        return false;
+      }
+      writer_ = *std::move(w);
+      width_ = f.width();
+      height_ = f.height();
+      t0_ = r.received_ms;
+    }
+    if (f.width() != width_ || f.height() != height_) {
+      *error = absl::StrCat(path_, ": the frame size changed to ", f.width(), "x", f.height());
+      return false;
+    }
+    absl::Status st = writer_->Write(reinterpret_cast<const uint8_t*>(f.data().data()),
+                                     f.data().size(), f.keyframe(), r.received_ms - t0_);
+    if (!st.ok()) *error = std::string(st.message());
+    return st.ok();
+  }
+  bool Close(std::string* error) {
+    if (!writer_) return true;
+    absl::Status st = writer_->Close();
+    if (!st.ok()) *error = std::string(st.message());
+    return st.ok();
+  }
+
+ private:
+  std::string path_;
+  std::unique_ptr<video::VideoFileWriter> writer_;
+  uint32_t width_ = 0, height_ = 0;
+  double t0_ = 0;
+};
+
 int RunStream(const Invocation& inv) {
   const StreamOptions o = ParseStreamOptions(inv);
-  if (!o.save_dir.empty()) {
+  const bool video_file =
+      absl::EndsWith(o.save_dir, ".mp4") || absl::EndsWith(o.save_dir, ".h264");
+  if (!o.save_dir.empty() && !video_file) {
     std::error_code ec;
     std::filesystem::create_directories(o.save_dir, ec);
     if (ec) {
@@ -221,14 +284,19 @@ int RunStream(const Invocation& inv) {
   LiveTable table(StdoutIsTty());
   ProgressBar bar("stream", o.frames, ProgressBar::Unit::kCount, !table_on_terminal);
   std::string save_error;
+  std::optional<VideoSaver> saver;
+  if (video_file) saver.emplace(o.save_dir);
   Session session(o, [&](const FrameRecord& r, uint32_t index) {
-    if (!o.save_dir.empty() && save_error.empty()) {
+    if (saver && save_error.empty()) {
+      saver->Add(r, &save_error);
+    } else if (!o.save_dir.empty() && save_error.empty()) {
       SaveFrame(o.save_dir, index, r.frame, &save_error);
     }
     if (!inv.global.json) table.Add(r, index);
     bar.Update(index);
   });
   const grpc::Status status = session.Run(stub.get(), scene_id, orbit);
+  if (saver && save_error.empty()) saver->Close(&save_error);
   bar.Clear();
   table.End();
 
@@ -238,7 +306,8 @@ int RunStream(const Invocation& inv) {
   if (have_frames && !inv.global.json) {
     PrintSummary(summary, session.records());
     if (!o.save_dir.empty() && save_error.empty()) {
-      absl::PrintF("saved    %u frames to %s/\n", summary.frames, o.save_dir);
+      absl::PrintF("saved    %u frames to %s%s\n", summary.frames, o.save_dir,
+                   video_file ? "" : "/");
     }
   }
   // The summary covers the frames that came; the error says why no more did (and is part of
@@ -267,8 +336,9 @@ int RunStream(const Invocation& inv) {
 
 const Command kStreamCommand = {
     "stream", "a live session for N frames: per-pass timings and input-to-frame latency",
-    R"(usage: tessera stream [--scene ID] [--frames N] [--orbit] [--fps F] [--save DIR]
-                      [--interactive S [--rest-ms MS]] [flags]
+    R"(usage: tessera stream [--scene ID] [--frames N] [--orbit] [--fps F] [--save DIR|FILE]
+                      [--interactive S [--rest-ms MS]] [--codec jpeg|h264 [video flags]]
+                      [flags]
 Opens a live session (Stream) and receives N frames, printing each frame's sequence number,
 the event it reflects, the GPU time of every pass, totals, latency and size (redrawn in place
 on a terminal), then a summary: fps, event-to-frame latency (median, p95: from sending an
@@ -285,11 +355,13 @@ Exit status 130 after Ctrl-C (the summary of the frames so far is printed first)
                       without: the server renders continuously at up to F fps
                       (neither: one refresh event per received frame)
   --save DIR          write the frames to DIR/frame_000001.jpg, ...
+  --save FILE         with --codec h264: FILE.mp4 (MP4, each frame at its arrival time) or
+                      FILE.h264 (the raw Annex B stream)
   --interactive S     idle refinement: while the camera moves, frames are rendered at scale S
                       (0.25..1), upscaled and sent at a lower JPEG quality; once it rests, one
                       full-quality frame follows (the "profile" column says which)
   --rest-ms MS        with --interactive: how long the camera must rest (server default 250)
-)",
+)" TESSERA_VIDEO_FLAGS_USAGE,
     /*render_flags=*/true, RunStream};
 
 }  // namespace tessera::cli

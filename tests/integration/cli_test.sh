@@ -152,6 +152,33 @@ assert moving, [f["profile"] for f in d["frame_list"]]
 assert all(f["render_width"] == 48 and f["width"] == 96 for f in moving), moving
 PY
 
+# H.264: an orbit as one video, saved as .mp4 and as a raw .h264 stream; the sizes and
+# keyframes in --json; a video file without --codec h264, and odd sizes, are refused.
+"$tessera" --json stream --scene demo --frames 5 --orbit --width 96 --height 64 --codec h264 \
+  --crf 20 --save "$work/orbit.mp4" > "$work/h264.json"
+python3 - "$work/h264.json" "$work/orbit.mp4" <<'PY' || fail "stream --codec h264"
+import json, sys
+d = json.load(open(sys.argv[1]))
+frames = d["frame_list"]
+assert [f["encoding"] for f in frames] == ["h264"] * 5, [f["encoding"] for f in frames]
+assert frames[0]["keyframe"] and not any(f.get("keyframe") for f in frames[1:]), frames
+assert d["keyframes"] == 1 and d["codec"].startswith("avc1."), d
+assert d["bitrate_kbps"] > 0 and d["bytes_total"] == sum(f["bytes"] for f in frames), d
+mp4 = open(sys.argv[2], "rb").read()
+assert mp4[4:8] == b"ftyp" and b"avcC" in mp4 and b"moov" in mp4, mp4[:16]
+PY
+"$tessera" stream --scene demo --frames 3 --width 96 --height 64 --codec h264 \
+  --save "$work/raw.h264" > "$work/h264.txt"
+head -c 5 "$work/raw.h264" | od -An -tx1 | grep -q "00 00 00 01" || fail "raw.h264 is not Annex B"
+grep -q "avc1\..*1 keyframes" "$work/h264.txt" || fail "stream summary: $(cat "$work/h264.txt")"
+run stream --scene demo --frames 2 --save "$work/x.mp4"
+[[ $rc -eq 2 ]] && grep -q "needs --codec h264" "$work/err" || fail "mp4 without h264: $rc $(cat "$work/err")"
+run stream --scene demo --frames 2 --codec h264 --width 97 --height 64
+[[ $rc -eq 1 ]] && grep -q "INVALID_ARGUMENT: open.settings.width: 97" "$work/err" ||
+  fail "odd h264 width: $rc $(cat "$work/err")"
+run stream --scene demo --frames 2 --codec h264 --crf 99
+grep -q "open.video.crf: 99 is out of range" "$work/err" || fail "crf 99: $(cat "$work/err")"
+
 # Jobs: submit (watched to the end, fetched into --out), list, a keyframe path, fetch, cancel
 # and rm, and the exit codes.
 "$tessera" --json job submit --scene demo --frames 0..3 --orbit --width 64 --height 48 --png \
