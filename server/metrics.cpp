@@ -222,6 +222,9 @@ struct Metrics::Impl {
   Family<Histogram>* frame_gpu = nullptr;
   Family<Histogram>* encode = nullptr;
   Family<Histogram>* frame_total = nullptr;
+  Family<Histogram>* video_encode = nullptr;
+  Family<Counter>* video_bytes = nullptr;
+  Family<Counter>* video_frames = nullptr;
 
   // Series without labels, created up front.
   Counter* frames_dropped_series = nullptr;
@@ -230,6 +233,9 @@ struct Metrics::Impl {
   std::array<Counter*, 2> sessions_opened_series{};  // [resumed]
   Histogram* frame_gpu_series = nullptr;
   Histogram* encode_series = nullptr;
+  Histogram* video_encode_series = nullptr;
+  Counter* video_bytes_series = nullptr;
+  std::array<Counter*, 2> video_frames_series{};  // [keyframe]
 
   // Labelled series by label value. Family::Add would find an existing series by itself, but it
   // builds a Labels map and a new metric (for a histogram: its buckets) on every call, so the
@@ -331,6 +337,22 @@ Metrics::Metrics(std::function<MetricsGauges()> gauges)
   m.sessions_opened_series[1] = &m.sessions_opened->Add({{"resumed", "true"}});
   m.frame_gpu_series = &m.frame_gpu->Add({}, MillisecondBuckets());
   m.encode_series = &m.encode->Add({}, MillisecondBuckets());
+  m.video_encode = &prometheus::BuildHistogram()
+                        .Name("tessera_video_encode_milliseconds")
+                        .Help("Time to encode one video (h264) frame, RGB->YUV included, in ms.")
+                        .Register(r);
+  m.video_bytes = &prometheus::BuildCounter()
+                       .Name("tessera_video_bytes_total")
+                       .Help("Bytes of encoded video (h264) frames sent to sessions.")
+                       .Register(r);
+  m.video_frames = &prometheus::BuildCounter()
+                        .Name("tessera_video_frames_total")
+                        .Help("Encoded video (h264) frames, by whether they were keyframes.")
+                        .Register(r);
+  m.video_encode_series = &m.video_encode->Add({}, MillisecondBuckets());
+  m.video_bytes_series = &m.video_bytes->Add({});
+  m.video_frames_series = {&m.video_frames->Add({{"keyframe", "false"}}),
+                           &m.video_frames->Add({{"keyframe", "true"}})};
   // The known series start at 0 so that rate() and increase() see their first increment.
   std::lock_guard lock(m.mu);
   for (std::string_view kind : {"stream", "render", "background"}) {
@@ -413,6 +435,13 @@ void Metrics::FrameDone(std::string_view kind, std::string_view profile,
 }
 
 void Metrics::FrameDropped() { impl_->frames_dropped_series->Increment(); }
+
+void Metrics::VideoFrameEncoded(double encode_ms, uint64_t bytes, bool keyframe) {
+  Impl& m = *impl_;
+  if (Observable(encode_ms)) m.video_encode_series->Observe(encode_ms);
+  m.video_bytes_series->Increment(static_cast<double>(bytes));
+  m.video_frames_series[keyframe ? 1 : 0]->Increment();
+}
 
 void Metrics::UploadFinished(std::string_view result, uint64_t bytes) {
   Impl& m = *impl_;

@@ -79,6 +79,9 @@ class Metrics {
                  double encode_ms, double total_ms);
   // An encoded frame replaced in a session's slot before it was sent.
   void FrameDropped();
+  // A video (h264) frame encoded for a session: its encode time, size and whether it was a
+  // keyframe.
+  void VideoFrameEncoded(double encode_ms, uint64_t bytes, bool keyframe);
   // A finished upload. result: "loaded", "cached" or "error"; bytes: file bytes received.
   void UploadFinished(std::string_view result, uint64_t bytes);
   // Every finished RPC. method: our own method name ("Render", "Stream", "UploadScene", ...);

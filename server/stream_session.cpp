@@ -493,6 +493,7 @@ void StreamSession::EncodeAndWrite() {
       v1::CpuTimings* cpu = writing_frame_.mutable_cpu();
       cpu->set_encode_ms(cpu->encode_ms() + ms);
       cpu->set_total_ms(cpu->total_ms() + ms);
+      if (state_->metrics) state_->metrics->VideoFrameEncoded(ms, packet->data.size(), packet->keyframe);
     } else {
       encoder_.reset();  // the next frame starts a new video
       st = packet.status();

@@ -4,7 +4,7 @@
 //      (manifest and chunks through UploadAssembler, then the glTF import of what it built)
 //   1: a RenderRequest (settings merged over the defaults and resolved against a device,
 //      the camera resolved against a scene)
-//   2: a Stream ClientEvent (settings, camera, interactive profile)
+//   2: a Stream ClientEvent (settings, camera, interactive profile, video settings)
 //   3: a SubmitJobRequest (the job spec, its frame numbers, cameras and file names)
 //   4: a RenderJobFrameRequest (the spec and one frame)
 // Errors are expected; crashes, hangs, leaks, and an accepted request the renderer could not
@@ -132,10 +132,12 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
         Camera_(e.open().camera(), e.open().settings().width(), e.open().settings().height());
         (void)server::MergeProfile(server::InteractiveProfile{}, e.open().interactive(),
                                    "open.interactive");
+        (void)server::MergeVideo(server::VideoSettings{}, e.open().video(), "open.video");
       }
       Settings_(e.settings());
       Camera_(e.camera(), e.settings().width(), e.settings().height());
       (void)server::MergeProfile(server::InteractiveProfile{}, e.interactive(), "interactive");
+      (void)server::MergeVideo(server::VideoSettings{}, e.video(), "video");
       break;
     }
     case 3: {

@@ -234,6 +234,10 @@ def request_seeds(assets):
                       'target_fps: 30 interactive { enabled: true render_scale: 0.5 jpeg_quality: 50 rest_ms: 200 } }' % look,
         "event_update": 'event_id: 7 camera { %s } settings { aa: AA_TAA } target_fps: 60 refresh: true '
                         'interactive { render_scale: 0.25 }' % look,
+        "event_open_h264": 'event_id: 1 open { scene_id: "demo" settings { width: 320 height: 240 } '
+                           'video { codec: VIDEO_CODEC_H264 encoder: VIDEO_ENCODER_SOFTWARE crf: 20 '
+                           'interactive_crf: 30 max_bitrate_kbps: 8000 keyframe_interval: 120 preset: "veryfast" } }',
+        "event_video_update": 'event_id: 9 keyframe: true video { codec: VIDEO_CODEC_JPEG crf: 51 preset: "fast" }',
     }
     for name, text in events.items():
         write("request", name, b"\2" + encode("ClientEvent", text))

@@ -245,6 +245,9 @@ TEST(MetricsTest, EveryMetricHasHelpAndType) {
       {"tessera_frame_gpu_milliseconds", "histogram"},
       {"tessera_encode_milliseconds", "histogram"},
       {"tessera_frame_total_milliseconds", "histogram"},
+      {"tessera_video_encode_milliseconds", "histogram"},
+      {"tessera_video_bytes_total", "counter"},
+      {"tessera_video_frames_total", "counter"},
       {"tessera_sessions", "gauge"},
       {"tessera_parked_sessions", "gauge"},
       {"tessera_queue_depth", "gauge"},
@@ -290,8 +293,15 @@ TEST(MetricsTest, CountersCount) {
   metrics.SessionOpened(false);
   metrics.SessionOpened(true);
   metrics.SceneEvicted();
+  metrics.VideoFrameEncoded(3.0, 1000, true);
+  metrics.VideoFrameEncoded(1.0, 200, false);
+  metrics.VideoFrameEncoded(1.5, 300, false);
   const std::string text = metrics.Text();
   EXPECT_EQ(Sample(text, R"(tessera_frames_total{kind="stream",profile="full"})"), 2) << text;
+  EXPECT_EQ(Sample(text, "tessera_video_bytes_total"), 1500);
+  EXPECT_EQ(Sample(text, R"(tessera_video_frames_total{keyframe="true"})"), 1);
+  EXPECT_EQ(Sample(text, R"(tessera_video_frames_total{keyframe="false"})"), 2);
+  EXPECT_EQ(Sample(text, "tessera_video_encode_milliseconds_count"), 3);
   EXPECT_EQ(Sample(text, R"(tessera_frames_total{kind="render",profile="interactive"})"), 1);
   EXPECT_EQ(Sample(text, R"(tessera_frames_total{kind="render",profile="full"})"), 0);
   EXPECT_EQ(Sample(text, "tessera_frames_dropped_total"), 2);
