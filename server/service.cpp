@@ -11,6 +11,7 @@
 #include "renderer/scene/gltf_import.h"
 #include "server/convert.h"
 #include "common/job_spec.h"
+#include "common/video.h"
 #include "server/jobs.h"
 #include "server/metrics.h"
 #include "server/upload.h"
@@ -385,6 +386,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
     r->set_unhealthy_reason(h.reason);
   }
   for (std::string_view e : SupportedGltfExtensions()) r->add_gltf_extensions(std::string(e));
+  if (video::HardwareEncoderAvailable()) r->add_video_encoders("h264_nvenc");
+  r->add_video_encoders("libx264");
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }

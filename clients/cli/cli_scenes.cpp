@@ -87,6 +87,7 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
                HumanBytes(l.max_chunk_bytes()));
   absl::PrintF("assets     %s\n", WrapList(ImportLimitsSummary(l.scene_import()), 11));
   absl::PrintF("glTF       %s\n", WrapList(absl::StrJoin(info.gltf_extensions(), ", "), 11));
+  absl::PrintF("video      jpeg, h264 (%s)\n", absl::StrJoin(info.video_encoders(), ", "));
   absl::PrintF("choices    aa        %s\n", absl::StrJoin(c.aa(), "|"));
   absl::PrintF("           samples   %s\n", JoinNumbers(c.samples()));
   absl::PrintF("           culling   %s\n", absl::StrJoin(c.culling(), "|"));

@@ -459,6 +459,15 @@ TEST_F(VideoStreamTest, ARestingCameraSendsNothingAfterItsRefinementFrame) {
       << "interactive frames are coded coarser than the refinement frame";
 }
 
+TEST_F(VideoStreamTest, ServerInfoListsTheEncoders) {
+  grpc::ClientContext ctx;
+  v1::ServerInfo info;
+  ASSERT_TRUE(stub_->GetServerInfo(&ctx, {}, &info).ok());
+  ASSERT_FALSE(info.video_encoders().empty());
+  EXPECT_EQ(info.video_encoders(info.video_encoders_size() - 1), "libx264");
+  EXPECT_EQ(info.video_encoders(0) == "h264_nvenc", video::HardwareEncoderAvailable());
+}
+
 TEST_F(VideoStreamTest, BadVideoSettingsAreInvalidArgumentNamingTheField) {
   auto refused = [&](v1::ClientEvent open) {
     grpc::ClientContext ctx;
