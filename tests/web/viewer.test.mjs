@@ -8,17 +8,13 @@
 // (default: a temp directory).
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
+import { freePort, launchChromium, watchErrors } from './browser.mjs';
 import fs from 'node:fs';
-import net from 'node:net';
 import os from 'node:os';
 import path from 'node:path';
-import { createRequire } from 'node:module';
-import { ASSETS, WEB_DIR, startGateway, startTesserad } from '../../clients/web/test/harness.js';
+import { ASSETS, startGateway, startTesserad } from '../../clients/web/test/harness.js';
 
-const require = createRequire(path.join(WEB_DIR, 'package.json'));
-const { chromium } = require('playwright-core');
 
-const CHROMIUM = process.env.CHROMIUM || '/usr/bin/chromium';
 const ARTIFACTS = process.env.TESSERA_WEB_ARTIFACTS || fs.mkdtempSync(path.join(os.tmpdir(), 'tessera-web-artifacts-'));
 fs.mkdirSync(ARTIFACTS, { recursive: true });
 
@@ -27,32 +23,14 @@ const pageErrors = [];
 const opsSent = [];  // the "op" of every request the main page sent to the gateway
 
 /** Collects a page's script errors (all pages of the test share the list). */
-function watchErrors(p) {
-  p.on('pageerror', (err) => pageErrors.push(`pageerror: ${err.message}`));
-  p.on('console', (msg) => { if (msg.type() === 'error') pageErrors.push(`console: ${msg.text()}`); });
-}
-
-async function freePort() {
-  return new Promise((resolve) => {
-    const s = net.createServer().listen(0, '127.0.0.1', () => {
-      const { port } = s.address();
-      s.close(() => resolve(port));
-    });
-  });
-}
-
 before(async () => {
   tesserad = await startTesserad();
   gatewayPort = await freePort();
   gateway = await startGateway(tesserad.address, ['--listen', `127.0.0.1:${gatewayPort}`]);
-  browser = await chromium.launch({
-    executablePath: CHROMIUM,
-    args: ['--no-sandbox', '--disable-gpu', '--disable-background-networking', '--disable-component-update',
-      '--disable-sync', '--no-first-run', '--disable-quic'],
-  });
+  browser = await launchChromium();
   context = await browser.newContext({ viewport: { width: 800, height: 500 }, acceptDownloads: true });
   page = await context.newPage();
-  watchErrors(page);
+  watchErrors(page, pageErrors);
   page.on('websocket', (ws) => ws.on('framesent', ({ payload }) => {
     if (typeof payload !== 'string') return;
     try {
@@ -247,7 +225,7 @@ test('at 1280x800 the stats overlay shows fps, latency, bitrate and the chart in
   assert.equal(await page.isHidden('#overlay'), true, 'I typed in a field toggled the overlay');
   await page.evaluate(() => document.activeElement.blur());
   const second = await context.newPage();
-  watchErrors(second);
+  watchErrors(second, pageErrors);
   await second.goto(gateway.url);
   await second.waitForFunction(() => window.tessera.frames > 0, null, { timeout: 60_000 });
   assert.equal(await second.isHidden('#overlay'), true, 'the overlay state was not remembered');
@@ -432,7 +410,7 @@ test('a .gltf chosen without its files: one sentence on what to do, the files fo
 /** A fresh page at 1280x800 opened on the gateway with `hash`. */
 async function openPage(hash) {
   const p = await context.newPage();
-  watchErrors(p);
+  watchErrors(p, pageErrors);
   await p.setViewportSize({ width: 1280, height: 800 });
   await p.goto(`${gateway.url}${hash}`);
   return p;

@@ -40,6 +40,12 @@ function show(value) {
   return text.length > 60 ? `${text.slice(0, 57)}...` : text;
 }
 
+/** An event id the page sent, as a number; null when it is not one (it may be a string). */
+function safeEventId(value) {
+  const n = Number(value ?? 0);
+  return Number.isSafeInteger(n) && n >= 0 ? n : null;
+}
+
 /** The Frame as JSON, without its image: what a binary frame message's header carries. */
 export function frameHeader(frame) {
   const { data, ...rest } = frame;
@@ -72,7 +78,7 @@ export class Connection {
   constructor(ws, ctx) {
     this.ws = ws;
     this.ctx = ctx;
-    this.streams = new Map(); // id -> { stream: BridgedStream, sender: LatestSender }
+    this.streams = new Map(); // id -> { stream: BridgedStream, sender: LatestSender, closing, eventId }
     this.renders = new Map(); // id -> call
     this.uploads = new Map(); // id -> upload state
     this.closed = false;
@@ -253,21 +259,37 @@ export class Connection {
     let stream = token ? this.ctx.parked.take(token) : null;
     const resumed = stream !== null;
     if (!stream) stream = new BridgedStream(this.ctx.client.Stream(this.ctx.metadata()));
-    const sender = new LatestSender((data, done) => {
+    // The newest event id the page sent on this stream: the gateway's own events reuse it.
+    const entry = { stream, sender: null, closing: false, eventId: safeEventId(first.event_id) ?? 0 };
+    const write = (event) => {
+      if (!entry.closing && !stream.ended) stream.call.write(event);
+    };
+    // A page that takes over a stream has a new decoder: video frames wait for the keyframe the
+    // resume asks for below.
+    entry.sender = new LatestSender((data, done) => {
       if (this.closed || this.ws.readyState !== this.ws.OPEN) return done(new Error('closed'));
       this.ws.send(data, done);
+    }, {
+      requestKeyframe: () => write({ event_id: entry.eventId, keyframe: true }),
+      awaitKeyframe: resumed,
     });
-    this.streams.set(id, { stream, sender });
+    this.streams.set(id, entry);
     stream.attach({
-      frame: (frame) => sender.push(encodeBinary({ stream: id, frame: frameHeader(frame) }, frame.data)),
+      frame: (frame, videoSeq) => {
+        const header = { stream: id, frame: frameHeader(frame) };
+        const video = videoSeq > 0;
+        if (video) header.video_seq = videoSeq;
+        entry.sender.push(encodeBinary(header, frame.data), { video, keyframe: frame.keyframe === true });
+      },
       end: (status) => {
         this.streams.delete(id);
         const ok = status.code === 0;
         this.sendJson({ type: 'stream_end', stream: id, ok, ...(ok ? {} : { error: describeError(status) }) });
       },
     });
-    // A resumed session gets a full frame at once, as after tesserad's own resume.
-    stream.call.write(resumed ? { event_id: first.event_id, refresh: true } : first);
+    // A resumed session gets a full frame at once, as after tesserad's own resume; for video
+    // a keyframe, which the page's fresh decoder needs.
+    stream.call.write(resumed ? { event_id: first.event_id, refresh: true, keyframe: true } : first);
     this.reply(id, { stream: id, resumed });
   }
 
@@ -279,6 +301,9 @@ export class Connection {
     if (event.open !== undefined && event.open !== null) {
       throw invalid('event.open: only the first event opens a session');
     }
+    const eventId = safeEventId(event.event_id);
+    if (eventId !== null && eventId > entry.eventId) entry.eventId = eventId;
+    if (event.keyframe === true) entry.sender.pageAskedKeyframe();
     entry.stream.call.write(event);
   }
 

@@ -7,17 +7,26 @@
 // when its client vanishes: a grpc-js client that cancels half-closes first, which tesserad
 // rightly reads as a clean end. So the gateway parks on its side.)
 
-/** One gRPC Stream call; frames and the end go to whichever page is attached. */
+/**
+ * One gRPC Stream call; frames and the end go to whichever page is attached. Video frames
+ * (VIDEO_H264) are counted as they come from tesserad (1, 2, 3, ..., over the stream's life,
+ * parked time included): the page gets each with its number (`video_seq`), so it can tell a gap
+ * the gateway made (always followed by a keyframe, see latest.js) from one it did not expect.
+ * Frame.sequence cannot tell: tesserad skips sequence numbers for frames it replaced before
+ * encoding them, which no decoder missed.
+ */
 export class BridgedStream {
   constructor(call) {
     this.call = call;
     this.token = '';
-    this.sink = null; // { frame(frame), end(status) }
+    this.sink = null; // { frame(frame, videoSeq), end(status) }
     this.ended = false;
     this.onEnded = null; // set while parked
+    this.videoFrames = 0;
     call.on('data', (frame) => {
       if (frame.session_token) this.token = frame.session_token;
-      this.sink?.frame(frame);
+      const videoSeq = frame.encoding === 'VIDEO_H264' ? ++this.videoFrames : 0;
+      this.sink?.frame(frame, videoSeq);
     });
     call.on('error', () => {}); // reported by 'status'
     call.on('status', (status) => {

@@ -4,9 +4,10 @@
 //   chart.js     per-pass timing chart, fps, bitrate, latency and the stats text
 //   settings.js  the settings panel, in sections, from the server's description
 //   upload.js    which files an upload needs, its scene id, and sending them
+//   video.js     H.264 streams: whether the browser decodes them, one VideoDecoder per stream
 // Sections below: state, errors and status, the stream session, frames, camera input,
-// the view in the URL, stats overlay and fullscreen, viewport size, settings panel, scenes and
-// uploads, test hooks, start-up.
+// the view in the URL, stats overlay and fullscreen, viewport size, settings panel, the codec,
+// scenes and uploads, test hooks, start-up.
 // Nothing is global except window.tessera (the hooks the headless-browser tests read).
 
 import { Connection } from './protocol.js';
@@ -22,6 +23,7 @@ import {
   UploadError, checkLimits, collectDropped, collectInput, computeSceneId, formatBytes, planUpload,
   readSceneJson, sendUpload,
 } from './upload.js';
+import { VideoStream, h264Unsupported } from './video.js';
 
 const $ = (id) => document.getElementById(id);
 const ui = {
@@ -37,6 +39,8 @@ const ui = {
   uploadCancel: $('upload-cancel'), uploadNote: $('upload-note'), sceneWarnings: $('scene-warnings'),
   resolution: $('resolution'), resolutionField: $('resolution-field'), settings: $('settings'),
   notes: $('notes'),
+  codec: $('codec'), codecField: $('codec-field'), crf: $('video-crf'), crfField: $('crf-field'),
+  codecNote: $('codec-note'),
   interactiveEnabled: $('interactive-enabled'), interactiveScale: $('interactive-scale'),
   interactiveQuality: $('interactive-quality'),
   chart: $('chart'), chartLegend: $('chart-legend'), stats: $('stats'),
@@ -85,6 +89,10 @@ const state = {
   userSettings: {},      // RenderSettings fields the user changed
   interactive: null,     // the InteractiveProfile the user set
   renderSize: null,      // {width, height} last sent
+  videoWanted: 'jpeg',   // the Codec control: 'jpeg' or 'h264' (remembered)
+  crf: 23,               // H.264 quality, 0..51 (remembered)
+  codec: 'jpeg',         // what the stream is asked for: 'h264' only where this browser decodes it
+  h264Refused: '',       // why H.264 cannot be used after all (the decoder or the server refused)
   confirmed: {},         // the last frame's effective settings
   pendingFields: new Map(),  // setting name -> event id of its last change
   sentEvents: new Map(),     // request id of a recent event -> {stream, names: settings changed}
@@ -102,7 +110,10 @@ const state = {
   framesDrawn: 0,
   lastFrame: null,       // FrameHeader of the frame shown
   lastPayload: null,     // its encoded bytes
-  lastBitmap: null,
+  lastImage: null,       // what is drawn: an ImageBitmap, or a VideoFrame (H.264), until replaced
+  decodeMs: null,        // of the frame shown: payload in, picture out
+  video: null,           // {gen, stream: VideoStream}: the current stream's H.264 decoder
+  keyframeRequests: 0,   // keyframes the page asked for (its decoder lost its place)
   decodeFailed: false,
   chartDirty: false,
 
@@ -189,7 +200,10 @@ async function onSocketOpen() {
   if (firstTime) {
     // A CPU device (lavapipe) renders full device pixels slowly: start at half resolution.
     ui.resolution.value = state.info.device?.type === 'cpu' ? '50' : '100';
-    panel.build(result.schema ?? [], state.info, { image: [ui.resolutionField] });
+    panel.build(result.schema ?? [], state.info, {
+      image: [ui.resolutionField],
+      encoding: [ui.codecField, ui.crfField, ui.codecNote],
+    });
     restoreSections();
   }
   await refreshScenes();
@@ -197,6 +211,7 @@ async function onSocketOpen() {
     applyLink(state.pendingLink);
     state.pendingLink = null;
   }
+  await resolveCodec();
   if (epoch === state.epoch) await startStream({ resume: true });
 }
 
@@ -234,6 +249,7 @@ function freshOpen() {
     if (state.fovSet) open.camera = cameraMessage({});  // framed, with the link's field of view
   }
   if (state.interactive) open.interactive = { ...state.interactive };
+  if (state.codec === 'h264') open.video = videoMessage();
   return open;
 }
 
@@ -246,6 +262,7 @@ function stopStream() {
   state.streamId = null;
   state.receiving = false;
   state.resuming = false;
+  closeVideo();  // a new stream is a new video: its decoder starts from a keyframe
   latency.reset();
 }
 
@@ -288,7 +305,7 @@ async function startStream({ resume }) {
 
 /** After a resume, what changed while the stream was down goes to the session in one event. */
 function resyncSession() {
-  const event = { settings: { ...state.userSettings, ...renderSize() } };
+  const event = { settings: { ...state.userSettings, ...renderSize() }, video: videoMessage() };
   if (state.camera && !state.cameraInitAfter) event.camera = cameraMessage();
   if (state.interactive) event.interactive = { ...state.interactive };
   state.cameraDirty = false;
@@ -305,8 +322,11 @@ function onStreamFailed(err) {
     return;
   }
   if (err.code === 'ABORTED') state.token = null;  // another stream took the session over
-  // Do not send a refused value again: first the settings, then (if those were not it) the camera.
-  if (err.code === 'INVALID_ARGUMENT' && !revertSettings()) {
+  if (state.codec === 'h264' && !isTransient(err.code) && /\bvideo\b|\bh264\b|H\.264/i.test(err.message ?? '')) {
+    // The server cannot stream H.264 (no encoder, a refused video setting): pictures, then.
+    fallBackToJpeg(`the server refused it (${err.message})`);
+  } else if (err.code === 'INVALID_ARGUMENT' && !revertSettings()) {
+    // Do not send a refused value again: first the settings, then (if those were not it) the camera.
     state.camera = null;
     state.linkLookAt = null;
     state.fovSet = false;
@@ -436,6 +456,11 @@ function onFrame({ header, payload }) {
   bitrate.add(now, payload.byteLength);
   const latencyMs = latency.frameArrived(Number(frame.event_id ?? 0), now);
   maybeInitCamera(frame);
+  if (frame.encoding === 'VIDEO_H264') {
+    decodeVideo(state.gen, header, payload, latencyMs);
+    return;
+  }
+  closeVideo();  // a picture: the video before it ended (the codec changed)
   decodeAndDraw(state.gen, frame, payload, latencyMs).catch((err) => {
     if (!state.decodeFailed) showError(err, 'A frame could not be shown');
     state.decodeFailed = true;  // once is enough: the next frames would say the same
@@ -444,17 +469,61 @@ function onFrame({ header, payload }) {
 
 async function decodeAndDraw(gen, frame, payload, latencyMs) {
   const type = frame.encoding === 'IMAGE_PNG' ? 'image/png' : 'image/jpeg';
+  const started = performance.now();
   const bitmap = await createImageBitmap(new Blob([payload], { type }));
+  showImage(gen, bitmap, frame, payload, latencyMs, performance.now() - started);
+}
+
+/**
+ * An H.264 frame to the stream's decoder (one per stream, from its first frame); what it
+ * decodes is drawn by showImage. A decoder that lost its place asks for a keyframe while the
+ * page wants H.264 (frames still coming after a switch to JPEG need none).
+ */
+function decodeVideo(gen, header, payload, latencyMs) {
+  if (typeof window.VideoDecoder !== 'function') {
+    fallBackToJpeg('this browser has no WebCodecs video decoder');
+    return;
+  }
+  if (state.video?.gen !== gen) {
+    closeVideo();
+    const stream = new VideoStream({
+      onFrame: (videoFrame, meta, decodeMs) =>
+        showImage(gen, videoFrame, meta.frame, meta.payload, meta.latencyMs, decodeMs),
+      onKeyframeNeeded: () => {
+        if (gen !== state.gen || state.codec !== 'h264') return;
+        if (sendEvent({ keyframe: true }) !== null) state.keyframeRequests++;
+      },
+      onUnsupported: (reason) => {
+        if (gen === state.gen) fallBackToJpeg(reason);
+      },
+    });
+    state.video = { gen, stream };
+  }
+  const frame = header.frame;
+  state.video.stream.push(frame, header.video_seq, payload, { frame, payload, latencyMs });
+}
+
+function closeVideo() {
+  state.video?.stream.close();
+  state.video = null;
+}
+
+/**
+ * Shows a decoded frame (an ImageBitmap, or a VideoFrame: either is closed once replaced)
+ * unless a newer one is shown already, and updates what shows frame data.
+ */
+function showImage(gen, image, frame, payload, latencyMs, decodeMs) {
   const sequence = Number(frame.sequence ?? 0);
   // Decodes finish out of order: never replace a newer frame, never draw an old stream's.
   if (gen !== state.gen || sequence <= state.drawnSeq) {
-    bitmap.close();
+    image.close();
     return;
   }
   state.drawnSeq = sequence;
   state.decodeFailed = false;
-  state.lastBitmap?.close();
-  state.lastBitmap = bitmap;
+  state.lastImage?.close();
+  state.lastImage = image;
+  state.decodeMs = decodeMs;
   drawLastFrame();
   state.framesDrawn++;
   state.lastFrame = frame;
@@ -471,9 +540,9 @@ async function decodeAndDraw(gen, frame, payload, latencyMs) {
 
 function drawLastFrame() {
   const ctx = ui.view.getContext('2d');
-  if (!state.lastBitmap || !ctx) return;
+  if (!state.lastImage || !ctx) return;
   ctx.imageSmoothingQuality = 'high';
-  ctx.drawImage(state.lastBitmap, 0, 0, ui.view.width, ui.view.height);
+  ctx.drawImage(state.lastImage, 0, 0, ui.view.width, ui.view.height);
 }
 
 /** The orbit starts from the server's camera: on a new stream, and after reset view. */
@@ -502,6 +571,7 @@ function renderStats() {
     fps: fps.label(now),
     latencyMs: latency.median(),
     bitrate: bitrate.label(now),
+    decodeMs: state.decodeMs,
   });
   const main = [];
   const more = [];
@@ -513,16 +583,34 @@ function renderStats() {
   statsMoreBox.hidden = more.length === 0;
 }
 
-function saveImage() {
+/**
+ * "Save image": the frame shown, as the server encoded it (JPEG or PNG); an H.264 frame is no
+ * image file, so the picture decoded from it is saved as a PNG at the frame's size.
+ */
+async function saveImage() {
   const frame = state.lastFrame;
   if (!frame || !state.lastPayload) return;
+  const name = `tessera-${short(frame.scene_id || state.sceneId)}-${frame.sequence ?? 0}`;
+  if (frame.encoding === 'VIDEO_H264') {
+    if (!state.lastImage) return;
+    const canvas = el('canvas');
+    canvas.width = Number(frame.width) || ui.view.width;
+    canvas.height = Number(frame.height) || ui.view.height;
+    canvas.getContext('2d').drawImage(state.lastImage, 0, 0, canvas.width, canvas.height);
+    const blob = await new Promise((resolve) => canvas.toBlob(resolve, 'image/png'));
+    if (!blob) throw new Error('the picture could not be encoded as PNG');
+    download(blob, `${name}.png`);
+    return;
+  }
   const png = frame.encoding === 'IMAGE_PNG';
-  const blob = new Blob([state.lastPayload], { type: png ? 'image/png' : 'image/jpeg' });
+  download(new Blob([state.lastPayload], { type: png ? 'image/png' : 'image/jpeg' }), `${name}.${png ? 'png' : 'jpg'}`);
+}
+
+function download(blob, filename) {
   const url = URL.createObjectURL(blob);
   const a = el('a');
   a.href = url;
-  const scene8 = short(frame.scene_id || state.sceneId);
-  a.download = `tessera-${scene8}-${frame.sequence ?? 0}.${png ? 'png' : 'jpg'}`;
+  a.download = filename;
   document.body.append(a);
   a.click();
   a.remove();
@@ -881,7 +969,10 @@ function onViewportResize() {
   resizeTimer = setTimeout(apply, RESIZE_DEBOUNCE_MS);
 }
 
-/** Canvas pixels x the resolution choice, scaled down (same aspect) to the server's limits. */
+/**
+ * Canvas pixels x the resolution choice, scaled down (same aspect) to the server's limits; for
+ * H.264 rounded down to even sizes of 16 or more, the only ones the server codes.
+ */
 function renderSize() {
   const scale = Number(ui.resolution.value) / 100 || 1;
   const width = Math.max(1, Math.round(ui.view.width * scale));
@@ -889,10 +980,16 @@ function renderSize() {
   const maxW = Number(state.info?.limits?.max_width) || 16384;
   const maxH = Number(state.info?.limits?.max_height) || 16384;
   const fit = Math.min(1, maxW / width, maxH / height);
-  return {
+  const size = {
     width: Math.max(1, Math.min(maxW, Math.floor(width * fit))),
     height: Math.max(1, Math.min(maxH, Math.floor(height * fit))),
   };
+  if (state.codec === 'h264') {
+    const even = (v, max) => Math.min(max - (max % 2), Math.max(16, v - (v % 2)));
+    size.width = even(size.width, maxW);
+    size.height = even(size.height, maxH);
+  }
+  return size;
 }
 
 function applyRenderSize() {
@@ -917,6 +1014,98 @@ function onInteractiveChanged() {
   if (render_scale === undefined || jpeg_quality === undefined) return;
   state.interactive = { enabled: ui.interactiveEnabled.checked, render_scale, jpeg_quality };
   sendEvent({ interactive: { ...state.interactive } });
+}
+
+// ---------------------------------------------------------------------------------------------
+// The codec: JPEG pictures, or an H.264 video where this browser decodes it (WebCodecs)
+
+const STORAGE_VIDEO = 'tessera.video';
+let h264Check = null;  // the browser's answer, asked once
+
+/** The VideoSettings the session gets: the codec in use, and the quality for H.264. */
+function videoMessage() {
+  return state.codec === 'h264'
+    ? { codec: 'VIDEO_CODEC_H264', crf: state.crf }
+    : { codec: 'VIDEO_CODEC_JPEG' };
+}
+
+/** The Codec choice and CRF as last left in this browser. */
+function loadVideoChoice() {
+  try {
+    const saved = JSON.parse(loadStored(STORAGE_VIDEO) ?? 'null');
+    if (saved?.codec === 'h264' || saved?.codec === 'jpeg') state.videoWanted = saved.codec;
+    if (Number.isInteger(saved?.crf) && saved.crf >= 0 && saved.crf <= 51) state.crf = saved.crf;
+  } catch {
+    // unreadable: the defaults
+  }
+  ui.codec.value = state.videoWanted;
+  ui.crf.value = String(state.crf);
+  syncCodecUi();
+}
+
+function syncCodecUi() {
+  ui.crfField.hidden = state.videoWanted !== 'h264';
+  ui.crf.disabled = state.codec !== 'h264';
+}
+
+/** The note under the Codec control ('' hides it): why H.264 is not used. */
+function setCodecNote(text) {
+  ui.codecNote.textContent = text;
+  ui.codecNote.hidden = text === '';
+}
+
+/**
+ * Decides the codec the stream is asked for: H.264 when it is chosen, the server has an encoder
+ * (ServerInfo.video_encoders; none from a server without video) and this browser decodes it;
+ * else JPEG, with a note saying why. Returns whether it changed.
+ */
+async function resolveCodec() {
+  let codec = 'jpeg';
+  let why = '';
+  if (state.videoWanted === 'h264') {
+    h264Check ??= h264Unsupported(window);
+    const encoders = Array.isArray(state.info?.video_encoders) ? state.info.video_encoders : [];
+    if (state.h264Refused) why = state.h264Refused;
+    else if (encoders.length === 0) why = 'the server has no H.264 encoder';
+    else why = await h264Check;
+    if (!why) codec = 'h264';
+  }
+  setCodecNote(why ? `H.264 is not used: ${why}. Showing JPEG.` : '');
+  const changed = codec !== state.codec;
+  state.codec = codec;
+  syncCodecUi();
+  return changed;
+}
+
+/** Tells the session the codec in use, with the render size it needs (even for H.264). */
+function sendVideo() {
+  const size = renderSize();
+  if (sendEvent({ video: videoMessage(), settings: size }) !== null) state.renderSize = size;
+}
+
+async function onCodecChanged() {
+  state.videoWanted = ui.codec.value === 'h264' ? 'h264' : 'jpeg';
+  saveStored(STORAGE_VIDEO, JSON.stringify({ codec: state.videoWanted, crf: state.crf }));
+  if (await resolveCodec()) sendVideo();
+}
+
+function onCrfChanged() {
+  const crf = validNumber(ui.crf, { min: 0, max: 51 }, true);
+  if (crf === undefined) return;
+  state.crf = crf;
+  saveStored(STORAGE_VIDEO, JSON.stringify({ codec: state.videoWanted, crf }));
+  if (state.codec === 'h264') sendEvent({ video: { crf } });
+}
+
+/** H.264 cannot be used after all (the decoder or the server refused it): JPEG, with a note. */
+function fallBackToJpeg(reason) {
+  state.h264Refused = reason;
+  if (state.codec !== 'h264') return;
+  state.codec = 'jpeg';
+  setCodecNote(`H.264 is not used: ${reason}. Showing JPEG.`);
+  syncCodecUi();
+  closeVideo();
+  sendVideo();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -1119,6 +1308,9 @@ window.tessera = {
   },
   camera() { return state.camera ? state.camera.lookAt() : null; },
   errors: state.errors,
+  get codec() { return state.codec; },  // what the stream is asked for: 'jpeg' or 'h264'
+  get decodeMs() { return state.decodeMs; },  // the frame shown: payload in, picture out
+  get keyframeRequests() { return state.keyframeRequests; },
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1172,6 +1364,8 @@ function wire() {
   installDropTarget();
 
   ui.resolution.addEventListener('change', guard(onViewportResize));
+  ui.codec.addEventListener('change', guard(onCodecChanged, 'Could not change the codec'));
+  ui.crf.addEventListener('change', guard(onCrfChanged, 'Could not change the video quality'));
   for (const input of [ui.interactiveEnabled, ui.interactiveScale, ui.interactiveQuality]) {
     input.addEventListener('change', guard(onInteractiveChanged, 'Could not apply the profile'));
   }
@@ -1194,6 +1388,7 @@ const overlayStored = loadStored(STORAGE_OVERLAY);
 setOverlay(overlayStored === null ? !narrow : overlayStored === '1', false);
 ui.fullscreen.hidden = !document.fullscreenEnabled;  // iPhone Safari, some embedded views
 if (startLink.problems.length > 0) setLinkNote(`Ignored in the link: ${startLink.problems.join('; ')}.`);
+loadVideoChoice();
 wire();
 onViewportResize();
 renderStats();

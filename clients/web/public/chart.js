@@ -324,14 +324,30 @@ export function formatMs(ms) {
 const count = (n) => (Number.isFinite(Number(n)) ? Number(n).toLocaleString('en-US') : '–');
 
 /** The rows of statsRows the overlay always shows; the others fold away under "More". */
-export const MAIN_STATS = new Set(['fps', 'latency (median)', 'bitrate', 'frame size', 'resolution', 'GPU total']);
+// (Each row more moves "More", which takes clicks, down over the picture's centre, where a
+// drag should orbit: the decode time is folded away.)
+export const MAIN_STATS = new Set([
+  'fps', 'latency (median)', 'bitrate', 'codec', 'frame size', 'resolution', 'GPU total',
+]);
+
+/**
+ * How a frame is coded, as the stats show it: "jpeg", "png", or for video the codec string and
+ * the encoder, "h264 avc1.64001f (libx264)".
+ */
+export function codecLabel(frame) {
+  if (frame.encoding === 'VIDEO_H264') {
+    const encoder = frame.encoder ? ` (${frame.encoder})` : '';
+    return `h264 ${frame.codec || '?'}${encoder}`;
+  }
+  return frame.encoding === 'IMAGE_PNG' ? 'png' : 'jpeg';
+}
 
 /**
  * The text stats of the frame shown, as [label, value] rows: fps, input-to-frame latency,
- * bitrate (a label from BitrateMeter), size, resolution, profile, GPU time and the frame's
- * draw stats.
+ * bitrate (a label from BitrateMeter), codec, decode time (the page's: payload in, picture
+ * out), size, resolution, profile, GPU time and the frame's draw stats.
  */
-export function statsRows(frame, { fps = 0, latencyMs = null, bitrate = '–' } = {}) {
+export function statsRows(frame, { fps = 0, latencyMs = null, bitrate = '–', decodeMs = null } = {}) {
   const rows = [
     ['fps', typeof fps === 'string' ? fps : fps.toFixed(1)],
     ['latency (median)', latencyMs === null ? '–' : `${formatMs(latencyMs)} ms`],
@@ -345,6 +361,8 @@ export function statsRows(frame, { fps = 0, latencyMs = null, bitrate = '–' } 
   const stats = frame.stats ?? {};
   const wallClock = frame.timing_source === 'TIMING_PASS_WALL_CLOCK' ? ' (wall clock)' : '';
   rows.push(
+    ['codec', codecLabel(frame)],
+    ['decode', Number.isFinite(decodeMs) ? `${formatMs(decodeMs)} ms` : '–'],
     ['frame size', `${(bytes / 1024).toFixed(1)} KB (${count(bytes)} bytes)`],
     ['resolution', rendered === shown ? shown : `${rendered} → ${shown}`],
     ['profile', frame.profile || 'full'],

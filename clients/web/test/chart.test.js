@@ -57,3 +57,17 @@ test('the chart\'s grid lines fall on round numbers', () => {
     assert.ok(Number.isInteger(Number((step * 100).toPrecision(6))), `${max}: step ${step}`);
   }
 });
+
+test('statsRows: the codec (with the video codec string and encoder) and the decode time', () => {
+  const row = (frame, opts) => Object.fromEntries(statsRows(frame, opts));
+  const jpeg = row({ encoding: 'IMAGE_JPEG', bytes: 100 }, { decodeMs: 2.345 });
+  assert.equal(jpeg.codec, 'jpeg');
+  assert.equal(jpeg.decode, '2.3 ms');
+  assert.equal(row({ encoding: 'IMAGE_PNG' }).codec, 'png');
+  assert.equal(row({ encoding: 'IMAGE_PNG' }).decode, '–');
+  const video = row({ encoding: 'VIDEO_H264', codec: 'avc1.64001f', encoder: 'libx264', keyframe: false }, { decodeMs: 0.5 });
+  assert.equal(video.codec, 'h264 avc1.64001f (libx264)');
+  assert.equal(video.decode, '0.50 ms');
+  assert.equal(row({ encoding: 'VIDEO_H264' }).codec, 'h264 ?');
+  assert.ok(MAIN_STATS.has('codec'));
+});

@@ -4,7 +4,8 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { EventEmitter } from 'node:events';
 import { Connection, UploadBudget } from '../lib/connection.js';
-import { binaryMessage } from './harness.js';
+import { BridgedStream } from '../lib/streams.js';
+import { binaryMessage, splitBinary } from './harness.js';
 
 function fakePage() {
   const ws = new EventEmitter();
@@ -99,4 +100,77 @@ test('renders are refused while the page does not read its frames', () => {
   ws.text({ id: 1, op: 'render', request: {} });
   assert.equal(ws.replies(1)[0].error.code, 'RESOURCE_EXHAUSTED');
   assert.match(ws.replies(1)[0].error.message, /not reading/);
+});
+
+/** A fake tesserad Stream call: what the gateway writes, and frames to emit. */
+function fakeStreamCall() {
+  const call = new EventEmitter();
+  call.written = [];
+  call.write = (event) => { call.written.push(event); return true; };
+  call.end = () => { call.ended = true; };
+  call.cancel = () => {};
+  return call;
+}
+
+function streamContext(overrides = {}) {
+  const { ctx } = fakeContext(overrides);
+  const calls = [];
+  ctx.client.Stream = Object.assign(() => {
+    const call = fakeStreamCall();
+    calls.push(call);
+    return call;
+  }, { requestSerialize: () => Buffer.alloc(0) });
+  return { ctx, calls };
+}
+
+const h264 = (sequence, keyframe) => ({
+  sequence, encoding: 'VIDEO_H264', keyframe, codec: 'avc1.64000d', data: Buffer.from([0, 0, 0, 1, sequence]),
+});
+const framesSent = (ws) => ws.sent.filter((m) => Buffer.isBuffer(m)).map((m) => splitBinary(m).header);
+
+test('a page that falls behind on video: the gateway drops to the next keyframe and asks for it with the page\'s newest event id', () => {
+  const { ctx, calls } = streamContext();
+  const ws = fakePage();
+  const held = [];
+  ws.send = (data, done) => {
+    ws.sent.push(typeof data === 'string' ? JSON.parse(data) : data);
+    if (done) held.push(done);  // frames stay in the socket until the test lets them go
+  };
+  new Connection(ws, ctx);
+  ws.text({ id: 1, op: 'open', open: { scene_id: 'demo', video: { codec: 'VIDEO_CODEC_H264' } }, event_id: 3 });
+  const call = calls[0];
+  assert.deepEqual(call.written[0].open.video, { codec: 'VIDEO_CODEC_H264' });
+  ws.text({ id: 2, op: 'event', stream: 1, event: { event_id: 9, refresh: true } });
+  ws.text({ id: 3, op: 'event', stream: 1, event: { event_id: 'x7' } });  // not a number: not the newest
+  call.emit('data', h264(1, true));
+  for (let s = 2; s <= 6; s++) call.emit('data', h264(s, false));  // 3 wait, then one too many
+  call.emit('data', h264(7, false));
+  const asks = call.written.filter((e) => e.keyframe);
+  assert.deepEqual(asks, [{ event_id: 9, keyframe: true }]);
+  while (held.length > 0) held.shift()();
+  assert.deepEqual(framesSent(ws).map((h) => [h.frame.sequence, h.video_seq]), [[1, 1]]);
+  call.emit('data', h264(9, true));
+  call.emit('data', { ...h264(10, false), encoding: 'IMAGE_JPEG', data: Buffer.from([0xff, 0xd8]) });
+  while (held.length > 0) held.shift()();
+  // The gap in video_seq (1 -> 8) lands on a keyframe; pictures carry no video_seq.
+  assert.deepEqual(framesSent(ws).map((h) => [h.frame.sequence, h.video_seq]), [[1, 1], [9, 8], [10, undefined]]);
+});
+
+test('a page taking over its stream: refresh and keyframe in one event, and no video before the keyframe', () => {
+  const { ctx, calls } = streamContext();
+  const parked = new BridgedStream(fakeStreamCall());
+  parked.call.emit('data', { ...h264(4, true), session_token: 'tok' });  // while its page was away
+  ctx.parked = { take: (token) => (token === 'tok' ? parked : null), park() {} };
+  const ws = fakePage();
+  new Connection(ws, ctx);
+  ws.text({ id: 5, op: 'open', open: { resume_token: 'tok' }, event_id: 12 });
+  assert.equal(calls.length, 0, 'a held stream was opened again at tesserad');
+  assert.deepEqual(ws.replies(5)[0].result, { stream: 5, resumed: true });
+  assert.deepEqual(parked.call.written, [{ event_id: 12, refresh: true, keyframe: true }]);
+  parked.call.emit('data', h264(5, false));  // made before the keyframe asked for: useless
+  parked.call.emit('data', h264(6, true));
+  parked.call.emit('data', h264(7, false));
+  assert.deepEqual(framesSent(ws).map((h) => [h.stream, h.frame.sequence, h.video_seq, h.frame.keyframe]),
+    [[5, 6, 3, true], [5, 7, 4, false]]);
+  assert.equal(parked.call.written.length, 1, 'the resume asked already');
 });
