@@ -2,7 +2,7 @@
 # Installs dependencies, then
 #  1. builds with the asan preset (ASan + UBSan, LeakSanitizer on) and runs every test labelled
 #     `asan`: the parsers of client input (glTF, images, requests, with the fuzz regression
-#     cases) and every RPC handler (the in-process server, service and job tests);
+#     cases) and every RPC handler (the in-process server, service, job and video tests);
 #  2. fuzzes each libFuzzer target for $FUZZ_SECONDS (30) on its corpus (tests/fuzz/run.sh);
 #  3. builds everything with the default preset (RelWithDebInfo) and runs every test with ctest,
 #     the web viewer's too (its Node packages come from clients/web/package-lock.json, `npm ci`)
@@ -19,6 +19,7 @@ export TESSERA_ASSETS_DIR="${TESSERA_ASSETS_DIR:-$PWD/../shared/assets}"
 cmake --preset asan
 cmake --build --preset asan -j "$jobs" --target scene_tests image_tests renderer_unit_tests \
   server_unit_tests server_integration_tests service_integration_tests job_integration_tests \
+  video_integration_tests \
   fuzz_gltf fuzz_image fuzz_request tesserad tessera-test-dying-client
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 \
   LSAN_OPTIONS="suppressions=$PWD/tests/lsan.supp:print_suppressions=0" \
