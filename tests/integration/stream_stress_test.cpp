@@ -1,6 +1,7 @@
 // Stress test: eight viewers stream from one in-process server for a minute (or
 // TESSERA_STRESS_SECONDS) with mixed behaviour: continuous, event-driven, interactive profile,
-// settings changes and resizes, a cancel + resume (twice) and a half-close + fresh session.
+// settings changes and resizes, a cancel + resume (twice) and a half-close + fresh session; half
+// of them (one of each kind, and the resuming one) as H.264 video, every frame decoded.
 // It checks invariants on every frame, progress, the server's cleanup after the last client,
 // and that the process' resident memory stays bounded. It is bounded, not a timing test:
 // every wait has a limit, and nothing asserts on frame rates or latencies.
@@ -29,6 +30,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
+#include "common/video.h"
 #include "server/server.h"
 #include "tessera/v1/render_service.grpc.pb.h"
 #include "tests/integration/client_helpers.h"
@@ -118,6 +120,7 @@ struct ClientSpec {
   uint32_t seed = 0;                // std::mt19937 seed: the event schedule and settings values
   std::vector<double> resume_at;    // fractions of the run: cancel, then resume by token
   std::optional<double> reopen_at;  // fraction of the run: half-close, drain, open fresh
+  bool h264 = false;                // video.codec H264: every frame is decoded in order
 };
 
 // The eight viewers: 2 continuous, 4 event-driven, 2 with the interactive profile. Client 2
@@ -136,6 +139,7 @@ ClientSpec MakeSpec(int i) {
   s.target_fps = s.kind == Kind::kContinuous ? 20.0f + 10.0f * float(i) : 0.0f;
   s.seed = 7919u * uint32_t(i + 1);
   if (i == 2) s.resume_at = {1.0 / 3.0, 2.0 / 3.0};
+  s.h264 = i == 1 || i == 2 || i == 4 || i == 7;
   if (i == 0) s.reopen_at = 0.5;
   return s;
 }
@@ -230,6 +234,7 @@ class StressClient {
   // Results, read by the main thread after Run returned.
   const ClientSpec& spec() const { return spec_; }
   uint64_t frames() const { return total_frames_; }
+  uint64_t video_frames() const { return video_frames_; }
   uint64_t interactive_frames() const { return interactive_frames_; }
   uint64_t full_frames() const { return total_frames_ - interactive_frames_; }
   uint64_t events_sent() const { return events_sent_; }
@@ -284,6 +289,7 @@ class StressClient {
       stream_frames_ = 0;
       reader_done_ = false;
       resumed_stream_ = resume;
+      decoder_.reset();  // a new stream: its first frame must be a keyframe
       if (resume) {
         // Everything else in OpenSession is ignored; the event id is not applied either.
         open.mutable_open()->set_resume_token(token);
@@ -302,6 +308,7 @@ class StressClient {
         o->mutable_settings()->set_height(size_.h);
         o->set_target_fps(spec_.target_fps);
         OrbitEye(Orbit(), o->mutable_camera());
+        if (spec_.h264) o->mutable_video()->set_codec(v1::VIDEO_CODEC_H264);
         if (spec_.kind == Kind::kInteractive) {
           o->mutable_interactive()->set_enabled(true);
           o->mutable_interactive()->set_render_scale(0.5f);
@@ -496,6 +503,29 @@ class StressClient {
     if (spec_.kind != Kind::kInteractive && f.profile() != "full")
       fail("interactive frame without the interactive profile");
     if (f.data().empty()) fail("no image data");
+    if (spec_.h264) {
+      if (f.encoding() != v1::VIDEO_H264) fail("not an H.264 frame");
+      // A new stream, or a new size, starts a new video.
+      const bool must_be_key = !decoder_ || f.width() != decoded_w_ || f.height() != decoded_h_;
+      if (must_be_key && !f.keyframe()) fail("a new stream or size without a keyframe");
+      if (!decoder_) {
+        absl::StatusOr<std::unique_ptr<video::Decoder>> d = video::Decoder::Create();
+        if (!d.ok()) return fail(d.status().ToString());
+        decoder_ = *std::move(d);
+      }
+      absl::StatusOr<video::DecodedFrame> pic = decoder_->Decode(
+          reinterpret_cast<const uint8_t*>(f.data().data()), f.data().size());
+      if (!pic.ok()) {
+        fail(absl::StrCat("does not decode: ", pic.status().ToString()));
+      } else if (pic->width != f.width() || pic->height != f.height()) {
+        fail(absl::StrCat("decodes to ", pic->width, "x", pic->height));
+      }
+      decoded_w_ = f.width();
+      decoded_h_ = f.height();
+      ++video_frames_;
+    } else if (f.encoding() != v1::IMAGE_JPEG) {
+      fail("not a JPEG frame");
+    }
     last_seq_ = f.sequence();
     last_event_ = f.event_id();
   }
@@ -528,6 +558,9 @@ class StressClient {
   uint64_t last_event_ = 0;
   std::string token_;
   std::string previous_token_;  // of the session before a fresh reopen
+  std::unique_ptr<video::Decoder> decoder_;  // h264: this stream's, from its first keyframe
+  uint32_t decoded_w_ = 0, decoded_h_ = 0;
+  uint64_t video_frames_ = 0;
   int stream_no_ = 0;
   bool resumed_stream_ = false;
   uint64_t stream_frames_ = 0;
@@ -603,6 +636,7 @@ TEST(StreamStress, EightViewersForAMinute) {
       ends.push_back(absl::StrCat(e.cancelled ? "cancel:" : "close:", int(e.status.error_code())));
     std::cout << "{\"client\": " << s.index << ", \"kind\": \"" << KindName(s.kind)
               << "\", \"size\": \"" << s.size.w << "x" << s.size.h
+              << "\", \"codec\": \"" << (s.h264 ? "h264" : "jpeg")
               << "\", \"frames\": " << c->frames()
               << ", \"interactive_frames\": " << c->interactive_frames()
               << ", \"events_sent\": " << c->events_sent() << ", \"resumes\": " << c->resumes_ok()
@@ -610,6 +644,7 @@ TEST(StreamStress, EightViewersForAMinute) {
               << absl::StrJoin(ends, ",") << "\"}" << std::endl;
     EXPECT_GE(c->frames(), min_frames) << "client " << s.index << " (" << KindName(s.kind) << ")";
     EXPECT_EQ(c->resumes_ok(), int(s.resume_at.size())) << "client " << s.index;
+    EXPECT_EQ(c->video_frames(), s.h264 ? c->frames() : 0u) << "client " << s.index;
     EXPECT_EQ(c->reopens_ok(), s.reopen_at ? 1 : 0) << "client " << s.index;
     if (s.kind == Kind::kInteractive) {
       EXPECT_GT(c->interactive_frames(), 0u) << "client " << s.index << ": no interactive frame";
