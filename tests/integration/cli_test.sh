@@ -92,6 +92,11 @@ for r in d["results"]:
     assert lat["events"] == 3 and 0 < lat["median"] <= lat["p95"], lat
     assert r["timing_source"] in ("gpu_timestamps", "pass_wall_clock"), r
 PY
+# With --codec h264 every configuration is a video session: bitrate and keyframes per row.
+"$tessera" --json bench --suite lights --codec h264 --crf 30 --width 64 --height 48 --frames 3 \
+  --warmup 1 > "$work/out"
+json_is 'all(r["ok"] and r["codec"].startswith("avc1.") and r["bitrate_kbps"] > 0 for r in d["results"])' \
+  "bench --codec h264"
 # A configuration that fails is reported in its row; the others still run; exit 1.
 run bench --suite culling --samples 3 --width 64 --height 48 --frames 2 --warmup 0
 [[ $rc -eq 1 ]] || fail "bench with failing configurations exited $rc"
