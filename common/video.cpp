@@ -128,6 +128,16 @@ absl::StatusOr<CodecCtx> OpenEncoder(const EncoderOptions& o, bool hardware) {
 
 }  // namespace
 
+absl::Status CheckVideoSize(uint32_t w, uint32_t h) {
+  const uint64_t mbs = uint64_t{(w + 15) / 16} * ((h + 15) / 16);
+  if (w < 16 || h < 16 || w % 2 || h % 2 || w > kMaxVideoSide || h > kMaxVideoSide ||
+      mbs > kMaxVideoMacroblocks)
+    return absl::InvalidArgumentError(absl::StrCat(
+        w, "x", h, " cannot be an H.264 frame here: even sizes of 16..", kMaxVideoSide,
+        " with at most ", kMaxVideoMacroblocks, " macroblocks (level 5.2, e.g. 4096x2304)"));
+  return absl::OkStatus();
+}
+
 const std::vector<std::string>& Presets() {
   static const std::vector<std::string> kPresets = {"ultrafast", "superfast", "veryfast",
                                                     "faster",    "fast",      "medium"};
@@ -177,15 +187,13 @@ bool HardwareEncoderAvailable() {
 
 absl::StatusOr<std::unique_ptr<Encoder>> Encoder::Create(const EncoderOptions& o) {
   QuietFfmpeg();
-  if (o.width < 16 || o.height < 16 || o.width % 2 || o.height % 2 || o.width > 8192 ||
-      o.height > 8192)
-    return absl::InvalidArgumentError(absl::StrCat(
-        "H.264 frames must be 16..8192 pixels wide and high, in even numbers (asked for ",
-        o.width, "x", o.height, ")"));
+  if (absl::Status st = CheckVideoSize(o.width, o.height); !st.ok()) return st;
   if (std::find(Presets().begin(), Presets().end(), o.preset) == Presets().end())
     return absl::InvalidArgumentError(absl::StrCat("preset \"", o.preset, "\" is not one of ",
                                                    absl::StrJoin(Presets(), ", ")));
-  if (o.crf > 51) return absl::InvalidArgumentError(absl::StrCat("crf ", o.crf, " > 51"));
+  // crf 0 would be lossless, in the High 4:4:4 Predictive profile browsers do not decode.
+  if (o.crf < 1 || o.crf > 51)
+    return absl::InvalidArgumentError(absl::StrCat("crf ", o.crf, " is not in 1..51"));
   auto impl = std::make_unique<Impl>();
   impl->options = o;
   absl::StatusOr<CodecCtx> ctx = absl::UnavailableError("");
@@ -220,6 +228,8 @@ Encoder::Encoder(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 Encoder::~Encoder() = default;
 
 const char* Encoder::name() const { return impl_->hardware ? "h264_nvenc" : "libx264"; }
+bool Encoder::per_frame_crf() const { return !impl_->hardware; }
+uint32_t Encoder::crf() const { return impl_->options.crf; }
 const std::string& Encoder::codec_string() const { return impl_->codec_string; }
 uint32_t Encoder::width() const { return impl_->options.width; }
 uint32_t Encoder::height() const { return impl_->options.height; }
@@ -235,7 +245,7 @@ absl::StatusOr<Packet> Encoder::Encode(const uint8_t* rgba, size_t stride, bool 
   const int src_stride[1] = {static_cast<int>(stride)};
   sws_scale(m.sws.get(), src, src_stride, 0, static_cast<int>(m.options.height), f->data,
             f->linesize);
-  const uint32_t want_crf = std::min(crf.value_or(m.options.crf), 51u);
+  const uint32_t want_crf = std::clamp(crf.value_or(m.options.crf), 1u, 51u);
   if (!m.hardware && want_crf != m.crf) {
     // libx264 reconfigures its rate factor before the next frame when the option changed.
     av_opt_set_double(m.ctx->priv_data, "crf", want_crf, 0);
@@ -263,13 +273,132 @@ absl::StatusOr<Packet> Encoder::Encode(const uint8_t* rgba, size_t stride, bool 
 // ---------------------------------------------------------------------------------------------
 // Decoder
 
+namespace {
+
+// Reads the bits of one NAL unit's payload (emulation-prevention bytes removed).
+class BitReader {
+ public:
+  BitReader(const uint8_t* p, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+      if (i >= 2 && p[i] == 3 && p[i - 1] == 0 && p[i - 2] == 0 && rbsp_.size() >= 2 &&
+          rbsp_[rbsp_.size() - 1] == 0 && rbsp_[rbsp_.size() - 2] == 0)
+        continue;
+      rbsp_.push_back(p[i]);
+    }
+  }
+  uint32_t U(int n) {
+    uint32_t v = 0;
+    for (int i = 0; i < n; ++i) {
+      if (bit_ >= rbsp_.size() * 8) {
+        ok_ = false;
+        return 0;
+      }
+      v = (v << 1) | ((rbsp_[bit_ / 8] >> (7 - bit_ % 8)) & 1u);
+      ++bit_;
+    }
+    return v;
+  }
+  uint32_t Ue() {  // Exp-Golomb
+    int zeros = 0;
+    while (ok_ && U(1) == 0) {
+      if (++zeros > 31) ok_ = false;
+    }
+    return ok_ ? (1u << zeros) - 1 + U(zeros) : 0;
+  }
+  bool ok() const { return ok_; }
+
+ private:
+  std::vector<uint8_t> rbsp_;
+  size_t bit_ = 0;
+  bool ok_ = true;
+};
+
+// The NAL units of an Annex B access unit: (header byte offset, size) pairs.
+std::vector<std::pair<size_t, size_t>> NalUnits(const uint8_t* d, size_t n) {
+  std::vector<std::pair<size_t, size_t>> out;
+  size_t i = 0, start = SIZE_MAX;
+  while (i + 2 < n) {
+    if (d[i] == 0 && d[i + 1] == 0 && d[i + 2] == 1) {
+      if (start != SIZE_MAX) {
+        size_t end = i;
+        while (end > start && d[end - 1] == 0) --end;  // trailing zeros of a 4-byte start code
+        out.emplace_back(start, end - start);
+      }
+      i += 3;
+      start = i;
+    } else {
+      ++i;
+    }
+  }
+  if (start != SIZE_MAX && start < n) out.emplace_back(start, n - start);
+  return out;
+}
+
+}  // namespace
+
 struct Decoder::Impl {
   CodecCtx ctx;
   FramePtr frame;
   PacketPtr packet;
   SwsPtr sws;
   int sws_w = 0, sws_h = 0, sws_fmt = -1;
+  // frame_num bookkeeping (CheckFrameNum).
+  int log2_max_frame_num = 0;  // from the SPS; 0: unknown (no check)
+  bool separate_colour_plane = false;
+  bool have_reference = false;
+  uint32_t prev_ref_frame_num = 0;
+
+  // libavcodec conceals a missing reference frame with a copy and says nothing: the frame_num
+  // of every picture after an IDR must be one more than the previous reference picture's.
+  absl::Status CheckFrameNum(const uint8_t* d, size_t n);
 };
+
+absl::Status Decoder::Impl::CheckFrameNum(const uint8_t* d, size_t n) {
+  for (const auto& [at, len] : NalUnits(d, n)) {
+    if (len < 2) continue;
+    const int type = d[at] & 0x1f;
+    const int ref_idc = (d[at] >> 5) & 3;
+    BitReader r(d + at + 1, len - 1);
+    if (type == 7) {  // SPS
+      const uint32_t profile = r.U(8);
+      r.U(16);  // constraint flags, level
+      r.Ue();   // seq_parameter_set_id
+      separate_colour_plane = false;
+      bool scaling = false;
+      for (uint32_t hp : {100u, 110u, 122u, 244u, 44u, 83u, 86u, 118u, 128u, 138u, 139u, 134u, 135u}) {
+        if (profile != hp) continue;
+        if (r.Ue() == 3) separate_colour_plane = r.U(1) != 0;  // chroma_format_idc
+        r.Ue();                                               // bit depths
+        r.Ue();
+        r.U(1);                    // qpprime_y_zero_transform_bypass
+        scaling = r.U(1) != 0;     // seq_scaling_matrix_present: lists follow (not parsed)
+      }
+      log2_max_frame_num = scaling || !r.ok() ? 0 : static_cast<int>(r.Ue()) + 4;
+      if (!r.ok() || log2_max_frame_num > 16) log2_max_frame_num = 0;
+    } else if (type == 1 || type == 5) {  // a slice
+      if (r.Ue() != 0) continue;           // first_mb_in_slice: the picture's first slice only
+      r.Ue();                              // slice_type
+      r.Ue();                              // pic_parameter_set_id
+      if (separate_colour_plane) r.U(2);
+      if (log2_max_frame_num == 0) continue;
+      const uint32_t frame_num = r.U(log2_max_frame_num);
+      if (!r.ok()) continue;
+      if (type == 5) {
+        have_reference = true;
+      } else if (!have_reference) {
+        return absl::InvalidArgumentError("h264 decode: a delta frame before any keyframe");
+      } else {
+        const uint32_t due = (prev_ref_frame_num + 1) & ((1u << log2_max_frame_num) - 1);
+        if (frame_num != due)
+          return absl::InvalidArgumentError(absl::StrCat(
+              "h264 decode: frame_num ", frame_num, " where ", due,
+              " was due: a frame of the stream is missing"));
+      }
+      if (ref_idc != 0) prev_ref_frame_num = frame_num;
+    }
+  }
+  return absl::OkStatus();
+}
 
 absl::StatusOr<std::unique_ptr<Decoder>> Decoder::Create() {
   QuietFfmpeg();
@@ -293,6 +422,7 @@ Decoder::~Decoder() = default;
 
 absl::StatusOr<DecodedFrame> Decoder::Decode(const uint8_t* data, size_t size) {
   Impl& m = *impl_;
+  if (absl::Status st = m.CheckFrameNum(data, size); !st.ok()) return st;
   AVPacket* p = m.packet.get();
   if (int err = av_new_packet(p, static_cast<int>(size)); err < 0)
     return absl::ResourceExhaustedError(AvError(err));
@@ -369,6 +499,12 @@ absl::StatusOr<std::unique_ptr<VideoFileWriter>> VideoFileWriter::Open(const std
       return absl::NotFoundError(absl::StrCat(path, ": ", AvError(err)));
     }
     impl->stream = avformat_new_stream(impl->fmt, nullptr);
+    if (!impl->stream) {
+      avio_closep(&impl->fmt->pb);
+      avformat_free_context(impl->fmt);
+      impl->fmt = nullptr;
+      return absl::ResourceExhaustedError("avformat_new_stream failed");
+    }
     AVCodecParameters* par = impl->stream->codecpar;
     par->codec_type = AVMEDIA_TYPE_VIDEO;
     par->codec_id = AV_CODEC_ID_H264;
@@ -416,6 +552,7 @@ absl::Status VideoFileWriter::Write(const uint8_t* data, size_t size, bool keyfr
       }
     }
     AVCodecParameters* par = m.stream->codecpar;
+    av_freep(&par->extradata);  // a failed header write before: start again
     par->extradata = static_cast<uint8_t*>(av_mallocz(end + AV_INPUT_BUFFER_PADDING_SIZE));
     if (!par->extradata) return absl::ResourceExhaustedError("av_mallocz failed");
     std::copy(data, data + end, par->extradata);

@@ -28,12 +28,21 @@ enum class EncoderKind { kAuto, kSoftware, kHardware };
 // The presets sessions may ask for (libx264's names, fastest first).
 const std::vector<std::string>& Presets();
 
+// The largest frame a session may stream: H.264 level 5.2's 36864 macroblocks (4096x2304), at
+// most 4096 on a side (NVENC's limit too); browsers refuse larger streams.
+inline constexpr uint32_t kMaxVideoSide = 4096;
+inline constexpr uint32_t kMaxVideoMacroblocks = 36864;
+// INVALID_ARGUMENT when w x h cannot be a video frame (odd, under 16, over the limits above).
+absl::Status CheckVideoSize(uint32_t width, uint32_t height);
+
 struct EncoderOptions {
-  uint32_t width = 0;  // even, >= 16
+  uint32_t width = 0;  // CheckVideoSize
   uint32_t height = 0;
   EncoderKind kind = EncoderKind::kAuto;
-  uint32_t crf = 23;                 // 0..51: constant quality (rate factor; NVENC: its cq)
-  uint32_t max_bitrate_kbps = 0;     // 0: no cap; else a VBV cap with a 1 s buffer
+  uint32_t crf = 23;                 // 1..51: constant quality (rate factor; NVENC: its cq)
+  // 0: no cap; else a VBV cap with a buffer of the same size. The rate control counts frames at
+  // a nominal 30 per second (sessions render at a varying rate), so the cap is per 30 frames.
+  uint32_t max_bitrate_kbps = 0;
   uint32_t keyframe_interval = 0;    // frames; 0: keyframes only when asked for
   std::string preset = "superfast";  // one of Presets()
   // Encoder threads (libx264 slices). 0: one per 1280x720 pixels, at most the cores.
@@ -53,12 +62,16 @@ class Encoder {
   ~Encoder();
 
   // Encodes one frame of width x height RGBA8 pixels, rows `stride` bytes apart. `crf`: this
-  // frame's quality factor (nullopt: the options'); libx264 only (NVENC keeps its cq).
+  // frame's quality factor (nullopt: the options'); libx264 only (NVENC keeps the cq it was
+  // opened with: see per_frame_crf()).
   absl::StatusOr<Packet> Encode(const uint8_t* rgba, size_t stride, bool keyframe,
                                 std::optional<uint32_t> crf = std::nullopt);
 
   // "libx264" or "h264_nvenc".
   const char* name() const;
+  // Whether Encode's `crf` applies (libx264); otherwise a new quality needs a new encoder.
+  bool per_frame_crf() const;
+  uint32_t crf() const;  // the factor it opened with
   // The RFC 6381 codec string of the stream ("avc1.PPCCLL" from its SPS); empty before the
   // first keyframe.
   const std::string& codec_string() const;
@@ -91,7 +104,9 @@ class Decoder {
   static absl::StatusOr<std::unique_ptr<Decoder>> Create();
   ~Decoder();
   // One access unit in, its picture out (the encoder's streams have no reordering delay).
-  // An error for data that does not decode (e.g. a delta frame without its references).
+  // An error for data that does not decode, for a delta frame before the first keyframe, and
+  // for a gap in the stream: a frame whose frame_num does not follow the previous reference
+  // frame's (libavcodec itself would conceal the gap with copies and report nothing).
   absl::StatusOr<DecodedFrame> Decode(const uint8_t* data, size_t size);
 
   struct Impl;

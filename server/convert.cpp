@@ -247,9 +247,10 @@ absl::StatusOr<VideoSettings> MergeVideo(const VideoSettings& base, const v1::Vi
     *out = value;
     return absl::OkStatus();
   };
-  RETURN_IF_ERROR(range(u.has_crf(), u.crf(), 0, 51, "crf", &v.crf));
+  // 0 would be lossless, in a profile (High 4:4:4 Predictive) browsers do not decode.
+  RETURN_IF_ERROR(range(u.has_crf(), u.crf(), 1, 51, "crf", &v.crf));
   RETURN_IF_ERROR(
-      range(u.has_interactive_crf(), u.interactive_crf(), 0, 51, "interactive_crf", &v.interactive_crf));
+      range(u.has_interactive_crf(), u.interactive_crf(), 1, 51, "interactive_crf", &v.interactive_crf));
   RETURN_IF_ERROR(range(u.has_keyframe_interval(), u.keyframe_interval(), 0, 600,
                         "keyframe_interval", &v.keyframe_interval));
   if (u.has_max_bitrate_kbps()) {

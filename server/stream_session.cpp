@@ -161,13 +161,13 @@ void StreamSession::Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame>
   }
   React([&] {
     const Arrival arrival = schedule_.FrameDone(work.sequence, frame.status());
-    if (wire) KeepFrameLocked(arrival, *std::move(wire), std::move(pixels));
+    if (wire) KeepFrameLocked(arrival, *std::move(wire), &pixels);
   });
   if (pixels) state_->renderer->RecyclePixels(std::move(pixels->pixels));  // not kept
 }
 
 void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame,
-                                    std::optional<RgbaImage> pixels) {
+                                    std::optional<RgbaImage>* pixels) {
   switch (arrival) {
     case Arrival::kIgnored:
       return;
@@ -190,7 +190,7 @@ void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame,
   }
   slot_ = std::move(frame);
   if (slot_pixels_) state_->renderer->RecyclePixels(std::move(slot_pixels_->pixels));
-  slot_pixels_ = std::move(pixels);
+  slot_pixels_ = std::exchange(*pixels, std::nullopt);
 }
 
 void StreamSession::Stop() {
@@ -396,6 +396,10 @@ StreamDecision StreamSession::DecideLocked(Clock::time_point now) {
       v.generation = st_.video_generation;
       v.keyframe = std::exchange(keyframe_requested_, false);
       v.crf = writing_frame_.profile() == "interactive" ? st_.video.interactive_crf : st_.video.crf;
+    } else if (st_.video.h264) {
+      // A JPEG frame rendered before the switch to h264 goes out as it is; a client that
+      // switches its decoder on it needs the next video frame to be a keyframe.
+      keyframe_requested_ = true;
     }
   }
   if (d.park) {
@@ -426,10 +430,12 @@ absl::Status StreamSession::CheckVideoLocked(const VideoSettings& video, const S
   if (!video.h264) return absl::OkStatus();
   const std::string prefix = field.empty() ? "" : field + ".";
   for (auto [name, v] : {std::pair{"width", settings.width}, std::pair{"height", settings.height}})
-    if (v % 2 != 0 || v < 16)
-      return absl::InvalidArgumentError(
-          absl::StrCat(prefix, "settings.", name, ": ", v,
-                       " does not suit an h264 session (H.264 needs an even size of 16 or more)"));
+    if (v % 2 != 0 || v < 16 || v > video::kMaxVideoSide)
+      return absl::InvalidArgumentError(absl::StrCat(
+          prefix, "settings.", name, ": ", v, " does not suit an h264 session (H.264 needs an even size of 16..",
+          video::kMaxVideoSide, ")"));
+  if (absl::Status st = video::CheckVideoSize(settings.width, settings.height); !st.ok())
+    return absl::InvalidArgumentError(absl::StrCat(prefix, "settings.width: ", st.message()));
   if (video.encoder == v1::VIDEO_ENCODER_HARDWARE && !video::HardwareEncoderAvailable())
     return absl::FailedPreconditionError(
         absl::StrCat(prefix, "video.encoder: this server has no hardware H.264 encoder "
@@ -458,14 +464,17 @@ void StreamSession::EncodeAndWrite() {
     }
     encoder_.reset();
   } else if (!encoder_ || encoder_generation_ != job.generation ||
-      encoder_->width() != writing_pixels_.width || encoder_->height() != writing_pixels_.height) {
+             encoder_->width() != writing_pixels_.width ||
+             encoder_->height() != writing_pixels_.height ||
+             // NVENC keeps the quality it opened with: another one needs a new encoder.
+             (!encoder_->per_frame_crf() && encoder_->crf() != job.crf)) {
     video::EncoderOptions o;
     o.width = writing_pixels_.width;
     o.height = writing_pixels_.height;
     o.kind = job.video.encoder == v1::VIDEO_ENCODER_HARDWARE   ? video::EncoderKind::kHardware
              : job.video.encoder == v1::VIDEO_ENCODER_SOFTWARE ? video::EncoderKind::kSoftware
                                                                : video::EncoderKind::kAuto;
-    o.crf = job.video.crf;
+    o.crf = job.crf;
     o.max_bitrate_kbps = job.video.max_bitrate_kbps;
     o.keyframe_interval = job.video.keyframe_interval;
     o.preset = job.video.preset;

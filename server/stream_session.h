@@ -63,7 +63,8 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
 
   RenderWork MakeWorkLocked(const FrameStart& start);
   // A rendered frame into the slot (or dropped), as the schedule decides.
-  void KeepFrameLocked(Arrival arrival, v1::Frame frame, std::optional<RgbaImage> pixels);
+  // `pixels` (video sessions' unencoded frames) is taken when the frame is kept.
+  void KeepFrameLocked(Arrival arrival, v1::Frame frame, std::optional<RgbaImage>* pixels);
   // Checks the session's video settings against its settings (sizes) and this server.
   absl::Status CheckVideoLocked(const VideoSettings& video, const Settings& settings,
                                 const std::string& field);

@@ -56,6 +56,10 @@ StreamOptions ParseStreamOptions(const Invocation& inv) {
   const bool video_file = absl::EndsWith(o.save_dir, ".mp4") || absl::EndsWith(o.save_dir, ".h264");
   if (video_file && o.video.codec() != v1::VIDEO_CODEC_H264)
     args.Fail(absl::StrCat("--save ", o.save_dir, ": a video file needs --codec h264"));
+  if (!o.save_dir.empty() && !video_file && o.video.codec() == v1::VIDEO_CODEC_H264)
+    args.Fail(absl::StrCat("--save ", o.save_dir,
+                           ": with --codec h264, save to FILE.mp4 or FILE.h264 (the frames of a "
+                           "video are not pictures one by one)"));
   if (o.orbit && o.flags.has_fixed_placement()) {
     args.Fail("--orbit moves the camera itself; it cannot be combined with --camera or --frame");
   }
@@ -358,7 +362,8 @@ Exit status 130 after Ctrl-C (the summary of the frames so far is printed first)
   --save FILE         with --codec h264: FILE.mp4 (MP4, each frame at its arrival time) or
                       FILE.h264 (the raw Annex B stream)
   --interactive S     idle refinement: while the camera moves, frames are rendered at scale S
-                      (0.25..1), upscaled and sent at a lower JPEG quality; once it rests, one
+                      (0.25..1), upscaled and sent at a lower JPEG quality (h264: at
+                      --interactive-crf); once it rests, one
                       full-quality frame follows (the "profile" column says which)
   --rest-ms MS        with --interactive: how long the camera must rest (server default 250)
 )" TESSERA_VIDEO_FLAGS_USAGE,

@@ -178,6 +178,9 @@ head -c 5 "$work/raw.h264" | od -An -tx1 | grep -q "00 00 00 01" || fail "raw.h2
 grep -q "avc1\..*1 keyframes" "$work/h264.txt" || fail "stream summary: $(cat "$work/h264.txt")"
 run stream --scene demo --frames 2 --save "$work/x.mp4"
 [[ $rc -eq 2 ]] && grep -q "needs --codec h264" "$work/err" || fail "mp4 without h264: $rc $(cat "$work/err")"
+run stream --scene demo --frames 2 --codec h264 --save "$work/h264frames"
+[[ $rc -eq 2 ]] && grep -q "save to FILE.mp4 or FILE.h264" "$work/err" ||
+  fail "h264 into a directory: $rc $(cat "$work/err")"
 run stream --scene demo --frames 2 --codec h264 --width 97 --height 64
 [[ $rc -eq 1 ]] && grep -q "INVALID_ARGUMENT: open.settings.width: 97" "$work/err" ||
   fail "odd h264 width: $rc $(cat "$work/err")"

@@ -90,7 +90,7 @@ const state = {
   interactive: null,     // the InteractiveProfile the user set
   renderSize: null,      // {width, height} last sent
   videoWanted: 'jpeg',   // the Codec control: 'jpeg' or 'h264' (remembered)
-  crf: 23,               // H.264 quality, 0..51 (remembered)
+  crf: 23,               // H.264 quality, 1..51 (remembered)
   codec: 'jpeg',         // what the stream is asked for: 'h264' only where this browser decodes it
   h264Refused: '',       // why H.264 cannot be used after all (the decoder or the server refused)
   confirmed: {},         // the last frame's effective settings
@@ -1034,7 +1034,7 @@ function loadVideoChoice() {
   try {
     const saved = JSON.parse(loadStored(STORAGE_VIDEO) ?? 'null');
     if (saved?.codec === 'h264' || saved?.codec === 'jpeg') state.videoWanted = saved.codec;
-    if (Number.isInteger(saved?.crf) && saved.crf >= 0 && saved.crf <= 51) state.crf = saved.crf;
+    if (Number.isInteger(saved?.crf) && saved.crf >= 1 && saved.crf <= 51) state.crf = saved.crf;
   } catch {
     // unreadable: the defaults
   }
@@ -1090,7 +1090,7 @@ async function onCodecChanged() {
 }
 
 function onCrfChanged() {
-  const crf = validNumber(ui.crf, { min: 0, max: 51 }, true);
+  const crf = validNumber(ui.crf, { min: 1, max: 51 }, true);
   if (crf === undefined) return;
   state.crf = crf;
   saveStored(STORAGE_VIDEO, JSON.stringify({ codec: state.videoWanted, crf }));
