@@ -87,18 +87,27 @@ TEST(VideoEncoder, FramesDecodeToTheirPicturesAndOnlyTheFirstIsAKeyframe) {
   EXPECT_EQ((*enc)->frames(), 8u);
 }
 
-TEST(VideoEncoder, AKeyframeDecodesAloneADeltaFrameDoesNot) {
+// `n` frames of the moving test picture at w x h (software encoder); frame `key` a keyframe too.
+std::vector<video::Packet> EncodeSequence(uint32_t w, uint32_t h, int n, int key = -1) {
   video::EncoderOptions o;
-  o.width = 64;
-  o.height = 64;
+  o.width = w;
+  o.height = h;
   o.kind = video::EncoderKind::kSoftware;
   auto enc = video::Encoder::Create(o);
-  ASSERT_TRUE(enc.ok());
+  EXPECT_TRUE(enc.ok()) << enc.status();
   std::vector<video::Packet> packets;
-  for (int t = 0; t < 4; ++t) {
-    const RgbaImage pic = Picture(64, 64, t);
-    packets.push_back(*(*enc)->Encode(pic.pixels.data(), 64 * 4, t == 3));
+  for (int t = 0; enc.ok() && t < n; ++t) {
+    const RgbaImage pic = Picture(w, h, t);
+    absl::StatusOr<video::Packet> p = (*enc)->Encode(pic.pixels.data(), size_t{w} * 4, t == key);
+    EXPECT_TRUE(p.ok()) << p.status();
+    if (p.ok()) packets.push_back(*std::move(p));
   }
+  return packets;
+}
+
+TEST(VideoEncoder, AKeyframeDecodesAloneADeltaFrameDoesNot) {
+  const std::vector<video::Packet> packets = EncodeSequence(64, 64, 4, /*key=*/3);
+  ASSERT_EQ(packets.size(), 4u);
   auto fresh = video::Decoder::Create();
   EXPECT_FALSE((*fresh)->Decode(packets[1].data.data(), packets[1].data.size()).ok())
       << "a delta frame without its keyframe must not pass as a picture";
@@ -109,17 +118,8 @@ TEST(VideoEncoder, AKeyframeDecodesAloneADeltaFrameDoesNot) {
 // A frame missing from the middle of a stream is an error, not a silently concealed picture
 // (what the stream tests rely on to prove that no encoded frame is ever dropped).
 TEST(VideoDecoder, AFrameMissingMidStreamIsAnError) {
-  video::EncoderOptions o;
-  o.width = 64;
-  o.height = 48;
-  o.kind = video::EncoderKind::kSoftware;
-  auto enc = video::Encoder::Create(o);
-  ASSERT_TRUE(enc.ok());
-  std::vector<video::Packet> packets;
-  for (int t = 0; t < 6; ++t) {
-    const RgbaImage pic = Picture(64, 48, t);
-    packets.push_back(*(*enc)->Encode(pic.pixels.data(), 64 * 4, false));
-  }
+  const std::vector<video::Packet> packets = EncodeSequence(64, 48, 6);
+  ASSERT_EQ(packets.size(), 6u);
   auto all = video::Decoder::Create();
   for (const video::Packet& p : packets)
     EXPECT_TRUE((*all)->Decode(p.data.data(), p.data.size()).ok());
