@@ -263,9 +263,13 @@ int RunStream(const Invocation& inv) {
   const StreamOptions o = ParseStreamOptions(inv);
   const bool video_file =
       absl::EndsWith(o.save_dir, ".mp4") || absl::EndsWith(o.save_dir, ".h264");
-  if (!o.save_dir.empty() && !video_file) {
+  if (!o.save_dir.empty()) {
+    // DIR for pictures, FILE's folder for a video.
+    const std::filesystem::path dir =
+        video_file ? std::filesystem::path(o.save_dir).parent_path()
+                   : std::filesystem::path(o.save_dir);
     std::error_code ec;
-    std::filesystem::create_directories(o.save_dir, ec);
+    if (!dir.empty()) std::filesystem::create_directories(dir, ec);
     if (ec) {
       return ReportError(inv, absl::StrCat(o.save_dir, ": ", ec.message()),
                          ErrnoCodeName(ec.value()));

@@ -160,8 +160,8 @@ PY
 # H.264: an orbit as one video, saved as .mp4 and as a raw .h264 stream; the sizes and
 # keyframes in --json; a video file without --codec h264, and odd sizes, are refused.
 "$tessera" --json stream --scene demo --frames 5 --orbit --width 96 --height 64 --codec h264 \
-  --crf 20 --save "$work/orbit.mp4" > "$work/h264.json"
-python3 - "$work/h264.json" "$work/orbit.mp4" <<'PY' || fail "stream --codec h264"
+  --crf 20 --save "$work/video/orbit.mp4" > "$work/h264.json"
+python3 - "$work/h264.json" "$work/video/orbit.mp4" <<'PY' || fail "stream --codec h264"
 import json, sys
 d = json.load(open(sys.argv[1]))
 frames = d["frame_list"]
