@@ -248,7 +248,7 @@ absl::Status Renderer::Impl::EnsureRowBuffer(size_t entries) {
   const uint32_t cap = uint32_t(std::max<size_t>(entries, size_t(row_capacity) * 2));
   RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * 4,
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                             vk::MemoryUsage::kUpload, "row_lights", &row_lights));
+                             vk::MemoryUsage::kDynamic, "row_lights", &row_lights));
   row_capacity = cap;
   return absl::OkStatus();
 }
@@ -259,7 +259,7 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
   if (lights > light_capacity) {
     const uint32_t cap = std::max(lights, light_capacity * 2);
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLight),
-                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kDynamic,
                                "local_lights", &local_lights));
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |

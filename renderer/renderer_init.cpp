@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include "common/status_macros.h"
+#include "renderer/log.h"
 #include "renderer/renderer_impl.h"
 #include "renderer/vk/vk_check.h"
 
@@ -112,11 +113,14 @@ absl::Status Renderer::Impl::Init() {
                      "descriptor pool");
 
   RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::FrameUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
-                             vk::MemoryUsage::kUpload, "frame_uniforms", &frame_ubo));
+                             vk::MemoryUsage::kDynamic, "frame_uniforms", &frame_ubo));
   RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::GpuLight) * gpu::kMaxLights,
-                             VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                             VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kDynamic,
                              "lights", &lights_ubo));
   RETURN_IF_ERROR(EnsureRowBuffer(1024));
+  Log().info("per-frame buffers (uniforms, lights, light lists) in {} memory",
+             (frame_ubo.memory_flags() & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) ? "device-local"
+                                                                              : "system");
   // A storage buffer, not a uniform one: on lavapipe (Mesa 22.3) every dispatch of the cull
   // shader that read its view-projection matrix from a uniform buffer left about 1 MB of mapped
   // memory behind (README, Soak); read from a storage buffer, nothing grows.
@@ -124,7 +128,7 @@ absl::Status Renderer::Impl::Init() {
       std::max<VkDeviceSize>(16, ctx->limits().minStorageBufferOffsetAlignment);
   cull_uniform_stride = (sizeof(gpu::CullUniforms) + align - 1) / align * align;
   RETURN_IF_ERROR(MakeBuffer(*ctx, 2 * cull_uniform_stride, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
-                                  vk::MemoryUsage::kUpload, "cull_uniforms", &cull_uniforms));
+                                  vk::MemoryUsage::kDynamic, "cull_uniforms", &cull_uniforms));
   RETURN_IF_ERROR(MakeBuffer(*ctx, 4,
                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                       VK_BUFFER_USAGE_TRANSFER_DST_BIT,
@@ -137,7 +141,7 @@ absl::Status Renderer::Impl::Init() {
 
 absl::Status Renderer::Impl::InitShadows() {
   RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::ShadowUniforms),
-                                  VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kUpload,
+                                  VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kDynamic,
                                   "shadow_uniforms", &shadow_ubo));
   std::memset(shadow_ubo.mapped(), 0, sizeof(gpu::ShadowUniforms));
   // The hardware shadow sampler: bilinear comparison taps (the PCF's 4 taps each weigh 2x2

@@ -509,12 +509,13 @@ Context::~Context() {
 }
 
 uint32_t Context::FindMemoryType(uint32_t type_bits, VkMemoryPropertyFlags required,
-                                 VkMemoryPropertyFlags preferred) const {
+                                 VkMemoryPropertyFlags preferred,
+                                 VkMemoryPropertyFlags avoid) const {
   uint32_t fallback = UINT32_MAX;
   for (uint32_t i = 0; i < memory_.memoryTypeCount; ++i) {
     if (!(type_bits & (1u << i))) continue;
     const VkMemoryPropertyFlags flags = memory_.memoryTypes[i].propertyFlags;
-    if ((flags & required) != required) continue;
+    if ((flags & required) != required || (flags & avoid) != 0) continue;
     if ((flags & preferred) == preferred) return i;
     if (fallback == UINT32_MAX) fallback = i;
   }

@@ -47,10 +47,11 @@ class Context {
   const VkPhysicalDeviceLimits& limits() const { return limits_; }
   const VkPhysicalDeviceMemoryProperties& memory_properties() const { return memory_; }
 
-  // A memory type index in `type_bits` with all `required` flags, preferring `preferred`.
-  // UINT32_MAX when none.
+  // A memory type index in `type_bits` with all `required` flags and none of `avoid`,
+  // preferring `preferred`. UINT32_MAX when none.
   uint32_t FindMemoryType(uint32_t type_bits, VkMemoryPropertyFlags required,
-                          VkMemoryPropertyFlags preferred = 0) const;
+                          VkMemoryPropertyFlags preferred = 0,
+                          VkMemoryPropertyFlags avoid = 0) const;
 
   // Gives a Vulkan object a debug name (shown by validation messages); no-op without
   // debug utils.

@@ -15,8 +15,9 @@ std::atomic<uint64_t> g_allocated_bytes{0};
 absl::StatusOr<VkDeviceMemory> Allocate(const Context& ctx, const VkMemoryRequirements& req,
                                         VkMemoryPropertyFlags required,
                                         VkMemoryPropertyFlags preferred, const std::string& name,
-                                        VkMemoryPropertyFlags* flags_out) {
-  uint32_t type = ctx.FindMemoryType(req.memoryTypeBits, required, preferred);
+                                        VkMemoryPropertyFlags* flags_out,
+                                        VkMemoryPropertyFlags avoid = 0) {
+  uint32_t type = ctx.FindMemoryType(req.memoryTypeBits, required, preferred, avoid);
   if (type == UINT32_MAX) {
     return absl::ResourceExhaustedError(absl::StrCat(name, ": no suitable memory type"));
   }
@@ -59,15 +60,26 @@ absl::StatusOr<Buffer> Buffer::Create(const Context& ctx, VkDeviceSize size,
     case MemoryUsage::kUpload:
       required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
       break;
+    case MemoryUsage::kDynamic:
+      required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT | VK_MEMORY_PROPERTY_HOST_COHERENT_BIT;
+      preferred = VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT;
+      break;
     case MemoryUsage::kReadback:
       required = VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT;
       preferred = VK_MEMORY_PROPERTY_HOST_CACHED_BIT;
       break;
   }
   VkMemoryPropertyFlags flags = 0;
-  ASSIGN_OR_RETURN(VkDeviceMemory mem, Allocate(ctx, req, required, preferred, name, &flags));
+  absl::StatusOr<VkDeviceMemory> allocated = Allocate(ctx, req, required, preferred, name, &flags);
+  if (!allocated.ok() && memory == MemoryUsage::kDynamic &&
+      (flags & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) != 0) {
+    // The mapped device-local heap is full (a 256 MiB BAR without ReBAR): system memory.
+    allocated = Allocate(ctx, req, required, 0, name, &flags, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
+  }
+  ASSIGN_OR_RETURN(VkDeviceMemory mem, std::move(allocated));
   b.memory_ = mem;
   b.memory_bytes_ = req.size;
+  b.memory_flags_ = flags;
   VK_CHECK(vkBindBufferMemory(b.device_, b.buffer_, b.memory_, 0));
   if (memory != MemoryUsage::kDeviceLocal) {
     VK_CHECK(vkMapMemory(b.device_, b.memory_, 0, VK_WHOLE_SIZE, 0, &b.mapped_));
@@ -86,6 +98,7 @@ Buffer& Buffer::operator=(Buffer&& o) noexcept {
     size_ = std::exchange(o.size_, 0);
     mapped_ = std::exchange(o.mapped_, nullptr);
     coherent_ = o.coherent_;
+    memory_flags_ = o.memory_flags_;
   }
   return *this;
 }

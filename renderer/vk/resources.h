@@ -18,7 +18,12 @@ namespace tessera::vk {
 
 enum class MemoryUsage {
   kDeviceLocal,  // GPU-only
-  kUpload,       // host-visible, coherent: staging and per-frame uniforms
+  kUpload,       // host-visible, coherent: staging
+  // Written by the host every frame, read by the GPU many times (uniforms, lights, light
+  // lists): host-visible and coherent, in device-local memory where the device maps some
+  // (ReBAR / the 256 MiB BAR on discrete GPUs, all memory on integrated and CPU devices);
+  // system memory when it has none or that heap is full.
+  kDynamic,
   kReadback,     // host-visible, cached when possible: GPU -> CPU copies
 };
 
@@ -38,6 +43,7 @@ class Buffer {
   VkBuffer handle() const { return buffer_; }
   VkDeviceSize size() const { return size_; }
   void* mapped() const { return mapped_; }
+  VkMemoryPropertyFlags memory_flags() const { return memory_flags_; }  // of its memory type
   // Makes GPU writes visible to the host for non-coherent memory.
   void InvalidateForRead() const;
   explicit operator bool() const { return buffer_ != VK_NULL_HANDLE; }
@@ -51,6 +57,7 @@ class Buffer {
   VkDeviceSize memory_bytes_ = 0;  // what the allocation holds (>= size_)
   void* mapped_ = nullptr;
   bool coherent_ = true;
+  VkMemoryPropertyFlags memory_flags_ = 0;
 };
 
 struct ImageDesc {
