@@ -115,7 +115,9 @@ class GaugeCollectable : public prometheus::Collectable {
     add("tessera_scene_memory_budget_bytes",
         "Device memory budget for scenes, in bytes; 0 means unlimited.",
         static_cast<double>(g.scene_memory_budget_bytes));
-    add("tessera_pending_frame_bytes", "Encoded frame bytes held for slow clients.",
+    add("tessera_pending_frame_bytes",
+        "Frame bytes held for slow clients: encoded frames, and h264 sessions' frames waiting "
+        "to be encoded.",
         static_cast<double>(g.pending_frame_bytes));
     add("tessera_jobs_active", "Render-farm jobs queued or running.", g.jobs_active);
     add("tessera_serving",

@@ -38,7 +38,7 @@ struct MetricsGauges {
   uint32_t scenes = 0;                     // scenes in memory
   uint64_t scene_device_bytes = 0;         // device memory held by scenes
   uint64_t scene_memory_budget_bytes = 0;  // 0 = unlimited
-  uint64_t pending_frame_bytes = 0;        // encoded frames held for slow clients
+  uint64_t pending_frame_bytes = 0;        // frames held for slow clients (h264: unencoded)
   uint32_t jobs_active = 0;                // queued or running render-farm jobs
   uint32_t serving = 1;                    // grpc.health.v1: 1 SERVING, 0 NOT_SERVING
   double render_busy_seconds = 0.0;        // time in the current frame's Render; 0 when idle

@@ -91,7 +91,9 @@ struct ServerStats {
   uint32_t queue_depth = 0;
   uint64_t frames_rendered = 0;
   uint64_t frames_dropped = 0;       // encoded but replaced by a newer one before sending
-  uint64_t pending_frame_bytes = 0;  // encoded bytes held for sessions (slots + writes)
+  // Bytes held for sessions (slots + writes): encoded frames, and the RGBA pixels of h264
+  // sessions' frames until they are encoded.
+  uint64_t pending_frame_bytes = 0;
   uint32_t uploads_in_progress = 0;
   uint64_t validation_messages = 0;  // Vulkan validation-layer messages (tests require 0)
   uint32_t parked_sessions = 0;      // broken streams' sessions waiting for a resume

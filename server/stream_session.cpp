@@ -119,6 +119,7 @@ void StreamSession::OnDone() {
     std::lock_guard lock(mu_);
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
+    if (slot_pixels_) state_->pending_frame_bytes -= slot_pixels_->pixels.size();
     slot_pixels_.reset();
     st_.lease.reset();  // a deleted scene is freed with its last session
     view = std::move(st_.view);
@@ -189,8 +190,13 @@ void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame,
     note->set_message(fps_note_);
   }
   slot_ = std::move(frame);
-  if (slot_pixels_) state_->renderer->RecyclePixels(std::move(slot_pixels_->pixels));
+  if (slot_pixels_) {  // replaced (latest wins) before it cost an encode
+    state_->pending_frame_bytes -= slot_pixels_->pixels.size();
+    state_->renderer->RecyclePixels(std::move(slot_pixels_->pixels));
+  }
   slot_pixels_ = std::exchange(*pixels, std::nullopt);
+  // Unencoded pixels held for the client count as pending bytes too, until encoded.
+  if (slot_pixels_) state_->pending_frame_bytes += slot_pixels_->pixels.size();
 }
 
 void StreamSession::Stop() {
@@ -209,6 +215,7 @@ std::optional<SessionState> StreamSession::Handover(const std::string& principal
     st_.token = out->token;
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
+    if (slot_pixels_) state_->pending_frame_bytes -= slot_pixels_->pixels.size();
     slot_pixels_.reset();
     decision = DecideLocked(Clock::now());
   }
@@ -508,6 +515,7 @@ void StreamSession::EncodeAndWrite() {
       st = packet.status();
     }
   }
+  state_->pending_frame_bytes -= writing_pixels_.pixels.size();
   state_->renderer->RecyclePixels(std::move(writing_pixels_.pixels));
   writing_pixels_ = {};
   if (!st.ok()) {

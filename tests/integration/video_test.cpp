@@ -249,6 +249,18 @@ class VideoStreamTest : public SharedServerTest<VideoStreamTest> {
     server_ = s->release();
   }
 
+  // Every test's streams are over: nothing is held for them any more (encoded or unencoded).
+  void TearDown() override {
+    server::ServerStats s;
+    for (int i = 0; i < 500; ++i) {
+      s = server_->stats();
+      if (s.sessions == 0 && s.pending_frame_bytes == 0) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    EXPECT_EQ(s.sessions, 0u);
+    EXPECT_EQ(s.pending_frame_bytes, 0u);
+  }
+
   // A lossless Render of what `f` shows (its camera and size).
   RgbaImage Reference(const v1::Frame& f) {
     v1::RenderRequest req = DemoRequest(f.width(), f.height());
