@@ -3,7 +3,7 @@
 //   offline  A Renderer renders an orbit of N frames (default: Sponza's atrium at 1280x720, the
 //            camera turning 0.02 rad a frame, as at 30 fps in an interactive session). Each is
 //            coded as Tessera's default JPEG (quality 90, 4:2:0, one strip) and, in order, by the
-//            session encoder (common/video.h, one thread) at every --crfs value and --presets
+//            session encoder (common/video.h, --threads, default one) at every --crfs value and --presets
 //            preset; every picture is decoded again and compared with the lossless frame.
 //            Reported: mean PSNR, bytes (and Mbit/s at --fps), encode and decode ms per frame.
 //            The match is the largest crf (the smallest stream) of the default preset whose
@@ -72,6 +72,7 @@ struct Options {
   std::vector<std::string> presets = {"ultrafast", "superfast", "veryfast"};
   std::string default_preset = "superfast";
   uint32_t latency_events = 12;  // per codec
+  uint32_t threads = 1;          // encoder threads (libx264 slices) in the offline coding
   double rest_seconds = 3.0;
   bool smoke = false;
 };
@@ -117,6 +118,8 @@ Options Parse(int argc, char** argv) {
       o.crfs = ParseUints(value());
     } else if (a == "--presets") {
       o.presets = absl::StrSplit(value(), ',');
+    } else if (a == "--threads") {
+      o.threads = std::max(1u, uint());
     } else if (a == "--latency-events") {
       o.latency_events = uint();
     } else if (a == "--smoke") {
@@ -132,7 +135,7 @@ Options Parse(int argc, char** argv) {
     } else {
       Fail("unknown argument " + a +
            " (--scene demo|sponza|PATH --width --height --frames --eye X,Y,Z --target X,Y,Z "
-           "--crfs A,B --presets P,Q --latency-events N --device NAME --smoke)");
+           "--crfs A,B --presets P,Q --threads N --latency-events N --device NAME --smoke)");
     }
   }
   if (std::find(o.presets.begin(), o.presets.end(), o.default_preset) == o.presets.end())
@@ -203,14 +206,14 @@ Coded CodeJpeg(const std::vector<tessera::RgbaImage>& frames) {
 }
 
 Coded CodeH264(const std::vector<tessera::RgbaImage>& frames, uint32_t crf,
-               const std::string& preset) {
+               const std::string& preset, uint32_t threads) {
   video::EncoderOptions eo;
   eo.width = frames.front().width;
   eo.height = frames.front().height;
   eo.kind = video::EncoderKind::kSoftware;
   eo.crf = crf;
   eo.preset = preset;
-  eo.threads = 1;
+  eo.threads = threads;
   absl::StatusOr<std::unique_ptr<video::Encoder>> enc = video::Encoder::Create(eo);
   if (!enc.ok()) Fail(std::string(enc.status().message()));
   absl::StatusOr<std::unique_ptr<video::Decoder>> dec = video::Decoder::Create();
@@ -434,6 +437,7 @@ int main(int argc, char** argv) {
   out["frames"] = o.frames;
   out["fps"] = o.fps;
   out["jpeg_quality"] = kJpegQuality;
+  out["encoder_threads"] = o.threads;
   out["targets"] = {{"bytes_ratio_max", kTargetBytesRatio},
                     {"added_latency_ms_max", kTargetAddedLatencyMs},
                     {"software_encode_ms_max_720p", kTargetEncodeMs}};
@@ -487,7 +491,7 @@ int main(int argc, char** argv) {
   Json per_preset = Json::object();  // each preset's largest crf at JPEG's PSNR, and its ratio
   for (const std::string& preset : o.presets) {
     for (uint32_t crf : o.crfs) {
-      const Coded c = CodeH264(frames, crf, preset);
+      const Coded c = CodeH264(frames, crf, preset, o.threads);
       Json j = CodedJson(c, o);
       j["preset"] = preset;
       j["crf"] = crf;
