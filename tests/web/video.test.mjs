@@ -127,6 +127,7 @@ test('choosing H.264 streams video: a keyframe first, decoded by WebCodecs, the 
   const ask = sentEvents.find((e) => e.video?.codec === 'VIDEO_CODEC_H264');
   assert.ok(ask, JSON.stringify(sentEvents.slice(-3)));
   assert.equal(ask.video.crf, 23);
+  assert.equal(ask.video.interactive_crf, 29);
   assert.equal(ask.settings.width % 2, 0);
   assert.equal(ask.settings.height % 2, 0);
   assert.equal(frame.width % 2, 0);
@@ -137,7 +138,7 @@ test('choosing H.264 streams video: a keyframe first, decoded by WebCodecs, the 
   assert.ok(Number.isFinite(decodeMs) && decodeMs >= 0 && decodeMs < 5000, `decode ${decodeMs} ms`);
   assert.equal(await page.isVisible('#crf-field'), true);
   assert.equal(await page.isHidden('#codec-note'), true);
-  assert.deepEqual(JSON.parse(await page.evaluate(() => localStorage.getItem('tessera.video'))), { codec: 'h264', crf: 23 });
+  assert.deepEqual(JSON.parse(await page.evaluate(() => localStorage.getItem('tessera.video'))), { codec: 'h264', crf: 23, interactive_crf: 29 });
 
   // Orbiting gives frames that are not keyframes, decoded in order: the page never needs to
   // ask for a keyframe.
@@ -266,6 +267,24 @@ test('the video quality (CRF) goes to the session and is remembered; a value out
   assert.deepEqual(sent.map((e) => e.video), [{ crf: 30 }], 'a refused value was sent, or the change was not');
   // The server takes it (a bad value would end the stream) and renders with it.
   await waitForFrame((f) => f.event_id >= sent[0].event_id, 'the frame of the CRF change');
+  assert.equal((await lastFrame()).encoding, 'VIDEO_H264');
+  assert.deepEqual(await page.evaluate(() => window.tessera.errors), []);
+});
+
+test('the video quality while moving (interactive CRF) goes to the session and is remembered', async () => {
+  const events = () => sentEvents.filter((e) => e.video?.interactive_crf !== undefined && !e.video.codec);
+  if (!(await page.isVisible('#interactive-crf'))) await page.click('#group-interactive summary');
+  assert.equal(await page.isVisible('#interactive-crf'), true, 'shown in an H.264 session');
+  await page.fill('#interactive-crf', '0');
+  await page.locator('#interactive-crf').dispatchEvent('change');
+  assert.equal(await page.getAttribute('#interactive-crf', 'aria-invalid'), 'true');
+  await page.fill('#interactive-crf', '35');
+  await page.locator('#interactive-crf').dispatchEvent('change');
+  await page.waitForFunction(() => JSON.parse(localStorage.getItem('tessera.video')).interactive_crf === 35);
+  const sent = events();
+  assert.deepEqual(sent.map((e) => e.video), [{ interactive_crf: 35 }], 'a refused value was sent, or the change was not');
+  // The server takes it (a bad value would end the stream) and renders a frame for it.
+  await waitForFrame((f) => f.event_id >= sent[0].event_id, 'the frame of the interactive CRF change');
   assert.equal((await lastFrame()).encoding, 'VIDEO_H264');
   assert.deepEqual(await page.evaluate(() => window.tessera.errors), []);
 });

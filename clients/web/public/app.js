@@ -43,6 +43,7 @@ const ui = {
   codecNote: $('codec-note'),
   interactiveEnabled: $('interactive-enabled'), interactiveScale: $('interactive-scale'),
   interactiveQuality: $('interactive-quality'),
+  interactiveCrf: $('interactive-crf'), interactiveCrfField: $('interactive-crf-field'),
   chart: $('chart'), chartLegend: $('chart-legend'), stats: $('stats'),
 };
 
@@ -91,6 +92,7 @@ const state = {
   renderSize: null,      // {width, height} last sent
   videoWanted: 'jpeg',   // the Codec control: 'jpeg' or 'h264' (remembered)
   crf: 23,               // H.264 quality, 1..51 (remembered)
+  interactiveCrf: 29,    // H.264 quality while the camera moves (the interactive profile)
   codec: 'jpeg',         // what the stream is asked for: 'h264' only where this browser decodes it
   h264Refused: '',       // why H.264 cannot be used after all (the decoder or the server refused)
   confirmed: {},         // the last frame's effective settings
@@ -1025,8 +1027,14 @@ let h264Check = null;  // the browser's answer, asked once
 /** The VideoSettings the session gets: the codec in use, and the quality for H.264. */
 function videoMessage() {
   return state.codec === 'h264'
-    ? { codec: 'VIDEO_CODEC_H264', crf: state.crf }
+    ? { codec: 'VIDEO_CODEC_H264', crf: state.crf, interactive_crf: state.interactiveCrf }
     : { codec: 'VIDEO_CODEC_JPEG' };
+}
+
+function saveVideoChoice() {
+  saveStored(STORAGE_VIDEO, JSON.stringify({
+    codec: state.videoWanted, crf: state.crf, interactive_crf: state.interactiveCrf,
+  }));
 }
 
 /** The Codec choice and CRF as last left in this browser. */
@@ -1035,17 +1043,22 @@ function loadVideoChoice() {
     const saved = JSON.parse(loadStored(STORAGE_VIDEO) ?? 'null');
     if (saved?.codec === 'h264' || saved?.codec === 'jpeg') state.videoWanted = saved.codec;
     if (Number.isInteger(saved?.crf) && saved.crf >= 1 && saved.crf <= 51) state.crf = saved.crf;
+    const ic = saved?.interactive_crf;
+    if (Number.isInteger(ic) && ic >= 1 && ic <= 51) state.interactiveCrf = ic;
   } catch {
     // unreadable: the defaults
   }
   ui.codec.value = state.videoWanted;
   ui.crf.value = String(state.crf);
+  ui.interactiveCrf.value = String(state.interactiveCrf);
   syncCodecUi();
 }
 
 function syncCodecUi() {
   ui.crfField.hidden = state.videoWanted !== 'h264';
   ui.crf.disabled = state.codec !== 'h264';
+  ui.interactiveCrfField.hidden = state.videoWanted !== 'h264';
+  ui.interactiveCrf.disabled = state.codec !== 'h264';
 }
 
 /** The note under the Codec control ('' hides it): why H.264 is not used. */
@@ -1085,7 +1098,7 @@ function sendVideo() {
 
 async function onCodecChanged() {
   state.videoWanted = ui.codec.value === 'h264' ? 'h264' : 'jpeg';
-  saveStored(STORAGE_VIDEO, JSON.stringify({ codec: state.videoWanted, crf: state.crf }));
+  saveVideoChoice();
   if (await resolveCodec()) sendVideo();
 }
 
@@ -1093,8 +1106,16 @@ function onCrfChanged() {
   const crf = validNumber(ui.crf, { min: 1, max: 51 }, true);
   if (crf === undefined) return;
   state.crf = crf;
-  saveStored(STORAGE_VIDEO, JSON.stringify({ codec: state.videoWanted, crf }));
+  saveVideoChoice();
   if (state.codec === 'h264') sendEvent({ video: { crf } });
+}
+
+function onInteractiveCrfChanged() {
+  const interactive_crf = validNumber(ui.interactiveCrf, { min: 1, max: 51 }, true);
+  if (interactive_crf === undefined) return;
+  state.interactiveCrf = interactive_crf;
+  saveVideoChoice();
+  if (state.codec === 'h264') sendEvent({ video: { interactive_crf } });
 }
 
 /** H.264 cannot be used after all (the decoder or the server refused it): JPEG, with a note. */
@@ -1366,6 +1387,8 @@ function wire() {
   ui.resolution.addEventListener('change', guard(onViewportResize));
   ui.codec.addEventListener('change', guard(onCodecChanged, 'Could not change the codec'));
   ui.crf.addEventListener('change', guard(onCrfChanged, 'Could not change the video quality'));
+  ui.interactiveCrf.addEventListener('change',
+    guard(onInteractiveCrfChanged, 'Could not change the video quality while moving'));
   for (const input of [ui.interactiveEnabled, ui.interactiveScale, ui.interactiveQuality]) {
     input.addEventListener('change', guard(onInteractiveChanged, 'Could not apply the profile'));
   }
