@@ -33,6 +33,8 @@
 //
 //   tessera-viewers-bench --scenes demo,sponza --width 1280 --height 720 --viewers 1,2,4,8
 //   tessera-viewers-bench --smoke     # demo only, 96x64, 1 and 2 viewers, 1 s (ctest)
+//   ... --codec h264                  # every viewer an H.264 session (its frames are encoded when
+//                                     # its client is ready for them: server/README.md)
 #include <errno.h>  // program_invocation_short_name
 #include <grpcpp/grpcpp.h>
 
@@ -83,7 +85,7 @@ constexpr double kTargetFairness = 0.8;
 constexpr char kUsage[] =
     "usage: tessera-viewers-bench [--scenes demo,sponza|PATH.gltf,...] [--width N] [--height N]\n"
     "         [--viewers 1,2,4,8] [--modes pipelined,serial] [--seconds S] [--warmup-frames N]\n"
-    "         [--encoder-threads N] [--assets DIR] [--device NAME] [--smoke]\n";
+    "         [--encoder-threads N] [--codec jpeg|h264] [--assets DIR] [--device NAME] [--smoke]\n";
 
 [[noreturn]] void UsageError(const std::string& msg) {
   std::fprintf(stderr, "%s: %s\n%s", program_invocation_short_name, msg.c_str(), kUsage);
@@ -106,6 +108,7 @@ struct Options {
   double seconds = 8.0;          // the measurement window of each run, after the warm-up
   uint32_t warmup = 3;           // frames per viewer before the window opens
   uint32_t encoder_threads = 0;  // ServerOptions.encoder_threads (0: one per core)
+  bool h264 = false;             // --codec h264: every viewer an H.264 session
 };
 
 // A scene as the benchmark knows it: "demo" or a glTF file set read from disk (kept for the
@@ -221,6 +224,7 @@ struct ViewerSpec {
   uint32_t width = 0;
   uint32_t height = 0;
   uint32_t warmup = 0;
+  bool h264 = false;
   std::chrono::system_clock::time_point deadline;
 };
 
@@ -280,6 +284,7 @@ class Viewer {
     *open->mutable_camera() = spec_.orbit.At(last_sent_);
     open->mutable_settings()->set_width(spec_.width);
     open->mutable_settings()->set_height(spec_.height);
+    if (spec_.h264) open->mutable_video()->set_codec(v1::VIDEO_CODEC_H264);
     return Write(e);
   }
 
@@ -439,6 +444,7 @@ absl::StatusOr<json> RunViewers(ModeServer& ms, const std::string& scene_id, con
     s.width = o.width;
     s.height = o.height;
     s.warmup = o.warmup;
+    s.h264 = o.h264;
     s.deadline = deadline;
   }
 
@@ -586,6 +592,10 @@ Options ParseFlags(int argc, char** argv) {
       number(&o.warmup, 0, 1000);
     } else if (arg == "--encoder-threads") {
       number(&o.encoder_threads, 0, 256);
+    } else if (arg == "--codec") {
+      const std::string c = value();
+      if (c != "jpeg" && c != "h264") UsageError("--codec wants jpeg or h264");
+      o.h264 = c == "h264";
     } else {
       UsageError("unknown option " + arg);
     }
@@ -649,6 +659,7 @@ absl::StatusOr<json> RunBenchmark(const Options& o, const std::string& command) 
   out["command"] = command;
   out["width"] = o.width;
   out["height"] = o.height;
+  out["codec"] = o.h264 ? "h264" : "jpeg";
   out["seconds"] = o.seconds;
   out["warmup_frames"] = o.warmup;
   out["viewers"] = o.viewers;
