@@ -126,12 +126,77 @@ absl::StatusOr<CodecCtx> OpenEncoder(const EncoderOptions& o, bool hardware) {
   return c;
 }
 
+// Reads the bits of one NAL unit's payload (emulation-prevention bytes removed).
+class BitReader {
+ public:
+  BitReader(const uint8_t* p, size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+      if (i >= 2 && p[i] == 3 && p[i - 1] == 0 && p[i - 2] == 0 && rbsp_.size() >= 2 &&
+          rbsp_[rbsp_.size() - 1] == 0 && rbsp_[rbsp_.size() - 2] == 0)
+        continue;
+      rbsp_.push_back(p[i]);
+    }
+  }
+  uint32_t U(int n) {
+    uint32_t v = 0;
+    for (int i = 0; i < n; ++i) {
+      if (bit_ >= rbsp_.size() * 8) {
+        ok_ = false;
+        return 0;
+      }
+      v = (v << 1) | ((rbsp_[bit_ / 8] >> (7 - bit_ % 8)) & 1u);
+      ++bit_;
+    }
+    return v;
+  }
+  uint32_t Ue() {  // Exp-Golomb
+    int zeros = 0;
+    while (ok_ && U(1) == 0) {
+      if (++zeros > 31) ok_ = false;
+    }
+    return ok_ ? (1u << zeros) - 1 + U(zeros) : 0;
+  }
+  bool ok() const { return ok_; }
+
+ private:
+  std::vector<uint8_t> rbsp_;
+  size_t bit_ = 0;
+  bool ok_ = true;
+};
+
+// The NAL units of an Annex B access unit: (header byte offset, size) pairs.
+std::vector<std::pair<size_t, size_t>> NalUnits(const uint8_t* d, size_t n) {
+  std::vector<std::pair<size_t, size_t>> out;
+  size_t i = 0, start = SIZE_MAX;
+  while (i + 2 < n) {
+    if (d[i] == 0 && d[i + 1] == 0 && d[i + 2] == 1) {
+      if (start != SIZE_MAX) {
+        size_t end = i;
+        while (end > start && d[end - 1] == 0) --end;  // trailing zeros of a 4-byte start code
+        out.emplace_back(start, end - start);
+      }
+      i += 3;
+      start = i;
+    } else {
+      ++i;
+    }
+  }
+  if (start != SIZE_MAX && start < n) out.emplace_back(start, n - start);
+  return out;
+}
+
 }  // namespace
+
+bool VideoSideOk(uint32_t side) { return side >= 16 && side % 2 == 0 && side <= kMaxVideoSide; }
+
+std::vector<std::string> EncoderNames() {
+  if (HardwareEncoderAvailable()) return {"h264_nvenc", "libx264"};
+  return {"libx264"};
+}
 
 absl::Status CheckVideoSize(uint32_t w, uint32_t h) {
   const uint64_t mbs = uint64_t{(w + 15) / 16} * ((h + 15) / 16);
-  if (w < 16 || h < 16 || w % 2 || h % 2 || w > kMaxVideoSide || h > kMaxVideoSide ||
-      mbs > kMaxVideoMacroblocks)
+  if (!VideoSideOk(w) || !VideoSideOk(h) || mbs > kMaxVideoMacroblocks)
     return absl::InvalidArgumentError(absl::StrCat(
         w, "x", h, " cannot be an H.264 frame here: even sizes of 16..", kMaxVideoSide,
         " with at most ", kMaxVideoMacroblocks, " macroblocks (level 5.2, e.g. 4096x2304)"));
@@ -145,16 +210,11 @@ const std::vector<std::string>& Presets() {
 }
 
 std::string CodecStringFromAnnexB(const uint8_t* data, size_t size) {
-  for (size_t i = 0; i + 3 < size; ++i) {
-    if (data[i] != 0 || data[i + 1] != 0 || data[i + 2] != 1) continue;
-    const size_t nal = i + 3;
-    if ((data[nal] & 0x1f) == 7 && nal + 3 < size) {
-      char buf[16];
-      std::snprintf(buf, sizeof(buf), "avc1.%02x%02x%02x", data[nal + 1], data[nal + 2],
-                    data[nal + 3]);
-      return buf;
-    }
-    i = nal - 1;
+  for (const auto& [at, len] : NalUnits(data, size)) {
+    if ((data[at] & 0x1f) != 7 || len < 4) continue;  // the SPS: profile, constraints, level
+    char buf[16];
+    std::snprintf(buf, sizeof(buf), "avc1.%02x%02x%02x", data[at + 1], data[at + 2], data[at + 3]);
+    return buf;
   }
   return "";
 }
@@ -272,69 +332,6 @@ absl::StatusOr<Packet> Encoder::Encode(const uint8_t* rgba, size_t stride, bool 
 
 // ---------------------------------------------------------------------------------------------
 // Decoder
-
-namespace {
-
-// Reads the bits of one NAL unit's payload (emulation-prevention bytes removed).
-class BitReader {
- public:
-  BitReader(const uint8_t* p, size_t n) {
-    for (size_t i = 0; i < n; ++i) {
-      if (i >= 2 && p[i] == 3 && p[i - 1] == 0 && p[i - 2] == 0 && rbsp_.size() >= 2 &&
-          rbsp_[rbsp_.size() - 1] == 0 && rbsp_[rbsp_.size() - 2] == 0)
-        continue;
-      rbsp_.push_back(p[i]);
-    }
-  }
-  uint32_t U(int n) {
-    uint32_t v = 0;
-    for (int i = 0; i < n; ++i) {
-      if (bit_ >= rbsp_.size() * 8) {
-        ok_ = false;
-        return 0;
-      }
-      v = (v << 1) | ((rbsp_[bit_ / 8] >> (7 - bit_ % 8)) & 1u);
-      ++bit_;
-    }
-    return v;
-  }
-  uint32_t Ue() {  // Exp-Golomb
-    int zeros = 0;
-    while (ok_ && U(1) == 0) {
-      if (++zeros > 31) ok_ = false;
-    }
-    return ok_ ? (1u << zeros) - 1 + U(zeros) : 0;
-  }
-  bool ok() const { return ok_; }
-
- private:
-  std::vector<uint8_t> rbsp_;
-  size_t bit_ = 0;
-  bool ok_ = true;
-};
-
-// The NAL units of an Annex B access unit: (header byte offset, size) pairs.
-std::vector<std::pair<size_t, size_t>> NalUnits(const uint8_t* d, size_t n) {
-  std::vector<std::pair<size_t, size_t>> out;
-  size_t i = 0, start = SIZE_MAX;
-  while (i + 2 < n) {
-    if (d[i] == 0 && d[i + 1] == 0 && d[i + 2] == 1) {
-      if (start != SIZE_MAX) {
-        size_t end = i;
-        while (end > start && d[end - 1] == 0) --end;  // trailing zeros of a 4-byte start code
-        out.emplace_back(start, end - start);
-      }
-      i += 3;
-      start = i;
-    } else {
-      ++i;
-    }
-  }
-  if (start != SIZE_MAX && start < n) out.emplace_back(start, n - start);
-  return out;
-}
-
-}  // namespace
 
 struct Decoder::Impl {
   CodecCtx ctx;
@@ -541,15 +538,13 @@ absl::Status VideoFileWriter::Write(const uint8_t* data, size_t size, bool keyfr
           absl::StrCat(m.path, ": an MP4 track must start with a keyframe"));
     // The keyframe's SPS and PPS (Annex B) become the track's configuration; the MP4 muxer
     // turns them into an avcC box and the packets into length-prefixed NAL units.
-    size_t end = 0;  // the offset of the first slice NAL unit
-    for (size_t i = 0; i + 3 < size; ++i) {
-      if (data[i] == 0 && data[i + 1] == 0 && data[i + 2] == 1) {
-        const int type = data[i + 3] & 0x1f;
-        if (type == 1 || type == 5) {
-          end = (i > 0 && data[i - 1] == 0) ? i - 1 : i;
-          break;
-        }
-      }
+    size_t end = 0;  // where the first slice NAL unit's start code begins
+    for (const auto& [at, len] : NalUnits(data, size)) {
+      const int type = data[at] & 0x1f;
+      if (type != 1 && type != 5) continue;
+      end = at - 3;
+      if (end > 0 && data[end - 1] == 0) --end;  // a 4-byte start code
+      break;
     }
     AVCodecParameters* par = m.stream->codecpar;
     av_freep(&par->extradata);  // a failed header write before: start again

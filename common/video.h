@@ -32,7 +32,10 @@ const std::vector<std::string>& Presets();
 // most 4096 on a side (NVENC's limit too); browsers refuse larger streams.
 inline constexpr uint32_t kMaxVideoSide = 4096;
 inline constexpr uint32_t kMaxVideoMacroblocks = 36864;
-// INVALID_ARGUMENT when w x h cannot be a video frame (odd, under 16, over the limits above).
+// Whether one side can be a video frame's: even, 16..kMaxVideoSide.
+bool VideoSideOk(uint32_t side);
+// INVALID_ARGUMENT when w x h cannot be a video frame (a side not VideoSideOk, or more
+// macroblocks than kMaxVideoMacroblocks).
 absl::Status CheckVideoSize(uint32_t width, uint32_t height);
 
 struct EncoderOptions {
@@ -88,6 +91,8 @@ class Encoder {
 
 // Whether a hardware H.264 encoder (NVENC) opens on this machine; probed once.
 bool HardwareEncoderAvailable();
+// The encoders EncoderKind::kAuto tries, in its order: "h264_nvenc" where it opens, "libx264".
+std::vector<std::string> EncoderNames();
 
 // The RFC 6381 codec string ("avc1.64001f") of the first SPS in an Annex B stream; empty
 // without one.

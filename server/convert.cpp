@@ -271,6 +271,24 @@ absl::StatusOr<VideoSettings> MergeVideo(const VideoSettings& base, const v1::Vi
   return v;
 }
 
+absl::Status CheckVideo(const VideoSettings& video, const Settings& settings,
+                        const std::string& prefix) {
+  if (!video.h264) return absl::OkStatus();
+  for (auto [name, v] : {std::pair{"width", settings.width}, std::pair{"height", settings.height}})
+    if (!video::VideoSideOk(v))
+      return absl::InvalidArgumentError(absl::StrCat(
+          prefix, "settings.", name, ": ", v,
+          " does not suit an h264 session (H.264 needs an even size of 16..", video::kMaxVideoSide,
+          ")"));
+  if (absl::Status st = video::CheckVideoSize(settings.width, settings.height); !st.ok())
+    return absl::InvalidArgumentError(absl::StrCat(prefix, "settings.width: ", st.message()));
+  if (video.encoder == v1::VIDEO_ENCODER_HARDWARE && !video::HardwareEncoderAvailable())
+    return absl::FailedPreconditionError(
+        absl::StrCat(prefix, "video.encoder: this server has no hardware H.264 encoder "
+                             "(h264_nvenc does not open); use VIDEO_ENCODER_AUTO or SOFTWARE"));
+  return absl::OkStatus();
+}
+
 void ImportLimitsToProto(const ImportLimits& limits, v1::ImportLimits* out) {
   // By name, so a limit added to ImportLimitFields() without its proto field shows up in the
   // unit test (a missing field is skipped here, never a crash).

@@ -36,6 +36,7 @@ struct VideoSettings {
   uint32_t max_bitrate_kbps = 0;
   uint32_t keyframe_interval = 0;
   std::string preset = "superfast";
+  bool operator==(const VideoSettings&) const = default;
   // What a running encoder cannot change: a change of these starts a new video (a keyframe).
   bool SameStream(const VideoSettings& o) const {
     return h264 == o.h264 && encoder == o.encoder && max_bitrate_kbps == o.max_bitrate_kbps &&
@@ -47,6 +48,10 @@ struct VideoSettings {
 absl::StatusOr<VideoSettings> MergeVideo(const VideoSettings& base,
                                          const v1::VideoSettings& update,
                                          const std::string& field);
+// `video` against the session's `settings` (h264 sizes, naming `prefix`settings.width/height)
+// and this server (a hardware encoder, naming `prefix`video.encoder). `prefix`: "open." or "".
+absl::Status CheckVideo(const VideoSettings& video, const Settings& settings,
+                        const std::string& prefix);
 
 // The concrete camera for `camera` in a scene (framing uses the scene bounds and the frame's
 // aspect ratio). INVALID_ARGUMENT naming the field.

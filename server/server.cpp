@@ -17,6 +17,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "common/status_macros.h"
 #include "common/video.h"
 #include "renderer/log.h"
@@ -372,8 +373,7 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
       std::make_unique<SceneStore>(options.max_scenes, options.scene_memory_budget_bytes);
   if (options.load_demo_scene) RETURN_IF_ERROR(impl->LoadDemo());
   // Probed once here (opening NVENC starts CUDA): sessions ask under their locks.
-  Log().info("video: h264 encoders {}",
-             video::HardwareEncoderAvailable() ? "h264_nvenc, libx264" : "libx264");
+  Log().info("video: h264 encoders {}", absl::StrJoin(video::EncoderNames(), ", "));
   impl->loader = std::make_unique<ThreadPool>("load", std::max(1u, options.loader_threads));
   impl->StartMetricsAndLoop();
   RETURN_IF_ERROR(impl->StartJobs());

@@ -386,8 +386,7 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
     r->set_unhealthy_reason(h.reason);
   }
   for (std::string_view e : SupportedGltfExtensions()) r->add_gltf_extensions(std::string(e));
-  if (video::HardwareEncoderAvailable()) r->add_video_encoders("h264_nvenc");
-  r->add_video_encoders("libx264");
+  for (const std::string& e : video::EncoderNames()) r->add_video_encoders(e);
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }

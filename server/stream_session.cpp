@@ -273,7 +273,7 @@ absl::Status StreamSession::OpenLocked(Clock::time_point now) {
   ASSIGN_OR_RETURN(InteractiveProfile profile,
                    MergeProfile(InteractiveProfile{}, open.interactive(), "open.interactive"));
   ASSIGN_OR_RETURN(VideoSettings video, MergeVideo(VideoSettings{}, open.video(), "open.video"));
-  RETURN_IF_ERROR(CheckVideoLocked(video, settings, "open"));
+  RETURN_IF_ERROR(CheckVideo(video, settings, "open."));
   RETURN_IF_ERROR(CheckTargetFpsLocked(open.target_fps(), "open.target_fps"));
   st_.lease = std::make_shared<SceneLease>(scene);
   st_.view = std::make_shared<ViewLease>(state_->renderer, scene->scene, st_.id);
@@ -326,7 +326,7 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
     ASSIGN_OR_RETURN(video, MergeVideo(st_.video, event_.video(), "video"));
   }
   if (event_.has_video() || event_.has_settings())
-    RETURN_IF_ERROR(CheckVideoLocked(video, settings, ""));
+    RETURN_IF_ERROR(CheckVideo(video, settings, ""));
   if (event_.has_camera()) {
     RETURN_IF_ERROR(
         ResolveCamera(event_.camera(), st_.lease->get().scene->info(), Aspect(settings)).status());
@@ -340,9 +340,7 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   st_.settings = settings;
   if (profile) st_.profile = *profile;
   if (!video.SameStream(st_.video)) ++st_.video_generation;
-  const bool video_changed = event_.has_video() && !(video.SameStream(st_.video) &&
-                                                     video.crf == st_.video.crf &&
-                                                     video.interactive_crf == st_.video.interactive_crf);
+  const bool video_changed = video != st_.video;
   st_.video = video;
   if (event_.keyframe()) keyframe_requested_ = true;
   schedule_.SetPacing(PacingLocked());
@@ -430,24 +428,6 @@ void StreamSession::Perform(const StreamDecision& d) {
   if (d.enqueue) state_->loop->Enqueue(shared_from_this());
   if (d.enqueue_at) state_->loop->EnqueueAt(shared_from_this(), *d.enqueue_at);
   if (d.finish) FinishCounted(ToGrpc(*d.finish));
-}
-
-absl::Status StreamSession::CheckVideoLocked(const VideoSettings& video, const Settings& settings,
-                                            const std::string& field) {
-  if (!video.h264) return absl::OkStatus();
-  const std::string prefix = field.empty() ? "" : field + ".";
-  for (auto [name, v] : {std::pair{"width", settings.width}, std::pair{"height", settings.height}})
-    if (v % 2 != 0 || v < 16 || v > video::kMaxVideoSide)
-      return absl::InvalidArgumentError(absl::StrCat(
-          prefix, "settings.", name, ": ", v, " does not suit an h264 session (H.264 needs an even size of 16..",
-          video::kMaxVideoSide, ")"));
-  if (absl::Status st = video::CheckVideoSize(settings.width, settings.height); !st.ok())
-    return absl::InvalidArgumentError(absl::StrCat(prefix, "settings.width: ", st.message()));
-  if (video.encoder == v1::VIDEO_ENCODER_HARDWARE && !video::HardwareEncoderAvailable())
-    return absl::FailedPreconditionError(
-        absl::StrCat(prefix, "video.encoder: this server has no hardware H.264 encoder "
-                             "(h264_nvenc does not open); use VIDEO_ENCODER_AUTO or SOFTWARE"));
-  return absl::OkStatus();
 }
 
 // On the encoder pool, for a write decided by DecideLocked: encodes the frame, then writes it.

@@ -65,9 +65,6 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   // A rendered frame into the slot (or dropped), as the schedule decides.
   // `pixels` (video sessions' unencoded frames) is taken when the frame is kept.
   void KeepFrameLocked(Arrival arrival, v1::Frame frame, std::optional<RgbaImage>* pixels);
-  // Checks the session's video settings against its settings (sizes) and this server.
-  absl::Status CheckVideoLocked(const VideoSettings& video, const Settings& settings,
-                                const std::string& field);
   void Drop();
 
   // Applies `change` under mu_, then performs what the schedule decides after unlocking.

@@ -173,10 +173,10 @@ Summary Summarize(const std::vector<FrameRecord>& records,
   }
   if (records.empty()) return s;
   s.seconds = records.back().received_ms / 1000.0;
-  if (records.size() >= 2) {
-    const double span_s = (records.back().received_ms - records.front().received_ms) / 1000.0;
-    if (span_s > 0) s.fps = (records.size() - 1) / span_s;
-  }
+  // Between the first and the last frame (the first one's bytes arrived at its start).
+  const double span_s = (records.back().received_ms - records.front().received_ms) / 1000.0;
+  const auto per_second = [&](double v) { return records.size() >= 2 && span_s > 0 ? v / span_s : 0.0; };
+  s.fps = per_second(double(records.size() - 1));
   const uint64_t span = records.back().frame.sequence() - records.front().frame.sequence() + 1;
   s.dropped = span > records.size() ? span - records.size() : 0;
 
@@ -191,6 +191,8 @@ Summary Summarize(const std::vector<FrameRecord>& records,
     gpu.push_back(r.frame.gpu_total_ms());
     cpu.push_back(r.frame.cpu().total_ms());
     bytes.push_back(r.bytes);
+    s.bytes_total += r.bytes;
+    if (r.frame.keyframe()) ++s.keyframes;
   }
   for (const std::string& name : order) {
     s.pass_median_ms.emplace_back(name, Median(per_pass[name]));
@@ -201,14 +203,7 @@ Summary Summarize(const std::vector<FrameRecord>& records,
   s.gpu_total_p90_ms = Percentile(gpu, 90);
   s.cpu_total_median_ms = Median(cpu);
   s.bytes_median = Median(bytes);
-  for (const FrameRecord& r : records) {
-    s.bytes_total += r.bytes;
-    if (r.frame.keyframe()) ++s.keyframes;
-  }
-  if (records.size() >= 2) {
-    const double span_s = (records.back().received_ms - records.front().received_ms) / 1000.0;
-    if (span_s > 0) s.bitrate_kbps = (s.bytes_total - records.front().bytes) * 8.0 / span_s / 1000.0;
-  }
+  s.bitrate_kbps = per_second((s.bytes_total - records.front().bytes) * 8.0 / 1000.0);
   const v1::Frame& last = records.back().frame;
   s.codec = last.encoding() == v1::VIDEO_H264 ? last.codec()
             : last.encoding() == v1::IMAGE_PNG ? "png"

@@ -348,38 +348,24 @@ TEST_F(VideoStreamTest, KeyframesAtResizeRequestAndNewEncoderOnly) {
   v1::Frame f = ReadUntilEvent(rw.get(), 0, dec->get());
   EXPECT_TRUE(f.keyframe());
 
-  v1::ClientEvent e = CameraEvent(1);
-  rw->Write(e);
-  f = ReadUntilEvent(rw.get(), 1, dec->get());
+  // Sends event `id`, filled in by `fill`; the first frame that reflects it.
+  auto step = [&](uint64_t id, auto fill) {
+    v1::ClientEvent e;
+    e.set_event_id(id);
+    fill(e);
+    rw->Write(e);
+    return ReadUntilEvent(rw.get(), id, dec->get());
+  };
+  f = step(1, [](v1::ClientEvent& e) { OrbitEye(1, e.mutable_camera()); });
   EXPECT_FALSE(f.keyframe()) << "a camera move is a delta frame";
-
-  e = {};
-  e.set_event_id(2);
-  e.mutable_settings()->set_width(128);
-  rw->Write(e);
-  f = ReadUntilEvent(rw.get(), 2, dec->get());
+  f = step(2, [](v1::ClientEvent& e) { e.mutable_settings()->set_width(128); });
   EXPECT_TRUE(f.keyframe()) << "a resize starts a new video";
   EXPECT_EQ(f.width(), 128u);
-
-  e = {};
-  e.set_event_id(3);
-  e.set_keyframe(true);
-  rw->Write(e);
-  f = ReadUntilEvent(rw.get(), 3, dec->get());
+  f = step(3, [](v1::ClientEvent& e) { e.set_keyframe(true); });
   EXPECT_TRUE(f.keyframe()) << "a keyframe was asked for";
-
-  e = {};
-  e.set_event_id(4);
-  e.mutable_video()->set_crf(30);
-  rw->Write(e);
-  f = ReadUntilEvent(rw.get(), 4, dec->get());
+  f = step(4, [](v1::ClientEvent& e) { e.mutable_video()->set_crf(30); });
   EXPECT_FALSE(f.keyframe()) << "the quality factor changes within the video";
-
-  e = {};
-  e.set_event_id(5);
-  e.mutable_video()->set_preset("ultrafast");
-  rw->Write(e);
-  f = ReadUntilEvent(rw.get(), 5, dec->get());
+  f = step(5, [](v1::ClientEvent& e) { e.mutable_video()->set_preset("ultrafast"); });
   EXPECT_TRUE(f.keyframe()) << "a new preset is a new encoder";
 
   EXPECT_TRUE(CloseStream(rw.get()).ok());

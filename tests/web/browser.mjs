@@ -1,5 +1,6 @@
 // What the browser tests (viewer.test.mjs, video.test.mjs) share: a free loopback port, headless
-// Debian Chromium (playwright-core from clients/web), and a page's script errors collected.
+// Debian Chromium (playwright-core from clients/web), a page's script errors collected, and
+// waiting for the frame a page draws.
 import net from 'node:net';
 import path from 'node:path';
 import { createRequire } from 'node:module';
@@ -33,4 +34,22 @@ export function launchChromium() {
 export function watchErrors(p, errors) {
   p.on('pageerror', (err) => errors.push(`pageerror: ${err.message}`));
   p.on('console', (msg) => { if (msg.type() === 'error') errors.push(`console: ${msg.text()}`); });
+}
+
+/** The newest frame page `p` drew (its header), or null. */
+export function pageLastFrame(p) {
+  return p.evaluate(() => window.tessera.lastFrame);
+}
+
+/** Polls page `p` until it has drawn a frame for which `predicate(frame)` holds; returns it. */
+export async function waitForPageFrame(p, predicate, what, timeout = 60_000) {
+  const start = Date.now();
+  let frame = null;
+  while (Date.now() - start < timeout) {
+    frame = await pageLastFrame(p);
+    if (frame !== null && predicate(frame)) return frame;
+    await new Promise((r) => setTimeout(r, 50));
+  }
+  const errors = await p.evaluate(() => window.tessera.errors);
+  throw new Error(`no frame with ${what}: last frame ${JSON.stringify(frame)?.slice(0, 300)}; errors ${JSON.stringify(errors)}`);
 }

@@ -7,7 +7,9 @@
 // to $TESSERA_WEB_ARTIFACTS (default: a temp directory).
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { freePort, launchChromium, watchErrors } from './browser.mjs';
+import {
+  freePort, launchChromium, pageLastFrame, waitForPageFrame, watchErrors,
+} from './browser.mjs';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -54,22 +56,13 @@ after(async () => {
   console.log(`# screenshots in ${ARTIFACTS}`);
 });
 
-const lastFrame = (p = page) => p.evaluate(() => window.tessera.lastFrame);
+const lastFrame = (p = page) => pageLastFrame(p);
 const shot = (name, p = page) => p.screenshot({ path: path.join(ARTIFACTS, `video-${name}.png`) });
 const isVideo = (h) => h.frame?.encoding === 'VIDEO_H264';
 
 /** Polls the page until it has drawn a frame for which `predicate(frame)` holds; returns it. */
-async function waitForFrame(predicate, what, timeout = 60_000, p = page) {
-  const start = Date.now();
-  let frame = null;
-  while (Date.now() - start < timeout) {
-    frame = await lastFrame(p);
-    if (frame !== null && predicate(frame)) return frame;
-    await new Promise((r) => setTimeout(r, 50));
-  }
-  const errors = await p.evaluate(() => window.tessera.errors);
-  throw new Error(`no frame with ${what}: last frame ${JSON.stringify(frame)?.slice(0, 300)}; errors ${JSON.stringify(errors)}`);
-}
+const waitForFrame = (predicate, what, timeout = 60_000, p = page) =>
+  waitForPageFrame(p, predicate, what, timeout);
 
 /** Waits until no new frame has been drawn for `quietMs`; returns the frame shown. */
 async function waitForRest(p = page, quietMs = 1000, timeout = 60_000) {

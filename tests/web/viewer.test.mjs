@@ -8,7 +8,9 @@
 // (default: a temp directory).
 import { test, before, after } from 'node:test';
 import assert from 'node:assert/strict';
-import { freePort, launchChromium, watchErrors } from './browser.mjs';
+import {
+  freePort, launchChromium, pageLastFrame, waitForPageFrame, watchErrors,
+} from './browser.mjs';
 import fs from 'node:fs';
 import os from 'node:os';
 import path from 'node:path';
@@ -47,21 +49,12 @@ after(async () => {
   console.log(`# screenshots in ${ARTIFACTS}`);
 });
 
-const lastFrame = (p = page) => p.evaluate(() => window.tessera.lastFrame);
+const lastFrame = (p = page) => pageLastFrame(p);
 const shot = (name, p = page) => p.screenshot({ path: path.join(ARTIFACTS, `${name}.png`) });
 
 /** Polls the page until it has drawn a frame for which `predicate(frame)` holds; returns it. */
-async function waitForFrame(predicate, what, timeout = 60_000, p = page) {
-  const start = Date.now();
-  let frame = null;
-  while (Date.now() - start < timeout) {
-    frame = await lastFrame(p);
-    if (frame !== null && predicate(frame)) return frame;
-    await new Promise((r) => setTimeout(r, 50));
-  }
-  const errors = await p.evaluate(() => window.tessera.errors);
-  throw new Error(`no frame with ${what}: last frame ${JSON.stringify(frame)?.slice(0, 300)}; errors ${JSON.stringify(errors)}`);
-}
+const waitForFrame = (predicate, what, timeout = 60_000, p = page) =>
+  waitForPageFrame(p, predicate, what, timeout);
 
 const near = (a, b, eps = 1e-3) => Math.abs(a.x - b.x) < eps && Math.abs(a.y - b.y) < eps && Math.abs(a.z - b.z) < eps;
 
