@@ -18,18 +18,11 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "renderer/scene/gltf_import.h"
+#include "server/fs_util.h"
+#include "server/scene_archive.h"
 #include "tessera/v1/job.pb.h"
 
 namespace tessera::server {
-
-// Writes `data` to `path` atomically: a temporary file in the same directory, fsync, rename,
-// fsync of the directory. Errors name the path and strerror. The file gets mode 0666 less the
-// umask, as a plain open(O_CREAT) would; a temporary file left by a crash is named
-// ".<name>.tmp-*" (JobJournal::Open removes those in the journal).
-absl::Status WriteFileAtomic(const std::string& path, std::string_view data);
-// Reads a whole file; FAILED_PRECONDITION/NOT_FOUND naming the path; RESOURCE_EXHAUSTED when it is
-// larger than max_bytes.
-absl::StatusOr<std::string> ReadWholeFile(const std::string& path, uint64_t max_bytes);
 
 struct JobFrameRecord {
   uint32_t frame = 0;
@@ -42,8 +35,7 @@ struct JobFrameRecord {
 //   <dir>/jobs/<job_id>/frames.log   one line per finished frame "<frame> <bytes> <sha256>\n",
 //                                    appended with O_APPEND and fdatasync'd
 //   <dir>/jobs/<job_id>/frames/      the encoded frames of RETURN jobs
-//   <dir>/scenes/<scene_id>/main     the main file's name
-//   <dir>/scenes/<scene_id>/files/…  the uploaded files under their upload names
+//   <dir>/scenes/                    a SceneArchive (scene_archive.h) of the scenes jobs name
 // Names starting with ".tmp-" in jobs/ and scenes/ are work in progress (a scene being written,
 // a job or scene being deleted); Open removes any left by a crash.
 // Thread-safe (one mutex; the calls are short file operations). The bulk of SaveScene and
@@ -80,35 +72,26 @@ class JobJournal {
   std::vector<LoadedJob> LoadJobs(std::vector<std::string>* warnings) const;
   absl::Status RemoveJob(const std::string& job_id);  // the whole directory; OK if absent
 
-  // Scene ids are 64 lower-case hex characters (SHA-256), else INVALID_ARGUMENT.
-  static bool ValidSceneId(const std::string& id);
-  // Writes the file set into a temporary directory, then renames it into place (a crash
-  // leaves either the old state or the complete archive; stale temporary dirs are removed by
-  // Open). Already archived: OK without writing. File names are checked with
-  // ValidateUploadName (from server/upload.h) before they touch the file system; the main file
-  // must be one of them. The id is not recomputed from the contents (the caller has it from
-  // UploadAssembler::Finish).
-  absl::Status SaveScene(const std::string& scene_id, const GltfSource& source);
-  bool HasScene(const std::string& scene_id) const;
-  // Reads an archived file set back (each name re-validated; at most max_bytes in total:
-  // RESOURCE_EXHAUSTED). NOT_FOUND naming the id when absent; DATA_LOSS when the archive is
-  // damaged (no main file, or something other than files and directories in it).
-  absl::StatusOr<GltfSource> LoadScene(const std::string& scene_id, uint64_t max_bytes) const;
-  absl::Status RemoveScene(const std::string& scene_id);   // OK if absent
-  std::vector<std::string> ListScenes() const;             // sorted
-  uint64_t SceneBytes(const std::string& scene_id) const;  // 0 if absent
+  // The scenes jobs name (SceneArchive: Save, Load, Remove, ...), without a size limit.
+  static bool ValidSceneId(const std::string& id) { return SceneArchive::ValidSceneId(id); }
+  absl::Status SaveScene(const std::string& scene_id, const GltfSource& source) {
+    return scenes_->Save(scene_id, source);
+  }
+  bool HasScene(const std::string& scene_id) const { return scenes_->Has(scene_id); }
+  absl::StatusOr<GltfSource> LoadScene(const std::string& scene_id, uint64_t max_bytes) const {
+    return scenes_->Load(scene_id, max_bytes);
+  }
+  absl::Status RemoveScene(const std::string& scene_id) { return scenes_->Remove(scene_id); }
+  std::vector<std::string> ListScenes() const { return scenes_->List(); }
+  uint64_t SceneBytes(const std::string& scene_id) const { return scenes_->Bytes(scene_id); }
 
  private:
   explicit JobJournal(std::string dir);
   std::string JobDir(const std::string& job_id) const;
-  std::string SceneDir(const std::string& scene_id) const;
-  // Renames `path` (a directory under `parent`) to a fresh ".tmp-del-*" name, then deletes it:
-  // a crash mid-delete leaves a name Open removes, never a half-deleted job or scene.
-  absl::Status RemoveDirectory(const std::string& parent, const std::string& name);
 
   const std::string dir_;
   const std::string jobs_dir_;
-  const std::string scenes_dir_;
+  std::unique_ptr<SceneArchive> scenes_;
   mutable std::mutex mu_;
 };
 

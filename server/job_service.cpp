@@ -329,11 +329,11 @@ grpc::ServerUnaryReactor* RenderServiceImpl::RenderJobFrame(grpc::CallbackServer
     render(**scene);
     return reactor;
   }
-  // A persistent daemon that restarted (or evicted the scene) still has it archived: a farm
-  // client's frames keep working without a new upload.
+  // A persistent daemon that restarted (or evicted the scene) still has it archived, and a
+  // replica finds what another uploaded in the shared scene store: a farm client's frames
+  // keep working without a new upload.
   JobManager* jobs = state_->jobs;
-  if (absl::IsNotFound(scene.status()) && jobs->options().persistent &&
-      JobJournal::ValidSceneId(spec.scene_id()) && jobs->journal().HasScene(spec.scene_id())) {
+  if (absl::IsNotFound(scene.status()) && jobs->HasArchived(spec.scene_id())) {
     jobs->LoadArchived(spec.scene_id(),
                        [render, fail](absl::StatusOr<std::shared_ptr<StoredScene>> s) {
                          if (!s.ok()) return fail(s.status());

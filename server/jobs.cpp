@@ -501,10 +501,39 @@ void JobManager::LoadArchived(
   loader_->Submit([this, scene_id, done = std::move(done)] {
     if (shutting_down_) return done(absl::UnavailableError("server is shutting down"));
     if (std::shared_ptr<StoredScene> s = store_->FindExact(scene_id)) return done(s);
-    absl::StatusOr<GltfSource> source = journal_->LoadScene(scene_id, options_.max_scene_bytes);
+    const bool journal = options_.persistent && journal_->HasScene(scene_id);
+    if (!journal && !options_.shared_scenes)
+      return done(absl::NotFoundError(absl::StrCat("scene ", scene_id, " is not archived")));
+    const auto started = std::chrono::steady_clock::now();
+    absl::StatusOr<GltfSource> source =
+        journal ? journal_->LoadScene(scene_id, options_.max_scene_bytes)
+                : options_.shared_scenes->Load(scene_id, options_.max_scene_bytes);
+    if (!source.ok() && !journal) {
+      // A damaged scene goes from the store, so HasScene says false and the client's next
+      // upload writes it again (Save skips a scene that is there).
+      if (absl::IsDataLoss(source.status())) {
+        Log().error("scene {}: {}; removed from the shared scene store", scene_id.substr(0, 16),
+                    std::string(source.status().message()));
+        options_.shared_scenes->Remove(scene_id).IgnoreError();
+      }
+      return done(files::WithPrefix(source.status(), "scene_store_dir: "));
+    }
     if (!source.ok()) return done(source.status());
-    done(LoadIntoStore(renderer_, store_, scene_id, *source, options_.scene_limits));
+    absl::StatusOr<std::shared_ptr<StoredScene>> stored =
+        LoadIntoStore(renderer_, store_, scene_id, *source, options_.scene_limits);
+    Log().info("scene {}: loaded from the {} ({:.1f} ms): {}", scene_id.substr(0, 16),
+               journal ? "job journal" : "shared scene store",
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - started)
+                   .count(),
+               stored.ok() ? "OK" : stored.status().ToString());
+    done(std::move(stored));
   });
+}
+
+bool JobManager::HasArchived(const std::string& scene_id) const {
+  if (!JobJournal::ValidSceneId(scene_id)) return false;
+  return (options_.persistent && journal_->HasScene(scene_id)) ||
+         (options_.shared_scenes && options_.shared_scenes->Has(scene_id));
 }
 
 void JobManager::Restore(std::vector<std::string>* log) {
@@ -597,8 +626,7 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
   if (found.ok()) {
     scene = *found;
     scene_id = scene->id;
-  } else if (absl::IsNotFound(found.status()) && options_.persistent &&
-             JobJournal::ValidSceneId(spec.scene_id()) && journal_->HasScene(spec.scene_id())) {
+  } else if (absl::IsNotFound(found.status()) && HasArchived(spec.scene_id())) {
     scene_id = spec.scene_id();
   } else {
     return Prefixed(found.status(), "spec.");

@@ -47,6 +47,9 @@ struct JobManagerOptions {
   bool persistent = false;           // the journal is --state_dir (restored on restart)
   uint64_t max_scene_bytes = 1ull << 30;  // reading an archived scene back
   SceneLimits scene_limits;               // importing it
+  // The scene store replicas share (--scene_store_dir), or null: scenes not in memory are
+  // loaded from it as from the journal.
+  SceneArchive* shared_scenes = nullptr;
 };
 
 // Where a watcher's messages go (the WatchJob reactor). Push is called with events in order;
@@ -123,6 +126,9 @@ class JobManager {
   const Settings& default_settings() const { return default_settings_; }
   bool shutting_down() const { return shutting_down_; }
   void JobEnded();  // prunes the scene archive
+  // A scene not in memory that LoadArchived can load: in the journal of a persistent daemon,
+  // or in the shared scene store. Full ids only.
+  bool HasArchived(const std::string& scene_id) const;
   // Loads an archived scene into the store (loader thread); the result goes to `done`.
   void LoadArchived(const std::string& scene_id,
                     std::function<void(absl::StatusOr<std::shared_ptr<StoredScene>>)> done);

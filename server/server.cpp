@@ -27,6 +27,7 @@
 #include "server/job_journal.h"
 #include "server/jobs.h"
 #include "server/metrics.h"
+#include "server/scene_archive.h"
 #include "server/service.h"
 
 namespace tessera::server {
@@ -79,6 +80,7 @@ struct Server::Impl {
   std::unique_ptr<ThreadPool> loader;
   std::unique_ptr<RenderLoop> loop;
   std::unique_ptr<JobManager> jobs;
+  std::unique_ptr<SceneArchive> shared_scenes;  // --scene_store_dir
   std::string temp_state_dir;  // jobs without --state_dir: removed at exit
   ServiceState state;
   std::unique_ptr<RenderServiceImpl> service;
@@ -93,6 +95,7 @@ struct Server::Impl {
   // Health: what grpc.health.v1 says now, and why not SERVING.
   mutable std::mutex health_mu;
   ServerHealth health_now;
+  int ready_now = -1;  // readiness (kReadinessService) as last set: -1 not yet, 0, 1
   uint64_t stalls = 0;  // times the render thread was found stalled
   void CheckHealth();
   ServerHealth Health() const {
@@ -160,6 +163,8 @@ absl::Status CheckOptions(const ServerOptions& options) {
     return absl::InvalidArgumentError("background_share: must be in (0, 1]");
   if (!(options.render_stall_s > 0.0))
     return absl::InvalidArgumentError("render_stall_s: must be more than 0 seconds");
+  if (!options.scene_store_dir.empty() && options.scene_store_max_bytes == 0)
+    return absl::InvalidArgumentError("scene_store_max_mb: must be > 0");
   return absl::OkStatus();
 }
 
@@ -256,6 +261,7 @@ absl::Status Server::Impl::StartJobs() {
   job_options.persistent = !options.state_dir.empty();
   job_options.max_scene_bytes = options.max_upload_bytes;
   job_options.scene_limits = {options.import_limits, options.max_scene_device_bytes};
+  job_options.shared_scenes = shared_scenes.get();
   jobs = std::make_unique<JobManager>(job_options, *std::move(journal), renderer.get(),
                                       store.get(), loop.get(), loader.get(),
                                       state.default_settings);
@@ -271,6 +277,7 @@ void Server::Impl::StartService() {
   state.auth = auth.get();
   state.metrics = metrics.get();
   state.jobs = jobs.get();
+  state.shared_scenes = shared_scenes.get();
   state.health = [this] { return Health(); };
   service = std::make_unique<RenderServiceImpl>(&state);
   std::vector<std::string> lines;
@@ -344,7 +351,18 @@ void Server::Impl::CheckHealth() {
                                 "(--render_stall_s %g): the device or its driver is stuck",
                                 busy, options.render_stall_s)};
   }
+  // Readiness: the service name says whether a new session would be taken (load included),
+  // so that Kubernetes and the gateway stop sending sessions to a full replica while its
+  // liveness ("") stays SERVING. (ServiceState::AcceptingSessions, with this health.)
+  const bool ready = h.serving && state.AcceptingSessions(/*serving=*/true);
   std::lock_guard lock(health_mu);
+  if (static_cast<int>(ready) != ready_now) {
+    ready_now = ready;
+    for (grpc::Server* server : {grpc_server.get(), health_server.get()})
+      if (server)
+        if (auto* service = server->GetHealthCheckService())
+          service->SetServingStatus(kReadinessService, ready);
+  }
   if (h.serving == health_now.serving && h.reason == health_now.reason) return;
   if (h.serving != health_now.serving) {
     if (h.serving) {
@@ -376,9 +394,22 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   Log().info("video: h264 encoders {}", absl::StrJoin(video::EncoderNames(), ", "));
   impl->loader = std::make_unique<ThreadPool>("load", std::max(1u, options.loader_threads));
   impl->StartMetricsAndLoop();
+  if (!options.scene_store_dir.empty()) {
+    // Shared with other replicas: a ".tmp-*" name younger than an hour may be one of their
+    // writes in progress, not a crash's leftover.
+    ASSIGN_OR_RETURN(impl->shared_scenes,
+                     SceneArchive::Open(options.scene_store_dir,
+                                        {options.scene_store_max_bytes, std::chrono::hours(1)},
+                                        "scene_store_dir"));
+    Log().info("scene store: {} ({} scenes, {:.1f} of {} MiB)", impl->shared_scenes->dir(),
+               impl->shared_scenes->List().size(),
+               impl->shared_scenes->TotalBytes() / 1048576.0,
+               options.scene_store_max_bytes >> 20);
+  }
   RETURN_IF_ERROR(impl->StartJobs());
   impl->StartService();
   RETURN_IF_ERROR(impl->Listen(credentials));
+  impl->CheckHealth();  // readiness set before the first probe
   impl->StartSweeper();
   Log().info("tesserad {} listening on {}:{}{}{}", TESSERA_VERSION, impl->host, impl->port,
              options.tls_cert_file.empty() ? "" : " (TLS)",

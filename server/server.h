@@ -17,6 +17,10 @@
 
 namespace tessera::server {
 
+// grpc.health.v1's service name for readiness: SERVING while a new Stream session would be
+// taken (healthy, not shutting down, fewer than max_sessions open). "" is liveness.
+inline constexpr char kReadinessService[] = "tessera.v1.RenderService";
+
 struct ServerOptions {
   std::string listen = "127.0.0.1:50051";  // host:port; port 0 picks a free port
   std::string device;       // substring of the Vulkan device name; empty: best device
@@ -60,6 +64,11 @@ struct ServerOptions {
   // directory removed at exit. SERVER_DIR outputs go under job_output_root (empty: refused).
   std::string state_dir;
   std::string job_output_root;
+  // Scenes shared by replicas: uploads are saved under this directory (a shared volume) and
+  // a replica asked for a scene it has not loaded loads it from there. Empty: off. Past
+  // scene_store_max_bytes the least recently used scenes are evicted (never one being loaded).
+  std::string scene_store_dir;
+  uint64_t scene_store_max_bytes = 20ull << 30;
   uint32_t max_jobs = 64;            // jobs kept (queued, running, finished)
   uint32_t max_job_frames = 100000;  // frames in one job
   // While viewers are active, background frames (jobs, background renders) take at most this

@@ -13,7 +13,9 @@
 #include "common/job_spec.h"
 #include "common/video.h"
 #include "server/jobs.h"
+#include "server/fs_util.h"
 #include "server/metrics.h"
+#include "server/scene_archive.h"
 #include "server/upload.h"
 
 namespace tessera::server {
@@ -136,27 +138,53 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
                                                     const v1::RenderRequest* req,
                                                     v1::Frame* response) {
   grpc::ServerUnaryReactor* reactor = ctx->DefaultReactor();
-  auto fail = [&](const absl::Status& st) {
+  ServiceState* state = state_;
+  auto fail = [state, ctx, req, reactor](const absl::Status& st) {
     Log().info("Render scene={} -> {} peer={}", req->scene_id().substr(0, 80), st.ToString(),
                Peer(ctx));
-    state_->CountRpc("Render", ToGrpc(st));
+    state->CountRpc("Render", ToGrpc(st));
     reactor->Finish(ToGrpc(st));
-    return reactor;
   };
-  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok()) return fail(st);
-  if (state_->shutting_down) return fail(Unavailable());
-  absl::StatusOr<RenderWork> work = RenderRequestWork(*state_, *req);
-  if (!work.ok()) return fail(work.status());
-  if (state_->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
-    --state_->unary_queued;
-    return fail(absl::ResourceExhaustedError(absl::StrCat(
-        "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
+  // After the scene is in memory (at once, or loaded from the shared scene store).
+  auto render = [state, ctx, req, response, reactor, fail](const absl::Status& loaded) {
+    if (!loaded.ok()) return fail(files::WithPrefix(loaded, "scene_id: "));
+    absl::StatusOr<RenderWork> work = RenderRequestWork(*state, *req);
+    if (!work.ok()) return fail(work.status());
+    if (state->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
+      --state->unary_queued;
+      return fail(absl::ResourceExhaustedError(absl::StrCat(
+          "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
+    }
+    work->requested = Clock::now();
+    state->loop->Enqueue(
+        MakeUnaryRender(state, ctx, reactor, response, *std::move(work), "Render"),
+        req->background() ? Priority::kBackground : Priority::kNormal);
+  };
+  if (absl::Status st = state_->Authorize(ctx).status(); !st.ok()) {
+    fail(st);
+  } else if (state_->shutting_down) {
+    fail(Unavailable());
+  } else {
+    state_->EnsureSceneLoaded(req->scene_id(), std::move(render));
   }
-  work->requested = Clock::now();
-  state_->loop->Enqueue(
-      MakeUnaryRender(state_, ctx, reactor, response, *std::move(work), "Render"),
-      req->background() ? Priority::kBackground : Priority::kNormal);
   return reactor;
+}
+
+void ServiceState::EnsureSceneLoaded(const std::string& scene_id,
+                                     std::function<void(absl::Status)> then) {
+  if (!jobs || store->FindExact(scene_id) || !jobs->HasArchived(scene_id))
+    return then(absl::OkStatus());
+  jobs->LoadArchived(scene_id, [then = std::move(then)](
+                                   absl::StatusOr<std::shared_ptr<StoredScene>> s) {
+    // The caller finds it in the store; not held meanwhile (an unused scene is evictable).
+    then(s.status());
+  });
+}
+
+bool ServiceState::AcceptingSessions(std::optional<bool> serving) const {
+  if (shutting_down || session_count() >= options.max_sessions) return false;
+  if (serving) return *serving;
+  return !health || health().serving;
 }
 
 absl::StatusOr<std::shared_ptr<const Principal>> ServiceState::Authorize(
@@ -245,11 +273,20 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
     if (std::shared_ptr<StoredScene> existing = state_->store->FindExact(scene_id)) {
       ToProto(SceneStore::Describe(*existing), response_);  // same content: nothing to parse
       existing.reset();  // not held while the client hears back (eviction)
-      if (state_->jobs && state_->jobs->options().persistent)
-        state_->loader->Submit([jobs = state_->jobs, scene_id,
-                                src = std::make_shared<GltfSource>(*std::move(source))] {
-          jobs->ArchiveScene(scene_id, *src);
+      auto src = std::make_shared<GltfSource>(*std::move(source));
+      if (state_->shared_scenes && !state_->shared_scenes->Has(scene_id)) {
+        // Loaded here before the store had it (or the store evicted it): saved there before
+        // the client hears back, as a new upload is.
+        state_->loader->Submit([this, scene_id, src] {
+          Share(scene_id, *src);
+          if (state_->jobs) state_->jobs->ArchiveScene(scene_id, *src);
+          Done(absl::OkStatus(), "already loaded");
         });
+        return;
+      }
+      if (state_->jobs && state_->jobs->options().persistent)
+        state_->loader->Submit(
+            [jobs = state_->jobs, scene_id, src] { jobs->ArchiveScene(scene_id, *src); });
       return Done(absl::OkStatus(), "already loaded");
     }
     // Parsing and the device upload can take seconds: off the gRPC thread.
@@ -277,10 +314,27 @@ class UploadReactor final : public grpc::ServerReadReactor<v1::UploadRequest> {
     if (!stored.ok()) return Done(stored.status());
     ToProto(SceneStore::Describe(**stored), response_);
     stored->reset();  // before the client hears back: an unused scene is evictable at once
-    // A persistent daemon keeps the files for its jobs, before the client hears back, so a
-    // job submitted next finds them even if the scene is evicted meanwhile.
+    // Replicas sharing a scene store find it there, and a persistent daemon keeps the files
+    // for its jobs, before the client hears back: a stream or job that another replica (or
+    // this one, after an eviction) opens next finds them.
+    Share(scene_id, source);
     if (state_->jobs) state_->jobs->ArchiveScene(scene_id, source);
     Done(absl::OkStatus(), "loaded");
+  }
+
+  // Saves the upload in the shared scene store (--scene_store_dir), if there is one. A failure
+  // (a full disk, a scene larger than the store) does not fail the upload, which this replica
+  // has: the client gets a warning that other replicas cannot load it.
+  void Share(const std::string& scene_id, const GltfSource& source) {
+    if (!state_->shared_scenes) return;
+    const Clock::time_point t0 = Clock::now();
+    absl::Status st = state_->shared_scenes->Save(scene_id, source);
+    Log().info("scene {}: shared scene store: {} ({:.1f} ms)", scene_id.substr(0, 16),
+               st.ok() ? "saved" : st.ToString(), MsSince(t0));
+    if (!st.ok())
+      response_->add_warnings(absl::StrCat(
+          "scene_store_dir: not saved, so other replicas cannot load this scene: ",
+          st.message()));
   }
 
   void Done(const absl::Status& st, const char* what = "") {
@@ -387,6 +441,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::GetServerInfo(grpc::CallbackServerC
   }
   for (std::string_view e : SupportedGltfExtensions()) r->add_gltf_extensions(std::string(e));
   for (const std::string& e : video::EncoderNames()) r->add_video_encoders(e);
+  r->set_scene_store(state_->shared_scenes != nullptr);
+  r->set_accepting_sessions(state_->AcceptingSessions());
   Log().debug("GetServerInfo peer={}", Peer(ctx));
   return Reply(state_, ctx, "GetServerInfo", absl::OkStatus());
 }
@@ -401,6 +457,8 @@ grpc::ServerUnaryReactor* RenderServiceImpl::HasScene(grpc::CallbackServerContex
   if (std::shared_ptr<StoredScene> s = state_->store->FindExact(req->scene_id())) {
     r->set_present(true);
     ToProto(SceneStore::Describe(*s), r->mutable_info());
+  } else if (state_->shared_scenes && state_->shared_scenes->Has(req->scene_id())) {
+    r->set_present(true);  // any Render, Stream or job here loads it from the store
   }
   Log().info("HasScene {} -> {} peer={}", req->scene_id().substr(0, 80), r->present(), Peer(ctx));
   return Reply(state_, ctx, "HasScene", absl::OkStatus());
@@ -421,7 +479,20 @@ grpc::ServerUnaryReactor* RenderServiceImpl::DeleteScene(grpc::CallbackServerCon
                                                          v1::DeleteSceneResponse* r) {
   if (absl::Status st = state_->Authorize(ctx).status(); !st.ok())
     return Reply(state_, ctx, "DeleteScene", st);
+  // The full id, for the shared store (which a unique prefix of a loaded scene also names).
+  std::string full_id = req->scene_id();
+  if (absl::StatusOr<std::shared_ptr<StoredScene>> s = state_->store->Find(full_id); s.ok())
+    full_id = (*s)->id;
   absl::StatusOr<uint32_t> users = state_->store->Delete(req->scene_id());
+  if (state_->shared_scenes && SceneArchive::ValidSceneId(full_id) &&
+      (users.ok() || (absl::IsNotFound(users.status()) && state_->shared_scenes->Has(full_id)))) {
+    // Gone for every replica's new requests; their loaded copies go when they evict them.
+    if (absl::Status st = state_->shared_scenes->Remove(full_id); !st.ok()) {
+      users = absl::Status(st.code(), absl::StrCat("scene_store_dir: ", st.message()));
+    } else if (!users.ok()) {
+      users = 0u;
+    }
+  }
   Log().info("DeleteScene {} -> {} peer={}", req->scene_id().substr(0, 80),
              users.ok() ? absl::StrCat("OK, ", *users, " sessions still using it")
                         : users.status().ToString(),

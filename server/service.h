@@ -8,6 +8,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -24,6 +25,7 @@ namespace tessera::server {
 class StreamSession;
 class Metrics;
 class JobManager;
+class SceneArchive;
 
 // A session apart from its stream: what a resumed stream gets back.
 // A session's renderer view (its TAA history, occlusion bits, exposure): forgotten when the last
@@ -71,6 +73,7 @@ struct ServiceState {
   Authenticator* auth = nullptr;
   Metrics* metrics = nullptr;  // may be null
   JobManager* jobs = nullptr;
+  SceneArchive* shared_scenes = nullptr;  // --scene_store_dir, or null
   std::function<ServerHealth()> health;  // what grpc.health.v1 says now, and why
   Clock::time_point started = Clock::now();
   Settings default_settings;
@@ -95,6 +98,15 @@ struct ServiceState {
 
   uint32_t session_count() const;
   uint32_t parked_count() const;
+  // A new Stream session would be taken now: serving, not shutting down, and fewer than
+  // max_sessions open (readiness: grpc.health.v1 "tessera.v1.RenderService"). `serving`:
+  // the health to assume (the health check passes its own), else health() is asked.
+  bool AcceptingSessions(std::optional<bool> serving = std::nullopt) const;
+  // Runs `then` once the scene `scene_id` names is in memory, if it can be: at once when it
+  // is there or nowhere to load from (the caller's own lookup then answers), else after the
+  // loader thread has loaded it from the job journal or the shared scene store
+  // (JobManager::LoadArchived), with the load's error if it failed.
+  void EnsureSceneLoaded(const std::string& scene_id, std::function<void(absl::Status)> then);
   // Ends every open stream with UNAVAILABLE after its in-flight frame.
   void ShutdownSessions();
 

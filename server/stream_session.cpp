@@ -53,14 +53,28 @@ void StreamSession::Begin(const absl::Status& admission) {
 }
 
 void StreamSession::OnReadDone(bool ok) {
-  // A resume takes the session from another stream (whose lock it needs) or the parked set:
-  // done before taking this session's lock. Only this thread opens the session, so it is not
-  // opened behind its back.
   bool opened;
   {
     std::lock_guard lock(mu_);
     opened = schedule_.opened();
   }
+  // A new session whose scene is not in memory but in the shared scene store (or the job
+  // journal): loaded on the loader thread first, then the open goes on from there.
+  if (ok && !opened && event_.has_open() && event_.open().resume_token().empty()) {
+    state_->EnsureSceneLoaded(event_.open().scene_id(),
+                              [self = shared_from_this()](absl::Status loaded) {
+                                self->scene_load_ = std::move(loaded);
+                                self->HandleRead(true, false);
+                              });
+    return;
+  }
+  HandleRead(ok, opened);
+}
+
+void StreamSession::HandleRead(bool ok, bool opened) {
+  // A resume takes the session from another stream (whose lock it needs) or the parked set:
+  // done before taking this session's lock. Only this thread opens the session, so it is not
+  // opened behind its back.
   std::optional<absl::StatusOr<SessionState>> resumed;
   if (ok && !opened && event_.has_open() && !event_.open().resume_token().empty())
     resumed = state_->Resume(event_.open().resume_token(), st_.principal);
@@ -267,6 +281,9 @@ absl::Status StreamSession::OpenLocked(Clock::time_point now) {
   if (!event_.has_open())
     return absl::InvalidArgumentError("open: the first ClientEvent must open the session");
   const v1::OpenSession& open = event_.open();
+  if (!scene_load_.ok())
+    return absl::Status(scene_load_.code(),
+                        absl::StrCat("open.scene_id: ", scene_load_.message()));
   ASSIGN_OR_RETURN(std::shared_ptr<StoredScene> scene, state_->store->Find(open.scene_id()));
   ASSIGN_OR_RETURN(Settings settings, MergeSettings(state_->default_settings, open.settings()));
   RETURN_IF_ERROR(ResolveCamera(open.camera(), scene->scene->info(), Aspect(settings)).status());

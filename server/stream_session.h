@@ -53,6 +53,8 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   // One event, under mu_: opens, resumes or updates the session; the stream fails with an
   // error it returns.
   void ApplyEventLocked(Clock::time_point now, std::optional<absl::StatusOr<SessionState>> resumed);
+  // OnReadDone once the opening event's scene is in memory (or could not be loaded).
+  void HandleRead(bool ok, bool opened);
   absl::Status OpenLocked(Clock::time_point now);
   absl::Status ResumeLocked(Clock::time_point now, absl::StatusOr<SessionState> resumed);
   absl::Status ApplyUpdateLocked(Clock::time_point now);
@@ -90,6 +92,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   const Clock::time_point opened_at_;
   std::shared_ptr<StreamSession> self_;  // until OnDone
   v1::ClientEvent event_;                // read buffer (one read at a time)
+  absl::Status scene_load_;              // loading the opening event's scene, if it failed
 
   std::mutex mu_;
   StreamSchedule schedule_;

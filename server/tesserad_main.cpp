@@ -62,6 +62,13 @@ ABSL_FLAG(std::string, metrics_listen, "",
 ABSL_FLAG(std::string, state_dir, "",
           "jobs: keep the job journal, returned frames and the scenes jobs need here, so a "
           "restarted daemon resumes unfinished jobs (empty: a temporary directory, removed at exit)");
+ABSL_FLAG(std::string, scene_store_dir, "",
+          "replicas: a scene store shared by every tesserad given the same directory (a shared "
+          "volume): uploads are saved there, and a scene not loaded here is loaded from there "
+          "(empty: off)");
+ABSL_FLAG(uint64_t, scene_store_max_mb, 20480,
+          "limit: MiB of scene files in --scene_store_dir; past it the least recently used "
+          "scenes are evicted (never one a replica is loading)");
 ABSL_FLAG(std::string, job_output_root, "",
           "jobs: SERVER_DIR outputs are written under this directory (empty: not offered)");
 ABSL_FLAG(uint32_t, max_jobs, 64, "limit: jobs kept (queued, running and finished)");
@@ -134,6 +141,8 @@ int main(int argc, char** argv) {
   options.token_file = absl::GetFlag(FLAGS_token_file);
   options.metrics_listen = absl::GetFlag(FLAGS_metrics_listen);
   options.state_dir = absl::GetFlag(FLAGS_state_dir);
+  options.scene_store_dir = absl::GetFlag(FLAGS_scene_store_dir);
+  options.scene_store_max_bytes = absl::GetFlag(FLAGS_scene_store_max_mb) << 20;
   options.job_output_root = absl::GetFlag(FLAGS_job_output_root);
   options.max_jobs = absl::GetFlag(FLAGS_max_jobs);
   options.max_job_frames = absl::GetFlag(FLAGS_max_job_frames);

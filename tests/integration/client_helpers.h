@@ -3,17 +3,20 @@
 // channels and stubs, the camera orbit of the stream tests and the events built on it, uploads
 // of file sets, closing a stream, waiting on the server's stats, and the fixture of a suite
 // that shares one in-process server.
+#include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -220,6 +223,55 @@ inline grpc::Status UploadFromDisk(v1::RenderService::Stub* stub, const std::str
   const std::vector<UploadPart> parts = PartsFromDisk(path);
   if (parts.empty()) return grpc::Status(grpc::StatusCode::INTERNAL, "read");
   return UploadRaw(stub, parts, info, MainName(path), 1 << 20, /*with_sha=*/false, ctx);
+}
+
+// --- health ---------------------------------------------------------------------------------
+
+// grpc.health.v1.Health/Check for `service` ("" = the server as a whole, liveness;
+// server::kReadinessService = readiness): 1 SERVING, 2 NOT_SERVING; minus the gRPC status code
+// when the call fails (-5: NOT_FOUND, a service name the server has not set); -1000 after 10 s
+// without an answer.
+inline int HealthStatus(const std::string& address, const std::string& service = "",
+                        std::shared_ptr<grpc::ChannelCredentials> creds =
+                            grpc::InsecureChannelCredentials()) {
+  grpc::GenericStub generic(grpc::CreateChannel(address, creds));
+  grpc::ClientContext ctx;
+  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+  // HealthCheckRequest {string service = 1}: short names only (one length byte).
+  std::string request_bytes;
+  if (!service.empty()) {
+    request_bytes.push_back('\x0a');
+    request_bytes.push_back(static_cast<char>(service.size()));
+    request_bytes += service;
+  }
+  grpc::Slice slice(request_bytes);
+  grpc::ByteBuffer request(&slice, 1), response;
+  std::mutex mu;
+  std::condition_variable cv;
+  bool done = false;
+  grpc::Status status;
+  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request,
+                    &response, [&](grpc::Status s) {
+                      std::lock_guard lock(mu);
+                      status = s;
+                      done = true;
+                      cv.notify_one();
+                    });
+  std::unique_lock lock(mu);
+  if (!cv.wait_for(lock, std::chrono::seconds(15), [&] { return done; })) return -1000;
+  if (!status.ok()) return -static_cast<int>(status.error_code());
+  // HealthCheckResponse {status = 1}: field 1, varint (SERVING 1, NOT_SERVING 2).
+  std::vector<grpc::Slice> slices;
+  if (!response.Dump(&slices).ok()) return -1001;
+  std::string bytes;
+  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
+  return bytes.size() == 2 && bytes[0] == '\x08' ? bytes[1] : -1002;
+}
+
+inline bool HealthServing(const std::string& address,
+                          std::shared_ptr<grpc::ChannelCredentials> creds =
+                              grpc::InsecureChannelCredentials()) {
+  return HealthStatus(address, "", std::move(creds)) == 1;
 }
 
 // --- the server ----------------------------------------------------------------------------

@@ -108,34 +108,12 @@ TEST_F(ServerTest, ServerInfoDescribesDeviceLimitsAndChoices) {
   EXPECT_EQ(size_t(info.gltf_extensions_size()), SupportedGltfExtensions().size());
 }
 
-// grpc.health.v1.Health/Check with an empty request; the reply is HealthCheckResponse
-// {status = SERVING (1)}: field 1, varint 1.
+// grpc.health.v1.Health/Check: the server as a whole and readiness (client_helpers.h).
 TEST_F(ServerTest, HealthReportsServing) {
-  auto channel = grpc::CreateChannel(server_->address(), grpc::InsecureChannelCredentials());
-  grpc::GenericStub generic(channel);
-  grpc::ClientContext ctx;
-  grpc::ByteBuffer request, response;
-  grpc::Slice empty;
-  request = grpc::ByteBuffer(&empty, 1);
-  std::mutex mu;
-  std::condition_variable cv;
-  bool done = false;
-  grpc::Status status;
-  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request, &response,
-                    [&](grpc::Status s) {
-                      std::lock_guard lock(mu);
-                      status = s;
-                      done = true;
-                      cv.notify_one();
-                    });
-  std::unique_lock lock(mu);
-  ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(10), [&] { return done; }));
-  ASSERT_TRUE(status.ok()) << status.error_message();
-  std::vector<grpc::Slice> slices;
-  ASSERT_TRUE(response.Dump(&slices).ok());
-  std::string bytes;
-  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
-  EXPECT_EQ(bytes, std::string("\x08\x01", 2));
+  EXPECT_EQ(HealthStatus(server_->address()), 1);
+  EXPECT_EQ(HealthStatus(server_->address(), server::kReadinessService), 1);
+  EXPECT_EQ(HealthStatus(server_->address(), "no.such.Service"),
+            -static_cast<int>(grpc::StatusCode::NOT_FOUND));
 }
 
 // Server reflection: list_services must include tessera.v1.RenderService. The reflection

@@ -488,36 +488,6 @@ void WriteFile(const std::string& path, const std::string& text) {
   std::ofstream(path, std::ios::binary | std::ios::trunc) << text;
 }
 
-bool HealthServing(const std::string& address,
-                   std::shared_ptr<grpc::ChannelCredentials> creds =
-                       grpc::InsecureChannelCredentials()) {
-  grpc::GenericStub generic(grpc::CreateChannel(address, creds));
-  grpc::ClientContext ctx;
-  ctx.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
-  grpc::Slice empty;
-  grpc::ByteBuffer request(&empty, 1), response;
-  std::mutex mu;
-  std::condition_variable cv;
-  bool done = false;
-  grpc::Status status;
-  generic.UnaryCall(&ctx, "/grpc.health.v1.Health/Check", grpc::StubOptions(), &request,
-                    &response, [&](grpc::Status s) {
-                      std::lock_guard lock(mu);
-                      status = s;
-                      done = true;
-                      cv.notify_one();
-                    });
-  std::unique_lock lock(mu);
-  cv.wait(lock, [&] { return done; });
-  if (!status.ok()) return false;
-  // HealthCheckResponse {status = SERVING (1)}: field 1, varint 1; NOT_SERVING is 2.
-  std::vector<grpc::Slice> slices;
-  if (!response.Dump(&slices).ok()) return false;
-  std::string bytes;
-  for (const auto& s : slices) bytes.append(reinterpret_cast<const char*>(s.begin()), s.size());
-  return bytes == std::string("\x08\x01", 2);
-}
-
 // Health means something: a frame stuck on the device turns it NOT_SERVING (and back when the
 // frame ends), a lost device for good; GetServerInfo and the metrics say why, renders fail with
 // UNAVAILABLE naming the lost device, and the server's device-lost callback runs once.

@@ -15,11 +15,13 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "common/scene_id.h"
 #include "tests/unit/status_matchers.h"
 
 namespace tessera::server {
@@ -110,6 +112,13 @@ GltfSource MakeScene() {
   source.files["textures/a.png"] = Bytes(std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16));
   source.files["empty.bin"] = {};
   return source;
+}
+
+// The id an upload of `source` gets (archives check it when loading).
+std::string RealSceneId(const GltfSource& source) {
+  std::map<std::string, std::string> hashes;
+  for (const auto& [name, data] : source.files) hashes[name] = Sha256Hex(data.data(), data.size());
+  return SceneId(hashes, source.main_file);
 }
 
 uint64_t TotalBytes(const GltfSource& source) {
@@ -422,7 +431,7 @@ TEST_F(JobJournalTest, RemoveJobDeletesItsDirectory) {
 // Scenes
 
 TEST_F(JobJournalTest, SceneRoundTripWithNestedNames) {
-  const std::string id = SceneIdOf('5');
+  const std::string id = RealSceneId(MakeScene());
   const GltfSource source = MakeScene();
   {
     std::unique_ptr<JobJournal> journal = OpenJournal();
@@ -447,7 +456,7 @@ TEST_F(JobJournalTest, SceneRoundTripWithNestedNames) {
 }
 
 TEST_F(JobJournalTest, SavingAnArchivedSceneAgainIsOkAndWritesNothing) {
-  const std::string id = SceneIdOf('5');
+  const std::string id = RealSceneId(MakeScene());
   std::unique_ptr<JobJournal> journal = OpenJournal();
   ASSERT_NE(journal, nullptr);
   ASSERT_TRUE(journal->SaveScene(id, MakeScene()).ok());
@@ -497,7 +506,7 @@ TEST_F(JobJournalTest, InvalidSceneIdsAndFileNamesAreRefused) {
 }
 
 TEST_F(JobJournalTest, LoadSceneKeepsTheByteLimit) {
-  const std::string id = SceneIdOf('5');
+  const std::string id = RealSceneId(MakeScene());
   std::unique_ptr<JobJournal> journal = OpenJournal();
   ASSERT_NE(journal, nullptr);
   const GltfSource source = MakeScene();
