@@ -131,6 +131,13 @@ std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::str
                                            bool round_robin);
 std::unique_ptr<v1::RenderService::Stub> ConnectStub(const Invocation& inv);
 
+// The addresses behind --servers: "a:1,b:2" (names resolved here) or "dns:///name:port" (every
+// address the name resolves to: a headless Service's replicas). `lb_target` is what a
+// round_robin channel dials; `addresses` each daemon. INVALID_ARGUMENT / UNAVAILABLE naming
+// --servers.
+absl::Status ResolveServers(const std::string& servers, std::string* lb_target,
+                            std::vector<std::string>* addresses);
+
 // A deadline `seconds` from now on `context`.
 void SetDeadline(grpc::ClientContext* context, double seconds);
 // Deadline of the small unary calls (info, list, has, delete).

@@ -396,64 +396,6 @@ void PrintJobLine(const v1::Job& j) {
 // ---------------------------------------------------------------------------------------------
 // --servers: the frames spread over several daemons by this client.
 
-// The addresses behind --servers: "a:1,b:2" (names resolved here) or "dns:///name:port".
-// `lb_target` is what the round_robin channel dials; `addresses` each daemon (for uploads).
-absl::Status ResolveServers(const std::string& servers, std::string* lb_target,
-                            std::vector<std::string>* addresses) {
-  std::vector<std::string> parts;
-  std::string dns_port;
-  if (servers.rfind("dns:", 0) == 0) {
-    // dns:///host:port (or dns://authority/host:port): gRPC resolves and re-resolves it; the
-    // addresses are resolved here too, for the uploads.
-    *lb_target = servers;
-    std::string hostport = servers.substr(servers.find('/', 6) == std::string::npos
-                                              ? 4
-                                              : servers.find('/', 6) + 1);
-    parts.push_back(hostport);
-  } else {
-    for (absl::string_view p : absl::StrSplit(servers, ',', absl::SkipEmpty()))
-      parts.emplace_back(p);
-  }
-  if (parts.empty()) return absl::InvalidArgumentError("--servers: no address");
-  std::vector<std::string> v4, v6;
-  for (const std::string& p : parts) {
-    const size_t colon = p.rfind(':');
-    if (colon == std::string::npos || colon == 0)
-      return absl::InvalidArgumentError(absl::StrCat("--servers: '", p, "' is not HOST:PORT"));
-    std::string host = p.substr(0, colon);
-    const std::string port = p.substr(colon + 1);
-    if (host.size() > 2 && host.front() == '[' && host.back() == ']')
-      host = host.substr(1, host.size() - 2);
-    addrinfo hints{};
-    hints.ai_socktype = SOCK_STREAM;
-    addrinfo* res = nullptr;
-    if (int rc = getaddrinfo(host.c_str(), port.c_str(), &hints, &res); rc != 0)
-      return absl::UnavailableError(
-          absl::StrCat("--servers: cannot resolve '", host, "': ", gai_strerror(rc)));
-    for (addrinfo* a = res; a; a = a->ai_next) {
-      char buf[INET6_ADDRSTRLEN] = {};
-      if (a->ai_family == AF_INET) {
-        inet_ntop(AF_INET, &reinterpret_cast<sockaddr_in*>(a->ai_addr)->sin_addr, buf,
-                  sizeof buf);
-        const std::string addr = absl::StrCat(buf, ":", port);
-        if (std::find(v4.begin(), v4.end(), addr) == v4.end()) v4.push_back(addr);
-      } else if (a->ai_family == AF_INET6) {
-        inet_ntop(AF_INET6, &reinterpret_cast<sockaddr_in6*>(a->ai_addr)->sin6_addr, buf,
-                  sizeof buf);
-        const std::string addr = absl::StrCat("[", buf, "]:", port);
-        if (std::find(v6.begin(), v6.end(), addr) == v6.end()) v6.push_back(addr);
-      }
-    }
-    freeaddrinfo(res);
-  }
-  // One family for the static list (gRPC's ipv4:/ipv6: schemes); IPv4 when there is any.
-  *addresses = !v4.empty() ? v4 : v6;
-  if (addresses->empty()) return absl::UnavailableError("--servers: no address resolved");
-  if (lb_target->empty())
-    *lb_target = absl::StrCat(!v4.empty() ? "ipv4:" : "ipv6:", absl::StrJoin(*addresses, ","));
-  return absl::OkStatus();
-}
-
 // Worth trying again, on another daemon: it failed, was killed, was busy, or (a daemon that
 // came back, or a new one behind a DNS name) does not have the scene.
 bool Retryable(const grpc::Status& st) {

@@ -51,8 +51,13 @@ void PrintServerInfo(const Invocation& inv, const v1::ServerInfo& info) {
   absl::PrintF("device     %s (%s)\n", d.name(), d.type());
   absl::PrintF("driver     %s%s, Vulkan %s\n", d.driver_name(),
                d.driver_info().empty() ? "" : ", " + d.driver_info(), d.api_version());
-  absl::PrintF("health     %s\n", info.serving() ? std::string("SERVING")
-                                                   : "NOT_SERVING: " + info.unhealthy_reason());
+  absl::PrintF("health     %s; %s\n",
+               info.serving() ? std::string("SERVING") : "NOT_SERVING: " + info.unhealthy_reason(),
+               info.accepting_sessions() ? "taking new sessions"
+                                         : "not taking new sessions (readiness NOT_SERVING)");
+  absl::PrintF("scenes     %s\n", info.scene_store()
+                                       ? "shared with other replicas (--scene_store_dir)"
+                                       : "this server's own (no shared scene store)");
   for (const v1::DeviceFallback& f : d.fallbacks())
     absl::PrintF("fallback   no %s: %s\n", f.missing(), f.path());
   absl::PrintF(

@@ -20,8 +20,11 @@ bool HasCameraFlags(const RenderFlags& f) {
 // increasing ids. Called from the writer thread and (OnFrame) the reader, hence the lock.
 class Session::Events {
  public:
-  Events(const SessionOptions& o, std::string scene_id, std::optional<Orbit> orbit)
-      : options_(o), scene_id_(std::move(scene_id)), orbit_(orbit) {}
+  // A session continued on another server (failover) goes on from `next_id` and `step`.
+  Events(const SessionOptions& o, std::string scene_id, std::optional<Orbit> orbit,
+         uint64_t next_id, uint64_t step)
+      : options_(o), scene_id_(std::move(scene_id)), orbit_(orbit), next_id_(next_id),
+        step_(step) {}
 
   v1::ClientEvent Open() {
     std::lock_guard<std::mutex> lock(mu_);
@@ -68,6 +71,20 @@ class Session::Events {
     }
   }
 
+  // Where a continuation starts.
+  uint64_t next_id() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return next_id_;
+  }
+  uint64_t step() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return step_;
+  }
+  std::optional<Orbit> orbit() {
+    std::lock_guard<std::mutex> lock(mu_);
+    return orbit_;
+  }
+
  private:
   const SessionOptions& options_;
   const std::string scene_id_;
@@ -79,7 +96,10 @@ class Session::Events {
 
 grpc::Status Session::Run(v1::RenderService::Stub* stub, const std::string& scene_id,
                           std::optional<Orbit> orbit) {
-  Events events(o_, scene_id, orbit);
+  // Run again after a server was lost: the same session goes on (event ids, orbit, frame
+  // count and clock), opened anew.
+  const bool continued = runs_++ > 0;
+  Events events(o_, scene_id, continued ? orbit_ : orbit, next_event_id_, step_);
   grpc::ClientContext context;
   std::unique_ptr<grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>> stream =
       stub->Stream(&context);
@@ -87,7 +107,7 @@ grpc::Status Session::Run(v1::RenderService::Stub* stub, const std::string& scen
   if (o_.pacing() == Pacing::kSteadyRate) period = std::chrono::duration<double>(1.0 / o_.fps);
   EventWriter writer(
       &context, stream.get(), &latency_, [&events] { return events.Next(); }, period);
-  start_ = Clock::now();
+  if (!continued) start_ = Clock::now();
   if (writer.WriteNow(events.Open())) {
     writer.Start();
     ReadFrames(stream.get(), &writer, &events);
@@ -96,7 +116,14 @@ grpc::Status Session::Run(v1::RenderService::Stub* stub, const std::string& scen
   v1::Frame extra;
   while (stream->Read(&extra)) ++extra_frames_;
   writer.Join();
+  next_event_id_ = events.next_id();
+  step_ = events.step();
+  orbit_ = events.orbit();
   return stream->Finish();
+}
+
+double Session::ElapsedMs() const {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start_).count();
 }
 
 void Session::ReadFrames(grpc::ClientReaderWriter<v1::ClientEvent, v1::Frame>* stream,

@@ -81,8 +81,11 @@ class Session {
   Session(const SessionOptions& o, FrameHandler on_frame) : o_(o), on_frame_(std::move(on_frame)) {}
 
   // Runs the session until o.frames frames arrived or the call ended; the call's status.
+  // Called again (on another server, after this one was lost), the session goes on: a new
+  // Stream opened with the next event id and orbit step, frames counted on, one clock.
   grpc::Status Run(v1::RenderService::Stub* stub, const std::string& scene_id,
                    std::optional<Orbit> orbit);
+  double ElapsedMs() const;  // since the first Run's open event
 
   const std::vector<FrameRecord>& records() const { return records_; }
   // (event id, ms from sending it to the first frame reflecting it), in id order.
@@ -101,6 +104,11 @@ class Session {
   std::vector<FrameRecord> records_;
   std::vector<std::pair<uint64_t, double>> latencies_;
   uint32_t extra_frames_ = 0;
+  // Carried from one Run to the next.
+  uint32_t runs_ = 0;
+  uint64_t next_event_id_ = 1;
+  uint64_t step_ = 0;
+  std::optional<Orbit> orbit_;
 };
 
 // The figures of a run, computed once from its records.

@@ -3,12 +3,16 @@
 #include <cstdio>
 #include <filesystem>
 #include <optional>
+#include <random>
+#include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "clients/cli/cli_commands.h"
 #include "clients/cli/cli_format.h"
 #include "clients/cli/cli_progress.h"
@@ -23,6 +27,7 @@ namespace {
 // The session's options and where to save its frames.
 struct StreamOptions : SessionOptions {
   std::string save_dir;
+  std::string servers;  // --servers: replicas to place the session on (and fail over to)
 };
 
 StreamOptions ParseStreamOptions(const Invocation& inv) {
@@ -41,6 +46,8 @@ StreamOptions ParseStreamOptions(const Invocation& inv) {
       if (!(o.fps > 0 && o.fps <= 240)) args.Fail("--fps wants a rate in (0, 240]");
     } else if (args.Is("--save")) {
       o.save_dir = args.Value();
+    } else if (args.Is("--servers")) {
+      o.servers = args.Value();
     } else if (args.Is("--interactive")) {
       o.interactive_scale = args.Float();
       if (!(o.interactive_scale >= 0.25f && o.interactive_scale <= 1.0f))
@@ -259,6 +266,84 @@ class VideoSaver {
   double t0_ = 0;
 };
 
+// --servers: what one replica said when asked where to place the session.
+struct ReplicaState {
+  std::string address;
+  grpc::Status status;  // of GetServerInfo
+  v1::ServerInfo info;
+  // Healthy, not shutting down, below max_sessions.
+  bool ready() const { return status.ok() && info.accepting_sessions(); }
+};
+
+// Asks every replica of `addresses` (not in `exclude`) at once, within 3 s.
+std::vector<ReplicaState> AskReplicas(const Invocation& inv,
+                                      const std::vector<std::string>& addresses,
+                                      const std::set<std::string>& exclude) {
+  std::vector<ReplicaState> states;
+  for (const std::string& a : addresses)
+    if (!exclude.count(a)) states.push_back({a, grpc::Status::OK, {}});
+  std::vector<std::thread> threads;
+  for (ReplicaState& r : states) {
+    threads.emplace_back([&inv, &r] {
+      std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, r.address, false);
+      if (!channel) {
+        r.status = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "TLS files");
+        return;
+      }
+      grpc::ClientContext context;
+      SetDeadline(&context, 3);
+      context.set_wait_for_ready(true);  // a replica still connecting gets the 3 s
+      r.status = v1::RenderService::NewStub(channel)->GetServerInfo(
+          &context, v1::GetServerInfoRequest(), &r.info);
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  return states;
+}
+
+// The ready replica with the fewest sessions (ties: a random one of them, so clients started
+// together spread), or UNAVAILABLE saying what each replica answered.
+absl::StatusOr<std::string> PlaceSession(const Invocation& inv,
+                                         const std::vector<std::string>& addresses,
+                                         const std::set<std::string>& exclude) {
+  std::vector<ReplicaState> states = AskReplicas(inv, addresses, exclude);
+  std::vector<const ReplicaState*> best;
+  std::vector<std::string> why;
+  for (const ReplicaState& r : states) {
+    if (!r.ready()) {
+      why.push_back(absl::StrCat(
+          r.address, ": ",
+          !r.status.ok() ? absl::StrCat(StatusCodeName(r.status.error_code()), " ",
+                                        r.status.error_message())
+          : !r.info.serving() ? absl::StrCat("NOT_SERVING (", r.info.unhealthy_reason(), ")")
+          : r.info.active_sessions() >= r.info.limits().max_sessions()
+              ? absl::StrCat("full (", r.info.active_sessions(), " of ",
+                             r.info.limits().max_sessions(), " sessions)")
+              : std::string("not taking sessions (shutting down)")));
+      continue;
+    }
+    if (!best.empty() && r.info.active_sessions() > best[0]->info.active_sessions()) continue;
+    if (!best.empty() && r.info.active_sessions() < best[0]->info.active_sessions()) best.clear();
+    best.push_back(&r);
+  }
+  if (best.empty())
+    return absl::UnavailableError(absl::StrCat(
+        "--servers: no replica takes a session",
+        exclude.empty() ? "" : absl::StrCat(" (", exclude.size(), " lost)"),
+        why.empty() ? "" : ": ", absl::StrJoin(why, "; ")));
+  std::random_device rd;
+  return best[std::uniform_int_distribution<size_t>(0, best.size() - 1)(rd)]->address;
+}
+
+// A session moved to another replica after its own was lost.
+struct Failover {
+  std::string from, to;
+  grpc::Status why;
+  uint32_t frames_before = 0;
+  double lost_ms = 0;                   // when the stream ended (the session's clock)
+  std::optional<double> first_frame_ms;  // of the new stream, from lost_ms
+};
+
 int RunStream(const Invocation& inv) {
   const StreamOptions o = ParseStreamOptions(inv);
   const bool video_file =
@@ -275,7 +360,27 @@ int RunStream(const Invocation& inv) {
                          ErrnoCodeName(ec.value()));
     }
   }
-  auto stub = ConnectStub(inv);
+  // --servers: the session goes to the least loaded ready replica, and to another when its
+  // replica is lost (the stream ends UNAVAILABLE) before the frames are in.
+  std::vector<std::string> replicas;
+  std::string placed;
+  std::unique_ptr<v1::RenderService::Stub> stub;
+  const auto connect = [&](const std::string& address) {
+    std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, address, false);
+    stub = channel ? v1::RenderService::NewStub(channel) : nullptr;
+  };
+  if (!o.servers.empty()) {
+    std::string lb_target;
+    if (absl::Status st = ResolveServers(o.servers, &lb_target, &replicas); !st.ok())
+      return ReportError(inv, st);
+    absl::StatusOr<std::string> address = PlaceSession(inv, replicas, {});
+    if (!address.ok()) return ReportError(inv, address.status());
+    placed = *address;
+    connect(placed);
+    absl::FPrintF(stderr, "tessera: stream: on %s\n", placed);  // stderr: --json too
+  } else {
+    stub = ConnectStub(inv);
+  }
   if (!stub) return kExitError;
 
   std::string scene_id = o.scene;
@@ -303,7 +408,32 @@ int RunStream(const Invocation& inv) {
     if (!inv.global.json) table.Add(r, index);
     bar.Update(index);
   });
-  const grpc::Status status = session.Run(stub.get(), scene_id, orbit);
+  grpc::Status status = session.Run(stub.get(), scene_id, orbit);
+  std::vector<Failover> failovers;
+  std::set<std::string> lost;
+  std::string current = placed;
+  while (!replicas.empty() && status.error_code() == grpc::StatusCode::UNAVAILABLE &&
+         session.records().size() < o.frames && !InterruptHandler::interrupted() &&
+         failovers.size() < 3) {
+    Failover f{current, "", status, static_cast<uint32_t>(session.records().size()),
+               session.ElapsedMs(), std::nullopt};
+    lost.insert(current);
+    absl::StatusOr<std::string> next = PlaceSession(inv, replicas, lost);
+    if (!next.ok()) {
+      absl::FPrintF(stderr, "\ntessera: stream: %s lost (%s); %s\n", current,
+                    status.error_message(), next.status().message());
+      break;
+    }
+    current = f.to = *next;
+    connect(current);
+    if (!stub) break;
+    absl::FPrintF(stderr, "\ntessera: stream: %s lost (%s); reopened on %s\n", f.from,
+                  status.error_message(), f.to);
+    status = session.Run(stub.get(), scene_id, orbit);
+    if (session.records().size() > f.frames_before)
+      f.first_frame_ms = session.records()[f.frames_before].received_ms - f.lost_ms;
+    failovers.push_back(std::move(f));
+  }
   if (saver && save_error.empty()) saver->Close(&save_error);
   bar.Clear();
   table.End();
@@ -313,6 +443,11 @@ int RunStream(const Invocation& inv) {
   const bool have_frames = !session.records().empty();
   if (have_frames && !inv.global.json) {
     PrintSummary(summary, session.records());
+    for (const Failover& f : failovers)
+      absl::PrintF("failover %s lost after %u frames; %s: first frame %s after\n", f.from,
+                   f.frames_before, f.to,
+                   f.first_frame_ms ? absl::StrFormat("%.0f ms", *f.first_frame_ms)
+                                    : std::string("none"));
     if (!o.save_dir.empty() && save_error.empty()) {
       absl::PrintF("saved    %u frames to %s%s\n", summary.frames, o.save_dir,
                    video_file ? "" : "/");
@@ -334,6 +469,17 @@ int RunStream(const Invocation& inv) {
   }
   if (have_frames && inv.global.json) {
     Json j = SummaryJson(summary, session.records(), scene_id);
+    if (!replicas.empty()) {
+      j["server"] = placed;
+      Json list = Json::array();
+      for (const Failover& f : failovers)
+        list.push_back({{"from", f.from},
+                        {"to", f.to},
+                        {"error", ErrorJson(f.why)},
+                        {"frames_before", f.frames_before},
+                        {"first_frame_ms", f.first_frame_ms ? Json(*f.first_frame_ms) : nullptr}});
+      j["failovers"] = std::move(list);
+    }
     if (rc != 0) j["error"] = FirstError();
     PrintJson(j);
   }
@@ -346,7 +492,7 @@ const Command kStreamCommand = {
     "stream", "a live session for N frames: per-pass timings and input-to-frame latency",
     R"(usage: tessera stream [--scene ID] [--frames N] [--orbit] [--fps F] [--save DIR|FILE]
                       [--interactive S [--rest-ms MS]] [--codec jpeg|h264 [video flags]]
-                      [flags]
+                      [--servers LIST] [flags]
 Opens a live session (Stream) and receives N frames, printing each frame's sequence number,
 the event it reflects, the GPU time of every pass, totals, latency and size (redrawn in place
 on a terminal), then a summary: fps, event-to-frame latency (median, p95: from sending an
@@ -370,6 +516,11 @@ Exit status 130 after Ctrl-C (the summary of the frames so far is printed first)
                       --interactive-crf); once it rests, one
                       full-quality frame follows (the "profile" column says which)
   --rest-ms MS        with --interactive: how long the camera must rest (server default 250)
+  --servers LIST      replicas, HOST:PORT,HOST:PORT or dns:///NAME:PORT (a headless Service):
+                      the session opens on the ready one with the fewest sessions, and when
+                      that replica is lost (the stream ends UNAVAILABLE) it reopens on another
+                      with the same scene, camera and settings (up to 3 times; the scene must
+                      be in a store the replicas share, --scene_store_dir)
 )" TESSERA_VIDEO_FLAGS_USAGE,
     /*render_flags=*/true, RunStream};
 

@@ -6,27 +6,9 @@
 # Usage: farm_test.sh TESSERAD TESSERA
 set -euo pipefail
 tesserad=$1 tessera=$2
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
-  for p in "${pids[@]}"; do wait "$p" 2>/dev/null || true; done
-  rm -rf "$work"
-}
-trap cleanup EXIT
-fail() { echo "FAIL: $*" >&2; tail -n 5 "$work"/log* >&2 || true; exit 1; }
-
-ports=()
-for i in 0 1 2; do
-  "$tesserad" --listen=127.0.0.1:0 --port_file="$work/port$i" --log_level=warn 2> "$work/log$i" &
-  pids+=($!)
-done
-for i in 0 1 2; do
-  for _ in $(seq 600); do [[ -s $work/port$i ]] && break; sleep 0.1; done
-  [[ -s $work/port$i ]] || fail "tesserad $i did not start"
-  ports+=("127.0.0.1:$(cat "$work/port$i")")
-done
-servers=$(IFS=,; echo "${ports[*]}")
+# shellcheck source=daemon.sh
+source "$(dirname "$0")/daemon.sh"
+start_replicas 3 "$tesserad"
 
 # Slow enough frames (taa accumulates 4 renders each) that every daemon has calls in flight
 # when one is killed.
