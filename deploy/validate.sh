@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Checks the deployment files without Docker or a cluster:
 #   - every YAML document under deploy/k8s parses and has apiVersion, kind and metadata.name;
-#     selectors match pod labels, Services reach named ports, claims exist; kustomize builds
+#     selectors match pod labels, Services reach named ports, claims exist; kustomize builds;
+#     live viewing across replicas: the shared scene store's claim and mount, readiness on
+#     tessera.v1.RenderService, the PodDisruptionBudget, the HPA and its adapter rule, the
+#     gateway's dns:/// name of the headless Service (deploy/k8s_check.py lists them); with a
+#     real tesserad, every flag the manifests pass it is one it knows
 #   - the farm job's frame slicing (its sh script run with a stub tessera) covers every frame once;
 #     ConfigMap .json data parses
 #   - deploy/systemd/tesserad.flags is valid absl flagfile syntax and, with a real tesserad,
@@ -64,7 +68,16 @@ elif [[ ! $kversion =~ ^v([0-9]+) ]] || ((BASH_REMATCH[1] < 4)); then
   skip "k8s: $kubectl has kustomize '${kversion:-2.x}', older than 4: builds not compared"
   kubectl=""
 fi
-"$py" deploy/k8s_check.py deploy/k8s $kubectl || exit 1
+# With a real tesserad, every flag the manifests pass it must be one it knows.
+known_flags=()
+if ((real_tesserad)); then
+  sed -n 's/^    --\([a-z0-9_]*\) (.*/\1/p' <<<"$help" >"$tmp/tesserad-flags"
+  known_flags=(--tesserad-flags "$tmp/tesserad-flags")
+else
+  skip "k8s: tesserad's arguments in the manifests not checked against a tesserad binary"
+fi
+"$py" deploy/k8s_check.py deploy/k8s ${kubectl:+"$kubectl"} "${known_flags[@]}" || exit 1
+((real_tesserad)) && ok "k8s: every tesserad argument in every build is a flag $bin knows"
 
 # Planted faults: each copy of deploy/k8s with one mistake must fail with the expected message
 # (so the checks above can fail).
@@ -73,7 +86,7 @@ planted() { # description, expected message, sed script, file under deploy/k8s
   sed -i "$3" "$tmp/k8s/$4"
   cmp -s "deploy/k8s/$4" "$tmp/k8s/$4" && fail "planted fault '$1': the sed script changed nothing"
   local out
-  if out=$("$py" deploy/k8s_check.py "$tmp/k8s" 2>&1); then
+  if out=$("$py" deploy/k8s_check.py "$tmp/k8s" "${known_flags[@]}" 2>&1); then
     fail "planted fault '$1': the checks passed"
   fi
   grep -qF -- "$2" <<<"$out" || fail "planted fault '$1': failed, but not with '$2': $(tail -1 <<<"$out")"
@@ -93,6 +106,41 @@ planted "a manifest no kustomization uses" "used by no kustomization" \
   '/^  - farm-job.yaml$/d' examples/farm-job/kustomization.yaml
 planted "a Service targeting a missing port" "is not a port of" \
   's/targetPort: metrics/targetPort: prometheus/' base/tesserad.yaml
+# Live viewing across replicas.
+planted "readiness on the liveness service" "not tessera.v1.RenderService" \
+  's/service: tessera.v1.RenderService/service: ""/' base/tesserad.yaml
+planted "liveness on the readiness service" "a full replica would be restarted" \
+  '/livenessProbe:/,/service:/s/service: ""/service: tessera.v1.RenderService/' base/tesserad.yaml
+planted "scene store outside every mount" "replicas would not share it" \
+  's#--scene_store_dir=/srv/tessera/scenes/store#--scene_store_dir=/var/cache/scenes#' base/tesserad.yaml
+planted "scene store on a ReadWriteOnce claim" "not ReadWriteMany" \
+  's/accessModes: \["ReadWriteMany"\]/accessModes: ["ReadWriteOnce"]/' base/tesserad.yaml
+planted "scene store cap as large as its claim" "leaves less than 10%" \
+  's/--scene_store_max_mb=16384/--scene_store_max_mb=20480/' base/tesserad.yaml
+planted "grace period shorter than the drain" "does not cover" \
+  's/terminationGracePeriodSeconds: 30/terminationGracePeriodSeconds: 5/' base/tesserad.yaml
+planted "PodDisruptionBudget selecting other pods" "no PodDisruptionBudget selects the tesserad pods" \
+  '/^kind: PodDisruptionBudget/,/^---/s#app.kubernetes.io/name: tesserad$#app.kubernetes.io/name: tessera-render#' base/tesserad.yaml
+planted "unready replicas published to the gateway" "publishNotReadyAddresses is true" \
+  's/publishNotReadyAddresses: false/publishNotReadyAddresses: true/' base/tesserad.yaml
+planted "gateway on the ClusterIP Service" "is not a headless Service in this build" \
+  's#dns:///tesserad-headless\.#dns:///tesserad.#' base/web-gateway.yaml
+planted "gateway on a port the headless Service lacks" "is not a port of" \
+  's#svc.cluster.local:50051#svc.cluster.local:50052#' base/web-gateway.yaml
+planted "gateway's \$(VAR) without its env variable" "is not one of its env variables" \
+  's/- name: POD_NAMESPACE/- name: NAMESPACE/' base/web-gateway.yaml
+planted "HPA on a Deployment not in the build" "is not in this build" \
+  '/scaleTargetRef:/,/name:/s/name: tesserad/name: tessera-render/' examples/autoscale/hpa.yaml
+planted "HPA while the Deployment sets replicas" "sets spec.replicas" \
+  '/- op: remove/,/path: \/spec\/replicas/d' examples/autoscale/kustomization.yaml
+planted "HPA aiming at --max_sessions" "is not below --max_sessions" \
+  's/averageValue: "6"/averageValue: "8"/' examples/autoscale/hpa.yaml
+planted "HPA metric no adapter rule serves" "served by no Prometheus adapter rule" \
+  's/as: "tessera_sessions"/as: "tessera_open_sessions"/' examples/autoscale/prometheus-adapter-rule.yaml
+if ((real_tesserad)); then
+  planted "a tesserad flag the binary does not know" "does not know --max_session " \
+    's/- --max_sessions=8/- --max_session=8/' base/tesserad.yaml
+fi
 
 # The farm job's script, run for every index with a stub tessera that prints its arguments,
 # in the job's environment (Kubernetes' $(VAR) references expanded, namespace "default").
