@@ -71,7 +71,9 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
                    GpuScene::Upload(*impl_->ctx, cpu, impl_->scene_layout.material_set_layout));
   std::shared_ptr<Scene> scene(new Scene());
   scene->info_ = {cpu.name,    cpu.counts,   cpu.bounds,
-                  cpu.cameras, cpu.warnings, gpu->device_bytes()};
+                  cpu.cameras, cpu.warnings, gpu->device_bytes(), {}};
+  for (const Animation& a : cpu.animations)
+    scene->info_.animations.push_back({a.name, a.duration, uint32_t(a.channels.size())});
   scene->device_ = impl_->ctx;
   scene->gpu_ = std::move(gpu);
   return SceneHandle(std::move(scene));

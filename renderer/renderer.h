@@ -30,6 +30,13 @@ struct RendererOptions {
 };
 
 // What a loaded scene is, without its geometry.
+// An animation as SceneInfo lists it.
+struct AnimationSummary {
+  std::string name;
+  float duration_s = 0.0f;
+  uint32_t channels = 0;
+};
+
 struct SceneInfo {
   std::string name;
   SceneCounts counts;
@@ -37,6 +44,7 @@ struct SceneInfo {
   std::vector<SceneCamera> cameras;
   std::vector<std::string> warnings;
   uint64_t device_bytes = 0;  // buffers + textures on the device
+  std::vector<AnimationSummary> animations;
 };
 
 class GpuScene;

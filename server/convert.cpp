@@ -117,6 +117,12 @@ void ToProto(const SceneInfo& info, v1::SceneInfo* o) {
   }
   for (const std::string& w : info.warnings) o->add_warnings(w);
   o->set_device_bytes(info.device_bytes);
+  for (const AnimationSummary& a : info.animations) {
+    v1::AnimationInfo* pa = o->add_animations();
+    pa->set_name(a.name);
+    pa->set_duration_s(a.duration_s);
+    pa->set_channels(a.channels);
+  }
 }
 
 void CameraToProto(const Camera& camera, v1::Frame* out) {

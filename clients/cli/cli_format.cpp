@@ -122,6 +122,11 @@ void PrintSceneInfo(FILE* out, const v1::SceneInfo& info) {
     absl::FPrintF(out, "  camera %d  %s (fov %.1f deg)\n", i,
                   cam.name().empty() ? "(unnamed)" : cam.name(), cam.yfov() * 180.0 / M_PI);
   }
+  for (int i = 0; i < info.animations_size(); ++i) {
+    const v1::AnimationInfo& a = info.animations(i);
+    absl::FPrintF(out, "  animation %d  %s (%.2f s, %u channels; not played yet: frames show the "
+                  "rest pose)\n", i, a.name(), a.duration_s(), a.channels());
+  }
   for (const std::string& w : info.warnings()) absl::FPrintF(out, "  warning: %s\n", w);
 }
 

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "renderer/scene/animation.h"
+
 namespace tessera {
 
 // Axis-aligned bounding box. Default-constructed it is empty (min > max).
@@ -184,6 +186,8 @@ struct CpuScene {
   std::vector<Drawable> drawables;
   std::vector<Light> lights;
   std::vector<SceneCamera> cameras;
+  std::vector<SceneNode> nodes;        // every glTF node (animation.h); empty for generated scenes
+  std::vector<Animation> animations;   // validated; sampled by EvaluatePose
   Aabb bounds;  // world bounds of all drawables
   SceneCounts counts;
   std::vector<std::string> warnings;  // things skipped or fixed up on import

@@ -22,6 +22,7 @@
 #include <utility>
 
 #include "absl/status/status.h"
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "common/status_macros.h"
@@ -465,6 +466,213 @@ class Converter {
     }
     c.lights = uint32_t(s_.lights.size());
     c.cameras = uint32_t(s_.cameras.size());
+    RETURN_IF_ERROR(ConvertNodes());
+    RETURN_IF_ERROR(ConvertAnimations());
+    return absl::OkStatus();
+  }
+
+  // ---- the node hierarchy and animations (animation.h) ---------------------------------------
+
+  // The morph target count of a mesh (every primitive must have the same; glTF 2.0 3.7.2.2).
+  absl::StatusOr<size_t> MorphTargets(int mesh) {
+    const tinygltf::Mesh& m = m_.meshes[mesh];
+    const size_t n = m.primitives.empty() ? 0 : m.primitives[0].targets.size();
+    for (size_t p = 1; p < m.primitives.size(); ++p) {
+      if (m.primitives[p].targets.size() != n)
+        return Err(absl::StrCat("meshes[", mesh, "].primitives[", p, "].targets"),
+                   m.primitives[p].targets.size(), " morph targets, but primitives[0] has ", n,
+                   " (every primitive of a mesh has the same number)");
+    }
+    if (!m.weights.empty() && m.weights.size() != n)
+      return Err(absl::StrCat("meshes[", mesh, "].weights"), m.weights.size(),
+                 " weights for ", n, " morph targets");
+    return n;
+  }
+
+  // Every node of the file, placed or not: what animations move.
+  absl::Status ConvertNodes() {
+    s_.nodes.resize(m_.nodes.size());
+    for (size_t i = 0; i < m_.nodes.size(); ++i) {
+      const tinygltf::Node& n = m_.nodes[i];
+      const std::string path = absl::StrCat("nodes[", i, "]");
+      SceneNode& out = s_.nodes[i];
+      out.name = n.name;
+      out.parent = parent_[i];
+      ASSIGN_OR_RETURN(const glm::mat4 local, LocalMatrix(int(i)));
+      for (int c = 0; c < 4; ++c) {
+        if (!Finite(glm::vec3(local[c])) || !std::isfinite(local[c][3]))
+          return Err(path, "transform is not finite");
+      }
+      if (!n.matrix.empty()) {
+        out.matrix = local;
+      } else {
+        for (size_t k = 0; k < n.translation.size(); ++k)
+          out.rest.translation[int(k)] = ToFloat(n.translation[k]);
+        for (size_t k = 0; k < n.scale.size(); ++k) out.rest.scale[int(k)] = ToFloat(n.scale[k]);
+        if (n.rotation.size() == 4) {
+          const glm::quat r(ToFloat(n.rotation[3]), ToFloat(n.rotation[0]),
+                            ToFloat(n.rotation[1]), ToFloat(n.rotation[2]));
+          const float len = glm::length(r);
+          if (len > 1e-12f && std::isfinite(len)) out.rest.rotation = r / len;
+        }
+      }
+      if (n.mesh >= 0) {
+        RETURN_IF_ERROR(CheckIndex(path + ".mesh", n.mesh, m_.meshes.size(), "mesh"));
+        out.mesh = n.mesh;
+        ASSIGN_OR_RETURN(const size_t targets, MorphTargets(n.mesh));
+        if (!n.weights.empty() && n.weights.size() != targets)
+          return Err(path + ".weights", n.weights.size(), " weights for the ", targets,
+                     " morph targets of meshes[", n.mesh, "]");
+        const std::vector<double>& w = !n.weights.empty() ? n.weights : m_.meshes[n.mesh].weights;
+        out.weights.assign(targets, 0.0f);
+        for (size_t k = 0; k < w.size(); ++k) out.weights[k] = ToFloat(w[k]);
+      } else if (!n.weights.empty()) {
+        return Err(path + ".weights", "set on a node without a mesh");
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  // glTF 2.0 3.11: samplers' key times (SCALAR float, >= 0, strictly increasing) and values
+  // (of the channel's path, as many as the keys, three times for CUBICSPLINE), channels that
+  // name a sampler, a node without a matrix, a path, each (node, path) once per animation.
+  absl::Status ConvertAnimations() {
+    uint64_t keys_total = 0;
+    for (size_t ai = 0; ai < m_.animations.size(); ++ai) {
+      const tinygltf::Animation& ga = m_.animations[ai];
+      const std::string apath = absl::StrCat("animations[", ai, "]");
+      Animation a;
+      a.name = ga.name.empty() ? absl::StrCat("animation ", ai) : ga.name;
+      if (ga.channels.empty()) return Err(apath + ".channels", "is empty");
+      if (ga.samplers.empty()) return Err(apath + ".samplers", "is empty");
+      // A sampler's width follows from the channels that use it: the path decides it.
+      std::vector<std::optional<AnimationPath>> used_as(ga.samplers.size());
+      std::vector<size_t> width(ga.samplers.size(), 0);
+      std::set<std::pair<int, AnimationPath>> targets;
+      for (size_t ci = 0; ci < ga.channels.size(); ++ci) {
+        const tinygltf::AnimationChannel& gc = ga.channels[ci];
+        const std::string cpath = absl::StrCat(apath, ".channels[", ci, "]");
+        RETURN_IF_ERROR(CheckIndex(cpath + ".sampler", gc.sampler, ga.samplers.size(), "sampler"));
+        if (gc.target_node < 0) continue;  // glTF: a channel without a node is ignored
+        RETURN_IF_ERROR(
+            CheckIndex(cpath + ".target.node", gc.target_node, m_.nodes.size(), "node"));
+        AnimationPath path;
+        size_t w = 0;
+        if (gc.target_path == "translation") {
+          path = AnimationPath::kTranslation, w = 3;
+        } else if (gc.target_path == "rotation") {
+          path = AnimationPath::kRotation, w = 4;
+        } else if (gc.target_path == "scale") {
+          path = AnimationPath::kScale, w = 3;
+        } else if (gc.target_path == "weights") {
+          path = AnimationPath::kWeights;
+          const int mesh = m_.nodes[gc.target_node].mesh;
+          if (mesh < 0) return Err(cpath + ".target", "animates the weights of nodes[",
+                                   gc.target_node, "], which has no mesh");
+          ASSIGN_OR_RETURN(w, MorphTargets(mesh));
+          if (w == 0) return Err(cpath + ".target", "animates the weights of nodes[",
+                                 gc.target_node, "], whose mesh has no morph targets");
+        } else {
+          return Err(cpath + ".target.path", "\"", absl::CHexEscape(gc.target_path.substr(0, 64)),
+                     "\" is not translation, rotation, scale or weights");
+        }
+        if (!m_.nodes[gc.target_node].matrix.empty())
+          return Err(cpath + ".target", "animates nodes[", gc.target_node,
+                     "], which has a matrix (only nodes given as TRS can be animated)");
+        if (!targets.insert({gc.target_node, path}).second)
+          return Err(cpath + ".target", "nodes[", gc.target_node, "] ", gc.target_path,
+                     " is animated by an earlier channel of this animation too");
+        if (used_as[gc.sampler] && width[gc.sampler] != w)
+          return Err(cpath + ".sampler", "samplers[", gc.sampler, "] gives ", width[gc.sampler],
+                     " values per key to another channel and ", w, " to this one");
+        used_as[gc.sampler] = path;
+        width[gc.sampler] = w;
+        a.channels.push_back(AnimationChannel{.sampler = uint32_t(gc.sampler),
+                                              .node = uint32_t(gc.target_node),
+                                              .path = path});
+      }
+      a.samplers.resize(ga.samplers.size());
+      for (size_t si = 0; si < ga.samplers.size(); ++si) {
+        const tinygltf::AnimationSampler& gs = ga.samplers[si];
+        const std::string spath = absl::StrCat(apath, ".samplers[", si, "]");
+        AnimationSampler& out = a.samplers[si];
+        if (gs.interpolation.empty() || gs.interpolation == "LINEAR") {
+          out.interpolation = Interpolation::kLinear;
+        } else if (gs.interpolation == "STEP") {
+          out.interpolation = Interpolation::kStep;
+        } else if (gs.interpolation == "CUBICSPLINE") {
+          out.interpolation = Interpolation::kCubicSpline;
+        } else {
+          return Err(spath + ".interpolation", "\"",
+                     absl::CHexEscape(gs.interpolation.substr(0, 64)),
+                     "\" is not LINEAR, STEP or CUBICSPLINE");
+        }
+        ASSIGN_OR_RETURN(AccessorView in, View(gs.input, spath + ".input"));
+        const std::string in_field = absl::StrCat(spath, ".input (accessors[", gs.input, "])");
+        if (in.type != TINYGLTF_TYPE_SCALAR || in.component_type != TINYGLTF_COMPONENT_TYPE_FLOAT)
+          return Err(in_field, "key times must be SCALAR FLOAT");
+        if (in.count == 0) return Err(in_field, "has no keys");
+        if (m_.accessors[gs.input].minValues.empty() || m_.accessors[gs.input].maxValues.empty())
+          return Err(in_field, "key times need min and max (glTF 2.0 3.11)");
+        if (keys_total + in.count > limits_.max_animation_keys)
+          return OverMax(in_field, "animation key count", keys_total + in.count,
+                         "max_animation_keys", limits_.max_animation_keys);
+        keys_total += in.count;
+        out.times.resize(in.count);
+        for (uint64_t k = 0; k < in.count; ++k) {
+          const float t = ReadComponent(in, k, 0);
+          if (!std::isfinite(t) || t < 0.0f)
+            return Err(in_field, "key ", k, " is at ", t, " s (times are finite and >= 0)");
+          if (k > 0 && !(t > out.times[k - 1]))
+            return Err(in_field, "key ", k, " at ", t, " s does not come after key ", k - 1,
+                       " at ", out.times[k - 1], " s (times strictly increase)");
+          out.times[k] = t;
+        }
+        a.duration = std::max(a.duration, out.times.back());
+        if (!used_as[si]) continue;  // no channel uses it: its values are never read
+        const AnimationPath path = *used_as[si];
+        out.width = uint32_t(width[si]);
+        const bool cubic = out.interpolation == Interpolation::kCubicSpline;
+        if (cubic && in.count < 2)
+          return Err(in_field, "a CUBICSPLINE sampler needs at least 2 keys");
+        ASSIGN_OR_RETURN(AccessorView ov, View(gs.output, spath + ".output"));
+        const std::string out_field =
+            absl::StrCat(spath, ".output (accessors[", gs.output, "])");
+        const bool is_float = ov.component_type == TINYGLTF_COMPONENT_TYPE_FLOAT;
+        const bool ok_type =
+            path == AnimationPath::kWeights     ? ov.type == TINYGLTF_TYPE_SCALAR
+            : path == AnimationPath::kRotation ? ov.type == TINYGLTF_TYPE_VEC4
+                                               : ov.type == TINYGLTF_TYPE_VEC3;
+        // Rotations and weights may also be normalized integers (glTF 2.0 3.11, table 3).
+        const bool ok_component =
+            is_float || ((path == AnimationPath::kRotation || path == AnimationPath::kWeights) &&
+                         ov.normalized && ov.component_type != TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
+        if (!ok_type || !ok_component)
+          return Err(out_field, "values of ", path == AnimationPath::kWeights ? "weights"
+                                              : path == AnimationPath::kRotation ? "rotation"
+                                              : "translation or scale",
+                     " must be ", path == AnimationPath::kWeights ? "SCALAR" :
+                                   path == AnimationPath::kRotation ? "VEC4" : "VEC3",
+                     path == AnimationPath::kTranslation || path == AnimationPath::kScale
+                         ? " FLOAT" : " FLOAT or normalized integers");
+        // Weights are SCALAR: one element per target per key. Others: one element per key.
+        const bool weights = path == AnimationPath::kWeights;
+        const uint64_t elements_per_key = (cubic ? 3 : 1) * (weights ? width[si] : 1);
+        if (ov.count != in.count * elements_per_key)
+          return Err(out_field, ov.count, " elements for ", in.count, " keys (expected ",
+                     in.count * elements_per_key, ")");
+        out.values.resize(ov.count * uint64_t(ov.components));
+        size_t o = 0;
+        for (uint64_t e = 0; e < ov.count; ++e) {
+          for (int c = 0; c < ov.components; ++c) {
+            const float v = ReadComponent(ov, e, c);
+            if (!std::isfinite(v)) return Err(out_field, "element ", e, " is not finite");
+            out.values[o++] = v;
+          }
+        }
+      }
+      s_.animations.push_back(std::move(a));
+    }
     return absl::OkStatus();
   }
 

@@ -33,6 +33,7 @@ const std::vector<ImportLimitField>& ImportLimitFields() {
       u32("max_lights", &L::max_lights),
       u32("max_drawables", &L::max_drawables),
       u64("max_decoded_bytes", &L::max_decoded_bytes),
+      u64("max_animation_keys", &L::max_animation_keys),
   };
   return fields;
 }

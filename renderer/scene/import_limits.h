@@ -33,6 +33,7 @@ struct ImportLimits {
   uint32_t max_drawables = 1u << 20;               // mesh primitives placed by nodes
   uint64_t max_decoded_bytes = 1ull << 30;         // what Draco and meshopt data decode to,
                                                    // all together (compressed meshes)
+  uint64_t max_animation_keys = 1ull << 24;        // key times over all animation samplers
 };
 
 // The name (as in flags and messages) and address of every limit, in declaration order.

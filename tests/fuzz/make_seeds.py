@@ -150,6 +150,42 @@ def gltf_seeds(assets):
     write("gltf", "deep_chain.tsfs", pack([("chain.gltf", json.dumps(chain).encode()), ("tri.bin", tri)]))
 
 
+def animation_seeds():
+    """A triangle on a node moved by one animation: translation LINEAR, rotation STEP, scale
+    CUBICSPLINE (keys 0, 1, 2 s; cubic values with in- and out-tangents)."""
+    floats = lambda *v: struct.pack(f"<{len(v)}f", *v)
+    tri = floats(0, 0, 0, 1, 0, 0, 0, 1, 0)
+    times = floats(0, 1, 2)
+    move = floats(0, 0, 0, 1, 0, 0, 1, 1, 0)
+    turn = floats(0, 0, 0, 1, 0, 0.7071068, 0, 0.7071068, 0, 1, 0, 0)
+    grow = floats(*([0, 0, 0, 1, 1, 1, 1, 0, 0] + [0, 0, 0, 2, 2, 2, 0, 0, 0] + [0, 1, 0, 1, 1, 1, 0, 0, 0]))
+    parts, views, offset = [tri, times, move, turn, grow], [], 0
+    for p in parts:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(p)})
+        offset += len(p)
+    doc = {
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0, "name": "moved"}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "buffers": [{"uri": "anim.bin", "byteLength": offset}],
+        "bufferViews": views,
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "SCALAR", "min": [0], "max": [2]},
+            {"bufferView": 2, "componentType": 5126, "count": 3, "type": "VEC3"},
+            {"bufferView": 3, "componentType": 5126, "count": 3, "type": "VEC4"},
+            {"bufferView": 4, "componentType": 5126, "count": 9, "type": "VEC3"}],
+        "animations": [{"name": "all", "samplers": [
+            {"input": 1, "output": 2},
+            {"input": 1, "output": 3, "interpolation": "STEP"},
+            {"input": 1, "output": 4, "interpolation": "CUBICSPLINE"}],
+            "channels": [{"sampler": i, "target": {"node": 0, "path": p}}
+                         for i, p in enumerate(["translation", "rotation", "scale"])]}],
+    }
+    write("gltf", "animated.tsfs", pack([("animated.gltf", json.dumps(doc).encode()), ("anim.bin", b"".join(parts))]))
+
+
 def png(width, height, color_type, bit_depth, rows, palette=None):
     def chunk(kind, body):
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
@@ -286,6 +322,7 @@ def main():
     for kind in ("gltf", "image", "request"):
         os.makedirs(os.path.join(HERE, "corpus", kind), exist_ok=True)
     gltf_seeds(args.assets)
+    animation_seeds()
     compressed_seeds(args.assets)
     image_seeds(args.assets)
     request_seeds(args.assets)

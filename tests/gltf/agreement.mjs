@@ -119,6 +119,25 @@ function quantized(declare) {
   };
 }
 
+// An animation of Box's mesh node (nodes[1]; nodes[0] has a matrix): key times and values
+// appended to the buffer, the sampler and channel as given (`edit` changes them after).
+function animated({ times = [0, 1, 2], values = [0, 0, 0, 1, 0, 0, 1, 1, 0], type = 'VEC3',
+  path = 'translation', interpolation = 'LINEAR', node = 1, edit = () => {} } = {}) {
+  return (j, bin) => {
+    const t = appendView(j, bin, f32(times));
+    const v = appendView(j, t.bin, f32(values));
+    const comps = { SCALAR: 1, VEC3: 3, VEC4: 4 }[type];
+    j.accessors.push({ bufferView: t.view, componentType: 5126, count: times.length, type: 'SCALAR',
+      min: [Math.min(...times)], max: [Math.max(...times)] });
+    j.accessors.push({ bufferView: v.view, componentType: 5126, count: values.length / comps, type });
+    const input = j.accessors.length - 2;
+    j.animations = [{ samplers: [{ input, output: input + 1, interpolation }],
+      channels: [{ sampler: 0, target: { node, path } }] }];
+    edit(j);
+    return v.bin;
+  };
+}
+
 function glbWith(name, edit) {
   const src = fs.readFileSync(path.join(args.assets, 'Box', 'glTF-Binary', 'Box.glb'));
   const out = Buffer.from(src);
@@ -326,6 +345,31 @@ const cases = [
     j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
     j.meshes[0].primitives[0].attributes.TEXCOORD_0 = 3;
   }),
+  // Animations (glTF 2.0 3.11): valid ones load, each broken rule is refused.
+  generated('animation_linear_valid', animated()),
+  generated('animation_step_rotation_valid', animated({ type: 'VEC4', path: 'rotation',
+    interpolation: 'STEP', values: [0, 0, 0, 1, 0, 0.7071068, 0, 0.7071068, 0, 1, 0, 0] })),
+  generated('animation_cubic_valid', animated({ interpolation: 'CUBICSPLINE', times: [0, 1],
+    values: [0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0] })),
+  generated('animation_times_not_increasing', animated({ times: [0, 2, 1] })),
+  generated('animation_times_negative', animated({ times: [-1, 0, 1] })),
+  generated('animation_times_without_bounds', animated({ edit: (j) => {
+    delete j.accessors[j.accessors.length - 2].min;
+    delete j.accessors[j.accessors.length - 2].max;
+  } })),
+  generated('animation_output_count_wrong', animated({ values: [0, 0, 0, 1, 0, 0] })),
+  generated('animation_output_type_wrong', animated({ path: 'rotation' })),
+  generated('animation_cubic_one_key', animated({ interpolation: 'CUBICSPLINE', times: [0],
+    values: [0, 0, 0, 1, 0, 0, 0, 0, 0] })),
+  generated('animation_node_with_matrix', animated({ node: 0 })),
+  generated('animation_duplicate_target', animated({ edit: (j) => {
+    j.animations[0].channels.push({ sampler: 0, target: { node: 1, path: 'translation' } });
+  } })),
+  generated('animation_weights_without_morph_targets', animated({ type: 'SCALAR',
+    path: 'weights', values: [0, 0.5, 1] })),
+  generated('animation_sampler_missing', animated({ edit: (j) => {
+    j.animations[0].channels[0].sampler = 3;
+  } })),
   // Valid, refused for a documented reason: a required extension Tessera does not read.
   generated('required_extension_unsupported', (j) => {
     j.extensionsUsed = ['KHR_materials_unlit'];

@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "tests/unit/compressed_sources.h"
 
@@ -717,6 +718,25 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
   const GltfSource box = Source("Box/glTF/Box.gltf");  // 2 nodes (depth 2), 1 mesh, 24 vertices
   const GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");  // a 256x256 image
   const GltfSource meshopt = testing::MeshoptFile(testing::WavyGrid(4)).Glb();
+  // Box with an animation of 2 keys (times and translations in a data-URI buffer of its own).
+  const GltfSource animated = Edited(box, [](json& j) {
+    const float data[] = {0, 1, 0, 0, 0, 1, 0, 0};
+    const std::string bytes(reinterpret_cast<const char*>(data), sizeof data);
+    j["buffers"].push_back({{"uri", "data:application/octet-stream;base64," +
+                                        absl::Base64Escape(bytes)},
+                            {"byteLength", sizeof data}});
+    const int buffer = int(j["buffers"].size()) - 1, view = int(j["bufferViews"].size());
+    const int acc = int(j["accessors"].size());
+    j["bufferViews"].push_back({{"buffer", buffer}, {"byteOffset", 0}, {"byteLength", 8}});
+    j["bufferViews"].push_back({{"buffer", buffer}, {"byteOffset", 8}, {"byteLength", 24}});
+    j["accessors"].push_back({{"bufferView", view}, {"componentType", 5126}, {"count", 2},
+                              {"type", "SCALAR"}});
+    j["accessors"].push_back({{"bufferView", view + 1}, {"componentType", 5126}, {"count", 2},
+                              {"type", "VEC3"}});
+    j["animations"] = {{{"samplers", {{{"input", acc}, {"output", acc + 1}}}},
+                        {"channels", {{{"sampler", 0},
+                                       {"target", {{"node", 1}, {"path", "translation"}}}}}}}};
+  });
   const GltfSource lit = Edited(box, [](json& j) {
     j["extensionsUsed"] = {"KHR_lights_punctual"};
     j["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}}, {{"type", "point"}}};
@@ -749,6 +769,8 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
       {"max_lights", 1, &lit, {"KHR_lights_punctual.lights", "max_lights limit (1)"}},
       {"max_drawables", 0, &box, {"nodes[1]", "max_drawables limit (0)"}},
       {"max_decoded_bytes", 100, &meshopt, {"bufferViews[", "max_decoded_bytes limit (100)"}},
+      {"max_animation_keys", 1, &animated,
+       {"animations[0].samplers[0].input", "max_animation_keys limit (1)"}},
   };
   std::set<std::string> tested;
   for (const Case& c : cases) {
