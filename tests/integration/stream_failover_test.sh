@@ -3,31 +3,39 @@
 # (--scene_store_dir), a scene uploaded through one of them, `tessera stream --servers` placed on
 # a replica and that replica killed (SIGKILL) mid-stream. The session must reopen on another
 # replica with the same scene and orbit, get every frame it asked for, and say so in --json.
-# Usage: stream_failover_test.sh TESSERAD TESSERA ASSETS_DIR
+# Prints the time from the kill to the first frame on the new replica as a JSON line (whether
+# that replica had the scene loaded already: the one it was uploaded through has).
+# Usage: stream_failover_test.sh TESSERAD TESSERA ASSETS_DIR [GLTF (under ASSETS_DIR) [W H]]
 set -euo pipefail
-tesserad=$1 tessera=$2 assets=$3
+tesserad=$1 tessera=$2 assets=$3 gltf=${4:-Box/glTF/Box.gltf} width=${5:-160} height=${6:-120}
 # shellcheck source=daemon.sh
 source "$(dirname "$0")/daemon.sh"
 start_replicas 3 "$tesserad" --scene_store_dir="$work/store"
 
-"$tessera" --server "${ports[0]}" upload "$assets/Box/glTF/Box.gltf" \
+"$tessera" --server "${ports[0]}" upload "$assets/$gltf" \
   > "$work/upload.txt" 2>&1 || fail "upload: $(cat "$work/upload.txt")"
 scene=$(ls "$work/store")
 [[ ${#scene} -eq 64 ]] || fail "the store does not hold the scene: $(ls -a "$work/store")"
 
 "$tessera" --json stream --servers "$servers" --scene "$scene" --frames 80 --orbit --fps 20 \
-  --width 160 --height 120 > "$work/stream.json" 2> "$work/stream.err" &
+  --width "$width" --height "$height" > "$work/stream.json" 2> "$work/stream.err" &
 client=$!
 for _ in $(seq 600); do grep -q "stream: on " "$work/stream.err" && break; sleep 0.05; done
 placed=$(sed -n 's/.*stream: on //p' "$work/stream.err" | head -1)
 victim=-1
 for i in 0 1 2; do [[ ${ports[$i]} == "$placed" ]] && victim=$i; done
 ((victim >= 0)) || fail "no placement reported: $(cat "$work/stream.err")"
-sleep 1  # some frames from the first replica
+# Some frames from the first replica (it may load the scene from the store first).
+for _ in $(seq 600); do
+  n=$("$tessera" --server "$placed" --json info 2>/dev/null |
+      python3 -c 'import json, sys; print(json.load(sys.stdin)["frames_rendered"])' || echo 0)
+  ((n >= 5)) && break
+  sleep 0.1
+done
 kill -KILL "${pids[$victim]}"
 wait "$client" || fail "the stream failed: $(cat "$work/stream.err") $(cat "$work/stream.json")"
 
-python3 - "$work/stream.json" "$placed" <<'PY' || fail "stream --json: $(cat "$work/stream.json" | head -c 2000)"
+python3 - "$work/stream.json" "$placed" "${ports[0]}" "$gltf" <<'PY' || fail "stream --json: $(cat "$work/stream.json" | head -c 2000)"
 import json, sys
 d = json.load(open(sys.argv[1]))
 placed = sys.argv[2]
@@ -45,6 +53,8 @@ frames = d["frame_list"]
 before, after = frames[f["frames_before"] - 1], frames[f["frames_before"]]
 assert after["scene_id"] == before["scene_id"], (before["scene_id"], after["scene_id"])
 assert after["camera"]["eye"] != frames[0]["camera"]["eye"], "the orbit restarted"
-print("failover: %.0f ms from the loss to the first frame on %s" % (f["first_frame_ms"], f["to"]))
+print(json.dumps({"failover_first_frame_ms": round(f["first_frame_ms"], 1), "scene": sys.argv[4],
+                  "size": "%dx%d" % (after["width"], after["height"]), "from": f["from"],
+                  "to": f["to"], "to_had_scene_loaded": f["to"] == sys.argv[3]}))
 PY
 grep -q "lost (.*); reopened on" "$work/stream.err" || fail "no word of the failover: $(cat "$work/stream.err")"
