@@ -131,6 +131,14 @@ class GaugeCollectable : public prometheus::Collectable {
         g.device_lost);
     add("tessera_render_stalls", "Times health turned NOT_SERVING because a frame took longer "
         "than --render_stall_s.", static_cast<double>(g.render_stalls));
+    add("tessera_accepting_sessions",
+        "1 while a new Stream session would be taken (readiness, grpc.health.v1 service "
+        "tessera.v1.RenderService): serving, not shutting down, below --max_sessions.",
+        g.accepting_sessions);
+    add("tessera_scene_store_evictions",
+        "Scenes this replica evicted from the shared scene store (--scene_store_dir) to stay "
+        "under --scene_store_max_mb.",
+        static_cast<double>(g.scene_store_evictions));
     return families;
   }
 

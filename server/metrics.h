@@ -44,6 +44,8 @@ struct MetricsGauges {
   double render_busy_seconds = 0.0;        // time in the current frame's Render; 0 when idle
   uint32_t device_lost = 0;                // 1 once the Vulkan device is lost
   uint64_t render_stalls = 0;              // times health turned NOT_SERVING for a stall
+  uint32_t accepting_sessions = 1;         // readiness (tessera.v1.RenderService): 1 SERVING
+  uint64_t scene_store_evictions = 0;      // scenes this replica evicted from --scene_store_dir
 };
 
 // The canonical upper-case name of a gRPC status code ("OK", "INVALID_ARGUMENT", ...,

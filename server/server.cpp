@@ -215,6 +215,8 @@ void Server::Impl::StartMetricsAndLoop() {
       g.serving = raw->health_now.serving ? 1 : 0;
       g.render_stalls = raw->stalls;
     }
+    g.accepting_sessions = raw->state.AcceptingSessions(g.serving == 1) ? 1 : 0;
+    g.scene_store_evictions = raw->shared_scenes ? raw->shared_scenes->evictions() : 0;
     return g;
   });
   store->set_eviction_listener([raw](const StoredScene& s) {
