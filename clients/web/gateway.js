@@ -7,6 +7,7 @@ import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { WebSocketServer } from 'ws';
 import { loadProto, makeClient, callMetadata } from './lib/rpc.js';
+import { ReplicaSet, parseServers } from './lib/replicas.js';
 import { Connection, UploadBudget } from './lib/connection.js';
 import { ParkedStreams } from './lib/streams.js';
 import { loadStatic, serveStatic } from './lib/static.js';
@@ -17,7 +18,12 @@ const VERSION = JSON.parse(fs.readFileSync(path.join(HERE, 'package.json'), 'utf
 const USAGE = `usage: node gateway.js [flags]
   --listen HOST:PORT    where the page is served (default $TESSERA_WEB_LISTEN, else 127.0.0.1:8080;
                         port 0 picks a free one)
-  --server HOST:PORT    tesserad (default $TESSERA_SERVER, else 127.0.0.1:50051)
+  --server LIST         tesserad (default $TESSERA_SERVER, else 127.0.0.1:50051): HOST:PORT, or
+                        replicas: a comma-separated list of HOST:PORT and dns:///HOST:PORT
+                        entries (dns:///: every A/AAAA record of the name is a replica, e.g. a
+                        Kubernetes headless Service). Each new session goes to the ready replica
+                        with the fewest sessions; when a replica is lost its sessions move.
+  --refresh-s N         how often dns:/// names are resolved again, seconds (default 5)
   --token-file FILE     bearer token for tesserad, first line of FILE (or $TESSERA_TOKEN)
   --tls                 talk TLS to tesserad, trusting the system's CAs
   --tls-ca FILE         talk TLS to tesserad, trusting the CA certificate(s) in FILE
@@ -43,6 +49,7 @@ function parseFlags(argv) {
   const o = {
     listen: process.env.TESSERA_WEB_LISTEN || '127.0.0.1:8080',
     server: process.env.TESSERA_SERVER || '127.0.0.1:50051',
+    refreshS: 5,
     token: (process.env.TESSERA_TOKEN || '').trim(),
     tls: false,
     tlsCaFile: '',
@@ -65,6 +72,12 @@ function parseFlags(argv) {
     switch (flag) {
       case '--listen': o.listen = value(); break;
       case '--server': o.server = value(); break;
+      case '--refresh-s': {
+        const v = value();
+        o.refreshS = Number(v);
+        if (!(o.refreshS > 0)) usageError(`--refresh-s: not a positive number: '${v}'`);
+        break;
+      }
       case '--token-file': {
         const file = value();
         try {
@@ -99,6 +112,11 @@ function parseFlags(argv) {
   if (!m || Number(m[2]) > 65535) usageError(`--listen: wants HOST:PORT, not '${o.listen}'`);
   o.host = m[1].replace(/^\[(.*)\]$/, '$1');
   o.port = Number(m[2]);
+  try {
+    parseServers(o.server);
+  } catch (e) {
+    usageError(e.message);
+  }
   return o;
 }
 
@@ -114,15 +132,40 @@ try {
 } catch (e) {
   usageError(e.message);
 }
-const client = makeClient(proto.api, opts.server, opts);
 const metadata = () => callMetadata(opts);
+// The replicas (one for a plain HOST:PORT): a client each, polled for their load and health.
+// A replica reached by its IP under a DNS name keeps that name for TLS and as its authority.
+const replicas = new ReplicaSet({
+  spec: opts.server,
+  makeClient: (address, { authority }) => makeClient(proto.api, address, opts, {
+    // A replica that comes back is seen within seconds, not after grpc-js's 2-minute backoff.
+    'grpc.max_reconnect_backoff_ms': 5000,
+    ...(authority ? { 'grpc.default_authority': authority, 'grpc.ssl_target_name_override': authority.replace(/:\d+$/, '').replace(/^\[(.*)\]$/, '$1') } : {}),
+  }),
+  metadata,
+  log,
+  refreshMs: opts.refreshS * 1000,
+});
+// A replica that stops answering, or answers not serving: its sessions move to others.
+replicas.on('lost', (replica, why) => {
+  log(`replica ${replica.address} lost: ${why}; moving its ${replica.streams.size} sessions`);
+  for (const stream of [...replica.streams]) stream.replicaLost(replica, why);
+});
+replicas.start().catch((e) => log(`replicas: ${e.stack ?? e}`));
 
-// tesserad's limits, fetched when an upload needs them and kept for a minute.
+// tesserad's limits, as the replicas last reported them (or asked when an upload needs them
+// before any replica answered), kept for a minute.
 let limitsCache = { at: 0, value: null };
-function limits() {
-  if (limitsCache.value && Date.now() - limitsCache.at < 60_000) return Promise.resolve(limitsCache.value);
+async function limits() {
+  const known = replicas.anyInfo();
+  if (known) {
+    limitsCache = { at: Date.now(), value: known.limits ?? {} };
+    return limitsCache.value;
+  }
+  if (limitsCache.value && Date.now() - limitsCache.at < 60_000) return limitsCache.value;
+  const replica = await replicas.pickUnary();
   return new Promise((resolve, reject) => {
-    client.GetServerInfo({}, metadata(), { deadline: Date.now() + 10_000 }, (err, info) => {
+    replica.client.GetServerInfo({}, metadata(), { deadline: Date.now() + 10_000 }, (err, info) => {
       if (err) return reject(err);
       limitsCache = { at: Date.now(), value: info.limits ?? {} };
       resolve(limitsCache.value);
@@ -135,21 +178,37 @@ const maxUploadBytes = opts.maxUploadMb * 1024 * 1024;
 const uploadBudget = new UploadBudget(Math.max(opts.uploadBudgetMb, opts.maxUploadMb) * 1024 * 1024);
 
 // Sessions of pages that left, kept as long as tesserad would keep them (resume_grace_s).
-// At most a quarter of tesserad's sessions wait here for pages to come back, so parked
+// At most a quarter of the replicas' sessions wait here for pages to come back, so parked
 // sessions never crowd out live ones.
 const parked = new ParkedStreams({
   graceMs: () => 1000 * (limitsCache.value?.resume_grace_s ?? 30),
-  max: () => Math.max(1, Math.floor((limitsCache.value?.max_sessions || 64) / 4)),
+  max: () => {
+    const known = replicas.replicas.filter((r) => r.ok && r.maxSessions > 0);
+    const total = known.length ? known.reduce((n, r) => n + r.maxSessions, 0) : (limitsCache.value?.max_sessions || 64);
+    return Math.max(1, Math.floor(total / 4));
+  },
   log,
 });
 limits().catch(() => {}); // learn resume_grace_s early; errors show up where they matter
 
+// 200 when a tesserad answers: the one server (asked now), or any replica (as last polled);
+// the body lists the replicas and why those that take no sessions do not.
 function healthz(res) {
-  client.GetServerInfo({}, metadata(), { deadline: Date.now() + 3000 }, (err, info) => {
-    const body = err ? { ok: false, server: opts.server, error: err.details ?? err.message }
-                     : { ok: true, server: opts.server, version: info.version, device: info.device?.name };
-    res.writeHead(err ? 503 : 200, { 'Content-Type': 'application/json', 'Cache-Control': 'no-store' });
-    res.end(`${JSON.stringify(body)}\n`);
+  const send = (ok, body) => {
+    res.writeHead(ok ? 200 : 503, { 'Content-Type': 'application/json', 'Cache-Control': 'no-store' });
+    res.end(`${JSON.stringify({ ok, server: opts.server, ...body, replicas: replicas.replicas.map((r) => r.summary()) })}\n`);
+  };
+  if (!replicas.single) {
+    const info = replicas.anyInfo();
+    const ready = replicas.replicas.filter((r) => r.listed && r.ready).length;
+    if (info) send(true, { version: info.version, device: info.device?.name, ready });
+    else send(false, { error: replicas.unavailable('no tesserad replica answers').message, ready });
+    return;
+  }
+  const [only] = replicas.replicas;
+  only.client.GetServerInfo({}, metadata(), { deadline: Date.now() + 3000 }, (err, info) => {
+    if (err) send(false, { error: err.details ?? err.message });
+    else send(true, { version: info.version, device: info.device?.name });
   });
 }
 
@@ -225,9 +284,9 @@ wss.on('connection', (ws, req) => {
   ws.on('pong', () => { ws.isAlive = true; });
   ws.on('close', () => { pages--; log(`page ${peer} left (${pages} open)`); });
   new Connection(ws, {
-    client, definition: proto.definition, metadata, limits,
+    replicas, definition: proto.definition, metadata, limits,
     maxUploadBytes, parked, uploadBudget, stopping: () => stopping,
-    log, version: VERSION, server: opts.server,
+    log, version: VERSION, server: opts.server, peer,
   });
 });
 
@@ -248,7 +307,8 @@ server.listen(opts.port, opts.host, () => {
   const { port } = server.address();
   if (opts.portFile) fs.writeFileSync(opts.portFile, `${port}\n`);
   const shown = opts.host.includes(':') ? `[${opts.host}]` : opts.host;
-  log(`serving the viewer on http://${shown}:${port}/ for tesserad at ${opts.server}`);
+  const what = replicas.single ? `tesserad at ${opts.server}` : `the tesserad replicas ${opts.server}`;
+  log(`serving the viewer on http://${shown}:${port}/ for ${what}`);
 });
 
 // On SIGTERM (a rolling restart) the gRPC calls are not ended: the process exits, its

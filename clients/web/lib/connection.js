@@ -4,8 +4,8 @@
 import crypto from 'node:crypto';
 import { encodeBinary, decodeBinary } from './wire.js';
 import { LatestSender } from './latest.js';
-import { describeError, settingsSchema } from './rpc.js';
-import { BridgedStream } from './streams.js';
+import { GatewayError, describeError, settingsSchema } from './rpc.js';
+import { BridgedStream, safeEventId } from './streams.js';
 
 // Per page, at once. A viewer needs one stream, one upload and a few renders.
 const MAX_STREAMS = 4;
@@ -21,12 +21,7 @@ const UPLOAD_IDLE_MS = 60_000;
 // Chunks held while an upload waits for the server's limits (normally milliseconds).
 const EARLY_CHUNK_BYTES = 8 << 20;
 
-class RequestError extends Error {
-  constructor(code, message) {
-    super(message);
-    this.code = code;
-  }
-}
+const RequestError = GatewayError;
 const invalid = (message) => new RequestError('INVALID_ARGUMENT', message);
 
 /** An untrusted value, quoted for a message: never throws, never long. */
@@ -38,12 +33,6 @@ function show(value) {
     text = typeof value;
   }
   return text.length > 60 ? `${text.slice(0, 57)}...` : text;
-}
-
-/** An event id the page sent, as a number; null when it is not one (it may be a string). */
-function safeEventId(value) {
-  const n = Number(value ?? 0);
-  return Number.isSafeInteger(n) && n >= 0 ? n : null;
 }
 
 /** The Frame as JSON, without its image: what a binary frame message's header carries. */
@@ -71,14 +60,14 @@ export class UploadBudget {
 export class Connection {
   /**
    * @param ws       the page's WebSocket (ws library)
-   * @param ctx      { client, definition, metadata(), limits(): Promise<Limits>,
+   * @param ctx      { replicas (ReplicaSet), definition, metadata(), limits(): Promise<Limits>,
    *                   maxUploadBytes, uploadBudget, parked (ParkedStreams), stopping(),
-   *                   log, version, server }
+   *                   log, version, server, peer }
    */
   constructor(ws, ctx) {
     this.ws = ws;
     this.ctx = ctx;
-    this.streams = new Map(); // id -> { stream: BridgedStream, sender: LatestSender, closing, eventId }
+    this.streams = new Map(); // id -> { stream: BridgedStream, sender: LatestSender }
     this.renders = new Map(); // id -> call
     this.uploads = new Map(); // id -> upload state
     this.closed = false;
@@ -167,10 +156,19 @@ export class Connection {
     cancel: this.cancel,
   };
 
-  /** A unary call as a promise (rejects with the gRPC error). */
-  unary(method, request, deadlineMs = 30_000) {
+  /** A method of RenderService as the proto defines it (its serializers). */
+  method(name) {
+    return this.ctx.definition['tessera.v1.RenderService']?.[name];
+  }
+
+  /**
+   * A unary call as a promise (rejects with the gRPC error): on `replica`, else on the replica
+   * the replica set picks for it (a ready one; with the scene, where scenes are not shared).
+   */
+  async unary(method, request, { replica = null, sceneId = '', deadlineMs = 30_000 } = {}) {
+    const target = replica ?? await this.ctx.replicas.pickUnary({ sceneId });
     return new Promise((resolve, reject) => {
-      this.ctx.client[method](
+      target.client[method](
         request,
         this.ctx.metadata(),
         { deadline: Date.now() + deadlineMs },
@@ -179,15 +177,27 @@ export class Connection {
     });
   }
 
-  /** Serializes `message` as `type` to check it, so a malformed one fails alone (the call lives on). */
+  /**
+   * Serializes `message` as the request of `method` to check it, so a malformed one fails alone
+   * (the call lives on). Returns it normalized: parsed back by the proto (unset fields absent or
+   * *_UNSPECIFIED, unknown keys gone), which is what the stream's state keeps (session.js).
+   */
   check(method, message, what) {
     if (message === null || typeof message !== 'object' || Array.isArray(message)) {
       throw invalid(`${what}: wants an object`);
     }
+    const m = this.method(method);
+    if (!m) return message;
+    let bytes;
     try {
-      this.ctx.client[method].requestSerialize(message);
+      bytes = m.requestSerialize(message);
     } catch (e) {
       throw invalid(`${what}: ${e.message}`);
+    }
+    try {
+      return m.requestDeserialize(bytes);
+    } catch {
+      return message;
     }
   }
 
@@ -198,26 +208,56 @@ export class Connection {
     this.reply(id, { info, schema: settingsSchema(this.ctx.definition, info.choices ?? {}) });
   }
 
+  /** ListScenes; where the replicas do not share a store, every scene any of them has. */
   async scenes(id) {
-    this.reply(id, await this.unary('ListScenes', {}));
+    const replicas = await this.ctx.replicas.answering();
+    if (this.ctx.replicas.shared(replicas)) {
+      this.reply(id, await this.unary('ListScenes', {}));
+      return;
+    }
+    const lists = await Promise.allSettled(replicas.map((replica) => this.unary('ListScenes', {}, { replica })));
+    const ok = lists.filter((l) => l.status === 'fulfilled').map((l) => l.value);
+    if (ok.length === 0) throw lists[0].reason;
+    const byId = new Map();
+    for (const list of ok) for (const scene of list.scenes ?? []) if (!byId.has(scene.scene_id)) byId.set(scene.scene_id, scene);
+    this.reply(id, { ...ok[0], scenes: [...byId.values()] });
   }
 
-  /** HasScene: whether tesserad holds a scene id (the page asks before uploading). */
+  /**
+   * HasScene: whether tesserad holds a scene id (the page asks before uploading). Where the
+   * replicas do not share a store: whether any of them has it.
+   */
   async hasScene(id, msg) {
     const sceneId = msg.scene_id;
     // The full content hash only (HasScene looks up no prefixes): 64 lowercase hex, or "demo".
     if (typeof sceneId !== 'string' || !(sceneId === 'demo' || /^[0-9a-f]{64}$/.test(sceneId))) {
       throw invalid(`scene_id: ${show(sceneId)} is not a scene id (64 lowercase hex digits, or "demo")`);
     }
-    this.reply(id, await this.unary('HasScene', { scene_id: sceneId }));
+    const replicas = await this.ctx.replicas.answering();
+    if (this.ctx.replicas.shared(replicas)) {
+      this.reply(id, await this.unary('HasScene', { scene_id: sceneId }));
+      return;
+    }
+    const answers = await Promise.allSettled(replicas.map((replica) => this.unary('HasScene', { scene_id: sceneId }, { replica })));
+    const ok = answers.filter((a) => a.status === 'fulfilled').map((a) => a.value);
+    if (ok.length === 0) throw answers[0].reason;
+    this.reply(id, ok.find((a) => a.present) ?? ok[0]);
   }
 
+  /**
+   * DeleteScene on every replica that answers (each drops its loaded copy; the shared store
+   * loses it once): the first success, else the first error.
+   */
   async deleteScene(id, msg) {
     if (typeof msg.scene_id !== 'string' || !msg.scene_id) throw invalid('scene_id: wants a scene id');
-    this.reply(id, await this.unary('DeleteScene', { scene_id: msg.scene_id }));
+    const replicas = await this.ctx.replicas.answering();
+    const results = await Promise.allSettled(replicas.map((replica) => this.unary('DeleteScene', { scene_id: msg.scene_id }, { replica })));
+    const done = results.find((r) => r.status === 'fulfilled');
+    if (!done) throw results[0].reason;
+    this.reply(id, done.value);
   }
 
-  render(id, msg) {
+  async render(id, msg) {
     const request = msg.request ?? {};
     this.check('Render', request, 'request');
     if (this.ws.bufferedAmount > RENDER_BUFFER_BYTES) {
@@ -226,7 +266,17 @@ export class Connection {
     if (this.renders.size >= MAX_RENDERS) {
       throw new RequestError('RESOURCE_EXHAUSTED', `renders: at most ${MAX_RENDERS} at once per page`);
     }
-    const call = this.ctx.client.Render(
+    // The id is taken while a replica is picked (a cancel then lands here).
+    const pending = { cancelled: false, cancel() { this.cancelled = true; } };
+    this.renders.set(id, pending);
+    let replica;
+    try {
+      replica = await this.ctx.replicas.pickUnary({ sceneId: typeof request.scene_id === 'string' ? request.scene_id : '' });
+    } finally {
+      this.renders.delete(id);
+    }
+    if (pending.cancelled || this.closed) throw new RequestError('CANCELLED', 'render: cancelled');
+    const call = replica.client.Render(
       request,
       this.ctx.metadata(),
       { deadline: Date.now() + RENDER_DEADLINE_MS },
@@ -248,29 +298,34 @@ export class Connection {
   open(id, msg) {
     // Streams being closed (their last frame still to come) count only against a looser cap,
     // so a page switching scenes quickly is not refused.
-    const open = [...this.streams.values()].filter((s) => !s.closing).length;
+    const open = [...this.streams.values()].filter((s) => !s.stream.closing).length;
     if (open >= MAX_STREAMS || this.streams.size >= 2 * MAX_STREAMS) {
       throw new RequestError('RESOURCE_EXHAUSTED', `streams: at most ${MAX_STREAMS} at once per page`);
     }
     const first = { event_id: msg.event_id ?? 0, open: msg.open ?? {} };
-    this.check('Stream', first, 'open');
-    // A page coming back takes over the stream it left here; other tokens go to tesserad.
+    const normalized = this.check('Stream', first, 'open');
+    // A page coming back takes over the stream it left here; another token goes to the replica
+    // it names (never to an address that is not one of the gateway's replicas).
     const token = first.open.resume_token;
     let stream = token ? this.ctx.parked.take(token) : null;
     const resumed = stream !== null;
-    if (!stream) stream = new BridgedStream(this.ctx.client.Stream(this.ctx.metadata()));
-    // The newest event id the page sent on this stream: the gateway's own events reuse it.
-    const entry = { stream, sender: null, closing: false, eventId: safeEventId(first.event_id) ?? 0 };
-    const write = (event) => {
-      if (!entry.closing && !stream.ended) stream.call.write(event);
-    };
+    const target = token && !resumed ? this.ctx.replicas.forToken(token) : null;
+    if (!stream) {
+      stream = new BridgedStream(
+        { replicas: this.ctx.replicas, metadata: this.ctx.metadata, log: this.ctx.log, stopping: this.ctx.stopping },
+        { label: `page ${this.ctx.peer ?? '?'} stream ${id}` },
+      );
+    } else {
+      stream.eventId = safeEventId(first.event_id) ?? 0; // this page's events count from here
+    }
+    const entry = { stream, sender: null };
     // A page that takes over a stream has a new decoder: video frames wait for the keyframe the
-    // resume asks for below.
+    // resume asks for below. The gateway's own events reuse the newest event id the page sent.
     entry.sender = new LatestSender((data, done) => {
       if (this.closed || this.ws.readyState !== this.ws.OPEN) return done(new Error('closed'));
       this.ws.send(data, done);
     }, {
-      requestKeyframe: () => write({ event_id: entry.eventId, keyframe: true }),
+      requestKeyframe: () => stream.write({ event_id: stream.eventId, keyframe: true }),
       awaitKeyframe: resumed,
     });
     this.streams.set(id, entry);
@@ -286,40 +341,53 @@ export class Connection {
         const ok = status.code === 0;
         this.sendJson({ type: 'stream_end', stream: id, ok, ...(ok ? {} : { error: describeError(status) }) });
       },
+      // Another replica has the session now: frames of the old one that wait are dropped, and
+      // the page (told after the last of them) resets its decoder for the new session's first
+      // frame, a full one (a keyframe for video).
+      moved: (info) => {
+        entry.sender.restart();
+        this.sendJson({ type: 'stream_moved', stream: id, ...info });
+      },
     });
-    // A resumed session gets a full frame at once, as after tesserad's own resume; for video
-    // a keyframe, which the page's fresh decoder needs.
-    stream.call.write(resumed ? { event_id: first.event_id, refresh: true, keyframe: true } : first);
-    this.reply(id, { stream: id, resumed });
+    if (resumed) {
+      // A resumed session gets a full frame at once, as after tesserad's own resume; for video
+      // a keyframe, which the page's fresh decoder needs.
+      stream.write({ event_id: first.event_id, refresh: true, keyframe: true });
+      this.reply(id, { stream: id, resumed });
+      return undefined;
+    }
+    // The reply goes before any frame can: frames come in later I/O callbacks.
+    return stream.open(normalized, target).then(
+      () => this.reply(id, { stream: id, resumed }),
+      (err) => {
+        if (this.streams.get(id) === entry) this.streams.delete(id);
+        throw err;
+      },
+    );
   }
 
   event(id, msg) {
     const entry = this.streams.get(msg.stream);
     if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${show(msg.stream)}`);
     const event = msg.event ?? {};
-    this.check('Stream', event, 'event');
+    const normalized = this.check('Stream', event, 'event');
     if (event.open !== undefined && event.open !== null) {
       throw invalid('event.open: only the first event opens a session');
     }
-    const eventId = safeEventId(event.event_id);
-    if (eventId !== null && eventId > entry.eventId) entry.eventId = eventId;
     if (event.keyframe === true) entry.sender.pageAskedKeyframe();
-    entry.stream.call.write(event);
+    entry.stream.write(event, normalized);
   }
 
   closeStream(id, msg) {
     const entry = this.streams.get(msg.stream);
     if (!entry) throw new RequestError('NOT_FOUND', `stream: no open stream ${show(msg.stream)}`);
-    if (!entry.closing) {
-      entry.closing = true;
-      entry.stream.call.end();
-    }
+    entry.stream.end();
     this.reply(id, {});
   }
 
   cancel(id, msg) {
     const target = msg.target;
-    this.streams.get(target)?.stream.call.cancel();
+    this.streams.get(target)?.stream.cancel();
     this.renders.get(target)?.cancel();
     const upload = this.uploads.get(target);
     if (upload) this.endUpload(upload, new RequestError('CANCELLED', 'upload cancelled'));
@@ -391,6 +459,7 @@ export class Connection {
       this.endUpload(upload, new RequestError('DEADLINE_EXCEEDED',
         `upload: no data for ${UPLOAD_IDLE_MS / 1000} s (${upload.received} of ${upload.total} bytes came)`));
     }, UPLOAD_IDLE_MS);
+    upload.idleTimer.unref?.(); // the listening socket keeps the gateway alive, not this
   }
 
   onChunk(data) {
@@ -450,7 +519,17 @@ export class Connection {
   /** Streams the received files to UploadScene, with their SHA-256 so tesserad checks them. */
   async sendUpload(upload) {
     upload.phase = 'sending';
-    const call = this.ctx.client.UploadScene(this.ctx.metadata(), (err, info) => {
+    // A ready replica: with a shared store the scene is then everyone's; without, the streams
+    // of this scene are placed where it is (HasScene).
+    let replica;
+    try {
+      replica = await this.ctx.replicas.pickUnary();
+    } catch (err) {
+      this.endUpload(upload, err);
+      return;
+    }
+    if (upload.phase !== 'sending') return; // cancelled, or the page left, meanwhile
+    const call = replica.client.UploadScene(this.ctx.metadata(), (err, info) => {
       upload.call = null;
       if (err) this.endUpload(upload, err);
       else this.endUpload(upload, null, info);
@@ -521,7 +600,7 @@ export class Connection {
       sender.close();
       if (this.ctx.stopping()) continue;
       if (code === 1006) this.ctx.parked.park(stream);
-      else stream.call.cancel();
+      else stream.cancel();
     }
     for (const call of this.renders.values()) call.cancel();
     for (const upload of [...this.uploads.values()]) this.endUpload(upload, new Error('page closed'));

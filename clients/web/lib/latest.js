@@ -103,6 +103,19 @@ export class LatestSender {
     this.askedKeyframe_ = true;
   }
 
+  /**
+   * The stream moved to another replica: a new session, whose first frame is a full one (a
+   * keyframe for video). What waits belongs to the old session and is dropped (the page resets
+   * its decoder when told of the move, so it could not use it); video waits for the keyframe.
+   */
+  restart() {
+    if (this.closed_) return;
+    this.drop_(this.waiting_);
+    this.waiting_ = [];
+    this.needKeyframe_ = true;
+    this.askedKeyframe_ = false;  // the new session sends one; a non-key frame first asks
+  }
+
   /** Drops what waits; later pushes are ignored. */
   close() {
     this.closed_ = true;

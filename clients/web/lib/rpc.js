@@ -37,14 +37,31 @@ export function callMetadata({ token }) {
   return md;
 }
 
-export function makeClient(api, address, options) {
+/**
+ * A RenderService client for `address`. `channelOptions` adds grpc-js channel options (a
+ * replica reached by its IP address under a DNS name gets that name as its TLS target name and
+ * authority: see replicas.js).
+ */
+export function makeClient(api, address, options, channelOptions = {}) {
   return new api.RenderService(address, makeCredentials(options), {
     // A 16384x16384 PNG frame is ~1 GiB; the page asks for far less. This bounds what one
     // reply can make the gateway hold.
     'grpc.max_receive_message_length': 256 * 1024 * 1024,
     'grpc.max_send_message_length': 8 * 1024 * 1024,
     'grpc.keepalive_time_ms': 30000,
+    ...channelOptions,
   });
+}
+
+/**
+ * An error the gateway makes itself, with the gRPC status name the page gets (`code`, e.g.
+ * 'UNAVAILABLE') and a message that names the field or replica at fault.
+ */
+export class GatewayError extends Error {
+  constructor(code, message) {
+    super(message);
+    this.code = code;
+  }
 }
 
 const SCALAR_TYPES = {
@@ -116,6 +133,7 @@ const HINTS = {
 /** {code, message, hint} for a gRPC error or any Error (gateway-side errors pass `code`). */
 export function describeError(err, code) {
   let name = code;
+  if (!name && typeof err?.code === 'string' && Object.hasOwn(HINTS, err.code)) name = err.code;
   if (!name) name = typeof err?.code === 'number' ? CODE_NAMES[err.code] ?? 'UNKNOWN' : 'INTERNAL';
   let message = err?.details ?? err?.message ?? String(err);
   if (typeof err?.code === 'number' && message.startsWith(`${err.code} `)) {

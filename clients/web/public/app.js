@@ -51,6 +51,7 @@ const RESIZE_DEBOUNCE_MS = 150;
 const LINK_DEBOUNCE_MS = 400;  // the URL follows the camera once it rests this long
 const RETRY_MIN_MS = 500;    // stream retries: 0.5 s doubling to 5 s (as the socket's)
 const RETRY_MAX_MS = 5000;
+const MOVED_NOTE_MS = 4000;  // how long the status says the stream moved to another render server
 
 // ---------------------------------------------------------------------------------------------
 // State
@@ -81,6 +82,9 @@ const state = {
   receiving: false,      // a frame has arrived on the current stream
   resuming: false,       // the current stream resumed a session and has had no frame yet
   token: null,           // the last Frame.session_token
+  moves: 0,              // times the gateway moved the stream to another render server
+  movedAt: -Infinity,    // when it last did (performance.now())
+  movedNoteTimer: null,
   retryTimer: null,
   retryDelay: RETRY_MIN_MS,
   bootTimer: null,
@@ -345,6 +349,37 @@ function onStreamFailed(err) {
   }, 'Could not reopen the stream'), delay);
 }
 
+/**
+ * The gateway moved the stream's session to another render server (its own was lost): a new
+ * session there with the same scene, camera and settings, on the same stream. Its frames count
+ * from 1 and its video starts from a keyframe: decodes of the old session's frames are dropped
+ * (a new generation) and the decoder starts again. A short note says what happened.
+ */
+function onStreamMoved(msg) {
+  if (msg.stream !== state.streamId) return;
+  state.gen++;
+  closeVideo();
+  state.drawnSeq = 0;
+  state.receiving = false;  // the first frame of the new session says so
+  state.moves++;
+  state.movedAt = performance.now();
+  setStatus('render server lost, moving…', 'busy');
+}
+
+/** The status once frames flow: with a note for a few seconds after a move. */
+function showConnected() {
+  clearTimeout(state.movedNoteTimer);
+  const sinceMove = performance.now() - state.movedAt;
+  if (sinceMove > MOVED_NOTE_MS) {
+    setStatus('connected', 'ok');
+    return;
+  }
+  setStatus('connected (moved to another render server)', 'ok');
+  state.movedNoteTimer = setTimeout(() => {
+    if (state.receiving) setStatus('connected', 'ok');
+  }, MOVED_NOTE_MS - sinceMove);
+}
+
 function onStreamEnd(msg) {
   if (msg.stream !== state.streamId) return;  // a stream we closed ourselves
   const resumeFailed = state.resuming;
@@ -447,7 +482,7 @@ function onFrame({ header, payload }) {
     state.receiving = true;
     state.resuming = false;
     state.retryDelay = RETRY_MIN_MS;
-    setStatus('connected', 'ok');
+    showConnected();
   }
   if (frame.session_token) state.token = frame.session_token;
   if (frame.scene_id && frame.scene_id !== state.sceneId) {
@@ -1332,6 +1367,8 @@ window.tessera = {
   get codec() { return state.codec; },  // what the stream is asked for: 'jpeg' or 'h264'
   get decodeMs() { return state.decodeMs; },  // the frame shown: payload in, picture out
   get keyframeRequests() { return state.keyframeRequests; },
+  get moves() { return state.moves; },  // times the gateway moved the stream to another replica
+  get status() { return ui.status.textContent; },
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -1341,6 +1378,7 @@ function wire() {
   conn.on('state', guard(onSocketState, 'Connection problem'));
   conn.on('frame', guard(onFrame, 'A frame could not be shown'));
   conn.on('stream_end', guard(onStreamEnd, 'The stream ended'));
+  conn.on('stream_moved', guard(onStreamMoved, 'The stream moved'));
   conn.on('orphan_error', guard(onOrphanError, 'Change not applied'));
   conn.on('protocol_error', (err) => showError(err, 'A message from the gateway was not understood'));
   conn.on('hello', (hello) => {

@@ -60,6 +60,8 @@ export function encodeBinary(header, payload) {
  *   'hello'      the gateway's hello message
  *   'frame'      {header, payload} of a Stream frame (header.stream, header.frame)
  *   'stream_end' the gateway's stream_end message
+ *   'stream_moved' the gateway's stream_moved message: the stream's session is on another
+ *                replica now (a new session: its frames count from 1, video from a keyframe)
  *   'orphan_error' {id, error}: an error reply to a notify() (e.g. a malformed event)
  *   'protocol_error' Error: a message the page could not parse (dropped)
  */
@@ -252,6 +254,8 @@ export class Connection {
       this.#emit('hello', msg);
     } else if (msg.type === 'stream_end') {
       this.#emit('stream_end', msg);
+    } else if (msg.type === 'stream_moved') {
+      this.#emit('stream_moved', msg);
     } else if (msg.type === 'progress') {
       this.#pending.get(msg.id)?.onProgress?.(msg);
     } else if (msg.id !== undefined && msg.ok !== undefined) {

@@ -32,10 +32,23 @@ function fakeContext(overrides = {}) {
       return call;
     },
   };
+  // One server, as a plain --server HOST:PORT gives: every call goes to it.
+  const replica = { address: 'fake:1', client, streams: new Set() };
+  const replicas = {
+    single: true,
+    place: async () => replica,
+    pickUnary: async () => replica,
+    answering: async () => [replica],
+    shared: () => true,
+    forToken: (token) => ({ replica, token }),
+    reportFailure() {},
+  };
   return {
     calls,
     ctx: {
       client,
+      replica,
+      replicas,
       definition: {},
       metadata: () => ({}),
       limits: async () => ({ max_upload_files: 8, max_upload_bytes: 1 << 20, max_chunk_bytes: 1 << 16 }),
@@ -91,13 +104,13 @@ test('uploads beyond the gateway-wide budget are refused, and the budget comes b
   assert.equal(ctx.uploadBudget.used, 0);
 });
 
-test('renders are refused while the page does not read its frames', () => {
+test('renders are refused while the page does not read its frames', async () => {
   const { ctx } = fakeContext();
-  ctx.client.Render = { requestSerialize: () => Buffer.alloc(0) };
   const ws = fakePage();
   ws.bufferedAmount = 64 << 20;
   new Connection(ws, ctx);
   ws.text({ id: 1, op: 'render', request: {} });
+  await tick();
   assert.equal(ws.replies(1)[0].error.code, 'RESOURCE_EXHAUSTED');
   assert.match(ws.replies(1)[0].error.message, /not reading/);
 });
@@ -115,20 +128,22 @@ function fakeStreamCall() {
 function streamContext(overrides = {}) {
   const { ctx } = fakeContext(overrides);
   const calls = [];
-  ctx.client.Stream = Object.assign(() => {
+  ctx.client.Stream = () => {
     const call = fakeStreamCall();
     calls.push(call);
     return call;
-  }, { requestSerialize: () => Buffer.alloc(0) });
+  };
   return { ctx, calls };
 }
+
+const tick = () => new Promise((r) => setImmediate(r));
 
 const h264 = (sequence, keyframe) => ({
   sequence, encoding: 'VIDEO_H264', keyframe, codec: 'avc1.64000d', data: Buffer.from([0, 0, 0, 1, sequence]),
 });
 const framesSent = (ws) => ws.sent.filter((m) => Buffer.isBuffer(m)).map((m) => splitBinary(m).header);
 
-test('a page that falls behind on video: the gateway drops to the next keyframe and asks for it with the page\'s newest event id', () => {
+test('a page that falls behind on video: the gateway drops to the next keyframe and asks for it with the page\'s newest event id', async () => {
   const { ctx, calls } = streamContext();
   const ws = fakePage();
   const held = [];
@@ -138,6 +153,7 @@ test('a page that falls behind on video: the gateway drops to the next keyframe 
   };
   new Connection(ws, ctx);
   ws.text({ id: 1, op: 'open', open: { scene_id: 'demo', video: { codec: 'VIDEO_CODEC_H264' } }, event_id: 3 });
+  await tick();
   const call = calls[0];
   assert.deepEqual(call.written[0].open.video, { codec: 'VIDEO_CODEC_H264' });
   ws.text({ id: 2, op: 'event', stream: 1, event: { event_id: 9, refresh: true } });
@@ -158,19 +174,22 @@ test('a page that falls behind on video: the gateway drops to the next keyframe 
 
 test('a page taking over its stream: refresh and keyframe in one event, and no video before the keyframe', () => {
   const { ctx, calls } = streamContext();
-  const parked = new BridgedStream(fakeStreamCall());
-  parked.call.emit('data', { ...h264(4, true), session_token: 'tok' });  // while its page was away
-  ctx.parked = { take: (token) => (token === 'tok' ? parked : null), park() {} };
+  const parked = new BridgedStream({ replicas: ctx.replicas, metadata: () => ({}), log: () => {} });
+  parked.startCall(ctx.replica, { open: { scene_id: 'demo' } });
+  const call = calls[0];
+  call.emit('data', { ...h264(4, true), session_token: 'tok' });  // while its page was away
+  assert.equal(parked.token, `${Buffer.from('fake:1').toString('base64url')}.tok`, 'the token names the replica');
+  ctx.parked = { take: (token) => (token === parked.token ? parked : null), park() {} };
   const ws = fakePage();
   new Connection(ws, ctx);
-  ws.text({ id: 5, op: 'open', open: { resume_token: 'tok' }, event_id: 12 });
-  assert.equal(calls.length, 0, 'a held stream was opened again at tesserad');
+  ws.text({ id: 5, op: 'open', open: { resume_token: parked.token }, event_id: 12 });
+  assert.equal(calls.length, 1, 'a held stream was opened again at tesserad');
   assert.deepEqual(ws.replies(5)[0].result, { stream: 5, resumed: true });
-  assert.deepEqual(parked.call.written, [{ event_id: 12, refresh: true, keyframe: true }]);
-  parked.call.emit('data', h264(5, false));  // made before the keyframe asked for: useless
-  parked.call.emit('data', h264(6, true));
-  parked.call.emit('data', h264(7, false));
+  assert.deepEqual(call.written.slice(1), [{ event_id: 12, refresh: true, keyframe: true }]);
+  call.emit('data', h264(5, false));  // made before the keyframe asked for: useless
+  call.emit('data', h264(6, true));
+  call.emit('data', h264(7, false));
   assert.deepEqual(framesSent(ws).map((h) => [h.stream, h.frame.sequence, h.video_seq, h.frame.keyframe]),
     [[5, 6, 3, true], [5, 7, 4, false]]);
-  assert.equal(parked.call.written.length, 1, 'the resume asked already');
+  assert.equal(call.written.length, 2, 'the resume asked already');
 });

@@ -1,0 +1,141 @@
+// What a live session was asked for, as the gateway keeps it to open the session again on
+// another replica (failover), and when it does.
+//
+// The state is an OpenSession (scene, camera, settings, target_fps, interactive, video) that every
+// ClientEvent the page sends updates the way tesserad updates its session (server/
+// stream_session.cpp ApplyUpdateLocked, convert.cpp MergeProfile/MergeVideo, settings_wire.cpp
+// MergeSettings): a camera replaces the camera; settings, interactive and video are merged field
+// by field, set fields only (every field of the three is a scalar: proto3 `optional`, or an enum
+// whose 0 value means "keep"); target_fps replaces when set.
+//
+// Messages here are normalized: parsed by the proto's own deserializer after the serializer
+// checked them (connection.js), so an unset optional field is absent, an unset enum is its
+// *_UNSPECIFIED name and an unset message is null.
+
+const MERGED = ['settings', 'interactive', 'video'];
+
+/** A set field of a normalized message: present, and not an enum's "unspecified" value. */
+export function isSet(value) {
+  if (value === undefined || value === null) return false;
+  if (typeof value === 'string' && value.endsWith('_UNSPECIFIED')) return false;
+  return true;
+}
+
+/** `update`'s set fields over `base` (neither is changed); nested messages replace. */
+export function mergeSet(base, update) {
+  const out = { ...(base ?? {}) };
+  if (update === null || typeof update !== 'object') return out;
+  for (const [key, value] of Object.entries(update)) if (isSet(value)) out[key] = value;
+  return out;
+}
+
+/** Only the set fields of a message (what an OpenSession needs to carry). */
+export function setFields(message) {
+  return mergeSet({}, message);
+}
+
+/** The state of a session opened with `open` (a normalized OpenSession). */
+export function stateFromOpen(open) {
+  const state = { scene_id: String(open?.scene_id ?? '') };
+  if (isSet(open?.camera)) state.camera = open.camera;
+  for (const key of MERGED) if (isSet(open?.[key])) state[key] = setFields(open[key]);
+  const fps = Number(open?.target_fps ?? 0);
+  if (fps > 0) state.target_fps = fps;
+  return state;
+}
+
+/** The state after the page's `event` (a normalized ClientEvent); `state` is not changed. */
+export function mergeEvent(state, event) {
+  if (!event || typeof event !== 'object') return state;
+  const next = { ...state };
+  if (isSet(event.camera)) next.camera = event.camera;
+  for (const key of MERGED) if (isSet(event[key])) next[key] = mergeSet(next[key], event[key]);
+  if (event.target_fps !== undefined && event.target_fps !== null) {
+    const fps = Number(event.target_fps);
+    if (fps > 0) next.target_fps = fps;
+    else delete next.target_fps;
+  }
+  return next;
+}
+
+/**
+ * What a frame says of its session, for a session the gateway resumed (it never saw the open):
+ * the scene, the camera the frame was rendered with, and whether it is video.
+ */
+export function seenInFrame(frame) {
+  const seen = { scene_id: String(frame.scene_id ?? '') };
+  if (frame.camera) seen.camera = { look_at: frame.camera, ...(Number(frame.yfov) > 0 ? { yfov: Number(frame.yfov) } : {}) };
+  if (frame.encoding === 'VIDEO_H264') seen.video = { codec: 'VIDEO_CODEC_H264' };
+  return seen;
+}
+
+/**
+ * The state of a resumed session: what the page sent since the resume (`state`; a page resends
+ * its settings, size, video and camera at once), completed by what its frames said (`seen`).
+ */
+export function completeState(state, seen) {
+  if (!seen) return state;
+  const out = { ...state };
+  if (!out.scene_id) out.scene_id = seen.scene_id;
+  if (!out.camera && seen.camera) out.camera = seen.camera;
+  if (seen.video) out.video = mergeSet(seen.video, out.video);
+  return out;
+}
+
+/** The OpenSession that opens `state` again (no resume token: a new session). */
+export function openFromState(state) {
+  const open = { scene_id: state.scene_id };
+  if (state.camera) open.camera = state.camera;
+  for (const key of MERGED) if (state[key]) open[key] = { ...state[key] };
+  if (state.target_fps > 0) open.target_fps = state.target_fps;
+  return open;
+}
+
+const OK = 0;
+const UNAVAILABLE = 14;
+
+/**
+ * Whether a stream that ended with `status` moves to another replica:
+ *   'move'    its replica is gone (UNAVAILABLE: killed, unreachable, shutting down) and the
+ *             session can be opened again elsewhere;
+ *   'give_up' it would, but it has moved too often lately;
+ *   'end'     anything else: the end goes to the page. A normal end (OK, the page closed or
+ *             cancelled it, a bad event: INVALID_ARGUMENT, NOT_FOUND...) never moves, nor does
+ *             a stream whose page is away (parked), a resume that never had a frame (the page
+ *             opens afresh), a gateway with one server or one that is stopping.
+ */
+export function failoverDecision(status, {
+  closing = false, cancelled = false, parked = false, stopping = false, single = false,
+  sceneKnown = true, budgetLeft = true,
+} = {}) {
+  if (!status || status.code === OK || status.code !== UNAVAILABLE) return 'end';
+  if (closing || cancelled || parked || stopping || single || !sceneKnown) return 'end';
+  return budgetLeft ? 'move' : 'give_up';
+}
+
+/** At most `max` moves in any `windowMs`. */
+export class MoveBudget {
+  constructor({ max = 3, windowMs = 60_000, now = Date.now } = {}) {
+    this.max = max;
+    this.windowMs = windowMs;
+    this.now = now;
+    this.times = [];
+  }
+
+  prune() {
+    const since = this.now() - this.windowMs;
+    this.times = this.times.filter((t) => t > since);
+  }
+
+  get left() {
+    this.prune();
+    return this.max - this.times.length;
+  }
+
+  /** Spends one move; false when none is left. */
+  take() {
+    if (this.left <= 0) return false;
+    this.times.push(this.now());
+    return true;
+  }
+}
