@@ -298,6 +298,12 @@ absl::Status Server::Impl::Listen(const std::shared_ptr<grpc::ServerCredentials>
   builder.SetMaxReceiveMessageSize(
       std::max(static_cast<int>(options.max_chunk_bytes) + (64 << 10), 16 << 20));
   builder.SetMaxSendMessageSize(256 << 20);  // a 16384^2 PNG frame
+  // Clients keep idle connections alive with pings (the web gateway every 30 s): a resting
+  // session's stream carries no data for minutes. gRPC's default policy (one ping per 5 min
+  // without data, 2 strikes) would close such a connection with "too_many_pings", ending every
+  // stream on it; allow one every 10 s, also between calls.
+  builder.AddChannelArgument(GRPC_ARG_HTTP2_MIN_RECV_PING_INTERVAL_WITHOUT_DATA_MS, 10000);
+  builder.AddChannelArgument(GRPC_ARG_KEEPALIVE_PERMIT_WITHOUT_CALLS, 1);
   grpc_server = builder.BuildAndStart();
   if (!grpc_server || port == 0)
     return absl::UnavailableError(absl::StrCat("listen: cannot listen on \"", options.listen,
