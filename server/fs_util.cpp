@@ -219,11 +219,11 @@ absl::Status RemoveStale(const std::string& dir, bool prefix_only) {
   return absl::OkStatus();
 }
 
-absl::Status RemoveDirectoryByRename(const std::string& parent, const std::string& name) {
+absl::StatusOr<std::string> RenameAway(const std::string& parent, const std::string& name) {
   const std::string path = absl::StrCat(parent, "/", name);
   struct stat st;
   if (lstat(path.c_str(), &st) != 0) {
-    if (errno == ENOENT) return absl::OkStatus();
+    if (errno == ENOENT) return std::string();
     return absl::ErrnoToStatus(errno, absl::StrCat("stat ", path));
   }
   // An empty directory of a unique name that the rename replaces (POSIX allows renaming a
@@ -234,13 +234,20 @@ absl::Status RemoveDirectoryByRename(const std::string& parent, const std::strin
   if (rename(path.c_str(), doomed.c_str()) != 0) {
     const int err = errno;
     rmdir(doomed.c_str());
-    if (err == ENOENT) return absl::OkStatus();  // another process removed it
+    if (err == ENOENT) return std::string();  // another process removed it
     return absl::ErrnoToStatus(err, absl::StrCat("delete ", path, ": rename to ", doomed));
   }
   RETURN_IF_ERROR(FsyncDir(parent));
+  return doomed;
+}
+
+absl::Status RemoveDirectoryByRename(const std::string& parent, const std::string& name) {
+  ASSIGN_OR_RETURN(const std::string doomed, RenameAway(parent, name));
+  if (doomed.empty()) return absl::OkStatus();
   // Gone already; what fails to delete here is removed at the next start.
   if (absl::Status removed = RemoveAll(doomed); !removed.ok())
-    return WithPrefix(removed, absl::StrCat("delete ", path, " (gone; the next start retries): "));
+    return WithPrefix(removed, absl::StrCat("delete ", parent, "/", name,
+                                            " (gone; the next start retries): "));
   return absl::OkStatus();
 }
 

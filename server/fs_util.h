@@ -84,6 +84,9 @@ absl::Status RemoveStale(const std::string& dir, bool prefix_only);
 // fresh ".tmp-del-*" name first (fsync'd), then deleted; a crash between leaves a name that
 // RemoveStale removes. OK when it does not exist (or another process removed it first).
 absl::Status RemoveDirectoryByRename(const std::string& parent, const std::string& name);
+// Its first half: the directory renamed to a fresh ".tmp-del-*" name in `parent` (fsync'd),
+// returned for the caller to delete; "" when it did not exist.
+absl::StatusOr<std::string> RenameAway(const std::string& parent, const std::string& name);
 bool IsLowerHex(const std::string& s, size_t length);
 absl::Status WithPrefix(const absl::Status& st, std::string_view prefix);
 

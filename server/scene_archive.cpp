@@ -203,11 +203,16 @@ absl::StatusOr<GltfSource> SceneArchive::Load(const std::string& scene_id,
     return absl::ErrnoToStatus(errno, absl::StrCat("scene ", scene_id, ": stat ", dir));
   }
   if (!S_ISDIR(st.st_mode)) return damaged("not a directory");
+  // This process's own evictions skip it (flock emulated by POSIX locks, as on NFS, does not
+  // exclude within a process); marked before the lock is taken.
+  LoadingMark mark(this, scene_id);
+  // Only what the files say is DATA_LOSS (the caller removes such a scene): a failing open,
+  // read or listing (EMFILE, EIO, ESTALE, a removal meanwhile) is reported as itself.
   Fd lock(OpenRetry(main_path, O_RDONLY | O_NOFOLLOW | O_CLOEXEC));
   if (!lock.ok()) {
     if (errno == ENOENT)
       return IsDirectory(dir) ? damaged("no main file") : not_found();  // removed meanwhile
-    return damaged(absl::StrCat("open main: ", strerror(errno)));
+    return absl::ErrnoToStatus(errno, absl::StrCat("scene ", scene_id, ": open ", main_path));
   }
   int locked;
   do {
@@ -224,7 +229,8 @@ absl::StatusOr<GltfSource> SceneArchive::Load(const std::string& scene_id,
   Touch(dir);
   // Upload names are at most 1024 bytes (ValidateUploadName).
   absl::StatusOr<std::string> main = ReadWholeFile(main_path, 4096);
-  if (!main.ok()) return damaged(main.status().message());
+  if (absl::IsResourceExhausted(main.status())) return damaged(main.status().message());
+  if (!main.ok()) return WithPrefix(main.status(), absl::StrCat("scene ", scene_id, ": "));
   if (absl::Status valid = ValidateUploadName(*main); !valid.ok())
     return damaged(absl::StrCat("main: ", valid.message()));
   GltfSource source;
@@ -255,7 +261,10 @@ absl::StatusOr<GltfSource> SceneArchive::Load(const std::string& scene_id,
   }
   if (ec) {
     if (ec == std::errc::no_such_file_or_directory && !fs::exists(dir)) return not_found();
-    return damaged(absl::StrCat("cannot list ", root.string(), ": ", ec.message()));
+    if (ec == std::errc::not_a_directory || ec == std::errc::no_such_file_or_directory)
+      return damaged(absl::StrCat(root.string(), ": ", ec.message()));
+    return absl::UnavailableError(
+        absl::StrCat("scene ", scene_id, ": cannot list ", root.string(), ": ", ec.message()));
   }
   if (!source.files.count(source.main_file))
     return damaged(absl::StrCat("the main file ", Quote(source.main_file), " is missing"));
@@ -279,6 +288,7 @@ absl::Status SceneArchive::MakeRoomLocked(uint64_t incoming, const std::string& 
   if (incoming > max)
     return absl::ResourceExhaustedError(
         absl::StrCat("its ", incoming, " bytes exceed the store's limit of ", max, " bytes"));
+  RemoveStaleOlderThan(dir_, options_.stale_after);  // crashed writes take room too
   struct Entry {
     int64_t used_ns;
     std::string id;
@@ -297,13 +307,19 @@ absl::Status SceneArchive::MakeRoomLocked(uint64_t incoming, const std::string& 
             [](const Entry& a, const Entry& b) { return a.used_ns < b.used_ns; });
   for (const Entry& e : scenes) {
     if (total + incoming <= max) break;
-    Fd lock(OpenRetry(SceneDir(e.id) + "/main", O_RDONLY | O_NOFOLLOW | O_CLOEXEC));
-    if (!lock.ok()) continue;  // removed meanwhile (counted below by the next Save)
+    if (Loading(e.id)) continue;  // being loaded by this process
+    // Read-write: an exclusive flock emulated by POSIX locks (NFS) needs a writable descriptor.
+    Fd lock(OpenRetry(SceneDir(e.id) + "/main", O_RDWR | O_NOFOLLOW | O_CLOEXEC));
+    if (!lock.ok()) continue;  // removed meanwhile
     if (flock(lock.get(), LOCK_EX | LOCK_NB) != 0) continue;  // being loaded: never evicted
-    if (RemoveLocked(e.id).ok()) {
-      total -= e.bytes;
-      ++evictions_;
-    }
+    absl::StatusOr<std::string> doomed = RenameAway(dir_, e.id);
+    // Closed before the files go: NFS keeps an open file as a ".nfs*" name, and the tree could
+    // not be deleted.
+    lock.Close();
+    if (!doomed.ok()) continue;
+    if (!doomed->empty()) RemoveAll(*doomed).IgnoreError();  // else a later sweep does
+    total -= e.bytes;
+    ++evictions_;
   }
   if (total + incoming > max)
     return absl::ResourceExhaustedError(absl::StrCat(
@@ -332,6 +348,26 @@ uint64_t SceneArchive::TotalBytes() const {
   uint64_t total = 0;
   for (const std::string& id : List()) total += Bytes(id);
   return total;
+}
+
+void SceneArchive::MarkUsed(const std::string& scene_id) const {
+  if (ValidSceneId(scene_id)) Touch(SceneDir(scene_id));
+}
+
+bool SceneArchive::Loading(const std::string& scene_id) const {
+  std::lock_guard<std::mutex> lock(loading_mu_);
+  return loading_.count(scene_id) > 0;
+}
+
+SceneArchive::LoadingMark::LoadingMark(const SceneArchive* a, std::string id)
+    : archive_(a), id_(std::move(id)) {
+  std::lock_guard<std::mutex> lock(archive_->loading_mu_);
+  archive_->loading_.insert(id_);
+}
+
+SceneArchive::LoadingMark::~LoadingMark() {
+  std::lock_guard<std::mutex> lock(archive_->loading_mu_);
+  archive_->loading_.erase(archive_->loading_.find(id_));
 }
 
 uint64_t SceneArchive::evictions() const {

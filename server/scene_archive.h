@@ -13,15 +13,18 @@
 // is SHA-256 of their hashes: common/scene_id.h), so a damaged or edited archive is refused,
 // never rendered.
 //
-// With a size limit, Save evicts the least recently used scenes (Load and Save mark a scene
-// used) until the new one fits. A scene being loaded, by any process, is never evicted: Load
-// holds a shared flock(2) on its main file, and eviction takes the exclusive lock without
-// waiting and skips the scene when it cannot. Thread-safe, and safe for several processes on
-// one directory (local file systems and NFSv4 / CephFS, which honour flock).
+// With a size limit, Save evicts the least recently used scenes (Load, Save and MarkUsed mark a
+// scene used) until the new one fits. A scene being loaded, by any process, is never evicted:
+// Load holds a shared flock(2) on its main file (and marks the id in this process, since flock
+// emulated by POSIX locks, as on NFS, does not exclude within one), and eviction takes the
+// exclusive lock without waiting and skips the scene when it cannot. Only what the files say
+// is DATA_LOSS; failing I/O is reported as itself. Thread-safe, and safe for several
+// processes on one directory (local file systems, NFSv4 and CephFS).
 #include <chrono>
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -69,6 +72,8 @@ class SceneArchive {
   uint64_t Bytes(const std::string& scene_id) const; // 0 if absent
   uint64_t TotalBytes() const;
   uint64_t evictions() const;
+  // Marks a scene used now (LRU), for a scene served from memory: its loads are rare then.
+  void MarkUsed(const std::string& scene_id) const;
 
  private:
   SceneArchive(std::string dir, SceneArchiveOptions options);
@@ -78,10 +83,24 @@ class SceneArchive {
   // Renames the scene to a fresh ".tmp-del-*" name, then deletes it.
   absl::Status RemoveLocked(const std::string& scene_id);
 
+  // Ids this process is loading (a multiset: loads of one id may overlap).
+  bool Loading(const std::string& scene_id) const;
+  class LoadingMark {
+   public:
+    LoadingMark(const SceneArchive* archive, std::string id);
+    ~LoadingMark();
+
+   private:
+    const SceneArchive* archive_;
+    std::string id_;
+  };
+
   const std::string dir_;
   const SceneArchiveOptions options_;
   mutable std::mutex mu_;  // serializes renames and eviction within the process
   uint64_t evictions_ = 0;
+  mutable std::mutex loading_mu_;
+  mutable std::multiset<std::string> loading_;
 };
 
 }  // namespace tessera::server

@@ -340,11 +340,16 @@ absl::Status Server::Impl::Listen(const std::shared_ptr<grpc::ServerCredentials>
 void Server::Impl::StartSweeper() {
   sweeper = std::thread([this] {
     std::unique_lock lock(sweeper_mu);
-    while (!sweeper_cv.wait_for(lock, std::chrono::milliseconds(250),
-                                [this] { return sweeper_stop; }))
-    {
+    for (uint64_t tick = 1; !sweeper_cv.wait_for(lock, std::chrono::milliseconds(250),
+                                                  [this] { return sweeper_stop; });
+         ++tick) {
       state.SweepParked();
       CheckHealth();
+      // Scenes this replica serves from memory are in use: their entries in the shared store
+      // are marked used each minute, so its LRU eviction takes scenes nobody holds.
+      if (shared_scenes && tick % 240 == 0)
+        for (const SceneListing& s : store->List())
+          if (s.id != kDemoSceneId && !s.deleted) shared_scenes->MarkUsed(s.id);
     }
   });
 }

@@ -145,15 +145,16 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
     state->CountRpc("Render", ToGrpc(st));
     reactor->Finish(ToGrpc(st));
   };
-  // After the scene is in memory (at once, or loaded from the shared scene store).
+  // After the scene is in memory (at once, or loaded from the shared scene store). The render
+  // holds its place in the queue's limit from before the load, so renders waiting on loads
+  // are bounded too.
   auto render = [state, ctx, req, response, reactor, fail](const absl::Status& loaded) {
-    if (!loaded.ok()) return fail(files::WithPrefix(loaded, "scene_id: "));
-    absl::StatusOr<RenderWork> work = RenderRequestWork(*state, *req);
-    if (!work.ok()) return fail(work.status());
-    if (state->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
+    absl::StatusOr<RenderWork> work =
+        loaded.ok() ? RenderRequestWork(*state, *req)
+                    : absl::StatusOr<RenderWork>(files::WithPrefix(loaded, "scene_id: "));
+    if (!work.ok()) {
       --state->unary_queued;
-      return fail(absl::ResourceExhaustedError(absl::StrCat(
-          "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
+      return fail(work.status());
     }
     work->requested = Clock::now();
     state->loop->Enqueue(
@@ -164,6 +165,10 @@ grpc::ServerUnaryReactor* RenderServiceImpl::Render(grpc::CallbackServerContext*
     fail(st);
   } else if (state_->shutting_down) {
     fail(Unavailable());
+  } else if (state_->unary_queued.fetch_add(1) >= kMaxQueuedRenders) {
+    --state_->unary_queued;
+    fail(absl::ResourceExhaustedError(absl::StrCat(
+        "render queue: ", kMaxQueuedRenders, " renders are waiting (limit); retry later")));
   } else {
     state_->EnsureSceneLoaded(req->scene_id(), std::move(render));
   }

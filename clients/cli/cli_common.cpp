@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <tuple>
 
@@ -275,10 +276,16 @@ absl::StatusOr<std::string> ReadTokenFile(const std::string& path) {
 }
 
 std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::string& target,
-                                           bool round_robin) {
+                                           bool round_robin, const std::string& tls_name) {
   grpc::ChannelArguments args;
   // Frames can be far larger than gRPC's 4 MiB default (a 4K PNG is ~30 MB).
   args.SetMaxReceiveMessageSize(-1);
+  // A server lost without a reset (a node gone, a partition) ends the calls within ~15 s
+  // instead of the TCP timeout's minutes; tesserad accepts a ping every 10 s.
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIME_MS, 10000);
+  args.SetInt(GRPC_ARG_KEEPALIVE_TIMEOUT_MS, 5000);
+  // A replica dialled by address is checked against the name it was found under.
+  if (inv.global.tls && !tls_name.empty()) args.SetSslTargetNameOverride(tls_name);
   if (round_robin) {
     args.SetLoadBalancingPolicyName("round_robin");
     // A daemon that comes back (or starts late) is reconnected within ~2 s, not gRPC's default
@@ -538,7 +545,8 @@ double Percentile(std::vector<double> v, double p) {
 // The addresses behind --servers: "a:1,b:2" (names resolved here) or "dns:///name:port".
 // `lb_target` is what the round_robin channel dials; `addresses` each daemon (for uploads).
 absl::Status ResolveServers(const std::string& servers, std::string* lb_target,
-                            std::vector<std::string>* addresses) {
+                            std::vector<std::string>* addresses,
+                            std::map<std::string, std::string>* host_of) {
   std::vector<std::string> parts;
   std::string dns_port;
   if (servers.rfind("dns:", 0) == 0) {
@@ -576,11 +584,13 @@ absl::Status ResolveServers(const std::string& servers, std::string* lb_target,
                   sizeof buf);
         const std::string addr = absl::StrCat(buf, ":", port);
         if (std::find(v4.begin(), v4.end(), addr) == v4.end()) v4.push_back(addr);
+        if (host_of) host_of->emplace(addr, host);
       } else if (a->ai_family == AF_INET6) {
         inet_ntop(AF_INET6, &reinterpret_cast<sockaddr_in6*>(a->ai_addr)->sin6_addr, buf,
                   sizeof buf);
         const std::string addr = absl::StrCat("[", buf, "]:", port);
         if (std::find(v6.begin(), v6.end(), addr) == v6.end()) v6.push_back(addr);
+        if (host_of) host_of->emplace(addr, host);
       }
     }
     freeaddrinfo(res);

@@ -4,6 +4,7 @@
 #include <grpcpp/grpcpp.h>
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -127,16 +128,19 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> TryConnect(const Invocation& inv)
 // A channel to `target` with the global TLS and token options, not waited for (nullptr after
 // printing why when a TLS file cannot be read). round_robin: gRPC's client-side load
 // balancing over every address the target resolves to (an "ipv4:a,b" list or a dns:/// name).
+// `tls_name`: the name a TLS server's certificate is checked against, when `target` is an
+// address found under that name (a replica of --servers).
 std::shared_ptr<grpc::Channel> MakeChannel(const Invocation& inv, const std::string& target,
-                                           bool round_robin);
+                                           bool round_robin, const std::string& tls_name = "");
 std::unique_ptr<v1::RenderService::Stub> ConnectStub(const Invocation& inv);
 
 // The addresses behind --servers: "a:1,b:2" (names resolved here) or "dns:///name:port" (every
 // address the name resolves to: a headless Service's replicas). `lb_target` is what a
-// round_robin channel dials; `addresses` each daemon. INVALID_ARGUMENT / UNAVAILABLE naming
-// --servers.
+// round_robin channel dials; `addresses` each daemon, and `host_of` (when given) the name each
+// was resolved from (for TLS). INVALID_ARGUMENT / UNAVAILABLE naming --servers.
 absl::Status ResolveServers(const std::string& servers, std::string* lb_target,
-                            std::vector<std::string>* addresses);
+                            std::vector<std::string>* addresses,
+                            std::map<std::string, std::string>* host_of = nullptr);
 
 // A deadline `seconds` from now on `context`.
 void SetDeadline(grpc::ClientContext* context, double seconds);

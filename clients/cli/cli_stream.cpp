@@ -2,6 +2,7 @@
 // an event-to-frame latency summary.
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <random>
 #include <set>
@@ -19,6 +20,8 @@
 #include "clients/cli/cli_render_flags.h"
 #include "clients/cli/cli_session.h"
 #include "clients/cli/cli_stream_parts.h"
+#include "common/scene_id.h"
+#include "common/status_macros.h"
 #include "common/video.h"
 
 namespace tessera::cli {
@@ -275,17 +278,34 @@ struct ReplicaState {
   bool ready() const { return status.ok() && info.accepting_sessions(); }
 };
 
-// Asks every replica of `addresses` (not in `exclude`) at once, within 3 s.
-std::vector<ReplicaState> AskReplicas(const Invocation& inv,
-                                      const std::vector<std::string>& addresses,
+// The replicas of --servers: their addresses (resolved again before each placement: a
+// dns:/// name's pods come and go) and the names they were found under (TLS).
+struct Replicas {
+  std::string servers;
+  std::vector<std::string> addresses;
+  std::map<std::string, std::string> host_of;
+  absl::Status Resolve() {
+    std::string lb_target;
+    addresses.clear();
+    host_of.clear();
+    return ResolveServers(servers, &lb_target, &addresses, &host_of);
+  }
+  std::shared_ptr<grpc::Channel> Channel(const Invocation& inv, const std::string& address) const {
+    const auto it = host_of.find(address);
+    return MakeChannel(inv, address, false, it == host_of.end() ? "" : it->second);
+  }
+};
+
+// Asks every replica (not in `exclude`) at once, within 3 s.
+std::vector<ReplicaState> AskReplicas(const Invocation& inv, const Replicas& replicas,
                                       const std::set<std::string>& exclude) {
   std::vector<ReplicaState> states;
-  for (const std::string& a : addresses)
+  for (const std::string& a : replicas.addresses)
     if (!exclude.count(a)) states.push_back({a, grpc::Status::OK, {}});
   std::vector<std::thread> threads;
   for (ReplicaState& r : states) {
-    threads.emplace_back([&inv, &r] {
-      std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, r.address, false);
+    threads.emplace_back([&inv, &r, &replicas] {
+      std::shared_ptr<grpc::Channel> channel = replicas.Channel(inv, r.address);
       if (!channel) {
         r.status = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT, "TLS files");
         return;
@@ -303,10 +323,10 @@ std::vector<ReplicaState> AskReplicas(const Invocation& inv,
 
 // The ready replica with the fewest sessions (ties: a random one of them, so clients started
 // together spread), or UNAVAILABLE saying what each replica answered.
-absl::StatusOr<std::string> PlaceSession(const Invocation& inv,
-                                         const std::vector<std::string>& addresses,
+absl::StatusOr<std::string> PlaceSession(const Invocation& inv, Replicas& replicas,
                                          const std::set<std::string>& exclude) {
-  std::vector<ReplicaState> states = AskReplicas(inv, addresses, exclude);
+  RETURN_IF_ERROR(replicas.Resolve());
+  std::vector<ReplicaState> states = AskReplicas(inv, replicas, exclude);
   std::vector<const ReplicaState*> best;
   std::vector<std::string> why;
   for (const ReplicaState& r : states) {
@@ -362,20 +382,33 @@ int RunStream(const Invocation& inv) {
   }
   // --servers: the session goes to the least loaded ready replica, and to another when its
   // replica is lost (the stream ends UNAVAILABLE) before the frames are in.
-  std::vector<std::string> replicas;
+  Replicas replicas{o.servers, {}, {}};
   std::string placed;
   std::unique_ptr<v1::RenderService::Stub> stub;
   const auto connect = [&](const std::string& address) {
-    std::shared_ptr<grpc::Channel> channel = MakeChannel(inv, address, false);
+    std::shared_ptr<grpc::Channel> channel = replicas.Channel(inv, address);
     stub = channel ? v1::RenderService::NewStub(channel) : nullptr;
   };
+  std::string scene_id = o.scene;
   if (!o.servers.empty()) {
-    std::string lb_target;
-    if (absl::Status st = ResolveServers(o.servers, &lb_target, &replicas); !st.ok())
-      return ReportError(inv, st);
     absl::StatusOr<std::string> address = PlaceSession(inv, replicas, {});
     if (!address.ok()) return ReportError(inv, address.status());
     placed = *address;
+    // A scene id prefix names a scene some replica has loaded: the session (and any move)
+    // opens with the full id, which every replica finds in the shared store.
+    if (scene_id != "demo" && !IsSha256Hex(scene_id)) {
+      for (const std::string& a : replicas.addresses) {
+        std::shared_ptr<grpc::Channel> channel = replicas.Channel(inv, a);
+        if (!channel) continue;
+        std::string resolved;
+        bool found = false;
+        auto replica = v1::RenderService::NewStub(channel);
+        if (ResolveSceneId(replica.get(), o.scene, &resolved, nullptr, &found).ok() && found) {
+          scene_id = resolved;
+          break;
+        }
+      }
+    }
     connect(placed);
     absl::FPrintF(stderr, "tessera: stream: on %s\n", placed);  // stderr: --json too
   } else {
@@ -383,7 +416,6 @@ int RunStream(const Invocation& inv) {
   }
   if (!stub) return kExitError;
 
-  std::string scene_id = o.scene;
   std::optional<Orbit> orbit;
   if (o.orbit) {
     grpc::Status status = PlanOrbit(stub.get(), o, &scene_id, &orbit);
@@ -412,7 +444,7 @@ int RunStream(const Invocation& inv) {
   std::vector<Failover> failovers;
   std::set<std::string> lost;
   std::string current = placed;
-  while (!replicas.empty() && status.error_code() == grpc::StatusCode::UNAVAILABLE &&
+  while (!o.servers.empty() && status.error_code() == grpc::StatusCode::UNAVAILABLE &&
          session.records().size() < o.frames && !InterruptHandler::interrupted() &&
          failovers.size() < 3) {
     Failover f{current, "", status, static_cast<uint32_t>(session.records().size()),
@@ -422,6 +454,7 @@ int RunStream(const Invocation& inv) {
     if (!next.ok()) {
       absl::FPrintF(stderr, "\ntessera: stream: %s lost (%s); %s\n", current,
                     status.error_message(), next.status().message());
+      failovers.push_back(std::move(f));  // "to": null
       break;
     }
     current = f.to = *next;
@@ -444,10 +477,13 @@ int RunStream(const Invocation& inv) {
   if (have_frames && !inv.global.json) {
     PrintSummary(summary, session.records());
     for (const Failover& f : failovers)
-      absl::PrintF("failover %s lost after %u frames; %s: first frame %s after\n", f.from,
-                   f.frames_before, f.to,
-                   f.first_frame_ms ? absl::StrFormat("%.0f ms", *f.first_frame_ms)
-                                    : std::string("none"));
+      absl::PrintF("failover %s lost after %u frames; %s\n", f.from, f.frames_before,
+                   f.to.empty() ? std::string("no replica to move to")
+                                : absl::StrCat(f.to, ": first frame ",
+                                               f.first_frame_ms
+                                                   ? absl::StrFormat("%.0f ms", *f.first_frame_ms)
+                                                   : std::string("none"),
+                                               " after"));
     if (!o.save_dir.empty() && save_error.empty()) {
       absl::PrintF("saved    %u frames to %s%s\n", summary.frames, o.save_dir,
                    video_file ? "" : "/");
@@ -469,12 +505,12 @@ int RunStream(const Invocation& inv) {
   }
   if (have_frames && inv.global.json) {
     Json j = SummaryJson(summary, session.records(), scene_id);
-    if (!replicas.empty()) {
+    if (!o.servers.empty()) {
       j["server"] = placed;
       Json list = Json::array();
       for (const Failover& f : failovers)
         list.push_back({{"from", f.from},
-                        {"to", f.to},
+                        {"to", f.to.empty() ? Json(nullptr) : Json(f.to)},
                         {"error", ErrorJson(f.why)},
                         {"frames_before", f.frames_before},
                         {"first_frame_ms", f.first_frame_ms ? Json(*f.first_frame_ms) : nullptr}});
