@@ -152,7 +152,7 @@ absl::Status SceneArchive::Save(const std::string& scene_id, const GltfSource& s
         prefix, "the main file ", Quote(source.main_file), " is not one of its files"));
   if (Has(scene_id)) {
     Touch(SceneDir(scene_id));
-    return absl::OkStatus();
+    if (Has(scene_id)) return absl::OkStatus();  // else evicted meanwhile: written again
   }
   if (options_.max_bytes > 0) {
     std::lock_guard<std::mutex> lock(mu_);

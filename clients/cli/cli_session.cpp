@@ -204,8 +204,12 @@ Summary Summarize(const std::vector<FrameRecord>& records,
   const double span_s = (records.back().received_ms - records.front().received_ms) / 1000.0;
   const auto per_second = [&](double v) { return records.size() >= 2 && span_s > 0 ? v / span_s : 0.0; };
   s.fps = per_second(double(records.size() - 1));
-  const uint64_t span = records.back().frame.sequence() - records.front().frame.sequence() + 1;
-  s.dropped = span > records.size() ? span - records.size() : 0;
+  // Sequence numbers never received; a number that does not increase starts a new stream (a
+  // session reopened on another server after its own was lost).
+  for (size_t i = 1; i < records.size(); ++i) {
+    const uint64_t prev = records[i - 1].frame.sequence(), seq = records[i].frame.sequence();
+    if (seq > prev) s.dropped += seq - prev - 1;
+  }
 
   std::vector<std::string> order;
   std::map<std::string, std::vector<double>> per_pass;
