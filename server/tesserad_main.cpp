@@ -41,7 +41,8 @@ ABSL_FLAG(std::string, import_limits, "",
           "max_node_depth, max_meshes, max_primitives, max_accessor_elements, "
           "max_accessor_bytes, max_vertices, max_indices, max_image_dimension, max_image_bytes, "
           "max_total_image_bytes, max_textures, max_materials, max_lights, max_drawables, "
-          "max_json_values, max_decoded_bytes, max_animation_keys (defaults in "
+          "max_json_values, max_decoded_bytes, max_animation_keys, max_skin_joints, "
+          "max_morph_targets (defaults in "
           "`tessera info`)");
 ABSL_FLAG(uint64_t, max_scene_device_mb, 4096,
           "limit: device memory (MiB) one scene may take, estimated before its upload (0: none)");

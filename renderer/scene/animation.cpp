@@ -4,6 +4,8 @@
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "renderer/scene/cpu_scene.h"
+
 namespace tessera {
 namespace {
 
@@ -147,6 +149,33 @@ ScenePose EvaluatePose(const std::vector<SceneNode>& nodes,
     chain.clear();
   }
   return pose;
+}
+
+std::vector<glm::mat4> JointMatrices(const Skin& skin, const ScenePose& pose) {
+  std::vector<glm::mat4> out(skin.joints.size(), glm::mat4(1.0f));
+  for (size_t j = 0; j < skin.joints.size(); ++j) {
+    if (skin.joints[j] >= pose.world.size()) continue;  // the importer checked
+    const glm::mat4 ibm = j < skin.inverse_bind.size() ? skin.inverse_bind[j] : glm::mat4(1.0f);
+    out[j] = pose.world[skin.joints[j]] * ibm;
+  }
+  return out;
+}
+
+glm::vec3 SkinPoint(const glm::vec3& p, const glm::uvec4& joints, const glm::vec4& weights,
+                    const std::vector<glm::mat4>& joint_matrices) {
+  glm::vec4 out(0.0f);
+  for (int i = 0; i < 4; ++i) {
+    if (weights[i] == 0.0f || joints[i] >= joint_matrices.size()) continue;
+    out += weights[i] * (joint_matrices[joints[i]] * glm::vec4(p, 1.0f));
+  }
+  return glm::vec3(out);
+}
+
+glm::vec3 MorphPosition(const glm::vec3& base, const MorphDelta* deltas, size_t stride,
+                        const std::vector<float>& weights) {
+  glm::vec3 p = base;
+  for (size_t t = 0; t < weights.size(); ++t) p += weights[t] * deltas[t * stride].position;
+  return p;
 }
 
 }  // namespace tessera

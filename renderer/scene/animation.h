@@ -32,6 +32,7 @@ struct SceneNode {
   NodeTransform rest;               // its TRS properties (identity when it has a matrix)
   std::optional<glm::mat4> matrix;  // its `matrix` property: such a node is never animated
   int32_t mesh = -1;
+  int32_t skin = -1;           // into CpuScene::skins
   std::vector<float> weights;  // its morph weights at rest (the node's, else its mesh's)
 };
 
@@ -81,5 +82,18 @@ struct ScenePose {
 ScenePose EvaluatePose(const std::vector<SceneNode>& nodes,
                        const std::vector<Animation>& animations, int animation,
                        double scene_time, bool loop);
+
+// The CPU reference of skinning and morphing, what a GPU pre-pass must match (glTF 3.7.3):
+// joint j's matrix is world(joints[j]) * inverse_bind[j], and a skinned vertex is
+// sum_i weight_i * joint_matrix[joint_i] * position, in world space (the node's own transform
+// does not apply). A morphed vertex is the base plus sum_t weight_t * delta_t.
+struct Skin;
+std::vector<glm::mat4> JointMatrices(const Skin& skin, const ScenePose& pose);
+glm::vec3 SkinPoint(const glm::vec3& p, const glm::uvec4& joints, const glm::vec4& weights,
+                    const std::vector<glm::mat4>& joint_matrices);
+struct MorphDelta;
+// `deltas`: target t's delta for this vertex at deltas[t * stride].
+glm::vec3 MorphPosition(const glm::vec3& base, const MorphDelta* deltas, size_t stride,
+                        const std::vector<float>& weights);
 
 }  // namespace tessera

@@ -115,7 +115,26 @@ struct Primitive {
   uint32_t first_vertex = 0;
   uint32_t vertex_count = 0;
   uint32_t material = 0;  // index into CpuScene::materials (always valid)
-  Aabb bounds;            // object space
+  Aabb bounds;            // object space (at rest)
+  bool skinned = false;   // has JOINTS_0 and WEIGHTS_0 (CpuScene::skin_joints/skin_weights)
+  // Morph targets: target t's delta for the primitive's vertex v is
+  // CpuScene::morph_deltas[first_morph_delta + t * vertex_count + v].
+  uint32_t morph_targets = 0;
+  uint64_t first_morph_delta = 0;
+};
+
+// One vertex's displacement by one morph target (glTF 3.7.2.2).
+struct MorphDelta {
+  glm::vec3 position{0.0f};
+  glm::vec3 normal{0.0f};
+  glm::vec3 tangent{0.0f};
+};
+
+// A glTF skin: the joints (node indices) and their inverse bind matrices.
+struct Skin {
+  std::string name;
+  std::vector<uint32_t> joints;
+  std::vector<glm::mat4> inverse_bind;  // one per joint (identity when the file gives none)
 };
 
 struct Mesh {
@@ -188,6 +207,12 @@ struct CpuScene {
   std::vector<SceneCamera> cameras;
   std::vector<SceneNode> nodes;        // every glTF node (animation.h); empty for generated scenes
   std::vector<Animation> animations;   // validated; sampled by EvaluatePose
+  std::vector<Skin> skins;
+  // Per vertex of `vertices` when any primitive is skinned (else empty): up to 4 joints (indices
+  // into the skin of the node that draws it) and their weights (zero for unskinned vertices).
+  std::vector<glm::uvec4> skin_joints;
+  std::vector<glm::vec4> skin_weights;
+  std::vector<MorphDelta> morph_deltas;  // see Primitive::first_morph_delta
   Aabb bounds;  // world bounds of all drawables
   SceneCounts counts;
   std::vector<std::string> warnings;  // things skipped or fixed up on import

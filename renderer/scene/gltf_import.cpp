@@ -466,8 +466,14 @@ class Converter {
     }
     c.lights = uint32_t(s_.lights.size());
     c.cameras = uint32_t(s_.cameras.size());
+    RETURN_IF_ERROR(ConvertSkins());
     RETURN_IF_ERROR(ConvertNodes());
     RETURN_IF_ERROR(ConvertAnimations());
+    // Every vertex has skin data once one has (zeros for the unskinned).
+    if (!s_.skin_joints.empty()) {
+      s_.skin_joints.resize(s_.vertices.size(), glm::uvec4(0));
+      s_.skin_weights.resize(s_.vertices.size(), glm::vec4(0.0f));
+    }
     return absl::OkStatus();
   }
 
@@ -477,6 +483,9 @@ class Converter {
   absl::StatusOr<size_t> MorphTargets(int mesh) {
     const tinygltf::Mesh& m = m_.meshes[mesh];
     const size_t n = m.primitives.empty() ? 0 : m.primitives[0].targets.size();
+    if (n > limits_.max_morph_targets)
+      return OverMax(absl::StrCat("meshes[", mesh, "].primitives[0].targets"), "morph target count",
+                     n, "max_morph_targets", limits_.max_morph_targets);
     for (size_t p = 1; p < m.primitives.size(); ++p) {
       if (m.primitives[p].targets.size() != n)
         return Err(absl::StrCat("meshes[", mesh, "].primitives[", p, "].targets"),
@@ -528,6 +537,24 @@ class Converter {
         for (size_t k = 0; k < w.size(); ++k) out.weights[k] = ToFloat(w[k]);
       } else if (!n.weights.empty()) {
         return Err(path + ".weights", "set on a node without a mesh");
+      }
+      if (n.skin >= 0) {
+        RETURN_IF_ERROR(CheckIndex(path + ".skin", n.skin, s_.skins.size(), "skin"));
+        if (n.mesh < 0) return Err(path + ".skin", "set on a node without a mesh");
+        out.skin = n.skin;
+        // The converted primitives of its mesh (meshes of placed nodes are converted).
+        if (const auto it = mesh_cache_.find(n.mesh); it != mesh_cache_.end()) {
+          for (uint32_t prim : s_.meshes[it->second].primitives) {
+            if (!s_.primitives[prim].skinned)
+              return Err(path + ".skin", "meshes[", n.mesh,
+                         "] has a primitive without JOINTS_0 and WEIGHTS_0");
+            const uint32_t max_joint = max_joint_[prim];
+            if (max_joint >= s_.skins[n.skin].joints.size())
+              return Err(path + ".skin", "meshes[", n.mesh, "] uses joint ", max_joint,
+                         " but skins[", n.skin, "] has ", s_.skins[n.skin].joints.size(),
+                         " joints");
+          }
+        }
       }
     }
     return absl::OkStatus();
@@ -1046,6 +1073,12 @@ class Converter {
   bool AllowedComponents(const AccessorView& a, const std::string& name, bool* needs_ext) const {
     *needs_ext = false;
     const int t = a.component_type;
+    const bool unsigned_small =
+        t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE || t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+    // glTF 2.0 3.7.2.1: joint indices are unsigned integers; weights float or normalized.
+    if (name == "JOINTS_0") return unsigned_small && !a.normalized;
+    if (name == "WEIGHTS_0")
+      return t == TINYGLTF_COMPONENT_TYPE_FLOAT || (unsigned_small && a.normalized);
     if (t == TINYGLTF_COMPONENT_TYPE_FLOAT) return true;
     const bool small = t == TINYGLTF_COMPONENT_TYPE_BYTE ||
                        t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
@@ -1165,6 +1198,13 @@ class Converter {
         Attribute(p, path, "TEXCOORD_1", TINYGLTF_TYPE_VEC2, n)};
     for (const auto& a : attrs) RETURN_IF_ERROR(a.status());
     const AccessorView &nrm = *attrs[0], &tng = *attrs[1], &uv0 = *attrs[2], &uv1 = *attrs[3];
+    absl::StatusOr<AccessorView> joints_view = Attribute(p, path, "JOINTS_0", TINYGLTF_TYPE_VEC4, n);
+    absl::StatusOr<AccessorView> weights_view = Attribute(p, path, "WEIGHTS_0", TINYGLTF_TYPE_VEC4, n);
+    RETURN_IF_ERROR(joints_view.status());
+    RETURN_IF_ERROR(weights_view.status());
+    if ((joints_view->data == nullptr) != (weights_view->data == nullptr))
+      return Err(path + ".attributes", "JOINTS_0 and WEIGHTS_0 come together (one is missing)");
+    const bool skinned = joints_view->data != nullptr;
     const bool has_normals = nrm.data != nullptr;
     const bool has_tangents = has_normals && tng.data != nullptr;  // spec: else ignore them
     const uint64_t out_vertices = has_normals ? n : tri.size();    // flat: a vertex per corner
@@ -1210,9 +1250,13 @@ class Converter {
       if (uv0.data) v.uv0 = finite_uv(ReadVec(uv0, i));
       if (uv1.data) v.uv1 = finite_uv(ReadVec(uv1, i));
     }
+    // The file's vertex each output vertex comes from (flat shading duplicates them).
+    std::vector<uint32_t> source(n);
+    for (uint64_t i = 0; i < n; ++i) source[i] = uint32_t(i);
     if (!has_normals) {
       // Flat shading: every triangle gets its own three vertices carrying the face normal.
       std::vector<Vertex> flat(tri.size());
+      source.assign(tri.begin(), tri.end());
       for (size_t t = 0; t < tri.size(); t += 3) {
         const glm::vec3 fn =
             NormalizeOr(glm::cross(verts[tri[t + 1]].position - verts[tri[t]].position,
@@ -1249,6 +1293,8 @@ class Converter {
       s_.materials.push_back(Material{.name = "default"});  // glTF defaults: white, 1, 1
     }
     prim.material = uint32_t(p.material >= 0 ? p.material : default_material_);
+    if (skinned) RETURN_IF_ERROR(ReadSkinning(path, *joints_view, *weights_view, source, &prim));
+    RETURN_IF_ERROR(ReadMorphTargets(mesh, path, p, source, has_normals, &prim));
     s_.vertices.insert(s_.vertices.end(), verts.begin(), verts.end());
     s_.indices.insert(s_.indices.end(), tri.begin(), tri.end());
     out->push_back(uint32_t(s_.primitives.size()));
@@ -1257,6 +1303,135 @@ class Converter {
   }
 
   // Each glTF mesh is converted once, however many nodes instance it.
+  // JOINTS_0 / WEIGHTS_0 of a primitive into the scene's per-vertex skin arrays (padded with
+  // zeros for the unskinned vertices before it). Weights are >= 0, finite, and sum to 1 within
+  // 1% (then made exact); joint indices are checked against the skin of each node that draws
+  // the mesh (ConvertNodes).
+  absl::Status ReadSkinning(const std::string& path, const AccessorView& jv,
+                            const AccessorView& wv, const std::vector<uint32_t>& source,
+                            Primitive* prim) {
+    const std::string wfield =
+        absl::StrCat(path, ".attributes.WEIGHTS_0 (accessors[", wv.index, "])");
+    s_.skin_joints.resize(prim->first_vertex, glm::uvec4(0));
+    s_.skin_weights.resize(prim->first_vertex, glm::vec4(0.0f));
+    uint32_t max_joint = 0;
+    for (uint32_t src : source) {
+      glm::uvec4 j(0);
+      glm::vec4 w(0.0f);
+      for (int c = 0; c < 4; ++c) {
+        j[c] = ReadUint(jv, src, c);
+        w[c] = ReadComponent(wv, src, c);
+        if (!std::isfinite(w[c]) || w[c] < 0.0f)
+          return Err(wfield, "element ", src, " has weight ", w[c], " (weights are >= 0)");
+        if (w[c] > 0.0f) max_joint = std::max(max_joint, j[c]);
+      }
+      const float sum = w.x + w.y + w.z + w.w;
+      if (!(std::abs(sum - 1.0f) <= 0.01f))
+        return Err(wfield, "element ", src, "'s weights sum to ", sum, ", not 1");
+      s_.skin_joints.push_back(j);
+      s_.skin_weights.push_back(w / sum);
+    }
+    prim->skinned = true;
+    max_joint_[uint32_t(s_.primitives.size())] = max_joint;
+    return absl::OkStatus();
+  }
+
+  // The primitive's morph targets' POSITION, NORMAL and TANGENT deltas (VEC3, one per vertex,
+  // finite), for its output vertices. Other target attributes are ignored with a warning.
+  absl::Status ReadMorphTargets(int mesh, const std::string& path, const tinygltf::Primitive& p,
+                                const std::vector<uint32_t>& source, bool has_normals,
+                                Primitive* prim) {
+    if (p.targets.empty()) return absl::OkStatus();
+    ASSIGN_OR_RETURN(const size_t targets, MorphTargets(mesh));
+    const uint64_t deltas = uint64_t(targets) * source.size();
+    if (s_.morph_deltas.size() + deltas > max_vertices_)
+      return OverMax(path + ".targets", "morph delta count", s_.morph_deltas.size() + deltas,
+                     "max_vertices", max_vertices_);
+    prim->morph_targets = uint32_t(targets);
+    prim->first_morph_delta = s_.morph_deltas.size();
+    s_.morph_deltas.resize(s_.morph_deltas.size() + deltas);
+    MorphDelta* out = s_.morph_deltas.data() + prim->first_morph_delta;
+    for (size_t t = 0; t < targets; ++t) {
+      const std::string tpath = absl::StrCat(path, ".targets[", t, "]");
+      for (const auto& [name, accessor] : p.targets[t]) {
+        glm::vec3 MorphDelta::*member = name == "POSITION" ? &MorphDelta::position
+                                        : name == "NORMAL"  ? &MorphDelta::normal
+                                        : name == "TANGENT" ? &MorphDelta::tangent
+                                                            : nullptr;
+        if (member == nullptr) {
+          Warn(absl::StrCat(tpath, ": morph attribute ", name, " ignored"));
+          continue;
+        }
+        ASSIGN_OR_RETURN(AccessorView v, View(accessor, absl::StrCat(tpath, ".", name)));
+        const std::string field = absl::StrCat(tpath, ".", name, " (accessors[", v.index, "])");
+        bool needs_ext = false;
+        if (v.type != TINYGLTF_TYPE_VEC3 || !AllowedComponents(v, name, &needs_ext) ||
+            (needs_ext && !quantization_))
+          return Err(field, "morph deltas must be VEC3 FLOAT (or quantized with "
+                            "KHR_mesh_quantization)");
+        if (v.count != CountOf(p, "POSITION"))
+          return Err(field, v.count, " deltas for ", CountOf(p, "POSITION"), " vertices");
+        if (member != &MorphDelta::position && !has_normals) continue;  // flat: recomputed
+        for (size_t k = 0; k < source.size(); ++k) {
+          const glm::vec3 d = glm::vec3(ReadVec(v, source[k]));
+          if (!Finite(d)) return Err(field, "element ", source[k], " is not finite");
+          out[t * source.size() + k].*member = d;
+        }
+      }
+    }
+    return absl::OkStatus();
+  }
+
+  uint64_t CountOf(const tinygltf::Primitive& p, const char* attribute) const {
+    const auto it = p.attributes.find(attribute);
+    return it == p.attributes.end() ? 0 : uint64_t(m_.accessors[it->second].count);
+  }
+
+  // glTF 2.0 3.7.3: a skin's joints (nodes, distinct, at most max_skin_joints) and inverse bind
+  // matrices (MAT4 FLOAT, at least one per joint, finite; identity when absent).
+  absl::Status ConvertSkins() {
+    for (size_t si = 0; si < m_.skins.size(); ++si) {
+      const tinygltf::Skin& gs = m_.skins[si];
+      const std::string path = absl::StrCat("skins[", si, "]");
+      Skin out;
+      out.name = gs.name;
+      if (gs.joints.empty()) return Err(path + ".joints", "is empty");
+      if (gs.joints.size() > limits_.max_skin_joints)
+        return OverMax(path + ".joints", "joint count", gs.joints.size(), "max_skin_joints",
+                       limits_.max_skin_joints);
+      std::set<int> seen;
+      for (size_t j = 0; j < gs.joints.size(); ++j) {
+        RETURN_IF_ERROR(CheckIndex(absl::StrCat(path, ".joints[", j, "]"), gs.joints[j],
+                                   m_.nodes.size(), "node"));
+        if (!seen.insert(gs.joints[j]).second)
+          return Err(absl::StrCat(path, ".joints[", j, "]"), "nodes[", gs.joints[j],
+                     "] is listed twice");
+        out.joints.push_back(uint32_t(gs.joints[j]));
+      }
+      if (gs.skeleton >= 0)
+        RETURN_IF_ERROR(CheckIndex(path + ".skeleton", gs.skeleton, m_.nodes.size(), "node"));
+      out.inverse_bind.assign(out.joints.size(), glm::mat4(1.0f));
+      if (gs.inverseBindMatrices >= 0) {
+        ASSIGN_OR_RETURN(AccessorView v, View(gs.inverseBindMatrices, path + ".inverseBindMatrices"));
+        const std::string field =
+            absl::StrCat(path, ".inverseBindMatrices (accessors[", v.index, "])");
+        if (v.type != TINYGLTF_TYPE_MAT4 || v.component_type != TINYGLTF_COMPONENT_TYPE_FLOAT)
+          return Err(field, "must be MAT4 FLOAT");
+        if (v.count < out.joints.size())
+          return Err(field, v.count, " matrices for ", out.joints.size(), " joints");
+        for (size_t j = 0; j < out.joints.size(); ++j) {
+          for (int e = 0; e < 16; ++e) {
+            const float x = ReadComponent(v, j, e);
+            if (!std::isfinite(x)) return Err(field, "element ", j, " is not finite");
+            glm::value_ptr(out.inverse_bind[j])[e] = x;
+          }
+        }
+      }
+      s_.skins.push_back(std::move(out));
+    }
+    return absl::OkStatus();
+  }
+
   absl::StatusOr<uint32_t> ConvertMesh(int mesh) {
     if (const auto it = mesh_cache_.find(mesh); it != mesh_cache_.end()) return it->second;
     const tinygltf::Mesh& gm = m_.meshes[mesh];
@@ -1560,6 +1735,7 @@ class Converter {
   const uint64_t max_vertices_, max_indices_;
   int32_t default_material_ = -1;
   std::vector<int> parent_;             // per node, -1 for roots
+  std::map<uint32_t, uint32_t> max_joint_;  // skinned primitive -> largest joint index it uses
   std::map<int, uint32_t> mesh_cache_;  // glTF mesh -> CpuScene::meshes
   std::map<std::pair<int, bool>, int32_t> texture_cache_;
   std::map<int, std::shared_ptr<const Image>> image_cache_;

@@ -34,6 +34,8 @@ const std::vector<ImportLimitField>& ImportLimitFields() {
       u32("max_drawables", &L::max_drawables),
       u64("max_decoded_bytes", &L::max_decoded_bytes),
       u64("max_animation_keys", &L::max_animation_keys),
+      u32("max_skin_joints", &L::max_skin_joints),
+      u32("max_morph_targets", &L::max_morph_targets),
   };
   return fields;
 }

@@ -34,6 +34,8 @@ struct ImportLimits {
   uint64_t max_decoded_bytes = 1ull << 30;         // what Draco and meshopt data decode to,
                                                    // all together (compressed meshes)
   uint64_t max_animation_keys = 1ull << 24;        // key times over all animation samplers
+  uint32_t max_skin_joints = 1024;                 // joints of one skin
+  uint32_t max_morph_targets = 256;                // morph targets of one mesh
 };
 
 // The name (as in flags and messages) and address of every limit, in declaration order.

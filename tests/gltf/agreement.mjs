@@ -370,6 +370,14 @@ const cases = [
   generated('animation_sampler_missing', animated({ edit: (j) => {
     j.animations[0].channels[0].sampler = 3;
   } })),
+  // Morph targets and skins (glTF 2.0 3.7.2.2, 3.7.3).
+  generated('morph_target_valid', (j) => { j.meshes[0].primitives[0].targets = [{ POSITION: 2 }]; }),
+  generated('morph_weights_count_wrong', (j) => {
+    j.meshes[0].primitives[0].targets = [{ POSITION: 2 }];
+    j.meshes[0].weights = [0, 1];
+  }),
+  generated('skin_joints_empty', (j) => { j.skins = [{ joints: [] }]; }),
+  generated('skin_unused_valid', (j) => { j.skins = [{ joints: [0, 1] }]; }),
   // Valid, refused for a documented reason: a required extension Tessera does not read.
   generated('required_extension_unsupported', (j) => {
     j.extensionsUsed = ['KHR_materials_unlit'];

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <functional>
@@ -15,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "renderer/scene/cpu_scene.h"
 #include "renderer/scene/gltf_import.h"
 
 namespace tessera {
@@ -162,6 +164,38 @@ struct Builder {
       gltf["accessors"].back()["min"] = {*std::min_element(v.begin(), v.end())};
       gltf["accessors"].back()["max"] = {*std::max_element(v.begin(), v.end())};
     }
+    return int(gltf["accessors"].size() - 1);
+  }
+
+  // VEC4 UNSIGNED_BYTE joint indices, 4 bytes per element: one float slot each.
+  int Joints(const std::vector<std::array<uint8_t, 4>>& v) {
+    const size_t offset = data.size() * 4;
+    for (const auto& j : v) {
+      float slot;
+      std::memcpy(&slot, j.data(), 4);
+      data.push_back(slot);
+    }
+    gltf["bufferViews"].push_back(
+        {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", v.size() * 4}});
+    gltf["accessors"].push_back({{"bufferView", gltf["bufferViews"].size() - 1},
+                                 {"componentType", 5121},
+                                 {"count", v.size()},
+                                 {"type", "VEC4"}});
+    return int(gltf["accessors"].size() - 1);
+  }
+
+  int Mat4s(const std::vector<glm::mat4>& m) {
+    std::vector<float> v;
+    for (const glm::mat4& x : m)
+      for (int i = 0; i < 16; ++i) v.push_back(x[i / 4][i % 4]);
+    const size_t offset = data.size() * 4;
+    data.insert(data.end(), v.begin(), v.end());
+    gltf["bufferViews"].push_back(
+        {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", v.size() * 4}});
+    gltf["accessors"].push_back({{"bufferView", gltf["bufferViews"].size() - 1},
+                                 {"componentType", 5126},
+                                 {"count", m.size()},
+                                 {"type", "MAT4"}});
     return int(gltf["accessors"].size() - 1);
   }
 
@@ -313,6 +347,156 @@ TEST(AnimationImport, MalformedAnimationsAreRefusedNamingTheField) {
                 {"samplers[2].input", "max_animation_keys limit (8)"}, tight);
   tight.max_animation_keys = 9;
   EXPECT_TRUE(ImportGltf(TrsFile().Source(), tight).ok());
+}
+
+
+// A skinned two-bone strip: 6 vertices at y = 0, 1, 2 (x = -0.5, 0.5), bone 0 at the origin,
+// bone 1 at y = 1 (its child); the bottom row follows bone 0, the middle row both equally, the
+// top row bone 1; the animation turns bone 1 by 90 degrees about +Z over 1 s.
+Builder SkinnedFile() {
+  Builder b;
+  b.gltf["nodes"] = json::array({{{"name", "bone0"}, {"children", {1}}},
+                                 {{"name", "bone1"}, {"translation", {0, 1, 0}}},
+                                 {{"name", "strip"}, {"mesh", 0}, {"skin", 0}}});
+  b.gltf["scenes"] = json::array({{{"nodes", {0, 2}}}});
+  const int pos = b.Floats({-0.5f, 0, 0, 0.5f, 0, 0, -0.5f, 1, 0, 0.5f, 1, 0, -0.5f, 2, 0, 0.5f, 2, 0},
+                           "VEC3");
+  const int joints = b.Joints({{0, 1, 0, 0}, {0, 1, 0, 0}, {0, 1, 0, 0}, {0, 1, 0, 0},
+                               {0, 1, 0, 0}, {0, 1, 0, 0}});
+  const int weights = b.Floats({1, 0, 0, 0, 1, 0, 0, 0, 0.5f, 0.5f, 0, 0, 0.5f, 0.5f, 0, 0,
+                                0, 1, 0, 0, 0, 1, 0, 0},
+                               "VEC4");
+  const int ibm = b.Mat4s({glm::mat4(1.0f), glm::translate(glm::mat4(1.0f), {0, -1, 0})});
+  b.gltf["meshes"] = json::array(
+      {{{"primitives",
+         {{{"attributes", {{"POSITION", pos}, {"JOINTS_0", joints}, {"WEIGHTS_0", weights}}},
+           {"mode", 4}}}}}});
+  // No indices: the 6 vertices are two triangles.
+  b.gltf["skins"] = json::array({{{"joints", {0, 1}}, {"inverseBindMatrices", ibm}}});
+  const int times = b.Floats({0, 1}, "SCALAR");
+  const float h = std::sin(kPi / 4), c = std::cos(kPi / 4);
+  const int turn = b.Floats({0, 0, 0, 1, 0, 0, h, c}, "VEC4");
+  b.gltf["animations"] = json::array(
+      {{{"samplers", {{{"input", times}, {"output", turn}}}},
+        {"channels", {{{"sampler", 0}, {"target", {{"node", 1}, {"path", "rotation"}}}}}}}});
+  return b;
+}
+
+TEST(AnimationImport, SkinnedVerticesFollowTheirBonesAsComputedByHand) {
+  absl::StatusOr<CpuScene> scene = ImportGltf(SkinnedFile().Source());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  ASSERT_EQ(scene->skins.size(), 1u);
+  EXPECT_EQ(scene->skins[0].joints, (std::vector<uint32_t>{0, 1}));
+  EXPECT_EQ(scene->nodes[2].skin, 0);
+  ASSERT_EQ(scene->skin_joints.size(), scene->vertices.size());
+  ASSERT_EQ(scene->primitives.size(), 1u);
+  EXPECT_TRUE(scene->primitives[0].skinned);
+  // Flat-shaded (no normals): each triangle corner is its own vertex; find the corners by
+  // their rest position.
+  const auto skinned_at = [&](double t, glm::vec3 rest) {
+    const ScenePose pose = EvaluatePose(scene->nodes, scene->animations, 0, t, false);
+    const std::vector<glm::mat4> jm = JointMatrices(scene->skins[0], pose);
+    for (size_t v = 0; v < scene->vertices.size(); ++v)
+      if (glm::length(scene->vertices[v].position - rest) < 1e-6f)
+        return SkinPoint(rest, scene->skin_joints[v], scene->skin_weights[v], jm);
+    ADD_FAILURE() << "no vertex at rest position";
+    return glm::vec3(NAN);
+  };
+  // At rest (t = 0) every vertex stays.
+  ExpectNear(skinned_at(0.0, {0.5f, 2, 0}), {0.5f, 2, 0});
+  // t = 1: bone 1 turned 90 degrees about +Z at y = 1. Top vertex (0.5, 2): relative to the
+  // bone (0.5, 1) -> turned (-1, 0.5) -> world (-1, 1.5). Middle (0.5, 1), half each: bone 0
+  // keeps it, bone 1 turns (0.5, 0) to (0, 0.5) -> (0, 1.5); the blend is (0.25, 1.25).
+  // Bottom vertices follow bone 0 alone: unmoved.
+  ExpectNear(skinned_at(1.0, {0.5f, 2, 0}), {-1, 1.5f, 0});
+  ExpectNear(skinned_at(1.0, {0.5f, 1, 0}), {0.25f, 1.25f, 0});
+  ExpectNear(skinned_at(1.0, {0.5f, 0, 0}), {0.5f, 0, 0});
+}
+
+// A triangle with one morph target moving it +1 along X; its weight goes 0 -> 1 over 1 s.
+Builder MorphFile() {
+  Builder b;
+  b.gltf["nodes"] = json::array({{{"name", "tri"}, {"mesh", 0}}});
+  const int pos = b.Floats({0, 0, 0, 1, 0, 0, 0, 1, 0}, "VEC3");
+  const int delta = b.Floats({1, 0, 0, 1, 0, 0, 1, 0, 0}, "VEC3");
+  b.gltf["meshes"] = json::array({{{"primitives", {{{"attributes", {{"POSITION", pos}}},
+                                                    {"targets", {{{"POSITION", delta}}}}}}},
+                                   {"weights", {0.0}}}});
+  const int times = b.Floats({0, 1}, "SCALAR");
+  const int w = b.Floats({0, 1}, "SCALAR");
+  b.gltf["animations"] = json::array(
+      {{{"samplers", {{{"input", times}, {"output", w}}}},
+        {"channels", {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "weights"}}}}}}}});
+  return b;
+}
+
+TEST(AnimationImport, MorphTargetsMoveByTheirAnimatedWeights) {
+  absl::StatusOr<CpuScene> scene = ImportGltf(MorphFile().Source());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const Primitive& p = scene->primitives[0];
+  ASSERT_EQ(p.morph_targets, 1u);
+  ASSERT_EQ(scene->morph_deltas.size(), p.first_morph_delta + p.vertex_count);
+  EXPECT_EQ(scene->nodes[0].weights, std::vector<float>{0.0f});
+  const ScenePose pose = EvaluatePose(scene->nodes, scene->animations, 0, 0.25, false);
+  ASSERT_EQ(pose.weights[0].size(), 1u);
+  EXPECT_FLOAT_EQ(pose.weights[0][0], 0.25f);
+  for (uint32_t v = 0; v < p.vertex_count; ++v) {
+    const glm::vec3 base = scene->vertices[p.first_vertex + v].position;
+    ExpectNear(MorphPosition(base, &scene->morph_deltas[p.first_morph_delta + v], p.vertex_count,
+                             pose.weights[0]),
+               base + glm::vec3(0.25f, 0, 0));
+  }
+}
+
+TEST(AnimationImport, MalformedSkinsAndMorphTargetsAreRefusedNamingTheField) {
+  const auto invalid = absl::StatusCode::kInvalidArgument;
+  const auto refused = [](Builder b, absl::StatusCode code, std::vector<std::string> needles,
+                          ImportLimits limits = {}) {
+    absl::StatusOr<CpuScene> r = ImportGltf(b.Source(), limits);
+    ASSERT_FALSE(r.ok());
+    EXPECT_EQ(r.status().code(), code) << r.status();
+    for (const std::string& n : needles)
+      EXPECT_NE(r.status().message().find(n), absl::string_view::npos)
+          << "'" << n << "' not in: " << r.status().message();
+  };
+  Builder b = SkinnedFile();
+  b.gltf["skins"][0]["joints"] = json::array();
+  refused(b, invalid, {"skins[0].joints", "is empty"});
+  b = SkinnedFile();
+  b.gltf["skins"][0]["joints"] = {0, 0};
+  refused(b, invalid, {"skins[0].joints[1]", "listed twice"});
+  b = SkinnedFile();
+  b.gltf["skins"][0]["joints"] = {0};  // the mesh uses joint 1
+  b.gltf["skins"][0].erase("inverseBindMatrices");
+  refused(b, invalid, {"nodes[2].skin", "uses joint 1", "1 joints"});
+  b = SkinnedFile();
+  b.gltf["meshes"][0]["primitives"][0]["attributes"].erase("WEIGHTS_0");
+  refused(b, invalid, {"primitives[0].attributes", "JOINTS_0 and WEIGHTS_0"});
+  b = SkinnedFile();
+  b.data[18 + 6 + 0] = 0.5f;  // first vertex's weights sum to 0.5
+  refused(b, invalid, {"WEIGHTS_0", "element 0", "sum to 0.5"});
+  b = SkinnedFile();
+  b.gltf["nodes"][2].erase("skin");
+  b.gltf["nodes"][0]["skin"] = 0;
+  refused(b, invalid, {"nodes[0].skin", "without a mesh"});
+  b = SkinnedFile();
+  b.gltf["accessors"][3]["count"] = 1;  // one inverse bind matrix for two joints
+  refused(b, invalid, {"skins[0].inverseBindMatrices", "1 matrices for 2 joints"});
+  ImportLimits one_joint;
+  one_joint.max_skin_joints = 1;
+  refused(SkinnedFile(), absl::StatusCode::kResourceExhausted,
+          {"skins[0].joints", "max_skin_joints limit (1)"}, one_joint);
+
+  Builder m = MorphFile();
+  m.gltf["meshes"][0]["weights"] = {0.0, 1.0};
+  refused(m, invalid, {"meshes[0].weights", "2 weights for 1 morph targets"});
+  m = MorphFile();
+  m.gltf["accessors"][1]["count"] = 2;
+  refused(m, invalid, {"targets[0].POSITION", "2 deltas for 3 vertices"});
+  ImportLimits no_targets;
+  no_targets.max_morph_targets = 0;
+  refused(MorphFile(), absl::StatusCode::kResourceExhausted, {"max_morph_targets limit (0)"},
+          no_targets);
 }
 
 }  // namespace

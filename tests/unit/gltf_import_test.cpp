@@ -730,12 +730,17 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
     j["bufferViews"].push_back({{"buffer", buffer}, {"byteOffset", 0}, {"byteLength", 8}});
     j["bufferViews"].push_back({{"buffer", buffer}, {"byteOffset", 8}, {"byteLength", 24}});
     j["accessors"].push_back({{"bufferView", view}, {"componentType", 5126}, {"count", 2},
-                              {"type", "SCALAR"}});
+                              {"type", "SCALAR"}, {"min", {0}}, {"max", {1}}});
     j["accessors"].push_back({{"bufferView", view + 1}, {"componentType", 5126}, {"count", 2},
                               {"type", "VEC3"}});
     j["animations"] = {{{"samplers", {{{"input", acc}, {"output", acc + 1}}}},
                         {"channels", {{{"sampler", 0},
                                        {"target", {{"node", 1}, {"path", "translation"}}}}}}}};
+  });
+  // Box with a skin no node uses (two joints), and with a morph target (its own positions).
+  const GltfSource skinned = Edited(box, [](json& j) { j["skins"] = {{{"joints", {0, 1}}}}; });
+  const GltfSource morphed = Edited(box, [](json& j) {
+    j["meshes"][0]["primitives"][0]["targets"] = {{{"POSITION", 2}}};
   });
   const GltfSource lit = Edited(box, [](json& j) {
     j["extensionsUsed"] = {"KHR_lights_punctual"};
@@ -771,6 +776,8 @@ TEST(GltfImportLimits, EachLimitIsEnforcedAndNamed) {
       {"max_decoded_bytes", 100, &meshopt, {"bufferViews[", "max_decoded_bytes limit (100)"}},
       {"max_animation_keys", 1, &animated,
        {"animations[0].samplers[0].input", "max_animation_keys limit (1)"}},
+      {"max_skin_joints", 1, &skinned, {"skins[0].joints", "max_skin_joints limit (1)"}},
+      {"max_morph_targets", 0, &morphed, {"meshes[0]", "max_morph_targets limit (0)"}},
   };
   std::set<std::string> tested;
   for (const Case& c : cases) {
