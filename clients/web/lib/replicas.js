@@ -137,6 +137,7 @@ export class Replica {
   update(err, info, sentAt = this.now()) {
     this.polled = true;
     if (err) {
+      if (this.failures === 0) this.failingSince = sentAt;  // the first poll that failed
       this.ok = false;
       this.failures++;
       this.error = String(err.details || err.message || err)
@@ -154,9 +155,14 @@ export class Replica {
     this.placements = this.placements.filter((t) => t >= sentAt - PLACEMENT_SLACK_MS);
   }
 
-  /** Serving as the poll said (an answer without health still takes sessions). */
+  /**
+   * Serving as the poll said (an answer without health still takes sessions). A tesserad that is
+   * NOT_SERVING always says why: `serving` false without an unhealthy_reason is a server older
+   * than the field (proto3 reads it as false), which is serving.
+   */
   get serving() {
-    return this.ok && (this.info.serving === true || this.info.accepting_sessions === true);
+    return this.ok && (this.info.serving === true || this.info.accepting_sessions === true ||
+                       !this.info.unhealthy_reason);
   }
 
   get maxSessions() {
@@ -388,7 +394,10 @@ export class ReplicaSet extends EventEmitter {
     if (!this.single && r.polled && wasReady !== r.ready) {
       this.log(`replica ${r.address} ${r.ready ? 'ready' : `not ready: ${r.why}`}`);
     }
-    if (r.lost && !r.down) {
+    // Every replica missing its polls at once says more about this gateway (its event loop
+    // stalled, its network) than about them: nothing moves on missed polls then.
+    const allMissing = !r.ok && [...this.byAddress.values()].every((x) => x.polled && !x.ok);
+    if (r.lost && !r.down && !(allMissing && this.byAddress.size > 1)) {
       r.down = true;
       if (!this.single) this.emit('lost', r, r.ok ? r.why : `stopped answering (${r.error})`);
     } else if (!r.lost && r.ok) {

@@ -69,6 +69,7 @@ export class BridgedStream {
     this.budget = new MoveBudget({ now: ctx.now });
     this.moves = 0;
     this.lostAt = 0;           // when the replica was lost, until the next frame
+    this.lastDataAt = 0;       // when the last frame came
     this.framesOnCall = 0;
   }
 
@@ -114,6 +115,7 @@ export class BridgedStream {
   onData(call, frame) {
     if (call !== this.call) return; // a call the stream has left
     this.framesOnCall++;
+    this.lastDataAt = this.ctx.now?.() ?? Date.now();
     if (frame.session_token) {
       frame.session_token = wrapToken(this.replica.address, frame.session_token);
       if (frame.session_token !== this.token) {
@@ -163,6 +165,9 @@ export class BridgedStream {
   /** The replica set says this stream's replica is lost (no answer, or not serving). */
   replicaLost(replica, why) {
     if (replica !== this.replica || this.call === null || this.ended) return;
+    // Missed polls but frames still coming since the first missed one: the replica is slow to
+    // answer, not gone, and this session is fine where it is.
+    if (!replica.ok && this.lastDataAt >= (replica.failingSince ?? Infinity)) return;
     if (this.decide({ code: UNAVAILABLE }) !== 'move') return; // it ends by itself, or recovers
     const old = this.call;
     this.call = null;
@@ -171,8 +176,16 @@ export class BridgedStream {
     this.move(replica, why);
   }
 
+  /** Opens the session again on another ready replica; a failure ends the page's stream. */
+  move(from, reason) {
+    this.moveTo(from, reason).catch((err) => {
+      this.ctx.log(`${this.label}: moving from ${from.address} failed: ${err?.stack ?? err}`);
+      if (!this.ended) this.finish({ code: UNAVAILABLE, details: `moving the session failed: ${err?.message ?? err}` });
+    });
+  }
+
   /** Opens the session again on another ready replica, with the state it was asked for. */
-  async move(from, reason) {
+  async moveTo(from, reason) {
     this.budget.take();
     this.moves++;
     this.lostAt = this.ctx.now?.() ?? Date.now();

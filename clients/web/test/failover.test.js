@@ -302,6 +302,35 @@ test('a replica reported lost (no answer, not serving): its streams leave it bef
   assert.equal(calls.length, 2);
 });
 
+test('missed polls do not move a stream whose frames keep coming (a slow replica, not a lost one)', async () => {
+  const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
+  const stream = makeStream(set);
+  const page = sink();
+  stream.attach(page);
+  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const first = calls[0];
+  const replica = set.byAddress.get(first.address);
+  replica.update({ code: 4, details: 'Deadline exceeded' }, null, Date.now() - 1000);
+  first.call.emit('data', { sequence: 1, scene_id: 'demo', data: Buffer.alloc(1) });
+  replica.update({ code: 4, details: 'Deadline exceeded' });
+  stream.replicaLost(replica, 'stopped answering (Deadline exceeded)');
+  await tick();
+  assert.equal(calls.length, 1, 'a frame came after the first missed poll: it stays');
+  assert.equal(first.call.cancelled ?? false, false);
+  // Without frames since then, it moves.
+  const quiet = makeStream(set);
+  quiet.attach(sink());
+  await quiet.open(norm({ open: { scene_id: 'demo' } }));
+  const q = calls.at(-1);
+  const qr = set.byAddress.get(q.address);
+  qr.failures = 0;
+  qr.update({ code: 4, details: 'Deadline exceeded' }, null, Date.now() + 1000);
+  qr.update({ code: 4, details: 'Deadline exceeded' });
+  quiet.replicaLost(qr, 'stopped answering (Deadline exceeded)');
+  await tick();
+  assert.equal(q.call.cancelled, true);
+});
+
 test('events and a close while the stream is between replicas: kept for the new session, or it ends', async () => {
   const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
   const stream = makeStream(set);

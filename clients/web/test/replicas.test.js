@@ -129,6 +129,31 @@ test('readiness: serving and taking sessions; full, NOT_SERVING, unreachable say
   old.update(null, { serving: true, active_sessions: 4, limits: { max_sessions: 4 } });
   assert.equal(old.ready, false);
   assert.equal(old.why, 'full (4 of 4 sessions)');
+  // Older than `serving` too: absent reads as false, but a NOT_SERVING tesserad says why.
+  const older = new Replica('c:1', {});
+  older.update(null, { serving: false, unhealthy_reason: '', active_sessions: 1, limits: { max_sessions: 4 } });
+  assert.equal(older.ready, true);
+  assert.equal(older.lost, false);
+});
+
+test('every replica missing its polls at once moves nothing (the gateway stalled, not them)', async () => {
+  const world = fakeWorld();
+  const set = makeSet('a:1,b:1', world);
+  world.infos = { 'a:1': info(), 'b:1': info() };
+  const lost = [];
+  set.on('lost', (r) => lost.push(r.address));
+  await set.start();
+  set.stop();
+  const down = Object.assign(new Error('x'), { code: 4, details: 'Deadline exceeded' });
+  world.infos = { 'a:1': down, 'b:1': down };
+  await set.pollAll();
+  await set.pollAll();
+  await set.pollAll();
+  assert.deepEqual(lost, []);
+  world.infos['b:1'] = info();  // b answers again: a alone is missing now (seen next round)
+  await set.pollAll();
+  await set.pollAll();
+  assert.deepEqual(lost, ['a:1']);
 });
 
 test('placement: the fewest sessions, ties in turn, a burst spread by what this gateway placed', async () => {
