@@ -16,7 +16,8 @@
 //
 // A replica that leaves DNS (Kubernetes takes a full or unready pod out of a headless Service)
 // gets no new sessions, but keeps its client and its sessions; resume tokens may still name it
-// for FORGET_MS. The page is untrusted: a token is only ever routed to a replica in this set.
+// for FORGET_MS (unpolled). The page is untrusted: a token is only ever routed to a replica in
+// this set.
 import dns from 'node:dns';
 import { EventEmitter } from 'node:events';
 import { GatewayError } from './rpc.js';
@@ -24,8 +25,10 @@ import { GatewayError } from './rpc.js';
 export const POLL_MS = 2000;
 export const POLL_TIMEOUT_MS = 1500;
 export const REFRESH_MS = 5000;
-// A replica out of DNS stays known (resume tokens, its running sessions) this long.
-export const FORGET_MS = 10 * 60_000;
+// A replica out of DNS and holding none of this gateway's sessions is forgotten after this long
+// (and not polled meanwhile): Kubernetes may give its address to another pod, which must get
+// neither the gateway's token nor pages' resume tokens. One with sessions stays known.
+export const FORGET_MS = 60_000;
 // Failed polls in a row before a replica counts as lost (its sessions move). One failed poll
 // already keeps new sessions away.
 export const DOWN_AFTER_FAILURES = 2;
@@ -365,7 +368,8 @@ export class ReplicaSet extends EventEmitter {
 
   /** Asks every replica GetServerInfo (one poll in flight per replica). */
   async pollAll() {
-    await Promise.all(this.replicas.map((r) => this.poll(r)));
+    // Not a replica out of DNS that holds nothing of ours: its address may be another pod's.
+    await Promise.all(this.replicas.filter((r) => r.listed || r.streams.size > 0).map((r) => this.poll(r)));
   }
 
   poll(r) {
