@@ -30,6 +30,8 @@ import { loadProto, makeClient, callMetadata } from '../../clients/web/lib/rpc.j
 import { CHROMIUM, launchChromium, pageLastFrame, waitForPageFrame, watchErrors } from './browser.mjs';
 
 const SMALL = { width: 160, height: 120 };
+// The viewer page's screenshots before and after its replica is killed (to look at).
+const ARTIFACTS = process.env.TESSERA_WEB_ARTIFACTS || fs.mkdtempSync(path.join(os.tmpdir(), 'tessera-web-artifacts-'));
 const PAGES = 8;
 const REPLICAS = 3;
 const MAX_PER_REPLICA = Math.ceil(PAGES / REPLICAS) + 1;
@@ -329,6 +331,8 @@ test('the viewer page (H.264) carries on after its replica is killed: a note, a 
     assert.ok(home, `the token ${first.session_token} names no replica`);
     const other = pair.find((r) => r !== home);
     const drawn = await page.evaluate(() => window.tessera.frames);
+    fs.mkdirSync(ARTIFACTS, { recursive: true });
+    await page.screenshot({ path: path.join(ARTIFACTS, 'replicas-1-before-kill.png') });
     home.proc.kill('SIGKILL');
     const after = await waitForPageFrame(page, (f) => f.session_token.startsWith(`${tagOf(other.address)}.`), 'a frame from the other replica', 10_000);
     assert.equal(after.encoding, 'VIDEO_H264');
@@ -337,6 +341,8 @@ test('the viewer page (H.264) carries on after its replica is killed: a note, a 
     assert.equal(await page.evaluate(() => window.tessera.keyframeRequests), 0);
     assert.ok(await page.evaluate(() => window.tessera.frames) > drawn);
     assert.match(await page.evaluate(() => window.tessera.status), /moved to another render server/);
+    await page.screenshot({ path: path.join(ARTIFACTS, 'replicas-2-after-move.png') });
+    console.log(`# screenshots in ${ARTIFACTS}`);
     assert.deepEqual(await page.evaluate(() => window.tessera.errors.map((e) => String(e.message ?? e))), []);
     assert.deepEqual(errors, []);
     assert.equal((await pageLastFrame(page)).width, after.width);
