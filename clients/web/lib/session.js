@@ -104,11 +104,16 @@ const UNAVAILABLE = 14;
  *             a stream whose page is away (parked), a resume that never had a frame (the page
  *             opens afresh), a gateway with one server or one that is stopping.
  */
+const RESOURCE_EXHAUSTED = 8;
+
 export function failoverDecision(status, {
   closing = false, cancelled = false, parked = false, stopping = false, single = false,
-  sceneKnown = true, budgetLeft = true,
+  sceneKnown = true, budgetLeft = true, full = false,
 } = {}) {
-  if (!status || status.code === OK || status.code !== UNAVAILABLE) return 'end';
+  // `full`: the replica refused the session at its max_sessions before any frame (it filled up
+  // since the poll that placed it there): another replica may take it.
+  const lost = status?.code === UNAVAILABLE || (full && status?.code === RESOURCE_EXHAUSTED);
+  if (!status || status.code === OK || !lost) return 'end';
   if (closing || cancelled || parked || stopping || single || !sceneKnown) return 'end';
   return budgetLeft ? 'move' : 'give_up';
 }

@@ -138,10 +138,14 @@ export class BridgedStream {
     if (call !== this.call) return;
     this.call = null;
     this.replica.streams.delete(this);
-    const decision = this.decide(status);
+    // Full before this session's first frame there: placed on a replica that filled up since
+    // its last poll (other gateways, a burst of moves). The whole replica, not a token's limit.
+    const full = status.code === 8 && this.framesOnCall === 0 &&
+      /reach the max_sessions limit/.test(status.details ?? '');
+    const decision = this.decide(status, full);
     if (decision === 'move') {
-      this.ctx.replicas.reportFailure(this.replica, `a stream there ended UNAVAILABLE (${status.details})`);
-      this.move(this.replica, `lost: ${status.details}`);
+      this.ctx.replicas.reportFailure(this.replica, full ? `full (${status.details})` : `a stream there ended UNAVAILABLE (${status.details})`);
+      this.move(this.replica, full ? `full: ${status.details}` : `lost: ${status.details}`);
     } else if (decision === 'give_up') {
       this.ctx.log(`${this.label}: ${this.replica.address} lost (${status.details}); moved ${this.budget.max} times in the last minute, giving up`);
       this.finish({ ...status, details: `${status.details} (the session moved ${this.budget.max} times in the last minute; the gateway gave up)` });
@@ -150,8 +154,9 @@ export class BridgedStream {
     }
   }
 
-  decide(status) {
+  decide(status, full = false) {
     return failoverDecision(status, {
+      full,
       closing: this.closing,
       cancelled: this.cancelled,
       parked: this.sink === null,

@@ -85,6 +85,10 @@ test('failover decisions: only a lost replica moves a stream, and only while the
   assert.equal(failoverDecision(lost, { sceneKnown: false }), 'end');
   assert.equal(failoverDecision(lost, { budgetLeft: false }), 'give_up');
   assert.equal(failoverDecision(null), 'end');
+  // A replica found full at admission: moves like a lost one; other RESOURCE_EXHAUSTED ends.
+  assert.equal(failoverDecision({ code: 8 }, { full: true }), 'move');
+  assert.equal(failoverDecision({ code: 8 }, { full: false }), 'end');
+  assert.equal(failoverDecision({ code: 3 }, { full: true }), 'end');
 
   let now = 0;
   const budget = new MoveBudget({ max: 3, windowMs: 60_000, now: () => now });
@@ -300,6 +304,28 @@ test('a replica reported lost (no answer, not serving): its streams leave it bef
   // A stream on another replica is not touched.
   stream.replicaLost(replica, 'again');
   assert.equal(calls.length, 2);
+});
+
+test('a replica full at admission (before any frame) passes the session to another; a token limit does not', async () => {
+  const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
+  const stream = makeStream(set);
+  const page = sink();
+  stream.attach(page);
+  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const first = calls[0];
+  first.call.emit('status', { code: 8, details: 'sessions: 8 open streams reach the max_sessions limit (8)' });
+  await tick();
+  assert.equal(calls.length, 2, 'placed again');
+  assert.notEqual(calls[1].address, first.address);
+  assert.deepEqual(page.ends, []);
+  // A per-token limit is the user's, the same on every replica: the page gets it.
+  const limited = makeStream(set);
+  const p2 = sink();
+  limited.attach(p2);
+  await limited.open(norm({ open: { scene_id: 'demo' } }));
+  calls.at(-1).call.emit('status', { code: 8, details: 'sessions: token "x" has its max_sessions (1) open' });
+  await tick();
+  assert.equal(p2.ends.length, 1);
 });
 
 test('missed polls do not move a stream whose frames keep coming (a slow replica, not a lost one)', async () => {
