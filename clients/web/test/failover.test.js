@@ -140,6 +140,15 @@ function sink() {
 
 const makeStream = (set, logs = []) => new BridgedStream({ replicas: set, metadata: () => ({}), log: (l) => logs.push(l) }, { label: 'test stream' });
 
+/** A page stream opened on scene demo, and the page's sink. */
+async function opened(set) {
+  const stream = makeStream(set);
+  const page = sink();
+  stream.attach(page);
+  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  return { stream, page };
+}
+
 test('a stream whose replica is lost reopens its session elsewhere with what it was asked for', async () => {
   const { set, calls, infos } = await fakeReplicas(['a:1', 'b:1', 'c:1']);
   const logs = [];
@@ -253,10 +262,7 @@ test('a resumed session that loses its replica moves with the scene and camera i
 
 test('at most 3 moves a minute; then, or with no replica left, the page gets the error', async () => {
   const { set, calls } = await fakeReplicas(['a:1', 'b:1', 'c:1']);
-  const stream = makeStream(set);
-  const page = sink();
-  stream.attach(page);
-  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const { stream, page } = await opened(set);
   for (let i = 0; i < 3; i++) {
     for (const r of set.replicas) r.update(null, { serving: true, accepting_sessions: true, active_sessions: 0, limits: {} });
     calls.at(-1).call.emit('status', { code: UNAVAILABLE, details: `drop ${i}` });
@@ -286,10 +292,7 @@ test('at most 3 moves a minute; then, or with no replica left, the page gets the
 
 test('a replica reported lost (no answer, not serving): its streams leave it before their calls end', async () => {
   const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
-  const stream = makeStream(set);
-  const page = sink();
-  stream.attach(page);
-  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const { stream, page } = await opened(set);
   const old = calls[0];
   const replica = set.byAddress.get(old.address);
   stream.replicaLost(replica, 'NOT_SERVING (render stalled)');
@@ -308,10 +311,7 @@ test('a replica reported lost (no answer, not serving): its streams leave it bef
 
 test('a replica full at admission (before any frame) passes the session to another; a token limit does not', async () => {
   const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
-  const stream = makeStream(set);
-  const page = sink();
-  stream.attach(page);
-  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const { stream, page } = await opened(set);
   const first = calls[0];
   first.call.emit('status', { code: 8, details: 'sessions: 8 open streams reach the max_sessions limit (8)' });
   await tick();
@@ -330,10 +330,7 @@ test('a replica full at admission (before any frame) passes the session to anoth
 
 test('missed polls do not move a stream whose frames keep coming (a slow replica, not a lost one)', async () => {
   const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
-  const stream = makeStream(set);
-  const page = sink();
-  stream.attach(page);
-  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const { stream, page } = await opened(set);
   const first = calls[0];
   const replica = set.byAddress.get(first.address);
   replica.update({ code: 4, details: 'Deadline exceeded' }, null, Date.now() - 1000);
@@ -359,10 +356,7 @@ test('missed polls do not move a stream whose frames keep coming (a slow replica
 
 test('events and a close while the stream is between replicas: kept for the new session, or it ends', async () => {
   const { set, calls } = await fakeReplicas(['a:1', 'b:1']);
-  const stream = makeStream(set);
-  const page = sink();
-  stream.attach(page);
-  await stream.open(norm({ open: { scene_id: 'demo' } }));
+  const { stream, page } = await opened(set);
   calls[0].call.emit('status', { code: UNAVAILABLE, details: 'Connection dropped' });
   const event = { event_id: 12, settings: { bloom: true } };
   stream.write(event, norm(event));  // before the move's placement resolved
