@@ -207,14 +207,21 @@ absl::Status RemoveAll(const std::string& path) {
 
 // In `dir`, deletes what a crash left mid-way: with `prefix_only`, every name starting with
 // kTmpPrefix (whole trees); otherwise the WriteFileAtomic leftovers ".<name>.tmp-*".
-absl::Status RemoveStale(const std::string& dir, bool prefix_only) {
+absl::Status RemoveStale(const std::string& dir, bool prefix_only, std::chrono::seconds min_age) {
   absl::StatusOr<std::vector<std::string>> names = ListDir(dir);
   if (!names.ok()) return names.status();
+  const auto now = std::chrono::system_clock::now();
   for (const std::string& name : *names) {
     const bool stale = prefix_only ? absl::StartsWith(name, kTmpPrefix)
                                    : name.front() == '.' && absl::StrContains(name, ".tmp-");
     if (!stale) continue;
-    RETURN_IF_ERROR(RemoveAll(absl::StrCat(dir, "/", name)));
+    const std::string path = absl::StrCat(dir, "/", name);
+    struct stat st;
+    if (min_age.count() > 0 &&
+        (lstat(path.c_str(), &st) != 0 ||
+         now - std::chrono::system_clock::from_time_t(st.st_mtime) < min_age))
+      continue;
+    RETURN_IF_ERROR(RemoveAll(path));
   }
   return absl::OkStatus();
 }

@@ -3,6 +3,7 @@
 // archives): crash-safe writes, bounded reads, and errors that name the path and strerror.
 #include <sys/types.h>
 
+#include <chrono>
 #include <cstdint>
 #include <string>
 #include <string_view>
@@ -78,8 +79,11 @@ absl::StatusOr<std::vector<std::string>> ListDir(const std::string& dir);
 bool IsDirectory(const std::string& path);  // not following a symbolic link
 absl::Status RemoveAll(const std::string& path);
 // In `dir`, deletes what a crash left mid-way: with `prefix_only`, every name starting with
-// kTmpPrefix (whole trees); otherwise the WriteFileAtomic leftovers ".<name>.tmp-*".
-absl::Status RemoveStale(const std::string& dir, bool prefix_only);
+// kTmpPrefix (whole trees); otherwise the WriteFileAtomic leftovers ".<name>.tmp-*". With
+// `min_age`, only names last modified at least that long ago (a directory other processes
+// write in: younger ones may be their work in progress).
+absl::Status RemoveStale(const std::string& dir, bool prefix_only,
+                         std::chrono::seconds min_age = std::chrono::seconds(0));
 // Removes the directory `name` in `parent` so that no reader sees it half-deleted: renamed to a
 // fresh ".tmp-del-*" name first (fsync'd), then deleted; a crash between leaves a name that
 // RemoveStale removes. OK when it does not exist (or another process removed it first).

@@ -100,24 +100,13 @@ uint64_t SourceBytes(const GltfSource& source) {
 // published scene's entries do not change).
 void Touch(const std::string& dir) { utimensat(AT_FDCWD, dir.c_str(), nullptr, 0); }
 
-// Removes what a crash (of any process using the directory) left: ".tmp-*" names at least
-// `age` old. Errors are ignored: another process may be removing the same leftovers.
-void RemoveStaleOlderThan(const std::string& dir, std::chrono::seconds age) {
-  absl::StatusOr<std::vector<std::string>> names = ListDir(dir);
-  if (!names.ok()) return;
-  const auto now = std::chrono::system_clock::now();
-  for (const std::string& name : *names) {
-    if (!absl::StartsWith(name, kTmpPrefix)) continue;
-    const std::string path = absl::StrCat(dir, "/", name);
-    struct stat st;
-    if (lstat(path.c_str(), &st) != 0) continue;
-    const auto mtime = std::chrono::system_clock::from_time_t(st.st_mtime);
-    if (age.count() > 0 && now - mtime < age) continue;
-    RemoveAll(path).IgnoreError();
-  }
-}
-
 }  // namespace
+
+std::string SceneIdOf(const GltfSource& source) {
+  std::map<std::string, std::string> hashes;
+  for (const auto& [name, data] : source.files) hashes[name] = Sha256Hex(data.data(), data.size());
+  return SceneId(hashes, source.main_file);
+}
 
 SceneArchive::SceneArchive(std::string dir, SceneArchiveOptions options)
     : dir_(std::move(dir)), options_(options) {}
@@ -130,7 +119,9 @@ absl::StatusOr<std::unique_ptr<SceneArchive>> SceneArchive::Open(
   const std::string prefix = absl::StrCat(what, " ", dir, ": ");
   if (absl::Status st = MakeDirs(dir); !st.ok()) return WithPrefix(st, prefix);
   if (absl::Status st = CheckWritable(dir); !st.ok()) return WithPrefix(st, prefix);
-  RemoveStaleOlderThan(dir, options.stale_after);
+  // What a crash (of any process using the directory) left; errors are left for a later sweep
+  // (another process may be removing the same names).
+  RemoveStale(dir, /*prefix_only=*/true, options.stale_after).IgnoreError();
   return std::unique_ptr<SceneArchive>(new SceneArchive(dir, options));
 }
 
@@ -235,7 +226,6 @@ absl::StatusOr<GltfSource> SceneArchive::Load(const std::string& scene_id,
     return damaged(absl::StrCat("main: ", valid.message()));
   GltfSource source;
   source.main_file = *main;
-  std::map<std::string, std::string> hashes;
   const fs::path root = dir + "/files";
   uint64_t total = 0;
   std::error_code ec;
@@ -256,7 +246,6 @@ absl::StatusOr<GltfSource> SceneArchive::Load(const std::string& scene_id,
                                                        max_bytes, " bytes (at ", name, ")"));
     if (!read.ok()) return WithPrefix(read, absl::StrCat("scene ", scene_id, ": "));
     total += data.size();
-    hashes.emplace(name, Sha256Hex(data.data(), data.size()));
     source.files.emplace(name, std::move(data));
   }
   if (ec) {
@@ -268,7 +257,7 @@ absl::StatusOr<GltfSource> SceneArchive::Load(const std::string& scene_id,
   }
   if (!source.files.count(source.main_file))
     return damaged(absl::StrCat("the main file ", Quote(source.main_file), " is missing"));
-  if (SceneId(hashes, source.main_file) != scene_id)
+  if (SceneIdOf(source) != scene_id)
     return damaged("its files do not hash to its id (changed or truncated on disk)");
   return source;
 }
@@ -288,7 +277,7 @@ absl::Status SceneArchive::MakeRoomLocked(uint64_t incoming, const std::string& 
   if (incoming > max)
     return absl::ResourceExhaustedError(
         absl::StrCat("its ", incoming, " bytes exceed the store's limit of ", max, " bytes"));
-  RemoveStaleOlderThan(dir_, options_.stale_after);  // crashed writes take room too
+  RemoveStale(dir_, /*prefix_only=*/true, options_.stale_after).IgnoreError();  // crashed writes take room too
   struct Entry {
     int64_t used_ns;
     std::string id;

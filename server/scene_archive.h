@@ -34,6 +34,9 @@
 
 namespace tessera::server {
 
+// The scene id an upload of `source` gets (common/scene_id.h over its files' SHA-256).
+std::string SceneIdOf(const GltfSource& source);
+
 struct SceneArchiveOptions {
   // Bytes of scene files the directory may hold (0: no limit). Past it Save evicts.
   uint64_t max_bytes = 0;

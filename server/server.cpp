@@ -414,9 +414,8 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
                      SceneArchive::Open(options.scene_store_dir,
                                         {options.scene_store_max_bytes, std::chrono::hours(1)},
                                         "scene_store_dir"));
-    Log().info("scene store: {} ({} scenes, {:.1f} of {} MiB)", impl->shared_scenes->dir(),
-               impl->shared_scenes->List().size(),
-               impl->shared_scenes->TotalBytes() / 1048576.0,
+    // Not its size: walking every file of a shared store (NFS) would slow every start.
+    Log().info("scene store: {} (up to {} MiB)", impl->shared_scenes->dir(),
                options.scene_store_max_bytes >> 20);
   }
   RETURN_IF_ERROR(impl->StartJobs());

@@ -16,6 +16,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <tuple>
 #include <span>
@@ -507,23 +508,11 @@ class Converter {
       SceneNode& out = s_.nodes[i];
       out.name = n.name;
       out.parent = parent_[i];
-      ASSIGN_OR_RETURN(const glm::mat4 local, LocalMatrix(int(i)));
+      RETURN_IF_ERROR(LocalTransform(int(i), &out.rest, &out.matrix));
+      const glm::mat4 local = out.matrix ? *out.matrix : out.rest.Matrix();
       for (int c = 0; c < 4; ++c) {
         if (!Finite(glm::vec3(local[c])) || !std::isfinite(local[c][3]))
           return Err(path, "transform is not finite");
-      }
-      if (!n.matrix.empty()) {
-        out.matrix = local;
-      } else {
-        for (size_t k = 0; k < n.translation.size(); ++k)
-          out.rest.translation[int(k)] = ToFloat(n.translation[k]);
-        for (size_t k = 0; k < n.scale.size(); ++k) out.rest.scale[int(k)] = ToFloat(n.scale[k]);
-        if (n.rotation.size() == 4) {
-          const glm::quat r(ToFloat(n.rotation[3]), ToFloat(n.rotation[0]),
-                            ToFloat(n.rotation[1]), ToFloat(n.rotation[2]));
-          const float len = glm::length(r);
-          if (len > 1e-12f && std::isfinite(len)) out.rest.rotation = r / len;
-        }
       }
       if (n.mesh >= 0) {
         RETURN_IF_ERROR(CheckIndex(path + ".mesh", n.mesh, m_.meshes.size(), "mesh"));
@@ -1610,14 +1599,19 @@ class Converter {
     return absl::OkStatus();
   }
 
-  absl::StatusOr<glm::mat4> LocalMatrix(int index) {
+  // A node's local transform as the file gives it: its matrix, or its TRS properties (a
+  // rotation normalized; a zero one stays the identity).
+  absl::Status LocalTransform(int index, NodeTransform* trs, std::optional<glm::mat4>* matrix) {
     const tinygltf::Node& n = m_.nodes[index];
     const std::string path = absl::StrCat("nodes[", index, "]");
-    glm::mat4 local(1.0f);
+    *trs = NodeTransform{};
+    matrix->reset();
     if (!n.matrix.empty()) {
       if (n.matrix.size() != 16) return Err(path + ".matrix", "expected 16 numbers");
-      for (int i = 0; i < 16; ++i) glm::value_ptr(local)[i] = ToFloat(n.matrix[i]);
-      return local;
+      glm::mat4 m(1.0f);
+      for (int i = 0; i < 16; ++i) glm::value_ptr(m)[i] = ToFloat(n.matrix[i]);
+      *matrix = m;
+      return absl::OkStatus();
     }
     if (!n.translation.empty() && n.translation.size() != 3) {
       return Err(path + ".translation", "expected 3 numbers");
@@ -1626,17 +1620,22 @@ class Converter {
       return Err(path + ".rotation", "expected 4 numbers");
     }
     if (!n.scale.empty() && n.scale.size() != 3) return Err(path + ".scale", "expected 3 numbers");
-    glm::vec3 t(0.0f), sc(1.0f);
-    glm::quat q(1.0f, 0.0f, 0.0f, 0.0f);
-    for (size_t i = 0; i < n.translation.size(); ++i) t[int(i)] = ToFloat(n.translation[i]);
-    for (size_t i = 0; i < n.scale.size(); ++i) sc[int(i)] = ToFloat(n.scale[i]);
+    for (size_t i = 0; i < n.translation.size(); ++i) trs->translation[int(i)] = ToFloat(n.translation[i]);
+    for (size_t i = 0; i < n.scale.size(); ++i) trs->scale[int(i)] = ToFloat(n.scale[i]);
     if (n.rotation.size() == 4) {
       const glm::quat r(ToFloat(n.rotation[3]), ToFloat(n.rotation[0]), ToFloat(n.rotation[1]),
                         ToFloat(n.rotation[2]));
       const float len = glm::length(r);
-      if (len > 1e-12f && std::isfinite(len)) q = r / len;
+      if (len > 1e-12f && std::isfinite(len)) trs->rotation = r / len;
     }
-    return glm::translate(glm::mat4(1.0f), t) * glm::mat4_cast(q) * glm::scale(glm::mat4(1.0f), sc);
+    return absl::OkStatus();
+  }
+
+  absl::StatusOr<glm::mat4> LocalMatrix(int index) {
+    NodeTransform trs;
+    std::optional<glm::mat4> matrix;
+    RETURN_IF_ERROR(LocalTransform(index, &trs, &matrix));
+    return matrix ? *matrix : trs.Matrix();
   }
 
   absl::Status PlaceNode(int index, const glm::mat4& world) {

@@ -15,12 +15,15 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
 #include "renderer/scene/gltf_import.h"
 #include "server/server.h"
 #include "common/scene_id.h"
@@ -272,6 +275,27 @@ inline bool HealthServing(const std::string& address,
                           std::shared_ptr<grpc::ChannelCredentials> creds =
                               grpc::InsecureChannelCredentials()) {
   return HealthStatus(address, "", std::move(creds)) == 1;
+}
+
+// --- metrics ------------------------------------------------------------------------------
+
+// The samples of a Prometheus text exposition: "name{labels}" -> value. Labels are kept as
+// written (prometheus-cpp sorts them by name).
+inline std::map<std::string, double> ParseMetrics(const std::string& text) {
+  std::map<std::string, double> out;
+  for (absl::string_view line : absl::StrSplit(text, '\n')) {
+    if (line.empty() || line[0] == '#') continue;
+    const size_t space = line.rfind(' ');
+    double v = 0;
+    if (space == absl::string_view::npos) continue;
+    absl::string_view value = line.substr(space + 1);
+    if (value == "+Inf")
+      v = INFINITY;
+    else if (!absl::SimpleAtod(value, &v))
+      continue;
+    out[std::string(line.substr(0, space))] = v;
+  }
+  return out;
 }
 
 // --- the server ----------------------------------------------------------------------------

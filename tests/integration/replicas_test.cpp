@@ -20,16 +20,6 @@ namespace {
 namespace fs = std::filesystem;
 using namespace test_client;  // client_helpers.h
 
-// One gauge of the server's /metrics text; -1 when absent.
-double Gauge(const server::Server& s, const std::string& name) {
-  const std::string text = s.MetricsText();
-  for (size_t at = text.find(name + " "); at != std::string::npos;
-       at = text.find(name + " ", at + 1)) {
-    if (at == 0 || text[at - 1] == '\n') return std::stod(text.substr(at + name.size() + 1));
-  }
-  return -1;
-}
-
 v1::ServerInfo Info(v1::RenderService::Stub* stub) {
   grpc::ClientContext ctx;
   v1::ServerInfo info;
@@ -201,7 +191,7 @@ TEST(ReadinessTest, FollowsTheSessionLoadWhileLivenessStaysServing) {
   EXPECT_EQ(HealthStatus(server->address(), ready), 1);
   EXPECT_EQ(HealthStatus(server->address(), ""), 1);
   EXPECT_TRUE(Info(stub.get()).accepting_sessions());
-  EXPECT_EQ(Gauge(*server, "tessera_accepting_sessions"), 1.0);
+  EXPECT_EQ(ParseMetrics(server->MetricsText()).at("tessera_accepting_sessions"), 1.0);
   {
     grpc::ClientContext ctx;
     auto rw = stub->Stream(&ctx);
@@ -217,7 +207,7 @@ TEST(ReadinessTest, FollowsTheSessionLoadWhileLivenessStaysServing) {
     }
     EXPECT_TRUE(dropped);
     EXPECT_EQ(HealthStatus(server->address(), ""), 1);
-    EXPECT_EQ(Gauge(*server, "tessera_accepting_sessions"), 0.0);
+    EXPECT_EQ(ParseMetrics(server->MetricsText()).at("tessera_accepting_sessions"), 0.0);
     grpc::Status st = CloseStream(rw.get());
     EXPECT_TRUE(st.ok()) << st.error_message();
   }

@@ -73,25 +73,6 @@ std::string HttpGet(int port, const std::string& path) {
   return out;
 }
 
-// The samples of a Prometheus text exposition: "name{labels}" -> value. Labels are kept as
-// written (prometheus-cpp sorts them by name).
-std::map<std::string, double> ParseMetrics(const std::string& text) {
-  std::map<std::string, double> out;
-  for (absl::string_view line : absl::StrSplit(text, '\n')) {
-    if (line.empty() || line[0] == '#') continue;
-    const size_t space = line.rfind(' ');
-    double v = 0;
-    if (space == absl::string_view::npos) continue;
-    absl::string_view value = line.substr(space + 1);
-    if (value == "+Inf")
-      v = INFINITY;
-    else if (!absl::SimpleAtod(value, &v))
-      continue;
-    out[std::string(line.substr(0, space))] = v;
-  }
-  return out;
-}
-
 // --- one server for the session tests: resume grace 2 s, metrics on, one uploaded scene max --
 
 class ServiceTest : public SharedServerTest<ServiceTest> {

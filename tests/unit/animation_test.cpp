@@ -14,6 +14,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "renderer/scene/cpu_scene.h"
@@ -268,16 +269,23 @@ TEST(AnimationImport, TrsAnimationsEvaluateToHandComputedPositions) {
   ExpectNear(at(1.5, 2), {0.5f, 0, 0});
 }
 
-void ExpectRefused(const std::function<void(Builder&)>& edit, absl::StatusCode code,
-                   const std::vector<std::string>& needles, ImportLimits limits = {}) {
-  Builder b = TrsFile();
-  edit(b);
+// `b`'s file is refused with `code`, the message naming each of `needles`.
+void ExpectRefused(Builder b, absl::StatusCode code, const std::vector<std::string>& needles,
+                   ImportLimits limits = {}) {
   absl::StatusOr<CpuScene> r = ImportGltf(b.Source(), limits);
   ASSERT_FALSE(r.ok());
   EXPECT_EQ(r.status().code(), code) << r.status();
   for (const std::string& n : needles)
     EXPECT_NE(r.status().message().find(n), absl::string_view::npos)
         << "'" << n << "' not in: " << r.status().message();
+}
+
+// TrsFile() after `edit`, refused so.
+void ExpectRefused(const std::function<void(Builder&)>& edit, absl::StatusCode code,
+                   const std::vector<std::string>& needles, ImportLimits limits = {}) {
+  Builder b = TrsFile();
+  edit(b);
+  ExpectRefused(std::move(b), code, needles, limits);
 }
 
 TEST(AnimationImport, MalformedAnimationsAreRefusedNamingTheField) {
@@ -450,52 +458,43 @@ TEST(AnimationImport, MorphTargetsMoveByTheirAnimatedWeights) {
 
 TEST(AnimationImport, MalformedSkinsAndMorphTargetsAreRefusedNamingTheField) {
   const auto invalid = absl::StatusCode::kInvalidArgument;
-  const auto refused = [](Builder b, absl::StatusCode code, std::vector<std::string> needles,
-                          ImportLimits limits = {}) {
-    absl::StatusOr<CpuScene> r = ImportGltf(b.Source(), limits);
-    ASSERT_FALSE(r.ok());
-    EXPECT_EQ(r.status().code(), code) << r.status();
-    for (const std::string& n : needles)
-      EXPECT_NE(r.status().message().find(n), absl::string_view::npos)
-          << "'" << n << "' not in: " << r.status().message();
-  };
   Builder b = SkinnedFile();
   b.gltf["skins"][0]["joints"] = json::array();
-  refused(b, invalid, {"skins[0].joints", "is empty"});
+  ExpectRefused(b, invalid, {"skins[0].joints", "is empty"});
   b = SkinnedFile();
   b.gltf["skins"][0]["joints"] = {0, 0};
-  refused(b, invalid, {"skins[0].joints[1]", "listed twice"});
+  ExpectRefused(b, invalid, {"skins[0].joints[1]", "listed twice"});
   b = SkinnedFile();
   b.gltf["skins"][0]["joints"] = {0};  // the mesh uses joint 1
   b.gltf["skins"][0].erase("inverseBindMatrices");
-  refused(b, invalid, {"nodes[2].skin", "uses joint 1", "1 joints"});
+  ExpectRefused(b, invalid, {"nodes[2].skin", "uses joint 1", "1 joints"});
   b = SkinnedFile();
   b.gltf["meshes"][0]["primitives"][0]["attributes"].erase("WEIGHTS_0");
-  refused(b, invalid, {"primitives[0].attributes", "JOINTS_0 and WEIGHTS_0"});
+  ExpectRefused(b, invalid, {"primitives[0].attributes", "JOINTS_0 and WEIGHTS_0"});
   b = SkinnedFile();
   b.data[18 + 6 + 0] = 0.5f;  // first vertex's weights sum to 0.5
-  refused(b, invalid, {"WEIGHTS_0", "element 0", "sum to 0.5"});
+  ExpectRefused(b, invalid, {"WEIGHTS_0", "element 0", "sum to 0.5"});
   b = SkinnedFile();
   b.gltf["nodes"][2].erase("skin");
   b.gltf["nodes"][0]["skin"] = 0;
-  refused(b, invalid, {"nodes[0].skin", "without a mesh"});
+  ExpectRefused(b, invalid, {"nodes[0].skin", "without a mesh"});
   b = SkinnedFile();
   b.gltf["accessors"][3]["count"] = 1;  // one inverse bind matrix for two joints
-  refused(b, invalid, {"skins[0].inverseBindMatrices", "1 matrices for 2 joints"});
+  ExpectRefused(b, invalid, {"skins[0].inverseBindMatrices", "1 matrices for 2 joints"});
   ImportLimits one_joint;
   one_joint.max_skin_joints = 1;
-  refused(SkinnedFile(), absl::StatusCode::kResourceExhausted,
+  ExpectRefused(SkinnedFile(), absl::StatusCode::kResourceExhausted,
           {"skins[0].joints", "max_skin_joints limit (1)"}, one_joint);
 
   Builder m = MorphFile();
   m.gltf["meshes"][0]["weights"] = {0.0, 1.0};
-  refused(m, invalid, {"meshes[0].weights", "2 weights for 1 morph targets"});
+  ExpectRefused(m, invalid, {"meshes[0].weights", "2 weights for 1 morph targets"});
   m = MorphFile();
   m.gltf["accessors"][1]["count"] = 2;
-  refused(m, invalid, {"targets[0].POSITION", "2 deltas for 3 vertices"});
+  ExpectRefused(m, invalid, {"targets[0].POSITION", "2 deltas for 3 vertices"});
   ImportLimits no_targets;
   no_targets.max_morph_targets = 0;
-  refused(MorphFile(), absl::StatusCode::kResourceExhausted, {"max_morph_targets limit (0)"},
+  ExpectRefused(MorphFile(), absl::StatusCode::kResourceExhausted, {"max_morph_targets limit (0)"},
           no_targets);
 }
 

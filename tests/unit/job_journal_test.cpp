@@ -21,7 +21,6 @@
 #include <thread>
 #include <vector>
 
-#include "common/scene_id.h"
 #include "tests/unit/status_matchers.h"
 
 namespace tessera::server {
@@ -112,13 +111,6 @@ GltfSource MakeScene() {
   source.files["textures/a.png"] = Bytes(std::string("\x89PNG\r\n\x1a\n\0\0\0\rIHDR", 16));
   source.files["empty.bin"] = {};
   return source;
-}
-
-// The id an upload of `source` gets (archives check it when loading).
-std::string RealSceneId(const GltfSource& source) {
-  std::map<std::string, std::string> hashes;
-  for (const auto& [name, data] : source.files) hashes[name] = Sha256Hex(data.data(), data.size());
-  return SceneId(hashes, source.main_file);
 }
 
 uint64_t TotalBytes(const GltfSource& source) {
@@ -431,7 +423,7 @@ TEST_F(JobJournalTest, RemoveJobDeletesItsDirectory) {
 // Scenes
 
 TEST_F(JobJournalTest, SceneRoundTripWithNestedNames) {
-  const std::string id = RealSceneId(MakeScene());
+  const std::string id = server::SceneIdOf(MakeScene());  // the real id (the archive checks it)
   const GltfSource source = MakeScene();
   {
     std::unique_ptr<JobJournal> journal = OpenJournal();
@@ -456,7 +448,7 @@ TEST_F(JobJournalTest, SceneRoundTripWithNestedNames) {
 }
 
 TEST_F(JobJournalTest, SavingAnArchivedSceneAgainIsOkAndWritesNothing) {
-  const std::string id = RealSceneId(MakeScene());
+  const std::string id = server::SceneIdOf(MakeScene());  // the real id (the archive checks it)
   std::unique_ptr<JobJournal> journal = OpenJournal();
   ASSERT_NE(journal, nullptr);
   ASSERT_TRUE(journal->SaveScene(id, MakeScene()).ok());
@@ -506,7 +498,7 @@ TEST_F(JobJournalTest, InvalidSceneIdsAndFileNamesAreRefused) {
 }
 
 TEST_F(JobJournalTest, LoadSceneKeepsTheByteLimit) {
-  const std::string id = RealSceneId(MakeScene());
+  const std::string id = server::SceneIdOf(MakeScene());  // the real id (the archive checks it)
   std::unique_ptr<JobJournal> journal = OpenJournal();
   ASSERT_NE(journal, nullptr);
   const GltfSource source = MakeScene();

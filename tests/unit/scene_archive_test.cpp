@@ -21,7 +21,6 @@
 #include <thread>
 #include <vector>
 
-#include "common/scene_id.h"
 #include "tests/unit/status_matchers.h"
 
 namespace tessera::server {
@@ -40,12 +39,6 @@ GltfSource MakeScene(uint8_t seed, size_t bytes = 1000, int files = 1) {
     source.files["buffers/b" + std::to_string(f) + ".bin"] = std::move(data);
   }
   return source;
-}
-
-std::string IdOf(const GltfSource& source) {
-  std::map<std::string, std::string> hashes;
-  for (const auto& [name, data] : source.files) hashes[name] = Sha256Hex(data.data(), data.size());
-  return SceneId(hashes, source.main_file);
 }
 
 uint64_t BytesOf(const GltfSource& source) {
@@ -91,7 +84,7 @@ class SceneArchiveTest : public ::testing::Test {
 TEST_F(SceneArchiveTest, ASceneSavedByOneReplicaLoadsInAnother) {
   std::unique_ptr<SceneArchive> a = Open(), b = Open();
   const GltfSource scene = MakeScene(1);
-  const std::string id = IdOf(scene);
+  const std::string id = SceneIdOf(scene);
   EXPECT_FALSE(b->Has(id));
   EXPECT_TRUE(IsError(b->Load(id, 1 << 20).status(), absl::StatusCode::kNotFound, {id}));
   ASSERT_TRUE(a->Save(id, scene).ok());
@@ -109,7 +102,7 @@ TEST_F(SceneArchiveTest, ASceneSavedByOneReplicaLoadsInAnother) {
 TEST_F(SceneArchiveTest, FilesThatDoNotHashToTheIdAreDataLossNotAScene) {
   std::unique_ptr<SceneArchive> a = Open();
   const GltfSource scene = MakeScene(2);
-  const std::string id = IdOf(scene);
+  const std::string id = SceneIdOf(scene);
   ASSERT_TRUE(a->Save(id, scene).ok());
   {
     std::fstream f(dir_ + "/" + id + "/files/buffers/b0.bin",
@@ -130,21 +123,21 @@ TEST_F(SceneArchiveTest, TheSizeLimitEvictsTheLeastRecentlyUsedScene) {
   const GltfSource s1 = MakeScene(1, 4000), s2 = MakeScene(2, 4000), s3 = MakeScene(3, 4000);
   const uint64_t one = BytesOf(s1);
   std::unique_ptr<SceneArchive> a = Open(2 * one + one / 2);  // room for two
-  ASSERT_TRUE(a->Save(IdOf(s1), s1).ok());
-  ASSERT_TRUE(a->Save(IdOf(s2), s2).ok());
-  Age(IdOf(s1), std::chrono::hours(2));
-  Age(IdOf(s2), std::chrono::hours(3));
-  ASSERT_TRUE(a->Load(IdOf(s2), 1 << 20).ok());  // s2 used now: s1 is the oldest
-  ASSERT_TRUE(a->Save(IdOf(s3), s3).ok());
-  EXPECT_FALSE(a->Has(IdOf(s1)));
-  EXPECT_TRUE(a->Has(IdOf(s2)));
-  EXPECT_TRUE(a->Has(IdOf(s3)));
+  ASSERT_TRUE(a->Save(SceneIdOf(s1), s1).ok());
+  ASSERT_TRUE(a->Save(SceneIdOf(s2), s2).ok());
+  Age(SceneIdOf(s1), std::chrono::hours(2));
+  Age(SceneIdOf(s2), std::chrono::hours(3));
+  ASSERT_TRUE(a->Load(SceneIdOf(s2), 1 << 20).ok());  // s2 used now: s1 is the oldest
+  ASSERT_TRUE(a->Save(SceneIdOf(s3), s3).ok());
+  EXPECT_FALSE(a->Has(SceneIdOf(s1)));
+  EXPECT_TRUE(a->Has(SceneIdOf(s2)));
+  EXPECT_TRUE(a->Has(SceneIdOf(s3)));
   EXPECT_EQ(a->evictions(), 1u);
   EXPECT_LE(a->TotalBytes(), 2 * one + one / 2);
   // A scene larger than the whole store is refused, naming the limit.
   const GltfSource huge = MakeScene(4, 3 * one);
-  EXPECT_TRUE(IsError(a->Save(IdOf(huge), huge), absl::StatusCode::kResourceExhausted,
-                      {IdOf(huge), std::to_string(2 * one + one / 2)}));
+  EXPECT_TRUE(IsError(a->Save(SceneIdOf(huge), huge), absl::StatusCode::kResourceExhausted,
+                      {SceneIdOf(huge), std::to_string(2 * one + one / 2)}));
   EXPECT_EQ(a->List().size(), 2u);
 }
 
@@ -152,27 +145,27 @@ TEST_F(SceneArchiveTest, ASceneBeingLoadedIsNeverEvicted) {
   const GltfSource s1 = MakeScene(1, 4000), s2 = MakeScene(2, 4000);
   const uint64_t one = BytesOf(s1);
   std::unique_ptr<SceneArchive> a = Open(one + one / 2);  // room for one
-  ASSERT_TRUE(a->Save(IdOf(s1), s1).ok());
+  ASSERT_TRUE(a->Save(SceneIdOf(s1), s1).ok());
   // Another replica is loading s1: it holds the shared lock Load takes.
-  const std::string main = dir_ + "/" + IdOf(s1) + "/main";
+  const std::string main = dir_ + "/" + SceneIdOf(s1) + "/main";
   const int fd = open(main.c_str(), O_RDONLY | O_CLOEXEC);
   ASSERT_GE(fd, 0);
   ASSERT_EQ(flock(fd, LOCK_SH), 0);
-  EXPECT_TRUE(IsError(a->Save(IdOf(s2), s2), absl::StatusCode::kResourceExhausted,
+  EXPECT_TRUE(IsError(a->Save(SceneIdOf(s2), s2), absl::StatusCode::kResourceExhausted,
                       {"being loaded"}));
-  EXPECT_TRUE(a->Has(IdOf(s1)));
-  EXPECT_FALSE(a->Has(IdOf(s2)));
+  EXPECT_TRUE(a->Has(SceneIdOf(s1)));
+  EXPECT_FALSE(a->Has(SceneIdOf(s2)));
   close(fd);  // the load is done: now s1 can go
-  ASSERT_TRUE(a->Save(IdOf(s2), s2).ok());
-  EXPECT_FALSE(a->Has(IdOf(s1)));
-  EXPECT_TRUE(a->Has(IdOf(s2)));
+  ASSERT_TRUE(a->Save(SceneIdOf(s2), s2).ok());
+  EXPECT_FALSE(a->Has(SceneIdOf(s1)));
+  EXPECT_TRUE(a->Has(SceneIdOf(s2)));
 }
 
 TEST_F(SceneArchiveTest, ACrashMidWriteNeverLeavesAPartialScene) {
   // A child process saves a large scene (64 files of 1 MiB, an fsync each) and is killed
   // with SIGKILL as soon as its temporary directory has files.
   const GltfSource big = MakeScene(9, 1 << 20, 64);
-  const std::string id = IdOf(big);
+  const std::string id = SceneIdOf(big);
   ASSERT_NE(Open(), nullptr);
   const pid_t child = fork();
   ASSERT_GE(child, 0);
