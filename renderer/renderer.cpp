@@ -5,6 +5,7 @@
 // frame_capture.cpp.
 #include "renderer/renderer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -105,6 +106,30 @@ absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
   return Render(scene, camera, settings, 0, capture);
 }
 
+absl::StatusOr<int> FindAnimation(const SceneInfo& info, std::string_view animation) {
+  if (animation.empty() || animation == "none") return -1;
+  for (size_t i = 0; i < info.animations.size(); ++i)
+    if (info.animations[i].name == animation) return int(i);
+  // Not a name: an index, as decimal digits.
+  uint32_t index = 0;
+  if (absl::SimpleAtoi(absl::string_view(animation.data(), animation.size()), &index) &&
+      std::all_of(animation.begin(), animation.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+    if (index < info.animations.size()) return int(index);
+    return absl::InvalidArgumentError(absl::StrCat(
+        "settings.animation: index ", index, " is out of range: the scene has ",
+        info.animations.size(), info.animations.size() == 1 ? " animation" : " animations"));
+  }
+  std::string names;
+  for (size_t i = 0; i < info.animations.size() && i < 20; ++i)
+    absl::StrAppend(&names, i ? ", " : "", "'", info.animations[i].name, "'");
+  std::string shown(animation.substr(0, 64));
+  for (char& c : shown)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  return absl::InvalidArgumentError(absl::StrCat(
+      "settings.animation: the scene has no animation named '", shown, "'",
+      info.animations.empty() ? " (it has none)" : absl::StrCat(" (it has ", names, ")")));
+}
+
 bool IsDeviceLost(const absl::Status& status) {
   // vk::VkStatus's message for VK_ERROR_DEVICE_LOST (no payload: statuses end up in logs and
   // job errors through ToString, which would print it).
@@ -117,6 +142,32 @@ bool Renderer::device_lost() const { return impl_->device_lost.load(); }
 void Renderer::SimulateDeviceLossForTesting() { impl_->simulate_loss = true; }
 
 void Renderer::StallNextRenderForTesting(uint32_t ms) { impl_->stall_ms = ms; }
+
+absl::StatusOr<std::vector<Vertex>> Renderer::ReadVerticesForTesting(const Scene& scene,
+                                                                     uint64_t first,
+                                                                     uint64_t count) {
+  std::lock_guard lock(impl_->mutex);
+  const vk::Buffer& vertices = scene.gpu_->vertices();
+  if (count == 0 || (first + count) * sizeof(Vertex) > vertices.size())
+    return absl::OutOfRangeError("ReadVerticesForTesting: past the vertex buffer");
+  const VkDeviceSize bytes = count * sizeof(Vertex);
+  ASSIGN_OR_RETURN(vk::Buffer out,
+                   vk::Buffer::Create(*impl_->ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                      vk::MemoryUsage::kReadback, "test.vertices"));
+  RETURN_IF_ERROR(impl_->ctx->SubmitOnce([&](VkCommandBuffer cmd) {
+    vk::CmdMemoryBarrier(cmd, VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT,
+                         VK_ACCESS_2_MEMORY_WRITE_BIT, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                         VK_ACCESS_2_TRANSFER_READ_BIT);
+    const VkBufferCopy region{first * sizeof(Vertex), 0, bytes};
+    vkCmdCopyBuffer(cmd, vertices.handle(), out.handle(), 1, &region);
+    vk::CmdMemoryBarrier(cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+  }));
+  out.InvalidateForRead();
+  std::vector<Vertex> result(count);
+  std::memcpy(result.data(), out.mapped(), bytes);
+  return result;
+}
 
 absl::StatusOr<Frame> Renderer::Render(const Scene& scene, const Camera& camera,
                                        const Settings& settings, uint64_t view,
@@ -144,12 +195,21 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
                                             FrameCapture* capture) {
   ASSIGN_OR_RETURN(ResolvedSettings resolved, ResolveSettings(settings, caps()));
   RETURN_IF_ERROR(ValidateCamera(camera));
+  ASSIGN_OR_RETURN(const int animation, FindAnimation(scene.info(), settings.animation));
 
   std::lock_guard lock(impl_->mutex);
   Impl& m = *impl_;
-  const GpuScene& gs = *scene.gpu_;
+  // The scene's pose for this frame (animated scenes; under the lock, so frames of other times
+  // take turns). The skinning pass brings the device to it.
+  GpuScene& posed = *scene.gpu_;
+  posed.Pose(animation, settings.scene_time, settings.loop);
+  const GpuScene& gs = posed;
   Frame frame;
   frame.settings = std::move(resolved);
+  if (const SceneAnimator* a = gs.animator()) {
+    frame.stats.animated_drawables = uint32_t(a->drawables().size());
+    if (gs.pose_pending()) frame.stats.deformed_vertices = a->deformed_vertices();
+  }
   const uint32_t triangle_bits = m.CheckVisibilityIds(gs, frame.settings);
   const Settings& s = frame.settings.effective;
   const uint64_t targets_before = m.target_pool.created();
@@ -179,6 +239,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.shadow_atlas_valid = !f.shadows.atlas_new;
   features.taa_history_valid = f.taa.history_valid;
   features.exposure_valid = f.exposure.state_valid;
+  features.pose_pending = gs.pose_pending();
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
   for (const PlannedPass& p : plan.passes)
@@ -195,6 +256,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
                          m.passes[static_cast<size_t>(id)]->Record(pc);
                        },
                        t_record));
+  if (plan.Has(PassId::kSkinning)) posed.PoseRecorded();
   RETURN_IF_ERROR(m.FinishFrame(f, plan, std::move(run), frame, capture));
   if (capture) RETURN_IF_ERROR(m.CaptureFrame(f, plan, pc, capture));
   m.ReadBack(frame);

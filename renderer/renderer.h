@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -129,6 +130,10 @@ struct FrameStats {
   uint32_t ibl_bakes = 0;
   // Render targets this frame had to make: 0 once the pool holds its size and AA mode's.
   uint32_t targets_created = 0;
+  // Animated scenes: drawables that move or deform, and the vertices the skinning pass skinned
+  // or morphed this frame (0 when the pose was already on the device).
+  uint32_t animated_drawables = 0;
+  uint64_t deformed_vertices = 0;
 };
 
 // What tests need to check a frame's light culling against the CPU reference.
@@ -164,6 +169,11 @@ struct Frame {
 // kRgba: not encoded; the pixels stay in the frame (a video session encodes them in order when
 // its client is ready for them).
 enum class ImageFormat { kJpeg, kPng, kRgba };
+
+// The animation Settings::animation names in a scene: -1 for none ("" or "none"), else its index
+// (a name first, then decimal digits as an index). INVALID_ARGUMENT naming settings.animation
+// and listing the scene's animations otherwise.
+absl::StatusOr<int> FindAnimation(const SceneInfo& info, std::string_view animation);
 
 // Whether `status` says the Vulkan device was lost (Renderer::device_lost).
 bool IsDeviceLost(const absl::Status& status);
@@ -219,6 +229,11 @@ class Renderer {
   // the (N+1)th Render meets a lost device.
   void SimulateDeviceLossForTesting();
   void StallNextRenderForTesting(uint32_t ms);
+  // The scene's vertex buffer as the device holds it now, vertices [first, first + count): an
+  // animated scene's deformed copies after the last frame's skinning pass (tests compare them
+  // with the CPU reference).
+  absl::StatusOr<std::vector<Vertex>> ReadVerticesForTesting(const Scene& scene, uint64_t first,
+                                                              uint64_t count);
 
   // Validation-layer messages so far (tests require zero).
   uint64_t validation_message_count() const;

@@ -86,6 +86,7 @@ absl::Status Renderer::Impl::InitPasses() {
   RETURN_IF_ERROR(add(CreateSsaoPass(*ctx)));
   RETURN_IF_ERROR(add(CreateExposurePass(*ctx)));
   RETURN_IF_ERROR(add(CreateBloomPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateSkinningPass(*ctx)));
 
   return absl::OkStatus();
 }
@@ -101,7 +102,7 @@ absl::Status Renderer::Impl::Init() {
   // allocate a set per draw (bloom: eleven).
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
-      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 40},
+      {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 44},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 192},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 48},
   };

@@ -103,6 +103,11 @@ absl::StatusOr<DebugView> ParseDebugView(std::string_view s) {
 
 absl::Status ValidateSettings(const Settings& s) {
   for (const SettingRow& row : SettingsTable()) RETURN_IF_ERROR(row.Validate(s));
+  if (s.animation.size() > kMaxAnimationNameBytes) {
+    return absl::InvalidArgumentError(absl::StrCat("settings.animation: ", s.animation.size(),
+                                                   " bytes is too long (at most ",
+                                                   kMaxAnimationNameBytes, ")"));
+  }
   // Rules between fields, after each field is known to be in its own range.
   if (s.light_radius_max > 0.0f && s.light_radius_max < s.light_radius_min) {
     return absl::InvalidArgumentError(absl::StrCat("settings.light_radius_max: ",

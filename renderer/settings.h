@@ -95,7 +95,19 @@ struct Settings {
   DebugView debug_view = DebugView::kNone;
   uint32_t jpeg_quality = 90;  // 1..100
   bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
+  // glTF animation (renderer/scene/animation.h): the scene is posed with `animation` at
+  // `scene_time` seconds, wrapping at its duration with `loop` (else held at its ends). Skins and
+  // morph targets apply in every pose, the rest pose included. `play` is a stream's: its time
+  // then advances with the wall clock from `scene_time` (the renderer reads only scene_time).
+  float scene_time = 0.0f;  // seconds, -1e6..1e6
+  bool loop = true;
+  bool play = false;
+  // Not a row of the settings table (which holds numbers): the animation's name, or its index
+  // in the file as decimal digits, or "none"; empty is none. At most kMaxAnimationNameBytes.
+  std::string animation;
 };
+
+inline constexpr size_t kMaxAnimationNameBytes = 1024;
 
 // The most samples `samples` may ask for (1, 2, 4 or 8); a device may offer more.
 inline constexpr uint32_t kMaxSamples = 8;

@@ -266,6 +266,16 @@ std::vector<SettingRow> BuildTable() {
                                         "JPEG chroma 4:4:4 instead of 4:2:0"),
                       {chroma}));
   }
+  t.push_back(Flags(Range(Row<&S::scene_time>("scene_time", "Scene time (s)",
+                                              "the animation's time (with play: where it starts)"),
+                          -1e6, 1e6, "-1e6..1e6 seconds"),
+                    {Value("time", "SECONDS")}));
+  t.push_back(Flags(Row<&S::loop>("loop", "Loop",
+                                  "the animation wraps at its end (off: it holds its last pose)"),
+                    {Toggle("loop")}));
+  t.push_back(Flags(Row<&S::play>("play", "Play",
+                                  "a stream's scene time advances with the wall clock"),
+                    {Toggle("play")}));
   return t;
 }
 
@@ -472,6 +482,11 @@ absl::StatusOr<bool> ParseSettingFlag(std::string_view flag,
   if (flag.substr(0, 2) != "--") return false;
   flag.remove_prefix(2);
   const std::string given = Cat("--", flag);
+  if (flag == "animation") {  // the one text setting, outside the table (settings.h)
+    settings->animation = value();
+    if (settings->animation.empty()) return FlagError(given, ": needs a name, an index or none");
+    return true;
+  }
   for (const SettingRow& row : SettingsTable()) {
     for (const SettingFlag& f : row.flags) {
       const bool negated =
@@ -497,6 +512,8 @@ absl::StatusOr<bool> ParseSettingFlag(std::string_view flag,
 
 std::string SettingsFlagsUsage() {
   std::string out;
+  AppendUsageLine("--animation NAME|INDEX|none",
+                  "the glTF animation to pose the scene with (default none)", &out);
   for (const SettingRow& row : SettingsTable()) {
     for (const SettingFlag& f : row.flags) {
       const std::string text(f.usage.empty() ? row.doc : f.usage);

@@ -77,6 +77,8 @@ absl::StatusOr<Settings> MergeSettings(const Settings& base, const v1::RenderSet
     ASSIGN_OR_RETURN(const double v, FromWire(*row, GetWire(u, field)));
     row->set(s, v);
   }
+  // The one text setting, outside the table: unset or empty leaves it as it was.
+  if (u.has_animation() && !u.animation().empty()) s.animation = u.animation();
   RETURN_IF_ERROR(ValidateSettings(s));
   return s;
 }
@@ -91,6 +93,7 @@ void ToProto(const Settings& s, const SettingMask& fields, v1::RenderSettings* o
     if (field != nullptr && fields.test(i)) SetWire(out, field, ToWire(*row, row->get(s)));
     ++i;
   }
+  if (!s.animation.empty()) out->set_animation(s.animation);
 }
 
 void FillChoices(uint32_t sample_counts, v1::SettingChoices* o) {

@@ -9,6 +9,8 @@
 
 namespace tessera {
 
+// skinning.cpp: an animated scene's new pose (drawable records, skinned and morphed vertices).
+void SetupSkinning(GraphBuilder& b);
 // culling.cpp: gpu_frustum / gpu_occlusion's first culling phase.
 void SetupCulling(GraphBuilder& b);
 // culling.cpp: gpu_occlusion's second phase: the depth pyramid of what the first phase drew,

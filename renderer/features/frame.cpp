@@ -6,6 +6,7 @@ namespace tessera {
 
 FramePlan PlanFrame(const Settings& settings, const FrameFeatures& features) {
   GraphBuilder b(settings, features);
+  SetupSkinning(b);      // an animated scene's pose, before anything reads the geometry
   SetupCulling(b);       // gpu culling: indirect draw lists from the drawables
   SetupDepth(b);         // depth (or visibility) first, so shading runs once per pixel
   SetupOcclusion(b);     // gpu_occlusion: what became visible against the first phase's depth

@@ -358,6 +358,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateSsaoPass(const vk::Context& ctx);
 absl::StatusOr<std::unique_ptr<Pass>> CreateExposurePass(const vk::Context& ctx);
 // Bloom: FrameTargets::bloom_down / bloom_up from the tonemap's input.
 absl::StatusOr<std::unique_ptr<Pass>> CreateBloomPass(const vk::Context& ctx);
+// An animated scene's pose: drawable records and skinned/morphed vertices (skin.comp).
+absl::StatusOr<std::unique_ptr<Pass>> CreateSkinningPass(const vk::Context& ctx);
 // The HDR colour the post passes read: the post-AA colour where an AA pass made one.
 const vk::Image& PostColor(const PassContext& ctx);
 // A full-screen post pass: one fragment shader reading combined image samplers (bindings 0..n-1,

@@ -171,6 +171,9 @@ class ShadowPlacer {
   bool AddFace(uint64_t key, uint32_t res, const glm::mat4& face_view_proj, float texel,
                bool perspective) {
     uint64_t content = HashBytes(&face_view_proj, sizeof(face_view_proj), gs_.serial());
+    // An animated scene's maps hold one pose.
+    const uint64_t pose = gs_.pose_serial();
+    content = HashBytes(&pose, sizeof(pose), content);
     content = HashBytes(&res, sizeof(res), content);
     std::optional<ShadowAtlas::Placement> placed = atlas_.Acquire(key, res, content);
     if (!placed) return false;

@@ -6,6 +6,8 @@ namespace tessera {
 
 std::string_view PassName(PassId id) {
   switch (id) {
+    case PassId::kSkinning:
+      return "skinning";
     case PassId::kCull:
       return "cull";
     case PassId::kDepthPrepass:

@@ -90,6 +90,7 @@ struct ResourceUse {
 
 // Every pass the renderer knows, in the only order they may run.
 enum class PassId : uint8_t {
+  kSkinning,      // animated scenes: the pose's drawable records and skinned/morphed vertices
   kCull,          // gpu_frustum / gpu_occlusion: indirect draw lists from the drawables (compute)
   kDepthPrepass,  // depth of opaque + alpha-mask geometry, so shading runs once per pixel
   kVisibility,    // vis_mlaa: multisampled ids + depth of opaque + alpha-mask geometry
@@ -125,6 +126,7 @@ struct FrameFeatures {
   bool shadow_atlas_valid = false;  // the atlas holds earlier frames' maps
   bool taa_history_valid = false;   // the view's history holds its last frame
   bool exposure_valid = false;      // the view's exposure state holds an adapted value
+  bool pose_pending = false;  // an animated scene's new pose is not on the device yet
 };
 
 // A resource moving from one access to another before a pass.

@@ -83,6 +83,21 @@ absl::StatusOr<vk::Buffer> UploadBuffer(vk::Context& ctx, const void* data, size
   return buffer;
 }
 
+// A drawable's world matrix and bounds in its record.
+void PlaceRecord(const glm::mat4& world, const Aabb& bounds, gpu::GpuDrawable& g) {
+  g.world = world;
+  // A node scaled to zero (legal glTF, used to hide things) has no inverse: such a drawable
+  // covers no pixels, but its matrix must not put NaNs in the buffer.
+  const glm::mat3 normal = glm::transpose(glm::inverse(glm::mat3(world)));
+  const bool finite = std::isfinite(normal[0][0] + normal[0][1] + normal[0][2] + normal[1][0] +
+                                    normal[1][1] + normal[1][2] + normal[2][0] + normal[2][1] +
+                                    normal[2][2]);
+  g.normal_matrix = glm::mat4(finite ? normal : glm::mat3(1.0f));
+  g.sphere = glm::vec4(bounds.center(), bounds.radius());
+  g.aabb_min = glm::vec4(bounds.min, 0.0f);
+  g.aabb_max = glm::vec4(bounds.max, 0.0f);
+}
+
 gpu::GpuTextureRef MakeTextureRef(const TextureRef& ref, const std::vector<Texture>& textures,
                                   const TextureBucketPlan& plan) {
   gpu::GpuTextureRef out{};
@@ -310,6 +325,119 @@ TextureBucketPlan PlanTextureBuckets(const std::vector<Texture>& textures, uint3
   return plan;
 }
 
+PoseLayout PlanPoseBuffer(const SceneAnimator& animator) {
+  PoseLayout l;
+  l.weights_offset = animator.joint_count() * sizeof(glm::mat4);
+  l.records_offset = (l.weights_offset + animator.weight_count() * sizeof(float) + 15) / 16 * 16;
+  l.size = l.records_offset + animator.drawables().size() * sizeof(gpu::GpuDrawable);
+  return l;
+}
+
+namespace {
+
+// What UploadAnimation allocates besides the copies: the joints and weights of every vertex (a
+// 16-byte stand-in without skins), the morph deltas (likewise) and the pose buffer.
+uint64_t AnimationBytes(const CpuScene& scene, const SceneAnimator& animator) {
+  const bool skins = std::any_of(animator.drawables().begin(), animator.drawables().end(),
+                                 [](const AnimatedDrawable& d) { return d.skin >= 0; });
+  return (skins ? scene.vertices.size() * 2 * sizeof(glm::uvec4) : 16) +
+         std::max<uint64_t>(16, scene.morph_deltas.size() * gpu::kMorphDeltaFloats * 4) +
+         PlanPoseBuffer(animator).size + animator.copy_vertices() * sizeof(Vertex);
+}
+
+}  // namespace
+
+absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) {
+  const std::string& n = scene.name;
+  const SceneAnimator& a = *animator_;
+  auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
+    if (!src.ok()) return src.status();
+    device_bytes_ += src->size();
+    dst = std::move(*src);
+    return absl::OkStatus();
+  };
+  const bool skins = std::any_of(a.drawables().begin(), a.drawables().end(),
+                                 [](const AnimatedDrawable& d) { return d.skin >= 0; });
+  std::vector<glm::uvec4> attributes(skins ? scene.vertices.size() * 2 : 1, glm::uvec4(0));
+  if (skins) {
+    for (size_t v = 0; v < scene.vertices.size(); ++v) {
+      attributes[2 * v] = scene.skin_joints[v];
+      std::memcpy(&attributes[2 * v + 1], &scene.skin_weights[v], sizeof(glm::vec4));
+    }
+  }
+  RETURN_IF_ERROR(assign(skin_attributes_,
+                         UploadBuffer(ctx, attributes.data(), attributes.size() * sizeof(glm::uvec4),
+                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".skin_attributes")));
+  std::vector<float> deltas(std::max<size_t>(4, scene.morph_deltas.size() * gpu::kMorphDeltaFloats),
+                            0.0f);
+  for (size_t i = 0; i < scene.morph_deltas.size(); ++i) {
+    const MorphDelta& d = scene.morph_deltas[i];
+    float* o = &deltas[i * gpu::kMorphDeltaFloats];
+    for (int k = 0; k < 3; ++k) {
+      o[k] = d.position[k];
+      o[3 + k] = d.normal[k];
+      o[6 + k] = d.tangent[k];
+    }
+  }
+  RETURN_IF_ERROR(assign(morph_deltas_,
+                         UploadBuffer(ctx, deltas.data(), deltas.size() * sizeof(float),
+                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".morph_deltas")));
+  const PoseLayout layout = PlanPoseBuffer(a);
+  RETURN_IF_ERROR(assign(pose_, vk::Buffer::Create(
+                                    ctx, layout.size,
+                                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                        VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                                    vk::MemoryUsage::kDynamic, n + ".pose")));
+  pose_weights_offset_ = layout.weights_offset;
+  pose_records_offset_ = layout.records_offset;
+  pose_copies_.clear();
+  for (size_t i = 0; i < a.drawables().size(); ++i) {
+    pose_copies_.push_back({pose_records_offset_ + i * sizeof(gpu::GpuDrawable),
+                            a.drawables()[i].drawable * sizeof(gpu::GpuDrawable),
+                            sizeof(gpu::GpuDrawable)});
+  }
+  // One dispatch per deformed drawable: its primitive's rest vertices into its copy.
+  if (scene.morph_deltas.size() * gpu::kMorphDeltaFloats >= (uint64_t(1) << 32) ||
+      (scene.vertices.size() + a.copy_vertices()) * gpu::kVertexFloats >= (uint64_t(1) << 32))
+    return absl::InvalidArgumentError(
+        absl::StrCat(n, ": too many animated vertices and morph deltas for 32-bit indices"));
+  skin_jobs_.clear();
+  for (const AnimatedDrawable& ad : a.drawables()) {
+    if (!ad.deformed) continue;
+    const Primitive& p = scene.primitives[ad.primitive];
+    gpu::SkinPush job{};
+    job.range = glm::uvec4(p.first_vertex, ad.first_vertex, p.vertex_count, ad.skin >= 0 ? 1 : 0);
+    job.pose = glm::uvec4(ad.joint_base, uint32_t(pose_weights_offset_ / 4) + ad.weight_base,
+                          p.morph_targets, uint32_t(p.first_morph_delta));
+    skin_jobs_.push_back(job);
+  }
+  pose_pending_ = true;  // the copies hold the rest vertices until the first pose
+  return absl::OkStatus();
+}
+
+bool GpuScene::Pose(int animation, double scene_time, bool loop) {
+  if (!animator_ || !animator_->Pose(animation, scene_time, loop)) return false;
+  const SceneAnimator& a = *animator_;
+  auto* base = static_cast<uint8_t*>(pose_.mapped());
+  if (a.joint_count() > 0)
+    std::memcpy(base, a.joints().data(), a.joint_count() * sizeof(glm::mat4));
+  if (a.weight_count() > 0)
+    std::memcpy(base + pose_weights_offset_, a.weights().data(), a.weight_count() * sizeof(float));
+  auto* records = reinterpret_cast<gpu::GpuDrawable*>(base + pose_records_offset_);
+  bounds_ = static_bounds_;
+  for (size_t i = 0; i < a.drawables().size(); ++i) {
+    const uint32_t d = a.drawables()[i].drawable;
+    gpu::GpuDrawable& g = records_[d];
+    PlaceRecord(a.world()[i], a.bounds()[i], g);
+    records[i] = g;
+    draws_[item_of_drawable_[d]].world_bounds = a.bounds()[i];
+    bounds_.extend(a.bounds()[i]);
+  }
+  pose_pending_ = true;
+  ++pose_serial_;
+  return true;
+}
+
 uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
                              uint64_t uniform_align) {
   // The same sizes Upload passes to UploadBuffer and counts for its texture buckets.
@@ -322,6 +450,8 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
                    drawables * (sizeof(gpu::GpuDrawable) + sizeof(gpu::GpuCullItem));
   for (const TextureBucketPlan::Bucket& b : PlanTextureBuckets(scene.textures, max_texture_size).buckets)
     bytes += uint64_t(b.width) * b.height * 4 * b.layers * 4 / 3;
+  if (const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(scene))
+    bytes += AnimationBytes(scene, *a);
   return bytes;
 }
 
@@ -352,6 +482,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
 
   std::vector<gpu::GpuDrawable> drawables;
   std::vector<gpu::GpuCullItem> items;
+  gs->animator_ = SceneAnimator::Create(scene);
   gs->PlanScene(scene, &drawables, &items);
   RETURN_IF_ERROR(gs->UploadBuffers(ctx, scene, materials, drawables, items));
   RETURN_IF_ERROR(gs->UploadTextures(ctx, scene, plan));
@@ -361,34 +492,38 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   return gs;
 }
 
+
 void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* drawables_out,
                          std::vector<gpu::GpuCullItem>* items_out) {
   std::vector<gpu::GpuDrawable>& drawables = *drawables_out;
   drawables.reserve(scene.drawables.size());
+  // Where each drawable's vertices are: a deformed drawable draws its own copy.
+  std::vector<uint32_t> first_vertex(scene.drawables.size());
+  std::vector<uint8_t> moves(scene.drawables.size(), 0);
+  for (uint32_t i = 0; i < scene.drawables.size(); ++i)
+    first_vertex[i] = scene.primitives[scene.drawables[i].primitive].first_vertex;
+  if (animator_) {
+    for (const AnimatedDrawable& ad : animator_->drawables()) {
+      first_vertex[ad.drawable] = ad.first_vertex;
+      moves[ad.drawable] = 1;
+    }
+  }
   for (uint32_t i = 0; i < scene.drawables.size(); ++i) {
     const Drawable& d = scene.drawables[i];
     const Primitive& p = scene.primitives[d.primitive];
     const Material& m = scene.materials.empty() ? Material{} : scene.materials[p.material];
     gpu::GpuDrawable g{};
-    g.world = d.world;
-    // A node scaled to zero (legal glTF, used to hide things) has no inverse: such a drawable
-    // covers no pixels, but its matrix must not put NaNs in the buffer.
-    const glm::mat3 normal = glm::transpose(glm::inverse(glm::mat3(d.world)));
-    const bool finite = std::isfinite(normal[0][0] + normal[0][1] + normal[0][2] + normal[1][0] +
-                                      normal[1][1] + normal[1][2] + normal[2][0] + normal[2][1] +
-                                      normal[2][2]);
-    g.normal_matrix = glm::mat4(finite ? normal : glm::mat3(1.0f));
+    PlaceRecord(d.world, d.world_bounds, g);
     const uint32_t material = scene.materials.empty() ? 0u : p.material;
-    g.ids = glm::uvec4(d.primitive, material, p.first_index, p.first_vertex);
-    g.sphere = glm::vec4(d.world_bounds.center(), d.world_bounds.radius());
-    g.aabb_min = glm::vec4(d.world_bounds.min, 0.0f);
-    g.aabb_max = glm::vec4(d.world_bounds.max, 0.0f);
+    g.ids = glm::uvec4(d.primitive, material, p.first_index, first_vertex[i]);
     drawables.push_back(g);
     max_draw_triangles_ = std::max(max_draw_triangles_, p.index_count / 3);
     draws_.push_back({i, material, p.first_index, p.index_count,
-                      static_cast<int32_t>(p.first_vertex), m.alpha_mode, m.double_sided,
+                      static_cast<int32_t>(first_vertex[i]), m.alpha_mode, m.double_sided,
                       d.world_bounds});
+    if (!moves[i]) static_bounds_.extend(d.world_bounds);
   }
+  records_ = drawables;
   if (drawables.empty()) drawables.push_back(gpu::GpuDrawable{});  // keep the binding valid
   plan_ = PlanDraws(draws_);
   {
@@ -397,6 +532,8 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
     for (uint32_t i : plan_.order) ordered.push_back(draws_[i]);
     draws_ = std::move(ordered);
   }
+  item_of_drawable_.assign(scene.drawables.size(), 0);
+  for (uint32_t i = 0; i < draws_.size(); ++i) item_of_drawable_[draws_[i].drawable] = i;
   std::vector<gpu::GpuCullItem>& items = *items_out;
   items.resize(std::max<size_t>(1, draws_.size()));
   for (const DrawSegment& seg : plan_.segments) {
@@ -426,16 +563,22 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   const std::string& n = scene.name;
   // vis_mlaa's resolve and shading passes read triangles from both buffers.
   constexpr VkBufferUsageFlags kVertexUsage =
-      VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT;
+      VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+      VK_BUFFER_USAGE_TRANSFER_SRC_BIT;  // and read back by tests (ReadVerticesForTesting)
   auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
     if (!src.ok()) return src.status();
     device_bytes_ += src->size();
     dst = std::move(*src);
     return absl::OkStatus();
   };
+  // An animated scene's deformed drawables have their copies after the scene's vertices.
+  std::vector<Vertex> with_copies;
+  if (animator_) with_copies = animator_->VertexData(scene);
+  const std::vector<Vertex>& vertices = animator_ ? with_copies : scene.vertices;
   absl::Status st = assign(
-      vertices_, UploadBuffer(ctx, scene.vertices.data(), scene.vertices.size() * sizeof(Vertex),
+      vertices_, UploadBuffer(ctx, vertices.data(), vertices.size() * sizeof(Vertex),
                               kVertexUsage, n + ".vertices"));
+  if (st.ok() && animator_) st = UploadAnimation(ctx, scene);
   if (st.ok())
     st = assign(indices_,
                 UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),

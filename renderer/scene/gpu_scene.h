@@ -8,6 +8,7 @@
 
 #include "absl/status/statusor.h"
 #include "renderer/scene/cpu_scene.h"
+#include "renderer/scene/scene_animator.h"
 #include "renderer/vk/context.h"
 #include "renderer/vk/resources.h"
 #include "shaders/common/gpu_types.h"
@@ -125,6 +126,28 @@ class GpuScene {
   };
   std::map<uint64_t, ViewVisibility>& views() const { return views_; }
 
+  // Animation (scene_animator.h). Pose() poses the scene for a frame: the moving drawables' world
+  // bounds here (draws(), bounds()) and their records, joint matrices and morph weights in the
+  // pose buffer, for the skinning pass to copy and apply. Returns whether the pose changed; the
+  // renderer calls it under its lock, so frames of different scene times take turns.
+  bool animated() const { return animator_ != nullptr; }
+  const SceneAnimator* animator() const { return animator_.get(); }
+  bool Pose(int animation, double scene_time, bool loop);
+  // The device does not hold the last Pose yet: the frame's skinning pass must run (and then
+  // PoseRecorded()).
+  bool pose_pending() const { return pose_pending_; }
+  void PoseRecorded() { pose_pending_ = false; }
+  // Changes with every new pose (0 for a scene that never moves): cached shadow maps key on it.
+  uint64_t pose_serial() const { return pose_serial_; }
+  // What the skinning pass binds, and its copies of the moving drawables' records from the pose
+  // buffer into drawables() (one region each).
+  const vk::Buffer& skin_attributes() const { return skin_attributes_; }
+  const vk::Buffer& morph_deltas() const { return morph_deltas_; }
+  const vk::Buffer& pose_buffer() const { return pose_; }
+  const std::vector<VkBufferCopy>& pose_copies() const { return pose_copies_; }
+  // One skin.comp dispatch per deformed drawable.
+  const std::vector<gpu::SkinPush>& skin_jobs() const { return skin_jobs_; }
+
  private:
   // Upload's steps: the draws in item order with their GPU records, the buffers, the texture
   // buckets and sampler, one descriptor set per material.
@@ -134,6 +157,7 @@ class GpuScene {
                              const std::vector<gpu::GpuMaterial>& materials,
                              const std::vector<gpu::GpuDrawable>& drawables,
                              const std::vector<gpu::GpuCullItem>& items);
+  absl::Status UploadAnimation(vk::Context& ctx, const CpuScene& scene);
   absl::Status UploadTextures(vk::Context& ctx, const CpuScene& scene,
                               const TextureBucketPlan& plan);
   absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
@@ -156,6 +180,25 @@ class GpuScene {
   uint64_t device_bytes_ = 0;
   uint64_t serial_ = 0;
   uint32_t max_draw_triangles_ = 0;
+  // Animation: the animator, each drawable's item (draws_ index), the bounds of the drawables
+  // that never move, and the device side (see the accessors).
+  std::unique_ptr<SceneAnimator> animator_;
+  std::vector<uint32_t> item_of_drawable_;
+  Aabb static_bounds_;
+  vk::Buffer skin_attributes_, morph_deltas_, pose_;
+  VkDeviceSize pose_weights_offset_ = 0, pose_records_offset_ = 0;
+  std::vector<VkBufferCopy> pose_copies_;
+  std::vector<gpu::SkinPush> skin_jobs_;
+  std::vector<gpu::GpuDrawable> records_;  // every drawable's record as uploaded
+  bool pose_pending_ = false;
+  uint64_t pose_serial_ = 0;
 };
+
+// The pose buffer's layout for an animator: joint matrices, then morph weights, then the moving
+// drawables' records (16-byte aligned). Shared with EstimateDeviceBytes.
+struct PoseLayout {
+  VkDeviceSize weights_offset = 0, records_offset = 0, size = 0;
+};
+PoseLayout PlanPoseBuffer(const SceneAnimator& animator);
 
 }  // namespace tessera

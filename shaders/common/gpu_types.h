@@ -131,6 +131,16 @@ TS_CONST uint kVisSet = 2;              // the vis passes' own descriptor set
 TS_CONST uint kVisBindingSamples = 0;   // resolve: usampler2DMS, the visibility ids
 TS_CONST uint kVisBindingIndices = 2;   // resolve, shade: buffer uint[] the scene's index buffer
 TS_CONST uint kVisBindingVertices = 3;  // resolve, shade: buffer float[] the scene's vertex buffer
+// skin.comp: the scene's vertex buffer (read the rest vertices, write the deformed copies),
+// per vertex its joints and weights (two uvec4: joints, then the weights' float bits), the morph
+// deltas (kMorphDeltaFloats each: position, normal, tangent), and the pose (joint matrices, then
+// morph weights, as floats).
+TS_CONST uint kSkinBindingVertices = 0;
+TS_CONST uint kSkinBindingAttributes = 1;
+TS_CONST uint kSkinBindingDeltas = 2;
+TS_CONST uint kSkinBindingPose = 3;
+TS_CONST uint kMorphDeltaFloats = 9;
+TS_CONST uint kSkinGroupSize = 64;
 TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
 // ---- the visibility pipeline (vis_classify.comp, vis_shade.comp, vis_sky.comp;
 // features/vis_shade.cpp) ------------------------------------------------------------------------
@@ -354,6 +364,12 @@ struct GpuShadeEntry {
 // exposure.comp: size xy: HDR size in pixels, z: grid width, w: grid height (sample points);
 // params x: rate (>= 1: this frame's value at once, else the fraction of the way to move),
 // y: min log2 luminance, z: max log2 luminance.
+// skin.comp (one dispatch per deformed drawable): range = (first source vertex, first output
+// vertex, vertex count, 1 when skinned), pose = (first joint matrix of the drawable's skin in the
+// pose buffer, first morph weight there, morph targets, first morph delta of the primitive).
+#define TS_PUSH_SKIN \
+  uvec4 range;       \
+  uvec4 pose;
 #define TS_PUSH_EXPOSURE \
   uvec4 size;            \
   vec4 params;
@@ -415,6 +431,9 @@ struct BloomUpPush {
 };
 struct ExposurePush {
   TS_PUSH_EXPOSURE
+};
+struct SkinPush {
+  TS_PUSH_SKIN
 };
 struct HizPush {
   TS_PUSH_HIZ

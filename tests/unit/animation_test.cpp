@@ -19,6 +19,7 @@
 
 #include "renderer/scene/cpu_scene.h"
 #include "renderer/scene/gltf_import.h"
+#include "renderer/scene/scene_animator.h"
 
 namespace tessera {
 namespace {
@@ -496,6 +497,99 @@ TEST(AnimationImport, MalformedSkinsAndMorphTargetsAreRefusedNamingTheField) {
   no_targets.max_morph_targets = 0;
   ExpectRefused(MorphFile(), absl::StatusCode::kResourceExhausted, {"max_morph_targets limit (0)"},
           no_targets);
+}
+
+}  // namespace
+}  // namespace tessera
+
+// --- SceneAnimator: what moves, where the copies go, and bounds that hold every pose ----------
+
+namespace tessera {
+namespace {
+
+CpuScene ImportGenerated(const std::string& name) {
+  absl::StatusOr<GltfSource> source =
+      LoadGltfSourceFromDisk(std::string(TESSERA_ANIMATED_DIR) + "/" + name + ".gltf");
+  EXPECT_TRUE(source.ok()) << source.status();
+  if (!source.ok()) return {};
+  absl::StatusOr<CpuScene> scene = ImportGltf(*source);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  return scene.ok() ? std::move(*scene) : CpuScene{};
+}
+
+TEST(SceneAnimator, StaticScenesHaveNoAnimator) {
+  CpuScene scene = ImportGenerated("trs_nodes");
+  ASSERT_FALSE(scene.nodes.empty());
+  scene.animations.clear();  // nothing moves, nothing deforms
+  EXPECT_EQ(SceneAnimator::Create(scene), nullptr);
+  EXPECT_EQ(SceneAnimator::Create(CpuScene{}), nullptr);
+}
+
+TEST(SceneAnimator, DeformedDrawablesGetTheirOwnCopiesAfterTheSceneVertices) {
+  const CpuScene crowd = ImportGenerated("crowd");
+  const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(crowd);
+  ASSERT_NE(a, nullptr);
+  ASSERT_EQ(a->drawables().size(), 100u);  // 100 bodies share one mesh
+  uint64_t next = crowd.vertices.size();
+  for (const AnimatedDrawable& d : a->drawables()) {
+    EXPECT_TRUE(d.deformed);
+    EXPECT_GE(d.skin, 0);
+    EXPECT_EQ(d.first_vertex, next);
+    next += crowd.primitives[d.primitive].vertex_count;
+  }
+  EXPECT_EQ(a->copy_vertices(), next - crowd.vertices.size());
+  EXPECT_EQ(a->VertexData(crowd).size(), next);
+  EXPECT_EQ(a->joint_count(), 200u);
+  // The TRS file's cubes move but do not deform: no copies, their own vertices.
+  const CpuScene trs = ImportGenerated("trs_nodes");
+  const std::unique_ptr<SceneAnimator> b = SceneAnimator::Create(trs);
+  ASSERT_NE(b, nullptr);
+  EXPECT_EQ(b->drawables().size(), 3u);
+  EXPECT_EQ(b->copy_vertices(), 0u);
+  for (const AnimatedDrawable& d : b->drawables()) {
+    EXPECT_FALSE(d.deformed);
+    EXPECT_EQ(d.first_vertex, trs.primitives[d.primitive].first_vertex);
+  }
+}
+
+TEST(SceneAnimator, PosedBoundsHoldEveryDeformedVertexAndChangeOnlyWithThePose) {
+  for (const char* name : {"skinned_cylinder", "morph_cube", "trs_nodes", "crowd"}) {
+    SCOPED_TRACE(name);
+    const CpuScene scene = ImportGenerated(name);
+    const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(scene);
+    ASSERT_NE(a, nullptr);
+    EXPECT_TRUE(a->Pose(0, 0.0, true));
+    EXPECT_FALSE(a->Pose(0, 0.0, true)) << "the same pose again";
+    EXPECT_FALSE(a->Pose(0, scene.animations[0].duration, true)) << "looped to 0 s";
+    for (int step = 0; step <= 24; ++step) {
+      const double t = step * 0.1;
+      a->Pose(0, t, true);
+      const ScenePose pose = EvaluatePose(scene.nodes, scene.animations, 0, t, true);
+      for (size_t i = 0; i < a->drawables().size(); ++i) {
+        const AnimatedDrawable& d = a->drawables()[i];
+        const Primitive& p = scene.primitives[d.primitive];
+        std::vector<float> weights = pose.weights[d.node];
+        weights.resize(p.morph_targets, 0.0f);
+        std::vector<glm::mat4> joints;
+        if (d.skin >= 0) joints = JointMatrices(scene.skins[size_t(d.skin)], pose);
+        const Aabb& b = a->bounds()[i];
+        for (uint32_t v = 0; v < p.vertex_count; ++v) {
+          const uint32_t sv = p.first_vertex + v;
+          glm::vec3 q = p.morph_targets
+                            ? MorphPosition(scene.vertices[sv].position,
+                                            &scene.morph_deltas[p.first_morph_delta + v],
+                                            p.vertex_count, weights)
+                            : scene.vertices[sv].position;
+          q = d.skin >= 0 ? SkinPoint(q, scene.skin_joints[sv], scene.skin_weights[sv], joints)
+                          : glm::vec3(a->world()[i] * glm::vec4(q, 1.0f));
+          for (int k = 0; k < 3; ++k) {
+            ASSERT_GE(q[k], b.min[k] - 1e-4f) << "t=" << t << " drawable " << d.drawable;
+            ASSERT_LE(q[k], b.max[k] + 1e-4f) << "t=" << t << " drawable " << d.drawable;
+          }
+        }
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -87,6 +87,7 @@ TEST(SettingsWireTest, EveryRowHasItsProtoFieldAndEveryFieldItsRow) {
   }
   const pb::Descriptor* d = v1::RenderSettings::descriptor();
   for (int i = 0; i < d->field_count(); ++i) {
+    if (d->field(i)->name() == "animation") continue;  // the one text setting (settings.h)
     EXPECT_EQ(rows.count(d->field(i)->name()), 1u)
         << "RenderSettings." << d->field(i)->name() << " has no row in the settings table";
   }

@@ -1,0 +1,167 @@
+#include "renderer/scene/scene_animator.h"
+
+#include <algorithm>
+#include <cstring>
+
+namespace tessera {
+
+std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
+  const size_t n = scene.nodes.size();
+  if (n == 0) return nullptr;  // generated scenes have no nodes
+  // Nodes a channel targets, then every node below one.
+  std::vector<uint8_t> moving(n, 0);
+  for (const Animation& a : scene.animations)
+    for (const AnimationChannel& c : a.channels)
+      if (c.node < n && c.path != AnimationPath::kWeights) moving[c.node] = 1;
+  for (size_t i = 0; i < n; ++i) {
+    if (moving[i]) continue;
+    for (int32_t p = scene.nodes[i].parent, hops = 0; p >= 0 && size_t(p) < n && hops <= int(n);
+         p = scene.nodes[size_t(p)].parent, ++hops) {
+      if (moving[size_t(p)] == 1) {
+        moving[i] = 2;  // moves with an ancestor
+        break;
+      }
+    }
+  }
+  auto animator = std::unique_ptr<SceneAnimator>(new SceneAnimator());
+  SceneAnimator& a = *animator;
+  uint64_t next_vertex = scene.vertices.size();
+  for (uint32_t i = 0; i < scene.drawables.size(); ++i) {
+    const Drawable& d = scene.drawables[i];
+    if (d.node >= n || d.primitive >= scene.primitives.size()) continue;
+    const Primitive& p = scene.primitives[d.primitive];
+    const SceneNode& node = scene.nodes[d.node];
+    AnimatedDrawable ad;
+    ad.drawable = i;
+    ad.node = d.node;
+    ad.primitive = d.primitive;
+    const bool skinned = p.skinned && node.skin >= 0 && size_t(node.skin) < scene.skins.size() &&
+                         scene.skin_joints.size() == scene.vertices.size();
+    ad.skin = skinned ? node.skin : -1;
+    ad.deformed = skinned || p.morph_targets > 0;
+    if (!ad.deformed && !moving[d.node]) continue;
+    ad.first_vertex = p.first_vertex;
+    if (ad.deformed) {
+      ad.first_vertex = uint32_t(next_vertex);
+      next_vertex += p.vertex_count;
+      a.copy_vertices_ += p.vertex_count;
+      a.deformed_vertices_ += p.vertex_count;
+      if (skinned) {
+        ad.joint_base = uint32_t(a.joint_count_);
+        a.joint_count_ += scene.skins[size_t(node.skin)].joints.size();
+      }
+      ad.weight_base = uint32_t(a.weight_count_);
+      a.weight_count_ += p.morph_targets;
+      if (a.primitives_.size() <= d.primitive) a.primitives_.resize(d.primitive + 1);
+      PrimitiveBounds& pb = a.primitives_[d.primitive];
+      if (pb.vertex_count == 0 && p.vertex_count > 0) {
+        pb.first_vertex = p.first_vertex;
+        pb.vertex_count = p.vertex_count;
+        pb.targets = p.morph_targets;
+        for (uint32_t v = 0; v < p.vertex_count; ++v)
+          pb.rest.extend(scene.vertices[p.first_vertex + v].position);
+        pb.deltas.resize(p.morph_targets);
+        for (uint32_t t = 0; t < p.morph_targets; ++t)
+          for (uint32_t v = 0; v < p.vertex_count; ++v)
+            pb.deltas[t].extend(
+                scene.morph_deltas[p.first_morph_delta + uint64_t(t) * p.vertex_count + v].position);
+        if (p.skinned && scene.skin_joints.size() == scene.vertices.size()) {
+          std::vector<Aabb> boxes;
+          for (uint32_t v = 0; v < p.vertex_count; ++v) {
+            const glm::uvec4 j = scene.skin_joints[p.first_vertex + v];
+            const glm::vec4 w = scene.skin_weights[p.first_vertex + v];
+            for (int k = 0; k < 4; ++k) {
+              if (w[k] == 0.0f) continue;
+              if (boxes.size() <= j[k]) boxes.resize(j[k] + 1);
+              boxes[j[k]].extend(scene.vertices[p.first_vertex + v].position);
+            }
+          }
+          for (uint32_t j = 0; j < boxes.size(); ++j)
+            if (!boxes[j].empty()) pb.joints.emplace_back(j, boxes[j]);
+        }
+      }
+    }
+    a.drawables_.push_back(ad);
+    a.rest_bounds_.push_back(p.bounds);
+  }
+  if (a.drawables_.empty()) return nullptr;
+  a.nodes_ = scene.nodes;
+  a.animations_ = scene.animations;
+  a.skins_ = scene.skins;
+  a.world_.assign(a.drawables_.size(), glm::mat4(1.0f));
+  a.bounds_.resize(a.drawables_.size());
+  a.joints_.assign(a.joint_count_, glm::mat4(1.0f));
+  a.weights_.assign(a.weight_count_, 0.0f);
+  return animator;
+}
+
+std::vector<Vertex> SceneAnimator::VertexData(const CpuScene& scene) const {
+  std::vector<Vertex> out;
+  out.reserve(scene.vertices.size() + copy_vertices_);
+  out = scene.vertices;
+  for (const AnimatedDrawable& ad : drawables_) {
+    if (!ad.deformed) continue;
+    const Primitive& p = scene.primitives[ad.primitive];
+    out.insert(out.end(), scene.vertices.begin() + p.first_vertex,
+               scene.vertices.begin() + p.first_vertex + p.vertex_count);
+  }
+  return out;
+}
+
+bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
+  if (animation >= int(animations_.size())) animation = -1;
+  const float t =
+      animation < 0 ? 0.0f : AnimationTime(animations_[size_t(animation)], scene_time, loop);
+  if (posed_ && animation == posed_animation_ &&
+      std::memcmp(&t, &posed_time_, sizeof(float)) == 0)
+    return false;
+  posed_ = true;
+  posed_animation_ = animation;
+  posed_time_ = t;
+  // AnimationTime already folded the loop: evaluate at the animation's own time, unlooped.
+  const ScenePose pose = EvaluatePose(nodes_, animations_, animation, t, false);
+  for (size_t i = 0; i < drawables_.size(); ++i) {
+    const AnimatedDrawable& ad = drawables_[i];
+    if (!ad.deformed) {
+      world_[i] = pose.world[ad.node];
+      bounds_[i] = rest_bounds_[i].transformed(world_[i]);
+      continue;
+    }
+    const PrimitiveBounds& pb = primitives_[ad.primitive];
+    // Morph weights (missing ones are 0) and how far they can move a vertex per axis.
+    const std::vector<float>& w = pose.weights[ad.node];
+    glm::vec3 lo(0.0f), hi(0.0f);
+    for (uint32_t k = 0; k < pb.targets; ++k) {
+      const float wk = k < w.size() ? w[k] : 0.0f;
+      weights_[ad.weight_base + k] = wk;
+      if (pb.deltas[k].empty()) continue;
+      lo += glm::min(wk * pb.deltas[k].min, wk * pb.deltas[k].max);
+      hi += glm::max(wk * pb.deltas[k].min, wk * pb.deltas[k].max);
+    }
+    auto grown = [&](const Aabb& b) {
+      Aabb g;
+      if (!b.empty()) {
+        g.min = b.min + lo;
+        g.max = b.max + hi;
+      }
+      return g;
+    };
+    if (ad.skin >= 0) {
+      const std::vector<glm::mat4> joints = JointMatrices(skins_[size_t(ad.skin)], pose);
+      std::copy(joints.begin(), joints.end(), joints_.begin() + ad.joint_base);
+      world_[i] = glm::mat4(1.0f);
+      // A skinned vertex is a convex blend of its joints' transforms of it: inside the union of
+      // each joint's transformed box of the vertices it moves.
+      Aabb b;
+      for (const auto& [j, box] : pb.joints)
+        if (j < joints.size()) b.extend(grown(box).transformed(joints[j]));
+      bounds_[i] = b;
+    } else {
+      world_[i] = pose.world[ad.node];
+      bounds_[i] = grown(pb.rest).transformed(world_[i]);
+    }
+  }
+  return true;
+}
+
+}  // namespace tessera

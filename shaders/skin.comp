@@ -1,0 +1,77 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Skinning and morphing of one drawable's vertices (renderer/features/skinning.cpp), glTF 3.7.2
+// and 3.7.3: the rest vertex plus each morph target's delta times its weight, then, when skinned,
+// the weighted sum of its joints' matrices applied (position, normal and tangent), giving
+// world-space vertices. renderer/scene/animation.h's MorphPosition and SkinPoint are the CPU
+// reference the tests hold this to.
+#include "common/gpu_types.h"
+
+layout(local_size_x = kSkinGroupSize) in;
+
+layout(set = 0, binding = kSkinBindingVertices, std430) buffer VertexBlock { float vertices[]; };
+layout(set = 0, binding = kSkinBindingAttributes, std430) readonly buffer AttributeBlock {
+  uvec4 attributes[];  // per vertex: joints, then weights (float bits)
+};
+layout(set = 0, binding = kSkinBindingDeltas, std430) readonly buffer DeltaBlock { float deltas[]; };
+layout(set = 0, binding = kSkinBindingPose, std430) readonly buffer PoseBlock { float pose[]; };
+layout(push_constant) uniform Push { TS_PUSH_SKIN } push;  // common/gpu_types.h
+
+mat4 Joint(uint j) {
+  uint b = (push.pose.x + j) * 16u;
+  return mat4(pose[b + 0u], pose[b + 1u], pose[b + 2u], pose[b + 3u],
+              pose[b + 4u], pose[b + 5u], pose[b + 6u], pose[b + 7u],
+              pose[b + 8u], pose[b + 9u], pose[b + 10u], pose[b + 11u],
+              pose[b + 12u], pose[b + 13u], pose[b + 14u], pose[b + 15u]);
+}
+
+vec3 Load3(uint b) { return vec3(vertices[b], vertices[b + 1u], vertices[b + 2u]); }
+vec3 Delta3(uint b) { return vec3(deltas[b], deltas[b + 1u], deltas[b + 2u]); }
+
+void main() {
+  uint v = gl_GlobalInvocationID.x;
+  if (v >= push.range.z) return;
+  uint src = (push.range.x + v) * kVertexFloats;
+  uint dst = (push.range.y + v) * kVertexFloats;
+  vec3 position = Load3(src);
+  vec3 normal = Load3(src + 3u);
+  vec4 tangent = vec4(Load3(src + 6u), vertices[src + 9u]);
+
+  // Morph targets: target t's delta for vertex v is delta first + t * count + v.
+  for (uint t = 0u; t < push.pose.z; ++t) {
+    float w = pose[push.pose.y + t];
+    if (w == 0.0) continue;
+    uint d = (push.pose.w + t * push.range.z + v) * kMorphDeltaFloats;
+    position += w * Delta3(d);
+    normal += w * Delta3(d + 3u);
+    tangent.xyz += w * Delta3(d + 6u);
+  }
+
+  if (push.range.w != 0u) {
+    uvec4 joints = attributes[(push.range.x + v) * 2u];
+    vec4 weights = uintBitsToFloat(attributes[(push.range.x + v) * 2u + 1u]);
+    mat4 m = weights.x * Joint(joints.x) + weights.y * Joint(joints.y) +
+             weights.z * Joint(joints.z) + weights.w * Joint(joints.w);
+    position = (m * vec4(position, 1.0)).xyz;
+    // The blended matrix's linear part for directions, as three.js and Filament do (exact for
+    // rigid and uniformly scaled joints).
+    normal = mat3(m) * normal;
+    tangent.xyz = mat3(m) * tangent.xyz;
+  }
+  float nl = length(normal);
+  normal = nl > 0.0 ? normal / nl : vec3(0.0, 0.0, 1.0);
+  float tl = length(tangent.xyz);
+  tangent.xyz = tl > 0.0 ? tangent.xyz / tl : vec3(1.0, 0.0, 0.0);
+
+  vertices[dst + 0u] = position.x;
+  vertices[dst + 1u] = position.y;
+  vertices[dst + 2u] = position.z;
+  vertices[dst + 3u] = normal.x;
+  vertices[dst + 4u] = normal.y;
+  vertices[dst + 5u] = normal.z;
+  vertices[dst + 6u] = tangent.x;
+  vertices[dst + 7u] = tangent.y;
+  vertices[dst + 8u] = tangent.z;
+  vertices[dst + 9u] = tangent.w;
+  for (uint k = 10u; k < kVertexFloats; ++k) vertices[dst + k] = vertices[src + k];  // uvs
+}

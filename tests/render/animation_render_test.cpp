@@ -1,0 +1,344 @@
+// Animated scenes on the device (renderer/features/skinning.cpp, shaders/skin.comp): the skinned
+// and morphed vertices against the CPU reference (renderer/scene/animation.h), posed frames
+// against the same geometry baked into a static scene, culling with the posed bounds, shadows
+// re-rendered per pose, goldens at two times, and refusals naming settings.animation. The
+// scenes come from tests/gltf/make_animated.py (a two-bone cylinder, a morphing cube, three
+// TRS-animated cubes, a skinned crowd), generated at build time.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "renderer/image_metrics.h"
+#include "renderer/renderer.h"
+#include "renderer/scene/animation.h"
+#include "renderer/scene/gltf_import.h"
+#include "renderer/scene/scene_animator.h"
+#include "tests/render/golden.h"
+
+namespace tessera {
+namespace {
+
+struct Loaded {
+  CpuScene cpu;
+  SceneHandle scene;
+};
+
+Loaded Load(const std::string& name) {
+  const std::string path = std::string(TESSERA_ANIMATED_DIR) + "/" + name + ".gltf";
+  Loaded out;
+  absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(path);
+  EXPECT_TRUE(source.ok()) << source.status();
+  if (!source.ok()) return out;
+  absl::StatusOr<CpuScene> cpu = ImportGltf(*source);
+  EXPECT_TRUE(cpu.ok()) << cpu.status();
+  if (cpu.ok()) out.cpu = std::move(*cpu);
+  absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(*source);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  if (scene.ok()) out.scene = *scene;
+  return out;
+}
+
+Settings Small(uint32_t w = 160, uint32_t h = 120) {
+  Settings s;
+  s.width = w;
+  s.height = h;
+  return s;
+}
+
+Settings At(Settings s, const std::string& animation, float t) {
+  s.animation = animation;
+  s.scene_time = t;
+  return s;
+}
+
+Camera Framing(const SceneInfo& info, const Settings& s, glm::vec3 dir = {0.3f, 0.35f, 1.0f}) {
+  // The rest bounds grown a little: the poses reach past them.
+  Aabb b = info.bounds;
+  const glm::vec3 pad = b.extent() * 0.35f;
+  b.min -= pad;
+  b.max += pad;
+  return FrameBounds(b, 0.8f, float(s.width) / float(s.height), dir);
+}
+
+Frame RenderOk(const Scene& scene, const Camera& c, const Settings& s) {
+  absl::StatusOr<Frame> f = SharedRenderer().Render(scene, c, s);
+  EXPECT_TRUE(f.ok()) << f.status();
+  return f.ok() ? std::move(*f) : Frame{};
+}
+
+// The CPU reference of one deformed vertex (glTF 3.7.2-3.7.3; what skin.comp computes).
+struct Deformed {
+  glm::vec3 position, normal;
+};
+Deformed Reference(const CpuScene& cpu, const Primitive& p, uint32_t v,
+                   const std::vector<float>& weights, const std::vector<glm::mat4>* joints) {
+  const Vertex& rest = cpu.vertices[p.first_vertex + v];
+  const MorphDelta* deltas =
+      p.morph_targets ? &cpu.morph_deltas[p.first_morph_delta + v] : nullptr;
+  Deformed d{rest.position, rest.normal};
+  if (deltas) {
+    d.position = MorphPosition(rest.position, deltas, p.vertex_count, weights);
+    for (size_t t = 0; t < weights.size(); ++t)
+      d.normal += weights[t] * deltas[t * p.vertex_count].normal;
+  }
+  if (joints) {
+    const glm::uvec4 j = cpu.skin_joints[p.first_vertex + v];
+    const glm::vec4 w = cpu.skin_weights[p.first_vertex + v];
+    glm::mat4 m(0.0f);
+    for (int k = 0; k < 4; ++k) m += w[k] * (*joints)[j[k]];
+    d.position = SkinPoint(d.position, j, w, *joints);
+    d.normal = glm::mat3(m) * d.normal;
+  }
+  d.normal = glm::normalize(d.normal);
+  return d;
+}
+
+// Every deformed drawable's vertices on the device after a frame at (animation, t) against the
+// CPU reference.
+void ExpectDeviceMatchesReference(const Loaded& l, int animation, float t, float tolerance) {
+  const std::unique_ptr<SceneAnimator> animator = SceneAnimator::Create(l.cpu);
+  ASSERT_NE(animator, nullptr);
+  const ScenePose pose = EvaluatePose(l.cpu.nodes, l.cpu.animations, animation, t, true);
+  uint32_t checked = 0;
+  for (const AnimatedDrawable& ad : animator->drawables()) {
+    if (!ad.deformed) continue;
+    const Primitive& p = l.cpu.primitives[ad.primitive];
+    absl::StatusOr<std::vector<Vertex>> device =
+        SharedRenderer().ReadVerticesForTesting(*l.scene, ad.first_vertex, p.vertex_count);
+    ASSERT_TRUE(device.ok()) << device.status();
+    std::vector<float> weights = pose.weights[ad.node];
+    weights.resize(p.morph_targets, 0.0f);
+    std::vector<glm::mat4> joints;
+    if (ad.skin >= 0) joints = JointMatrices(l.cpu.skins[size_t(ad.skin)], pose);
+    for (uint32_t v = 0; v < p.vertex_count; ++v) {
+      const Deformed want = Reference(l.cpu, p, v, weights, ad.skin >= 0 ? &joints : nullptr);
+      const Vertex& got = (*device)[v];
+      for (int k = 0; k < 3; ++k) {
+        ASSERT_NEAR(got.position[k], want.position[k], tolerance)
+            << "drawable " << ad.drawable << " vertex " << v << " axis " << k << " at t=" << t;
+        ASSERT_NEAR(got.normal[k], want.normal[k], 1e-3f)
+            << "drawable " << ad.drawable << " vertex " << v << " normal axis " << k;
+      }
+      EXPECT_EQ(got.uv0, l.cpu.vertices[p.first_vertex + v].uv0);
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 0u);
+}
+
+TEST(AnimationRender, SkinnedAndMorphedVerticesMatchTheCpuReference) {
+  struct Case {
+    const char* file;
+    const char* animation;
+    std::vector<float> times;
+  };
+  for (const Case& c : {Case{"skinned_cylinder", "bend", {0.5f, 1.0f, 2.6f}},
+                        Case{"morph_cube", "morph", {0.5f, 1.5f}},
+                        Case{"crowd", "wave", {0.3f, 1.7f}}}) {
+    SCOPED_TRACE(c.file);
+    const Loaded l = Load(c.file);
+    ASSERT_TRUE(l.scene);
+    const Settings base = Small(64, 48);
+    const Camera cam = Framing(l.scene->info(), base);
+    for (float t : c.times) {
+      const Frame f = RenderOk(*l.scene, cam, At(base, c.animation, t));
+      EXPECT_GT(f.stats.animated_drawables, 0u);
+      EXPECT_GT(f.stats.deformed_vertices, 0u) << "a new pose re-skins";
+      ExpectDeviceMatchesReference(l, 0, t, 1e-4f);
+      // The same pose again: nothing to re-skin, the same picture.
+      const Frame again = RenderOk(*l.scene, cam, At(base, c.animation, t));
+      EXPECT_EQ(again.stats.deformed_vertices, 0u);
+      EXPECT_EQ(again.image.pixels, f.image.pixels);
+    }
+    // The rest pose (no animation) is skinned too: with the bind pose, the rest vertices.
+    RenderOk(*l.scene, cam, At(base, "none", 0.0f));
+    ExpectDeviceMatchesReference(l, -1, 0.0f, 1e-4f);
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// The scene at (animation, t) with its pose baked in: the deformed vertices in place (world
+// space for skinned ones), each drawable at its posed world matrix, no animation left.
+CpuScene Baked(const CpuScene& cpu, int animation, float t) {
+  CpuScene out = cpu;
+  const std::unique_ptr<SceneAnimator> animator = SceneAnimator::Create(cpu);
+  const ScenePose pose = EvaluatePose(cpu.nodes, cpu.animations, animation, t, true);
+  for (const AnimatedDrawable& ad : animator->drawables()) {
+    Drawable& d = out.drawables[ad.drawable];
+    const Primitive& p = cpu.primitives[ad.primitive];
+    d.world = ad.skin >= 0 ? glm::mat4(1.0f) : pose.world[ad.node];
+    if (ad.deformed) {
+      std::vector<float> weights = pose.weights[ad.node];
+      weights.resize(p.morph_targets, 0.0f);
+      std::vector<glm::mat4> joints;
+      if (ad.skin >= 0) joints = JointMatrices(cpu.skins[size_t(ad.skin)], pose);
+      Aabb object;
+      for (uint32_t v = 0; v < p.vertex_count; ++v) {
+        const Deformed r = Reference(cpu, p, v, weights, ad.skin >= 0 ? &joints : nullptr);
+        out.vertices[p.first_vertex + v].position = r.position;
+        out.vertices[p.first_vertex + v].normal = r.normal;
+        object.extend(r.position);
+      }
+      out.primitives[ad.primitive].bounds = object;
+    }
+    d.world_bounds = out.primitives[ad.primitive].bounds.transformed(d.world);
+  }
+  out.nodes.clear();
+  out.animations.clear();
+  out.skins.clear();
+  out.skin_joints.clear();
+  out.skin_weights.clear();
+  out.morph_deltas.clear();
+  for (Primitive& p : out.primitives) {
+    p.skinned = false;
+    p.morph_targets = 0;
+  }
+  out.bounds = Aabb{};
+  for (const Drawable& d : out.drawables) out.bounds.extend(d.world_bounds);
+  return out;
+}
+
+TEST(AnimationRender, PosedFramesMatchTheirPoseBakedIntoAStaticScene) {
+  struct Case {
+    const char* file;
+    const char* animation;
+    float t;
+  };
+  for (const Case& c : {Case{"skinned_cylinder", "bend", 1.0f}, Case{"morph_cube", "morph", 1.5f},
+                        Case{"trs_nodes", "move", 0.75f}}) {
+    SCOPED_TRACE(c.file);
+    const Loaded l = Load(c.file);
+    ASSERT_TRUE(l.scene);
+    absl::StatusOr<SceneHandle> baked = SharedRenderer().LoadScene(Baked(l.cpu, 0, c.t));
+    ASSERT_TRUE(baked.ok()) << baked.status();
+    const Settings s = Small();
+    const Camera cam = Framing(l.scene->info(), s);
+    // Forward, the visibility buffer (it reads the vertices itself) and vis_mlaa.
+    Settings visibility = s, vis_mlaa = s;
+    visibility.pipeline = Pipeline::kVisibility;
+    vis_mlaa.aa = AaMode::kVisMlaa;
+    for (const Settings& v : {s, visibility, vis_mlaa}) {
+      const Frame posed = RenderOk(*l.scene, cam, At(v, c.animation, c.t));
+      const Frame still = RenderOk(**baked, cam, v);
+      absl::StatusOr<double> psnr = Psnr(posed.image, still.image);
+      ASSERT_TRUE(psnr.ok()) << psnr.status();
+      std::printf("%s at %.2f s against its baked pose (%s, %s): %.1f dB\n", c.file, c.t,
+                  std::string(ToString(posed.settings.effective.pipeline)).c_str(),
+                  std::string(ToString(posed.settings.effective.aa)).c_str(), *psnr);
+      EXPECT_GE(*psnr, 45.0);
+    }
+    const Frame posed = RenderOk(*l.scene, cam, At(s, c.animation, c.t));
+    // And the pose moved something: the rest pose looks different.
+    const Frame rest = RenderOk(*l.scene, cam, s);
+    absl::StatusOr<double> moved = Psnr(posed.image, rest.image);
+    ASSERT_TRUE(moved.ok());
+    EXPECT_LT(*moved, 30.0);
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+TEST(AnimationRender, CullingUsesThePosedBounds) {
+  // At t = 0.9 the "linear" cube has risen from (-2, 0, 0) to (-2, 0.9, 0) and turned. The
+  // camera sees only the space above the rest pose: culling by the rest bounds would drop it.
+  // (Not t = 1: the animation lasts 1 s, and looping shows 1 s as 0 s.)
+  const Loaded l = Load("trs_nodes");
+  ASSERT_TRUE(l.scene);
+  Settings s = At(Small(), "move", 0.9f);
+  Camera cam;
+  cam.eye = glm::vec3(-2.0f, 1.5f, 3.0f);
+  cam.target = glm::vec3(-2.0f, 1.5f, 0.0f);
+  cam.yfov = 0.4f;
+  s.culling = CullingMode::kNone;
+  const Frame all = RenderOk(*l.scene, cam, s);
+  for (CullingMode mode : {CullingMode::kCpuFrustum, CullingMode::kGpuFrustum,
+                           CullingMode::kGpuOcclusion}) {
+    s.culling = mode;
+    const Frame culled = RenderOk(*l.scene, cam, s);
+    SCOPED_TRACE(std::string(ToString(mode)));
+    EXPECT_GE(culled.stats.drawables_drawn, 1u);
+    EXPECT_LT(culled.stats.drawables_drawn, all.stats.drawables_drawn) << "the others are culled";
+    EXPECT_EQ(culled.image.pixels, all.image.pixels);
+  }
+  // The cube is in the picture: something other than the clear colour at the centre.
+  s.culling = CullingMode::kCpuFrustum;
+  const Frame rest = RenderOk(*l.scene, cam, At(s, "move", 0.0f));
+  EXPECT_EQ(rest.stats.drawables_drawn, 0u) << "at rest the cube is below the view";
+  EXPECT_NE(rest.image.pixels, all.image.pixels);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+TEST(AnimationRender, CachedShadowMapsAreRenderedAgainForANewPose) {
+  const Loaded l = Load("skinned_cylinder");
+  ASSERT_TRUE(l.scene);
+  Settings s = Small();
+  s.shadows = true;
+  const Camera cam = Framing(l.scene->info(), s);
+  RenderOk(*l.scene, cam, At(s, "bend", 0.25f));
+  const Frame same = RenderOk(*l.scene, cam, At(s, "bend", 0.25f));
+  EXPECT_EQ(same.stats.shadow_faces_rendered, 0u) << "an unchanged pose keeps its maps";
+  const Frame moved = RenderOk(*l.scene, cam, At(s, "bend", 0.75f));
+  EXPECT_GT(moved.stats.shadow_faces_rendered, 0u) << "a new pose casts a new shadow";
+}
+
+TEST(AnimationRender, GoldenImagesAtTwoTimes) {
+  struct Case {
+    const char* file;
+    const char* animation;
+    float times[2];
+  };
+  for (const Case& c : {Case{"skinned_cylinder", "bend", {0.4f, 1.0f}},
+                        Case{"morph_cube", "morph", {1.0f, 1.6f}},
+                        Case{"trs_nodes", "move", {0.3f, 0.8f}}}) {
+    SCOPED_TRACE(c.file);
+    const Loaded l = Load(c.file);
+    ASSERT_TRUE(l.scene);
+    const Settings s = Small();
+    const Camera cam = Framing(l.scene->info(), s);
+    RgbaImage images[2];
+    for (int i = 0; i < 2; ++i) {
+      images[i] = RenderOk(*l.scene, cam, At(s, c.animation, c.times[i])).image;
+      char name[96];
+      std::snprintf(name, sizeof(name), "anim_%s_%03d", c.file, int(std::lround(c.times[i] * 100)));
+      CompareWithGolden(name, images[i]);
+    }
+    absl::StatusOr<double> between = Psnr(images[0], images[1]);
+    ASSERT_TRUE(between.ok());
+    EXPECT_LT(*between, 30.0) << "the two times show different poses";
+  }
+}
+
+TEST(AnimationRender, AnimationsAreNamedOrIndexedAndOthersRefused) {
+  const Loaded l = Load("skinned_cylinder");
+  ASSERT_TRUE(l.scene);
+  const Settings s = Small(32, 24);
+  const Camera cam = Framing(l.scene->info(), s);
+  const Frame by_name = RenderOk(*l.scene, cam, At(s, "bend", 1.0f));
+  const Frame by_index = RenderOk(*l.scene, cam, At(s, "0", 1.0f));
+  EXPECT_EQ(by_name.image.pixels, by_index.image.pixels);
+  // Looping: 2 s is one period, so 3 s shows 1 s; without loop 3 s holds the end (= 0 s).
+  const Frame looped = RenderOk(*l.scene, cam, At(s, "bend", 3.0f));
+  EXPECT_EQ(looped.image.pixels, by_name.image.pixels);
+  Settings held = At(s, "bend", 3.0f);
+  held.loop = false;
+  const Frame end = RenderOk(*l.scene, cam, held);
+  const Frame start = RenderOk(*l.scene, cam, At(s, "bend", 0.0f));
+  EXPECT_EQ(end.image.pixels, start.image.pixels);
+
+  absl::StatusOr<Frame> unknown = SharedRenderer().Render(*l.scene, cam, At(s, "walk", 0.0f));
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_EQ(unknown.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(unknown.status().message().find("settings.animation"), std::string::npos);
+  EXPECT_NE(unknown.status().message().find("'bend'"), std::string::npos) << unknown.status();
+  absl::StatusOr<Frame> index = SharedRenderer().Render(*l.scene, cam, At(s, "1", 0.0f));
+  ASSERT_FALSE(index.ok());
+  EXPECT_NE(index.status().message().find("out of range"), std::string::npos) << index.status();
+  Settings too_long = At(s, std::string(kMaxAnimationNameBytes + 1, 'a'), 0.0f);
+  absl::StatusOr<Frame> long_name = SharedRenderer().Render(*l.scene, cam, too_long);
+  ASSERT_FALSE(long_name.ok());
+  EXPECT_NE(long_name.status().message().find("settings.animation"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace tessera
