@@ -405,6 +405,9 @@ absl::Status ValidateJobSpec(const v1::JobSpec& spec, const JobLimits& limits) {
   if (!spec.name_pattern().empty()) {
     RETURN_IF_ERROR(ValidateNamePattern(spec.name_pattern()));
   }
+  if (!(spec.fps() >= 0.0 && spec.fps() <= kMaxFps))  // NaN fails too
+    return Invalid("spec.fps", absl::StrCat(spec.fps(), " is out of range (0..", kMaxFps,
+                                            " frames per second; 0: the time stands still)"));
   if (spec.taa_frames() > kMaxTaaFrames)
     return Invalid("spec.taa_frames",
                    absl::StrCat(spec.taa_frames(), " is more than ", kMaxTaaFrames));
@@ -479,6 +482,11 @@ std::string FrameFileName(const v1::JobSpec& spec, uint32_t frame) {
     // Unreachable for a validated spec; the default name beats a client-controlled one.
   }
   return Expand(NamePattern{"frame_", Extension(spec.encoding()), 5}, frame);
+}
+
+float SceneTimeAtFrame(const v1::JobSpec& spec, uint32_t frame) {
+  const double start = spec.settings().has_scene_time() ? spec.settings().scene_time() : 0.0;
+  return static_cast<float>(spec.fps() > 0.0 ? start + double(frame) / spec.fps() : start);
 }
 
 uint32_t TaaFrames(const v1::JobSpec& spec) {

@@ -25,6 +25,7 @@ struct JobLimits {
 inline constexpr uint32_t kMaxNameBytes = 256;
 inline constexpr uint32_t kMaxTaaFrames = 64;
 inline constexpr uint32_t kDefaultTaaFrames = 8;
+inline constexpr double kMaxFps = 1000.0;
 inline constexpr float kDefaultYfov = 0.8f;
 // renderer/camera.cpp's ValidateCamera accepts yfov in (0, 3.1), a little short of pi.
 inline constexpr float kMaxYfov = 3.1f;
@@ -88,6 +89,11 @@ const char* Extension(v1::ImageEncoding encoding);
 // "frame_%05d" plus Extension(spec.encoding()) when name_pattern is empty. The pattern must
 // have passed ValidateNamePattern.
 std::string FrameFileName(const v1::JobSpec& spec, uint32_t frame);
+
+// The scene time of frame number `frame`: spec.settings.scene_time (0 when unset) plus
+// frame / spec.fps (nothing when fps is 0), computed in double and rounded to the setting's
+// float once, so every daemon poses a frame alike.
+float SceneTimeAtFrame(const v1::JobSpec& spec, uint32_t frame);
 
 // spec.taa_frames, or 8 when 0.
 uint32_t TaaFrames(const v1::JobSpec& spec);

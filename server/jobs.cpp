@@ -94,6 +94,9 @@ absl::StatusOr<RenderWork> JobFrameWork(const v1::JobSpec& spec, uint32_t frame,
                                         uint64_t view) {
   absl::StatusOr<Settings> settings = MergeSettings(defaults, spec.settings());
   if (!settings.ok()) return Prefixed(settings.status(), "spec.");
+  // The frame's place in the shot; a job's time never follows the wall clock.
+  settings->scene_time = jobs::SceneTimeAtFrame(spec, frame);
+  settings->play = false;
   RenderWork w;
   ASSIGN_OR_RETURN(w.camera, JobCamera(spec, frame, scene.scene->info(), *settings));
   w.scene = scene.scene;
@@ -635,6 +638,8 @@ absl::StatusOr<v1::Job> JobManager::Submit(const v1::JobSpec& spec) {
   absl::StatusOr<Settings> settings = MergeSettings(default_settings_, spec.settings());
   if (!settings.ok()) return Prefixed(settings.status(), "spec.");
   if (scene) {
+    if (absl::StatusOr<int> a = FindAnimation(scene->scene->info(), settings->animation); !a.ok())
+      return Prefixed(a.status(), "spec.");
     for (uint32_t f : *frames) {
       RETURN_IF_ERROR(JobCamera(spec, f, scene->scene->info(), *settings).status());
     }

@@ -61,6 +61,9 @@ struct SessionState {
   uint64_t video_generation = 0;  // counts changes that need a new encoder (SameStream)
   uint64_t sequence = 0;      // of the last frame made
   uint64_t newest_event = 0;  // the newest event applied
+  // settings.play: the scene time is play_base plus the wall-clock time since play_origin.
+  Clock::time_point play_origin{};
+  double play_base = 0.0;
 };
 
 // What the handlers share. Owned by the Server; outlives every call.

@@ -264,10 +264,38 @@ absl::Status StreamSession::CheckTargetFpsLocked(float fps, const char* field) {
 // (the history is then within a few tenths of a dB of converged; aa_test's convergence table).
 constexpr uint32_t kTaaSettleFrames = 16;
 
+// A playing animation with target_fps 0 (frames only on change) is shown at this rate, or the
+// server's max_session_fps when lower.
+constexpr float kPlayFps = 30.0f;
+
+namespace {
+
+double PlayingSceneTime(const SessionState& st, Clock::time_point now) {
+  double t = st.play_base + std::chrono::duration<double>(now - st.play_origin).count();
+  // Kept within the animation, as the renderer would wrap or clamp it anyway, so a long stream
+  // neither loses precision nor leaves the setting's range.
+  const SceneInfo& info = st.lease->get().scene->info();
+  const absl::StatusOr<int> a = FindAnimation(info, st.settings.animation);
+  const double duration = a.ok() && *a >= 0 ? info.animations[size_t(*a)].duration_s : 0.0;
+  if (duration > 0.0) {
+    if (st.settings.loop) {
+      t = std::fmod(t, duration);
+      if (t < 0.0) t += duration;
+    } else {
+      t = std::clamp(t, 0.0, duration);
+    }
+  }
+  return std::clamp(t, -1e6, 1e6);
+}
+
+}  // namespace
+
 StreamPacing StreamSession::PacingLocked() const {
   const InteractiveProfile& p = st_.profile;
   StreamPacing pacing;
   pacing.target_fps = st_.target_fps;
+  if (st_.settings.play && pacing.target_fps <= 0.0f)
+    pacing.target_fps = std::min(kPlayFps, state_->options.max_session_fps);
   pacing.interactive =
       p.enabled && (p.render_scale < 1.0f ||
                     (st_.video.h264 ? st_.video.interactive_crf > st_.video.crf
@@ -286,6 +314,7 @@ absl::Status StreamSession::OpenLocked(Clock::time_point now) {
                         absl::StrCat("open.scene_id: ", scene_load_.message()));
   ASSIGN_OR_RETURN(std::shared_ptr<StoredScene> scene, state_->store->Find(open.scene_id()));
   ASSIGN_OR_RETURN(Settings settings, MergeSettings(state_->default_settings, open.settings()));
+  RETURN_IF_ERROR(FindAnimation(scene->scene->info(), settings.animation).status());
   RETURN_IF_ERROR(ResolveCamera(open.camera(), scene->scene->info(), Aspect(settings)).status());
   ASSIGN_OR_RETURN(InteractiveProfile profile,
                    MergeProfile(InteractiveProfile{}, open.interactive(), "open.interactive"));
@@ -295,6 +324,8 @@ absl::Status StreamSession::OpenLocked(Clock::time_point now) {
   st_.lease = std::make_shared<SceneLease>(scene);
   st_.view = std::make_shared<ViewLease>(state_->renderer, scene->scene, st_.id);
   st_.settings = settings;
+  st_.play_base = settings.scene_time;
+  st_.play_origin = now;
   st_.camera = open.camera();
   st_.profile = profile;
   st_.video = video;
@@ -333,6 +364,7 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   Settings settings = st_.settings;
   if (event_.has_settings()) {
     ASSIGN_OR_RETURN(settings, MergeSettings(st_.settings, event_.settings()));
+    RETURN_IF_ERROR(FindAnimation(st_.lease->get().scene->info(), settings.animation).status());
   }
   std::optional<InteractiveProfile> profile;
   if (event_.has_interactive()) {
@@ -353,6 +385,15 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   if (event_.has_target_fps()) {
     RETURN_IF_ERROR(CheckTargetFpsLocked(event_.target_fps(), "target_fps"));
     schedule_.RestartCadence(now);
+  }
+  // play: the clock (re)starts from scene_time when play turns on or an event sets the time;
+  // turning it off keeps the time it had reached, unless the event sets one.
+  const bool time_set = event_.has_settings() && event_.settings().has_scene_time();
+  if (settings.play && (!st_.settings.play || time_set)) {
+    st_.play_base = settings.scene_time;
+    st_.play_origin = now;
+  } else if (!settings.play && st_.settings.play && !time_set) {
+    settings.scene_time = static_cast<float>(PlayingSceneTime(st_, now));
   }
   st_.settings = settings;
   if (profile) st_.profile = *profile;
@@ -380,6 +421,8 @@ RenderWork StreamSession::MakeWorkLocked(const FrameStart& start) {
   w.scene_id = st_.lease->get().id;
   w.view = st_.id;
   w.settings = st_.settings;
+  if (st_.settings.play)  // the frame's settings say the time it shows
+    w.settings.scene_time = static_cast<float>(PlayingSceneTime(st_, Clock::now()));
   // Validated when the event arrived; framing depends only on the scene and aspect ratio.
   absl::StatusOr<Camera> camera = ResolveCamera(st_.camera, w.scene->info(), Aspect(st_.settings));
   w.camera = camera.ok() ? *camera : Camera{};

@@ -294,6 +294,76 @@ TEST_F(JobTest, AJobProgressesBesideARenderBoundViewer) {
   stream->Finish();
 }
 
+// An animated file: frame n of a job with fps is the scene at n / fps seconds, the same pixels as
+// a single Render at that time, and the same bytes from another daemon (RenderJobFrame).
+TEST_F(JobTest, AnAnimationRendersToFramesThatMatchRendersAtTheirTimes) {
+  Start(BaseOptions());
+  const std::string file = std::string(TESSERA_ANIMATED_DIR) + "/skinned_cylinder.gltf";
+  v1::SceneInfo info;
+  ASSERT_TRUE(UploadFromDisk(stub_.get(), file, &info).ok());
+  ASSERT_EQ(info.animations_size(), 1);
+  EXPECT_EQ(info.animations(0).name(), "bend");
+  v1::JobSpec spec;
+  spec.set_scene_id(info.scene_id());
+  spec.mutable_frames()->set_last(4);
+  spec.set_encoding(v1::IMAGE_PNG);
+  spec.set_fps(4.0);
+  v1::RenderSettings& s = *spec.mutable_settings();
+  s.set_width(96);
+  s.set_height(64);
+  s.set_animation("bend");
+  s.set_scene_time(0.25f);  // frame n shows 0.25 + n / 4 s
+  v1::Job job;
+  ASSERT_TRUE(Submit(stub_.get(), spec, &job).ok());
+  const Watched w = WatchToEnd(stub_.get(), job.job_id());
+  ASSERT_TRUE(w.status.ok()) << w.status.error_message();
+  ASSERT_EQ(w.events.back().job().state(), v1::JOB_SUCCEEDED) << w.events.back().job().error();
+  grpc::Status st;
+  std::map<uint32_t, v1::JobFrame> frames = FetchAll(stub_.get(), job.job_id(), &st);
+  ASSERT_TRUE(st.ok()) << st.error_message();
+  ASSERT_EQ(frames.size(), 5u);
+  auto decode = [](const std::string& bytes) {
+    absl::StatusOr<RgbaImage> img =
+        DecodePng(std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()));
+    EXPECT_TRUE(img.ok()) << img.status();
+    return img.ok() ? img->pixels : std::vector<uint8_t>();
+  };
+  for (uint32_t n = 0; n < 5; ++n) {
+    grpc::ClientContext ctx;
+    v1::RenderRequest req;
+    req.set_scene_id(info.scene_id());
+    *req.mutable_settings() = s;
+    req.mutable_settings()->set_scene_time(0.25f + float(n) / 4.0f);
+    req.set_encoding(v1::IMAGE_PNG);
+    v1::Frame single;
+    ASSERT_TRUE(stub_->Render(&ctx, req, &single).ok());
+    EXPECT_TRUE(decode(single.data()) == decode(frames[n].data())) << "frame " << n;
+    EXPECT_FLOAT_EQ(single.settings().scene_time(), 0.25f + float(n) / 4.0f);
+  }
+  // 0.25 s (22.5 degrees), 0.5 s (45), 1 s (90): the cylinder bends.
+  EXPECT_TRUE(frames[0].data() != frames[1].data());
+  EXPECT_TRUE(frames[1].data() != frames[3].data());
+
+  // A second daemon renders the same bytes for the same frames.
+  ServerOptions o2 = BaseOptions();
+  std::unique_ptr<Server> other = StartServer(o2);
+  ASSERT_NE(other, nullptr);
+  std::unique_ptr<v1::RenderService::Stub> other_stub = Connect(other->address());
+  v1::SceneInfo info2;
+  ASSERT_TRUE(UploadFromDisk(other_stub.get(), file, &info2).ok());
+  ASSERT_EQ(info2.scene_id(), info.scene_id());
+  for (uint32_t n : {1u, 3u}) {
+    v1::Frame f;
+    ASSERT_TRUE(RenderJobFrame(other_stub.get(), spec, n, &f).ok());
+    EXPECT_TRUE(f.data() == frames[n].data()) << "frame " << n;
+  }
+  other->Shutdown();
+
+  // An animation the file does not have is refused at submission, naming the field.
+  spec.mutable_settings()->set_animation("walk");
+  EXPECT_CODE(Submit(stub_.get(), spec, &job), INVALID_ARGUMENT, "spec.settings.animation");
+}
+
 TEST_F(JobTest, BadSpecsAreRefusedNamingTheirField) {
   ServerOptions o = BaseOptions();
   o.max_job_frames = 100;

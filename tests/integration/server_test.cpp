@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <thread>
 
 #include <nlohmann/json.hpp>
@@ -742,6 +743,79 @@ TEST_F(ServerTest, ContinuousStreamRendersWithoutEvents) {
   while (rw->Read(&f)) {
   }
   EXPECT_TRUE(rw->Finish().ok());
+}
+
+// play: the session renders on its own (target_fps 0) and each frame's settings carry the scene
+// time it shows, advancing with the wall clock; a pause holds the time, and an event's scene_time
+// restarts the clock from there. An unknown animation ends the stream naming the field.
+TEST_F(ServerTest, APlayingStreamAdvancesItsSceneTimeWithTheClock) {
+  v1::SceneInfo info;
+  ASSERT_TRUE(UploadFromDisk(stub_.get(),
+                             std::string(TESSERA_ANIMATED_DIR) + "/skinned_cylinder.gltf", &info)
+                  .ok());
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  v1::ClientEvent open = OpenEvent(info.scene_id(), 64, 48);
+  v1::RenderSettings& s = *open.mutable_open()->mutable_settings();
+  s.set_animation("bend");
+  s.set_play(true);
+  s.set_loop(false);  // the time grows without wrapping (the animation lasts 2 s)
+  ASSERT_TRUE(rw->Write(open));
+  v1::Frame f;
+  std::vector<float> times;
+  std::set<std::string> images;
+  const auto t0 = std::chrono::steady_clock::now();
+  while (times.size() < 6) {
+    ASSERT_TRUE(rw->Read(&f)) << "frames keep coming without events while playing";
+    ASSERT_TRUE(f.settings().play());
+    times.push_back(f.settings().scene_time());
+    images.insert(f.data());
+  }
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (size_t i = 1; i < times.size(); ++i) EXPECT_GE(times[i], times[i - 1]);
+  EXPECT_GT(times.back(), times.front());
+  EXPECT_LE(times.back() - times.front(), elapsed + 0.05) << "no faster than the clock";
+  EXPECT_GT(images.size(), 1u) << "the cylinder moves";
+
+  // Pause: the time stays where it got to, and frames come only on change again.
+  v1::ClientEvent pause;
+  pause.set_event_id(1);
+  pause.mutable_settings()->set_play(false);
+  ASSERT_TRUE(rw->Write(pause));
+  do {
+    ASSERT_TRUE(rw->Read(&f));
+  } while (f.event_id() < 1);
+  EXPECT_FALSE(f.settings().play());
+  const float paused = f.settings().scene_time();
+  EXPECT_GE(paused, times.back());
+  // A set time while paused is shown as given; play then runs on from it.
+  v1::ClientEvent seek;
+  seek.set_event_id(2);
+  seek.mutable_settings()->set_scene_time(1.0f);
+  ASSERT_TRUE(rw->Write(seek));
+  do {
+    ASSERT_TRUE(rw->Read(&f));
+  } while (f.event_id() < 2);
+  EXPECT_EQ(f.settings().scene_time(), 1.0f);
+  v1::ClientEvent play;
+  play.set_event_id(3);
+  play.mutable_settings()->set_play(true);
+  ASSERT_TRUE(rw->Write(play));
+  do {
+    ASSERT_TRUE(rw->Read(&f));
+  } while (f.event_id() < 3);
+  EXPECT_GE(f.settings().scene_time(), 1.0f);
+  EXPECT_LT(f.settings().scene_time(), 1.0f + 5.0f);
+
+  v1::ClientEvent bad;
+  bad.set_event_id(4);
+  bad.mutable_settings()->set_animation("walk");
+  ASSERT_TRUE(rw->Write(bad));
+  while (rw->Read(&f)) {
+  }
+  const grpc::Status st = rw->Finish();
+  EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(st.error_message().find("settings.animation"), std::string::npos) << st.error_message();
 }
 
 TEST_F(ServerTest, DeletedSceneStaysUntilItsSessionEnds) {

@@ -216,6 +216,28 @@ TEST(ValidateJobSpecTest, TopLevelFieldsAreNamed) {
   spec = PathSpec();
   spec.set_taa_frames(65);
   EXPECT_TRUE(Invalid(Validate(spec), {"spec.taa_frames:", "65", "64"}));
+
+  for (double fps : {-1.0, 1000.5, double(NAN), double(INFINITY)}) {
+    spec = PathSpec();
+    spec.set_fps(fps);
+    EXPECT_TRUE(Invalid(Validate(spec), {"spec.fps:", "0..1000"})) << fps;
+  }
+  spec.set_fps(24.0);
+  EXPECT_TRUE(Validate(spec).ok());
+}
+
+TEST(JobSpecTest, SceneTimeFollowsTheFrameNumber) {
+  v1::JobSpec spec;
+  EXPECT_EQ(SceneTimeAtFrame(spec, 7), 0.0f) << "fps 0: the time stands still";
+  spec.mutable_settings()->set_scene_time(1.5f);
+  EXPECT_EQ(SceneTimeAtFrame(spec, 7), 1.5f);
+  spec.set_fps(24.0);
+  EXPECT_EQ(SceneTimeAtFrame(spec, 0), 1.5f);
+  EXPECT_EQ(SceneTimeAtFrame(spec, 36), 3.0f);
+  EXPECT_EQ(SceneTimeAtFrame(spec, 1), static_cast<float>(1.5 + 1.0 / 24.0));
+  spec.set_fps(30.0);
+  spec.mutable_settings()->clear_scene_time();
+  EXPECT_EQ(SceneTimeAtFrame(spec, 3000000), 100000.0f);
 }
 
 // ---------------------------------------------------------------------------------------------
