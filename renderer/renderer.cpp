@@ -71,7 +71,14 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   ASSIGN_OR_RETURN(std::unique_ptr<GpuScene> gpu,
                    GpuScene::Upload(*impl_->ctx, cpu, impl_->scene_layout.material_set_layout));
   std::shared_ptr<Scene> scene(new Scene());
-  scene->info_ = {cpu.name,    cpu.counts,   cpu.bounds,
+  // An animated scene's bounds are its rest pose's: skinned meshes are placed by their joints,
+  // not by their nodes (what framing cameras look at).
+  Aabb bounds = cpu.bounds;
+  if (gpu->animated()) {
+    gpu->Pose(-1, 0.0, true);
+    bounds = gpu->bounds();
+  }
+  scene->info_ = {cpu.name,    cpu.counts,   bounds,
                   cpu.cameras, cpu.warnings, gpu->device_bytes(), {}};
   for (const Animation& a : cpu.animations)
     scene->info_.animations.push_back({a.name, a.duration, uint32_t(a.channels.size())});

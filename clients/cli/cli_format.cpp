@@ -72,6 +72,11 @@ std::string SettingsSummary(const v1::RenderSettings& s) {
     if (s.has_jpeg_444()) absl::StrAppend(&q, s.jpeg_444() ? " 4:4:4" : " 4:2:0");
     parts.push_back(q);
   }
+  if (!s.animation().empty() && s.animation() != "none") {
+    parts.push_back(absl::StrFormat("animation %s at %g s%s%s", s.animation(), s.scene_time(),
+                                    s.has_loop() && !s.loop() ? " (held at its end)" : "",
+                                    s.play() ? " (playing)" : ""));
+  }
   return parts.empty() ? "server defaults" : absl::StrJoin(parts, ", ");
 }
 
@@ -124,8 +129,9 @@ void PrintSceneInfo(FILE* out, const v1::SceneInfo& info) {
   }
   for (int i = 0; i < info.animations_size(); ++i) {
     const v1::AnimationInfo& a = info.animations(i);
-    absl::FPrintF(out, "  animation %d  %s (%.2f s, %u channels; not played yet: frames show the "
-                  "rest pose)\n", i, a.name(), a.duration_s(), a.channels());
+    absl::FPrintF(out, "  animation %d  %s (%.2f s, %u channel%s; --animation %s --time S)\n", i,
+                  a.name().empty() ? "(unnamed)" : a.name(), a.duration_s(), a.channels(),
+                  a.channels() == 1 ? "" : "s", a.name().empty() ? absl::StrCat(i) : a.name());
   }
   for (const std::string& w : info.warnings()) absl::FPrintF(out, "  warning: %s\n", w);
 }
@@ -153,6 +159,9 @@ void PrintFrameTimings(const v1::Frame& frame) {
                st.indirect_draws(), st.triangles_submitted(), st.lights());
   absl::PrintF("drawables %u: %u in the frustum, %u drawn (%u culled)\n", st.drawables(),
                st.drawables_in_frustum(), st.drawables_drawn(), st.drawables_culled());
+  if (st.animated_drawables() > 0)
+    absl::PrintF("animated %u drawables, %u vertices skinned or morphed this frame\n",
+                 st.animated_drawables(), st.deformed_vertices());
   if (st.pipeline_statistics())
     absl::PrintF("device counted %u primitives in, %u rasterized, %u fragment invocations\n",
                  st.primitives_in(), st.primitives_clipped(), st.fragment_invocations());

@@ -142,6 +142,7 @@ struct SubmitOptions {
   bool orbit = false;
   bool png = false;
   uint32_t taa_frames = 0;
+  double fps = 0.0;        // animated scenes: frame n at --time + n / fps
   std::string out;         // local directory for the frames
   std::string server_dir;  // SERVER_DIR output on the daemon
   std::string pattern;
@@ -195,6 +196,8 @@ SubmitOptions ParseSubmit(const Invocation& inv) {
       o.png = true;
     } else if (args.Is("--taa-frames")) {
       o.taa_frames = args.Uint();
+    } else if (args.Is("--fps")) {
+      o.fps = args.Double();
     } else if (args.Is("--out") || args.Is("-o")) {
       o.out = args.Value();
     } else if (args.Is("--server-dir")) {
@@ -242,6 +245,7 @@ absl::StatusOr<v1::JobSpec> BuildSpec(v1::RenderService::Stub* stub, const Submi
   ParseFrameRange(o.frames, spec.mutable_frames());
   spec.set_encoding(o.png ? v1::IMAGE_PNG : v1::IMAGE_JPEG);
   spec.set_taa_frames(o.taa_frames);
+  spec.set_fps(o.fps);
   if (!o.server_dir.empty()) {
     spec.set_output(v1::JOB_OUTPUT_SERVER_DIR);
     spec.set_output_dir(o.server_dir == "." ? "" : o.server_dir);
@@ -871,6 +875,8 @@ Frames are deterministic: the same job gives the same pixels on any daemon with 
                       (--eye/--target/--camera N give every frame one camera)
   --png               lossless PNG frames (default JPEG)
   --taa-frames N      with --aa taa: frames accumulated per output frame (1..64, default 8)
+  --fps F             animated scenes (--animation): frame n shows the scene at --time + n / F
+                      seconds (0..1000; default 0: every frame at --time)
   --out DIR           write the frames here (created), named by the pattern
   --pattern P         file names, e.g. shot_%04d.png (default frame_%05d.jpg/.png)
   --server-dir DIR    keep the frames on the server, under its --job_output_root/DIR

@@ -383,6 +383,7 @@ def crowd(n):
     t_acc = times(b, key_times)
     channels, samplers = [], []
     z = (0.0, 0.0, 1.0)
+    ibm = b.accessor([mat4_translation((0, 0, 0)), mat4_translation((0, -1, 0))], FLOAT, 'MAT4')
     for i in range(n):
         col, row = i % cols, i // cols
         p = ((col - (cols - 1) / 2.0) * 1.0 + 0.0, 0.0, (row - (rows - 1) / 2.0) * 1.0 + 0.0)
@@ -392,8 +393,8 @@ def crowd(n):
             {'name': 'bone1_%d' % i, 'translation': [0.0, 1.0, 0.0]},
             {'name': 'body_%d' % i, 'mesh': 0, 'skin': i},
         ]
-        ibm = b.accessor([mat4_translation((-p[0], -p[1], -p[2])),
-                          mat4_translation((-p[0], -(p[1] + 1.0), -p[2]))], FLOAT, 'MAT4')
+        # The shared mesh is bound at the origin, in its skeleton's space: the inverse bind
+        # matrices are the single cylinder's, and each root joint places its instance at P_i.
         skins.append({'name': 'skin_%d' % i, 'joints': [root, bone1],
                       'inverseBindMatrices': ibm})
         quats = [quat_axis_angle(z, 60.0 * math.sin(2.0 * math.pi * (t / 2.0 + i / n)))
