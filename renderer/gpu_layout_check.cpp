@@ -72,7 +72,8 @@ static_assert(sizeof(SsaoBlurPush) == 32);
 static_assert(sizeof(BloomDownPush) == 48);
 static_assert(sizeof(BloomUpPush) == 16);
 static_assert(sizeof(ExposurePush) == 32);
-static_assert(sizeof(SkinPush) == 32);
+static_assert(sizeof(SkinPush) == 16);
+static_assert(sizeof(GpuSkinJob) == 48);
 static_assert(sizeof(HizPush) == 24 && offsetof(HizPush, dst_size) == 8 &&
               offsetof(HizPush, mode) == 16 && offsetof(HizPush, src_level) == 20);
 static_assert(sizeof(IblEnvPush) == 96 && offsetof(IblEnvPush, size) == 80);

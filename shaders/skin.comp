@@ -1,7 +1,8 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Skinning and morphing of one drawable's vertices (renderer/features/skinning.cpp), glTF 3.7.2
-// and 3.7.3: the rest vertex plus each morph target's delta times its weight, then, when skinned,
+// Skinning and morphing of the deformed drawables' vertices (renderer/features/skinning.cpp),
+// every drawable in one dispatch: each workgroup finds its drawable's job by its first workgroup.
+// glTF 3.7.2 and 3.7.3: the rest vertex plus each morph target's delta times its weight, then, when skinned,
 // the weighted sum of its joints' matrices applied (position, normal and tangent), giving
 // world-space vertices. renderer/scene/animation.h's MorphPosition and SkinPoint are the CPU
 // reference the tests hold this to.
@@ -15,10 +16,16 @@ layout(set = 0, binding = kSkinBindingAttributes, std430) readonly buffer Attrib
 };
 layout(set = 0, binding = kSkinBindingDeltas, std430) readonly buffer DeltaBlock { float deltas[]; };
 layout(set = 0, binding = kSkinBindingPose, std430) readonly buffer PoseBlock { float pose[]; };
+struct SkinJob {
+  uvec4 range;
+  uvec4 pose;
+  uvec4 groups;
+};
+layout(set = 0, binding = kSkinBindingJobs, std430) readonly buffer JobBlock { SkinJob jobs[]; };
 layout(push_constant) uniform Push { TS_PUSH_SKIN } push;  // common/gpu_types.h
 
-mat4 Joint(uint j) {
-  uint b = (push.pose.x + j) * 16u;
+mat4 Joint(uint base, uint j) {
+  uint b = (base + j) * 16u;
   return mat4(pose[b + 0u], pose[b + 1u], pose[b + 2u], pose[b + 3u],
               pose[b + 4u], pose[b + 5u], pose[b + 6u], pose[b + 7u],
               pose[b + 8u], pose[b + 9u], pose[b + 10u], pose[b + 11u],
@@ -29,29 +36,39 @@ vec3 Load3(uint b) { return vec3(vertices[b], vertices[b + 1u], vertices[b + 2u]
 vec3 Delta3(uint b) { return vec3(deltas[b], deltas[b + 1u], deltas[b + 2u]); }
 
 void main() {
-  uint v = gl_GlobalInvocationID.x;
-  if (v >= push.range.z) return;
-  uint src = (push.range.x + v) * kVertexFloats;
-  uint dst = (push.range.y + v) * kVertexFloats;
+  // The last job whose first workgroup is at or before this one (jobs are in workgroup order).
+  uint group = gl_WorkGroupID.x + push.jobs.y;
+  uint lo = 0u, hi = push.jobs.x - 1u;
+  while (lo < hi) {
+    uint mid = (lo + hi + 1u) / 2u;
+    if (jobs[mid].groups.x <= group) lo = mid; else hi = mid - 1u;
+  }
+  uvec4 range = jobs[lo].range;
+  uvec4 job_pose = jobs[lo].pose;
+  uint v = (group - jobs[lo].groups.x) * kSkinGroupSize + gl_LocalInvocationID.x;
+  if (v >= range.z) return;
+  uint src = (range.x + v) * kVertexFloats;
+  uint dst = (range.y + v) * kVertexFloats;
   vec3 position = Load3(src);
   vec3 normal = Load3(src + 3u);
   vec4 tangent = vec4(Load3(src + 6u), vertices[src + 9u]);
 
   // Morph targets: target t's delta for vertex v is delta first + t * count + v.
-  for (uint t = 0u; t < push.pose.z; ++t) {
-    float w = pose[push.pose.y + t];
+  for (uint t = 0u; t < job_pose.z; ++t) {
+    float w = pose[job_pose.y + t];
     if (w == 0.0) continue;
-    uint d = (push.pose.w + t * push.range.z + v) * kMorphDeltaFloats;
+    uint d = (job_pose.w + t * range.z + v) * kMorphDeltaFloats;
     position += w * Delta3(d);
     normal += w * Delta3(d + 3u);
     tangent.xyz += w * Delta3(d + 6u);
   }
 
-  if (push.range.w != 0u) {
-    uvec4 joints = attributes[(push.range.x + v) * 2u];
-    vec4 weights = uintBitsToFloat(attributes[(push.range.x + v) * 2u + 1u]);
-    mat4 m = weights.x * Joint(joints.x) + weights.y * Joint(joints.y) +
-             weights.z * Joint(joints.z) + weights.w * Joint(joints.w);
+  if (range.w != 0u) {
+    uvec4 joints = attributes[(range.x + v) * 2u];
+    vec4 weights = uintBitsToFloat(attributes[(range.x + v) * 2u + 1u]);
+    uint base = job_pose.x;
+    mat4 m = weights.x * Joint(base, joints.x) + weights.y * Joint(base, joints.y) +
+             weights.z * Joint(base, joints.z) + weights.w * Joint(base, joints.w);
     position = (m * vec4(position, 1.0)).xyz;
     // The blended matrix's linear part for directions, as three.js and Filament do (exact for
     // rigid and uniformly scaled joints).

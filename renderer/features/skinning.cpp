@@ -1,9 +1,11 @@
 // Animated scenes (renderer/scene/scene_animator.h): the frame's first pass brings the device to
 // the pose GpuScene::Pose computed. It copies the moving drawables' records (world matrix and
 // bounds) from the pose buffer into the Drawable buffer, then skins and morphs each deformed
-// drawable's vertices from the rest vertices into its copy (shaders/skin.comp, one dispatch per
-// drawable). Every later pass (culling, shadows, depth or visibility, shading) reads the posed
+// drawable's vertices from the rest vertices into its copy (shaders/skin.comp, one dispatch for
+// all of them). Every later pass (culling, shadows, depth or visibility, shading) reads the posed
 // geometry. The pass runs only in frames whose pose differs from what the device holds.
+#include <algorithm>
+
 #include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
@@ -29,23 +31,26 @@ class SkinningPass final : public Pass {
       vkCmdCopyBuffer(ctx.cmd, gs.pose_buffer().handle(), gs.drawables().handle(),
                       uint32_t(copies.size()), copies.data());
     }
-    if (!gs.skin_jobs().empty()) {
+    if (gs.skin_job_count() > 0) {
       const VkDescriptorSet set = layout_.Allocate(ctx);
       SetWriter(device_, set)
           .Buffer(gpu::kSkinBindingVertices, gs.vertices().handle())
           .Buffer(gpu::kSkinBindingAttributes, gs.skin_attributes().handle())
           .Buffer(gpu::kSkinBindingDeltas, gs.morph_deltas().handle())
           .Buffer(gpu::kSkinBindingPose, gs.pose_buffer().handle())
+          .Buffer(gpu::kSkinBindingJobs, gs.skin_jobs().handle())
           .Update();
       vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout_.pipeline_layout(),
                               0, 1, &set, 0, nullptr);
-      // The jobs write disjoint copies and read only rest vertices: no barrier between them.
-      for (const gpu::SkinPush& job : gs.skin_jobs()) {
+      // Every deformed drawable in one dispatch (several past the device's workgroup count
+      // limit). The jobs write disjoint copies and read only rest vertices: no barriers.
+      const uint64_t limit = ctx.vk->limits().maxComputeWorkGroupCount[0];
+      for (uint64_t first = 0; first < gs.skin_groups(); first += limit) {
+        const gpu::SkinPush push{glm::uvec4(gs.skin_job_count(), uint32_t(first), 0, 0)};
         vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                           sizeof(job), &job);
-        vkCmdDispatch(ctx.cmd, (job.range.z + gpu::kSkinGroupSize - 1) / gpu::kSkinGroupSize, 1,
-                      1);
+                           sizeof(push), &push);
+        vkCmdDispatch(ctx.cmd, uint32_t(std::min(limit, gs.skin_groups() - first)), 1, 1);
       }
     }
     // The scene's buffers are not frame-graph resources: this pass orders its writes before
@@ -68,7 +73,7 @@ class SkinningPass final : public Pass {
 absl::StatusOr<std::unique_ptr<Pass>> CreateSkinningPass(const vk::Context& ctx) {
   std::vector<VkDescriptorSetLayoutBinding> bindings;
   for (uint32_t b : {gpu::kSkinBindingVertices, gpu::kSkinBindingAttributes,
-                     gpu::kSkinBindingDeltas, gpu::kSkinBindingPose})
+                     gpu::kSkinBindingDeltas, gpu::kSkinBindingPose, gpu::kSkinBindingJobs})
     bindings.push_back(
         LayoutBinding(b, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_COMPUTE_BIT));
   absl::StatusOr<PassLayout> layout = PassLayout::Create(

@@ -340,7 +340,12 @@ namespace {
 uint64_t AnimationBytes(const CpuScene& scene, const SceneAnimator& animator) {
   const bool skins = std::any_of(animator.drawables().begin(), animator.drawables().end(),
                                  [](const AnimatedDrawable& d) { return d.skin >= 0; });
+  const size_t jobs = std::count_if(
+      animator.drawables().begin(), animator.drawables().end(), [&](const AnimatedDrawable& d) {
+        return d.deformed && scene.primitives[d.primitive].vertex_count > 0;
+      });
   return (skins ? scene.vertices.size() * 2 * sizeof(glm::uvec4) : 16) +
+         std::max<size_t>(1, jobs) * sizeof(gpu::GpuSkinJob) +
          std::max<uint64_t>(16, scene.morph_deltas.size() * gpu::kMorphDeltaFloats * 4) +
          PlanPoseBuffer(animator).size + animator.copy_vertices() * sizeof(Vertex);
 }
@@ -401,16 +406,25 @@ absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) 
       (scene.vertices.size() + a.copy_vertices()) * gpu::kVertexFloats >= (uint64_t(1) << 32))
     return absl::InvalidArgumentError(
         absl::StrCat(n, ": too many animated vertices and morph deltas for 32-bit indices"));
-  skin_jobs_.clear();
+  std::vector<gpu::GpuSkinJob> jobs;
+  skin_groups_ = 0;
   for (const AnimatedDrawable& ad : a.drawables()) {
-    if (!ad.deformed) continue;
+    if (!ad.deformed || scene.primitives[ad.primitive].vertex_count == 0) continue;
     const Primitive& p = scene.primitives[ad.primitive];
-    gpu::SkinPush job{};
+    gpu::GpuSkinJob job{};
     job.range = glm::uvec4(p.first_vertex, ad.first_vertex, p.vertex_count, ad.skin >= 0 ? 1 : 0);
     job.pose = glm::uvec4(ad.joint_base, uint32_t(pose_weights_offset_ / 4) + ad.weight_base,
                           p.morph_targets, uint32_t(p.first_morph_delta));
-    skin_jobs_.push_back(job);
+    job.groups = glm::uvec4(skin_groups_, 0, 0, 0);
+    skin_groups_ += (p.vertex_count + gpu::kSkinGroupSize - 1) / gpu::kSkinGroupSize;
+    jobs.push_back(job);
   }
+  skin_job_count_ = uint32_t(jobs.size());
+  if (jobs.empty()) jobs.push_back(gpu::GpuSkinJob{});  // keep the binding valid
+  RETURN_IF_ERROR(assign(skin_jobs_, UploadBuffer(ctx, jobs.data(),
+                                                  jobs.size() * sizeof(gpu::GpuSkinJob),
+                                                  VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                                                  n + ".skin_jobs")));
   pose_pending_ = true;  // the copies hold the rest vertices until the first pose
   return absl::OkStatus();
 }

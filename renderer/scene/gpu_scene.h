@@ -145,8 +145,11 @@ class GpuScene {
   const vk::Buffer& morph_deltas() const { return morph_deltas_; }
   const vk::Buffer& pose_buffer() const { return pose_; }
   const std::vector<VkBufferCopy>& pose_copies() const { return pose_copies_; }
-  // One skin.comp dispatch per deformed drawable.
-  const std::vector<gpu::SkinPush>& skin_jobs() const { return skin_jobs_; }
+  // skin.comp's jobs (gpu::GpuSkinJob, one per deformed drawable), how many, and the workgroups
+  // they need in all.
+  const vk::Buffer& skin_jobs() const { return skin_jobs_; }
+  uint32_t skin_job_count() const { return skin_job_count_; }
+  uint64_t skin_groups() const { return skin_groups_; }
 
  private:
   // Upload's steps: the draws in item order with their GPU records, the buffers, the texture
@@ -188,7 +191,9 @@ class GpuScene {
   vk::Buffer skin_attributes_, morph_deltas_, pose_;
   VkDeviceSize pose_weights_offset_ = 0, pose_records_offset_ = 0;
   std::vector<VkBufferCopy> pose_copies_;
-  std::vector<gpu::SkinPush> skin_jobs_;
+  vk::Buffer skin_jobs_;
+  uint32_t skin_job_count_ = 0;
+  uint64_t skin_groups_ = 0;
   std::vector<gpu::GpuDrawable> records_;  // every drawable's record as uploaded
   bool pose_pending_ = false;
   uint64_t pose_serial_ = 0;

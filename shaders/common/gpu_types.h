@@ -139,6 +139,7 @@ TS_CONST uint kSkinBindingVertices = 0;
 TS_CONST uint kSkinBindingAttributes = 1;
 TS_CONST uint kSkinBindingDeltas = 2;
 TS_CONST uint kSkinBindingPose = 3;
+TS_CONST uint kSkinBindingJobs = 4;
 TS_CONST uint kMorphDeltaFloats = 9;
 TS_CONST uint kSkinGroupSize = 64;
 TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
@@ -364,12 +365,11 @@ struct GpuShadeEntry {
 // exposure.comp: size xy: HDR size in pixels, z: grid width, w: grid height (sample points);
 // params x: rate (>= 1: this frame's value at once, else the fraction of the way to move),
 // y: min log2 luminance, z: max log2 luminance.
-// skin.comp (one dispatch per deformed drawable): range = (first source vertex, first output
-// vertex, vertex count, 1 when skinned), pose = (first joint matrix of the drawable's skin in the
-// pose buffer, first morph weight there, morph targets, first morph delta of the primitive).
+// skin.comp: one workgroup per kSkinGroupSize vertices of every deformed drawable, in one
+// dispatch (or several of at most maxComputeWorkGroupCount[0] workgroups): jobs = (job count,
+// the dispatch's first workgroup, unused, unused).
 #define TS_PUSH_SKIN \
-  uvec4 range;       \
-  uvec4 pose;
+  uvec4 jobs;
 #define TS_PUSH_EXPOSURE \
   uvec4 size;            \
   vec4 params;
@@ -434,6 +434,15 @@ struct ExposurePush {
 };
 struct SkinPush {
   TS_PUSH_SKIN
+};
+// One deformed drawable of skin.comp, in the scene's job buffer: range = (first source vertex,
+// first output vertex, vertex count, 1 when skinned), pose = (first joint matrix of the
+// drawable's skin in the pose buffer, first morph weight there, morph targets, first morph delta
+// of the primitive), groups = (its first workgroup, unused...).
+struct GpuSkinJob {
+  uvec4 range;
+  uvec4 pose;
+  uvec4 groups;
 };
 struct HizPush {
   TS_PUSH_HIZ
