@@ -270,22 +270,30 @@ constexpr float kPlayFps = 30.0f;
 
 namespace {
 
-double PlayingSceneTime(const SessionState& st, Clock::time_point now) {
+// The time a playing session shows now, and whether a non-looping animation has reached its end.
+struct PlayTime {
+  double t = 0.0;
+  bool ended = false;
+};
+
+PlayTime PlayingSceneTime(const SessionState& st, Clock::time_point now) {
   double t = st.play_base + std::chrono::duration<double>(now - st.play_origin).count();
   // Kept within the animation, as the renderer would wrap or clamp it anyway, so a long stream
   // neither loses precision nor leaves the setting's range.
   const SceneInfo& info = st.lease->get().scene->info();
   const absl::StatusOr<int> a = FindAnimation(info, st.settings.animation);
   const double duration = a.ok() && *a >= 0 ? info.animations[size_t(*a)].duration_s : 0.0;
+  bool ended = false;
   if (duration > 0.0) {
     if (st.settings.loop) {
       t = std::fmod(t, duration);
       if (t < 0.0) t += duration;
     } else {
+      ended = t >= duration;
       t = std::clamp(t, 0.0, duration);
     }
   }
-  return std::clamp(t, -1e6, 1e6);
+  return {std::clamp(t, -1e6, 1e6), ended};
 }
 
 }  // namespace
@@ -393,7 +401,7 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
     st_.play_base = settings.scene_time;
     st_.play_origin = now;
   } else if (!settings.play && st_.settings.play && !time_set) {
-    settings.scene_time = static_cast<float>(PlayingSceneTime(st_, now));
+    settings.scene_time = static_cast<float>(PlayingSceneTime(st_, now).t);
   }
   st_.settings = settings;
   if (profile) st_.profile = *profile;
@@ -421,8 +429,18 @@ RenderWork StreamSession::MakeWorkLocked(const FrameStart& start) {
   w.scene_id = st_.lease->get().id;
   w.view = st_.id;
   w.settings = st_.settings;
-  if (st_.settings.play)  // the frame's settings say the time it shows
-    w.settings.scene_time = static_cast<float>(PlayingSceneTime(st_, Clock::now()));
+  if (st_.settings.play) {  // the frame's settings say the time it shows
+    const PlayTime now = PlayingSceneTime(st_, Clock::now());
+    w.settings.scene_time = static_cast<float>(now.t);
+    if (now.ended) {
+      // A non-looping animation that reached its end stops playing: this frame shows the end
+      // with play off, and the session goes back to frames on change.
+      st_.settings.play = false;
+      st_.settings.scene_time = w.settings.scene_time;
+      w.settings.play = false;
+      schedule_.SetPacing(PacingLocked());
+    }
+  }
   // Validated when the event arrived; framing depends only on the scene and aspect ratio.
   absl::StatusOr<Camera> camera = ResolveCamera(st_.camera, w.scene->info(), Aspect(st_.settings));
   w.camera = camera.ok() ? *camera : Camera{};

@@ -66,9 +66,10 @@ void main() {
   if (range.w != 0u) {
     uvec4 joints = attributes[(range.x + v) * 2u];
     vec4 weights = uintBitsToFloat(attributes[(range.x + v) * 2u + 1u]);
-    uint base = job_pose.x;
-    mat4 m = weights.x * Joint(base, joints.x) + weights.y * Joint(base, joints.y) +
-             weights.z * Joint(base, joints.z) + weights.w * Joint(base, joints.w);
+    // Only the joints that weigh: an unused slot's index need not name a joint of the skin.
+    mat4 m = mat4(0.0);
+    for (int k = 0; k < 4; ++k)
+      if (weights[k] != 0.0) m += weights[k] * Joint(job_pose.x, joints[k]);
     position = (m * vec4(position, 1.0)).xyz;
     // The blended matrix's linear part for directions, as three.js and Filament do (exact for
     // rigid and uniformly scaled joints).

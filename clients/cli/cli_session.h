@@ -37,7 +37,8 @@ struct SessionOptions {
   RenderFlags flags;
 
   Pacing pacing() const {
-    if (fps <= 0) return Pacing::kPerFrame;
+    // --play alone: the server renders the playing animation at its own rate.
+    if (fps <= 0) return flags.settings().play() && !orbit ? Pacing::kServerRate : Pacing::kPerFrame;
     return orbit ? Pacing::kSteadyRate : Pacing::kServerRate;
   }
 };

@@ -543,7 +543,8 @@ Exit status 130 after Ctrl-C (the summary of the frames so far is printed first)
                       camera move per received frame, one full turn in N moves
   --fps F             with --orbit: move the camera F times a second instead of once per frame;
                       without: the server renders continuously at up to F fps
-                      (neither: one refresh event per received frame)
+                      (neither: one refresh event per received frame; with --play alone,
+                      none: the server renders the playing animation at up to 30 fps)
   --save DIR          write the frames to DIR/frame_000001.jpg, ...
   --save FILE         with --codec h264: FILE.mp4 (MP4, each frame at its arrival time) or
                       FILE.h264 (the raw Annex B stream)

@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "renderer/scene/gltf_import.h"
+#include "renderer/scene/scene_animator.h"
 #include "tests/fuzz/file_set.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
@@ -43,6 +44,26 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (t.image == nullptr ||
           t.image->rgba8.size() != size_t(t.image->width) * t.image->height * 4)
         __builtin_trap();
+    }
+    // Animation: the skinning pass reads joint matrices by the vertices' joint indices and
+    // morph deltas by the primitives' ranges; poses at a few times, each animation.
+    for (const tessera::Primitive& p : s.primitives) {
+      if (p.morph_targets > 0 &&
+          p.first_morph_delta + uint64_t(p.morph_targets) * p.vertex_count > s.morph_deltas.size())
+        __builtin_trap();
+    }
+    if (std::unique_ptr<tessera::SceneAnimator> a = tessera::SceneAnimator::Create(s)) {
+      for (const tessera::AnimatedDrawable& d : a->drawables()) {
+        if (d.skin < 0) continue;
+        const tessera::Primitive& p = s.primitives[d.primitive];
+        const size_t joints = s.skins[size_t(d.skin)].joints.size();
+        for (uint32_t v = p.first_vertex; v < p.first_vertex + p.vertex_count; ++v)
+          for (int k = 0; k < 4; ++k)
+            if (s.skin_weights[v][k] != 0.0f && s.skin_joints[v][k] >= joints) __builtin_trap();
+      }
+      for (int anim = -1; anim < int(s.animations.size()) && anim < 4; ++anim) {
+        for (double t : {0.0, 0.37, 1e5}) a->Pose(anim, t, anim % 2 == 0);
+      }
     }
   }
   return 0;

@@ -186,6 +186,17 @@ def animation_seeds():
     write("gltf", "animated.tsfs", pack([("animated.gltf", json.dumps(doc).encode()), ("anim.bin", b"".join(parts))]))
 
 
+def generated_animation_seeds():
+    """The skinned cylinder, the morphing cube and the TRS-animated cubes of
+    tests/gltf/make_animated.py (skins, joints and weights, morph targets, every interpolation)."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "gltf"))
+    import make_animated
+    for make in (make_animated.skinned_cylinder, make_animated.morph_cube, make_animated.trs_nodes):
+        name, gltf, blob = make()
+        text = (json.dumps(gltf, indent=1) + "\n").encode()
+        write("gltf", name + ".tsfs", pack([(name + ".gltf", text), (name + ".bin", blob)]))
+
+
 def png(width, height, color_type, bit_depth, rows, palette=None):
     def chunk(kind, body):
         return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
@@ -261,6 +272,8 @@ def request_seeds(assets):
         "render_frame": 'scene_id: "demo" camera { frame { direction { x: 1 y: 0.5 z: 0.2 } } } '
                         'settings { aa: AA_VIS_MLAA samples: 4 light_radius_min: 0.5 light_radius_max: 2 }',
         "render_scene_camera": 'camera { scene_camera: 0 } settings { aa: AA_FXAA jpeg_444: true }',
+        "render_animation": 'scene_id: "demo" settings { width: 32 height: 24 animation: "walk" '
+                            'scene_time: 1.25 loop: false }',
     }
     for name, text in renders.items():
         write("request", name, b"\1" + encode("RenderRequest", text))
@@ -274,6 +287,7 @@ def request_seeds(assets):
                            'video { codec: VIDEO_CODEC_H264 encoder: VIDEO_ENCODER_SOFTWARE crf: 20 '
                            'interactive_crf: 30 max_bitrate_kbps: 8000 keyframe_interval: 120 preset: "veryfast" } }',
         "event_video_update": 'event_id: 9 keyframe: true video { codec: VIDEO_CODEC_JPEG crf: 51 preset: "fast" }',
+        "event_play": 'event_id: 3 settings { animation: "0" play: true scene_time: 0.5 loop: true }',
     }
     for name, text in events.items():
         write("request", name, b"\2" + encode("ClientEvent", text))
@@ -288,6 +302,8 @@ def request_seeds(assets):
         "job_list": 'spec { scene_id: "demo" list { cameras { %s } cameras { frame { } } } '
                     'frames { first: 5 last: 6 } taa_frames: 4 settings { aa: AA_TAA } }' % look,
         "job_frames_only": 'spec { scene_id: "demo" frames { first: 0 last: 1000 step: 7 } }',
+        "job_animation": 'spec { scene_id: "demo" frames { first: 0 last: 47 } fps: 24 '
+                         'settings { width: 32 height: 24 animation: "none" scene_time: 0.5 } }',
     }
     for name, text in jobs.items():
         write("request", name, b"\3" + encode("SubmitJobRequest", text))
@@ -323,6 +339,7 @@ def main():
         os.makedirs(os.path.join(HERE, "corpus", kind), exist_ok=True)
     gltf_seeds(args.assets)
     animation_seeds()
+    generated_animation_seeds()
     compressed_seeds(args.assets)
     image_seeds(args.assets)
     request_seeds(args.assets)

@@ -746,8 +746,9 @@ TEST_F(ServerTest, ContinuousStreamRendersWithoutEvents) {
 }
 
 // play: the session renders on its own (target_fps 0) and each frame's settings carry the scene
-// time it shows, advancing with the wall clock; a pause holds the time, and an event's scene_time
-// restarts the clock from there. An unknown animation ends the stream naming the field.
+// time it shows, advancing with the wall clock; a pause holds the time, an event's scene_time
+// restarts the clock from there, and without loop play stops at the animation's end. An unknown
+// animation ends the stream naming the field.
 TEST_F(ServerTest, APlayingStreamAdvancesItsSceneTimeWithTheClock) {
   v1::SceneInfo info;
   ASSERT_TRUE(UploadFromDisk(stub_.get(),
@@ -806,6 +807,9 @@ TEST_F(ServerTest, APlayingStreamAdvancesItsSceneTimeWithTheClock) {
   } while (f.event_id() < 3);
   EXPECT_GE(f.settings().scene_time(), 1.0f);
   EXPECT_LT(f.settings().scene_time(), 1.0f + 5.0f);
+  // Without loop, play stops at the end (2 s): that frame shows the end with play off.
+  while (f.settings().play()) ASSERT_TRUE(rw->Read(&f));
+  EXPECT_EQ(f.settings().scene_time(), 2.0f);
 
   v1::ClientEvent bad;
   bad.set_event_id(4);

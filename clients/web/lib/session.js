@@ -6,13 +6,18 @@
 // stream_session.cpp ApplyUpdateLocked, convert.cpp MergeProfile/MergeVideo, settings_wire.cpp
 // MergeSettings): a camera replaces the camera; settings, interactive and video are merged field
 // by field, set fields only (every field of the three is a scalar: proto3 `optional`, or an enum
-// whose 0 value means "keep"); target_fps replaces when set.
+// whose 0 value means "keep"; settings.animation, a string, is set when not empty: tesserad
+// keeps the animation on an empty one); target_fps replaces when set. While an animation plays,
+// the frames' scene time is kept too (followPlay), so a moved session goes on from there.
 //
 // Messages here are normalized: parsed by the proto's own deserializer after the serializer
 // checked them (connection.js), so an unset optional field is absent, an unset enum is its
 // *_UNSPECIFIED name and an unset message is null.
 
 const MERGED = ['settings', 'interactive', 'video'];
+// String fields whose empty value means "unchanged" to tesserad (settings_wire.cpp
+// MergeSettings): the animation. (VideoSettings.preset is not one: "" is refused there.)
+const EMPTY_KEEPS = { settings: new Set(['animation']) };
 
 /** A set field of a normalized message: present, and not an enum's "unspecified" value. */
 export function isSet(value) {
@@ -21,24 +26,30 @@ export function isSet(value) {
   return true;
 }
 
-/** `update`'s set fields over `base` (neither is changed); nested messages replace. */
-export function mergeSet(base, update) {
+/**
+ * `update`'s set fields over `base` (neither is changed); nested messages replace. Fields named
+ * in `emptyKeeps` are not set by an empty string.
+ */
+export function mergeSet(base, update, emptyKeeps = null) {
   const out = { ...(base ?? {}) };
   if (update === null || typeof update !== 'object') return out;
-  for (const [key, value] of Object.entries(update)) if (isSet(value)) out[key] = value;
+  for (const [key, value] of Object.entries(update)) {
+    if (!isSet(value) || (value === '' && emptyKeeps?.has(key))) continue;
+    out[key] = value;
+  }
   return out;
 }
 
 /** Only the set fields of a message (what an OpenSession needs to carry). */
-export function setFields(message) {
-  return mergeSet({}, message);
+export function setFields(message, emptyKeeps = null) {
+  return mergeSet({}, message, emptyKeeps);
 }
 
 /** The state of a session opened with `open` (a normalized OpenSession). */
 export function stateFromOpen(open) {
   const state = { scene_id: String(open?.scene_id ?? '') };
   if (isSet(open?.camera)) state.camera = open.camera;
-  for (const key of MERGED) if (isSet(open?.[key])) state[key] = setFields(open[key]);
+  for (const key of MERGED) if (isSet(open?.[key])) state[key] = setFields(open[key], EMPTY_KEEPS[key]);
   const fps = Number(open?.target_fps ?? 0);
   if (fps > 0) state.target_fps = fps;
   return state;
@@ -49,13 +60,32 @@ export function mergeEvent(state, event) {
   if (!event || typeof event !== 'object') return state;
   const next = { ...state };
   if (isSet(event.camera)) next.camera = event.camera;
-  for (const key of MERGED) if (isSet(event[key])) next[key] = mergeSet(next[key], event[key]);
+  for (const key of MERGED) {
+    if (isSet(event[key])) next[key] = mergeSet(next[key], event[key], EMPTY_KEEPS[key]);
+  }
   if (event.target_fps !== undefined && event.target_fps !== null) {
     const fps = Number(event.target_fps);
     if (fps > 0) next.target_fps = fps;
     else delete next.target_fps;
   }
   return next;
+}
+
+/**
+ * The state after a frame of the session: while its animation plays (settings.play, asked for
+ * and shown), the scene time the frame shows becomes the state's scene_time, so a move opens the
+ * session again where the animation had got to (tesserad starts the clock at the open's
+ * scene_time) rather than where it was last set. Only a frame that reflects the newest event the
+ * page sent (`newestEventId`) counts: a time the page set since then wins. Returns `state`
+ * itself when nothing changes (it is never changed).
+ */
+export function followPlay(state, frame, newestEventId = 0) {
+  const shown = frame?.settings;
+  if (!shown || shown.play !== true || state?.settings?.play !== true) return state;
+  if (Number(frame.event_id ?? 0) < Number(newestEventId ?? 0)) return state;
+  const time = Number(shown.scene_time);
+  if (!Number.isFinite(time) || state.settings.scene_time === time) return state;
+  return { ...state, settings: { ...state.settings, scene_time: time } };
 }
 
 /**

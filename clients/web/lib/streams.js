@@ -9,7 +9,7 @@
 import { wrapToken } from './replicas.js';
 import { GatewayError } from './rpc.js';
 import {
-  MoveBudget, completeState, failoverDecision, mergeEvent, openFromState, seenInFrame, stateFromOpen,
+  MoveBudget, completeState, failoverDecision, followPlay, mergeEvent, openFromState, seenInFrame, stateFromOpen,
 } from './session.js';
 
 const OK = 0;
@@ -125,6 +125,7 @@ export class BridgedStream {
     }
     if (this.resumed) this.seen = seenInFrame(frame);
     else if (frame.scene_id) this.state.scene_id = frame.scene_id; // a prefix, resolved
+    this.state = followPlay(this.state, frame, this.eventId); // a playing animation's time
     if (this.lostAt && this.framesOnCall === 1) {
       const ms = (this.ctx.now?.() ?? Date.now()) - this.lostAt;
       this.ctx.log(`${this.label}: first frame from ${this.replica.address}, ${ms} ms after the loss of its replica`);

@@ -3,16 +3,18 @@
 //   camera.js    orbit / fly camera math, pointer gestures, the view in the URL
 //   chart.js     per-pass timing chart, fps, bitrate, latency and the stats text
 //   settings.js  the settings panel, in sections, from the server's description
+//   animation.js the Animation section: the scene's glTF animations, play/pause, time, loop
 //   upload.js    which files an upload needs, its scene id, and sending them
 //   video.js     H.264 streams: whether the browser decodes them, one VideoDecoder per stream
 // Sections below: state, errors and status, the stream session, frames, camera input,
-// the view in the URL, stats overlay and fullscreen, viewport size, settings panel, the codec,
-// scenes and uploads, test hooks, start-up.
+// the view in the URL, stats overlay and fullscreen, viewport size, settings panel, animation,
+// the codec, scenes and uploads, test hooks, start-up.
 // Nothing is global except window.tessera (the hooks the headless-browser tests read).
 
 import { Connection } from './protocol.js';
 import { el } from './dom.js';
 import { SettingsPanel, validNumber } from './settings.js';
+import { AnimationControls, NONE as NO_ANIMATION } from './animation.js';
 import {
   OrbitCamera, PointerGestures, flyVector, formatViewLink, isFlyKey, parseViewLink, wheelFactor,
 } from './camera.js';
@@ -45,6 +47,10 @@ const ui = {
   interactiveQuality: $('interactive-quality'),
   interactiveCrf: $('interactive-crf'), interactiveCrfField: $('interactive-crf-field'),
   chart: $('chart'), chartLegend: $('chart-legend'), stats: $('stats'),
+  animation: {
+    section: $('animation'), select: $('animation-select'), play: $('animation-play'),
+    time: $('animation-time'), readout: $('animation-readout'), loop: $('animation-loop'),
+  },
 };
 
 const RESIZE_DEBOUNCE_MS = 150;
@@ -403,6 +409,11 @@ function onStreamEnd(msg) {
 function switchScene(sceneId, link = null) {
   state.sceneId = sceneId;
   state.token = null;
+  // An animation (and its time and clock) belongs to the scene; the new one starts at rest.
+  for (const name of ['animation', 'scene_time', 'play']) {
+    delete state.userSettings[name];
+    state.pendingFields.delete(name);
+  }
   state.camera = null;
   state.cameraInitAfter = 0;
   state.cameraDirty = false;
@@ -455,11 +466,13 @@ function onOrphanError({ id, error }) {
  */
 function revertSettings(names = Object.keys(state.userSettings)) {
   let reverted = false;
+  // A frame's settings name the animation only when there is one.
+  const confirmed = { animation: NO_ANIMATION, ...state.confirmed };
   for (const name of names) {
     state.pendingFields.delete(name);
     if (!(name in state.userSettings)) continue;
-    if (name in state.confirmed && state.confirmed[name] !== state.userSettings[name]) {
-      state.userSettings[name] = state.confirmed[name];
+    if (name in confirmed && confirmed[name] !== state.userSettings[name]) {
+      state.userSettings[name] = confirmed[name];
       reverted = true;
     }
     panel.controls.get(name)?.write(state.userSettings[name]);
@@ -469,6 +482,7 @@ function revertSettings(names = Object.keys(state.userSettings)) {
     state.userSettings = {};
     state.interactive = null;
   }
+  animation.show({ ...confirmed, ...state.userSettings });
   return reverted;
 }
 
@@ -572,6 +586,7 @@ function showImage(gen, image, frame, payload, latencyMs, decodeMs) {
   requestTick();
   state.confirmed = { ...(frame.settings ?? {}) };
   panel.reflect(frame, state.pendingFields);
+  reflectAnimation(frame);
   renderStats();
 }
 
@@ -1054,6 +1069,32 @@ function onInteractiveChanged() {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Animation: the scene's glTF animations (SceneInfo.animations, from the scene list), played
+// by the server; its fields are settings like the panel's, kept in state.userSettings
+
+const animation = new AnimationControls(ui.animation, (change) => {
+  Object.assign(state.userSettings, change);
+  sendEvent({ settings: change });
+}, guard);
+
+/** The SceneInfo of the scene shown, as the server listed it; null when it did not. */
+function currentSceneInfo(sceneId = state.sceneId) {
+  return state.scenes.find((s) => s.scene_id === sceneId) ??
+    state.scenes.find((s) => !s.deleted && s.scene_id.startsWith(sceneId)) ?? null;
+}
+
+/**
+ * The section follows each frame (the slider the time a playing animation shows). Once the
+ * user has played or timed an animation, the time shown is the one a new session starts from
+ * (after a lost stream, a resume): the animation goes on where it was, not where it was set.
+ */
+function reflectAnimation(frame) {
+  const time = animation.reflect(frame, state.pendingFields);
+  const timed = 'play' in state.userSettings || 'scene_time' in state.userSettings;
+  if (time !== undefined && timed) state.userSettings.scene_time = time;
+}
+
+// ---------------------------------------------------------------------------------------------
 // The codec: JPEG pictures, or an H.264 video where this browser decodes it (WebCodecs)
 
 const STORAGE_VIDEO = 'tessera.video';
@@ -1192,6 +1233,7 @@ function renderSceneOptions() {
   }
   ui.sceneSelect.replaceChildren(...options);
   ui.sceneSelect.value = current.value;
+  animation.setScene(currentSceneInfo(current.value));
 }
 
 const PHASES = {

@@ -4,8 +4,16 @@
 // collapsible sections (groupSettings), showing the effective settings of each frame and the
 // server's notes on fields it changed.
 import { el } from './dom.js';
+import { ANIMATION_SETTINGS } from './animation.js';
 
-const HIDDEN_SETTINGS = new Set(['width', 'height']);  // the viewport drives them
+// Fields the panel leaves out: the viewport drives width and height, and the Animation section
+// (animation.js) owns the animation's fields, so no two controls fight over one.
+const HIDDEN_SETTINGS = new Set(['width', 'height', ...ANIMATION_SETTINGS]);
+
+/** Whether the settings panel has a control for a RenderSettings field of this name. */
+export function inPanel(name) {
+  return !HIDDEN_SETTINGS.has(name);
+}
 
 /**
  * The panel's sections, in order. A setting goes to the section that lists it (in the listed
@@ -153,7 +161,7 @@ export class SettingsPanel {
     this.sections = new Map();
     const rows = new Map();  // field name -> its row
     for (const field of schema) {
-      if (HIDDEN_SETTINGS.has(field.name)) continue;
+      if (!inPanel(field.name)) continue;
       const control = this.#control(field, info);
       if (!control) continue;
       control.element.id = `setting-${field.name}`;

@@ -10,7 +10,7 @@ import { ReplicaSet, replicaTag } from '../lib/replicas.js';
 import { BridgedStream } from '../lib/streams.js';
 import { Connection, UploadBudget } from '../lib/connection.js';
 import {
-  MoveBudget, completeState, failoverDecision, mergeEvent, openFromState, seenInFrame, stateFromOpen,
+  MoveBudget, completeState, failoverDecision, followPlay, mergeEvent, openFromState, seenInFrame, stateFromOpen,
 } from '../lib/session.js';
 import { REPO, splitBinary } from './harness.js';
 
@@ -58,6 +58,44 @@ test('state: the open, then every event as tesserad applies it (camera replaces;
   const before = JSON.stringify(state);
   mergeEvent(state, norm({ settings: { width: 1 } }));
   assert.equal(JSON.stringify(state), before);
+});
+
+test('state: the animation (a string) is remembered until an event names another; an empty one keeps it', () => {
+  let state = stateFromOpen(norm({ open: { scene_id: 'demo', settings: { width: 64, animation: '' } } }).open);
+  assert.deepEqual(state.settings, { width: 64 }, 'an empty animation in the open is none: not carried');
+  state = mergeEvent(state, norm({ event_id: 2, settings: { animation: 'Walk', scene_time: 0, play: true } }));
+  assert.deepEqual(state.settings, { width: 64, animation: 'Walk', scene_time: 0, play: true });
+  state = mergeEvent(state, norm({ event_id: 3, settings: { loop: false } }));
+  assert.equal(state.settings.animation, 'Walk', 'an event without animation leaves it');
+  state = mergeEvent(state, norm({ event_id: 4, settings: { animation: '', scene_time: 1.5 } }));
+  assert.equal(state.settings.animation, 'Walk', 'an empty animation leaves it (tesserad: unchanged)');
+  assert.equal(state.settings.scene_time, 1.5);
+  state = mergeEvent(state, norm({ event_id: 5, settings: { play: false } }));
+  assert.deepEqual(state.settings, { width: 64, animation: 'Walk', scene_time: 1.5, play: false, loop: false });
+  state = mergeEvent(state, norm({ event_id: 6, settings: { animation: 'none' } }));
+  assert.equal(state.settings.animation, 'none');
+  const again = norm({ open: openFromState(state) }).open;
+  assert.equal(again.settings.animation, 'none');
+  assert.equal(again.settings.play, false);
+  assert.equal(again.settings.loop, false);
+  // An empty VideoSettings.preset is not "unchanged" (tesserad refuses it): kept as sent.
+  assert.equal(mergeEvent(state, norm({ video: { preset: '' } })).video.preset, '');
+});
+
+test('followPlay: a playing animation\'s state takes the time its newest frames show', () => {
+  const state = { scene_id: 'demo', settings: { animation: 'Walk', scene_time: 0.5, play: true } };
+  const frame = (event_id, settings) => ({ event_id, settings: { loop: true, ...settings } });
+  const moved = followPlay(state, frame(4, { play: true, scene_time: 1.25 }), 4);
+  assert.deepEqual(moved.settings, { animation: 'Walk', scene_time: 1.25, play: true });
+  assert.equal(state.settings.scene_time, 0.5, 'not changed in place');
+  // A frame older than the page's newest event (which may set the time) does not count.
+  assert.equal(followPlay(state, frame(3, { play: true, scene_time: 1.25 }), 4), state);
+  // Paused (asked or shown), or a frame without settings: the state as it is.
+  assert.equal(followPlay(state, frame(4, { play: false, scene_time: 1.25 }), 4), state);
+  const paused = { scene_id: 'demo', settings: { scene_time: 0.5, play: false } };
+  assert.equal(followPlay(paused, frame(4, { play: true, scene_time: 1.25 }), 4), paused);
+  assert.equal(followPlay({ scene_id: 'demo' }, frame(4, { play: true, scene_time: 1 }), 4).settings, undefined);
+  assert.equal(followPlay(state, { event_id: 4 }, 4), state);
 });
 
 test('state of a resumed session: what the page resends, completed by what its frames say', () => {
@@ -190,6 +228,47 @@ test('a stream whose replica is lost reopens its session elsewhere with what it 
   assert.deepEqual(second.call.written.at(-1), { event_id: 8, refresh: true });
   assert.ok(logs.some((l) => /moved from a:1|moved from b:1|moved from c:1/.test(l)), logs.join('\n'));
   assert.ok(logs.some((l) => /first frame from .*ms after the loss/.test(l)), logs.join('\n'));
+});
+
+test('a playing animation survives a move: its animation, play and loop, from the time its frames had reached', async () => {
+  const { set, calls, infos } = await fakeReplicas(['a:1', 'b:1', 'c:1']);
+  const stream = makeStream(set);
+  const page = sink();
+  stream.attach(page);
+  await stream.open(norm({ event_id: 1, open: { scene_id: 'demo', settings: { width: 160, height: 120 } } }));
+  const first = calls[0];
+  const play = { event_id: 2, settings: { animation: 'Walk', scene_time: 0.25, play: true, loop: false } };
+  stream.write(play, norm(play));
+  // The clock runs on the replica: its frames say the time they show.
+  const shown = (event_id, scene_time) => ({ sequence: event_id, session_token: 't', scene_id: 'demo', event_id,
+    settings: { width: 160, height: 120, scene_time, play: true, loop: false, animation: 'Walk' } });
+  first.call.emit('data', shown(1, 0));
+  first.call.emit('data', shown(2, 0.75));
+  first.call.emit('data', shown(2, 1.5));
+  // An event without animation settings leaves them as they are.
+  const other = { event_id: 3, settings: { exposure_ev: 1 } };
+  stream.write(other, norm(other));
+  first.call.emit('data', shown(2, 1.55));  // before event 3: does not count
+  infos[first.address] = Object.assign(new Error('gone'), { code: UNAVAILABLE, details: 'connect ECONNREFUSED' });
+  first.call.emit('status', { code: UNAVAILABLE, details: 'Connection dropped' });
+  await tick();
+  assert.equal(calls.length, 2);
+  const reopen = calls[1].call.written[0];
+  assert.deepEqual(reopen.open.settings,
+    { width: 160, height: 120, animation: 'Walk', scene_time: 1.5, play: true, loop: false, exposure_ev: 1 });
+  assert.equal(norm(reopen).open.settings.animation, 'Walk', 'a valid OpenSession');
+
+  // On the new replica: the page sets a time; until frames show it, they do not move it back.
+  const second = calls[1];
+  const seek = { event_id: 4, settings: { scene_time: 0.5 } };
+  stream.write(seek, norm(seek));
+  second.call.emit('data', { ...shown(3, 1.6), sequence: 1 });
+  second.call.emit('status', { code: UNAVAILABLE, details: 'Connection dropped' });
+  await tick();
+  const last = calls.at(-1);
+  assert.notEqual(last, second, 'moved again');
+  assert.equal(last.call.written[0].open.settings.scene_time, 0.5, 'the time the page set wins');
+  assert.equal(last.call.written[0].open.settings.play, true);
 });
 
 test('normal ends never move: OK, errors of the request, a page that closed or cancelled', async () => {

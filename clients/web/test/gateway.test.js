@@ -48,9 +48,11 @@ test('info carries the server info and the RenderSettings schema with the offere
   assert.deepEqual(byName.culling.choices, info.choices.culling.map((c) => `CULLING_${c.toUpperCase()}`));
   assert.deepEqual(byName.samples.choices, info.choices.samples);
   assert.equal(info.default_settings.aa, 'AA_NONE');
-  // The server's settings table: one spec per RenderSettings field, with its range and label.
+  // The server's settings table: one spec per RenderSettings field, with its range and label;
+  // the one text field, animation, is outside the table (the page's Animation section has it).
   const specs = Object.fromEntries(info.choices.settings.map((s) => [s.name, s]));
-  assert.deepEqual(Object.keys(specs).sort(), schema.map((f) => f.name).sort());
+  assert.deepEqual(Object.keys(specs).sort(), schema.filter((f) => f.type !== 'other').map((f) => f.name).sort());
+  assert.deepEqual(schema.filter((f) => f.type === 'other').map((f) => f.name), ['animation']);
   assert.equal(specs.bloom_strength.type, 'float');
   assert.equal(specs.bloom_strength.max, 1);
   assert.equal(specs.jpeg_quality.min, 1);
@@ -197,6 +199,100 @@ test('upload: a .glb in chunks, with progress, is loaded and renders; a re-uploa
   assert.ok(rendered.ok);
   const again = await uploadFile(page, 'Box.glb', glb);
   assert.equal(again.reply.result.scene_id, reply.result.scene_id);
+  page.close();
+});
+
+/**
+ * A .glb of one triangle moved by glTF animations `names` (each: translation x 0 -> 1 over
+ * `duration` seconds, linear; a name may be undefined: the animation has none).
+ */
+function animatedGlb(names, duration = 2) {
+  const floats = [0, 0, 0, 1, 0, 0, 0, 1, 0, /* times */ 0, duration, /* translations */ 0, 0, 0, 1, 0, 0];
+  const bin = Buffer.from(new Float32Array(floats).buffer);
+  const gltf = {
+    asset: { version: '2.0' },
+    buffers: [{ byteLength: bin.length }],
+    bufferViews: [
+      { buffer: 0, byteOffset: 0, byteLength: 36, target: 34962 },
+      { buffer: 0, byteOffset: 36, byteLength: 8 },
+      { buffer: 0, byteOffset: 44, byteLength: 24 },
+    ],
+    accessors: [
+      { bufferView: 0, componentType: 5126, count: 3, type: 'VEC3', min: [0, 0, 0], max: [1, 1, 0] },
+      { bufferView: 1, componentType: 5126, count: 2, type: 'SCALAR', min: [0], max: [duration] },
+      { bufferView: 2, componentType: 5126, count: 2, type: 'VEC3' },
+    ],
+    meshes: [{ primitives: [{ attributes: { POSITION: 0 } }] }],
+    nodes: [{ mesh: 0 }],
+    scenes: [{ nodes: [0] }],
+    scene: 0,
+    animations: names.map((name) => ({
+      ...(name === undefined ? {} : { name }),
+      channels: [{ sampler: 0, target: { node: 0, path: 'translation' } }],
+      samplers: [{ input: 1, output: 2, interpolation: 'LINEAR' }],
+    })),
+  };
+  let json = Buffer.from(JSON.stringify(gltf));
+  json = Buffer.concat([json, Buffer.alloc((4 - (json.length % 4)) % 4, 0x20)]);
+  const chunk = (type, data) => {
+    const head = Buffer.alloc(8);
+    head.writeUInt32LE(data.length, 0);
+    head.writeUInt32LE(type, 4);
+    return Buffer.concat([head, data]);
+  };
+  const body = Buffer.concat([chunk(0x4e4f534a, json), chunk(0x004e4942, bin)]);
+  const header = Buffer.alloc(12);
+  header.writeUInt32LE(0x46546c67, 0);
+  header.writeUInt32LE(2, 4);
+  header.writeUInt32LE(12 + body.length, 8);
+  return Buffer.concat([header, body]);
+}
+
+test('animations: the scene list names them; a stream plays one and its frames say the time they show', async () => {
+  const page = await PageClient.connect(gateway.wsUrl);
+  const { reply } = await uploadFile(page, 'Slide.glb', animatedGlb(['Slide', 'Slide', undefined]));
+  assert.ok(reply.ok, JSON.stringify(reply.error));
+  const sceneId = reply.result.scene_id;
+  // The page's Animation section reads SceneInfo.animations from the scene list.
+  const listed = (await page.request('scenes')).result.scenes.find((s) => s.scene_id === sceneId);
+  assert.deepEqual(listed.animations.map((a) => [a.name, a.duration_s, a.channels]),
+    [['Slide', 2, 1], ['Slide', 2, 1], ['animation 2', 2, 1]]);
+
+  const opened = await page.request('open', { open: { scene_id: sceneId, settings: SMALL } });
+  const sid = opened.result.stream;
+  const frames = () => page.frames.filter((f) => f.header.stream === sid).map((f) => f.header.frame);
+  await page.waitFor(() => frames().length > 0, 'the first frame');
+  assert.equal(frames()[0].settings.animation, undefined, 'no animation: not named');
+  assert.equal(frames()[0].settings.play, false);
+  const send = (event) => page.ws.send(JSON.stringify({ id: page.nextId++, op: 'event', stream: sid, event }));
+  // The second "Slide" by its index, played from 0.5 s: frames come by themselves (target_fps
+  // 0) and their time advances.
+  send({ event_id: 2, settings: { animation: '1', scene_time: 0.5, play: true } });
+  const playing = await page.waitFor(() => {
+    const f = frames().filter((x) => x.event_id >= 2);
+    return f.length >= 3 && f;
+  }, 'frames of the playing animation');
+  assert.equal(playing[0].settings.animation, '1');
+  assert.equal(playing[0].settings.play, true);
+  const times = playing.map((f) => f.settings.scene_time);
+  assert.ok(times[0] >= 0.5 && times.at(-1) > times[0], `times ${times}`);
+  // A time set while playing: the clock goes on from there. Pause keeps the time reached.
+  send({ event_id: 3, settings: { scene_time: 1.75 } });
+  const seek = await page.waitFor(() => frames().find((f) => f.event_id >= 3), 'a frame after the seek');
+  assert.ok(seek.settings.scene_time >= 1.75 || seek.settings.scene_time < 0.5, `after the seek: ${seek.settings.scene_time}`);
+  send({ event_id: 4, settings: { play: false } });
+  const paused = await page.waitFor(() => frames().find((f) => f.event_id >= 4), 'a frame after the pause');
+  assert.equal(paused.settings.play, false);
+  assert.ok(paused.settings.scene_time >= 0 && paused.settings.scene_time <= 2);
+  // An event without animation keeps it; an unknown name ends the stream, naming the field.
+  send({ event_id: 5, settings: { loop: false, animation: '' } });
+  const kept = await page.waitFor(() => frames().find((f) => f.event_id >= 5), 'a frame after event 5');
+  assert.equal(kept.settings.animation, '1');
+  assert.equal(kept.settings.loop, false);
+  send({ event_id: 6, settings: { animation: 'Walk' } });
+  const end = await page.waitFor(() => page.messages.find((m) => m.type === 'stream_end' && m.stream === sid), 'the refused event\'s end');
+  assert.equal(end.error.code, 'INVALID_ARGUMENT');
+  assert.match(end.error.message, /settings\.animation.*'Slide'/);
   page.close();
 });
 
