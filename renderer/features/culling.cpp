@@ -120,6 +120,7 @@ void SetupCulling(GraphBuilder& b) {
     b.Import(Resource::kVisibilityBits, Access::kComputeWrite, Access::kComputeWrite);
   // The first phase does not read the pyramid, but its pipeline binds it.
   b.Pass(PassId::kCull)
+      .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead)
       .Use(Resource::kHiz, Access::kComputeRead)
       .Use(Resource::kDrawLists, Access::kComputeWrite)
       .UseIfPresent(Resource::kVisibilityBits, Access::kComputeRead);
@@ -134,6 +135,7 @@ void SetupOcclusion(GraphBuilder& b) {
       .Use(Resource::kDepth, Access::kComputeRead)
       .Use(Resource::kHiz, Access::kComputeWrite);
   b.Pass(PassId::kCullLate)
+      .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead)
       .Use(Resource::kHiz, Access::kComputeRead)
       .Use(Resource::kDrawLists, Access::kComputeWrite)
       .Use(Resource::kVisibilityBits, Access::kComputeWrite);

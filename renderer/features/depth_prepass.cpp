@@ -103,7 +103,8 @@ void AddDepthPass(GraphBuilder& b, bool late) {
     return;
   }
   b.Pass(late ? PassId::kDepthPrepassLate : PassId::kDepthPrepass)
-      .Use(Resource::kDrawLists, Access::kIndirectRead);
+      .Use(Resource::kDrawLists, Access::kIndirectRead)
+      .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
   if (b.settings().aa == AaMode::kMsaa) {
     b.Use(Resource::kDepthMs, Access::kDepthWrite).Use(Resource::kDepth, Access::kDepthResolve);
   } else {

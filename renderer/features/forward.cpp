@@ -162,7 +162,7 @@ void UseForwardTargets(GraphBuilder& b, Resource color) {
 void SetupForward(GraphBuilder& b) {
   // vis_mlaa and the visibility pipeline shade their visibility buffers.
   if (DrawsVisibility(b.settings())) return;
-  b.Pass(PassId::kForward);
+  b.Pass(PassId::kForward).UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
   UseForwardTargets(b, Resource::kHdrColor);
 }
 
@@ -170,7 +170,7 @@ void SetupTransparent(GraphBuilder& b) {
   // Blended surfaces need the opaque colour underneath and must not write depth; vis_mlaa's
   // go over its anti-aliased result, against the resolved depth.
   if (!b.features().has_transparent) return;
-  b.Pass(PassId::kTransparent);
+  b.Pass(PassId::kTransparent).UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
   UseForwardTargets(b, b.SceneColor());
 }
 

@@ -91,6 +91,7 @@ struct FrameTargets {
       case Resource::kVisibilityBits:
       case Resource::kLightLists:
       case Resource::kShadeLists:
+      case Resource::kPosedGeometry:
       case Resource::kCount: break;
     }
     return ldr;

@@ -147,7 +147,9 @@ void SetupShadows(GraphBuilder& b) {
   // faces (a new atlas is undefined and cleared whole).
   b.Import(Resource::kShadowAtlas,
            b.features().shadow_atlas_valid ? Access::kSampled : Access::kNone, Access::kSampled);
-  b.Pass(PassId::kShadows).Use(Resource::kShadowAtlas, Access::kDepthWrite);
+  b.Pass(PassId::kShadows)
+      .Use(Resource::kShadowAtlas, Access::kDepthWrite)
+      .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
 }
 
 namespace {

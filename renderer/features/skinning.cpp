@@ -53,13 +53,8 @@ class SkinningPass final : public Pass {
         vkCmdDispatch(ctx.cmd, uint32_t(std::min(limit, gs.skin_groups() - first)), 1, 1);
       }
     }
-    // The scene's buffers are not frame-graph resources: this pass orders its writes before
-    // every later read itself (vertex and index fetch, storage reads in any stage, indirect
-    // culling reads of the records).
-    vk::CmdMemoryBarrier(ctx.cmd,
-                         VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                         VK_ACCESS_2_TRANSFER_WRITE_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                         VK_PIPELINE_STAGE_2_ALL_COMMANDS_BIT, VK_ACCESS_2_MEMORY_READ_BIT);
+    // The graph orders the copy and the dispatches (Resource::kPosedGeometry, written in the
+    // compute and transfer stages) before every pass that reads the geometry.
   }
 
  private:
@@ -85,7 +80,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateSkinningPass(const vk::Context& ctx)
 }
 
 void SetupSkinning(GraphBuilder& b) {
-  if (b.features().pose_pending) b.Pass(PassId::kSkinning);
+  if (!b.features().pose_pending) return;
+  b.Pass(PassId::kSkinning).Use(Resource::kPosedGeometry, Access::kComputeWrite);
 }
 
 }  // namespace tessera

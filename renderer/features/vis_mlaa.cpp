@@ -200,7 +200,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ct
 
 void AddVisibilityPass(GraphBuilder& b, bool late) {
   b.Pass(late ? PassId::kVisibilityLate : PassId::kVisibility)
-      .Use(Resource::kDrawLists, Access::kIndirectRead);
+      .Use(Resource::kDrawLists, Access::kIndirectRead)
+      .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
   if (b.settings().aa == AaMode::kVisMlaa) {
     b.Use(Resource::kDepthMs, Access::kDepthWrite)
         .Use(Resource::kVisMs, Access::kColorWrite)
@@ -217,6 +218,7 @@ void SetupVisMlaa(GraphBuilder& b) {
   // The edge list borrows the shading's pixel lists (rewritten whole each frame).
   b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
   b.Pass(PassId::kVisResolve)
+      .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisMs, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite)
       .Use(R::kVisId, A::kComputeWrite)

@@ -232,9 +232,11 @@ void SetupVisibilityShading(GraphBuilder& b) {
   // The entries and lists are rewritten whole each frame.
   if (!b.Imported(R::kShadeLists)) b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
   b.Pass(PassId::kVisClassify)
+      .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite);
   b.Pass(PassId::kShade)
+      .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
       .Use(R::kShadeLists, A::kIndirectRead)
       .Use(R::kHdrColor, A::kComputeWrite)

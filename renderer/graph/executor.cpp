@@ -76,6 +76,7 @@ AccessInfo ToVulkan(Access a) {
       return {VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_SAMPLED_READ_BIT,
               VK_IMAGE_LAYOUT_GENERAL};
     case Access::kIndirectRead:  // buffers only
+    case Access::kGeometryRead:
     case Access::kHostWrite:
     case Access::kHostRead:
       break;
@@ -103,6 +104,12 @@ BufferAccessInfo ToVulkanBuffer(Access a) {
     case Access::kIndirectRead:  // and the storage reads of the dispatches that use them
       return {VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT | VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
               VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_READ_BIT};
+    case Access::kGeometryRead:
+      return {VK_PIPELINE_STAGE_2_VERTEX_ATTRIBUTE_INPUT_BIT | VK_PIPELINE_STAGE_2_INDEX_INPUT_BIT |
+                  VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT | VK_PIPELINE_STAGE_2_FRAGMENT_SHADER_BIT |
+                  VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+              VK_ACCESS_2_VERTEX_ATTRIBUTE_READ_BIT | VK_ACCESS_2_INDEX_READ_BIT |
+                  VK_ACCESS_2_SHADER_STORAGE_READ_BIT};
     case Access::kHostWrite:
       return {VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_WRITE_BIT};
     case Access::kHostRead:

@@ -82,6 +82,7 @@ int LayoutClass(Access a) {
     case Access::kComputeReadGeneral:
       return 5;
     case Access::kIndirectRead:
+    case Access::kGeometryRead:
       return 6;
     case Access::kHostWrite:
     case Access::kHostRead:

@@ -51,13 +51,17 @@ enum class Resource : uint8_t {
   kLightLists,      // forward+: per-tile light counts and lists
   kShadeLists,      // visibility pipeline: per material its pixel count, list offset and
                     // dispatch size, and the pixel lists the shading dispatches read
+  kPosedGeometry,   // animated scenes: the drawable records and deformed vertices the skinning
+                    // pass writes for the frame's pose (the scene's buffers; only in frames
+                    // that run it: every pass that reads the geometry uses it if present)
   kCount
 };
 
 // Whether `r` is a buffer (its transitions are memory barriers) rather than an image.
 inline bool IsBuffer(Resource r) {
   return r == Resource::kDrawLists || r == Resource::kVisibilityBits ||
-         r == Resource::kLightLists || r == Resource::kShadeLists;
+         r == Resource::kLightLists || r == Resource::kShadeLists ||
+         r == Resource::kPosedGeometry;
 }
 // Barriers inside a pass between its own steps (bloom's and the pyramid's mips, ssao's blur, a
 // cull pass's clears before its dispatch, light culling's copy of its counts for the host) are
@@ -79,6 +83,8 @@ enum class Access : uint8_t {
   // Buffers only (kComputeWrite, kComputeRead and kSampled apply to buffers too: storage writes
   // and clears, storage reads in compute, storage reads in fragment shaders).
   kIndirectRead,  // indirect draw and dispatch commands and counts
+  kGeometryRead,  // vertex and index fetch, and storage reads of vertices and drawable records
+                  // in any shader stage (the geometry passes, culling, visibility shading)
   kHostWrite,     // written by the host before the frame was submitted
   kHostRead,      // read by the host after the frame
 };

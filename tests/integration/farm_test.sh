@@ -3,9 +3,11 @@
 # `tessera job submit --servers` (gRPC round_robin), one daemon killed (SIGKILL) mid-job. Every
 # frame must be there once, byte-identical to the same job run on a single daemon as a
 # server-side job (SubmitJob), and the killed daemon's frames must have been retried elsewhere.
-# Usage: farm_test.sh TESSERAD TESSERA
+# Then an animated scene's shot (the skinned cylinder at 12 fps) spread over two daemons, each
+# frame byte-identical to the same job on one daemon.
+# Usage: farm_test.sh TESSERAD TESSERA ANIMATED_DIR
 set -euo pipefail
-tesserad=$1 tessera=$2
+tesserad=$1 tessera=$2 animated=$3
 # shellcheck source=daemon.sh
 source "$(dirname "$0")/daemon.sh"
 start_replicas 3 "$tesserad"
@@ -70,3 +72,24 @@ PY
 grep -q "answers now" "$work/late.err" || fail "the late daemon was not reported: $(cat "$work/late.err")"
 [[ $(find "$work/late" -name '*.png' | wc -l) -eq 80 ]] || fail "late farm: not 80 frames"
 echo "farm: started with one of two daemons; the other, started mid-job, took frames"
+
+# An animation: frame n is the skinned cylinder at n / 12 s, rendered by whichever daemon, the
+# same bytes as one daemon's server-side job.
+shot=(job submit --scene-file "$animated/skinned_cylinder.gltf" --animation bend --fps 12
+      --frames 0..23 --width 160 --height 120 --png)
+"$tessera" --json "${shot[@]}" --servers "${ports[0]},${ports[1]}" --out "$work/shot_farm" \
+  > "$work/shot_farm.json" 2> "$work/shot_farm.err" || fail "the animated farm job failed: $(cat "$work/shot_farm.err")"
+python3 - "$work/shot_farm.json" <<'PY' || fail "animated farm --json: $(cat "$work/shot_farm.json")"
+import json, sys
+d = json.load(open(sys.argv[1]))
+assert d["frames"] == 24 and len(d["servers"]) == 2, d
+PY
+"$tessera" --server "${ports[1]}" "${shot[@]}" --out "$work/shot_single" > /dev/null 2>&1 ||
+  fail "the single-daemon animated job failed"
+for f in "$work"/shot_single/*.png; do
+  cmp -s "$f" "$work/shot_farm/$(basename "$f")" || fail "animated $(basename "$f") differs from the farm's"
+done
+[[ $(find "$work/shot_single" -name '*.png' | wc -l) -eq 24 ]] || fail "animated: not 24 frames"
+cmp -s "$work/shot_single/frame_00000.png" "$work/shot_single/frame_00006.png" &&
+  fail "the cylinder did not move between frames 0 and 6"
+echo "farm: an animation's 24 frames over 2 daemons, identical to one daemon's"

@@ -140,6 +140,9 @@ TEST(AnimationRender, SkinnedAndMorphedVerticesMatchTheCpuReference) {
     SCOPED_TRACE(c.file);
     const Loaded l = Load(c.file);
     ASSERT_TRUE(l.scene);
+    // The upload's device memory, copies and pose buffers included, is what the server's
+    // admission check estimates from the CPU scene.
+    EXPECT_EQ(SharedRenderer().EstimateDeviceBytes(l.cpu), l.scene->info().device_bytes);
     const Settings base = Small(64, 48);
     const Camera cam = Framing(l.scene->info(), base);
     for (float t : c.times) {

@@ -38,7 +38,7 @@ bool IsRead(Access a) {
   return a == Access::kDepthTest || a == Access::kSampled || a == Access::kTransferSrc ||
          a == Access::kComputeRead || a == Access::kSampledGeneral ||
          a == Access::kComputeReadGeneral || a == Access::kIndirectRead ||
-         a == Access::kHostRead;
+         a == Access::kGeometryRead || a == Access::kHostRead;
 }
 
 // The access `r` enters the frame in: its import's, else none.
@@ -90,6 +90,7 @@ std::vector<PlanCase> AllPlans() {
     for (int variant = 0; variant < 4; ++variant) {
       FrameFeatures f;
       f.has_transparent = variant & 1;
+      f.pose_pending = variant & 1;  // an animated scene's new pose: the skinning pass
       f.local_lights = s.synthetic_lights;
       f.shadow_atlas_valid = f.taa_history_valid = f.exposure_valid = variant & 2;
       FramePlan plan = PlanFrame(s, f);
