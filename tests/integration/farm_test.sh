@@ -12,6 +12,18 @@ tesserad=$1 tessera=$2 animated=$3
 source "$(dirname "$0")/daemon.sh"
 start_replicas 3 "$tesserad"
 
+# Runs job ARGS... on one daemon as a server-side job into DIR and checks its N frames are
+# byte-identical to the farm's in FARM_DIR. Usage: same_as_one_daemon PORT DIR FARM_DIR N ARGS...
+same_as_one_daemon() {
+  local port=$1 dir=$2 farm=$3 n=$4
+  shift 4
+  "$tessera" --server "$port" "$@" --out "$dir" > /dev/null 2>&1 || fail "the single-daemon job failed"
+  for f in "$dir"/*.png; do
+    cmp -s "$f" "$farm/$(basename "$f")" || fail "$(basename "$f") differs from the farm's"
+  done
+  [[ $(find "$dir" -name '*.png' | wc -l) -eq $n ]] || fail "single run: not $n frames"
+}
+
 # Slow enough frames (taa accumulates 4 renders each) that every daemon has calls in flight
 # when one is killed.
 job=(job submit --scene demo --frames 0..59 --orbit --width 320 --height 180 --aa taa
@@ -40,12 +52,7 @@ PY
 [[ -z $(find "$work/farm" -name '*.part') ]] || fail "a partial file was left behind"
 
 # The same job as a server-side job on one surviving daemon.
-"$tessera" --server "${ports[0]}" "${job[@]}" --out "$work/single" > /dev/null 2>&1 ||
-  fail "the single-daemon job failed"
-for f in "$work"/single/*.png; do
-  cmp -s "$f" "$work/farm/$(basename "$f")" || fail "$(basename "$f") differs from the farm's"
-done
-[[ $(find "$work/single" -name '*.png' | wc -l) -eq 60 ]] || fail "single run: not 60 frames"
+same_as_one_daemon "${ports[0]}" "$work/single" "$work/farm" 60 "${job[@]}"
 echo "farm: 60 frames over 3 daemons with one killed, identical to one daemon's"
 
 # A farm whose second daemon is down at the start (the killed one's port): it starts with the
@@ -84,12 +91,7 @@ import json, sys
 d = json.load(open(sys.argv[1]))
 assert d["frames"] == 24 and len(d["servers"]) == 2, d
 PY
-"$tessera" --server "${ports[1]}" "${shot[@]}" --out "$work/shot_single" > /dev/null 2>&1 ||
-  fail "the single-daemon animated job failed"
-for f in "$work"/shot_single/*.png; do
-  cmp -s "$f" "$work/shot_farm/$(basename "$f")" || fail "animated $(basename "$f") differs from the farm's"
-done
-[[ $(find "$work/shot_single" -name '*.png' | wc -l) -eq 24 ]] || fail "animated: not 24 frames"
+same_as_one_daemon "${ports[1]}" "$work/shot_single" "$work/shot_farm" 24 "${shot[@]}"
 cmp -s "$work/shot_single/frame_00000.png" "$work/shot_single/frame_00006.png" &&
   fail "the cylinder did not move between frames 0 and 6"
 echo "farm: an animation's 24 frames over 2 daemons, identical to one daemon's"
