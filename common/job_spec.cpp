@@ -405,9 +405,17 @@ absl::Status ValidateJobSpec(const v1::JobSpec& spec, const JobLimits& limits) {
   if (!spec.name_pattern().empty()) {
     RETURN_IF_ERROR(ValidateNamePattern(spec.name_pattern()));
   }
-  if (!(spec.fps() >= 0.0 && spec.fps() <= kMaxFps))  // NaN fails too
-    return Invalid("spec.fps", absl::StrCat(spec.fps(), " is out of range (0..", kMaxFps,
-                                            " frames per second; 0: the time stands still)"));
+  if (!(spec.fps() == 0.0 || (spec.fps() >= kMinFps && spec.fps() <= kMaxFps)))  // NaN fails
+    return Invalid("spec.fps", absl::StrCat(spec.fps(), " is out of range (0, or ", kMinFps, "..",
+                                            kMaxFps, " frames per second; 0: the time stands still)"));
+  // Every frame's scene time within the setting's range (the last frame's is the largest).
+  if (spec.fps() > 0.0) {
+    const double start = spec.settings().has_scene_time() ? spec.settings().scene_time() : 0.0;
+    const double last = start + double(spec.frames().last()) / spec.fps();
+    if (!(std::abs(last) <= kMaxSceneTime))
+      return Invalid("spec.fps", absl::StrCat("frame ", spec.frames().last(), " would be at ",
+                                              last, " s, past the scene_time range (-1e6..1e6)"));
+  }
   if (spec.taa_frames() > kMaxTaaFrames)
     return Invalid("spec.taa_frames",
                    absl::StrCat(spec.taa_frames(), " is more than ", kMaxTaaFrames));

@@ -25,7 +25,9 @@ struct JobLimits {
 inline constexpr uint32_t kMaxNameBytes = 256;
 inline constexpr uint32_t kMaxTaaFrames = 64;
 inline constexpr uint32_t kDefaultTaaFrames = 8;
+inline constexpr double kMinFps = 1e-3;  // 0 also: the time stands still
 inline constexpr double kMaxFps = 1000.0;
+inline constexpr double kMaxSceneTime = 1e6;  // RenderSettings.scene_time's range
 inline constexpr float kDefaultYfov = 0.8f;
 // renderer/camera.cpp's ValidateCamera accepts yfov in (0, 3.1), a little short of pi.
 inline constexpr float kMaxYfov = 3.1f;

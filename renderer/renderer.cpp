@@ -11,6 +11,7 @@
 #include <cstring>
 #include <thread>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -126,14 +127,19 @@ absl::StatusOr<int> FindAnimation(const SceneInfo& info, std::string_view animat
         "settings.animation: index ", index, " is out of range: the scene has ",
         info.animations.size(), info.animations.size() == 1 ? " animation" : " animations"));
   }
+  // Names from the client and the file, quoted short and escaped: the message stays small.
+  auto quoted = [](std::string_view s) {
+    size_t n = std::min<size_t>(s.size(), 64);
+    while (n > 0 && n < s.size() && (static_cast<unsigned char>(s[n]) & 0xC0) == 0x80) --n;
+    return absl::StrCat("'", absl::Utf8SafeCHexEscape(absl::string_view(s.data(), n)),
+                        n < s.size() ? "...'" : "'");
+  };
   std::string names;
-  for (size_t i = 0; i < info.animations.size() && i < 20; ++i)
-    absl::StrAppend(&names, i ? ", " : "", "'", info.animations[i].name, "'");
-  std::string shown(animation.substr(0, 64));
-  for (char& c : shown)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+  for (size_t i = 0; i < info.animations.size() && i < 8; ++i)
+    absl::StrAppend(&names, i ? ", " : "", quoted(info.animations[i].name));
+  if (info.animations.size() > 8) absl::StrAppend(&names, " and ", info.animations.size() - 8, " more");
   return absl::InvalidArgumentError(absl::StrCat(
-      "settings.animation: the scene has no animation named '", shown, "'",
+      "settings.animation: the scene has no animation named ", quoted(animation),
       info.animations.empty() ? " (it has none)" : absl::StrCat(" (it has ", names, ")")));
 }
 

@@ -302,8 +302,13 @@ StreamPacing StreamSession::PacingLocked() const {
   const InteractiveProfile& p = st_.profile;
   StreamPacing pacing;
   pacing.target_fps = st_.target_fps;
-  if (st_.settings.play && pacing.target_fps <= 0.0f)
-    pacing.target_fps = std::min(kPlayFps, state_->options.max_session_fps);
+  if (st_.settings.play && pacing.target_fps <= 0.0f && st_.lease) {
+    // Only a playing animation that moves: `play` without one renders nothing new.
+    const SceneInfo& info = st_.lease->get().scene->info();
+    const absl::StatusOr<int> a = FindAnimation(info, st_.settings.animation);
+    if (a.ok() && *a >= 0 && info.animations[size_t(*a)].duration_s > 0.0f)
+      pacing.target_fps = std::min(kPlayFps, state_->options.max_session_fps);
+  }
   pacing.interactive =
       p.enabled && (p.render_scale < 1.0f ||
                     (st_.video.h264 ? st_.video.interactive_crf > st_.video.crf
@@ -396,9 +401,16 @@ absl::Status StreamSession::ApplyUpdateLocked(Clock::time_point now) {
   }
   // play: the clock (re)starts from scene_time when play turns on or an event sets the time;
   // turning it off keeps the time it had reached, unless the event sets one.
+  // A playing session whose animation or loop changes without a time goes on from the time it
+  // showed (in the old animation's terms), not from where the clock would put it now.
   const bool time_set = event_.has_settings() && event_.settings().has_scene_time();
+  const bool timeline_changed =
+      settings.animation != st_.settings.animation || settings.loop != st_.settings.loop;
   if (settings.play && (!st_.settings.play || time_set)) {
     st_.play_base = settings.scene_time;
+    st_.play_origin = now;
+  } else if (settings.play && timeline_changed) {
+    st_.play_base = PlayingSceneTime(st_, now).t;
     st_.play_origin = now;
   } else if (!settings.play && st_.settings.play && !time_set) {
     settings.scene_time = static_cast<float>(PlayingSceneTime(st_, now).t);

@@ -35,6 +35,45 @@ mat4 Joint(uint base, uint j) {
 vec3 Load3(uint b) { return vec3(vertices[b], vertices[b + 1u], vertices[b + 2u]); }
 vec3 Delta3(uint b) { return vec3(deltas[b], deltas[b + 1u], deltas[b + 2u]); }
 
+// Vertex v of the job (0-based) deformed: the rest vertex plus the morph targets' deltas at their
+// weights (target t's delta for vertex v is delta first + t * count + v), then skinned.
+struct Deformed {
+  vec3 position;
+  vec3 normal;
+  vec3 tangent;
+};
+Deformed Deform(uvec4 range, uvec4 job_pose, uint v, bool directions) {
+  uint src = (range.x + v) * kVertexFloats;
+  Deformed o;
+  o.position = Load3(src);
+  o.normal = directions ? Load3(src + 3u) : vec3(0.0);
+  o.tangent = directions ? Load3(src + 6u) : vec3(0.0);
+  for (uint t = 0u; t < job_pose.z; ++t) {
+    float w = pose[job_pose.y + t];
+    if (w == 0.0) continue;
+    uint d = (job_pose.w + t * range.z + v) * kMorphDeltaFloats;
+    o.position += w * Delta3(d);
+    if (directions) {
+      o.normal += w * Delta3(d + 3u);
+      o.tangent += w * Delta3(d + 6u);
+    }
+  }
+  if ((range.w & kSkinJobSkinned) != 0u) {
+    uvec4 joints = attributes[(range.x + v) * 2u];
+    vec4 weights = uintBitsToFloat(attributes[(range.x + v) * 2u + 1u]);
+    // Only the joints that weigh: an unused slot's index need not name a joint of the skin.
+    mat4 m = mat4(0.0);
+    for (int k = 0; k < 4; ++k)
+      if (weights[k] != 0.0) m += weights[k] * Joint(job_pose.x, joints[k]);
+    o.position = (m * vec4(o.position, 1.0)).xyz;
+    // The blended matrix's linear part for directions, as three.js and Filament do (exact for
+    // rigid and uniformly scaled joints).
+    o.normal = mat3(m) * o.normal;
+    o.tangent = mat3(m) * o.tangent;
+  }
+  return o;
+}
+
 void main() {
   // The last job whose first workgroup is at or before this one (jobs are in workgroup order).
   uint group = gl_WorkGroupID.x + push.jobs.y;
@@ -49,47 +88,31 @@ void main() {
   if (v >= range.z) return;
   uint src = (range.x + v) * kVertexFloats;
   uint dst = (range.y + v) * kVertexFloats;
-  vec3 position = Load3(src);
-  vec3 normal = Load3(src + 3u);
-  vec4 tangent = vec4(Load3(src + 6u), vertices[src + 9u]);
-
-  // Morph targets: target t's delta for vertex v is delta first + t * count + v.
-  for (uint t = 0u; t < job_pose.z; ++t) {
-    float w = pose[job_pose.y + t];
-    if (w == 0.0) continue;
-    uint d = (job_pose.w + t * range.z + v) * kMorphDeltaFloats;
-    position += w * Delta3(d);
-    normal += w * Delta3(d + 3u);
-    tangent.xyz += w * Delta3(d + 6u);
-  }
-
-  if (range.w != 0u) {
-    uvec4 joints = attributes[(range.x + v) * 2u];
-    vec4 weights = uintBitsToFloat(attributes[(range.x + v) * 2u + 1u]);
-    // Only the joints that weigh: an unused slot's index need not name a joint of the skin.
-    mat4 m = mat4(0.0);
-    for (int k = 0; k < 4; ++k)
-      if (weights[k] != 0.0) m += weights[k] * Joint(job_pose.x, joints[k]);
-    position = (m * vec4(position, 1.0)).xyz;
-    // The blended matrix's linear part for directions, as three.js and Filament do (exact for
-    // rigid and uniformly scaled joints).
-    normal = mat3(m) * normal;
-    tangent.xyz = mat3(m) * tangent.xyz;
+  Deformed d = Deform(range, job_pose, v, true);
+  vec3 normal = d.normal;
+  if ((range.w & kSkinJobFlat) != 0u) {
+    // Flat shading (the file gave no normals): the deformed face's normal, from its three
+    // corners (vertices 3t, 3t + 1, 3t + 2), as the importer computed it at rest.
+    uint first = v - v % 3u;
+    vec3 p0 = first == v ? d.position : Deform(range, job_pose, first, false).position;
+    vec3 p1 = first + 1u == v ? d.position : Deform(range, job_pose, first + 1u, false).position;
+    vec3 p2 = first + 2u == v ? d.position : Deform(range, job_pose, first + 2u, false).position;
+    normal = cross(p1 - p0, p2 - p0);
   }
   float nl = length(normal);
   normal = nl > 0.0 ? normal / nl : vec3(0.0, 0.0, 1.0);
-  float tl = length(tangent.xyz);
-  tangent.xyz = tl > 0.0 ? tangent.xyz / tl : vec3(1.0, 0.0, 0.0);
+  float tl = length(d.tangent);
+  vec3 tangent = tl > 0.0 ? d.tangent / tl : vec3(1.0, 0.0, 0.0);
 
-  vertices[dst + 0u] = position.x;
-  vertices[dst + 1u] = position.y;
-  vertices[dst + 2u] = position.z;
+  vertices[dst + 0u] = d.position.x;
+  vertices[dst + 1u] = d.position.y;
+  vertices[dst + 2u] = d.position.z;
   vertices[dst + 3u] = normal.x;
   vertices[dst + 4u] = normal.y;
   vertices[dst + 5u] = normal.z;
   vertices[dst + 6u] = tangent.x;
   vertices[dst + 7u] = tangent.y;
   vertices[dst + 8u] = tangent.z;
-  vertices[dst + 9u] = tangent.w;
+  vertices[dst + 9u] = vertices[src + 9u];  // the bitangent sign
   for (uint k = 10u; k < kVertexFloats; ++k) vertices[dst + k] = vertices[src + k];  // uvs
 }

@@ -117,6 +117,9 @@ struct Primitive {
   uint32_t material = 0;  // index into CpuScene::materials (always valid)
   Aabb bounds;            // object space (at rest)
   bool skinned = false;   // has JOINTS_0 and WEIGHTS_0 (CpuScene::skin_joints/skin_weights)
+  // The file gave no normals: face normals, each triangle with its own three vertices in order
+  // (vertex 3t + k is corner k of triangle t), so a deformed pose recomputes them.
+  bool flat_normals = false;
   // Morph targets: target t's delta for the primitive's vertex v is
   // CpuScene::morph_deltas[first_morph_delta + t * vertex_count + v].
   uint32_t morph_targets = 0;

@@ -1273,6 +1273,7 @@ class Converter {
     prim.index_count = uint32_t(tri.size());
     prim.first_vertex = uint32_t(s_.vertices.size());
     prim.vertex_count = uint32_t(verts.size());
+    prim.flat_normals = !has_normals;
     for (const Vertex& v : verts) prim.bounds.extend(v.position);
     if (p.material >= 0) {
       RETURN_IF_ERROR(CheckIndex(path + ".material", p.material, m_.materials.size(), "material"));

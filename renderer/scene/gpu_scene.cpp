@@ -401,18 +401,16 @@ absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) 
                             a.drawables()[i].drawable * sizeof(gpu::GpuDrawable),
                             sizeof(gpu::GpuDrawable)});
   }
-  // One dispatch per deformed drawable: its primitive's rest vertices into its copy.
-  if (scene.morph_deltas.size() * gpu::kMorphDeltaFloats >= (uint64_t(1) << 32) ||
-      (scene.vertices.size() + a.copy_vertices()) * gpu::kVertexFloats >= (uint64_t(1) << 32))
-    return absl::InvalidArgumentError(
-        absl::StrCat(n, ": too many animated vertices and morph deltas for 32-bit indices"));
+  // One job per deformed drawable: its primitive's rest vertices into its copy.
   std::vector<gpu::GpuSkinJob> jobs;
   skin_groups_ = 0;
   for (const AnimatedDrawable& ad : a.drawables()) {
     if (!ad.deformed || scene.primitives[ad.primitive].vertex_count == 0) continue;
     const Primitive& p = scene.primitives[ad.primitive];
     gpu::GpuSkinJob job{};
-    job.range = glm::uvec4(p.first_vertex, ad.first_vertex, p.vertex_count, ad.skin >= 0 ? 1 : 0);
+    job.range = glm::uvec4(p.first_vertex, ad.first_vertex, p.vertex_count,
+                           (ad.skin >= 0 ? gpu::kSkinJobSkinned : 0u) |
+                               (p.flat_normals ? gpu::kSkinJobFlat : 0u));
     job.pose = glm::uvec4(ad.joint_base, uint32_t(pose_weights_offset_ / 4) + ad.weight_base,
                           p.morph_targets, uint32_t(p.first_morph_delta));
     job.groups = glm::uvec4(skin_groups_, 0, 0, 0);
@@ -585,7 +583,17 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
     dst = std::move(*src);
     return absl::OkStatus();
   };
-  // An animated scene's deformed drawables have their copies after the scene's vertices.
+  // An animated scene's deformed drawables have their copies after the scene's vertices. skin.comp
+  // indexes every buffer it reads by 32-bit float offsets: checked before anything is made.
+  if (animator_) {
+    const SceneAnimator& a = *animator_;
+    constexpr uint64_t k32 = uint64_t(1) << 32;
+    if (scene.morph_deltas.size() * gpu::kMorphDeltaFloats >= k32 ||
+        (scene.vertices.size() + a.copy_vertices()) * gpu::kVertexFloats >= k32 ||
+        PlanPoseBuffer(a).size / sizeof(float) >= k32)
+      return absl::InvalidArgumentError(absl::StrCat(
+          n, ": too many animated vertices, joints or morph deltas for 32-bit indices"));
+  }
   std::vector<Vertex> with_copies;
   if (animator_) with_copies = animator_->VertexData(scene);
   const std::vector<Vertex>& vertices = animator_ ? with_copies : scene.vertices;

@@ -26,6 +26,14 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
   auto animator = std::unique_ptr<SceneAnimator>(new SceneAnimator());
   SceneAnimator& a = *animator;
   uint64_t next_vertex = scene.vertices.size();
+  // Joint matrices are the skin's (glTF 3.7.3: not the node's that draws the mesh) and morph
+  // weights the node's: each is stored once, however many drawables use it.
+  std::vector<int64_t> skin_base(scene.skins.size(), -1);
+  std::vector<int64_t> node_weights(n, -1);
+  std::vector<uint32_t> node_targets(n, 0);
+  for (const Drawable& d : scene.drawables)
+    if (d.node < n && d.primitive < scene.primitives.size())
+      node_targets[d.node] = std::max(node_targets[d.node], scene.primitives[d.primitive].morph_targets);
   for (uint32_t i = 0; i < scene.drawables.size(); ++i) {
     const Drawable& d = scene.drawables[i];
     if (d.node >= n || d.primitive >= scene.primitives.size()) continue;
@@ -47,11 +55,23 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
       a.copy_vertices_ += p.vertex_count;
       a.deformed_vertices_ += p.vertex_count;
       if (skinned) {
-        ad.joint_base = uint32_t(a.joint_count_);
-        a.joint_count_ += scene.skins[size_t(node.skin)].joints.size();
+        int64_t& base = skin_base[size_t(node.skin)];
+        if (base < 0) {
+          base = int64_t(a.joint_count_);
+          a.skins_used_.push_back({uint32_t(node.skin), uint32_t(base)});
+          a.joint_count_ += scene.skins[size_t(node.skin)].joints.size();
+        }
+        ad.joint_base = uint32_t(base);
       }
-      ad.weight_base = uint32_t(a.weight_count_);
-      a.weight_count_ += p.morph_targets;
+      if (p.morph_targets > 0) {
+        int64_t& base = node_weights[d.node];
+        if (base < 0) {
+          base = int64_t(a.weight_count_);
+          a.nodes_weighted_.push_back({d.node, uint32_t(base), node_targets[d.node]});
+          a.weight_count_ += node_targets[d.node];
+        }
+        ad.weight_base = uint32_t(base);
+      }
       if (a.primitives_.size() <= d.primitive) a.primitives_.resize(d.primitive + 1);
       PrimitiveBounds& pb = a.primitives_[d.primitive];
       if (pb.vertex_count == 0 && p.vertex_count > 0) {
@@ -120,6 +140,14 @@ bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
   posed_time_ = t;
   // AnimationTime already folded the loop: evaluate at the animation's own time, unlooped.
   const ScenePose pose = EvaluatePose(nodes_, animations_, animation, t, false);
+  for (const auto& [skin, base] : skins_used_) {
+    const std::vector<glm::mat4> joints = JointMatrices(skins_[skin], pose);
+    std::copy(joints.begin(), joints.end(), joints_.begin() + base);
+  }
+  for (const auto& [node, base, count] : nodes_weighted_) {
+    const std::vector<float>& w = pose.weights[node];  // missing weights are 0
+    for (uint32_t k = 0; k < count; ++k) weights_[base + k] = k < w.size() ? w[k] : 0.0f;
+  }
   for (size_t i = 0; i < drawables_.size(); ++i) {
     const AnimatedDrawable& ad = drawables_[i];
     if (!ad.deformed) {
@@ -128,12 +156,10 @@ bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
       continue;
     }
     const PrimitiveBounds& pb = primitives_[ad.primitive];
-    // Morph weights (missing ones are 0) and how far they can move a vertex per axis.
-    const std::vector<float>& w = pose.weights[ad.node];
+    // How far the morph targets at their weights can move a vertex, per axis.
     glm::vec3 lo(0.0f), hi(0.0f);
     for (uint32_t k = 0; k < pb.targets; ++k) {
-      const float wk = k < w.size() ? w[k] : 0.0f;
-      weights_[ad.weight_base + k] = wk;
+      const float wk = weights_[ad.weight_base + k];
       if (pb.deltas[k].empty()) continue;
       lo += glm::min(wk * pb.deltas[k].min, wk * pb.deltas[k].max);
       hi += glm::max(wk * pb.deltas[k].min, wk * pb.deltas[k].max);
@@ -147,14 +173,13 @@ bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
       return g;
     };
     if (ad.skin >= 0) {
-      const std::vector<glm::mat4> joints = JointMatrices(skins_[size_t(ad.skin)], pose);
-      std::copy(joints.begin(), joints.end(), joints_.begin() + ad.joint_base);
+      const size_t joints = skins_[size_t(ad.skin)].joints.size();
       world_[i] = glm::mat4(1.0f);
       // A skinned vertex is a convex blend of its joints' transforms of it: inside the union of
       // each joint's transformed box of the vertices it moves.
       Aabb b;
       for (const auto& [j, box] : pb.joints)
-        if (j < joints.size()) b.extend(grown(box).transformed(joints[j]));
+        if (j < joints) b.extend(grown(box).transformed(joints_[ad.joint_base + j]));
       bounds_[i] = b;
     } else {
       world_[i] = pose.world[ad.node];

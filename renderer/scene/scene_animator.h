@@ -28,8 +28,8 @@ struct AnimatedDrawable {
   int32_t skin = -1;       // skinned: the node's skin (else -1)
   bool deformed = false;   // skinned or morphed: its vertices are rewritten each pose
   uint32_t first_vertex = 0;  // where the drawable's vertices are: its copy when deformed
-  uint32_t joint_base = 0;    // skinned: its first joint matrix in joints()
-  uint32_t weight_base = 0;   // morphed: its first weight in weights()
+  uint32_t joint_base = 0;    // skinned: its skin's first joint matrix in joints()
+  uint32_t weight_base = 0;   // morphed: its node's first morph weight in weights()
 };
 
 class SceneAnimator {
@@ -72,6 +72,13 @@ class SceneAnimator {
     uint32_t first_vertex = 0, vertex_count = 0, targets = 0;
   };
   std::vector<PrimitiveBounds> primitives_;  // indexed by primitive (empty entries unused)
+  // The skins of the skinned drawables with their first joint in joints_, and the nodes of the
+  // morphed ones with their first weight in weights_ and their weight count.
+  std::vector<std::pair<uint32_t, uint32_t>> skins_used_;
+  struct NodeWeights {
+    uint32_t node = 0, base = 0, count = 0;
+  };
+  std::vector<NodeWeights> nodes_weighted_;
   uint64_t copy_vertices_ = 0;
   uint64_t deformed_vertices_ = 0;
   size_t joint_count_ = 0, weight_count_ = 0;

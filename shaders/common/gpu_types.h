@@ -140,6 +140,8 @@ TS_CONST uint kSkinBindingAttributes = 1;
 TS_CONST uint kSkinBindingDeltas = 2;
 TS_CONST uint kSkinBindingPose = 3;
 TS_CONST uint kSkinBindingJobs = 4;
+TS_CONST uint kSkinJobSkinned = 1u;  // the drawable's vertices are skinned
+TS_CONST uint kSkinJobFlat = 2u;     // flat normals (Primitive::flat_normals): recomputed per face
 TS_CONST uint kMorphDeltaFloats = 9;
 TS_CONST uint kSkinGroupSize = 64;
 TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
@@ -436,7 +438,7 @@ struct SkinPush {
   TS_PUSH_SKIN
 };
 // One deformed drawable of skin.comp, in the scene's job buffer: range = (first source vertex,
-// first output vertex, vertex count, 1 when skinned), pose = (first joint matrix of the
+// first output vertex, vertex count, kSkinJob* flags), pose = (first joint matrix of the
 // drawable's skin in the pose buffer, first morph weight there, morph targets, first morph delta
 // of the primitive), groups = (its first workgroup, unused...).
 struct GpuSkinJob {

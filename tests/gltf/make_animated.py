@@ -9,8 +9,9 @@ the relative name NAME.bin), byte-for-byte deterministic:
   skinned_cylinder  a cylinder along +Y (y 0..2, radius 0.25) skinned to two joints, bone0 and
                     bone1 (at y=1); animation "bend" turns bone1 about +Z by 0, 90, 0 degrees at
                     t = 0, 1, 2 s. Skinning in Tessera's animation render tests.
-  morph_cube        a unit cube with two morph targets (0: the top grows up by 1; 1: the +X half
-                    moves by 0.5); animation "morph" drives the weights [0,0] -> [1,0] -> [0,1].
+  morph_cube        a unit cube with two morph targets (0: the top grows up by 1; 1: the top edge
+                    of the +X side moves out by 0.5, tilting two faces); animation "morph" drives
+                    the weights [0,0] -> [1,0] -> [0,1].
                     Morph targets in the animation render tests.
   trs_nodes         three cubes animated by node TRS channels with each interpolation: LINEAR
                     translation and rotation (node "linear"), STEP translation and LINEAR scale
@@ -277,7 +278,8 @@ def morph_cube():
     b = Builder()
     positions, normals, indices = cube_geometry()
     target0 = [(0.0, 1.0, 0.0) if p[1] > 0 else (0.0, 0.0, 0.0) for p in positions]
-    target1 = [(0.5, 0.0, 0.0) if p[0] > 0 else (0.0, 0.0, 0.0) for p in positions]
+    # The top edge of the +X side leans out: the +X and top faces tilt (their normals turn).
+    target1 = [(0.5, 0.0, 0.0) if p[0] > 0 and p[1] > 0 else (0.0, 0.0, 0.0) for p in positions]
     g = asset()
     g['scene'] = 0
     g['scenes'] = [{'name': name, 'nodes': [0]}]
@@ -299,7 +301,7 @@ def morph_cube():
             ],
         }],
         'weights': [0.0, 0.0],
-        'extras': {'targetNames': ['top_up', 'right_out']},
+        'extras': {'targetNames': ['top_up', 'right_leans_out']},
     }]
     g['animations'] = [{
         'name': 'morph',

@@ -745,6 +745,19 @@ TEST_F(ServerTest, ContinuousStreamRendersWithoutEvents) {
   EXPECT_TRUE(rw->Finish().ok());
 }
 
+// Sends settings `change` as event `id` and returns the first frame that reflects it.
+v1::Frame ChangeSettings(StreamRW* rw, uint64_t id, const v1::RenderSettings& change) {
+  v1::ClientEvent e;
+  e.set_event_id(id);
+  *e.mutable_settings() = change;
+  v1::Frame f;
+  EXPECT_TRUE(rw->Write(e));
+  while (rw->Read(&f) && f.event_id() < id) {
+  }
+  EXPECT_GE(f.event_id(), id) << "the stream ended";
+  return f;
+}
+
 // play: the session renders on its own (target_fps 0) and each frame's settings carry the scene
 // time it shows, advancing with the wall clock; a pause holds the time, an event's scene_time
 // restarts the clock from there, and without loop play stops at the animation's end. An unknown
@@ -779,32 +792,20 @@ TEST_F(ServerTest, APlayingStreamAdvancesItsSceneTimeWithTheClock) {
   EXPECT_GT(images.size(), 1u) << "the cylinder moves";
 
   // Pause: the time stays where it got to, and frames come only on change again.
-  v1::ClientEvent pause;
-  pause.set_event_id(1);
-  pause.mutable_settings()->set_play(false);
-  ASSERT_TRUE(rw->Write(pause));
-  do {
-    ASSERT_TRUE(rw->Read(&f));
-  } while (f.event_id() < 1);
+  v1::RenderSettings change;
+  change.set_play(false);
+  f = ChangeSettings(rw.get(), 1, change);
   EXPECT_FALSE(f.settings().play());
   const float paused = f.settings().scene_time();
   EXPECT_GE(paused, times.back());
   // A set time while paused is shown as given; play then runs on from it.
-  v1::ClientEvent seek;
-  seek.set_event_id(2);
-  seek.mutable_settings()->set_scene_time(1.0f);
-  ASSERT_TRUE(rw->Write(seek));
-  do {
-    ASSERT_TRUE(rw->Read(&f));
-  } while (f.event_id() < 2);
+  change.Clear();
+  change.set_scene_time(1.0f);
+  f = ChangeSettings(rw.get(), 2, change);
   EXPECT_EQ(f.settings().scene_time(), 1.0f);
-  v1::ClientEvent play;
-  play.set_event_id(3);
-  play.mutable_settings()->set_play(true);
-  ASSERT_TRUE(rw->Write(play));
-  do {
-    ASSERT_TRUE(rw->Read(&f));
-  } while (f.event_id() < 3);
+  change.Clear();
+  change.set_play(true);
+  f = ChangeSettings(rw.get(), 3, change);
   EXPECT_GE(f.settings().scene_time(), 1.0f);
   EXPECT_LT(f.settings().scene_time(), 1.0f + 5.0f);
   // Without loop, play stops at the end (2 s): that frame shows the end with play off.
@@ -820,6 +821,35 @@ TEST_F(ServerTest, APlayingStreamAdvancesItsSceneTimeWithTheClock) {
   const grpc::Status st = rw->Finish();
   EXPECT_EQ(st.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_NE(st.error_message().find("settings.animation"), std::string::npos) << st.error_message();
+}
+
+// Turning loop off while a looping animation plays goes on from the time shown, not from where
+// the clock would be without wrapping (which would jump to the end and stop).
+TEST_F(ServerTest, ALoopTurnedOffWhilePlayingGoesOnFromTheTimeShown) {
+  v1::SceneInfo info;
+  ASSERT_TRUE(
+      UploadFromDisk(stub_.get(), std::string(TESSERA_ANIMATED_DIR) + "/trs_nodes.gltf", &info)
+          .ok());
+  grpc::ClientContext ctx;
+  std::unique_ptr<StreamRW> rw = stub_->Stream(&ctx);
+  v1::ClientEvent open = OpenEvent(info.scene_id(), 32, 24);
+  open.mutable_open()->mutable_settings()->set_animation("move");  // 1 s long
+  open.mutable_open()->mutable_settings()->set_play(true);
+  ASSERT_TRUE(rw->Write(open));
+  v1::Frame f;
+  const auto t0 = std::chrono::steady_clock::now();
+  do {
+    ASSERT_TRUE(rw->Read(&f));
+  } while (std::chrono::steady_clock::now() - t0 < std::chrono::milliseconds(1400));
+  const float before = f.settings().scene_time();
+  EXPECT_LT(before, 1.0f) << "looping";
+  v1::RenderSettings unloop;
+  unloop.set_loop(false);
+  f = ChangeSettings(rw.get(), 1, unloop);
+  EXPECT_FALSE(f.settings().loop());
+  EXPECT_LT(std::abs(f.settings().scene_time() - before), 0.3f)
+      << "from " << before << " s to " << f.settings().scene_time() << " s";
+  EXPECT_TRUE(CloseStream(rw.get()).ok());
 }
 
 TEST_F(ServerTest, DeletedSceneStaysUntilItsSessionEnds) {

@@ -217,13 +217,18 @@ TEST(ValidateJobSpecTest, TopLevelFieldsAreNamed) {
   spec.set_taa_frames(65);
   EXPECT_TRUE(Invalid(Validate(spec), {"spec.taa_frames:", "65", "64"}));
 
-  for (double fps : {-1.0, 1000.5, double(NAN), double(INFINITY)}) {
+  for (double fps : {-1.0, 1000.5, 1e-300, double(NAN), double(INFINITY)}) {
     spec = PathSpec();
     spec.set_fps(fps);
-    EXPECT_TRUE(Invalid(Validate(spec), {"spec.fps:", "0..1000"})) << fps;
+    EXPECT_TRUE(Invalid(Validate(spec), {"spec.fps:", "0.001..1000"})) << fps;
   }
+  spec = PathSpec();
+  *spec.mutable_frames() = Range(0, 100000);
+  spec.clear_path();
+  spec.set_fps(0.05);  // frame 100000 at 2e6 s
+  EXPECT_TRUE(Invalid(Validate(spec, {.max_frames = 200000}), {"spec.fps:", "frame 100000", "2e+06 s"}));
   spec.set_fps(24.0);
-  EXPECT_TRUE(Validate(spec).ok());
+  EXPECT_TRUE(Validate(spec, {.max_frames = 200000}).ok());
 }
 
 TEST(JobSpecTest, SceneTimeFollowsTheFrameNumber) {

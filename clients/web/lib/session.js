@@ -75,16 +75,21 @@ export function mergeEvent(state, event) {
  * The state after a frame of the session: while its animation plays (settings.play, asked for
  * and shown), the scene time the frame shows becomes the state's scene_time, so a move opens the
  * session again where the animation had got to (tesserad starts the clock at the open's
- * scene_time) rather than where it was last set. Only a frame that reflects the newest event the
+ * scene_time) rather than where it was last set; a frame that shows it stopped (at the end of a
+ * non-looping animation) stops it in the state too. Only a frame that reflects the newest event the
  * page sent (`newestEventId`) counts: a time the page set since then wins. Returns `state`
  * itself when nothing changes (it is never changed).
  */
 export function followPlay(state, frame, newestEventId = 0) {
   const shown = frame?.settings;
-  if (!shown || shown.play !== true || state?.settings?.play !== true) return state;
+  if (!shown || typeof shown.play !== 'boolean' || state?.settings?.play !== true) return state;
   if (Number(frame.event_id ?? 0) < Number(newestEventId ?? 0)) return state;
   const time = Number(shown.scene_time);
-  if (!Number.isFinite(time) || state.settings.scene_time === time) return state;
+  if (!Number.isFinite(time)) return state;
+  // Shown stopped while asked to play: a non-looping animation reached its end and tesserad
+  // stopped it; a move must not play it again.
+  if (shown.play === false) return { ...state, settings: { ...state.settings, play: false, scene_time: time } };
+  if (state.settings.scene_time === time) return state;
   return { ...state, settings: { ...state.settings, scene_time: time } };
 }
 

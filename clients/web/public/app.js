@@ -1092,6 +1092,11 @@ function reflectAnimation(frame) {
   const time = animation.reflect(frame, state.pendingFields);
   const timed = 'play' in state.userSettings || 'scene_time' in state.userSettings;
   if (time !== undefined && timed) state.userSettings.scene_time = time;
+  // A non-looping animation that reached its end was stopped by the server: the page's request
+  // stops too, so a new session (after a lost stream) does not play it again.
+  if (state.userSettings.play === true && !animation.playing && frame.settings?.play === false) {
+    state.userSettings.play = false;
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

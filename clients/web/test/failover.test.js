@@ -90,8 +90,12 @@ test('followPlay: a playing animation\'s state takes the time its newest frames 
   assert.equal(state.settings.scene_time, 0.5, 'not changed in place');
   // A frame older than the page's newest event (which may set the time) does not count.
   assert.equal(followPlay(state, frame(3, { play: true, scene_time: 1.25 }), 4), state);
-  // Paused (asked or shown), or a frame without settings: the state as it is.
-  assert.equal(followPlay(state, frame(4, { play: false, scene_time: 1.25 }), 4), state);
+  // Shown stopped while asked to play (tesserad stopped it at the end of a non-looping
+  // animation): the state stops there too, so a move does not play it again.
+  assert.deepEqual(followPlay(state, frame(4, { play: false, scene_time: 2 }), 4).settings,
+    { animation: 'Walk', scene_time: 2, play: false });
+  assert.equal(followPlay(state, frame(3, { play: false, scene_time: 2 }), 4), state, 'an older frame');
+  // Paused (asked), or a frame without settings: the state as it is.
   const paused = { scene_id: 'demo', settings: { scene_time: 0.5, play: false } };
   assert.equal(followPlay(paused, frame(4, { play: true, scene_time: 1.25 }), 4), paused);
   assert.equal(followPlay({ scene_id: 'demo' }, frame(4, { play: true, scene_time: 1 }), 4).settings, undefined);
