@@ -18,6 +18,9 @@ struct Camera {
   float yfov = 0.8f;              // vertical field of view, radians, (0, pi)
   float znear = 0.05f;            // > 0, world units
   float zfar = 0.0f;              // 0 = infinite; else > znear
+  // The file's camera this is (SceneInfo::cameras, placed by FromSceneCamera), or -1. In an
+  // animated scene whose animation moves that camera's node, the frame's pose places `view`.
+  int32_t scene_camera = -1;
 };
 
 // INVALID_ARGUMENT naming the field: non-finite values, eye == target, up parallel to the view

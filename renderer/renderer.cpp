@@ -217,6 +217,11 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   GpuScene& posed = *scene.gpu_;
   posed.Pose(animation, settings.scene_time, settings.loop);
   const GpuScene& gs = posed;
+  // A file camera on an animated node: where the pose puts it.
+  Camera posed_camera = camera;
+  if (camera.scene_camera >= 0 && gs.animator())
+    if (std::optional<glm::mat4> world = gs.animator()->CameraWorld(uint32_t(camera.scene_camera)))
+      posed_camera.view = glm::inverse(*world);
   Frame frame;
   frame.settings = std::move(resolved);
   if (const SceneAnimator* a = gs.animator()) {
@@ -232,7 +237,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   // Each feature prepares its part of the frame, in order: the camera (and taa's jitter)
   // first, the lights before the shadows that mark them, the draw lists last.
   const auto t_record = Clock::now();
-  FrameData f(gs, scene.info(), camera, s, view);
+  FrameData f(gs, scene.info(), posed_camera, s, view);
   f.vis.triangle_bits = triangle_bits;
   RETURN_IF_ERROR(m.PrepareCamera(f));
   RETURN_IF_ERROR(m.PrepareLights(f, frame));

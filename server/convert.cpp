@@ -58,6 +58,7 @@ absl::StatusOr<Camera> ResolveCamera(const v1::Camera& c, const SceneInfo& scene
                    absl::StrCat(c.scene_camera(), " is out of range: the scene has ",
                                 scene.cameras.size(), " cameras"));
       cam = FromSceneCamera(scene.cameras[c.scene_camera()]);
+      cam.scene_camera = int32_t(c.scene_camera());  // an animated scene poses it
       break;
     }
     case v1::Camera::kFrame:

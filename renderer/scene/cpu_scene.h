@@ -167,6 +167,7 @@ struct Light {
   glm::vec3 direction{0.0f, 0.0f, -1.0f};  // where the light points, normalized
   float inner_cone_angle = 0.0f;           // radians
   float outer_cone_angle = 0.7853982f;     // radians (pi/4)
+  int32_t node = -1;                       // the glTF node that places it (-1: generated)
 };
 
 // A perspective camera from the file, with its node's world transform.
@@ -177,6 +178,7 @@ struct SceneCamera {
   float aspect = 0.0f;    // 0 = not given
   float znear = 0.01f;
   float zfar = 0.0f;  // 0 = infinite
+  int32_t node = -1;  // the glTF node that places it
 };
 
 // Counts as the file declares them (glTF arrays) and as instanced by the default scene.

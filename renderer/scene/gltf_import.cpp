@@ -1680,7 +1680,7 @@ class Converter {
             std::isfinite(p.zfar))) {
         Warn(absl::StrCat(path, ": camera ", n.camera, " has non-finite parameters; skipped"));
       } else if (gc.type == "perspective") {
-        SceneCamera cam{.name = gc.name, .world = world};
+        SceneCamera cam{.name = gc.name, .world = world, .node = int32_t(index)};
         if (p.yfov > 0.0 && p.yfov < 3.14) cam.yfov = ToFloat(p.yfov);
         if (p.aspectRatio > 0.0) cam.aspect = ToFloat(p.aspectRatio);
         if (p.znear > 0.0) cam.znear = ToFloat(p.znear);
@@ -1707,7 +1707,7 @@ class Converter {
                fits(gl.spot.outerConeAngle);
     for (double c : gl.color) fit = fit && fits(c);
     if (!fit) return Err(light_field, "color, intensity, range or cone angle is too large for float");
-    Light l{.name = gl.name};
+    Light l{.name = gl.name, .node = int32_t(index)};
     if (gl.type == "directional") {
       l.type = LightType::kDirectional;
     } else if (gl.type == "spot") {

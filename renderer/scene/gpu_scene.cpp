@@ -329,7 +329,9 @@ PoseLayout PlanPoseBuffer(const SceneAnimator& animator) {
   PoseLayout l;
   l.weights_offset = animator.joint_count() * sizeof(glm::mat4);
   l.records_offset = (l.weights_offset + animator.weight_count() * sizeof(float) + 15) / 16 * 16;
-  l.size = l.records_offset + animator.drawables().size() * sizeof(gpu::GpuDrawable);
+  // At least 16 bytes: a scene whose animation moves only cameras and lights has no records.
+  l.size = std::max<VkDeviceSize>(16, l.records_offset + animator.drawables().size() *
+                                                             sizeof(gpu::GpuDrawable));
   return l;
 }
 
@@ -423,7 +425,9 @@ absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) 
                                                   jobs.size() * sizeof(gpu::GpuSkinJob),
                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                                   n + ".skin_jobs")));
-  pose_pending_ = true;  // the copies hold the rest vertices until the first pose
+  // The copies hold the rest vertices until the first pose (nothing to do for a scene whose
+  // animation moves only cameras and lights).
+  pose_pending_ = !a.drawables().empty();
   return absl::OkStatus();
 }
 
@@ -436,6 +440,7 @@ bool GpuScene::Pose(int animation, double scene_time, bool loop) {
   if (a.weight_count() > 0)
     std::memcpy(base + pose_weights_offset_, a.weights().data(), a.weight_count() * sizeof(float));
   auto* records = reinterpret_cast<gpu::GpuDrawable*>(base + pose_records_offset_);
+  if (a.moves_lights()) a.PlaceLights(&lights_);
   bounds_ = static_bounds_;
   for (size_t i = 0; i < a.drawables().size(); ++i) {
     const uint32_t d = a.drawables()[i].drawable;
@@ -445,7 +450,7 @@ bool GpuScene::Pose(int animation, double scene_time, bool loop) {
     draws_[item_of_drawable_[d]].world_bounds = a.bounds()[i];
     bounds_.extend(a.bounds()[i]);
   }
-  pose_pending_ = true;
+  pose_pending_ = !a.drawables().empty();
   ++pose_serial_;
   return true;
 }

@@ -1,6 +1,7 @@
 #include "renderer/scene/scene_animator.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 namespace tessera {
@@ -104,7 +105,18 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
     a.drawables_.push_back(ad);
     a.rest_bounds_.push_back(p.bounds);
   }
-  if (a.drawables_.empty()) return nullptr;
+  // File cameras and lights whose node moves.
+  for (uint32_t i = 0; i < scene.cameras.size(); ++i) {
+    const int32_t node = scene.cameras[i].node;
+    if (node >= 0 && size_t(node) < n && moving[size_t(node)])
+      a.cameras_.push_back({i, uint32_t(node)});
+  }
+  for (uint32_t i = 0; i < scene.lights.size(); ++i) {
+    const int32_t node = scene.lights[i].node;
+    if (node >= 0 && size_t(node) < n && moving[size_t(node)])
+      a.lights_.push_back({i, uint32_t(node)});
+  }
+  if (a.drawables_.empty() && a.cameras_.empty() && a.lights_.empty()) return nullptr;
   a.nodes_ = scene.nodes;
   a.animations_ = scene.animations;
   a.skins_ = scene.skins;
@@ -113,6 +125,23 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
   a.joints_.assign(a.joint_count_, glm::mat4(1.0f));
   a.weights_.assign(a.weight_count_, 0.0f);
   return animator;
+}
+
+std::optional<glm::mat4> SceneAnimator::CameraWorld(uint32_t camera) const {
+  for (const MovingNode& c : cameras_)
+    if (c.index == camera && posed_) return c.world;
+  return std::nullopt;
+}
+
+void SceneAnimator::PlaceLights(std::vector<Light>* lights) const {
+  for (const MovingNode& l : lights_) {
+    if (l.index >= lights->size()) continue;
+    Light& light = (*lights)[l.index];
+    light.position = glm::vec3(l.world[3]);
+    const glm::vec3 d = glm::mat3(l.world) * glm::vec3(0.0f, 0.0f, -1.0f);
+    const float len = glm::length(d);
+    light.direction = len > 0.0f && std::isfinite(len) ? d / len : glm::vec3(0.0f, 0.0f, -1.0f);
+  }
 }
 
 std::vector<Vertex> SceneAnimator::VertexData(const CpuScene& scene) const {
@@ -140,6 +169,8 @@ bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
   posed_time_ = t;
   // AnimationTime already folded the loop: evaluate at the animation's own time, unlooped.
   const ScenePose pose = EvaluatePose(nodes_, animations_, animation, t, false);
+  for (MovingNode& c : cameras_) c.world = pose.world[c.node];
+  for (MovingNode& l : lights_) l.world = pose.world[l.node];
   for (const auto& [skin, base] : skins_used_) {
     const std::vector<glm::mat4> joints = JointMatrices(skins_[skin], pose);
     std::copy(joints.begin(), joints.end(), joints_.begin() + base);

@@ -5,6 +5,7 @@
 // uploads the results and the skinning pass (renderer/features/skinning.cpp) deforms the
 // vertices. Plain data; no Vulkan.
 //
+// File cameras and punctual lights on moving nodes follow them too (CameraWorld, PlaceLights).
 // A drawable moves when an animation channel targets its node or an ancestor; it deforms when
 // its primitive is skinned (and its node has a skin) or has morph targets. A deformed drawable
 // gets its own copy of its primitive's vertices after the scene's (two nodes may show one mesh
@@ -13,6 +14,7 @@
 // apply), so such a drawable's world matrix is the identity.
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include <glm/glm.hpp>
@@ -56,6 +58,11 @@ class SceneAnimator {
   const std::vector<Aabb>& bounds() const { return bounds_; }
   const std::vector<glm::mat4>& joints() const { return joints_; }
   const std::vector<float>& weights() const { return weights_; }
+  // The world matrix of file camera `camera` (CpuScene::cameras) in the last pose, when its node
+  // moves; and the lights on moving nodes placed at the last pose (position, direction).
+  std::optional<glm::mat4> CameraWorld(uint32_t camera) const;
+  void PlaceLights(std::vector<Light>* lights) const;
+  bool moves_lights() const { return !lights_.empty(); }
 
  private:
   std::vector<SceneNode> nodes_;
@@ -79,6 +86,12 @@ class SceneAnimator {
     uint32_t node = 0, base = 0, count = 0;
   };
   std::vector<NodeWeights> nodes_weighted_;
+  // Cameras and lights (their index in CpuScene) on moving nodes, and the node's last world.
+  struct MovingNode {
+    uint32_t index = 0, node = 0;
+    glm::mat4 world{1.0f};
+  };
+  std::vector<MovingNode> cameras_, lights_;
   uint64_t copy_vertices_ = 0;
   uint64_t deformed_vertices_ = 0;
   size_t joint_count_ = 0, weight_count_ = 0;

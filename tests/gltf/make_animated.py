@@ -17,6 +17,8 @@ the relative name NAME.bin), byte-for-byte deterministic:
                     translation and rotation (node "linear"), STEP translation and LINEAR scale
                     (node "step"), CUBICSPLINE translation (node "cubic"). Interpolation modes in
                     the animation render tests and the farm test.
+  camera_light      a box on a floor seen by an animated camera and lit by an animated point
+                    light (animation "fly"): file cameras and lights on animated nodes.
   crowd             N instances (--crowd, default 100) of the skinned cylinder in a grid, each
                     with its own skeleton and skin, all in one animation "wave" with phase-shifted
                     bends. The skinned-crowd benchmark.
@@ -369,6 +371,50 @@ def trs_nodes():
     return name, g, b.finish(g, name)
 
 
+def camera_light():
+    """A box on a floor, seen by an animated camera and lit by an animated point light."""
+    name = 'camera_light'
+    b = Builder()
+    positions, normals, indices = cube_geometry()
+    mesh = {'primitives': [{
+        'attributes': {
+            'POSITION': b.accessor(positions, FLOAT, 'VEC3', ARRAY_BUFFER, minmax=True),
+            'NORMAL': b.accessor(normals, FLOAT, 'VEC3', ARRAY_BUFFER)},
+        'indices': b.accessor(indices, UNSIGNED_SHORT, 'SCALAR', ELEMENT_ARRAY_BUFFER),
+        'material': 0, 'mode': 4}]}
+    g = asset()
+    g['extensionsUsed'] = ['KHR_lights_punctual']
+    g['extensions'] = {'KHR_lights_punctual': {'lights': [
+        {'name': 'lamp', 'type': 'point', 'color': [1.0, 0.9, 0.8], 'intensity': 30.0}]}}
+    g['scene'] = 0
+    g['scenes'] = [{'name': name, 'nodes': [0, 1, 2, 3]}]
+    g['nodes'] = [
+        {'name': 'floor', 'mesh': 0, 'translation': [0.0, -0.6, 0.0], 'scale': [8.0, 0.2, 8.0]},
+        {'name': 'box', 'mesh': 0},
+        {'name': 'camera', 'camera': 0, 'translation': [0.0, 1.0, 6.0]},
+        {'name': 'lamp', 'translation': [-2.0, 2.0, 1.0],
+         'extensions': {'KHR_lights_punctual': {'light': 0}}},
+    ]
+    g['cameras'] = [{'name': 'fly', 'type': 'perspective',
+                     'perspective': {'yfov': 0.8, 'znear': 0.1, 'aspectRatio': 1.5}}]
+    g['materials'] = [material('grey', (0.7, 0.7, 0.7), 0.6)]
+    g['meshes'] = [mesh]
+    t02 = times(b, [0.0, 2.0])
+    g['animations'] = [{
+        'name': 'fly',
+        'samplers': [
+            # The camera slides from x = -3 to 3 (looking down -Z), the lamp from x = -2 to 2.
+            {'input': t02, 'interpolation': 'LINEAR',
+             'output': b.accessor([(-3.0, 1.0, 6.0), (3.0, 1.0, 6.0)], FLOAT, 'VEC3')},
+            {'input': t02, 'interpolation': 'LINEAR',
+             'output': b.accessor([(-2.0, 2.0, 1.0), (2.0, 2.0, 1.0)], FLOAT, 'VEC3')},
+        ],
+        'channels': [{'sampler': 0, 'target': {'node': 2, 'path': 'translation'}},
+                     {'sampler': 1, 'target': {'node': 3, 'path': 'translation'}}],
+    }]
+    return name, g, b.finish(g, name)
+
+
 def crowd(n):
     name = 'crowd'
     b = Builder()
@@ -433,7 +479,8 @@ def main():
     if args.crowd < 1:
         ap.error('--crowd must be at least 1')
     os.makedirs(args.outdir, exist_ok=True)
-    for name, gltf, blob in (skinned_cylinder(), morph_cube(), trs_nodes(), crowd(args.crowd)):
+    for name, gltf, blob in (skinned_cylinder(), morph_cube(), trs_nodes(), camera_light(),
+                             crowd(args.crowd)):
         gltf_path, _ = write(args.outdir, name, gltf, blob)
         print('%s: %d nodes, %d accessors, %d-byte %s.bin'
               % (gltf_path, len(gltf['nodes']), len(gltf['accessors']), len(blob), name))

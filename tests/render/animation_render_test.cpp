@@ -237,6 +237,14 @@ CpuScene Baked(const CpuScene& cpu, int animation, float t) {
     }
     d.world_bounds = out.primitives[ad.primitive].bounds.transformed(d.world);
   }
+  for (Light& l : out.lights) {
+    if (l.node < 0) continue;
+    const glm::mat4& w = pose.world[size_t(l.node)];
+    l.position = glm::vec3(w[3]);
+    l.direction = glm::normalize(glm::mat3(w) * glm::vec3(0.0f, 0.0f, -1.0f));
+  }
+  for (SceneCamera& c : out.cameras)
+    if (c.node >= 0) c.world = pose.world[size_t(c.node)];
   out.nodes.clear();
   out.animations.clear();
   out.skins.clear();
@@ -288,6 +296,39 @@ TEST(AnimationRender, PosedFramesMatchTheirPoseBakedIntoAStaticScene) {
     ASSERT_TRUE(moved.ok());
     EXPECT_LT(*moved, 30.0);
   }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+TEST(AnimationRender, FileCamerasAndLightsFollowTheirAnimatedNodes) {
+  // camera_light: the file's camera slides from x = -3 to 3 over 2 s and its point light from
+  // x = -2 to 2. Rendering through the file camera at time t is the baked scene seen from the
+  // camera's posed place, lit by the light at its posed place.
+  const Loaded l = Load("camera_light");
+  ASSERT_TRUE(l.scene);
+  ASSERT_EQ(l.scene->info().cameras.size(), 1u);
+  const Settings s = Small();
+  Camera file = FromSceneCamera(l.scene->info().cameras[0]);
+  file.scene_camera = 0;
+  RgbaImage seen[2];
+  int i = 0;
+  for (float t : {0.5f, 1.5f}) {
+    SCOPED_TRACE(t);
+    const CpuScene baked = Baked(l.cpu, 0, t);
+    absl::StatusOr<SceneHandle> still = SharedRenderer().LoadScene(baked);
+    ASSERT_TRUE(still.ok()) << still.status();
+    const Frame posed = RenderOk(*l.scene, file, At(s, "fly", t));
+    const Frame want = RenderOk(**still, FromSceneCamera(baked.cameras[0]), s);
+    absl::StatusOr<double> psnr = Psnr(posed.image, want.image);
+    ASSERT_TRUE(psnr.ok());
+    EXPECT_GE(*psnr, 45.0);
+    seen[i++] = posed.image;
+  }
+  absl::StatusOr<double> between = Psnr(seen[0], seen[1]);
+  ASSERT_TRUE(between.ok());
+  EXPECT_LT(*between, 30.0) << "the camera moved";
+  // The same camera without its scene_camera tag stays where the file put it at rest.
+  const Frame rest = RenderOk(*l.scene, FromSceneCamera(l.scene->info().cameras[0]), At(s, "fly", 1.5f));
+  EXPECT_NE(rest.image.pixels, seen[1].pixels);
   ExpectNoValidationMessages(SharedRenderer());
 }
 
