@@ -10,7 +10,8 @@ set -euo pipefail
 tesserad=$1 tessera=$2 animated=$3
 # shellcheck source=daemon.sh
 source "$(dirname "$0")/daemon.sh"
-start_replicas 3 "$tesserad"
+# Info logs: each finished RenderJobFrame is a line, which tells when daemon 1 is serving.
+start_replicas 3 "$tesserad" --log_level=info
 
 # Runs job ARGS... on one daemon as a server-side job into DIR and checks its N frames are
 # byte-identical to the farm's in FARM_DIR. Usage: same_as_one_daemon PORT DIR FARM_DIR N ARGS...
@@ -31,10 +32,13 @@ job=(job submit --scene demo --frames 0..59 --orbit --width 320 --height 180 --a
 
 "$tessera" --json "${job[@]}" --servers "$servers" --out "$work/farm" > "$work/farm.json" &
 client=$!
-# Kill daemon 1 once a few frames exist: it has frames in flight then.
+# Kill daemon 1 once a few frames exist and it has finished one of its own: round_robin keeps
+# giving it frames, so it has some in flight then (on a loaded machine a daemon can connect
+# late; killed before it served anything, it would have nothing to retry).
 for _ in $(seq 600); do
   n=$( (find "$work/farm" -name '*.png' 2>/dev/null || true) | wc -l)
-  ((n >= 8)) && break
+  served=$(grep -c "RenderJobFrame" "$work/log1" 2>/dev/null || true)
+  ((n >= 8 && served >= 1)) && break
   sleep 0.05
 done
 kill -KILL "${pids[1]}"
