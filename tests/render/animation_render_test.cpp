@@ -89,6 +89,19 @@ Camera Framing(const SceneInfo& info, const Settings& s, glm::vec3 dir = {0.3f, 
   return FrameBounds(b, 0.8f, float(s.width) / float(s.height), dir);
 }
 
+// A camera that sees the whole of what animation 0 sweeps (its poses at 21 times and the rest
+// pose), so a golden shows every posed shape whole.
+Camera SweptFraming(const Loaded& l, const Settings& s) {
+  Aabb swept = l.scene->info().bounds;
+  const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(l.cpu);
+  const float duration = l.cpu.animations.at(0).duration;
+  for (int k = 0; k <= 20; ++k) {
+    a->Pose(0, duration * float(k) / 20.0f, false);
+    for (const Aabb& b : a->bounds()) swept.extend(b);
+  }
+  return FrameBounds(swept, 0.8f, float(s.width) / float(s.height), {0.3f, 0.35f, 1.0f});
+}
+
 Frame RenderOk(const Scene& scene, const Camera& c, const Settings& s) {
   absl::StatusOr<Frame> f = SharedRenderer().Render(scene, c, s);
   EXPECT_TRUE(f.ok()) << f.status();
@@ -388,7 +401,7 @@ TEST(AnimationRender, GoldenImagesAtTwoTimes) {
     const Loaded l = Load(c.file);
     ASSERT_TRUE(l.scene);
     const Settings s = Small();
-    const Camera cam = Framing(l.scene->info(), s);
+    const Camera cam = SweptFraming(l, s);
     RgbaImage images[2];
     for (int i = 0; i < 2; ++i) {
       images[i] = RenderOk(*l.scene, cam, At(s, c.animation, c.times[i])).image;
