@@ -27,6 +27,7 @@ import {
   ASSETS, PageClient, REPO, TESSERAD, startGateway, startTesserad,
 } from '../../clients/web/test/harness.js';
 import { loadProto, makeClient, callMetadata } from '../../clients/web/lib/rpc.js';
+import { unwrapToken, wrapToken } from '../../clients/web/lib/replicas.js';
 import { CHROMIUM, launchChromium, pageLastFrame, waitForPageFrame, watchErrors } from './browser.mjs';
 
 const SMALL = { width: 160, height: 120 };
@@ -49,10 +50,10 @@ const STORE = /scene_store_dir/.test(helpText);
 let storeDir, replicas = [], gateway, gateway2, api;
 const pages = [];  // {page, sid, index}
 
-const tagOf = (address) => Buffer.from(address, 'utf8').toString('base64url');
-const replicaOfToken = (token) => {
-  const tag = String(token ?? '').split('.')[0];
-  return replicas.find((r) => tagOf(r.address) === tag) ?? null;
+// The replica a page's token names (the gateway's own token format, lib/replicas.js).
+const replicaOfToken = (token, among = replicas) => {
+  const { address } = unwrapToken(String(token ?? ''));
+  return among.find((r) => r.address === address) ?? null;
 };
 
 function unary(r, method, request, deadlineMs = 5000) {
@@ -262,7 +263,7 @@ test('after the kill, a moved page\'s token resumes on a live replica, through t
 
   // Tokens a page makes up: an address that is no replica is never dialled; junk is refused.
   const probe = await connectPage(gateway);
-  const foreign = await probe.request('open', { open: { resume_token: `${tagOf('127.0.0.1:1')}.${'0'.repeat(32)}` } });
+  const foreign = await probe.request('open', { open: { resume_token: wrapToken('127.0.0.1:1', '0'.repeat(32)) } });
   assert.equal(foreign.error?.code, 'NOT_FOUND');
   assert.match(foreign.error.message, /open\.resume_token/);
   const junk = await probe.request('open', { open: { resume_token: 'not a token' } });
@@ -327,7 +328,7 @@ test('the viewer page (H.264) carries on after its replica is killed: a note, a 
     watchErrors(page, errors);
     await page.goto(gw.url);
     const first = await waitForPageFrame(page, (f) => f.encoding === 'VIDEO_H264', 'an H.264 frame', 30_000);
-    const home = pair.find((r) => tagOf(r.address) === first.session_token.split('.')[0]);
+    const home = replicaOfToken(first.session_token, pair);
     assert.ok(home, `the token ${first.session_token} names no replica`);
     const other = pair.find((r) => r !== home);
     const drawn = await page.evaluate(() => window.tessera.frames);

@@ -119,7 +119,6 @@ export async function lookupAll(host) {
 export class Replica {
   constructor(address, client, { now = Date.now } = {}) {
     this.address = address;
-    this.tag = replicaTag(address);
     this.client = client;
     this.now = now;
     this.info = null;          // the last ServerInfo

@@ -126,8 +126,8 @@ export function openFromState(state) {
   return open;
 }
 
-const OK = 0;
-const UNAVAILABLE = 14;
+/** The gRPC status codes the gateway's streams decide on. */
+export const STATUS = Object.freeze({ OK: 0, CANCELLED: 1, RESOURCE_EXHAUSTED: 8, UNAVAILABLE: 14 });
 
 /**
  * Whether a stream that ended with `status` moves to another replica:
@@ -139,16 +139,15 @@ const UNAVAILABLE = 14;
  *             a stream whose page is away (parked), a resume that never had a frame (the page
  *             opens afresh), a gateway with one server or one that is stopping.
  */
-const RESOURCE_EXHAUSTED = 8;
-
 export function failoverDecision(status, {
   closing = false, cancelled = false, parked = false, stopping = false, single = false,
   sceneKnown = true, budgetLeft = true, full = false,
 } = {}) {
   // `full`: the replica refused the session at its max_sessions before any frame (it filled up
   // since the poll that placed it there): another replica may take it.
-  const lost = status?.code === UNAVAILABLE || (full && status?.code === RESOURCE_EXHAUSTED);
-  if (!status || status.code === OK || !lost) return 'end';
+  const lost = status?.code === STATUS.UNAVAILABLE ||
+    (full && status?.code === STATUS.RESOURCE_EXHAUSTED);
+  if (!lost) return 'end';
   if (closing || cancelled || parked || stopping || single || !sceneKnown) return 'end';
   return budgetLeft ? 'move' : 'give_up';
 }

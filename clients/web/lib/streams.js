@@ -9,12 +9,11 @@
 import { wrapToken } from './replicas.js';
 import { GatewayError } from './rpc.js';
 import {
-  MoveBudget, completeState, failoverDecision, followPlay, mergeEvent, openFromState, seenInFrame, stateFromOpen,
+  MoveBudget, STATUS, completeState, failoverDecision, followPlay, mergeEvent, openFromState, seenInFrame,
+  stateFromOpen,
 } from './session.js';
 
-const OK = 0;
-const CANCELLED = 1;
-const UNAVAILABLE = 14;
+const { OK, CANCELLED, RESOURCE_EXHAUSTED, UNAVAILABLE } = STATUS;
 // Old tokens of a stream that moved, kept so a page that missed the new one can still take it
 // over while it is parked.
 const MAX_TOKENS = 4;
@@ -141,7 +140,7 @@ export class BridgedStream {
     this.replica.streams.delete(this);
     // Full before this session's first frame there: placed on a replica that filled up since
     // its last poll (other gateways, a burst of moves). The whole replica, not a token's limit.
-    const full = status.code === 8 && this.framesOnCall === 0 &&
+    const full = status.code === RESOURCE_EXHAUSTED && this.framesOnCall === 0 &&
       /reach the max_sessions limit/.test(status.details ?? '');
     const decision = this.decide(status, full);
     if (decision === 'move') {

@@ -13,7 +13,7 @@ export const ANIMATION_SETTINGS = ['animation', 'scene_time', 'loop', 'play'];
 export const NONE = 'none';
 
 /** Float32 values from the wire without their binary noise (1.2500001 -> 1.25). */
-const tidy = (v) => (Number.isFinite(v) ? Number(v.toPrecision(6)) : v);
+export const tidy = (v) => (Number.isFinite(v) ? Number(v.toPrecision(6)) : v);
 
 /**
  * The animation a settings.animation value names, as tesserad looks it up (renderer.cpp

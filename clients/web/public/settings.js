@@ -4,7 +4,7 @@
 // collapsible sections (groupSettings), showing the effective settings of each frame and the
 // server's notes on fields it changed.
 import { el } from './dom.js';
-import { ANIMATION_SETTINGS } from './animation.js';
+import { ANIMATION_SETTINGS, tidy } from './animation.js';
 
 // Fields the panel leaves out: the viewport drives width and height, and the Animation section
 // (animation.js) owns the animation's fields, so no two controls fight over one.
@@ -133,9 +133,6 @@ function enumLabel(value, allValues = []) {
   }
   return (value.startsWith(prefix) ? value.slice(prefix.length) : value).toLowerCase();
 }
-
-/** Float32 values from the wire without their binary noise (0.30000001 -> 0.3). */
-const tidy = (v) => (Number.isFinite(v) ? Number(v.toPrecision(6)) : v);
 
 export class SettingsPanel {
   /**

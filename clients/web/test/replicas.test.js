@@ -136,14 +136,23 @@ test('readiness: serving and taking sessions; full, NOT_SERVING, unreachable say
   assert.equal(older.lost, false);
 });
 
-test('every replica missing its polls at once moves nothing (the gateway stalled, not them)', async () => {
+/**
+ * Two healthy replicas a:1 and b:1, polled once (then polled by hand); `lost` gets each loss as
+ * `entry(replica, why)`.
+ */
+async function startedPair(entry) {
   const world = fakeWorld();
   const set = makeSet('a:1,b:1', world);
   world.infos = { 'a:1': info(), 'b:1': info() };
   const lost = [];
-  set.on('lost', (r) => lost.push(r.address));
+  set.on('lost', (r, why) => lost.push(entry(r, why)));
   await set.start();
   set.stop();
+  return { world, set, lost };
+}
+
+test('every replica missing its polls at once moves nothing (the gateway stalled, not them)', async () => {
+  const { world, set, lost } = await startedPair((r) => r.address);
   const down = Object.assign(new Error('x'), { code: 4, details: 'Deadline exceeded' });
   world.infos = { 'a:1': down, 'b:1': down };
   await set.pollAll();
@@ -284,13 +293,7 @@ test('dns:///: every record is a replica; one that leaves DNS takes no new sessi
 });
 
 test('a replica that stops answering or serving is reported lost once; one stream failure only stops placement', async () => {
-  const world = fakeWorld();
-  const set = makeSet('a:1,b:1', world);
-  world.infos = { 'a:1': info(), 'b:1': info() };
-  const lost = [];
-  set.on('lost', (r, why) => lost.push(`${r.address}: ${why}`));
-  await set.start();
-  set.stop();
+  const { world, set, lost } = await startedPair((r, why) => `${r.address}: ${why}`);
   const a = set.byAddress.get('a:1');
   set.reportFailure(a, 'a stream there ended UNAVAILABLE (Connection dropped)');
   assert.equal(a.ready, false);
