@@ -276,13 +276,19 @@ struct PlayTime {
   bool ended = false;
 };
 
+// The duration of the session's animation (0 for none, or while its scene lease is elsewhere).
+double AnimationDuration(const SessionState& st) {
+  if (!st.lease) return 0.0;
+  const SceneInfo& info = st.lease->get().scene->info();
+  const absl::StatusOr<int> a = FindAnimation(info, st.settings.animation);
+  return a.ok() && *a >= 0 ? info.animations[size_t(*a)].duration_s : 0.0;
+}
+
 PlayTime PlayingSceneTime(const SessionState& st, Clock::time_point now) {
   double t = st.play_base + std::chrono::duration<double>(now - st.play_origin).count();
   // Kept within the animation, as the renderer would wrap or clamp it anyway, so a long stream
   // neither loses precision nor leaves the setting's range.
-  const SceneInfo& info = st.lease->get().scene->info();
-  const absl::StatusOr<int> a = FindAnimation(info, st.settings.animation);
-  const double duration = a.ok() && *a >= 0 ? info.animations[size_t(*a)].duration_s : 0.0;
+  const double duration = AnimationDuration(st);
   bool ended = false;
   if (duration > 0.0) {
     if (st.settings.loop) {
@@ -302,13 +308,9 @@ StreamPacing StreamSession::PacingLocked() const {
   const InteractiveProfile& p = st_.profile;
   StreamPacing pacing;
   pacing.target_fps = st_.target_fps;
-  if (st_.settings.play && pacing.target_fps <= 0.0f && st_.lease) {
-    // Only a playing animation that moves: `play` without one renders nothing new.
-    const SceneInfo& info = st_.lease->get().scene->info();
-    const absl::StatusOr<int> a = FindAnimation(info, st_.settings.animation);
-    if (a.ok() && *a >= 0 && info.animations[size_t(*a)].duration_s > 0.0f)
-      pacing.target_fps = std::min(kPlayFps, state_->options.max_session_fps);
-  }
+  // Only a playing animation that moves: `play` without one renders nothing new.
+  if (st_.settings.play && pacing.target_fps <= 0.0f && AnimationDuration(st_) > 0.0)
+    pacing.target_fps = std::min(kPlayFps, state_->options.max_session_fps);
   pacing.interactive =
       p.enabled && (p.render_scale < 1.0f ||
                     (st_.video.h264 ? st_.video.interactive_crf > st_.video.crf

@@ -340,31 +340,25 @@ namespace {
 // What UploadAnimation allocates besides the copies: the joints and weights of every vertex (a
 // 16-byte stand-in without skins), the morph deltas (likewise) and the pose buffer.
 uint64_t AnimationBytes(const CpuScene& scene, const SceneAnimator& animator) {
-  const bool skins = std::any_of(animator.drawables().begin(), animator.drawables().end(),
-                                 [](const AnimatedDrawable& d) { return d.skin >= 0; });
-  const size_t jobs = std::count_if(
-      animator.drawables().begin(), animator.drawables().end(), [&](const AnimatedDrawable& d) {
-        return d.deformed && scene.primitives[d.primitive].vertex_count > 0;
-      });
-  return (skins ? scene.vertices.size() * 2 * sizeof(glm::uvec4) : 16) +
-         std::max<size_t>(1, jobs) * sizeof(gpu::GpuSkinJob) +
+  return (animator.skinned() ? scene.vertices.size() * 2 * sizeof(glm::uvec4) : 16) +
+         std::max<size_t>(1, animator.skin_jobs()) * sizeof(gpu::GpuSkinJob) +
          std::max<uint64_t>(16, scene.morph_deltas.size() * gpu::kMorphDeltaFloats * 4) +
          PlanPoseBuffer(animator).size + animator.copy_vertices() * sizeof(Vertex);
 }
 
 }  // namespace
 
+absl::Status GpuScene::Keep(vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) {
+  if (!src.ok()) return src.status();
+  device_bytes_ += src->size();
+  dst = std::move(*src);
+  return absl::OkStatus();
+}
+
 absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) {
   const std::string& n = scene.name;
   const SceneAnimator& a = *animator_;
-  auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
-    if (!src.ok()) return src.status();
-    device_bytes_ += src->size();
-    dst = std::move(*src);
-    return absl::OkStatus();
-  };
-  const bool skins = std::any_of(a.drawables().begin(), a.drawables().end(),
-                                 [](const AnimatedDrawable& d) { return d.skin >= 0; });
+  const bool skins = a.skinned();
   std::vector<glm::uvec4> attributes(skins ? scene.vertices.size() * 2 : 1, glm::uvec4(0));
   if (skins) {
     for (size_t v = 0; v < scene.vertices.size(); ++v) {
@@ -372,7 +366,7 @@ absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) 
       std::memcpy(&attributes[2 * v + 1], &scene.skin_weights[v], sizeof(glm::vec4));
     }
   }
-  RETURN_IF_ERROR(assign(skin_attributes_,
+  RETURN_IF_ERROR(Keep(skin_attributes_,
                          UploadBuffer(ctx, attributes.data(), attributes.size() * sizeof(glm::uvec4),
                                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".skin_attributes")));
   std::vector<float> deltas(std::max<size_t>(4, scene.morph_deltas.size() * gpu::kMorphDeltaFloats),
@@ -386,11 +380,11 @@ absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) 
       o[6 + k] = d.tangent[k];
     }
   }
-  RETURN_IF_ERROR(assign(morph_deltas_,
+  RETURN_IF_ERROR(Keep(morph_deltas_,
                          UploadBuffer(ctx, deltas.data(), deltas.size() * sizeof(float),
                                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".morph_deltas")));
   const PoseLayout layout = PlanPoseBuffer(a);
-  RETURN_IF_ERROR(assign(pose_, vk::Buffer::Create(
+  RETURN_IF_ERROR(Keep(pose_, vk::Buffer::Create(
                                     ctx, layout.size,
                                     VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                         VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
@@ -419,9 +413,8 @@ absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) 
     skin_groups_ += (p.vertex_count + gpu::kSkinGroupSize - 1) / gpu::kSkinGroupSize;
     jobs.push_back(job);
   }
-  skin_job_count_ = uint32_t(jobs.size());
   if (jobs.empty()) jobs.push_back(gpu::GpuSkinJob{});  // keep the binding valid
-  RETURN_IF_ERROR(assign(skin_jobs_, UploadBuffer(ctx, jobs.data(),
+  RETURN_IF_ERROR(Keep(skin_jobs_, UploadBuffer(ctx, jobs.data(),
                                                   jobs.size() * sizeof(gpu::GpuSkinJob),
                                                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                                                   n + ".skin_jobs")));
@@ -444,7 +437,7 @@ bool GpuScene::Pose(int animation, double scene_time, bool loop) {
   bounds_ = static_bounds_;
   for (size_t i = 0; i < a.drawables().size(); ++i) {
     const uint32_t d = a.drawables()[i].drawable;
-    gpu::GpuDrawable& g = records_[d];
+    gpu::GpuDrawable& g = records_[i];
     PlaceRecord(a.world()[i], a.bounds()[i], g);
     records[i] = g;
     draws_[item_of_drawable_[d]].world_bounds = a.bounds()[i];
@@ -540,7 +533,10 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
                       d.world_bounds});
     if (!moves[i]) static_bounds_.extend(d.world_bounds);
   }
-  records_ = drawables;
+  if (animator_) {  // the moving drawables' records, which Pose rewrites
+    for (const AnimatedDrawable& ad : animator_->drawables())
+      records_.push_back(drawables[ad.drawable]);
+  }
   if (drawables.empty()) drawables.push_back(gpu::GpuDrawable{});  // keep the binding valid
   plan_ = PlanDraws(draws_);
   {
@@ -549,8 +545,10 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
     for (uint32_t i : plan_.order) ordered.push_back(draws_[i]);
     draws_ = std::move(ordered);
   }
-  item_of_drawable_.assign(scene.drawables.size(), 0);
-  for (uint32_t i = 0; i < draws_.size(); ++i) item_of_drawable_[draws_[i].drawable] = i;
+  if (animator_) {
+    item_of_drawable_.assign(scene.drawables.size(), 0);
+    for (uint32_t i = 0; i < draws_.size(); ++i) item_of_drawable_[draws_[i].drawable] = i;
+  }
   std::vector<gpu::GpuCullItem>& items = *items_out;
   items.resize(std::max<size_t>(1, draws_.size()));
   for (const DrawSegment& seg : plan_.segments) {
@@ -582,12 +580,6 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   constexpr VkBufferUsageFlags kVertexUsage =
       VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
       VK_BUFFER_USAGE_TRANSFER_SRC_BIT;  // and read back by tests (ReadVerticesForTesting)
-  auto assign = [&](vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) -> absl::Status {
-    if (!src.ok()) return src.status();
-    device_bytes_ += src->size();
-    dst = std::move(*src);
-    return absl::OkStatus();
-  };
   // An animated scene's deformed drawables have their copies after the scene's vertices. skin.comp
   // indexes every buffer it reads by 32-bit float offsets: checked before anything is made.
   if (animator_) {
@@ -602,27 +594,27 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   std::vector<Vertex> with_copies;
   if (animator_) with_copies = animator_->VertexData(scene);
   const std::vector<Vertex>& vertices = animator_ ? with_copies : scene.vertices;
-  absl::Status st = assign(
+  absl::Status st = Keep(
       vertices_, UploadBuffer(ctx, vertices.data(), vertices.size() * sizeof(Vertex),
                               kVertexUsage, n + ".vertices"));
   if (st.ok() && animator_) st = UploadAnimation(ctx, scene);
   if (st.ok())
-    st = assign(indices_,
+    st = Keep(indices_,
                 UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
                              VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
                              n + ".indices"));
   if (!st.ok()) return st;
 
-  st = assign(materials_,
+  st = Keep(materials_,
               UploadBuffer(ctx, materials.data(), materials.size() * sizeof(gpu::GpuMaterial),
                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".materials"));
   if (st.ok())
-    st = assign(drawables_,
+    st = Keep(drawables_,
                 UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
   if (st.ok())
     st =
-        assign(cull_items_, UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),
+        Keep(cull_items_, UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),
                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".cull_items"));
   if (!st.ok()) return st;
 
@@ -634,7 +626,7 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   std::vector<uint8_t> padded(stride * materials.size(), 0);
   for (size_t i = 0; i < materials.size(); ++i)
     std::memcpy(padded.data() + i * stride, &materials[i], sizeof(gpu::GpuMaterial));
-  st = assign(material_uniforms_,
+  st = Keep(material_uniforms_,
               UploadBuffer(ctx, padded.data(), padded.size(), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT,
                            n + ".material_uniforms"));
   if (!st.ok()) return st;

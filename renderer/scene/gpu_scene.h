@@ -148,7 +148,7 @@ class GpuScene {
   // skin.comp's jobs (gpu::GpuSkinJob, one per deformed drawable), how many, and the workgroups
   // they need in all.
   const vk::Buffer& skin_jobs() const { return skin_jobs_; }
-  uint32_t skin_job_count() const { return skin_job_count_; }
+  uint32_t skin_job_count() const { return animator_ ? uint32_t(animator_->skin_jobs()) : 0u; }
   uint64_t skin_groups() const { return skin_groups_; }
 
  private:
@@ -161,6 +161,8 @@ class GpuScene {
                              const std::vector<gpu::GpuDrawable>& drawables,
                              const std::vector<gpu::GpuCullItem>& items);
   absl::Status UploadAnimation(vk::Context& ctx, const CpuScene& scene);
+  // Takes `src` into `dst`, counting it in device_bytes().
+  absl::Status Keep(vk::Buffer& dst, absl::StatusOr<vk::Buffer> src);
   absl::Status UploadTextures(vk::Context& ctx, const CpuScene& scene,
                               const TextureBucketPlan& plan);
   absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
@@ -192,9 +194,8 @@ class GpuScene {
   VkDeviceSize pose_weights_offset_ = 0, pose_records_offset_ = 0;
   std::vector<VkBufferCopy> pose_copies_;
   vk::Buffer skin_jobs_;
-  uint32_t skin_job_count_ = 0;
   uint64_t skin_groups_ = 0;
-  std::vector<gpu::GpuDrawable> records_;  // every drawable's record as uploaded
+  std::vector<gpu::GpuDrawable> records_;  // per animator drawable, its record (Pose rewrites)
   bool pose_pending_ = false;
   uint64_t pose_serial_ = 0;
 };

@@ -54,6 +54,7 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
       ad.first_vertex = uint32_t(next_vertex);
       next_vertex += p.vertex_count;
       a.copy_vertices_ += p.vertex_count;
+      if (p.vertex_count > 0) ++a.skin_jobs_;
       a.deformed_vertices_ += p.vertex_count;
       if (skinned) {
         int64_t& base = skin_base[size_t(node.skin)];

@@ -48,6 +48,10 @@ class SceneAnimator {
   size_t joint_count() const { return joint_count_; }
   size_t weight_count() const { return weight_count_; }
   uint64_t deformed_vertices() const { return deformed_vertices_; }
+  // Whether any drawable is skinned, and how many deformed drawables have vertices (the skinning
+  // pass's jobs).
+  bool skinned() const { return !skins_used_.empty(); }
+  size_t skin_jobs() const { return skin_jobs_; }
 
   // Poses the scene with animation `animation` (-1: the rest pose) at `scene_time`. Returns
   // false when that is the pose already held (nothing changed).
@@ -93,6 +97,7 @@ class SceneAnimator {
   };
   std::vector<MovingNode> cameras_, lights_;
   uint64_t copy_vertices_ = 0;
+  size_t skin_jobs_ = 0;
   uint64_t deformed_vertices_ = 0;
   size_t joint_count_ = 0, weight_count_ = 0;
   bool posed_ = false;

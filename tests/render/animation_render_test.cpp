@@ -112,28 +112,14 @@ Frame RenderOk(const Scene& scene, const Camera& c, const Settings& s) {
 struct Deformed {
   glm::vec3 position, normal;
 };
-Deformed Reference(const CpuScene& cpu, const Primitive& p, uint32_t v,
-                   const std::vector<float>& weights, const std::vector<glm::mat4>* joints);
 
-// Flat normals (no normals in the file): the deformed face's.
-glm::vec3 FlatNormal(const CpuScene& cpu, const Primitive& p, uint32_t v,
-                     const std::vector<float>& weights, const std::vector<glm::mat4>* joints) {
-  const uint32_t first = v - v % 3;
-  Primitive smooth = p;
-  smooth.flat_normals = false;
-  const glm::vec3 a = Reference(cpu, smooth, first, weights, joints).position;
-  const glm::vec3 b = Reference(cpu, smooth, first + 1, weights, joints).position;
-  const glm::vec3 c = Reference(cpu, smooth, first + 2, weights, joints).position;
-  return glm::normalize(glm::cross(b - a, c - a));
-}
-
-Deformed Reference(const CpuScene& cpu, const Primitive& p, uint32_t v,
-                   const std::vector<float>& weights, const std::vector<glm::mat4>* joints) {
+// Vertex v of primitive p morphed by `weights`, then skinned by `joints` (if given).
+Deformed Deform(const CpuScene& cpu, const Primitive& p, uint32_t v,
+                const std::vector<float>& weights, const std::vector<glm::mat4>* joints) {
   const Vertex& rest = cpu.vertices[p.first_vertex + v];
-  const MorphDelta* deltas =
-      p.morph_targets ? &cpu.morph_deltas[p.first_morph_delta + v] : nullptr;
   Deformed d{rest.position, rest.normal};
-  if (deltas) {
+  if (p.morph_targets) {
+    const MorphDelta* deltas = &cpu.morph_deltas[p.first_morph_delta + v];
     d.position = MorphPosition(rest.position, deltas, p.vertex_count, weights);
     for (size_t t = 0; t < weights.size(); ++t)
       d.normal += weights[t] * deltas[t * p.vertex_count].normal;
@@ -146,7 +132,23 @@ Deformed Reference(const CpuScene& cpu, const Primitive& p, uint32_t v,
     d.position = SkinPoint(d.position, j, w, *joints);
     d.normal = glm::mat3(m) * d.normal;
   }
-  d.normal = p.flat_normals ? FlatNormal(cpu, p, v, weights, joints) : glm::normalize(d.normal);
+  return d;
+}
+
+// The deformed vertex with its unit normal: for flat normals (no normals in the file), its
+// deformed face's (corners 3t, 3t + 1, 3t + 2).
+Deformed Reference(const CpuScene& cpu, const Primitive& p, uint32_t v,
+                   const std::vector<float>& weights, const std::vector<glm::mat4>* joints) {
+  Deformed d = Deform(cpu, p, v, weights, joints);
+  if (!p.flat_normals) {
+    d.normal = glm::normalize(d.normal);
+    return d;
+  }
+  const uint32_t first = v - v % 3;
+  const glm::vec3 a = Deform(cpu, p, first, weights, joints).position;
+  const glm::vec3 b = Deform(cpu, p, first + 1, weights, joints).position;
+  const glm::vec3 c = Deform(cpu, p, first + 2, weights, joints).position;
+  d.normal = glm::normalize(glm::cross(b - a, c - a));
   return d;
 }
 

@@ -169,6 +169,14 @@ struct Builder {
     return int(gltf["accessors"].size() - 1);
   }
 
+  // The file's one animation: one LINEAR channel moving `path` of `node` by accessors `input`
+  // (key times) and `output`.
+  void OneChannelAnimation(int input, int output, int node, const char* path) {
+    gltf["animations"] = json::array(
+        {{{"samplers", {{{"input", input}, {"output", output}}}},
+          {"channels", {{{"sampler", 0}, {"target", {{"node", node}, {"path", path}}}}}}}});
+  }
+
   // VEC4 UNSIGNED_BYTE joint indices, 4 bytes per element: one float slot each.
   int Joints(const std::vector<std::array<uint8_t, 4>>& v) {
     const size_t offset = data.size() * 4;
@@ -385,9 +393,7 @@ Builder SkinnedFile() {
   const int times = b.Floats({0, 1}, "SCALAR");
   const float h = std::sin(kPi / 4), c = std::cos(kPi / 4);
   const int turn = b.Floats({0, 0, 0, 1, 0, 0, h, c}, "VEC4");
-  b.gltf["animations"] = json::array(
-      {{{"samplers", {{{"input", times}, {"output", turn}}}},
-        {"channels", {{{"sampler", 0}, {"target", {{"node", 1}, {"path", "rotation"}}}}}}}});
+  b.OneChannelAnimation(times, turn, 1, "rotation");
   return b;
 }
 
@@ -433,9 +439,7 @@ Builder MorphFile() {
                                    {"weights", {0.0}}}});
   const int times = b.Floats({0, 1}, "SCALAR");
   const int w = b.Floats({0, 1}, "SCALAR");
-  b.gltf["animations"] = json::array(
-      {{{"samplers", {{{"input", times}, {"output", w}}}},
-        {"channels", {{{"sampler", 0}, {"target", {{"node", 0}, {"path", "weights"}}}}}}}});
+  b.OneChannelAnimation(times, w, 0, "weights");
   return b;
 }
 
