@@ -410,8 +410,7 @@ absl::Status ValidateJobSpec(const v1::JobSpec& spec, const JobLimits& limits) {
                                             kMaxFps, " frames per second; 0: the time stands still)"));
   // Every frame's scene time within the setting's range (the last frame's is the largest).
   if (spec.fps() > 0.0) {
-    const double start = spec.settings().has_scene_time() ? spec.settings().scene_time() : 0.0;
-    const double last = start + double(spec.frames().last()) / spec.fps();
+    const double last = SceneTimeSeconds(spec, spec.frames().last());
     if (!(std::abs(last) <= kMaxSceneTime))
       return Invalid("spec.fps", absl::StrCat("frame ", spec.frames().last(), " would be at ",
                                               last, " s, past the scene_time range (-1e6..1e6)"));
@@ -492,9 +491,13 @@ std::string FrameFileName(const v1::JobSpec& spec, uint32_t frame) {
   return Expand(NamePattern{"frame_", Extension(spec.encoding()), 5}, frame);
 }
 
+double SceneTimeSeconds(const v1::JobSpec& spec, uint32_t frame) {
+  const double start = spec.settings().scene_time();  // 0 when unset
+  return spec.fps() > 0.0 ? start + double(frame) / spec.fps() : start;
+}
+
 float SceneTimeAtFrame(const v1::JobSpec& spec, uint32_t frame) {
-  const double start = spec.settings().has_scene_time() ? spec.settings().scene_time() : 0.0;
-  return static_cast<float>(spec.fps() > 0.0 ? start + double(frame) / spec.fps() : start);
+  return static_cast<float>(SceneTimeSeconds(spec, frame));
 }
 
 uint32_t TaaFrames(const v1::JobSpec& spec) {

@@ -96,6 +96,8 @@ std::string FrameFileName(const v1::JobSpec& spec, uint32_t frame);
 // frame / spec.fps (nothing when fps is 0), computed in double and rounded to the setting's
 // float once, so every daemon poses a frame alike.
 float SceneTimeAtFrame(const v1::JobSpec& spec, uint32_t frame);
+// The same before the rounding to float (what validation holds to the setting's range).
+double SceneTimeSeconds(const v1::JobSpec& spec, uint32_t frame);
 
 // spec.taa_frames, or 8 when 0.
 uint32_t TaaFrames(const v1::JobSpec& spec);

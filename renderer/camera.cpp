@@ -105,8 +105,9 @@ Camera FrameBounds(const Aabb& bounds, float yfov, float aspect, glm::vec3 direc
   return cam;
 }
 
-Camera FromSceneCamera(const SceneCamera& sc) {
+Camera FromSceneCamera(const SceneCamera& sc, int32_t index) {
   Camera cam;
+  cam.scene_camera = index;
   cam.view = glm::inverse(sc.world);
   cam.yfov = sc.yfov;
   cam.znear = sc.znear > 0.0f ? sc.znear : 0.01f;

@@ -18,7 +18,7 @@ struct Camera {
   float yfov = 0.8f;              // vertical field of view, radians, (0, pi)
   float znear = 0.05f;            // > 0, world units
   float zfar = 0.0f;              // 0 = infinite; else > znear
-  // The file's camera this is (SceneInfo::cameras, placed by FromSceneCamera), or -1. In an
+  // The file's camera this is (SceneInfo::cameras, FromSceneCamera's index), or -1. In an
   // animated scene whose animation moves that camera's node, the frame's pose places `view`.
   int32_t scene_camera = -1;
 };
@@ -43,7 +43,9 @@ Camera FrameBounds(const Aabb& bounds, float yfov, float aspect,
                    glm::vec3 direction = glm::vec3(0.55f, 0.45f, 0.70f));
 
 // The camera of a glTF camera node (its world matrix is camera -> world).
-Camera FromSceneCamera(const SceneCamera& camera);
+// `index`: the camera's place in SceneInfo::cameras, kept as Camera::scene_camera so an
+// animated scene can pose it (-1: not one of the scene's).
+Camera FromSceneCamera(const SceneCamera& camera, int32_t index = -1);
 
 // Frustum planes (xyz normal pointing inside, w distance) from a view-projection matrix with
 // reverse Z; an infinite far plane gives a degenerate far plane that rejects nothing.

@@ -57,8 +57,7 @@ absl::StatusOr<Camera> ResolveCamera(const v1::Camera& c, const SceneInfo& scene
         return Bad("scene_camera",
                    absl::StrCat(c.scene_camera(), " is out of range: the scene has ",
                                 scene.cameras.size(), " cameras"));
-      cam = FromSceneCamera(scene.cameras[c.scene_camera()]);
-      cam.scene_camera = int32_t(c.scene_camera());  // an animated scene poses it
+      cam = FromSceneCamera(scene.cameras[c.scene_camera()], int32_t(c.scene_camera()));
       break;
     }
     case v1::Camera::kFrame:

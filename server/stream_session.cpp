@@ -291,13 +291,8 @@ PlayTime PlayingSceneTime(const SessionState& st, Clock::time_point now) {
   const double duration = AnimationDuration(st);
   bool ended = false;
   if (duration > 0.0) {
-    if (st.settings.loop) {
-      t = std::fmod(t, duration);
-      if (t < 0.0) t += duration;
-    } else {
-      ended = t >= duration;
-      t = std::clamp(t, 0.0, duration);
-    }
+    ended = !st.settings.loop && t >= duration;
+    t = WrapAnimationTime(t, duration, st.settings.loop);
   }
   return {std::clamp(t, -1e6, 1e6), ended};
 }

@@ -148,8 +148,7 @@ int main(int argc, char** argv) {
                            info.cameras.size()));
     if (!frame_bounds && !info.cameras.empty()) {
       const float fov = camera.yfov;
-      camera = FromSceneCamera(info.cameras[std::max(camera_index, 0)]);
-      camera.scene_camera = std::max(camera_index, 0);  // an animation may move it
+      camera = FromSceneCamera(info.cameras[std::max(camera_index, 0)], std::max(camera_index, 0));
       if (fov_set) camera.yfov = fov;
     } else {
       camera = FrameBounds(info.bounds, camera.yfov, aspect);

@@ -80,15 +80,16 @@ void SampleAnimation(const AnimationSampler& s, float t, bool rotation, float* o
   }
 }
 
+double WrapAnimationTime(double t, double duration, bool loop) {
+  if (!loop) return std::clamp(t, 0.0, duration);
+  t = std::fmod(t, duration);
+  return t < 0.0 ? t + duration : t;
+}
+
 float AnimationTime(const Animation& a, double scene_time, bool loop) {
   const double d = a.duration;
   if (!(d > 0.0) || !std::isfinite(scene_time)) return 0.0f;
-  if (loop) {
-    double t = std::fmod(scene_time, d);
-    if (t < 0.0) t += d;
-    return float(t);
-  }
-  return float(std::clamp(scene_time, 0.0, d));
+  return float(WrapAnimationTime(scene_time, d, loop));
 }
 
 ScenePose EvaluatePose(const std::vector<SceneNode>& nodes,

@@ -69,6 +69,8 @@ void SampleAnimation(const AnimationSampler& s, float t, bool rotation, float* o
 // The animation's own time at scene time `scene_time` (seconds): with `loop` it wraps at the
 // duration (negative times wrap too); without, it is clamped to [0, duration].
 float AnimationTime(const Animation& a, double scene_time, bool loop);
+// The same for a time `t` (finite) and a duration > 0, in double.
+double WrapAnimationTime(double t, double duration, bool loop);
 
 // Every node at one time.
 struct ScenePose {

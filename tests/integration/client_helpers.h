@@ -156,6 +156,13 @@ inline v1::ClientEvent CameraEvent(uint64_t id) {
   return e;
 }
 
+// Reads until a frame reflects `event` (bounded by the stream ending).
+inline bool ReadUntilEvent(StreamRW* rw, uint64_t event, v1::Frame* f) {
+  while (rw->Read(f))
+    if (f->event_id() >= event) return true;
+  return false;
+}
+
 // Half-closes, reads what the server still sends, and returns how the stream ended.
 inline grpc::Status CloseStream(StreamRW* rw) {
   rw->WritesDone();

@@ -752,9 +752,7 @@ v1::Frame ChangeSettings(StreamRW* rw, uint64_t id, const v1::RenderSettings& ch
   *e.mutable_settings() = change;
   v1::Frame f;
   EXPECT_TRUE(rw->Write(e));
-  while (rw->Read(&f) && f.event_id() < id) {
-  }
-  EXPECT_GE(f.event_id(), id) << "the stream ended";
+  EXPECT_TRUE(ReadUntilEvent(rw, id, &f)) << "the stream ended";
   return f;
 }
 

@@ -46,13 +46,6 @@ v1::ClientEvent ResumeEvent(const std::string& token) {
   return e;
 }
 
-// Reads until a frame reflects `event` (bounded by the stream ending).
-bool ReadUntilEvent(StreamRW* rw, uint64_t event, v1::Frame* f) {
-  while (rw->Read(f))
-    if (f->event_id() >= event) return true;
-  return false;
-}
-
 // GET http://127.0.0.1:port/path over a plain socket (HTTP/1.0: the server closes).
 std::string HttpGet(int port, const std::string& path) {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);

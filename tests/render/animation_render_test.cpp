@@ -322,8 +322,7 @@ TEST(AnimationRender, FileCamerasAndLightsFollowTheirAnimatedNodes) {
   ASSERT_TRUE(l.scene);
   ASSERT_EQ(l.scene->info().cameras.size(), 1u);
   const Settings s = Small();
-  Camera file = FromSceneCamera(l.scene->info().cameras[0]);
-  file.scene_camera = 0;
+  const Camera file = FromSceneCamera(l.scene->info().cameras[0], 0);
   RgbaImage seen[2];
   int i = 0;
   for (float t : {0.5f, 1.5f}) {
