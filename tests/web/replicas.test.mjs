@@ -270,7 +270,7 @@ test('after the kill, a moved page\'s token resumes on a live replica, through t
   assert.equal(junk.error?.code, 'INVALID_ARGUMENT');
   assert.match(junk.error.message, /open\.resume_token/);
   // A token of the dead replica: the session is gone with it; the page then opens afresh.
-  const dead = await probe.request('open', { open: { resume_token: `${tagOf(victim.address)}.${'0'.repeat(32)}` } });
+  const dead = await probe.request('open', { open: { resume_token: wrapToken(victim.address, '0'.repeat(32)) } });
   if (dead.ok) {
     const endDead = await probe.waitFor(() => probe.messages.find((m) => m.type === 'stream_end' && m.stream === dead.result.stream), 'the dead replica\'s resume to fail');
     assert.equal(endDead.ok, false);
@@ -335,7 +335,7 @@ test('the viewer page (H.264) carries on after its replica is killed: a note, a 
     fs.mkdirSync(ARTIFACTS, { recursive: true });
     await page.screenshot({ path: path.join(ARTIFACTS, 'replicas-1-before-kill.png') });
     home.proc.kill('SIGKILL');
-    const after = await waitForPageFrame(page, (f) => f.session_token.startsWith(`${tagOf(other.address)}.`), 'a frame from the other replica', 10_000);
+    const after = await waitForPageFrame(page, (f) => replicaOfToken(f.session_token, pair) === other, 'a frame from the other replica', 10_000);
     assert.equal(after.encoding, 'VIDEO_H264');
     assert.equal(await page.evaluate(() => window.tessera.moves), 1);
     // The new decoder started on the new session's first frame, a keyframe: nothing to ask for.
