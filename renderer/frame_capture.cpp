@@ -18,7 +18,9 @@ absl::Status Renderer::Impl::CaptureFrame(FrameData& f, const FramePlan& plan,
   // depth-test layout.
   RETURN_IF_ERROR(Capture(capture, f.tiled ? &f.light_buffers : nullptr, PostColor(pc),
                           plan.FinalAccess(plan.scene_color),
-                          capture->want_ids ? Access::kDepthTest : depth_access, f.exposure.state));
+                          capture->want_ids ? Access::kDepthTest : depth_access, f.exposure.state,
+                          plan.Has(PassId::kMotion) ? &targets.motion.get() : nullptr,
+                          plan.FinalAccess(Resource::kMotion)));
   capture->local_lights = f.local;
   capture->view = f.fu.view;
   capture->proj = f.fu.proj;
@@ -94,7 +96,8 @@ absl::Status Renderer::Impl::CaptureIds(const GpuScene& scene, VkDescriptorSet s
 // culling ran (`lights`), its tile lists, light bounds and row bins to the host (tests only).
 absl::Status Renderer::Impl::Capture(FrameCapture* capture, const LightCullBuffers* lights,
                                      const vk::Image& hdr, Access hdr_access,
-                                     Access depth_access, const vk::Image* exposure) {
+                                     Access depth_access, const vk::Image* exposure,
+                                     const vk::Image* motion, Access motion_access) {
   const uint32_t tiles = lights ? lights->tiles : 0;
   const VkDeviceSize depth_bytes = VkDeviceSize(targets.width) * targets.height * 4;
   const VkDeviceSize count_bytes = VkDeviceSize(tiles) * 4;
@@ -108,7 +111,9 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, const LightCullBuffe
       lights ? VkDeviceSize(lights->lights) * sizeof(gpu::GpuLightBounds) : 0;
   const VkDeviceSize rows_at = bounds_at + bounds_bytes;
   const VkDeviceSize row_bytes = lights ? VkDeviceSize(lights->row_entries) * 4 : 0;
-  ASSIGN_OR_RETURN(vk::Buffer host, vk::Buffer::Create(*ctx, rows_at + row_bytes,
+  const VkDeviceSize motion_at = rows_at + row_bytes;  // RG16F: 4-byte texels
+  const VkDeviceSize motion_bytes = motion ? depth_bytes : 0;
+  ASSIGN_OR_RETURN(vk::Buffer host, vk::Buffer::Create(*ctx, motion_at + motion_bytes,
                                                        VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                                        vk::MemoryUsage::kReadback, "capture"));
   executor->BeginOneTime();
@@ -152,6 +157,15 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, const LightCullBuffe
                     VK_ACCESS_2_NONE, VK_IMAGE_LAYOUT_GENERAL});
     vk::CmdBarrier(cmd, &eb, 1);
   }
+  if (motion) {
+    const VkImageMemoryBarrier2 mb =
+        vk::MakeImageBarrier(*motion, Between(motion_access, Access::kTransferSrc));
+    vk::CmdBarrier(cmd, &mb, 1);
+    region.bufferOffset = motion_at;
+    region.imageExtent = {targets.width, targets.height, 1};
+    vkCmdCopyImageToBuffer(cmd, motion->handle(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                           host.handle(), 1, &region);
+  }
   if (lights) {  // the lists exist only when the light-culling pass ran
     const VkBufferCopy copies[4] = {{0, depth_bytes, count_bytes},
                                     {0, depth_bytes + count_bytes, list_bytes},
@@ -180,6 +194,11 @@ absl::Status Renderer::Impl::Capture(FrameCapture* capture, const LightCullBuffe
   std::memcpy(capture->light_bounds.data(), bytes + bounds_at, bounds_bytes);
   capture->row_lights.resize(row_bytes / 4);
   std::memcpy(capture->row_lights.data(), bytes + rows_at, row_bytes);
+  capture->motion.resize(motion ? size_t(targets.width) * targets.height : 0);
+  const auto* motion_halves = reinterpret_cast<const uint16_t*>(bytes + motion_at);
+  for (size_t i = 0; i < capture->motion.size(); ++i)
+    capture->motion[i] = glm::vec2(glm::unpackHalf1x16(motion_halves[2 * i]),
+                                   glm::unpackHalf1x16(motion_halves[2 * i + 1]));
   return absl::OkStatus();
 }
 

@@ -38,7 +38,7 @@ absl::Status Renderer::Impl::EnsureShadowAtlas(uint32_t size) {
   return absl::OkStatus();
 }
 
-absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
+absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool animated) {
   const uint64_t frame = ++frame_counter;
   const uint32_t width = s.width, height = s.height;
   FrameTargets t;
@@ -131,6 +131,12 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s) {
                                      kColor | kSampled | kCopy | kStorage, "post_hdr",
                                      width, height));
     t.post_hdr = post->image;
+  }
+  if (s.aa == AaMode::kTaa && animated) {  // the motion pass's target
+    ASSIGN_OR_RETURN(auto* motion,
+                     get(R::kMotion, kMotionFormat, kColor | kSampled | kCopy, "motion",
+                         width, height));
+    t.motion = motion->image;
   }
   if (fxaa) {
     ASSIGN_OR_RETURN(auto* fx, get(R::kFxaaColor, compute_ldr ? kLdrComputeFormat : kLdrFormat,

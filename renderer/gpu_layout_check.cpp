@@ -47,7 +47,8 @@ static_assert(offsetof(CullUniforms, hiz) == 192);
 static_assert(offsetof(CullUniforms, frame) == 208);
 static_assert(kDrawCommandWords * 4 == 20, "VkDrawIndexedIndirectCommand");
 
-static_assert(sizeof(FrameUniforms) == 4 * 64 + 8 * 16);
+static_assert(sizeof(FrameUniforms) == 5 * 64 + 8 * 16);
+static_assert(offsetof(FrameUniforms, prev_view_proj) == 384);
 static_assert(offsetof(FrameUniforms, aa) == 368);
 static_assert(offsetof(FrameUniforms, lighting) == 336);
 static_assert(offsetof(FrameUniforms, depth_params) == 352);
@@ -65,7 +66,9 @@ static_assert(sizeof(ShadowUniforms) <= 16384, "must fit the smallest maxUniform
 // Push-constant blocks: within the 128 bytes every device has, std430 offsets.
 static_assert(sizeof(TonemapPush) == 48);
 static_assert(sizeof(GeometricAaPush) == 12);
-static_assert(sizeof(TaaPush) == 80 && offsetof(TaaPush, params) == 64);
+static_assert(sizeof(TaaPush) == 96 && offsetof(TaaPush, params) == 64 &&
+              offsetof(TaaPush, motion) == 80);
+static_assert(sizeof(MotionPush) == 80 && offsetof(MotionPush, kept) == 64);
 static_assert(sizeof(FxaaPush) == 8);
 static_assert(sizeof(SsaoPush) == 48);
 static_assert(sizeof(SsaoBlurPush) == 32);

@@ -231,7 +231,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   const uint32_t triangle_bits = m.CheckVisibilityIds(gs, frame.settings);
   const Settings& s = frame.settings.effective;
   const uint64_t targets_before = m.target_pool.created();
-  RETURN_IF_ERROR(m.AcquireTargets(s));
+  RETURN_IF_ERROR(m.AcquireTargets(s, gs.animated()));
   frame.stats.targets_created = uint32_t(m.target_pool.created() - targets_before);
 
   // Each feature prepares its part of the frame, in order: the camera (and taa's jitter)
@@ -258,6 +258,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.taa_history_valid = f.taa.history_valid;
   features.exposure_valid = f.exposure.state_valid;
   features.pose_pending = gs.pose_pending();
+  features.object_motion = f.taa.motion_pass;
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
   for (const PlannedPass& p : plan.passes)

@@ -152,6 +152,9 @@ struct FrameCapture {
   std::vector<gpu::GpuLightBounds> light_bounds;
   std::vector<uint32_t> row_lights;
   std::vector<float> hdr;  // the tonemap's input (post-AA HDR colour), RGBA, width x height
+  // taa on animated scenes, when the motion pass ran: its target, width x height uv offsets of
+  // each pixel's surface on last frame's screen from where the camera alone puts it.
+  std::vector<glm::vec2> motion;
   float exposure_log2 = 0.0f;  // auto exposure: the view's adapted average log2 luma (else NaN)
   glm::mat4 view{1.0f}, proj{1.0f};
 };

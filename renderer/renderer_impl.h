@@ -149,6 +149,12 @@ struct Renderer::Impl {
     uint32_t frames = 0;   // frames blended into it since the last reset (capped)
     uint32_t jitter_index = 0;
     glm::mat4 view_proj{0.0f};  // unjittered, of the last frame
+    // Animated scenes: the pose of the view's last frame that moved (features/motion.cpp), its
+    // GpuScene::pose_serial (0: none kept), world matrix per SceneAnimator drawable, and deformed
+    // vertices.
+    uint64_t pose_serial = 0;
+    std::vector<glm::mat4> world;
+    vk::Buffer vertices;
   };
   // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
   // they hold (ShadowAtlas), the uniforms the shading reads, and a 1x1 stand-in bound while
@@ -192,7 +198,7 @@ struct Renderer::Impl {
 
   // frame_resources.cpp: targets and buffers, (re)made when a frame needs them.
   // This frame's targets from the pool (the ones its settings use), then a trim of the pool.
-  absl::Status AcquireTargets(const Settings& s);
+  absl::Status AcquireTargets(const Settings& s, bool animated);
   absl::Status EnsureShadowAtlas(uint32_t size);
   absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
   absl::Status EnsureRowBuffer(size_t entries);
@@ -216,6 +222,8 @@ struct Renderer::Impl {
   // Returns the bits of an id that hold the triangle.
   uint32_t CheckVisibilityIds(const GpuScene& gs, ResolvedSettings& settings);
   absl::Status PrepareCamera(FrameData& f);  // post.cpp: uniforms, taa history and jitter
+  // motion.cpp (from PrepareCamera): taa's object motion and the view's kept pose.
+  absl::Status PrepareMotion(FrameData& f, TaaHistory& history, bool history_valid);
   absl::Status PrepareLights(FrameData& f, Frame& frame);  // forward_plus.cpp
   absl::Status PrepareShadows(FrameData& f, Frame& frame);  // shadows.cpp
   absl::Status PrepareSsao(FrameData& f);                  // ssao.cpp
@@ -237,13 +245,14 @@ struct Renderer::Impl {
   absl::Status FinishFrame(FrameData& f, const FramePlan& plan, GraphExecutor::Result run,
                            Frame& frame, FrameCapture* capture);
 
-  // frame_capture.cpp (tests): copies the depth, the light lists, the tonemap's input and auto
-  // exposure's state; with want_ids also every drawable's id against the frame's depth.
+  // frame_capture.cpp (tests): copies the depth, the light lists, the tonemap's input, auto
+  // exposure's state and taa's object motion; with want_ids also every drawable's id against the
+  // frame's depth.
   absl::Status CaptureFrame(FrameData& f, const FramePlan& plan, const PassContext& pc,
                             FrameCapture* capture);
   absl::Status Capture(FrameCapture* capture, const LightCullBuffers* lights,
                        const vk::Image& hdr, Access hdr_access, Access depth_access,
-                       const vk::Image* exposure);
+                       const vk::Image* exposure, const vk::Image* motion, Access motion_access);
   absl::Status CaptureIds(const GpuScene& scene, VkDescriptorSet scene_set, Access depth_access,
                           FrameCapture* capture);
 };

@@ -81,6 +81,7 @@ absl::Status Renderer::Impl::InitPasses() {
   RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateGeometricAaPass(*ctx)));
   RETURN_IF_ERROR(add(CreateTaaPass(*ctx)));
+  RETURN_IF_ERROR(add(CreateMotionPass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateFxaaPass(*ctx)));
   RETURN_IF_ERROR(add(CreateShadowPass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateSsaoPass(*ctx)));

@@ -11,12 +11,6 @@ layout(location = 5) flat in uint v_drawable;
 layout(location = 0) out uint out_id;
 
 void main() {
-  if (material.flags.x == kAlphaMask) {
-    UvGradients grads = ComputeUvGradients(v_uv0, v_uv1);
-    float alpha = material.base_color_factor.a;
-    GpuTextureRef t = material.base_color_tex;
-    if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, v_uv0, v_uv1, grads).a;
-    if (alpha < material.params2.x) discard;
-  }
+  if (material.flags.x == kAlphaMask && CutOut(v_uv0, v_uv1)) discard;
   out_id = v_drawable + 1u;
 }

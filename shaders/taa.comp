@@ -4,8 +4,8 @@
 #define TESSERA_COMPUTE
 #include "common/taa.glsl"
 
-layout(set = 0, binding = 3, rgba16f) uniform writeonly image2D u_out_color;
-layout(set = 0, binding = 4, rgba16f) uniform writeonly image2D u_out_history;
+layout(set = 0, binding = 4, rgba16f) uniform writeonly image2D u_out_color;
+layout(set = 0, binding = 5, rgba16f) uniform writeonly image2D u_out_history;
 
 void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);

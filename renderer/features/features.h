@@ -38,6 +38,8 @@ void SetupSsao(GraphBuilder& b);
 // blended surfaces back to front over the opaque result.
 void SetupForward(GraphBuilder& b);
 void SetupTransparent(GraphBuilder& b);
+// motion.cpp: taa's object motion where animated geometry moved since the view's last frame.
+void SetupMotion(GraphBuilder& b);
 // post.cpp: taa, tonemap, fxaa.
 void SetupTaa(GraphBuilder& b);
 void SetupTonemap(GraphBuilder& b);

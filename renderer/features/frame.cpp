@@ -18,6 +18,7 @@ FramePlan PlanFrame(const Settings& settings, const FrameFeatures& features) {
   SetupGeometricAa(b);        // ... (vis_mlaa then blends its partly covered pixels) ...
   SetupForward(b);            // ... and the forward pipeline shades forward
   SetupTransparent(b);   // blended surfaces over the opaque colour, without depth writes
+  SetupMotion(b);        // taa: what animated geometry moved, before TAA reprojects
   SetupTaa(b);
   SetupExposure(b);      // before bloom: bloom's threshold is in exposed units
   SetupBloom(b);

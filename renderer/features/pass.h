@@ -34,6 +34,8 @@ inline constexpr VkFormat kShadowFormat = VK_FORMAT_D16_UNORM;  // the shadow at
 // shaderStorageImageExtendedFormats, for post_stage compute).
 inline constexpr VkFormat kAoFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 inline constexpr VkFormat kExposureFormat = VK_FORMAT_R32_SFLOAT;  // adapted log2 luma, 1x1
+// taa's object motion: uv offsets (a colour-attachment and sampled format on every device).
+inline constexpr VkFormat kMotionFormat = VK_FORMAT_R16G16_SFLOAT;
 // Bloom's downsample chain: this many levels, the first at half the frame's size (the upsample
 // chain has one fewer). Six levels reach 1/64 of the frame: a glow about a tenth of its width.
 inline constexpr uint32_t kBloomLevels = 6;
@@ -59,6 +61,7 @@ struct FrameTargets {
   // kBloomLevels mips exist) and the upsample chain (one mip fewer), with a view per mip.
   vk::ImageRef bloom_down, bloom_up;
   vk::MipViewsRef bloom_down_levels, bloom_up_levels;
+  vk::ImageRef motion;  // taa on animated scenes
   // The long-lived resources this frame imports (renderer-owned; empty when unused).
   vk::ImageRef shadow_atlas, taa_history, taa_history_next, exposure_state;
   const vk::Image& Get(Resource r) const {
@@ -78,6 +81,7 @@ struct FrameTargets {
       case Resource::kAoTemp: return ao_temp;
       case Resource::kBloomDown: return bloom_down;
       case Resource::kBloomUp: return bloom_up;
+      case Resource::kMotion: return motion;
       case Resource::kShadowAtlas:
         return shadow_atlas;
       case Resource::kTaaHistory:
@@ -180,6 +184,20 @@ struct TaaFrame {
   glm::mat4 reproject{1.0f};  // this frame's unjittered clip -> last frame's
   float current_weight = 1.0f;
   bool history_valid = false;  // history_read holds last frame (else it was never written)
+  // Animated scenes (features/motion.cpp): when the pose changed since the view's last frame, the
+  // motion pass runs; with valid history it draws each moved drawable's motion (`draws`) for TAA
+  // (`motion`), and it keeps this frame's deformed vertices in `kept` for the next frame.
+  struct MotionDraw {
+    uint32_t item = 0;  // into GpuScene::draws()
+    bool kept = false;  // deformed: its last vertices are in `kept`, else its rest ones moved
+    glm::mat4 prev_world{1.0f};
+  };
+  bool motion_pass = false;
+  bool motion = false;
+  std::vector<MotionDraw> draws;
+  const vk::Buffer* kept = nullptr;  // the view's copy of the deformed vertices (null: none)
+  uint64_t kept_first = 0;           // the first deformed vertex (SceneAnimator::first_copy_vertex)
+  uint64_t kept_count = 0;
 };
 
 // Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
@@ -349,6 +367,9 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& c
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                                       const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx);
+// taa on animated scenes: the moved geometry's motion (TaaFrame::draws), and the pose kept.
+absl::StatusOr<std::unique_ptr<Pass>> CreateMotionPass(const vk::Context& ctx,
+                                                       const SceneLayout& layout);
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx);
 // shadows: renders ShadowFrame::faces into the atlas.
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadowPass(const vk::Context& ctx,

@@ -221,10 +221,15 @@ class TaaPass final : public PostPass {
     const gpu::TaaPush push{
         taa.reproject,
         glm::vec4(taa.current_weight, taa.history_valid ? 1.0f : 0.0f,
-                  1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height))};
-    program_.Draw(
-        ctx, {Nearest(ctx.targets->hdr), Nearest(ctx.targets->depth), Linear(*taa.history_read)},
-        {ctx.targets->post_hdr.view(), taa.history_write->view()}, &push);
+                  1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height)),
+        glm::vec4(taa.motion ? 1.0f : 0.0f, 0.0f, 0.0f, 0.0f)};
+    // Without object motion the depth stands in for the motion target (not read).
+    const PostInput motion =
+        taa.motion ? Nearest(ctx.targets->motion) : Nearest(ctx.targets->depth);
+    program_.Draw(ctx,
+                  {Nearest(ctx.targets->hdr), Nearest(ctx.targets->depth),
+                   Linear(*taa.history_read), motion},
+                  {ctx.targets->post_hdr.view(), taa.history_write->view()}, &push);
   }
 };
 
@@ -253,7 +258,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& c
                                    "geometric_aa.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
-  return MakePost<TaaPass>(ctx, "taa", "taa.frag", 3, sizeof(gpu::TaaPush),
+  return MakePost<TaaPass>(ctx, "taa", "taa.frag", 4, sizeof(gpu::TaaPush),
                            {kHdrFormat, kHdrFormat}, "taa.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateFxaaPass(const vk::Context& ctx) {
@@ -275,6 +280,7 @@ void SetupTaa(GraphBuilder& b) {
       .Use(Resource::kHdrColor, read)
       .Use(Resource::kDepth, read)
       .Use(Resource::kTaaHistory, read)
+      .UseIfPresent(Resource::kMotion, read)
       .Use(Resource::kPostHdr, write)
       .Use(Resource::kTaaHistoryNext, write);
 }
@@ -334,9 +340,12 @@ absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
     TaaHistory& history = *h;
     TaaFrame& taa = f.taa;
     const bool valid = history.written[history.current];
+    fu.prev_view_proj = history.view_proj;
+    RETURN_IF_ERROR(PrepareMotion(f, history, valid));
     const bool still = valid && history.view_proj == f.unjittered_view_proj;
     // A still camera averages every frame so far (converging on the jittered supersample); a
-    // moving one keeps at least a tenth of each new frame.
+    // moving one keeps at least a tenth of each new frame. (Moving geometry under a still camera
+    // averages too: its history follows it, and a tenth blurred the crowd's edges more.)
     history.frames = !valid ? 0 : still ? std::min(history.frames + 1, 15u)
                                         : std::min(history.frames, 9u);
     taa.current_weight = 1.0f / float(history.frames + 1);

@@ -44,6 +44,8 @@ std::string_view PassName(PassId id) {
       return "vis_resolve";
     case PassId::kGeometricAa:
       return "geometric_aa";
+    case PassId::kMotion:
+      return "motion";
     case PassId::kTaa:
       return "taa";
     case PassId::kExposure:

@@ -36,6 +36,8 @@ enum class Resource : uint8_t {
   // colour target, all mips, so the graph's transition to the tonemap's read covers it.
   kBloomDown,
   kBloomUp,
+  kMotion,  // taa on animated scenes: per pixel the object motion beyond the camera's (RG16F uv
+            // offsets, 0 where nothing moved), drawn by the motion pass, read by TAA
   // Long-lived resources the renderer keeps between frames and imports into each frame that
   // uses them (graph/frame_graph.h: GraphBuilder::Import): they enter in the state the last
   // frame left them in and leave in the one the next frame expects.
@@ -113,6 +115,7 @@ enum class PassId : uint8_t {
   kForward,       // PBR shading of opaque + alpha-mask geometry against the prepass depth
   kGeometricAa,   // vis_mlaa: blend partly covered pixels with the neighbours the mask points to
   kTransparent,   // blended materials, back to front, over the opaque result
+  kMotion,        // taa, animated scenes: the moved geometry's motion, and the pose kept
   kTaa,           // taa: this frame blended with the reprojected history
   kExposure,      // auto exposure: the frame's average log luma, adapted per view (compute)
   kBloom,         // bloom: soft-threshold, 13-tap downsample chain, tent upsample chain
@@ -133,6 +136,9 @@ struct FrameFeatures {
   bool taa_history_valid = false;   // the view's history holds its last frame
   bool exposure_valid = false;      // the view's exposure state holds an adapted value
   bool pose_pending = false;  // an animated scene's new pose is not on the device yet
+  // taa: animated geometry moved since the view's last frame (or the view keeps its first pose):
+  // the motion pass runs.
+  bool object_motion = false;
 };
 
 // A resource moving from one access to another before a pass.

@@ -133,6 +133,8 @@ class GpuScene {
   bool animated() const { return animator_ != nullptr; }
   const SceneAnimator* animator() const { return animator_.get(); }
   bool Pose(int animation, double scene_time, bool loop);
+  // The item (draws() index) of drawable `d` of an animated scene.
+  uint32_t item_of(uint32_t d) const { return item_of_drawable_[d]; }
   // The device does not hold the last Pose yet: the frame's skinning pass must run (and then
   // PoseRecorded()).
   bool pose_pending() const { return pose_pending_; }

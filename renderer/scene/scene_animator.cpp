@@ -26,7 +26,8 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
   }
   auto animator = std::unique_ptr<SceneAnimator>(new SceneAnimator());
   SceneAnimator& a = *animator;
-  uint64_t next_vertex = scene.vertices.size();
+  a.first_copy_vertex_ = scene.vertices.size();
+  uint64_t next_vertex = a.first_copy_vertex_;
   // Joint matrices are the skin's (glTF 3.7.3: not the node's that draws the mesh) and morph
   // weights the node's: each is stored once, however many drawables use it.
   std::vector<int64_t> skin_base(scene.skins.size(), -1);

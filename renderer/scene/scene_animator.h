@@ -44,6 +44,7 @@ class SceneAnimator {
   // Vertices of the deformed copies (placed after the scene's), and the vertex data to upload:
   // the scene's followed by the copies (the rest vertices, until the first pose).
   uint64_t copy_vertices() const { return copy_vertices_; }
+  uint64_t first_copy_vertex() const { return first_copy_vertex_; }
   std::vector<Vertex> VertexData(const CpuScene& scene) const;
   size_t joint_count() const { return joint_count_; }
   size_t weight_count() const { return weight_count_; }
@@ -96,7 +97,7 @@ class SceneAnimator {
     glm::mat4 world{1.0f};
   };
   std::vector<MovingNode> cameras_, lights_;
-  uint64_t copy_vertices_ = 0;
+  uint64_t copy_vertices_ = 0, first_copy_vertex_ = 0;
   size_t skin_jobs_ = 0;
   uint64_t deformed_vertices_ = 0;
   size_t joint_count_ = 0, weight_count_ = 0;

@@ -145,6 +145,9 @@ TS_CONST uint kSkinJobFlat = 2u;     // flat normals (Primitive::flat_normals): 
 TS_CONST uint kMorphDeltaFloats = 9;
 TS_CONST uint kSkinGroupSize = 64;
 TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
+// motion.frag: the motion of a point that was behind last frame's camera (a uv offset that
+// puts TAA's history lookup off screen; a finite RG16F value).
+TS_CONST float kMotionOffScreen = 4096.0;
 // ---- the visibility pipeline (vis_classify.comp, vis_shade.comp, vis_sky.comp;
 // features/vis_shade.cpp) ------------------------------------------------------------------------
 // Set 2 of these passes: the ids, the HDR colour they write, the scene's index and vertex
@@ -311,6 +314,7 @@ struct FrameUniforms {
                          // lists, 2 2.5D depth mask in light culling
   vec4 depth_params;     // view depth of a depth-buffer value d: y / (d + x); z tiles per column
   uvec4 aa;              // vis_mlaa: x triangle bits of a visibility id, y samples; zw unused
+  mat4 prev_view_proj;   // taa: last frame's unjittered view-projection (the motion pass)
 };
 
 // The visibility pipeline's record of one material in a frame: its pixels and its dispatch.
@@ -337,10 +341,18 @@ struct GpuShadeEntry {
   uint show_mask;            \
   uint triangle_bits;
 // taa.frag: this frame's unjittered clip space -> last frame's; params x: current-frame
-// weight, y: history valid (1) or not (0), zw: 1/width, 1/height.
+// weight, y: history valid (1) or not (0), zw: 1/width, 1/height; motion x: 1 when the motion
+// target (binding 3) holds this frame's object motion (else binding 3 is a stand-in).
 #define TS_PUSH_TAA \
   mat4 reproject;   \
-  vec4 params;
+  vec4 params;      \
+  vec4 motion;
+// motion.vert: the drawable's world matrix in last frame's pose; kept x: the first vertex of the
+// view's kept copy (the deformed vertices of its last frame), y: 1 when this drawable's vertices
+// are in it (deformed), 0 when its rest vertices moved rigidly.
+#define TS_PUSH_MOTION \
+  mat4 prev_world;     \
+  uvec4 kept;
 // fxaa.frag / fxaa.comp: 1/width, 1/height.
 #define TS_PUSH_FXAA vec2 inv_size;
 // ssao.frag: proj x: proj[0][0], y: proj[1][1] (negative: Vulkan clip y is down), z: proj[2][2],
@@ -415,6 +427,9 @@ struct GeometricAaPush {
 };
 struct TaaPush {
   TS_PUSH_TAA
+};
+struct MotionPush {
+  TS_PUSH_MOTION
 };
 struct FxaaPush {
   TS_PUSH_FXAA

@@ -8,8 +8,10 @@
 //   1. Read the 3x3 neighbourhood of the current frame: its colour bounds (in YCoCg) and its
 //      nearest depth.
 //   2. Reproject the pixel centre with the nearest depth (dilation: silhouette pixels follow
-//      the foreground) into last frame's screen, and sample the history there with a 5-tap
-//      Catmull-Rom filter (sharper than bilinear under motion).
+//      the foreground) into last frame's screen, plus the object motion at that texel where
+//      animated geometry moved (the motion pass: how far from the camera's reprojection the
+//      surface was), and sample the history there with a 5-tap Catmull-Rom filter (sharper
+//      than bilinear under motion).
 //   3. Clip the history to the neighbourhood's colour box (rejects stale history after
 //      disocclusion or shading changes), in YCoCg where the box fits colours more tightly.
 //   4. Blend with the current colour, params.x being the current frame's weight, each side
@@ -19,6 +21,7 @@
 layout(set = 0, binding = 0) uniform sampler2D u_current;  // RGBA16F, NEAREST
 layout(set = 0, binding = 1) uniform sampler2D u_depth;    // D32, reverse Z (1 near, 0 far), NEAREST
 layout(set = 0, binding = 2) uniform sampler2D u_history;  // RGBA16F, LINEAR, clamp to edge
+layout(set = 0, binding = 3) uniform sampler2D u_motion;   // RG16F uv offsets, NEAREST (motion.x)
 layout(push_constant) uniform Push { TS_PUSH_TAA } push;  // common/gpu_types.h
 #ifdef TESSERA_COMPUTE
 vec4 out_color;    // this frame's anti-aliased HDR colour
@@ -113,6 +116,7 @@ void PostMain() {
   vec3 box_min = vec3(kMaxHalf);
   vec3 box_max = vec3(-kMaxHalf);
   float nearest_depth = 0.0;
+  ivec2 nearest_texel = pixel;
   for (int dy = -1; dy <= 1; ++dy) {
     for (int dx = -1; dx <= 1; ++dx) {
       ivec2 texel = clamp(pixel + ivec2(dx, dy), ivec2(0), last);
@@ -122,7 +126,10 @@ void PostMain() {
       box_min = min(box_min, ycocg);
       box_max = max(box_max, ycocg);
       float depth = texelFetch(u_depth, texel, 0).r;
-      if (depth > nearest_depth) nearest_depth = depth;  // also skips a NaN depth
+      if (depth > nearest_depth) {  // also skips a NaN depth
+        nearest_depth = depth;
+        nearest_texel = texel;
+      }
     }
   }
 
@@ -133,6 +140,7 @@ void PostMain() {
     vec2 uv = FRAG_COORD * push.params.zw;
     vec4 prev_clip = push.reproject * vec4(uv * 2.0 - 1.0, nearest_depth, 1.0);
     vec2 prev_uv = prev_clip.xy / prev_clip.w * 0.5 + 0.5;
+    if (push.motion.x > 0.5) prev_uv += texelFetch(u_motion, nearest_texel, 0).xy;
     // Valid when in front of last frame's camera and on last frame's screen (false for NaN).
     bool on_screen = prev_clip.w > 0.0 && all(greaterThanEqual(prev_uv, vec2(0.0))) &&
                      all(lessThanEqual(prev_uv, vec2(1.0)));

@@ -50,4 +50,17 @@ vec4 SampleTexture(sampler2DArray bucket, GpuTextureRef t, vec2 uv0, vec2 uv1, U
   vec2 wrapped = vec2(WrapCoord(tuv.x, t.info.w & 3), WrapCoord(tuv.y, (t.info.w >> 2) & 3));
   return textureGrad(bucket, vec3(wrapped, float(t.info.y)), dx, dy);
 }
+
+#ifndef TESSERA_COMPUTE
+// The alpha test of alpha-mask materials (glTF alphaCutoff): whether the fragment at these uvs is
+// cut out (base colour alpha below the cutoff). The passes that draw depth or ids of alpha-mask
+// geometry discard such fragments, so every pass sees the same holes.
+bool CutOut(vec2 uv0, vec2 uv1) {
+  UvGradients grads = ComputeUvGradients(uv0, uv1);
+  float alpha = material.base_color_factor.a;
+  GpuTextureRef t = material.base_color_tex;
+  if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, uv0, uv1, grads).a;
+  return alpha < material.params2.x;
+}
+#endif
 #endif

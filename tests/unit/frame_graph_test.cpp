@@ -91,6 +91,7 @@ std::vector<PlanCase> AllPlans() {
       FrameFeatures f;
       f.has_transparent = variant & 1;
       f.pose_pending = variant & 1;  // an animated scene's new pose: the skinning pass
+      f.object_motion = variant & 1;  // ... that moved since the view's last frame (taa)
       f.local_lights = s.synthetic_lights;
       f.shadow_atlas_valid = f.taa_history_valid = f.exposure_valid = variant & 2;
       FramePlan plan = PlanFrame(s, f);
@@ -280,6 +281,34 @@ TEST(SelectPassesTest, AaModes) {
   EXPECT_EQ(first_use(AaMode::kTaa, PassId::kTonemap), Resource::kPostHdr);
   EXPECT_EQ(first_use(AaMode::kMsaa, PassId::kTonemap), Resource::kHdrColor);
   EXPECT_EQ(first_use(AaMode::kFxaa, PassId::kReadback), Resource::kFxaaColor);
+}
+
+TEST(SelectPassesTest, ObjectMotionOnlyUnderTaa) {
+  // Animated geometry that moved since the view's last frame: with taa the motion pass draws its
+  // motion against the final depth, and TAA reads it; other AA modes need none.
+  FrameFeatures moved;
+  moved.object_motion = true;
+  Settings s;
+  EXPECT_EQ(IndexOf(SelectPasses(s, moved), PassId::kMotion), -1);
+  s.aa = AaMode::kTaa;
+  const std::vector<PassId> taa = {PassId::kDepthPrepass, PassId::kForward, PassId::kMotion,
+                                   PassId::kTaa,          PassId::kTonemap, PassId::kReadback};
+  EXPECT_EQ(SelectPasses(s, moved), taa);
+  const FramePlan plan = PlanFrame(s, moved);
+  auto uses = [&](PassId id, Resource r, Access a) {
+    const std::vector<ResourceUse>& u = UsesOf(plan, id);
+    return std::any_of(u.begin(), u.end(), [&](const ResourceUse& x) {
+      return x.resource == r && x.access == a;
+    });
+  };
+  EXPECT_TRUE(uses(PassId::kMotion, Resource::kDepth, Access::kDepthTest));
+  EXPECT_TRUE(uses(PassId::kMotion, Resource::kMotion, Access::kColorWrite));
+  EXPECT_TRUE(uses(PassId::kTaa, Resource::kMotion, Access::kSampled));
+  EXPECT_FALSE(uses(PassId::kTaa, Resource::kMotion, Access::kComputeRead));
+  // Nothing moved: TAA alone, reading no motion.
+  const FramePlan still = PlanFrame(s, {});
+  EXPECT_FALSE(still.Has(PassId::kMotion));
+  for (const ResourceUse& u : UsesOf(still, PassId::kTaa)) EXPECT_NE(u.resource, Resource::kMotion);
 }
 
 TEST(SelectPassesTest, VisibilityPipeline) {

@@ -1,0 +1,194 @@
+// TAA's object motion on animated scenes. TAA reprojects each pixel by the camera alone (its
+// depth through last frame's view-projection); a surface that moved with the scene's animation
+// was elsewhere on last frame's screen. When the pose changed since the view's last frame, this
+// pass draws every moved opaque and alpha-mask drawable again against the frame's depth
+// (shaders/motion.vert, .frag): where one is the visible surface, the target gets how far from
+// the camera's reprojection the surface point was last frame, computed from the drawable's world
+// matrix and vertices in the view's last pose. TAA adds that offset (at its dilated texel) to
+// its reprojection. Pixels nothing moved on keep the clear value, 0.
+//
+// The last pose is kept per view (views show one scene at different times): the world matrices
+// on the CPU (TaaHistory::world), the deformed vertices on the device, copied here after the
+// draws from the scene's posed copies (TaaHistory::vertices). The first frame of a view only
+// clears the target and keeps its pose. Blended drawables draw no motion: TAA sees them through
+// the neighbourhood clamp as before.
+#include "common/status_macros.h"
+#include "renderer/features/features.h"
+#include "renderer/features/pass.h"
+#include "renderer/renderer_impl.h"
+#include "renderer/vk/pipeline.h"
+#include "renderer/vk/vk_check.h"
+#include "shaders/common/gpu_types.h"
+
+namespace tessera {
+
+namespace {
+
+class MotionPass final : public Pass {
+ public:
+  MotionPass(VkDevice device, PassLayout layout, vk::Pipeline opaque, vk::Pipeline mask)
+      : device_(device),
+        layout_(std::move(layout)),
+        opaque_(std::move(opaque)),
+        mask_(std::move(mask)) {}
+  PassId id() const override { return PassId::kMotion; }
+
+  void Record(PassContext& ctx) override {
+    const TaaFrame& taa = *ctx.taa;
+    const GpuScene& gs = *ctx.scene;
+    const VkDeviceSize vertex_bytes = sizeof(Vertex);
+    if (taa.kept && !taa.draws.empty()) {
+      // Last frame's copy (a transfer write in an earlier submission) before the vertex shader
+      // reads it.
+      vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                           VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT,
+                           VK_ACCESS_2_SHADER_STORAGE_READ_BIT);
+    }
+    VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    color.imageView = ctx.targets->motion.view();
+    color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
+    color.loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;  // 0: nothing moved here
+    color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    VkRenderingAttachmentInfo depth{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
+    depth.imageView = ctx.targets->depth.view();
+    depth.imageLayout = VK_IMAGE_LAYOUT_DEPTH_ATTACHMENT_OPTIMAL;
+    depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
+    depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
+    BeginRendering(ctx, &color, &depth);
+    if (!taa.draws.empty()) {
+      const VkPipelineLayout layout = layout_.pipeline_layout();
+      const VkDescriptorSet kept = layout_.Allocate(ctx);
+      // Without deformed drawables the binding is unused; the scene's vertices stand in.
+      SetWriter(device_, kept)
+          .Buffer(0, taa.kept ? taa.kept->handle() : gs.vertices().handle())
+          .Update();
+      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1,
+                              &ctx.scene_set, 0, nullptr);
+      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 2, 1, &kept, 0,
+                              nullptr);
+      const VkBuffer vb = gs.vertices().handle();
+      const VkDeviceSize offset = 0;
+      vkCmdBindVertexBuffers(ctx.cmd, 0, 1, &vb, &offset);
+      vkCmdBindIndexBuffer(ctx.cmd, gs.indices().handle(), 0, VK_INDEX_TYPE_UINT32);
+      int cull = -1;
+      uint32_t material = UINT32_MAX;
+      VkPipeline bound = VK_NULL_HANDLE;
+      for (const TaaFrame::MotionDraw& d : taa.draws) {
+        const DrawItem& item = gs.draws()[d.item];
+        const VkPipeline pipeline =
+            item.alpha == AlphaMode::kMask ? mask_.handle() : opaque_.handle();
+        if (pipeline != bound) {
+          vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
+          bound = pipeline;
+        }
+        if (item.material != material) {
+          const VkDescriptorSet set = gs.material_set(item.material);
+          vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout,
+                                  gpu::kMaterialSet, 1, &set, 0, nullptr);
+          material = item.material;
+        }
+        const int want = item.double_sided ? 0 : 1;  // as the depth pass drew it
+        if (want != cull) {
+          vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
+          cull = want;
+        }
+        const gpu::MotionPush push{d.prev_world,
+                                   glm::uvec4(uint32_t(taa.kept_first), d.kept ? 1u : 0u, 0, 0)};
+        vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
+        vkCmdDrawIndexed(ctx.cmd, item.index_count, 1, item.first_index, item.vertex_offset,
+                         item.drawable);
+      }
+    }
+    vkCmdEndRendering(ctx.cmd);
+    if (taa.kept && taa.kept_count > 0) {
+      // This frame's deformed vertices (written by a skinning pass, this frame's or an earlier
+      // one's) become the view's kept pose, after the draws above read the last one.
+      vk::CmdMemoryBarrier(ctx.cmd,
+                           VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
+                               VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT,
+                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                           VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT);
+      const VkBufferCopy region{taa.kept_first * vertex_bytes, 0, taa.kept_count * vertex_bytes};
+      vkCmdCopyBuffer(ctx.cmd, gs.vertices().handle(), taa.kept->handle(), 1, &region);
+    }
+  }
+
+ private:
+  VkDevice device_;
+  PassLayout layout_;
+  vk::Pipeline opaque_, mask_;
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<Pass>> CreateMotionPass(const vk::Context& ctx,
+                                                       const SceneLayout& scene) {
+  ASSIGN_OR_RETURN(
+      PassLayout layout,
+      PassLayout::Create(
+          ctx,
+          {LayoutBinding(0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, VK_SHADER_STAGE_VERTEX_BIT)},
+          {{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(gpu::MotionPush)}}, "motion layout",
+          {scene.set_layout, scene.material_set_layout}));
+  vk::GraphicsPipelineDesc d;
+  d.name = "motion";
+  d.vertex_shader = "motion.vert";
+  d.fragment_shader = "motion.frag";
+  d.layout = layout.pipeline_layout();
+  d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
+  d.color_formats = {kMotionFormat};
+  d.depth_format = kDepthFormat;
+  d.depth_test = true;
+  d.depth_write = false;
+  d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // the visible surface (reverse Z)
+  d.fragment_constants = {0u};
+  ASSIGN_OR_RETURN(vk::Pipeline opaque, vk::CreateGraphicsPipeline(ctx, d));
+  d.name = "motion.mask";
+  d.fragment_constants = {1u};  // kAlphaTest
+  ASSIGN_OR_RETURN(vk::Pipeline mask, vk::CreateGraphicsPipeline(ctx, d));
+  return std::make_unique<MotionPass>(ctx.device(), std::move(layout), std::move(opaque),
+                                      std::move(mask));
+}
+
+void SetupMotion(GraphBuilder& b) {
+  if (b.settings().aa != AaMode::kTaa || !b.features().object_motion) return;
+  b.Pass(PassId::kMotion)
+      .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead)
+      .Use(Resource::kDepth, Access::kDepthTest)
+      .Use(Resource::kMotion, Access::kColorWrite);
+}
+
+absl::Status Renderer::Impl::PrepareMotion(FrameData& f, TaaHistory& history, bool valid) {
+  const GpuScene& gs = f.gs;
+  const SceneAnimator* a = gs.animator();
+  if (!a || a->drawables().empty() || history.pose_serial == gs.pose_serial())
+    return absl::OkStatus();
+  TaaFrame& taa = f.taa;
+  taa.motion_pass = true;
+  taa.motion = valid && history.pose_serial != 0;
+  if (a->copy_vertices() > 0) {
+    const VkDeviceSize bytes = a->copy_vertices() * sizeof(Vertex);
+    if (history.vertices.size() != bytes)
+      RETURN_IF_ERROR(MakeBuffer(*ctx, bytes,
+                                 VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                     VK_BUFFER_USAGE_TRANSFER_DST_BIT,
+                                 vk::MemoryUsage::kDeviceLocal, "taa_kept_vertices",
+                                 &history.vertices));
+    taa.kept = &history.vertices;
+    taa.kept_first = a->first_copy_vertex();
+    taa.kept_count = a->copy_vertices();
+  }
+  if (taa.motion) {
+    for (size_t i = 0; i < a->drawables().size(); ++i) {
+      const AnimatedDrawable& ad = a->drawables()[i];
+      const uint32_t item = gs.item_of(ad.drawable);
+      if (gs.draws()[item].alpha == AlphaMode::kBlend) continue;
+      taa.draws.push_back({item, ad.deformed, history.world[i]});
+    }
+  }
+  history.world = a->world();
+  history.pose_serial = gs.pose_serial();
+  return absl::OkStatus();
+}
+
+}  // namespace tessera
