@@ -510,6 +510,11 @@ TEST(AnimationRender, TaaObjectMotionMatchesTheCpuReference) {
     ASSERT_TRUE(f0.ok()) << f0.status();
     EXPECT_FALSE(first.motion.empty()) << "the first frame keeps its pose (the target is clear)";
     for (const glm::vec2& m : first.motion) ASSERT_EQ(m, glm::vec2(0.0f));
+    // Another view of the scene at another time in between: the scene's pose is then that view's,
+    // but this view's motion is from its own last frame.
+    ASSERT_TRUE(
+        SharedRenderer().Render(*l.scene, cam, At(s, c.animation, c.t0 + 0.5f), view + 50).ok());
+    SharedRenderer().ForgetView(*l.scene, view + 50);
     FrameCapture cap;
     cap.want_ids = true;
     absl::StatusOr<Frame> f1 =
