@@ -3,8 +3,8 @@
 // vis_mlaa resolve: groups a pixel's visibility samples by surface and picks the surface to
 // shade. Two samples are on one surface when they hit the same triangle, or triangles of the
 // same drawable that share a vertex: the same index, or two vertices at almost the same
-// position whose normals are within 8.1 degrees (dot > 0.99). The surface owning the most
-// samples wins (ties: the one holding the lowest sample). Writes, per pixel:
+// position whose normals are within 8.1 degrees (dot > 0.99), or joined through other samples.
+// The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
 //  - u_id: the id of the winning sample nearest the mean position of the winning samples
 //    (the triangle the shading intersects);
 //  - u_coverage: the winning samples' mask and their mean position (PackCoverage).
@@ -30,13 +30,20 @@ layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
   uint pixels[];
 };
 
-bool SameSurface(uint a, uint b) {
+// The sample count: a specialization constant (a pipeline per count), so the loops over samples
+// unroll and the per-sample arrays below stay in registers (lavapipe keeps dynamically indexed
+// local arrays in memory, which made the grouping most of vis_mlaa's frame).
+layout(constant_id = 0) const uint kSamples = 4u;
+
+// Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface.
+bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   if (a == b) return true;
   uint tb = frame.aa.x;
   if (a == 0u || b == 0u || (a >> tb) != (b >> tb)) return false;
-  uvec4 ids = drawables[VisDrawable(a, tb)].ids;
-  uvec3 va = TriangleVertices(ids, VisTriangle(a, tb));
-  uvec3 vb = TriangleVertices(ids, VisTriangle(b, tb));
+  // A shared vertex index (most neighbours) needs no vertex loads.
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      if (va[i] == vb[j]) return true;
   vec3 pa[3] = vec3[3](VertexPosition(va.x), VertexPosition(va.y), VertexPosition(va.z));
   vec3 pb[3] = vec3[3](VertexPosition(vb.x), VertexPosition(vb.y), VertexPosition(vb.z));
   // "Almost the same position": within 0.1% of the shorter triangle's longest edge.
@@ -45,7 +52,6 @@ bool SameSurface(uint a, uint b) {
   float eps = 1e-3 * min(size_a, size_b);
   for (int i = 0; i < 3; ++i) {
     for (int j = 0; j < 3; ++j) {
-      if (va[i] == vb[j]) return true;
       if (distance(pa[i], pb[j]) <= eps &&
           dot(normalize(VertexNormal(va[i])), normalize(VertexNormal(vb[j]))) > 0.99)
         return true;
@@ -54,57 +60,49 @@ bool SameSurface(uint a, uint b) {
   return false;
 }
 
-
-// Groups the samples by surface and writes the outputs for the surface with the most.
-void Group(ivec2 p, uint n, uint ids[8]) {
-  // Label each sample with the first earlier sample on its surface.
-  uint label[8];
-  for (uint i = 0u; i < n; ++i) {
-    label[i] = i;
-    for (uint j = 0u; j < i; ++j) {
-      if (label[j] == j && SameSurface(ids[i], ids[j])) {
-        label[i] = j;
-        break;
-      }
-    }
-    if (label[i] == i) {  // also join a group through any of its members
-      for (uint j = 0u; j < i; ++j) {
-        if (label[j] != j && SameSurface(ids[i], ids[j])) {
-          label[i] = label[j];
-          break;
-        }
+// Groups the samples by surface (the transitive closure of SameSurface) and writes the outputs
+// for the surface with the most samples (ties: the one holding the lowest sample).
+void Group(ivec2 p, uint ids[kSamples]) {
+  uint tb = frame.aa.x;
+  uvec3 tv[kSamples];  // each sample's triangle's vertices (0 for none)
+  for (uint s = 0u; s < kSamples; ++s)
+    tv[s] = ids[s] == 0u ? uvec3(0u)
+                         : TriangleVertices(drawables[VisDrawable(ids[s], tb)].ids,
+                                            VisTriangle(ids[s], tb));
+  uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
+  for (uint s = 0u; s < kSamples; ++s) same[s] = 1u << s;
+  for (uint i = 0u; i < kSamples; ++i) {
+    for (uint j = i + 1u; j < kSamples; ++j) {
+      if (SameSurface(ids[i], ids[j], tv[i], tv[j])) {
+        same[i] |= 1u << j;
+        same[j] |= 1u << i;
       }
     }
   }
-  uint best = 0u, best_count = 0u;
-  for (uint g = 0u; g < n; ++g) {
-    if (label[g] != g) continue;
-    uint count = 0u;
-    for (uint s = 0u; s < n; ++s) count += label[s] == g ? 1u : 0u;
-    if (count > best_count) {
-      best = g;
-      best_count = count;
-    }
-  }
-  uint mask = 0u;
+  for (uint k = 0u; k < kSamples; ++k)  // closure: join through members (kSamples rounds)
+    for (uint s = 0u; s < kSamples; ++s)
+      for (uint t = 0u; t < kSamples; ++t)
+        if ((same[s] & (1u << t)) != 0u) same[s] |= same[t];
+  uint mask = same[0];
+  for (uint s = 1u; s < kSamples; ++s)
+    if (bitCount(same[s]) > bitCount(mask)) mask = same[s];
   vec2 mean = vec2(0.0);
-  for (uint s = 0u; s < n; ++s) {
-    if (label[s] != best) continue;
-    mask |= 1u << s;
-    mean += SamplePosition(n, s);
-  }
-  mean /= float(best_count);
-  uint nearest = best;
+  for (uint s = 0u; s < kSamples; ++s)
+    if ((mask & (1u << s)) != 0u) mean += SamplePosition(kSamples, s);
+  mean /= float(bitCount(mask));
+  uint nearest = 0u;
   float nearest_d = 1e9;
-  for (uint s = 0u; s < n; ++s) {
-    if (label[s] != best) continue;
-    vec2 d = SamplePosition(n, s) - mean;
-    if (dot(d, d) < nearest_d) {
+  for (uint s = 0u; s < kSamples; ++s) {
+    vec2 d = SamplePosition(kSamples, s) - mean;
+    if ((mask & (1u << s)) != 0u && dot(d, d) < nearest_d) {
       nearest_d = dot(d, d);
       nearest = s;
     }
   }
-  imageStore(u_id, p, uvec4(ids[nearest]));
+  uint id = ids[0];
+  for (uint s = 1u; s < kSamples; ++s)
+    if (s == nearest) id = ids[s];
+  imageStore(u_id, p, uvec4(id));
   imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
 }
 
@@ -132,18 +130,17 @@ void main() {
     uint packed = pixels[i];
     p = ivec2(packed & 0xffffu, packed >> 16);
   }
-  uint n = frame.aa.y;
-  uint ids[8];
+  uint ids[kSamples];
   bool uniform_id = true;
-  for (uint s = 0u; s < n; ++s) {
+  for (uint s = 0u; s < kSamples; ++s) {
     ids[s] = texelFetch(u_vis, p, int(s)).r;
     uniform_id = uniform_id && ids[s] == ids[0];
   }
   if (mode == kResolveEdges) {
-    Group(p, n, ids);
+    Group(p, ids);
   } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
     imageStore(u_id, p, uvec4(ids[0]));
-    imageStore(u_coverage, p, uvec4(PackCoverage((1u << n) - 1u, vec2(0.5))));
+    imageStore(u_coverage, p, uvec4(PackCoverage((1u << kSamples) - 1u, vec2(0.5))));
   } else {
     pixels[atomicAdd(entries[edges].dispatch.w, 1u)] = uint(p.x) | (uint(p.y) << 16);
   }

@@ -123,13 +123,19 @@ class VisResolvePass final : public Pass {
              LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute)},
             {{kCompute, 0, sizeof(gpu::ShadePush)}}, "vis_resolve layout",
             {scene.set_layout, scene.material_set_layout}));
-    ASSIGN_OR_RETURN(p->pipeline_,
-                     vk::CreateComputePipeline(ctx, "vis_resolve", "vis_resolve.comp",
-                                               p->layout_.pipeline_layout()));
     ASSIGN_OR_RETURN(p->sampler_, CreateClampSampler(ctx, false, "vis_resolve"));
     return p;
   }
   PassId id() const override { return PassId::kVisResolve; }
+
+  // A pipeline per sample count (vis_resolve.comp's kSamples).
+  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+    if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
+    return pipelines_.Ensure(s.samples, [&](uint32_t samples) {
+      return vk::CreateComputePipeline(ctx, "vis_resolve", "vis_resolve.comp",
+                                       layout_.pipeline_layout(), {samples});
+    });
+  }
 
   void Record(PassContext& ctx) override {
     const ShadeBuffers& sb = *ctx.shade;
@@ -140,7 +146,8 @@ class VisResolvePass final : public Pass {
                          VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     WriteSet(ctx);
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                      pipelines_.at(ctx.samples).handle());
     auto push = [&](uint32_t mode) {
       const gpu::ShadePush p{glm::uvec4(mode, edges, 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
@@ -180,7 +187,7 @@ class VisResolvePass final : public Pass {
 
   VkDevice device_ = VK_NULL_HANDLE;
   PassLayout layout_;
-  vk::Pipeline pipeline_;
+  PerSampleCount<vk::Pipeline> pipelines_;
   vk::Sampler sampler_;
 };
 
