@@ -38,7 +38,7 @@ absl::Status Renderer::Impl::EnsureShadowAtlas(uint32_t size) {
   return absl::OkStatus();
 }
 
-absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool animated) {
+absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
   const uint64_t frame = ++frame_counter;
   const uint32_t width = s.width, height = s.height;
   FrameTargets t;
@@ -132,7 +132,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool animated) {
                                      width, height));
     t.post_hdr = post->image;
   }
-  if (s.aa == AaMode::kTaa && animated) {  // the motion pass's target
+  if (s.aa == AaMode::kTaa && moving) {  // the motion pass's target
     ASSIGN_OR_RETURN(auto* motion,
                      get(R::kMotion, kMotionFormat, kColor | kSampled | kCopy, "motion",
                          width, height));
@@ -290,7 +290,7 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
   return absl::OkStatus();
 }
 
-absl::StatusOr<Renderer::Impl::TaaHistory*> Renderer::Impl::Taa(const GpuScene& scene,
+absl::StatusOr<TaaHistory*> Renderer::Impl::Taa(const GpuScene& scene,
                                                                 uint64_t view) {
   constexpr size_t kMaxTaaViews = 8;  // frame-sized images: the views that keep them are few
   ViewState& v = View(scene, view);

@@ -231,7 +231,8 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   const uint32_t triangle_bits = m.CheckVisibilityIds(gs, frame.settings);
   const Settings& s = frame.settings.effective;
   const uint64_t targets_before = m.target_pool.created();
-  RETURN_IF_ERROR(m.AcquireTargets(s, gs.animated()));
+  RETURN_IF_ERROR(m.AcquireTargets(
+      s, gs.animator() != nullptr && !gs.animator()->drawables().empty()));
   frame.stats.targets_created = uint32_t(m.target_pool.created() - targets_before);
 
   // Each feature prepares its part of the frame, in order: the camera (and taa's jitter)
@@ -239,6 +240,15 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   const auto t_record = Clock::now();
   FrameData f(gs, scene.info(), posed_camera, s, view);
   f.vis.triangle_bits = triangle_bits;
+  // PrepareCamera advances the view's TAA history (the image this frame writes, its kept pose); a
+  // frame that fails after it leaves the history reset rather than claiming what it never wrote.
+  struct TaaRollback {
+    FrameData& f;
+    bool done = false;
+    ~TaaRollback() {
+      if (!done && f.taa_history) f.taa_history->Reset();
+    }
+  } rollback{f};
   RETURN_IF_ERROR(m.PrepareCamera(f));
   RETURN_IF_ERROR(m.PrepareLights(f, frame));
   if (s.shadows) RETURN_IF_ERROR(m.PrepareShadows(f, frame));
@@ -277,6 +287,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
                        t_record));
   if (plan.Has(PassId::kSkinning)) posed.PoseRecorded();
   RETURN_IF_ERROR(m.FinishFrame(f, plan, std::move(run), frame, capture));
+  rollback.done = true;
   if (capture) RETURN_IF_ERROR(m.CaptureFrame(f, plan, pc, capture));
   m.ReadBack(frame);
   return frame;

@@ -46,6 +46,29 @@ void DropLeastRecentlyUsed(Map& map) {
   }));
 }
 
+// taa: a view's history (kept by the renderer per scene and view).
+struct TaaHistory {
+  vk::Image images[2];
+  bool written[2] = {false, false};
+  uint32_t current = 0;  // the image last written
+  uint32_t frames = 0;   // frames blended into it since the last reset (capped)
+  uint32_t jitter_index = 0;
+  glm::mat4 view_proj{0.0f};  // unjittered, of the last frame
+  // Animated scenes: the pose the view's last frame with moving geometry showed
+  // (features/motion.cpp): its SceneAnimator::pose_key, world matrix per SceneAnimator drawable,
+  // and deformed vertices.
+  bool kept_pose = false;
+  uint64_t pose_key = 0;
+  std::vector<glm::mat4> world;
+  vk::Buffer vertices;
+  // Forgets what the images and the kept pose hold (a frame that claimed them failed).
+  void Reset() {
+    written[0] = written[1] = false;
+    frames = 0;
+    kept_pose = false;
+  }
+};
+
 // What one frame prepares before its passes record: uniforms, lights, the draw lists and each
 // feature's parameters. Filled by the Prepare* steps in order.
 struct FrameData {
@@ -65,6 +88,7 @@ struct FrameData {
   TileGrid grid{};
   bool tiled = false;  // forward+ tile lists this frame
   TaaFrame taa;
+  TaaHistory* taa_history = nullptr;  // taa: the view's, which PrepareCamera advanced
   ShadowFrame shadows;
   SsaoFrame ssao;
   ExposureFrame exposure;
@@ -141,21 +165,6 @@ struct Renderer::Impl {
   TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
   FrameTargets targets;    // this frame's, from the pool
   const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool
-  // taa: a view's history.
-  struct TaaHistory {
-    vk::Image images[2];
-    bool written[2] = {false, false};
-    uint32_t current = 0;  // the image last written
-    uint32_t frames = 0;   // frames blended into it since the last reset (capped)
-    uint32_t jitter_index = 0;
-    glm::mat4 view_proj{0.0f};  // unjittered, of the last frame
-    // Animated scenes: the pose of the view's last frame that moved (features/motion.cpp), its
-    // GpuScene::pose_serial (0: none kept), world matrix per SceneAnimator drawable, and deformed
-    // vertices.
-    uint64_t pose_serial = 0;
-    std::vector<glm::mat4> world;
-    vk::Buffer vertices;
-  };
   // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
   // they hold (ShadowAtlas), the uniforms the shading reads, and a 1x1 stand-in bound while
   // shadows are off.
@@ -198,7 +207,8 @@ struct Renderer::Impl {
 
   // frame_resources.cpp: targets and buffers, (re)made when a frame needs them.
   // This frame's targets from the pool (the ones its settings use), then a trim of the pool.
-  absl::Status AcquireTargets(const Settings& s, bool animated);
+  // `moving`: an animated scene with drawables that move or deform (taa's motion target).
+  absl::Status AcquireTargets(const Settings& s, bool moving);
   absl::Status EnsureShadowAtlas(uint32_t size);
   absl::Status EnsureLightBuffers(uint32_t lights, uint32_t tiles);
   absl::Status EnsureRowBuffer(size_t entries);

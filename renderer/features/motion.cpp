@@ -9,8 +9,9 @@
 //
 // The last pose is kept per view (views show one scene at different times): the world matrices
 // on the CPU (TaaHistory::world), the deformed vertices on the device, copied here after the
-// draws from the scene's posed copies (TaaHistory::vertices). The first frame of a view only
-// clears the target and keeps its pose. Blended drawables draw no motion: TAA sees them through
+// draws from the scene's posed copies (TaaHistory::vertices), and the pass runs only when the
+// view's pose differs from the one it kept. The first frame of a view only clears the target and
+// keeps its pose. Blended drawables draw no motion: TAA sees them through
 // the neighbourhood clamp as before.
 #include "common/status_macros.h"
 #include "renderer/features/features.h"
@@ -103,10 +104,14 @@ class MotionPass final : public Pass {
     if (taa.kept && taa.kept_count > 0) {
       // This frame's deformed vertices (written by a skinning pass, this frame's or an earlier
       // one's) become the view's kept pose, after the draws above read the last one.
+      // The source scope also holds the last frame's copy into the kept buffer (write after
+      // write, when no draw read it in between).
       vk::CmdMemoryBarrier(ctx.cmd,
                            VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
-                               VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT,
-                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                               VK_PIPELINE_STAGE_2_VERTEX_SHADER_BIT |
+                               VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
+                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                           VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
                            VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT);
       const VkBufferCopy region{taa.kept_first * vertex_bytes, 0, taa.kept_count * vertex_bytes};
       vkCmdCopyBuffer(ctx.cmd, gs.vertices().handle(), taa.kept->handle(), 1, &region);
@@ -161,11 +166,14 @@ void SetupMotion(GraphBuilder& b) {
 absl::Status Renderer::Impl::PrepareMotion(FrameData& f, TaaHistory& history, bool valid) {
   const GpuScene& gs = f.gs;
   const SceneAnimator* a = gs.animator();
-  if (!a || a->drawables().empty() || history.pose_serial == gs.pose_serial())
+  // The pose key, not GpuScene::pose_serial: another view's frame in between re-poses the scene,
+  // and a view back at its own pose must see no motion (a job accumulating at one time while
+  // viewers render stays byte-identical).
+  if (!a || a->drawables().empty() || (history.kept_pose && history.pose_key == a->pose_key()))
     return absl::OkStatus();
   TaaFrame& taa = f.taa;
   taa.motion_pass = true;
-  taa.motion = valid && history.pose_serial != 0;
+  taa.motion = valid && history.kept_pose;
   if (a->copy_vertices() > 0) {
     const VkDeviceSize bytes = a->copy_vertices() * sizeof(Vertex);
     if (history.vertices.size() != bytes)
@@ -186,8 +194,10 @@ absl::Status Renderer::Impl::PrepareMotion(FrameData& f, TaaHistory& history, bo
       taa.draws.push_back({item, ad.deformed, history.world[i]});
     }
   }
+  // Kept now; a frame that fails from here on resets the history (RenderFrame).
   history.world = a->world();
-  history.pose_serial = gs.pose_serial();
+  history.pose_key = a->pose_key();
+  history.kept_pose = true;
   return absl::OkStatus();
 }
 

@@ -338,6 +338,7 @@ absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
   if (s.aa == AaMode::kTaa) {
     ASSIGN_OR_RETURN(TaaHistory * h, Taa(f.gs, f.view));
     TaaHistory& history = *h;
+    f.taa_history = h;
     TaaFrame& taa = f.taa;
     const bool valid = history.written[history.current];
     fu.prev_view_proj = history.view_proj;

@@ -1,6 +1,7 @@
 #include "renderer/scene/scene_animator.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 
@@ -157,6 +158,10 @@ std::vector<Vertex> SceneAnimator::VertexData(const CpuScene& scene) const {
                scene.vertices.begin() + p.first_vertex + p.vertex_count);
   }
   return out;
+}
+
+uint64_t SceneAnimator::pose_key() const {
+  return (uint64_t(uint32_t(posed_animation_)) << 32) | std::bit_cast<uint32_t>(posed_time_);
 }
 
 bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {

@@ -57,6 +57,9 @@ class SceneAnimator {
   // Poses the scene with animation `animation` (-1: the rest pose) at `scene_time`. Returns
   // false when that is the pose already held (nothing changed).
   bool Pose(int animation, double scene_time, bool loop);
+  // The last pose's identity: its animation and the time it was evaluated at (equal keys, equal
+  // poses, whichever scene time and loop asked for it).
+  uint64_t pose_key() const;
   // The last pose, per entry of drawables(): world matrix and world bounds; and the joint
   // matrices and morph weights the skinning pass reads.
   const std::vector<glm::mat4>& world() const { return world_; }
