@@ -35,29 +35,36 @@ layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
 // local arrays in memory, which made the grouping most of vis_mlaa's frame).
 layout(constant_id = 0) const uint kSamples = 4u;
 
-// Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface.
+// Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface. Written
+// with vector compares and no loops: a CPU device runs the lanes of a SIMD group together, and
+// early exits from unrolled loops cost it more than the compares.
 bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   if (a == b) return true;
   uint tb = frame.aa.x;
   if (a == 0u || b == 0u || (a >> tb) != (b >> tb)) return false;
   // A shared vertex index (most neighbours) needs no vertex loads.
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j)
-      if (va[i] == vb[j]) return true;
-  vec3 pa[3] = vec3[3](VertexPosition(va.x), VertexPosition(va.y), VertexPosition(va.z));
-  vec3 pb[3] = vec3[3](VertexPosition(vb.x), VertexPosition(vb.y), VertexPosition(vb.z));
+  if (any(equal(uvec3(va.x), vb)) || any(equal(uvec3(va.y), vb)) || any(equal(uvec3(va.z), vb)))
+    return true;
+  vec3 a0 = VertexPosition(va.x), a1 = VertexPosition(va.y), a2 = VertexPosition(va.z);
+  vec3 b0 = VertexPosition(vb.x), b1 = VertexPosition(vb.y), b2 = VertexPosition(vb.z);
   // "Almost the same position": within 0.1% of the shorter triangle's longest edge.
-  float size_a = max(distance(pa[0], pa[1]), max(distance(pa[1], pa[2]), distance(pa[2], pa[0])));
-  float size_b = max(distance(pb[0], pb[1]), max(distance(pb[1], pb[2]), distance(pb[2], pb[0])));
-  float eps = 1e-3 * min(size_a, size_b);
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) {
-      if (distance(pa[i], pb[j]) <= eps &&
-          dot(normalize(VertexNormal(va[i])), normalize(VertexNormal(vb[j]))) > 0.99)
-        return true;
-    }
-  }
-  return false;
+  float size_a = max(distance(a0, a1), max(distance(a1, a2), distance(a2, a0)));
+  float size_b = max(distance(b0, b1), max(distance(b1, b2), distance(b2, b0)));
+  vec3 eps = vec3(1e-3 * min(size_a, size_b));
+  bvec3 near0 = lessThanEqual(vec3(distance(a0, b0), distance(a0, b1), distance(a0, b2)), eps);
+  bvec3 near1 = lessThanEqual(vec3(distance(a1, b0), distance(a1, b1), distance(a1, b2)), eps);
+  bvec3 near2 = lessThanEqual(vec3(distance(a2, b0), distance(a2, b1), distance(a2, b2)), eps);
+  if (!(any(near0) || any(near1) || any(near2))) return false;
+  // ... with normals within 8.1 degrees.
+  vec3 m0 = normalize(VertexNormal(va.x)), m1 = normalize(VertexNormal(va.y)),
+       m2 = normalize(VertexNormal(va.z));
+  vec3 n0 = normalize(VertexNormal(vb.x)), n1 = normalize(VertexNormal(vb.y)),
+       n2 = normalize(VertexNormal(vb.z));
+  const vec3 kCos = vec3(0.99);
+  uvec3 both = uvec3(near0) * uvec3(greaterThan(vec3(dot(m0, n0), dot(m0, n1), dot(m0, n2)), kCos)) +
+               uvec3(near1) * uvec3(greaterThan(vec3(dot(m1, n0), dot(m1, n1), dot(m1, n2)), kCos)) +
+               uvec3(near2) * uvec3(greaterThan(vec3(dot(m2, n0), dot(m2, n1), dot(m2, n2)), kCos));
+  return any(notEqual(both, uvec3(0u)));
 }
 
 // Groups the samples by surface (the transitive closure of SameSurface) and writes the outputs
