@@ -126,7 +126,8 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
                                    width, height));
     t.vis_id = id->image;
   }
-  if (vis || s.aa == AaMode::kTaa) {
+  // The post-AA colour: TAA's, and vis_mlaa's aa_mask view's (its geometric AA is in place).
+  if ((vis && s.debug_view == DebugView::kAaMask) || s.aa == AaMode::kTaa) {
     ASSIGN_OR_RETURN(auto* post, get(R::kPostHdr, kHdrFormat,
                                      kColor | kSampled | kCopy | kStorage, "post_hdr",
                                      width, height));

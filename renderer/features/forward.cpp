@@ -81,10 +81,12 @@ class ForwardPass final : public Pass {
     const ForwardPipelines& p = pipelines_.at(Key(*ctx.settings, samples));
     const FrameTargets& t = *ctx.targets;
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    // vis_mlaa draws blended surfaces over its anti-aliased result.
-    const vk::ImageRef single =
-        transparent && ctx.settings->aa == AaMode::kVisMlaa ? t.post_hdr : t.hdr;
-    color.imageView = samples > 1 ? t.hdr_ms.view() : single.view();
+    // vis_mlaa draws blended surfaces over its anti-aliased result (the HDR colour, which its
+    // geometric AA changed in place, or the aa_mask view's post-AA colour).
+    const VkImageView single = transparent && ctx.settings->aa == AaMode::kVisMlaa
+                                   ? PostColor(ctx).view()
+                                   : t.hdr.view();
+    color.imageView = samples > 1 ? t.hdr_ms.view() : single;
     color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
     color.loadOp = transparent ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;

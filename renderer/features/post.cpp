@@ -193,21 +193,82 @@ class TonemapPass final : public PostPass {
   }
 };
 
-// vis_mlaa's geometric AA (shaders/geometric_aa.frag): pixels whose surface owns every sample
-// pass through; the others blend with the two neighbours their coverage points away from.
+// vis_mlaa's geometric AA (shaders/common/geometric_aa.glsl): pixels whose surface owns every
+// sample pass through; the others blend with the two neighbours their coverage points away from.
+// It runs over the resolve's edge list only, in place in the HDR colour
+// (shaders/geometric_aa_edges.comp: each edge pixel's blend into a list, then into the image), so
+// its cost comes from the edges. The aa_mask debug view, which shows every pixel, is a full-screen
+// program into the post-AA colour (fragment or compute: post_stage).
 class GeometricAaPass final : public PostPass {
  public:
   using PostPass::PostPass;
   PassId id() const override { return PassId::kGeometricAa; }
-  void Record(PassContext& ctx) override {
-    const gpu::GeometricAaPush push{ctx.samples,
-                                    ctx.settings->debug_view == DebugView::kAaMask ? 1u : 0u,
-                                    ctx.vis->triangle_bits};
-    program_.Draw(ctx,
-                  {Nearest(ctx.targets->hdr), Nearest(ctx.targets->vis_coverage),
-                   Nearest(ctx.targets->vis_id)},
-                  {ctx.targets->post_hdr.view()}, &push);
+
+  absl::Status CreateEdges(const vk::Context& ctx) {
+    device_ = ctx.device();
+    constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
+    constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+    ASSIGN_OR_RETURN(
+        edge_layout_,
+        PassLayout::Create(ctx,
+                           {LayoutBinding(1, kSampled, kCompute), LayoutBinding(2, kSampled, kCompute),
+                            LayoutBinding(gpu::kGeometricAaBindingEntries, kBuffer, kCompute),
+                            LayoutBinding(gpu::kGeometricAaBindingPixels, kBuffer, kCompute),
+                            LayoutBinding(gpu::kGeometricAaBindingColors, kBuffer, kCompute),
+                            LayoutBinding(gpu::kGeometricAaBindingOut,
+                                          VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute)},
+                           {{kCompute, 0, sizeof(gpu::GeometricAaPush)}}, "geometric_aa.edges"));
+    ASSIGN_OR_RETURN(edges_, vk::CreateComputePipeline(ctx, "geometric_aa.edges",
+                                                       "geometric_aa_edges.comp",
+                                                       edge_layout_.pipeline_layout()));
+    return absl::OkStatus();
   }
+
+  void Record(PassContext& ctx) override {
+    const FrameTargets& t = *ctx.targets;
+    gpu::GeometricAaPush push{ctx.samples, 0u, ctx.vis->triangle_bits, 0u, 0u};
+    if (ctx.settings->debug_view == DebugView::kAaMask) {
+      push.show_mask = 1u;
+      program_.Draw(ctx, {Nearest(t.hdr), Nearest(t.vis_coverage), Nearest(t.vis_id)},
+                    {t.post_hdr.view()}, &push);
+      return;
+    }
+    const ShadeBuffers& sb = *ctx.shade;
+    push.edges = sb.materials + 1;  // the resolve's edge list: the entry after the sky's
+    const VkDescriptorSet set = edge_layout_.Allocate(ctx);
+    SetWriter(device_, set)
+        .Sampled(1, nearest_.handle(), t.vis_coverage.view())
+        .Sampled(2, nearest_.handle(), t.vis_id.view())
+        .Buffer(gpu::kGeometricAaBindingEntries, sb.entries)
+        .Buffer(gpu::kGeometricAaBindingPixels, sb.pixels)
+        .Buffer(gpu::kGeometricAaBindingColors, sb.edge_colors)
+        .Storage(gpu::kGeometricAaBindingOut, t.hdr.view())
+        .Update();
+    const VkPipelineLayout layout = edge_layout_.pipeline_layout();
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, edges_.handle());
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0,
+                            nullptr);
+    const VkDeviceSize args = VkDeviceSize(push.edges) * sizeof(gpu::GpuShadeEntry);
+    for (uint32_t mode : {gpu::kGeometricAaBlend, gpu::kGeometricAaWrite}) {
+      push.mode = mode;
+      vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
+      vkCmdDispatchIndirect(ctx.cmd, sb.entries, args);
+      if (mode == gpu::kGeometricAaBlend) {
+        // The blends are written (and every neighbour read) before any pixel changes.
+        vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                             VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                             VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                             VK_ACCESS_2_SHADER_STORAGE_READ_BIT |
+                                 VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+      }
+    }
+  }
+
+ private:
+  VkDevice device_ = VK_NULL_HANDLE;
+  PassLayout edge_layout_;
+  vk::Pipeline edges_;
 };
 
 // TAA (shaders/taa.frag): this frame with the reprojected history, clamped to the frame's
@@ -253,9 +314,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateTonemapPass(const vk::Context& ctx) 
                                {kLdrFormat}, "tonemap.comp");
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& ctx) {
-  return MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,
-                                   sizeof(gpu::GeometricAaPush), {kHdrFormat},
-                                   "geometric_aa.comp");
+  ASSIGN_OR_RETURN(std::unique_ptr<Pass> pass,
+                   MakePost<GeometricAaPass>(ctx, "geometric_aa", "geometric_aa.frag", 3,
+                                             sizeof(gpu::GeometricAaPush), {kHdrFormat},
+                                             "geometric_aa.comp"));
+  RETURN_IF_ERROR(static_cast<GeometricAaPass&>(*pass).CreateEdges(ctx));
+  return pass;
 }
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx) {
   return MakePost<TaaPass>(ctx, "taa", "taa.frag", 4, sizeof(gpu::TaaPush),

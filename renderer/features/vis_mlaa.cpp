@@ -236,13 +236,22 @@ void SetupVisMlaa(GraphBuilder& b) {
 void SetupGeometricAa(GraphBuilder& b) {
   if (b.settings().aa != AaMode::kVisMlaa) return;
   using R = Resource;
-  const bool compute = FullscreenProgram::Compute(b.settings());
-  const Access read = compute ? Access::kComputeRead : Access::kSampled;
+  if (b.settings().debug_view == DebugView::kAaMask) {  // every pixel, into the post-AA colour
+    const bool compute = FullscreenProgram::Compute(b.settings());
+    const Access read = compute ? Access::kComputeRead : Access::kSampled;
+    b.Pass(PassId::kGeometricAa)
+        .Use(R::kHdrColor, read)
+        .Use(R::kVisCoverage, read)
+        .Use(R::kVisId, read)
+        .Use(R::kPostHdr, compute ? Access::kComputeWrite : Access::kColorWrite);
+    return;
+  }
+  // The edge pixels the resolve listed, in place (compute).
   b.Pass(PassId::kGeometricAa)
-      .Use(R::kHdrColor, read)
-      .Use(R::kVisCoverage, read)
-      .Use(R::kVisId, read)
-      .Use(R::kPostHdr, compute ? Access::kComputeWrite : Access::kColorWrite);
+      .Use(R::kHdrColor, Access::kComputeWrite)
+      .Use(R::kVisCoverage, Access::kComputeRead)
+      .Use(R::kVisId, Access::kComputeRead)
+      .Use(R::kShadeLists, Access::kIndirectRead);
 }
 
 

@@ -117,7 +117,8 @@ class VisClassifyPass final : public Pass {
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     auto step = [&](uint32_t mode, uint32_t x, uint32_t y) {
-      const gpu::ShadePush push{glm::uvec4(mode, sb.materials, 0u, 0u)};
+      const gpu::ShadePush push{glm::uvec4(
+          mode, sb.materials, ctx.settings->aa == AaMode::kVisMlaa ? 1u : 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(push), &push);
       vkCmdDispatch(ctx.cmd, x, y, 1);
@@ -269,7 +270,9 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
   // The materials the shading dispatches for (the others have no pixels).
   f.vis.materials = MaterialsInFrustum(f.gs, FrustumFromViewProj(f.fu.view_proj));
   const uint32_t materials = f.gs.material_count();
-  const uint64_t pixels = uint64_t(f.s.width) * f.s.height;
+  // vis_mlaa's edge list (at most a pixel each) precedes the materials' lists.
+  const uint64_t pixels =
+      uint64_t(f.s.width) * f.s.height * (f.s.aa == AaMode::kVisMlaa ? 2 : 1);
   // And the sky's entry, and vis_mlaa's edge list's (vis_mlaa.cpp).
   if (materials + 2 > shade_material_capacity) {
     const uint32_t cap = std::max(materials + 2, shade_material_capacity * 2);
@@ -291,8 +294,16 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
                                "shade_pixels", &shade_pixels));
     shade_pixel_capacity = pixels;
   }
+  if (f.s.aa == AaMode::kVisMlaa && uint64_t(f.s.width) * f.s.height > edge_color_capacity) {
+    // Geometric AA's blended colour per edge pixel (RGBA16F packed in a uvec2).
+    edge_color_capacity = uint64_t(f.s.width) * f.s.height;
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(edge_color_capacity) * 8,
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kDeviceLocal,
+                               "edge_colors", &edge_colors));
+  }
   f.shade.entries = shade_entries.handle();
   f.shade.pixels = shade_pixels.handle();
+  f.shade.edge_colors = edge_colors.handle();
   f.shade.entries_readback = shade_entries_readback.handle();
   f.shade.materials = materials;
   return absl::OkStatus();

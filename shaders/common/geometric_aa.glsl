@@ -9,14 +9,25 @@
 // A neighbour shading the pixel's own triangle tells nothing about the other surface (e.g. where
 // an edge ends at a corner); it is replaced by the nearest neighbour, by angle within 90 degrees
 // of the compass, that shows another triangle.
+#ifdef GEOMETRIC_AA_EDGES
+// geometric_aa_edges.comp: the HDR colour, read and then written in place (storage).
+layout(set = 0, binding = kGeometricAaBindingOut, rgba16f) uniform image2D u_hdr;
+vec4 LoadColor(ivec2 p) { return imageLoad(u_hdr, p); }
+ivec2 ColorSize() { return imageSize(u_hdr); }
+#else
 layout(set = 0, binding = 0) uniform sampler2D u_color;
+vec4 LoadColor(ivec2 p) { return texelFetch(u_color, p, 0); }
+ivec2 ColorSize() { return textureSize(u_color, 0); }
+#endif
 layout(set = 0, binding = 1) uniform usampler2D u_coverage;
 layout(set = 0, binding = 2) uniform usampler2D u_id;
 layout(push_constant) uniform Push { TS_PUSH_GEOMETRIC_AA } push;  // common/gpu_types.h
+#ifndef GEOMETRIC_AA_EDGES
 #ifdef TESSERA_COMPUTE
 vec4 out_color;
 #else
 layout(location = 0) out vec4 out_color;
+#endif
 #endif
 
 const float kPi = 3.14159265359;
@@ -24,10 +35,7 @@ const float kPi = 3.14159265359;
 const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
                                       ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
 
-vec3 Fetch(ivec2 p) {
-  ivec2 size = textureSize(u_color, 0);
-  return texelFetch(u_color, clamp(p, ivec2(0), size - 1), 0).rgb;
-}
+vec3 Fetch(ivec2 p) { return LoadColor(clamp(p, ivec2(0), ColorSize() - 1)).rgb; }
 
 // The visibility id (drawable and triangle; 0 the sky) a pixel shades.
 uint IdAt(ivec2 p) {
@@ -35,22 +43,16 @@ uint IdAt(ivec2 p) {
   return texelFetch(u_id, clamp(p, ivec2(0), size - 1), 0).r;
 }
 
-void PostMain() {
-  ivec2 p = ivec2(FRAG_COORD);
-  vec4 color = texelFetch(u_color, p, 0);
+// The pixel's colour after geometric AA.
+vec4 GeometricAa(ivec2 p) {
+  vec4 color = LoadColor(p);
   uint word = texelFetch(u_coverage, p, 0).r;
   uint full = (1u << push.samples) - 1u;
   uint mask = word & full;
   float owned = float(bitCount(mask)) / float(push.samples);
-  if (push.show_mask != 0u) {
-    out_color = vec4(vec3(owned), 1.0);
-    return;
-  }
+  if (push.show_mask != 0u) return vec4(vec3(owned), 1.0);
   vec2 away = vec2(0.5) - vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0;
-  if (mask == full || dot(away, away) < 1e-6) {
-    out_color = color;
-    return;
-  }
+  if (mask == full || dot(away, away) < 1e-6) return color;
   float sector = atan(away.y, away.x) / (0.25 * kPi);
   if (sector < 0.0) sector += 8.0;
   int i0 = int(floor(sector)) & 7;
@@ -73,9 +75,12 @@ void PostMain() {
     } else if (IdAt(p + kNeighbours[second]) != own) {
       other = Fetch(p + kNeighbours[second]);
     } else {
-      out_color = color;  // no other surface in sight: nothing to blend with
-      return;
+      return color;  // no other surface in sight: nothing to blend with
     }
   }
-  out_color = vec4(mix(color.rgb, other, 1.0 - owned), 1.0);
+  return vec4(mix(color.rgb, other, 1.0 - owned), 1.0);
 }
+
+#ifndef GEOMETRIC_AA_EDGES
+void PostMain() { out_color = GeometricAa(ivec2(FRAG_COORD)); }
+#endif

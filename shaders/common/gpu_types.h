@@ -177,6 +177,15 @@ TS_CONST uint kShadeDispatchWidth = 4096;
 TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
+// vis_classify's params.z: 1 when vis_mlaa's edge list (the entry after the sky's) holds the
+// start of the pixel lists, which the materials' lists then follow (geometric AA reads it last).
+// geometric_aa_edges.comp's modes (push mode) and set 0 after the three samplers.
+TS_CONST uint kGeometricAaBlend = 1;  // per listed edge pixel: its blend, into the colour list
+TS_CONST uint kGeometricAaWrite = 2;  // per listed edge pixel: the blend, into the HDR colour
+TS_CONST uint kGeometricAaBindingEntries = 3;
+TS_CONST uint kGeometricAaBindingPixels = 4;
+TS_CONST uint kGeometricAaBindingColors = 5;
+TS_CONST uint kGeometricAaBindingOut = 6;
 
 
 // ---- enums (values match the C++ enums in renderer/settings.h and scene/cpu_scene.h) ---------
@@ -335,11 +344,14 @@ struct GpuShadeEntry {
   vec4 exposure;        \
   uvec4 mode;           \
   vec4 bloom;
-// geometric_aa.frag: the visibility samples, 1 to show the coverage mask, id triangle bits.
+// geometric_aa.frag: the visibility samples, 1 to show the coverage mask, id triangle bits;
+// geometric_aa_edges.comp: mode (kGeometricAa*), the edge list's entry.
 #define TS_PUSH_GEOMETRIC_AA \
   uint samples;              \
   uint show_mask;            \
-  uint triangle_bits;
+  uint triangle_bits;        \
+  uint mode;                 \
+  uint edges;
 // taa.frag: this frame's unjittered clip space -> last frame's; params x: current-frame
 // weight, y: history valid (1) or not (0), zw: 1/width, 1/height; motion x: 1 when the motion
 // target (binding 3) holds this frame's object motion (else binding 3 is a stand-in).

@@ -69,7 +69,9 @@ void Scan() {
     s_sums[i] += add;
     barrier();
   }
-  uint offset = s_sums[i] - sum;
+  // vis_mlaa: the lists follow the resolve's edge list, which geometric AA reads after them.
+  uint base = push.params.z != 0u ? entries[push.params.y + 1u].dispatch.w : 0u;
+  uint offset = base + s_sums[i] - sum;
   for (uint m = begin; m < end; ++m) {
     uint count = entries[m].dispatch.w;
     uint groups = (count + kShadeGroupSize - 1u) / kShadeGroupSize;

@@ -277,7 +277,21 @@ TEST(SelectPassesTest, AaModes) {
     t.aa = aa;
     return UsesOf(PlanFrame(t, {}), id).at(0).resource;
   };
-  EXPECT_EQ(first_use(AaMode::kVisMlaa, PassId::kTonemap), Resource::kPostHdr);
+  // vis_mlaa's geometric AA changes the edge pixels of the HDR colour in place; its aa_mask
+  // view draws every pixel into the post-AA colour.
+  EXPECT_EQ(first_use(AaMode::kVisMlaa, PassId::kTonemap), Resource::kHdrColor);
+  Settings mask;
+  mask.aa = AaMode::kVisMlaa;
+  mask.debug_view = DebugView::kAaMask;
+  const FramePlan mask_plan = PlanFrame(mask, {});
+  EXPECT_EQ(UsesOf(mask_plan, PassId::kTonemap).at(0).resource, Resource::kPostHdr);
+  Settings edges;
+  edges.aa = AaMode::kVisMlaa;
+  const FramePlan edge_plan = PlanFrame(edges, {});
+  const std::vector<ResourceUse>& geometric = UsesOf(edge_plan, PassId::kGeometricAa);
+  EXPECT_TRUE(std::any_of(geometric.begin(), geometric.end(), [](const ResourceUse& u) {
+    return u.resource == Resource::kShadeLists && u.access == Access::kIndirectRead;
+  })) << "geometric AA dispatches over the resolve's edge list";
   EXPECT_EQ(first_use(AaMode::kTaa, PassId::kTonemap), Resource::kPostHdr);
   EXPECT_EQ(first_use(AaMode::kMsaa, PassId::kTonemap), Resource::kHdrColor);
   EXPECT_EQ(first_use(AaMode::kFxaa, PassId::kReadback), Resource::kFxaaColor);
