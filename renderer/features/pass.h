@@ -156,9 +156,9 @@ struct LightCullBuffers {
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a
 // GpuShadeEntry, one more for the sky (entry `materials`) and one for vis_mlaa's edge list
-// (`materials + 1`), the pixel lists (a uint per pixel of the frame; vis_mlaa's resolve lists
-// its edge pixels there first, and the materials' lists follow it, so geometric AA can read it
-// after the shading), and a host copy of the entries for the frame's statistics.
+// (`materials + 1`), the pixel lists (a uint per pixel of the frame, two with vis_mlaa: its
+// resolve lists its edge pixels there first, and the materials' lists follow it, so geometric AA
+// can read it after the shading), and a host copy of the entries for the frame's statistics.
 struct ShadeBuffers {
   VkBuffer entries = VK_NULL_HANDLE;
   VkBuffer pixels = VK_NULL_HANDLE;

@@ -11,6 +11,7 @@
 // pixel's surface once, at that mean position, and the geometric AA pass (post.cpp) blends the
 // partly covered pixels.
 #include <bit>
+#include <string>
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
@@ -274,13 +275,24 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
   Settings& s = settings.effective;
   const uint32_t most = gs.max_draw_triangles();
   const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
-  if (most <= (uint64_t(1) << triangle_bits) || !DrawsVisibility(s))
+  if (!DrawsVisibility(s)) return triangle_bits;
+  // The shading's pixel lists (vis_mlaa: its edge list first, and geometric AA's colour per edge
+  // pixel, two words) must fit one storage buffer binding.
+  const uint64_t list_bytes = uint64_t(s.width) * s.height * 4 * (vis_mlaa ? 2 : 1);
+  const uint64_t range = ctx->limits().maxStorageBufferRange;
+  std::string why;
+  if (most > (uint64_t(1) << triangle_bits)) {
+    why = absl::StrCat("visibility ids hold ", triangle_bits, " bits of triangle with ",
+                       gs.draws().size(), " drawables, and a drawable has ", most, " triangles");
+  } else if (list_bytes > range) {
+    why = absl::StrCat("the ", s.width, "x", s.height, " frame's pixel lists need ", list_bytes,
+                       " bytes, more than the device's storage buffer range (", range, ")");
+  } else {
     return triangle_bits;
-  settings.notes.push_back(
-      {vis_mlaa ? "aa" : "pipeline",
-       absl::StrCat("not applied: visibility ids hold ", triangle_bits, " bits of triangle with ",
-                    gs.draws().size(), " drawables, and a drawable has ", most, " triangles; ",
-                    vis_mlaa ? "rendered with msaa" : "shaded forward")});
+  }
+  settings.notes.push_back({vis_mlaa ? "aa" : "pipeline",
+                            absl::StrCat("not applied: ", why, "; ",
+                                         vis_mlaa ? "rendered with msaa" : "shaded forward")});
   if (!vis_mlaa) {
     s.pipeline = Pipeline::kForward;
     return triangle_bits;

@@ -26,7 +26,7 @@ enum class Resource : uint8_t {
   kVisMs,          // vis_mlaa: multisampled visibility ids (drawable | triangle per sample)
   kVisId,          // vis_mlaa, visibility pipeline: per pixel the id of the triangle to shade
   kVisCoverage,    // vis_mlaa: per pixel the coverage mask and mean position of its surface
-  kPostHdr,        // vis_mlaa (geometric AA) and taa output, tonemapped
+  kPostHdr,        // taa's output and vis_mlaa's aa_mask view, tonemapped
   kFxaaColor,      // fxaa output, read back
   kAo,             // ssao: visibility (r) and view depth (g), half (or full) resolution
   kAoTemp,         // ssao: the blur's intermediate

@@ -179,7 +179,8 @@ TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch s
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
 // vis_classify's params.z: 1 when vis_mlaa's edge list (the entry after the sky's) holds the
 // start of the pixel lists, which the materials' lists then follow (geometric AA reads it last).
-// geometric_aa_edges.comp's modes (push mode) and set 0 after the three samplers.
+// geometric_aa_edges.comp's modes (push mode) and its set 0's bindings after the samplers of the
+// coverage (1) and ids (2).
 TS_CONST uint kGeometricAaBlend = 1;  // per listed edge pixel: its blend, into the colour list
 TS_CONST uint kGeometricAaWrite = 2;  // per listed edge pixel: the blend, into the HDR colour
 TS_CONST uint kGeometricAaBindingEntries = 3;
