@@ -301,12 +301,19 @@ TEST(AnimationRender, PosedFramesMatchTheirPoseBakedIntoAStaticScene) {
     ASSERT_TRUE(baked.ok()) << baked.status();
     const Settings s = Small();
     const Camera cam = Framing(l.scene->info(), s);
-    // Forward, the visibility buffer (it reads the vertices itself) and vis_mlaa.
-    Settings visibility = s, vis_mlaa = s;
+    // Forward, the visibility buffer (it reads the vertices itself) and vis_mlaa; and vis_mlaa
+    // with gpu_occlusion and culled local lights, the frame that binds the most storage buffers
+    // (the skinning pass's, two culling phases', light culling's and vis_mlaa's).
+    Settings visibility = s, vis_mlaa = s, busiest = s;
     visibility.pipeline = Pipeline::kVisibility;
     vis_mlaa.aa = AaMode::kVisMlaa;
-    for (const Settings& v : {s, visibility, vis_mlaa}) {
+    busiest.aa = AaMode::kVisMlaa;
+    busiest.culling = CullingMode::kGpuOcclusion;
+    busiest.synthetic_lights = 8;
+    for (const Settings& v : {s, visibility, vis_mlaa, busiest}) {
+      RenderOk(*l.scene, cam, At(v, c.animation, c.t + 0.25f));  // so the frame below re-poses
       const Frame posed = RenderOk(*l.scene, cam, At(v, c.animation, c.t));
+      EXPECT_GT(posed.stats.animated_drawables, 0u);
       const Frame still = RenderOk(**baked, cam, v);
       absl::StatusOr<double> psnr = Psnr(posed.image, still.image);
       ASSERT_TRUE(psnr.ok()) << psnr.status();
