@@ -186,6 +186,7 @@ struct TaaFrame {
   glm::mat4 reproject{1.0f};  // this frame's unjittered clip -> last frame's
   float current_weight = 1.0f;
   bool history_valid = false;  // history_read holds last frame (else it was never written)
+  bool camera_moved = false;   // the view's camera moved since its last frame
   // Animated scenes (features/motion.cpp): when the pose changed since the view's last frame, the
   // motion pass runs; with valid history it draws each moved drawable's motion (`draws`) for TAA
   // (`motion`), and it keeps this frame's deformed vertices in `kept` for the next frame.

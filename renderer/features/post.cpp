@@ -283,7 +283,7 @@ class TaaPass final : public PostPass {
         taa.reproject,
         glm::vec4(taa.current_weight, taa.history_valid ? 1.0f : 0.0f,
                   1.0f / float(ctx.targets->width), 1.0f / float(ctx.targets->height)),
-        glm::vec4(taa.motion ? 1.0f : 0.0f, 0.0f, 0.0f, 0.0f)};
+        glm::vec4(taa.motion ? 1.0f : 0.0f, taa.camera_moved ? 1.0f : 0.0f, 0.0f, 0.0f)};
     // Without object motion the depth stands in for the motion target (not read).
     const PostInput motion =
         taa.motion ? Nearest(ctx.targets->motion) : Nearest(ctx.targets->depth);
@@ -408,6 +408,7 @@ absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
     fu.prev_view_proj = history.view_proj;
     RETURN_IF_ERROR(PrepareMotion(f, history, valid));
     const bool still = valid && history.view_proj == f.unjittered_view_proj;
+    taa.camera_moved = valid && !still;
     // A still camera averages every frame so far (converging on the jittered supersample); a
     // moving one keeps at least a tenth of each new frame. (Moving geometry under a still camera
     // averages too: its history follows it, and a tenth blurred the crowd's edges more.)

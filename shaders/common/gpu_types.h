@@ -355,7 +355,8 @@ struct GpuShadeEntry {
   uint edges;
 // taa.frag: this frame's unjittered clip space -> last frame's; params x: current-frame
 // weight, y: history valid (1) or not (0), zw: 1/width, 1/height; motion x: 1 when the motion
-// target (binding 3) holds this frame's object motion (else binding 3 is a stand-in).
+// target (binding 3) holds this frame's object motion (else binding 3 is a stand-in), y: 1 when
+// the camera moved since the view's last frame.
 #define TS_PUSH_TAA \
   mat4 reproject;   \
   vec4 params;      \
