@@ -410,10 +410,12 @@ absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
     const bool still = valid && history.view_proj == f.unjittered_view_proj;
     taa.camera_moved = valid && !still;
     // A still camera averages every frame so far (converging on the jittered supersample); a
-    // moving one keeps at least a tenth of each new frame. (Moving geometry under a still camera
-    // averages too: its history follows it, and a tenth blurred the crowd's edges more.)
+    // moving one blends its history too, keeping at least a tenth of each new frame (its count
+    // grows to 9: it used to stay at 0 for a view that moved from its first frame, which then
+    // never blended and shook with the jitter). Moving geometry under a still camera averages
+    // like a still camera: its history follows it.
     history.frames = !valid ? 0 : still ? std::min(history.frames + 1, 15u)
-                                        : std::min(history.frames, 9u);
+                                        : std::min(history.frames + 1, 9u);
     taa.current_weight = 1.0f / float(history.frames + 1);
     taa.history_valid = valid;
     taa.reproject = history.view_proj * glm::inverse(f.unjittered_view_proj);

@@ -20,6 +20,7 @@
 #include <string_view>
 #include <vector>
 
+#include "renderer/camera.h"
 #include "renderer/image_io.h"
 #include "tests/render/golden.h"
 #include "renderer/image_metrics.h"
@@ -248,6 +249,65 @@ TEST(AaTest, TaaStillCameraConverges) {
   const double again_psnr = EdgePsnr(*d, again->image);
   std::printf("taa first view again: %.2f dB\n", again_psnr);
   EXPECT_GE(again_psnr, d->none_edge_psnr + 4.0) << "the first view lost its history";
+  ExpectNoValidationMessages(r);
+}
+
+// TAA while the camera moves: each frame blends a tenth or more of the new frame into the
+// reprojected history (clipped, where the camera moved, to the neighbourhood's mean +- one
+// standard deviation). Before, a moving camera's TAA never blended its history (the blend count
+// stayed at 0), so each frame was its own jittered frame: the picture shook by up to half a pixel
+// while the camera moved. The demo scene orbited by 0.01 rad a frame for 16 frames, the last frame
+// against the same view settled (16 frames of a still camera, the jittered supersample): on
+// lavapipe 28.8 dB; 26.2 dB before (the 16th jittered frame alone); 28.0 dB with the history
+// clipped to the whole colour box. (The unjittered frame without AA is 32.7 dB from it: what
+// blending under motion still costs is resampling blur.)
+TEST(AaTest, TaaBlendsHistoryWhileTheCameraMoves) {
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera start = FromSceneCamera(scene->info().cameras[0]);
+  const glm::mat4 world = glm::inverse(ViewMatrix(start));
+  const glm::vec3 eye(world[3]), target = eye - 5.0f * glm::vec3(world[2]);
+  auto orbit = [&](int k) {  // about the point 5 units ahead
+    Camera c = start;
+    c.view.reset();
+    c.scene_camera = -1;
+    const float a = 0.01f * float(k);
+    const glm::vec3 d = eye - target;
+    c.eye = target + glm::vec3(std::cos(a) * d.x - std::sin(a) * d.z, d.y,
+                               std::sin(a) * d.x + std::cos(a) * d.z);
+    c.target = target;
+    return c;
+  };
+  Settings s;
+  s.width = 320;
+  s.height = 240;
+  s.aa = AaMode::kTaa;
+  constexpr int kFrames = 16;
+  constexpr uint64_t kMoving = 0x7aa0010, kSettled = 0x7aa0011, kNone = 0x7aa0012;
+  FrameCapture moving, settled, alone;
+  for (int k = 0; k < kFrames; ++k)
+    ASSERT_TRUE(r.Render(*scene, orbit(k), s, kMoving, k + 1 == kFrames ? &moving : nullptr).ok());
+  for (int k = 0; k < kFrames; ++k)
+    ASSERT_TRUE(
+        r.Render(*scene, orbit(kFrames - 1), s, kSettled, k + 1 == kFrames ? &settled : nullptr)
+            .ok());
+  // The same view without anti-aliasing.
+  Settings none = s;
+  none.aa = AaMode::kNone;
+  ASSERT_TRUE(r.Render(*scene, orbit(kFrames - 1), none, kNone, &alone).ok());
+  for (uint64_t v : {kMoving, kSettled}) r.ForgetView(*scene, v);
+  auto psnr = [](const std::vector<float>& a, const std::vector<float>& b) {
+    double sum = 0.0;
+    for (size_t i = 0; i < a.size(); ++i) {
+      if (i % 4 == 3) continue;
+      const double d = std::min(a[i], 1.0f) - std::min(b[i], 1.0f);
+      sum += d * d;
+    }
+    return 10.0 * std::log10(1.0 / (sum / double(a.size() / 4 * 3)));
+  };
+  const double blended = psnr(moving.hdr, settled.hdr), single = psnr(alone.hdr, settled.hdr);
+  std::printf("orbiting TAA against the settled view: %.2f dB; no AA %.2f dB\n", blended, single);
+  EXPECT_GE(blended, 27.5) << "TAA did not blend the moving camera's history";
   ExpectNoValidationMessages(r);
 }
 
@@ -504,3 +564,4 @@ TEST(AaTest, SampleCounts) {
 
 }  // namespace
 }  // namespace tessera
+
