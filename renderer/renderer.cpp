@@ -11,6 +11,7 @@
 #include <cstring>
 #include <thread>
 
+#include "absl/cleanup/cleanup.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
@@ -242,13 +243,9 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   f.vis.triangle_bits = triangle_bits;
   // PrepareCamera advances the view's TAA history (the image this frame writes, its kept pose); a
   // frame that fails after it leaves the history reset rather than claiming what it never wrote.
-  struct TaaRollback {
-    FrameData& f;
-    bool done = false;
-    ~TaaRollback() {
-      if (!done && f.taa_history) f.taa_history->Reset();
-    }
-  } rollback{f};
+  absl::Cleanup rollback = [&f] {
+    if (f.taa_history) f.taa_history->Reset();
+  };
   RETURN_IF_ERROR(m.PrepareCamera(f));
   RETURN_IF_ERROR(m.PrepareLights(f, frame));
   if (s.shadows) RETURN_IF_ERROR(m.PrepareShadows(f, frame));
@@ -287,7 +284,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
                        t_record));
   if (plan.Has(PassId::kSkinning)) posed.PoseRecorded();
   RETURN_IF_ERROR(m.FinishFrame(f, plan, std::move(run), frame, capture));
-  rollback.done = true;
+  std::move(rollback).Cancel();
   if (capture) RETURN_IF_ERROR(m.CaptureFrame(f, plan, pc, capture));
   m.ReadBack(frame);
   return frame;

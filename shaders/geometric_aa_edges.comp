@@ -24,14 +24,12 @@ void main() {
   uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
   if (i >= entries[push.edges].dispatch.w) return;
+  uint packed = pixels[i];
+  ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
   if (push.mode == kGeometricAaBlend) {
-    uint packed = pixels[i];
-    vec4 c = GeometricAa(ivec2(packed & 0xffffu, packed >> 16));
+    vec4 c = GeometricAa(p);
     colors[i] = uvec2(packHalf2x16(c.rg), packHalf2x16(c.ba));
   } else {
-    uint packed = pixels[i];
-    uvec2 c = colors[i];
-    imageStore(u_hdr, ivec2(packed & 0xffffu, packed >> 16),
-               vec4(unpackHalf2x16(c.x), unpackHalf2x16(c.y)));
+    imageStore(u_hdr, p, vec4(unpackHalf2x16(colors[i].x), unpackHalf2x16(colors[i].y)));
   }
 }

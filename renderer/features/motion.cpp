@@ -37,7 +37,7 @@ class MotionPass final : public Pass {
   void Record(PassContext& ctx) override {
     const TaaFrame& taa = *ctx.taa;
     const GpuScene& gs = *ctx.scene;
-    const VkDeviceSize vertex_bytes = sizeof(Vertex);
+    const SceneAnimator& a = *gs.animator();  // the pass runs for animated scenes only
     if (taa.kept && !taa.draws.empty()) {
       // Last frame's copy (a transfer write in an earlier submission) before the vertex shader
       // reads it.
@@ -63,17 +63,11 @@ class MotionPass final : public Pass {
       SetWriter(device_, kept)
           .Buffer(0, taa.kept ? taa.kept->handle() : gs.vertices().handle())
           .Update();
-      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 0, 1,
-                              &ctx.scene_set, 0, nullptr);
+      BeginSceneDraw(ctx, opaque_.handle(), layout);
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 2, 1, &kept, 0,
                               nullptr);
-      const VkBuffer vb = gs.vertices().handle();
-      const VkDeviceSize offset = 0;
-      vkCmdBindVertexBuffers(ctx.cmd, 0, 1, &vb, &offset);
-      vkCmdBindIndexBuffer(ctx.cmd, gs.indices().handle(), 0, VK_INDEX_TYPE_UINT32);
-      int cull = -1;
-      uint32_t material = UINT32_MAX;
-      VkPipeline bound = VK_NULL_HANDLE;
+      DrawState state{layout};  // materials and cull modes as the depth pass drew them
+      VkPipeline bound = opaque_.handle();
       for (const TaaFrame::MotionDraw& d : taa.draws) {
         const DrawItem& item = gs.draws()[d.item];
         const VkPipeline pipeline =
@@ -82,26 +76,16 @@ class MotionPass final : public Pass {
           vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
           bound = pipeline;
         }
-        if (item.material != material) {
-          const VkDescriptorSet set = gs.material_set(item.material);
-          vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout,
-                                  gpu::kMaterialSet, 1, &set, 0, nullptr);
-          material = item.material;
-        }
-        const int want = item.double_sided ? 0 : 1;  // as the depth pass drew it
-        if (want != cull) {
-          vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
-          cull = want;
-        }
-        const gpu::MotionPush push{d.prev_world,
-                                   glm::uvec4(uint32_t(taa.kept_first), d.kept ? 1u : 0u, 0, 0)};
+        state.Apply(ctx, item.double_sided, item.material, /*textured=*/true);
+        const gpu::MotionPush push{
+            d.prev_world, glm::uvec4(uint32_t(a.first_copy_vertex()), d.kept ? 1u : 0u, 0, 0)};
         vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(push), &push);
         vkCmdDrawIndexed(ctx.cmd, item.index_count, 1, item.first_index, item.vertex_offset,
                          item.drawable);
       }
     }
     vkCmdEndRendering(ctx.cmd);
-    if (taa.kept && taa.kept_count > 0) {
+    if (taa.kept) {
       // This frame's deformed vertices (written by a skinning pass, this frame's or an earlier
       // one's) become the view's kept pose, after the draws above read the last one.
       // The source scope also holds the last frame's copy into the kept buffer (write after
@@ -113,7 +97,8 @@ class MotionPass final : public Pass {
                            VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT,
                            VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
                            VK_ACCESS_2_TRANSFER_READ_BIT | VK_ACCESS_2_TRANSFER_WRITE_BIT);
-      const VkBufferCopy region{taa.kept_first * vertex_bytes, 0, taa.kept_count * vertex_bytes};
+      const VkBufferCopy region{a.first_copy_vertex() * sizeof(Vertex), 0,
+                                a.copy_vertices() * sizeof(Vertex)};
       vkCmdCopyBuffer(ctx.cmd, gs.vertices().handle(), taa.kept->handle(), 1, &region);
     }
   }
@@ -183,8 +168,6 @@ absl::Status Renderer::Impl::PrepareMotion(FrameData& f, TaaHistory& history, bo
                                  vk::MemoryUsage::kDeviceLocal, "taa_kept_vertices",
                                  &history.vertices));
     taa.kept = &history.vertices;
-    taa.kept_first = a->first_copy_vertex();
-    taa.kept_count = a->copy_vertices();
   }
   if (taa.motion) {
     for (size_t i = 0; i < a->drawables().size(); ++i) {

@@ -39,10 +39,11 @@ void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* col
   vkCmdSetScissor(ctx.cmd, 0, 1, &full);
 }
 
-void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline) {
+void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline, VkPipelineLayout layout) {
   vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
-  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout, 0, 1,
-                          &ctx.scene_set, 0, nullptr);
+  vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
+                          layout ? layout : ctx.scene_pipeline_layout, 0, 1, &ctx.scene_set, 0,
+                          nullptr);
   const VkBuffer vb = ctx.scene->vertices().handle();
   const VkDeviceSize offset = 0;
   vkCmdBindVertexBuffers(ctx.cmd, 0, 1, &vb, &offset);
@@ -129,26 +130,22 @@ VkDescriptorSet PassLayout::Allocate(const PassContext& ctx) const {
   return AllocateFrameSet(ctx, set_layout_.get());
 }
 
-namespace {
-
-// Binds what a segment needs that differs from the last one drawn.
-struct DrawState {
-  int cull = -1;
-  uint32_t material = UINT32_MAX;
-  void Apply(const PassContext& ctx, bool double_sided, uint32_t m, bool textured) {
-    if (textured && m != material) {
-      const VkDescriptorSet set = ctx.scene->material_set(m);
-      vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, ctx.scene_pipeline_layout,
-                              gpu::kMaterialSet, 1, &set, 0, nullptr);
-      material = m;
-    }
-    const int want = double_sided ? 0 : 1;
-    if (want != cull) {
-      vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
-      cull = want;
-    }
+void DrawState::Apply(const PassContext& ctx, bool double_sided, uint32_t m, bool textured) {
+  if (textured && m != material) {
+    const VkDescriptorSet set = ctx.scene->material_set(m);
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
+                            layout ? layout : ctx.scene_pipeline_layout, gpu::kMaterialSet, 1,
+                            &set, 0, nullptr);
+    material = m;
   }
-};
+  const int want = double_sided ? 0 : 1;
+  if (want != cull) {
+    vkCmdSetCullMode(ctx.cmd, want ? VK_CULL_MODE_BACK_BIT : VK_CULL_MODE_NONE);
+    cull = want;
+  }
+}
+
+namespace {
 
 void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t first_item,
                   uint32_t capacity, uint32_t count_index) {

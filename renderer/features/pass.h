@@ -198,9 +198,9 @@ struct TaaFrame {
   bool motion_pass = false;
   bool motion = false;
   std::vector<MotionDraw> draws;
-  const vk::Buffer* kept = nullptr;  // the view's copy of the deformed vertices (null: none)
-  uint64_t kept_first = 0;           // the first deformed vertex (SceneAnimator::first_copy_vertex)
-  uint64_t kept_count = 0;
+  // The view's copy of the deformed vertices (SceneAnimator::copy_vertices from
+  // first_copy_vertex on; null: the scene deforms nothing).
+  const vk::Buffer* kept = nullptr;
 };
 
 // Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
@@ -469,7 +469,18 @@ void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* col
 // else sample 0.
 void ResolveDepthInto(const PassContext& ctx, VkRenderingAttachmentInfo& depth);
 // Shared by the geometry passes: binds the pipeline, the frame's set and the scene buffers.
-void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline);
+// `layout`: the pipeline's layout when it is not the scene's (a pass with sets or push constants
+// of its own after the scene's sets).
+void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline,
+                    VkPipelineLayout layout = VK_NULL_HANDLE);
+// Binds what a draw needs that differs from the last one drawn: its material's set (when
+// `textured`) and its cull mode. `layout` as BeginSceneDraw's.
+struct DrawState {
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  int cull = -1;
+  uint32_t material = UINT32_MAX;
+  void Apply(const PassContext& ctx, bool double_sided, uint32_t m, bool textured);
+};
 // Draws the segments of `group` from the lists of phases [phase_begin, phase_end), binding each
 // segment's material texture set (when `textured`) and cull mode only when they change. The
 // blend group is drawn in DrawLists::blend_order.

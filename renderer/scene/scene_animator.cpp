@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <bit>
 #include <cmath>
-#include <cstring>
 
 namespace tessera {
 
@@ -160,20 +159,15 @@ std::vector<Vertex> SceneAnimator::VertexData(const CpuScene& scene) const {
   return out;
 }
 
-uint64_t SceneAnimator::pose_key() const {
-  return (uint64_t(uint32_t(posed_animation_)) << 32) | std::bit_cast<uint32_t>(posed_time_);
-}
-
 bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
   if (animation >= int(animations_.size())) animation = -1;
   const float t =
       animation < 0 ? 0.0f : AnimationTime(animations_[size_t(animation)], scene_time, loop);
-  if (posed_ && animation == posed_animation_ &&
-      std::memcmp(&t, &posed_time_, sizeof(float)) == 0)
-    return false;
+  // The animation and the bits of the time evaluated: equal keys, equal poses.
+  const uint64_t key = (uint64_t(uint32_t(animation)) << 32) | std::bit_cast<uint32_t>(t);
+  if (posed_ && key == pose_key_) return false;
   posed_ = true;
-  posed_animation_ = animation;
-  posed_time_ = t;
+  pose_key_ = key;
   // AnimationTime already folded the loop: evaluate at the animation's own time, unlooped.
   const ScenePose pose = EvaluatePose(nodes_, animations_, animation, t, false);
   for (MovingNode& c : cameras_) c.world = pose.world[c.node];

@@ -59,7 +59,7 @@ class SceneAnimator {
   bool Pose(int animation, double scene_time, bool loop);
   // The last pose's identity: its animation and the time it was evaluated at (equal keys, equal
   // poses, whichever scene time and loop asked for it).
-  uint64_t pose_key() const;
+  uint64_t pose_key() const { return pose_key_; }
   // The last pose, per entry of drawables(): world matrix and world bounds; and the joint
   // matrices and morph weights the skinning pass reads.
   const std::vector<glm::mat4>& world() const { return world_; }
@@ -105,8 +105,7 @@ class SceneAnimator {
   uint64_t deformed_vertices_ = 0;
   size_t joint_count_ = 0, weight_count_ = 0;
   bool posed_ = false;
-  int posed_animation_ = 0;
-  float posed_time_ = 0.0f;
+  uint64_t pose_key_ = 0;
   std::vector<glm::mat4> world_;
   std::vector<Aabb> bounds_;
   std::vector<glm::mat4> joints_;

@@ -177,8 +177,8 @@ TS_CONST uint kShadeDispatchWidth = 4096;
 TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
-// vis_classify's params.z: 1 when vis_mlaa's edge list (the entry after the sky's) holds the
-// start of the pixel lists, which the materials' lists then follow (geometric AA reads it last).
+// (vis_classify's params.z is 1 when vis_mlaa's edge list, the entry after the sky's, holds the
+// start of the pixel lists: the materials' lists then follow it, and geometric AA reads it last.)
 // geometric_aa_edges.comp's modes (push mode) and its set 0's bindings after the samplers of the
 // coverage (1) and ids (2).
 TS_CONST uint kGeometricAaBlend = 1;  // per listed edge pixel: its blend, into the colour list

@@ -153,7 +153,7 @@ void PostMain() {
       // 3. History, clipped to what this frame's neighbourhood can plausibly contain.
       //    Where the camera or the surface moved, the box shrinks to the neighbourhood's mean
       //    plus or minus one standard deviation (variance clipping): resampled history from
-      //    elsewhere needs the tighter test (a playing animation's frame 1.7-1.9 dB closer to
+      //    elsewhere needs the tighter test (a playing animation's frame 0.6-1.6 dB closer to
       //    the settled pose), while a still pixel's history is exact and keeps the whole box
       //    (variance clipping there cost 0.15-0.23 dB of edge PSNR on Sponza and the helmet).
       if (push.motion.y > 0.5 || object != vec2(0.0)) {

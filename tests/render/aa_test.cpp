@@ -284,7 +284,7 @@ TEST(AaTest, TaaBlendsHistoryWhileTheCameraMoves) {
   s.aa = AaMode::kTaa;
   constexpr int kFrames = 16;
   constexpr uint64_t kMoving = 0x7aa0010, kSettled = 0x7aa0011, kNone = 0x7aa0012;
-  FrameCapture moving, settled, alone;
+  FrameCapture moving, settled, unaliased;
   for (int k = 0; k < kFrames; ++k)
     ASSERT_TRUE(r.Render(*scene, orbit(k), s, kMoving, k + 1 == kFrames ? &moving : nullptr).ok());
   for (int k = 0; k < kFrames; ++k)
@@ -294,19 +294,11 @@ TEST(AaTest, TaaBlendsHistoryWhileTheCameraMoves) {
   // The same view without anti-aliasing.
   Settings none = s;
   none.aa = AaMode::kNone;
-  ASSERT_TRUE(r.Render(*scene, orbit(kFrames - 1), none, kNone, &alone).ok());
+  ASSERT_TRUE(r.Render(*scene, orbit(kFrames - 1), none, kNone, &unaliased).ok());
   for (uint64_t v : {kMoving, kSettled}) r.ForgetView(*scene, v);
-  auto psnr = [](const std::vector<float>& a, const std::vector<float>& b) {
-    double sum = 0.0;
-    for (size_t i = 0; i < a.size(); ++i) {
-      if (i % 4 == 3) continue;
-      const double d = std::min(a[i], 1.0f) - std::min(b[i], 1.0f);
-      sum += d * d;
-    }
-    return 10.0 * std::log10(1.0 / (sum / double(a.size() / 4 * 3)));
-  };
-  const double blended = psnr(moving.hdr, settled.hdr), single = psnr(alone.hdr, settled.hdr);
-  std::printf("orbiting TAA against the settled view: %.2f dB; no AA %.2f dB\n", blended, single);
+  const double blended = HdrPsnr(moving.hdr, settled.hdr);
+  std::printf("orbiting TAA against the settled view: %.2f dB; no AA %.2f dB\n", blended,
+              HdrPsnr(unaliased.hdr, settled.hdr));
   EXPECT_GE(blended, 27.5) << "TAA did not blend the moving camera's history";
   ExpectNoValidationMessages(r);
 }

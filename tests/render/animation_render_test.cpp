@@ -673,13 +673,7 @@ TEST(AnimationRender, TaaFollowsAnimatedGeometry) {
                       .ok());
     SharedRenderer().ForgetView(*l.scene, playing);
     SharedRenderer().ForgetView(*l.scene, still);
-    double sum = 0.0;
-    for (size_t i = 0; i < moved.hdr.size(); ++i) {
-      if (i % 4 == 3) continue;
-      const double d = std::min(moved.hdr[i], 1.0f) - std::min(settled.hdr[i], 1.0f);
-      sum += d * d;
-    }
-    const double psnr = 10.0 * std::log10(1.0 / (sum / double(moved.hdr.size() / 4 * 3)));
+    const double psnr = HdrPsnr(moved.hdr, settled.hdr);
     std::printf("%s playing from %.2f s, TAA's frame at %.2f s against it settled: %.1f dB\n",
                 c.file, c.start, end, psnr);
     EXPECT_GE(psnr, c.min_psnr);

@@ -5,10 +5,13 @@
 // TESSERA_UPDATE_GOLDENS=1 rewrites the golden instead (look at it before committing).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "renderer/image_io.h"
 #include "absl/strings/str_format.h"
@@ -41,6 +44,18 @@ struct GoldenBound {
   double min_psnr = 0.0;        // of the excess over the 3x3 neighbourhood ranges
   double max_outliers = 1.0;    // fraction of pixels more than 16 levels outside them
 };
+// PSNR in dB of two captured HDR colours (FrameCapture::hdr, RGBA), RGB clamped to 1 (the peak):
+// how far TAA's frame is from a reference in the colours the tonemapper mostly shows.
+inline double HdrPsnr(const std::vector<float>& a, const std::vector<float>& b) {
+  double sum = 0.0;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (i % 4 == 3) continue;
+    const double d = std::min(a[i], 1.0f) - std::min(b[i], 1.0f);
+    sum += d * d;
+  }
+  return 10.0 * std::log10(1.0 / (sum / double(a.size() / 4 * 3)));
+}
+
 inline constexpr GoldenBound kCpuGoldenBound{39.0, 46.0, 0.001};
 inline constexpr GoldenBound kGpuGoldenBound{0.0, 40.0, 0.005};
 
