@@ -350,7 +350,10 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
       frame.stats.shaded_pixels += d.w;
       frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
     }
-    if (plan.Has(PassId::kVisResolve)) frame.stats.edge_pixels = entries[f.shade.materials + 1].dispatch.w;
+    if (plan.Has(PassId::kVisResolve)) {
+      frame.stats.edge_pixels = entries[f.shade.materials + 1].dispatch.w;
+      frame.stats.runner_up_pixels = entries[f.shade.materials + 1].list.x;
+    }
   }
   if (f.tiled) {
     tile_counts_readback.InvalidateForRead();

@@ -110,6 +110,9 @@ struct FrameStats {
   uint64_t shaded_pixels = 0;
   uint64_t shading_invocations = 0;
   uint64_t edge_pixels = 0;  // vis_mlaa: pixels whose samples hit more than one triangle
+  // vis_mlaa: edge pixels whose runner-up surface (at least 3/8 of the samples, shown by no
+  // neighbour) was shaded as well.
+  uint64_t runner_up_pixels = 0;
   uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
   uint32_t local_lights = 0;         // of which point and spot lights (scene + synthetic)
   // Forward+ (when the light-culling pass ran): lights per tile over all tiles.

@@ -156,8 +156,9 @@ struct Renderer::Impl {
   vk::Buffer shade_pixels;
   uint32_t shade_material_capacity = 0;
   uint64_t shade_pixel_capacity = 0;
-  vk::Buffer edge_colors;  // vis_mlaa's geometric AA (ShadeBuffers::edge_colors)
-  uint64_t edge_color_capacity = 0;
+  vk::Buffer edge_colors;  // vis_mlaa's runner-ups and geometric AA (ShadeBuffers)
+  vk::Buffer runner_ups;
+  uint64_t edge_color_capacity = 0;  // entries of each
   vk::Pipeline id_pipeline;  // FrameCapture::want_ids, made on first use
   uint64_t frame_counter = 0;
   // Pixel memory given back by RecyclePixels, newest last (its own mutex: encoder threads give

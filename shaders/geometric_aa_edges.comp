@@ -5,7 +5,8 @@
 // pass costs per edge, not per pixel of the frame. The resolve listed the edge pixels (the start
 // of the pixel lists, entry push.edges, dispatched 64 to a workgroup); kGeometricAaBlend writes
 // each one's blend into a list of colours (its neighbours are read unchanged), kGeometricAaWrite
-// stores them into the image.
+// stores them into the image. A pixel's runner-up surface (vis_resolve.comp) takes the share of
+// its samples in the blend.
 #define TESSERA_COMPUTE
 #define GEOMETRIC_AA_EDGES
 #include "common/geometric_aa.glsl"
@@ -17,7 +18,10 @@ layout(set = 0, binding = kGeometricAaBindingPixels, std430) readonly buffer Pix
   uint pixels[];
 };
 layout(set = 0, binding = kGeometricAaBindingColors, std430) buffer ColorBlock {
-  uvec2 colors[];  // RGBA16F, packed
+  uvec2 colors[];  // RGBA16F, packed: the runner-up's shaded colour, then the blend
+};
+layout(set = 0, binding = kGeometricAaBindingRunnerUps, std430) readonly buffer RunnerUpBlock {
+  uvec2 runner_ups[];  // vis_resolve.comp's record per edge pixel
 };
 
 void main() {
@@ -27,7 +31,18 @@ void main() {
   uint packed = pixels[i];
   ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
   if (push.mode == kGeometricAaBlend) {
-    vec4 c = GeometricAa(p);
+    // The runner-up surface's colour: a neighbour's that shows it, or its own shading.
+    uint runner_word = runner_ups[i].y;
+    uint runner_mask = runner_word & 0xffu;
+    vec4 runner = vec4(0.0);
+    if (runner_mask != 0u) {
+      uint source = RunnerUpSource(runner_word);
+      runner.rgb = source == kRunnerUpShaded
+                       ? vec3(unpackHalf2x16(colors[i].x), unpackHalf2x16(colors[i].y).x)
+                       : Fetch(p + kNeighbours[source]);
+      runner.a = float(bitCount(runner_mask)) / float(push.samples);
+    }
+    vec4 c = GeometricAa(p, runner, RunnerUpMean(runner_word));
     colors[i] = uvec2(packHalf2x16(c.rg), packHalf2x16(c.ba));
   } else {
     imageStore(u_hdr, p, vec4(unpackHalf2x16(colors[i].x), unpackHalf2x16(colors[i].y)));

@@ -13,6 +13,11 @@
 // kResolveArgs sizes the indirect dispatch over that list, kResolveEdges groups the listed
 // pixels, every invocation one edge pixel (lavapipe runs masked-off lanes at full cost: as a
 // full-screen fragment pass the grouping cost every 8-pixel block that held an edge pixel).
+// The surface with the next most samples, the runner-up, is recorded where it owns at least 3/8
+// of them (u_runner_ups, one record per edge list entry); kResolveRunnerUps then looks for it in
+// the 8 neighbours' shaded ids, nearest in angle to where its samples lie first: geometric AA
+// borrows its colour from the first that shows it, and where none does it is shaded here too (a
+// wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote).
 // The shading (vis_classify.comp, vis_shade_mlaa.comp) then lists and shades each pixel's id.
 #include "common/scene.glsl"
 #include "common/vis.glsl"
@@ -21,13 +26,16 @@ layout(local_size_x = kShadeGroupSize) in;
 
 layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
 layout(set = kVisSet, binding = kVisBindingSamples) uniform usampler2DMS u_vis;
-layout(set = kVisSet, binding = kResolveBindingId, r32ui) uniform writeonly uimage2D u_id;
+layout(set = kVisSet, binding = kResolveBindingId, r32ui) uniform uimage2D u_id;
 layout(set = kVisSet, binding = kResolveBindingCoverage, r32ui) uniform writeonly uimage2D u_coverage;
 layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
   GpuShadeEntry entries[];
 };
 layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
   uint pixels[];
+};
+layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) buffer RunnerUpBlock {
+  uvec2 runner_ups[];  // per edge list entry: the id to shade, PackRunnerUp (mask 0: none)
 };
 
 // The sample count: a specialization constant (a pipeline per count), so the loops over samples
@@ -67,9 +75,30 @@ bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   return any(notEqual(both, uvec3(0u)));
 }
 
+// The mean position of the samples in `mask`, and the id of the one nearest it.
+void Pick(uint mask, uint ids[kSamples], out uint id, out vec2 mean) {
+  mean = vec2(0.0);
+  for (uint s = 0u; s < kSamples; ++s)
+    if ((mask & (1u << s)) != 0u) mean += SamplePosition(kSamples, s);
+  mean /= float(bitCount(mask));
+  uint nearest = 0u;
+  float nearest_d = 1e9;
+  for (uint s = 0u; s < kSamples; ++s) {
+    vec2 d = SamplePosition(kSamples, s) - mean;
+    if ((mask & (1u << s)) != 0u && dot(d, d) < nearest_d) {
+      nearest_d = dot(d, d);
+      nearest = s;
+    }
+  }
+  id = ids[0];
+  for (uint s = 1u; s < kSamples; ++s)
+    if (s == nearest) id = ids[s];
+}
+
 // Groups the samples by surface (the transitive closure of SameSurface) and writes the outputs
-// for the surface with the most samples (ties: the one holding the lowest sample).
-void Group(ivec2 p, uint ids[kSamples]) {
+// for the surface with the most samples (ties: the one holding the lowest sample), and edge list
+// entry `entry`'s runner-up.
+void Group(ivec2 p, uint entry, uint ids[kSamples]) {
   uint tb = frame.aa.x;
   uvec3 tv[kSamples];  // each sample's triangle's vertices (0 for none)
   for (uint s = 0u; s < kSamples; ++s)
@@ -93,24 +122,58 @@ void Group(ivec2 p, uint ids[kSamples]) {
   uint mask = same[0];
   for (uint s = 1u; s < kSamples; ++s)
     if (bitCount(same[s]) > bitCount(mask)) mask = same[s];
-  vec2 mean = vec2(0.0);
+  // The runner-up: the largest of the other groups (ties: the lowest sample's), when it holds at
+  // least 3/8 of the samples.
+  uint runner = 0u;
   for (uint s = 0u; s < kSamples; ++s)
-    if ((mask & (1u << s)) != 0u) mean += SamplePosition(kSamples, s);
-  mean /= float(bitCount(mask));
-  uint nearest = 0u;
-  float nearest_d = 1e9;
-  for (uint s = 0u; s < kSamples; ++s) {
-    vec2 d = SamplePosition(kSamples, s) - mean;
-    if ((mask & (1u << s)) != 0u && dot(d, d) < nearest_d) {
-      nearest_d = dot(d, d);
-      nearest = s;
-    }
-  }
-  uint id = ids[0];
-  for (uint s = 1u; s < kSamples; ++s)
-    if (s == nearest) id = ids[s];
+    if ((mask & (1u << s)) == 0u && bitCount(same[s]) > bitCount(runner)) runner = same[s];
+  uint id;
+  vec2 mean;
+  Pick(mask, ids, id, mean);
   imageStore(u_id, p, uvec4(id));
   imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
+  uvec2 record = uvec2(0u);
+  if (8u * uint(bitCount(runner)) >= 3u * kSamples) {
+    Pick(runner, ids, id, mean);
+    record = uvec2(id, PackRunnerUp(runner, mean, kRunnerUpUndecided));
+  }
+  runner_ups[entry] = record;
+}
+
+// The 8 neighbours by angle, counter-clockwise from +x in framebuffer coordinates (y down), as
+// geometric_aa.glsl's.
+const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
+                                      ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
+
+// Where edge list entry `entry`'s runner-up gets its colour: the first neighbour, by angle from
+// the direction of its samples' mean (the two either side of it, then the next two out, ...),
+// whose shaded id is on its surface, or else its own shading (counted in list.x of the edge
+// list's entry, for the frame's statistics).
+void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
+  uvec2 record = runner_ups[entry];
+  if ((record.y & 0xffu) == 0u) return;
+  uint tb = frame.aa.x;
+  uvec3 tv = record.x == 0u ? uvec3(0u)
+                            : TriangleVertices(drawables[VisDrawable(record.x, tb)].ids,
+                                               VisTriangle(record.x, tb));
+  vec2 toward = RunnerUpMean(record.y) - vec2(0.5);
+  float sector = atan(toward.y, toward.x) / (0.25 * 3.14159265359);
+  int first = int(floor(sector < 0.0 ? sector + 8.0 : sector)) & 7;
+  ivec2 size = imageSize(u_id);
+  uint source = kRunnerUpShaded;
+  for (int k = 0; k < 8 && source == kRunnerUpShaded; ++k) {
+    // first, first + 1, first - 1, first + 2, ...
+    int n = (first + ((k & 1) == 0 ? -(k / 2) : (k + 1) / 2) + 8) & 7;
+    ivec2 q = p + kNeighbours[n];
+    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+    uint other = imageLoad(u_id, q).r;
+    uvec3 ov = other == 0u ? uvec3(0u)
+                           : TriangleVertices(drawables[VisDrawable(other, tb)].ids,
+                                              VisTriangle(other, tb));
+    if (SameSurface(record.x, other, tv, ov)) source = uint(n);
+  }
+  if (source == kRunnerUpShaded) atomicAdd(entries[edges].list.x, 1u);
+  runner_ups[entry].y = (record.y & 0x0fffffffu) | (source << 28);
 }
 
 void main() {
@@ -130,12 +193,18 @@ void main() {
     uint l = gl_LocalInvocationIndex;
     p = ivec2(gl_WorkGroupID.xy) * 8 + ivec2(l % 8u, l / 8u);
     if (any(greaterThanEqual(p, ivec2(frame.counts.zw)))) return;
-  } else {  // kResolveEdges: one listed pixel per invocation
+  }
+  uint entry = 0u;
+  if (mode != kResolveUniform) {  // kResolveEdges, kResolveRunnerUps: one listed pixel each
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
-    if (i >= entries[edges].dispatch.w) return;
-    uint packed = pixels[i];
+    entry = group * kShadeGroupSize + gl_LocalInvocationIndex;
+    if (entry >= entries[edges].dispatch.w) return;
+    uint packed = pixels[entry];
     p = ivec2(packed & 0xffffu, packed >> 16);
+    if (mode == kResolveRunnerUps) {
+      DecideRunnerUp(p, entry, edges);
+      return;
+    }
   }
   uint ids[kSamples];
   bool uniform_id = true;
@@ -144,7 +213,7 @@ void main() {
     uniform_id = uniform_id && ids[s] == ids[0];
   }
   if (mode == kResolveEdges) {
-    Group(p, ids);
+    Group(p, entry, ids);
   } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
     imageStore(u_id, p, uvec4(ids[0]));
     imageStore(u_coverage, p, uvec4(PackCoverage((1u << kSamples) - 1u, vec2(0.5))));

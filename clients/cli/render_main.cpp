@@ -214,6 +214,7 @@ int main(int argc, char** argv) {
                   {"shaded_pixels", frame.stats.shaded_pixels},
                   {"shading_invocations", frame.stats.shading_invocations},
                   {"edge_pixels", frame.stats.edge_pixels},
+                  {"runner_up_pixels", frame.stats.runner_up_pixels},
                   {"lights", frame.stats.lights},
                   {"local_lights", frame.stats.local_lights},
                   {"tile_lights_avg", frame.stats.tile_lights_avg},

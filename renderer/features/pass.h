@@ -95,6 +95,7 @@ struct FrameTargets {
       case Resource::kVisibilityBits:
       case Resource::kLightLists:
       case Resource::kShadeLists:
+      case Resource::kEdgeSurfaces:
       case Resource::kPosedGeometry:
       case Resource::kCount: break;
     }
@@ -156,14 +157,18 @@ struct LightCullBuffers {
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a
 // GpuShadeEntry, one more for the sky (entry `materials`) and one for vis_mlaa's edge list
-// (`materials + 1`), the pixel lists (a uint per pixel of the frame, two with vis_mlaa: its
+// (`materials + 1`), the pixel lists (a uint per pixel of the frame, three with vis_mlaa: its
 // resolve lists its edge pixels there first, and the materials' lists follow it, so geometric AA
-// can read it after the shading), and a host copy of the entries for the frame's statistics.
+// can read it after the shading; they hold the runner-up surfaces too), and a host copy of the entries for the frame's statistics.
 struct ShadeBuffers {
   VkBuffer entries = VK_NULL_HANDLE;
   VkBuffer pixels = VK_NULL_HANDLE;
   VkBuffer entries_readback = VK_NULL_HANDLE;
-  VkBuffer edge_colors = VK_NULL_HANDLE;  // vis_mlaa: geometric AA's blend per edge pixel
+  // vis_mlaa, per entry of the edge list (Resource::kEdgeSurfaces): the runner-up surface
+  // (uvec2: the id to shade and its word, shaders/common/runner_up.glsl) and a colour (RGBA16F
+  // packed in a uvec2: the runner-up's shading, then geometric AA's blend).
+  VkBuffer runner_ups = VK_NULL_HANDLE;
+  VkBuffer edge_colors = VK_NULL_HANDLE;
   uint32_t materials = 0;
 };
 

@@ -217,7 +217,8 @@ class GeometricAaPass final : public PostPass {
                             LayoutBinding(gpu::kGeometricAaBindingPixels, kBuffer, kCompute),
                             LayoutBinding(gpu::kGeometricAaBindingColors, kBuffer, kCompute),
                             LayoutBinding(gpu::kGeometricAaBindingOut,
-                                          VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute)},
+                                          VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute),
+                            LayoutBinding(gpu::kGeometricAaBindingRunnerUps, kBuffer, kCompute)},
                            {{kCompute, 0, sizeof(gpu::GeometricAaPush)}}, "geometric_aa.edges"));
     ASSIGN_OR_RETURN(edges_, vk::CreateComputePipeline(ctx, "geometric_aa.edges",
                                                        "geometric_aa_edges.comp",
@@ -243,6 +244,7 @@ class GeometricAaPass final : public PostPass {
         .Buffer(gpu::kGeometricAaBindingEntries, sb.entries)
         .Buffer(gpu::kGeometricAaBindingPixels, sb.pixels)
         .Buffer(gpu::kGeometricAaBindingColors, sb.edge_colors)
+        .Buffer(gpu::kGeometricAaBindingRunnerUps, sb.runner_ups)
         .Storage(gpu::kGeometricAaBindingOut, t.hdr.view())
         .Update();
     const VkPipelineLayout layout = edge_layout_.pipeline_layout();

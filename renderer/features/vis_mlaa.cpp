@@ -121,7 +121,8 @@ class VisResolvePass final : public Pass {
              LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
              LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
              LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute),
-             LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute)},
+             LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute),
+             LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute)},
             {{kCompute, 0, sizeof(gpu::ShadePush)}}, "vis_resolve layout",
             {scene.set_layout, scene.material_set_layout}));
     ASSIGN_OR_RETURN(p->sampler_, CreateClampSampler(ctx, false, "vis_resolve"));
@@ -166,6 +167,12 @@ class VisResolvePass final : public Pass {
                          rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
     push(gpu::kResolveEdges);
     vkCmdDispatchIndirect(ctx.cmd, sb.entries, entry);
+    // The runner-ups look at the ids every edge pixel now has.
+    vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                         compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                         rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+    push(gpu::kResolveRunnerUps);
+    vkCmdDispatchIndirect(ctx.cmd, sb.entries, entry);
   }
 
  private:
@@ -177,6 +184,7 @@ class VisResolvePass final : public Pass {
         .Sampled(gpu::kVisBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view())
         .Storage(gpu::kResolveBindingId, ctx.targets->vis_id.view())
         .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
+        .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
         .VisibilityBuffers(ctx)
         .Update();
     const VkPipelineLayout layout = layout_.pipeline_layout();
@@ -225,10 +233,12 @@ void SetupVisMlaa(GraphBuilder& b) {
   using A = Access;
   // The edge list borrows the shading's pixel lists (rewritten whole each frame).
   b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
+  b.Import(R::kEdgeSurfaces, A::kNone, A::kComputeWrite);  // rewritten whole each frame too
   b.Pass(PassId::kVisResolve)
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisMs, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite)
+      .Use(R::kEdgeSurfaces, A::kComputeWrite)
       .Use(R::kVisId, A::kComputeWrite)
       .Use(R::kVisCoverage, A::kComputeWrite);
   // The shading of the resolved ids: SetupVisibilityShading (vis_shade.cpp).
@@ -252,7 +262,8 @@ void SetupGeometricAa(GraphBuilder& b) {
       .Use(R::kHdrColor, Access::kComputeWrite)
       .Use(R::kVisCoverage, Access::kComputeRead)
       .Use(R::kVisId, Access::kComputeRead)
-      .Use(R::kShadeLists, Access::kIndirectRead);
+      .Use(R::kShadeLists, Access::kIndirectRead)
+      .Use(R::kEdgeSurfaces, Access::kComputeWrite);
 }
 
 
@@ -276,9 +287,9 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
   const uint32_t most = gs.max_draw_triangles();
   const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
   if (!DrawsVisibility(s)) return triangle_bits;
-  // The shading's pixel lists (vis_mlaa: its edge list first, and geometric AA's colour per edge
-  // pixel, two words) must fit one storage buffer binding.
-  const uint64_t list_bytes = uint64_t(s.width) * s.height * 4 * (vis_mlaa ? 2 : 1);
+  // The shading's pixel lists (vis_mlaa: its edge list first, and the runner-up surfaces in the
+  // materials' lists: three words a pixel) must fit one storage buffer binding.
+  const uint64_t list_bytes = uint64_t(s.width) * s.height * 4 * (vis_mlaa ? 3 : 1);
   const uint64_t range = ctx->limits().maxStorageBufferRange;
   std::string why;
   if (most > (uint64_t(1) << triangle_bits)) {

@@ -53,6 +53,8 @@ class ShadeLayout {
     if (vis_mlaa) {
       b.push_back(LayoutBinding(gpu::kShadeBindingCoverage, kSampled, kCompute));
       b.push_back(LayoutBinding(gpu::kShadeBindingSamples, kSampled, kCompute));
+      b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
+      b.push_back(LayoutBinding(gpu::kShadeBindingEdgeColors, kBuffer, kCompute));
     }
     ASSIGN_OR_RETURN(l.layout_,
                      PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
@@ -72,7 +74,9 @@ class ShadeLayout {
         .VisibilityBuffers(ctx);
     if (vis_mlaa_) {  // its targets exist
       w.Sampled(gpu::kShadeBindingCoverage, sampler_.handle(), ctx.targets->vis_coverage.view())
-          .Sampled(gpu::kShadeBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view());
+          .Sampled(gpu::kShadeBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view())
+          .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
+          .Buffer(gpu::kShadeBindingEdgeColors, ctx.shade->edge_colors);
     }
     w.Update();
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_layout(), 0, 1,
@@ -88,21 +92,33 @@ class ShadeLayout {
   vk::Sampler sampler_;
 };
 
-// A compute-to-compute dependency on the entries and lists between the classification's steps.
-void ComputeBarrier(VkCommandBuffer cmd) {
-  vk::CmdMemoryBarrier(cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                       VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                       VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+// A compute-to-compute dependency on the entries and lists between the classification's steps
+// (`indirect`: the next step's dispatch size is read from the entries too).
+void ComputeBarrier(VkCommandBuffer cmd, bool indirect = false) {
+  vk::CmdMemoryBarrier(
+      cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+      VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT |
+          (indirect ? VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT : VkPipelineStageFlags2{0}),
+      VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT |
+          (indirect ? VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT : VkAccessFlags2{0}));
 }
 
+// vis_mlaa's classification also lists the runner-up surfaces to shade (dispatched over the
+// resolve's edge list, with vis_mlaa's layout).
 class VisClassifyPass final : public Pass {
  public:
-  VisClassifyPass(ShadeLayout layout, vk::Pipeline pipeline)
-      : layout_(std::move(layout)), pipeline_(std::move(pipeline)) {}
+  VisClassifyPass(ShadeLayout one, vk::Pipeline pipeline, ShadeLayout mlaa,
+                  vk::Pipeline mlaa_pipeline)
+      : one_(std::move(one)),
+        pipeline_(std::move(pipeline)),
+        mlaa_(std::move(mlaa)),
+        mlaa_pipeline_(std::move(mlaa_pipeline)) {}
   PassId id() const override { return PassId::kVisClassify; }
 
   void Record(PassContext& ctx) override {
     const ShadeBuffers& sb = *ctx.shade;
+    const bool vis_mlaa = ctx.settings->aa == AaMode::kVisMlaa;
+    const ShadeLayout& layout = vis_mlaa ? mlaa_ : one_;
     // The scene's materials and the sky's entry (and, copied for the statistics, vis_mlaa's
     // edge list's).
     const VkDeviceSize entry_bytes =
@@ -112,21 +128,40 @@ class VisClassifyPass final : public Pass {
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                          VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline_.handle());
-    layout_.Bind(ctx);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                      (vis_mlaa ? mlaa_pipeline_ : pipeline_).handle());
+    layout.Bind(ctx);
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
+    auto push = [&](uint32_t mode) {
+      const gpu::ShadePush p{glm::uvec4(mode, sb.materials, vis_mlaa ? 1u : 0u, 0u)};
+      vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                         sizeof(p), &p);
+    };
     auto step = [&](uint32_t mode, uint32_t x, uint32_t y) {
-      const gpu::ShadePush push{glm::uvec4(
-          mode, sb.materials, ctx.settings->aa == AaMode::kVisMlaa ? 1u : 0u, 0u)};
-      vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
-                         sizeof(push), &push);
+      push(mode);
       vkCmdDispatch(ctx.cmd, x, y, 1);
     };
+    auto over_edges = [&](uint32_t mode) {  // the resolve's edge list, sized by the resolve
+      push(mode);
+      vkCmdDispatchIndirect(ctx.cmd, sb.entries,
+                            VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry));
+    };
+    // vis_mlaa: the runner-ups first, each step over the edge list sized by the resolve (an
+    // indirect read, ordered after every storage write to the entries).
+    if (vis_mlaa) {
+      ComputeBarrier(ctx.cmd, /*indirect=*/true);
+      over_edges(gpu::kClassifyCountRunnerUps);
+      ComputeBarrier(ctx.cmd);
+    }
     step(gpu::kClassifyCount, gx, gy);
     ComputeBarrier(ctx.cmd);
     step(gpu::kClassifyScan, 1, 1);
-    ComputeBarrier(ctx.cmd);
+    ComputeBarrier(ctx.cmd, /*indirect=*/vis_mlaa);
+    if (vis_mlaa) {
+      over_edges(gpu::kClassifyFillRunnerUps);
+      ComputeBarrier(ctx.cmd);
+    }
     step(gpu::kClassifyFill, gx, gy);
     // This pass's own copy of the entries for the statistics (the graph orders the entries
     // before the shading's dispatches).
@@ -140,8 +175,10 @@ class VisClassifyPass final : public Pass {
   }
 
  private:
-  ShadeLayout layout_;
+  ShadeLayout one_;
   vk::Pipeline pipeline_;
+  ShadeLayout mlaa_;
+  vk::Pipeline mlaa_pipeline_;
 };
 
 // The shading pipelines: one sample or vis_mlaa's, each with and without shading.glsl's
@@ -197,13 +234,23 @@ class ShadePass final : public Pass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
                                                             const SceneLayout& scene) {
-  ASSIGN_OR_RETURN(ShadeLayout layout, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/false));
+  ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/false));
+  ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/true));
   // One atomic per subgroup and material where compute shaders have ballots, else per pixel.
-  const char* shader =
-      ctx.info().subgroup_ballot ? "vis_classify.comp" : "vis_classify_atomic.comp";
-  ASSIGN_OR_RETURN(vk::Pipeline pipeline,
-                   vk::CreateComputePipeline(ctx, "vis_classify", shader, layout.pipeline_layout()));
-  return std::make_unique<VisClassifyPass>(std::move(layout), std::move(pipeline));
+  const bool ballots = ctx.info().subgroup_ballot;
+  ASSIGN_OR_RETURN(
+      vk::Pipeline pipeline,
+      vk::CreateComputePipeline(ctx, "vis_classify",
+                                ballots ? "vis_classify.comp" : "vis_classify_atomic.comp",
+                                one.pipeline_layout()));
+  ASSIGN_OR_RETURN(
+      vk::Pipeline mlaa_pipeline,
+      vk::CreateComputePipeline(
+          ctx, "vis_classify.vis_mlaa",
+          ballots ? "vis_classify_mlaa.comp" : "vis_classify_atomic_mlaa.comp",
+          mlaa.pipeline_layout()));
+  return std::make_unique<VisClassifyPass>(std::move(one), std::move(pipeline), std::move(mlaa),
+                                           std::move(mlaa_pipeline));
 }
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
@@ -221,7 +268,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                                              "vis_shade_mlaa.comp", ml, {1u}));
   ASSIGN_OR_RETURN(p.sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp", pl));
   ASSIGN_OR_RETURN(p.mlaa_sky,
-                   vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky.comp", ml));
+                   vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky_mlaa.comp", ml));
   return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(p));
 }
 
@@ -236,6 +283,7 @@ void SetupVisibilityShading(GraphBuilder& b) {
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite);
+  if (vis_mlaa) b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
   b.Pass(PassId::kShade)
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
@@ -244,7 +292,11 @@ void SetupVisibilityShading(GraphBuilder& b) {
       .UseIfPresent(R::kAo, A::kComputeRead)
       .UseIfPresent(R::kShadowAtlas, A::kComputeRead)
       .UseIfPresent(R::kLightLists, A::kComputeRead);
-  if (vis_mlaa) b.Use(R::kVisCoverage, A::kComputeRead).Use(R::kVisMs, A::kComputeRead);
+  if (vis_mlaa) {
+    b.Use(R::kVisCoverage, A::kComputeRead)
+        .Use(R::kVisMs, A::kComputeRead)
+        .Use(R::kEdgeSurfaces, A::kComputeWrite);  // the runner-ups' colours
+  }
 }
 
 
@@ -270,9 +322,10 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
   // The materials the shading dispatches for (the others have no pixels).
   f.vis.materials = MaterialsInFrustum(f.gs, FrustumFromViewProj(f.fu.view_proj));
   const uint32_t materials = f.gs.material_count();
-  // vis_mlaa's edge list (at most a pixel each) precedes the materials' lists.
+  // vis_mlaa's edge list (at most a pixel each) precedes the materials' lists, which hold its
+  // runner-up surfaces too (at most one per edge pixel).
   const uint64_t pixels =
-      uint64_t(f.s.width) * f.s.height * (f.s.aa == AaMode::kVisMlaa ? 2 : 1);
+      uint64_t(f.s.width) * f.s.height * (f.s.aa == AaMode::kVisMlaa ? 3 : 1);
   // And the sky's entry, and vis_mlaa's edge list's (vis_mlaa.cpp).
   if (materials + 2 > shade_material_capacity) {
     const uint32_t cap = std::max(materials + 2, shade_material_capacity * 2);
@@ -295,15 +348,19 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
     shade_pixel_capacity = pixels;
   }
   if (f.s.aa == AaMode::kVisMlaa && uint64_t(f.s.width) * f.s.height > edge_color_capacity) {
-    // Geometric AA's blended colour per edge pixel (RGBA16F packed in a uvec2).
+    // Per edge pixel its runner-up surface and a colour (a uvec2 each; ShadeBuffers).
     edge_color_capacity = uint64_t(f.s.width) * f.s.height;
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(edge_color_capacity) * 8,
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kDeviceLocal,
                                "edge_colors", &edge_colors));
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(edge_color_capacity) * 8,
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kDeviceLocal,
+                               "runner_ups", &runner_ups));
   }
   f.shade.entries = shade_entries.handle();
   f.shade.pixels = shade_pixels.handle();
   f.shade.edge_colors = edge_colors.handle();
+  f.shade.runner_ups = runner_ups.handle();
   f.shade.entries_readback = shade_entries_readback.handle();
   f.shade.materials = materials;
   return absl::OkStatus();

@@ -53,6 +53,8 @@ enum class Resource : uint8_t {
   kLightLists,      // forward+: per-tile light counts and lists
   kShadeLists,      // visibility pipeline: per material its pixel count, list offset and
                     // dispatch size, and the pixel lists the shading dispatches read
+  kEdgeSurfaces,    // vis_mlaa: per edge pixel its runner-up surface (the resolve's record) and
+                    // a colour (the runner-up's shading, then geometric AA's blend)
   kPosedGeometry,   // animated scenes: the drawable records and deformed vertices the skinning
                     // pass writes for the frame's pose (the scene's buffers; only in frames
                     // that run it: every pass that reads the geometry uses it if present)
@@ -63,7 +65,7 @@ enum class Resource : uint8_t {
 inline bool IsBuffer(Resource r) {
   return r == Resource::kDrawLists || r == Resource::kVisibilityBits ||
          r == Resource::kLightLists || r == Resource::kShadeLists ||
-         r == Resource::kPosedGeometry;
+         r == Resource::kEdgeSurfaces || r == Resource::kPosedGeometry;
 }
 // Barriers inside a pass between its own steps (bloom's and the pyramid's mips, ssao's blur, a
 // cull pass's clears before its dispatch, light culling's copy of its counts for the host) are

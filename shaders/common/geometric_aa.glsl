@@ -1,5 +1,6 @@
 #include "common/gpu_types.h"
 #include "common/post_io.glsl"
+#include "common/runner_up.glsl"
 // vis_mlaa geometric AA. A pixel whose shaded surface owns every sample passes through. In any
 // other pixel the mean position of the surface's samples lies off the pixel centre, towards
 // the surface; the other surface lies the opposite way. That direction (the "compass") picks
@@ -9,6 +10,9 @@
 // A neighbour shading the pixel's own triangle tells nothing about the other surface (e.g. where
 // an edge ends at a corner); it is replaced by the nearest neighbour, by angle within 90 degrees
 // of the compass, that shows another triangle.
+// Where the pixel has a runner-up surface (vis_resolve.comp; edge pixels only), its samples take
+// its colour (a neighbour's that shows it, or its own shading), the compass points to the
+// samples neither surface owns, and only those borrow from the neighbours it picks.
 #ifdef GEOMETRIC_AA_EDGES
 // geometric_aa_edges.comp: the HDR colour, read and then written in place (storage).
 layout(set = 0, binding = kGeometricAaBindingOut, rgba16f) uniform image2D u_hdr;
@@ -43,16 +47,10 @@ uint IdAt(ivec2 p) {
   return texelFetch(u_id, clamp(p, ivec2(0), size - 1), 0).r;
 }
 
-// The pixel's colour after geometric AA.
-vec4 GeometricAa(ivec2 p) {
-  vec4 color = LoadColor(p);
-  uint word = texelFetch(u_coverage, p, 0).r;
-  uint full = (1u << push.samples) - 1u;
-  uint mask = word & full;
-  float owned = float(bitCount(mask)) / float(push.samples);
-  if (push.show_mask != 0u) return vec4(vec3(owned), 1.0);
-  vec2 away = vec2(0.5) - vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0;
-  if (mask == full || dot(away, away) < 1e-6) return color;
+// The colour the compass `away` points to: the two neighbours it falls between, by angle, or
+// the one of them that shows another triangle than the pixel's, or the next neighbours out on
+// either side (the nearer in angle first). False when none of these shows another triangle.
+bool Borrow(ivec2 p, vec2 away, out vec3 other) {
   float sector = atan(away.y, away.x) / (0.25 * kPi);
   if (sector < 0.0) sector += 8.0;
   int i0 = int(floor(sector)) & 7;
@@ -61,12 +59,12 @@ vec4 GeometricAa(ivec2 p) {
   uint own = IdAt(p);
   bool use0 = IdAt(p + kNeighbours[i0]) != own;
   bool use1 = IdAt(p + kNeighbours[i1]) != own;
-  vec3 other;
+  other = vec3(0.0);
   if (use0 && use1) {
     other = mix(Fetch(p + kNeighbours[i0]), Fetch(p + kNeighbours[i1]), t);
   } else if (use0 || use1) {
     other = Fetch(p + kNeighbours[use0 ? i0 : i1]);
-  } else {  // the next neighbours out on either side, the nearer in angle first
+  } else {
     int a = (i0 + 7) & 7, b = (i1 + 1) & 7;
     bool a_first = t < 0.5;
     int first = a_first ? a : b, second = a_first ? b : a;
@@ -75,11 +73,41 @@ vec4 GeometricAa(ivec2 p) {
     } else if (IdAt(p + kNeighbours[second]) != own) {
       other = Fetch(p + kNeighbours[second]);
     } else {
-      return color;  // no other surface in sight: nothing to blend with
+      return false;
     }
   }
+  return true;
+}
+
+// The pixel's colour after geometric AA; `runner` is the runner-up surface's colour and
+// `runner_mean` the mean position of its samples in the pixel (runner.a: the share of the
+// samples it owns, 0 where the pixel has none).
+vec4 GeometricAa(ivec2 p, vec4 runner, vec2 runner_mean) {
+  vec4 color = LoadColor(p);
+  uint word = texelFetch(u_coverage, p, 0).r;
+  uint full = (1u << push.samples) - 1u;
+  uint mask = word & full;
+  float owned = float(bitCount(mask)) / float(push.samples);
+  if (push.show_mask != 0u) return vec4(vec3(owned), 1.0);
+  vec2 away = vec2(0.5) - vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0;
+  if (runner.a > 0.0) {
+    // The samples neither surface owns: the standard sample positions average to the pixel's
+    // centre, so their mean lies along owned * away + runner.a * (0.5 - runner_mean).
+    vec3 known = owned * color.rgb + runner.a * runner.rgb;
+    float rest = 1.0 - owned - runner.a;
+    away += (runner.a / owned) * (vec2(0.5) - runner_mean);
+    vec3 other;
+    if (rest < 0.5 / float(push.samples) || dot(away, away) < 1e-6 || !Borrow(p, away, other))
+      return vec4(known / (owned + runner.a), 1.0);
+    return vec4(known + rest * other, 1.0);
+  }
+  if (mask == full || dot(away, away) < 1e-6) return color;
+  vec3 other;
+  if (!Borrow(p, away, other)) return color;  // no other surface in sight: nothing to blend with
   return vec4(mix(color.rgb, other, 1.0 - owned), 1.0);
 }
+
+vec4 GeometricAa(ivec2 p) { return GeometricAa(p, vec4(0.0), vec2(0.5)); }
 
 #ifndef GEOMETRIC_AA_EDGES
 void PostMain() { out_color = GeometricAa(ivec2(FRAG_COORD)); }

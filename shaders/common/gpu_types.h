@@ -159,6 +159,15 @@ TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 2] 
 TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
 TS_CONST uint kShadeBindingCoverage = 6;  // vis_mlaa: usampler2D, the resolve's coverage word
 TS_CONST uint kShadeBindingSamples = 7;   // vis_mlaa: usampler2DMS, the visibility samples
+// vis_mlaa's runner-up surfaces, one uvec2 per entry of the resolve's edge list: the id to shade
+// and its coverage word (mask 0: none). Written by vis_resolve.comp, read by the classification,
+// the shading and geometric AA.
+TS_CONST uint kShadeBindingRunnerUps = 8;
+// vis_mlaa: per edge list entry a uvec2, RGBA16F packed: the runner-up's shaded colour (written
+// by the shading), then geometric AA's blend.
+TS_CONST uint kShadeBindingEdgeColors = 9;
+// A pixel-list entry with this bit set is a runner-up: the low bits are its edge list index.
+TS_CONST uint kRunnerUpEntry = 0x80000000u;
 // vis_resolve.comp's set 2: the samples (kVisBindingSamples), the ids and coverage words it
 // writes (r32ui storage images), the index and vertex buffers, and the entries and pixel lists
 // of the shading (the edge list borrows the pixel lists and the entry after the sky's).
@@ -168,6 +177,9 @@ TS_CONST uint kResolveBindingCoverage = 6;
 TS_CONST uint kResolveUniform = 0;  // per pixel: samples that agree are written, others listed
 TS_CONST uint kResolveArgs = 1;     // one workgroup: the edge dispatch's size
 TS_CONST uint kResolveEdges = 2;    // per listed edge pixel: group the samples by surface
+// per listed edge pixel with a runner-up: drops it where a neighbour geometric AA borrows from
+// shows it (it needs the ids kResolveEdges wrote); counts the others (edge entry list.x)
+TS_CONST uint kResolveRunnerUps = 3;
 TS_CONST uint kClassifyTile = 8;         // vis_classify: 8x8 pixels per workgroup
 TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // A material's dispatch is at most this many workgroups wide (more rows above: the indirect
@@ -177,6 +189,9 @@ TS_CONST uint kShadeDispatchWidth = 4096;
 TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
+// vis_mlaa: the same two steps for the runner-up surfaces (dispatched over the edge list)
+TS_CONST uint kClassifyCountRunnerUps = 3;
+TS_CONST uint kClassifyFillRunnerUps = 4;
 // (vis_classify's params.z is 1 when vis_mlaa's edge list, the entry after the sky's, holds the
 // start of the pixel lists: the materials' lists then follow it, and geometric AA reads it last.)
 // geometric_aa_edges.comp's modes (push mode) and its set 0's bindings after the samplers of the
@@ -187,6 +202,7 @@ TS_CONST uint kGeometricAaBindingEntries = 3;
 TS_CONST uint kGeometricAaBindingPixels = 4;
 TS_CONST uint kGeometricAaBindingColors = 5;
 TS_CONST uint kGeometricAaBindingOut = 6;
+TS_CONST uint kGeometricAaBindingRunnerUps = 7;
 
 
 // ---- enums (values match the C++ enums in renderer/settings.h and scene/cpu_scene.h) ---------
@@ -330,7 +346,8 @@ struct FrameUniforms {
 // The visibility pipeline's record of one material in a frame: its pixels and its dispatch.
 struct GpuShadeEntry {
   uvec4 dispatch;  // xyz: VkDispatchIndirectCommand of its shading, w: pixel count
-  uvec4 list;      // x: its first pixel in the lists, y: fill cursor, zw unused
+  uvec4 list;      // x: its first pixel in the lists, y: fill cursor, zw unused (vis_mlaa's
+                   // edge list entry: x the runner-up surfaces shaded)
 };
 
 // ---- push constants ---------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 #ifndef TESSERA_VIS_GLSL
 #define TESSERA_VIS_GLSL
 #include "gpu_types.h"
+#include "runner_up.glsl"
 
 layout(set = kVisSet, binding = kVisBindingIndices, std430) readonly buffer VisIndexBlock {
   uint vis_indices[];

@@ -8,6 +8,9 @@
 //  - kClassifyFill: append each pixel to its material's list.
 // The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by
 // peeling: the lanes of the first lane's material take their ranks from a ballot).
+// With VIS_MLAA (vis_classify_mlaa.comp) the runner-up surfaces the resolve left to be shaded
+// are listed too, as kRunnerUpEntry | their edge list index, by the same two steps dispatched
+// over the edge list (kClassifyCountRunnerUps, kClassifyFillRunnerUps).
 #include "common/scene.glsl"
 #include "common/vis.glsl"
 
@@ -21,6 +24,11 @@ layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock 
 layout(set = kVisSet, binding = kShadeBindingPixels, std430) writeonly buffer PixelBlock {
   uint pixels[];
 };
+#ifdef VIS_MLAA
+layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) readonly buffer RunnerUpBlock {
+  uvec2 runner_ups[];
+};
+#endif
 
 const uint kNoMaterial = 0xffffffffu;
 
@@ -87,6 +95,25 @@ void main() {
     Scan();
     return;
   }
+#ifdef VIS_MLAA
+  if (push.params.x == kClassifyCountRunnerUps || push.params.x == kClassifyFillRunnerUps) {
+    // One edge list entry per invocation (the workgroup's 64 invocations, as the shading's).
+    uint edges = push.params.y + 1u;
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
+    if (i >= entries[edges].dispatch.w) return;
+    uvec2 r = runner_ups[i];
+    if ((r.y & 0xffu) == 0u || RunnerUpSource(r.y) != kRunnerUpShaded) return;
+    uint m = r.x == 0u ? push.params.y : drawables[VisDrawable(r.x, frame.aa.x)].ids.y;
+    if (push.params.x == kClassifyCountRunnerUps) {
+      Append(m, false);
+    } else {
+      uint slot = Append(m, true);
+      pixels[entries[m].list.x + slot] = kRunnerUpEntry | i;
+    }
+    return;
+  }
+#endif
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
   uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;

@@ -29,6 +29,7 @@ layout(set = kVisSet, binding = kShadeBindingPixels, std430) readonly buffer Pix
 #ifdef VIS_MLAA
 layout(set = kVisSet, binding = kShadeBindingCoverage) uniform usampler2D u_vis_coverage;
 layout(set = kVisSet, binding = kShadeBindingSamples) uniform usampler2DMS u_vis_samples;
+#include "common/runner_up_shading.glsl"
 #endif
 
 void main() {
@@ -37,18 +38,35 @@ void main() {
   uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
   if (i >= entries[m].dispatch.w) return;
   uint packed = pixels[entries[m].list.x + i];
+#ifdef VIS_MLAA
+  // A runner-up surface (kRunnerUpEntry | its edge list index): its id and samples are the
+  // resolve's record, its colour goes to the edge colours for geometric AA.
+  uint runner_up = packed & ~kRunnerUpEntry;
+  bool is_runner_up = (packed & kRunnerUpEntry) != 0u;
+  if (is_runner_up) packed = pixels[runner_up];
+#endif
   ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
   g_pixel = vec2(p) + 0.5;
-  uint id = texelFetch(u_vis_id, p, 0).r;
 #ifdef VIS_MLAA
-  uint word = texelFetch(u_vis_coverage, p, 0).r;
-  vec2 pixel = vec2(p) + CoverageMean(word);
+  uint id, mask;
+  vec2 mean;
+  if (is_runner_up) {
+    uvec2 record = runner_ups[runner_up];
+    id = record.x;
+    mask = CoverageMask(record.y);
+    mean = RunnerUpMean(record.y);
+  } else {
+    id = texelFetch(u_vis_id, p, 0).r;
+    uint word = texelFetch(u_vis_coverage, p, 0).r;
+    mask = CoverageMask(word);
+    mean = CoverageMean(word);
+  }
+  vec2 pixel = vec2(p) + mean;
   vec3 dir = RayDirection(pixel);
   Triangle tri = LoadTriangle(id);
   vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, dir);
   // When the surface spans several triangles, the mean position can miss the nearest sample's
   // triangle: take the first of the surface's other triangles that contains it.
-  uint mask = CoverageMask(word);
   const float kInside = -1e-4;
   for (uint s = 0u; s < frame.aa.y && min(b.x, min(b.y, b.z)) < kInside; ++s) {
     if ((mask & (1u << s)) == 0u) continue;
@@ -62,10 +80,17 @@ void main() {
       id = other;
     }
   }
+  vec3 color = ShadeSurface(VisSurface(tri, b, pixel), false).rgb;
+  if (is_runner_up) {
+    StoreRunnerUpColor(runner_up, color);
+    return;
+  }
+  imageStore(u_color, p, vec4(color, 1.0));
 #else
+  uint id = texelFetch(u_vis_id, p, 0).r;
   vec2 pixel = g_pixel;
   Triangle tri = LoadTriangle(id);
   vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel));
-#endif
   imageStore(u_color, p, vec4(ShadeSurface(VisSurface(tri, b, pixel), false).rgb, 1.0));
+#endif
 }

@@ -189,6 +189,7 @@ int main(int argc, char** argv) {
                   {"shaded_pixels", last.stats.shaded_pixels},
                   {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels},
                   {"edge_pixels", last.stats.edge_pixels},
+                  {"runner_up_pixels", last.stats.runner_up_pixels},
                   {"animated_drawables", last.stats.animated_drawables},
                   {"deformed_vertices", last.stats.deformed_vertices}};
     if (!skinning_share.empty()) {

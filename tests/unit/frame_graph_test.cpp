@@ -292,6 +292,17 @@ TEST(SelectPassesTest, AaModes) {
   EXPECT_TRUE(std::any_of(geometric.begin(), geometric.end(), [](const ResourceUse& u) {
     return u.resource == Resource::kShadeLists && u.access == Access::kIndirectRead;
   })) << "geometric AA dispatches over the resolve's edge list";
+  // The runner-up surfaces: recorded by the resolve, listed by the classification, shaded (their
+  // colours) by the shading, blended in by geometric AA, in that order.
+  auto edge_surfaces = [&](PassId id) {
+    for (const ResourceUse& u : UsesOf(edge_plan, id))
+      if (u.resource == Resource::kEdgeSurfaces) return u.access;
+    return Access::kNone;
+  };
+  EXPECT_EQ(edge_surfaces(PassId::kVisResolve), Access::kComputeWrite);
+  EXPECT_EQ(edge_surfaces(PassId::kVisClassify), Access::kComputeRead);
+  EXPECT_EQ(edge_surfaces(PassId::kShade), Access::kComputeWrite);
+  EXPECT_EQ(edge_surfaces(PassId::kGeometricAa), Access::kComputeWrite);
   EXPECT_EQ(first_use(AaMode::kTaa, PassId::kTonemap), Resource::kPostHdr);
   EXPECT_EQ(first_use(AaMode::kMsaa, PassId::kTonemap), Resource::kHdrColor);
   EXPECT_EQ(first_use(AaMode::kFxaa, PassId::kReadback), Resource::kFxaaColor);
@@ -463,6 +474,7 @@ TEST(PlanTransitionsTest, ImportsEnterAndLeaveInTheirStates) {
     EXPECT_EQ(imported(Resource::kVisibilityBits), c.settings.culling == CullingMode::kGpuOcclusion)
         << d;
     EXPECT_EQ(imported(Resource::kLightLists), c.features.local_lights > 0) << d;
+    EXPECT_EQ(imported(Resource::kEdgeSurfaces), c.settings.aa == AaMode::kVisMlaa) << d;
     for (const ResourceImport& i : c.plan.imports) {
       EXPECT_EQ(c.plan.FinalAccess(i.resource), i.final) << d << int(i.resource);
       if (IsBuffer(i.resource)) continue;
