@@ -105,8 +105,9 @@ struct FrameStats {
   uint64_t primitives_in = 0;          // input-assembly primitives
   uint64_t primitives_clipped = 0;     // primitives out of clipping (reach the rasterizer)
   uint64_t fragment_invocations = 0;   // fragment-shader invocations
-  // The visibility pipeline's shading pass (0 otherwise): the pixels it shaded (each once) and
-  // its compute invocations (the pixels rounded up to whole workgroups per material).
+  // The visibility pipeline's shading pass (0 otherwise): the pixels it shaded (each once; with
+  // vis_mlaa also the runner-up surfaces it shaded, runner_up_pixels, except the sky's) and its
+  // compute invocations (those rounded up to whole workgroups per material).
   uint64_t shaded_pixels = 0;
   uint64_t shading_invocations = 0;
   uint64_t edge_pixels = 0;  // vis_mlaa: pixels whose samples hit more than one triangle

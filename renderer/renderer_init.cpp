@@ -100,10 +100,10 @@ absl::Status Renderer::Impl::Init() {
   // Per frame: the scene set, light culling, two culling phases, a set per pyramid level, the
   // vis_mlaa and post passes' sets.
   // Shadows, ssao, ibl: six more images and a uniform buffer in the scene set; the post passes
-  // allocate a set per draw (bloom: eleven). Storage buffers, at most 46 in a frame: the scene
-  // set 5, skinning 5, the two culling phases 8 each, light culling 5, vis_mlaa's resolve,
-  // classification and shading 4 each, its geometric AA 3, and the motion pass 1 (taa, so not
-  // with vis_mlaa); 64 leaves room.
+  // allocate a set per draw (bloom: eleven). Storage buffers, at most 51 in a frame: the scene
+  // set 5, skinning 5, the two culling phases 8 each, light culling 5, vis_mlaa's resolve 5,
+  // classification 5, shading 6 and geometric AA 4, and the motion pass 1 (taa, so not with
+  // vis_mlaa); 64 leaves room.
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 64},

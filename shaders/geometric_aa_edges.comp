@@ -37,9 +37,8 @@ void main() {
     vec4 runner = vec4(0.0);
     if (runner_mask != 0u) {
       uint source = RunnerUpSource(runner_word);
-      runner.rgb = source == kRunnerUpShaded
-                       ? vec3(unpackHalf2x16(colors[i].x), unpackHalf2x16(colors[i].y).x)
-                       : Fetch(p + kNeighbours[source]);
+      runner.rgb = source < 8u ? Fetch(p + kNeighbours[source])
+                               : vec3(unpackHalf2x16(colors[i].x), unpackHalf2x16(colors[i].y).x);
       runner.a = float(bitCount(runner_mask)) / float(push.samples);
     }
     vec4 c = GeometricAa(p, runner, RunnerUpMean(runner_word));

@@ -30,16 +30,20 @@ namespace tessera {
 
 namespace {
 
-// Set 2 of these passes and their pipeline layout (sets 0 and 1 are the scene's); with
-// `vis_mlaa` also the resolve's coverage and the visibility samples (a separate layout: lavapipe
-// reads every descriptor of a bound set, so none may be left unwritten).
+// Which set 2: the one-sample passes'; vis_mlaa's classification's (and the resolve's runner-up
+// records); vis_mlaa's shading's (and the resolve's coverage, the visibility samples and the edge
+// colours). Separate layouts: lavapipe reads every descriptor of a bound set, so none may be left
+// unwritten, and a pass binds only what it reads.
+enum class ShadeSet { kOneSample, kVisMlaaClassify, kVisMlaa };
+
+// Set 2 of these passes and their pipeline layout (sets 0 and 1 are the scene's).
 class ShadeLayout {
  public:
   static absl::StatusOr<ShadeLayout> Create(const vk::Context& ctx, const SceneLayout& scene,
-                                            bool vis_mlaa) {
+                                            ShadeSet kind) {
     ShadeLayout l;
     l.device_ = ctx.device();
-    l.vis_mlaa_ = vis_mlaa;
+    l.kind_ = kind;
     constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
     constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
     constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
@@ -50,10 +54,12 @@ class ShadeLayout {
         LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
         LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
         LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute)};
-    if (vis_mlaa) {
+    if (kind != ShadeSet::kOneSample) {
+      b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
+    }
+    if (kind == ShadeSet::kVisMlaa) {
       b.push_back(LayoutBinding(gpu::kShadeBindingCoverage, kSampled, kCompute));
       b.push_back(LayoutBinding(gpu::kShadeBindingSamples, kSampled, kCompute));
-      b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
       b.push_back(LayoutBinding(gpu::kShadeBindingEdgeColors, kBuffer, kCompute));
     }
     ASSIGN_OR_RETURN(l.layout_,
@@ -72,10 +78,11 @@ class ShadeLayout {
     w.Sampled(gpu::kShadeBindingId, sampler_.handle(), ctx.targets->vis_id.view())
         .Storage(gpu::kShadeBindingColor, ctx.targets->hdr.view())
         .VisibilityBuffers(ctx);
-    if (vis_mlaa_) {  // its targets exist
+    // vis_mlaa's targets and buffers exist in its frames.
+    if (kind_ != ShadeSet::kOneSample) w.Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups);
+    if (kind_ == ShadeSet::kVisMlaa) {
       w.Sampled(gpu::kShadeBindingCoverage, sampler_.handle(), ctx.targets->vis_coverage.view())
           .Sampled(gpu::kShadeBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view())
-          .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
           .Buffer(gpu::kShadeBindingEdgeColors, ctx.shade->edge_colors);
     }
     w.Update();
@@ -87,7 +94,7 @@ class ShadeLayout {
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
-  bool vis_mlaa_ = false;
+  ShadeSet kind_ = ShadeSet::kOneSample;
   PassLayout layout_;
   vk::Sampler sampler_;
 };
@@ -234,8 +241,9 @@ class ShadePass final : public Pass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
                                                             const SceneLayout& scene) {
-  ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/false));
-  ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/true));
+  ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample));
+  ASSIGN_OR_RETURN(ShadeLayout mlaa,
+                   ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaaClassify));
   // One atomic per subgroup and material where compute shaders have ballots, else per pixel.
   const bool ballots = ctx.info().subgroup_ballot;
   ASSIGN_OR_RETURN(
@@ -255,8 +263,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& c
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                                       const SceneLayout& scene) {
-  ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/false));
-  ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, /*vis_mlaa=*/true));
+  ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample));
+  ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa));
   const VkPipelineLayout pl = one.pipeline_layout(), ml = mlaa.pipeline_layout();
   ShadePipelines p;
   ASSIGN_OR_RETURN(p.plain, vk::CreateComputePipeline(ctx, "shade", "vis_shade.comp", pl, {0u}));

@@ -259,14 +259,18 @@ TEST(AaTest, VisMlaaRunnerUpSurfaces) {
   const double none_mae = WireCoverageMae(*d, d->none);
   const double msaa_mae = WireCoverageMae(*d, msaa->image);
   const double vis_mae = WireCoverageMae(*d, vis->image);
-  std::printf("wire rows coverage MAE: none %.4f, msaa %.4f, vis_mlaa %.4f; %llu edge pixels, "
-              "%llu runner-ups shaded\n",
-              none_mae, msaa_mae, vis_mae,
+  // How much of the error without AA vis_mlaa removes on the wires, against msaa's 4 samples:
+  // 0.88 on lavapipe, 0.79 without the runner-ups (each wire then missing from the pixels where
+  // it lost the vote).
+  const double closed = (none_mae - vis_mae) / (none_mae - msaa_mae);
+  std::printf("wire rows coverage MAE: none %.4f, msaa %.4f, vis_mlaa %.4f (%.2f of msaa's gain); "
+              "%llu edge pixels, %llu runner-ups shaded\n",
+              none_mae, msaa_mae, vis_mae, closed,
               static_cast<unsigned long long>(vis->stats.edge_pixels),
               static_cast<unsigned long long>(vis->stats.runner_up_pixels));
   EXPECT_GT(vis->stats.runner_up_pixels, 0u);
-  EXPECT_LT(vis->stats.runner_up_pixels, vis->stats.edge_pixels);
-  EXPECT_LT(vis_mae, msaa_mae + 0.02) << "vis_mlaa's wires against msaa's";
+  EXPECT_GE(closed, 0.84) << "vis_mlaa's wires: coverage MAE " << vis_mae << ", msaa " << msaa_mae
+                          << ", none " << none_mae;
   ExpectNoValidationMessages(r);
 }
 
