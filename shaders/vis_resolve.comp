@@ -159,15 +159,16 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
   vec2 toward = RunnerUpMean(record.y) - vec2(0.5);
   float sector = atan(toward.y, toward.x) / (0.25 * 3.14159265359);
   if (sector < 0.0) sector += 8.0;
-  // The two neighbours either side of that direction, the nearer first, then the next two out.
-  bool lower_first = fract(sector) < 0.5;
-  int nearer = (int(floor(sector)) + (lower_first ? 0 : 1)) & 7;
-  int side = lower_first ? 1 : -1;  // where the other of the two lies
+  // The two neighbours either side of that direction (counter-clockwise order: the first one
+  // first), then the next two out on either side, and so on. Taking the nearer of the two first
+  // instead measured worse (tessera-aa-quality edge PSNR: DamagedHelmet 27.02 -> 26.89 dB,
+  // Sponza 29.83 -> 29.81, the edge scene unchanged).
+  int first = int(floor(sector)) & 7;
   ivec2 size = imageSize(u_id);
   uint source = kRunnerUpShaded;
   for (int k = 0; k < 8 && source == kRunnerUpShaded; ++k) {
-    // nearer, nearer + side, nearer - side, nearer + 2 side, ...
-    int n = (nearer + side * ((k & 1) == 0 ? -(k / 2) : (k + 1) / 2) + 16) & 7;
+    // first, first + 1, first - 1, first + 2, ...
+    int n = (first + ((k & 1) == 0 ? -(k / 2) : (k + 1) / 2) + 8) & 7;
     ivec2 q = p + kNeighbours[n];
     if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
     uint other = imageLoad(u_id, q).r;
