@@ -4,5 +4,5 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 // The visibility pipeline's classification, one atomic per subgroup and material
 // (common/vis_classify.glsl).
-#define VIS_CLASSIFY_SUBGROUPS
+#define SHADE_APPEND_SUBGROUPS
 #include "common/vis_classify.glsl"

@@ -4,6 +4,6 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 // vis_mlaa's classification, one atomic per subgroup and material, with the runner-up surfaces
 // (common/vis_classify.glsl).
-#define VIS_CLASSIFY_SUBGROUPS
+#define SHADE_APPEND_SUBGROUPS
 #define VIS_MLAA
 #include "common/vis_classify.glsl"

@@ -6,7 +6,8 @@
 //    frame's depth and ids;
 //  - vis_resolve (compute): per pixel, groups the samples by surface and picks the surface to
 //    shade, a triangle of it, and its coverage mask and mean sample position; only the edge
-//    pixels are grouped, listed by a first pass over the frame (shaders/vis_resolve.comp).
+//    pixels are grouped, listed by a first pass over the frame; each pixel's surface is counted
+//    in its material's entry for the shading's lists (shaders/common/vis_resolve.glsl).
 // Then the visibility pipeline's classification and compute shading (vis_shade.cpp) shade each
 // pixel's surface once, at that mean position, and the geometric AA pass (post.cpp) blends the
 // partly covered pixels.
@@ -130,12 +131,15 @@ class VisResolvePass final : public Pass {
   }
   PassId id() const override { return PassId::kVisResolve; }
 
-  // A pipeline per sample count (vis_resolve.comp's kSamples).
+  // A pipeline per sample count (vis_resolve.comp's kSamples); one atomic per subgroup and
+  // material where compute shaders have ballots, else per pixel (vis_resolve_atomic.comp).
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
     if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
     return pipelines_.Ensure(s.samples, [&](uint32_t samples) {
-      return vk::CreateComputePipeline(ctx, "vis_resolve", "vis_resolve.comp",
-                                       layout_.pipeline_layout(), {samples});
+      return vk::CreateComputePipeline(
+          ctx, "vis_resolve",
+          ctx.info().subgroup_ballot ? "vis_resolve.comp" : "vis_resolve_atomic.comp",
+          layout_.pipeline_layout(), {samples});
     });
   }
 
@@ -143,7 +147,9 @@ class VisResolvePass final : public Pass {
     const ShadeBuffers& sb = *ctx.shade;
     const uint32_t edges = sb.materials + 1;  // the entry after the sky's
     const VkDeviceSize entry = VkDeviceSize(edges) * sizeof(gpu::GpuShadeEntry);
-    vkCmdFillBuffer(ctx.cmd, sb.entries, entry, sizeof(gpu::GpuShadeEntry), 0);
+    // Every material's, the sky's and the edge list's entry start at zero: the resolve counts
+    // each pixel's surface in its material's (the classification then goes straight to its scan).
+    vkCmdFillBuffer(ctx.cmd, sb.entries, 0, entry + sizeof(gpu::GpuShadeEntry), 0);
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
                          VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);

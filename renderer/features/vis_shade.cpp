@@ -130,11 +130,15 @@ class VisClassifyPass final : public Pass {
     // edge list's).
     const VkDeviceSize entry_bytes =
         VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry);
-    // The counts start at zero (the graph ordered this after the last frame's reads).
-    vkCmdFillBuffer(ctx.cmd, sb.entries, 0, entry_bytes, 0);
-    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
-                         VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                         VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+    // The counts start at zero (the graph ordered this after the last frame's reads); vis_mlaa's
+    // resolve zeroed and counted them already (vis_resolve.comp).
+    if (!vis_mlaa) {
+      vkCmdFillBuffer(ctx.cmd, sb.entries, 0, entry_bytes, 0);
+      vk::CmdMemoryBarrier(
+          ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+          VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+    }
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
                       (vis_mlaa ? mlaa_pipeline_ : pipeline_).handle());
     layout.Bind(ctx);
@@ -154,16 +158,13 @@ class VisClassifyPass final : public Pass {
       vkCmdDispatchIndirect(ctx.cmd, sb.entries,
                             VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry));
     };
-    // vis_mlaa: the runner-ups first, each step over the edge list sized by the resolve (an
-    // indirect read, ordered after every storage write to the entries).
-    if (vis_mlaa) {
-      ComputeBarrier(ctx.cmd, /*indirect=*/true);
-      over_edges(gpu::kClassifyCountRunnerUps);
+    if (!vis_mlaa) {
+      step(gpu::kClassifyCount, gx, gy);
       ComputeBarrier(ctx.cmd);
     }
-    step(gpu::kClassifyCount, gx, gy);
-    ComputeBarrier(ctx.cmd);
     step(gpu::kClassifyScan, 1, 1);
+    // vis_mlaa: the runner-ups' step runs over the edge list sized by the resolve (an indirect
+    // read, ordered after every storage write to the entries).
     ComputeBarrier(ctx.cmd, /*indirect=*/vis_mlaa);
     if (vis_mlaa) {
       over_edges(gpu::kClassifyFillRunnerUps);

@@ -189,9 +189,9 @@ TS_CONST uint kShadeDispatchWidth = 4096;
 TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
-// vis_mlaa: the same two steps for the runner-up surfaces (dispatched over the edge list)
-TS_CONST uint kClassifyCountRunnerUps = 3;
-TS_CONST uint kClassifyFillRunnerUps = 4;
+// vis_mlaa: append the runner-up surfaces to be shaded (dispatched over the edge list). With
+// vis_mlaa the resolve counted every pixel and runner-up already: kClassifyCount does not run.
+TS_CONST uint kClassifyFillRunnerUps = 3;
 // (vis_classify's params.z is 1 when vis_mlaa's edge list, the entry after the sky's, holds the
 // start of the pixel lists: the materials' lists then follow it, and geometric AA reads it last.)
 // geometric_aa_edges.comp's modes (push mode) and its set 0's bindings after the samplers of the

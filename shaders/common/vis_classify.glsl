@@ -8,9 +8,10 @@
 //  - kClassifyFill: append each pixel to its material's list.
 // The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by
 // peeling: the lanes of the first lane's material take their ranks from a ballot).
-// With VIS_MLAA (vis_classify_mlaa.comp) the runner-up surfaces the resolve left to be shaded
-// are listed too, as kRunnerUpEntry | their edge list index, by the same two steps dispatched
-// over the edge list (kClassifyCountRunnerUps, kClassifyFillRunnerUps).
+// With VIS_MLAA (vis_classify_mlaa.comp) the resolve has counted each pixel's surface (and each
+// runner-up surface left to be shaded) in its material's entry, so kClassifyCount does not run;
+// the runner-ups are listed too, as kRunnerUpEntry | their edge list index, by a step dispatched
+// over the edge list (kClassifyFillRunnerUps).
 #include "common/scene.glsl"
 #include "common/vis.glsl"
 
@@ -32,30 +33,7 @@ layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) readonly buffer 
 
 const uint kNoMaterial = 0xffffffffu;
 
-// Adds `n` = 1 for this invocation to counter `word` of material m's entry (0: the pixel
-// count, 1: the fill cursor) and returns the value before this invocation's add.
-uint Append(uint m, bool cursor) {
-#ifdef VIS_CLASSIFY_SUBGROUPS
-  uint slot = 0u;
-  bool done = false;
-  while (!done) {
-    uint first = subgroupBroadcastFirst(m);
-    if (m == first) {
-      uvec4 same = subgroupBallot(true);
-      uint n = subgroupBallotBitCount(same);
-      uint base = 0u;
-      if (subgroupElect()) {
-        base = cursor ? atomicAdd(entries[m].list.y, n) : atomicAdd(entries[m].dispatch.w, n);
-      }
-      slot = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(same);
-      done = true;
-    }
-  }
-  return slot;
-#else
-  return cursor ? atomicAdd(entries[m].list.y, 1u) : atomicAdd(entries[m].dispatch.w, 1u);
-#endif
-}
+#include "common/shade_append.glsl"
 
 shared uint s_sums[kClassifyTile * kClassifyTile];
 
@@ -96,7 +74,7 @@ void main() {
     return;
   }
 #ifdef VIS_MLAA
-  if (push.params.x == kClassifyCountRunnerUps || push.params.x == kClassifyFillRunnerUps) {
+  if (push.params.x == kClassifyFillRunnerUps) {
     // One edge list entry per invocation (the workgroup's 64 invocations, as the shading's).
     uint edges = push.params.y + 1u;
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
@@ -105,12 +83,8 @@ void main() {
     uvec2 r = runner_ups[i];
     if ((r.y & 0xffu) == 0u || RunnerUpSource(r.y) != kRunnerUpShaded) return;
     uint m = r.x == 0u ? push.params.y : drawables[VisDrawable(r.x, frame.aa.x)].ids.y;
-    if (push.params.x == kClassifyCountRunnerUps) {
-      Append(m, false);
-    } else {
-      uint slot = Append(m, true);
-      pixels[entries[m].list.x + slot] = kRunnerUpEntry | i;
-    }
+    uint slot = Append(m, true);
+    pixels[entries[m].list.x + slot] = kRunnerUpEntry | i;
     return;
   }
 #endif

@@ -291,6 +291,25 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
       }
     }
   }
+  // vis_mlaa: its resolve counts each pixel's surface and its classification lists the
+  // runner-ups, one atomic per subgroup and material with ballots, one per pixel without.
+  if (r.device_info().visibility_buffer) {
+    Settings s = Small(CullingMode::kGpuFrustum);
+    s.width = 160;
+    s.height = 96;
+    s.aa = AaMode::kVisMlaa;
+    s.samples = 4;
+    absl::StatusOr<Frame> a = r.Render(**full_scene, cam, s, 340);
+    absl::StatusOr<Frame> b = (*lean)->Render(**lean_scene, cam, s, 340);
+    ASSERT_TRUE(a.ok()) << a.status();
+    ASSERT_TRUE(b.ok()) << b.status();
+    ASSERT_EQ(b->settings.effective.aa, AaMode::kVisMlaa);
+    EXPECT_EQ(a->image.pixels, b->image.pixels) << "vis_mlaa";
+    EXPECT_GT(a->stats.edge_pixels, 0u);
+    EXPECT_EQ(a->stats.edge_pixels, b->stats.edge_pixels);
+    EXPECT_EQ(a->stats.runner_up_pixels, b->stats.runner_up_pixels);
+    EXPECT_EQ(a->stats.shaded_pixels, b->stats.shaded_pixels);
+  }
   ExpectNoValidationMessages(r);
   ExpectNoValidationMessages(**lean);
 }

@@ -1,0 +1,243 @@
+// vis_mlaa resolve: groups a pixel's visibility samples by surface and picks the surface to
+// shade. Two samples are on one surface when they hit the same triangle, or triangles of the
+// same drawable that share a vertex: the same index, or two vertices at almost the same
+// position whose normals are within 8.1 degrees (dot > 0.99), or joined through other samples.
+// The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
+//  - u_id: the id of the winning sample nearest the mean position of the winning samples
+//    (the triangle the shading intersects);
+//  - u_coverage: the winning samples' mask and their mean position (PackCoverage).
+// Only edge pixels (samples on more than one triangle) are grouped, so the cost comes from the
+// edges: mode kResolveUniform writes every pixel whose samples agree and lists the others,
+// kResolveArgs sizes the indirect dispatch over that list, kResolveEdges groups the listed
+// pixels, every invocation one edge pixel (lavapipe runs masked-off lanes at full cost: as a
+// full-screen fragment pass the grouping cost every 8-pixel block that held an edge pixel).
+// The surface with the next most samples, the runner-up, is recorded where it owns at least 3/8
+// of them (u_runner_ups, one record per edge list entry); kResolveRunnerUps then looks for it in
+// the 8 neighbours' shaded ids, nearest in angle to where its samples lie first: geometric AA
+// borrows its colour from the first that shows it, and where none does it is shaded here too (a
+// wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote).
+// Every pixel's shaded surface (and every runner-up left to be shaded) is counted in its
+// material's entry as it is decided (common/shade_append.glsl), so the classification goes
+// straight to its scan and lists (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp)
+// shades each listed id. vis_resolve.comp counts one atomic per subgroup and material,
+// vis_resolve_atomic.comp (devices without subgroup ballots) one per pixel.
+#include "common/scene.glsl"
+#include "common/vis.glsl"
+
+layout(local_size_x = kShadeGroupSize) in;
+
+layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+layout(set = kVisSet, binding = kVisBindingSamples) uniform usampler2DMS u_vis;
+layout(set = kVisSet, binding = kResolveBindingId, r32ui) uniform uimage2D u_id;
+layout(set = kVisSet, binding = kResolveBindingCoverage, r32ui) uniform writeonly uimage2D u_coverage;
+layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
+  GpuShadeEntry entries[];
+};
+layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
+  uint pixels[];
+};
+layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) buffer RunnerUpBlock {
+  uvec2 runner_ups[];  // per edge list entry: the id to shade, PackRunnerUp (mask 0: none)
+};
+#include "common/shade_append.glsl"
+
+// The entry an id's pixels are counted in: its drawable's material's, or the sky's (the entry
+// before the edge list's).
+uint MaterialOf(uint id, uint edges) {
+  return id == 0u ? edges - 1u : drawables[VisDrawable(id, frame.aa.x)].ids.y;
+}
+
+// The sample count: a specialization constant (a pipeline per count), so the loops over samples
+// unroll and the per-sample arrays below stay in registers (lavapipe keeps dynamically indexed
+// local arrays in memory, which made the grouping most of vis_mlaa's frame).
+layout(constant_id = 0) const uint kSamples = 4u;
+
+// Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface. Written
+// with vector compares and no loops: a CPU device runs the lanes of a SIMD group together, and
+// early exits from unrolled loops cost it more than the compares.
+bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
+  if (a == b) return true;
+  uint tb = frame.aa.x;
+  if (a == 0u || b == 0u || (a >> tb) != (b >> tb)) return false;
+  // A shared vertex index (most neighbours) needs no vertex loads.
+  if (any(equal(uvec3(va.x), vb)) || any(equal(uvec3(va.y), vb)) || any(equal(uvec3(va.z), vb)))
+    return true;
+  vec3 a0 = VertexPosition(va.x), a1 = VertexPosition(va.y), a2 = VertexPosition(va.z);
+  vec3 b0 = VertexPosition(vb.x), b1 = VertexPosition(vb.y), b2 = VertexPosition(vb.z);
+  // "Almost the same position": within 0.1% of the shorter triangle's longest edge.
+  float size_a = max(distance(a0, a1), max(distance(a1, a2), distance(a2, a0)));
+  float size_b = max(distance(b0, b1), max(distance(b1, b2), distance(b2, b0)));
+  vec3 eps = vec3(1e-3 * min(size_a, size_b));
+  bvec3 near0 = lessThanEqual(vec3(distance(a0, b0), distance(a0, b1), distance(a0, b2)), eps);
+  bvec3 near1 = lessThanEqual(vec3(distance(a1, b0), distance(a1, b1), distance(a1, b2)), eps);
+  bvec3 near2 = lessThanEqual(vec3(distance(a2, b0), distance(a2, b1), distance(a2, b2)), eps);
+  if (!(any(near0) || any(near1) || any(near2))) return false;
+  // ... with normals within 8.1 degrees.
+  vec3 m0 = normalize(VertexNormal(va.x)), m1 = normalize(VertexNormal(va.y)),
+       m2 = normalize(VertexNormal(va.z));
+  vec3 n0 = normalize(VertexNormal(vb.x)), n1 = normalize(VertexNormal(vb.y)),
+       n2 = normalize(VertexNormal(vb.z));
+  const vec3 kCos = vec3(0.99);
+  uvec3 both = uvec3(near0) * uvec3(greaterThan(vec3(dot(m0, n0), dot(m0, n1), dot(m0, n2)), kCos)) +
+               uvec3(near1) * uvec3(greaterThan(vec3(dot(m1, n0), dot(m1, n1), dot(m1, n2)), kCos)) +
+               uvec3(near2) * uvec3(greaterThan(vec3(dot(m2, n0), dot(m2, n1), dot(m2, n2)), kCos));
+  return any(notEqual(both, uvec3(0u)));
+}
+
+// The mean position of the samples in `mask`, and the id of the one nearest it.
+void Pick(uint mask, uint ids[kSamples], out uint id, out vec2 mean) {
+  mean = vec2(0.0);
+  for (uint s = 0u; s < kSamples; ++s)
+    if ((mask & (1u << s)) != 0u) mean += SamplePosition(kSamples, s);
+  mean /= float(bitCount(mask));
+  uint nearest = 0u;
+  float nearest_d = 1e9;
+  for (uint s = 0u; s < kSamples; ++s) {
+    vec2 d = SamplePosition(kSamples, s) - mean;
+    if ((mask & (1u << s)) != 0u && dot(d, d) < nearest_d) {
+      nearest_d = dot(d, d);
+      nearest = s;
+    }
+  }
+  id = ids[0];
+  for (uint s = 1u; s < kSamples; ++s)
+    if (s == nearest) id = ids[s];
+}
+
+// Groups the samples by surface (the transitive closure of SameSurface) and writes the outputs
+// for the surface with the most samples (ties: the one holding the lowest sample), and edge list
+// entry `entry`'s runner-up. Returns the id to shade.
+uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
+  uint tb = frame.aa.x;
+  uvec3 tv[kSamples];  // each sample's triangle's vertices (0 for none)
+  for (uint s = 0u; s < kSamples; ++s)
+    tv[s] = ids[s] == 0u ? uvec3(0u)
+                         : TriangleVertices(drawables[VisDrawable(ids[s], tb)].ids,
+                                            VisTriangle(ids[s], tb));
+  uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
+  for (uint s = 0u; s < kSamples; ++s) same[s] = 1u << s;
+  for (uint i = 0u; i < kSamples; ++i) {
+    for (uint j = i + 1u; j < kSamples; ++j) {
+      if (SameSurface(ids[i], ids[j], tv[i], tv[j])) {
+        same[i] |= 1u << j;
+        same[j] |= 1u << i;
+      }
+    }
+  }
+  for (uint k = 0u; k < kSamples; ++k)  // closure: join through members (kSamples rounds)
+    for (uint s = 0u; s < kSamples; ++s)
+      for (uint t = 0u; t < kSamples; ++t)
+        if ((same[s] & (1u << t)) != 0u) same[s] |= same[t];
+  uint mask = same[0];
+  for (uint s = 1u; s < kSamples; ++s)
+    if (bitCount(same[s]) > bitCount(mask)) mask = same[s];
+  // The runner-up: the largest of the other groups (ties: the lowest sample's), when it holds at
+  // least 3/8 of the samples.
+  uint runner = 0u;
+  for (uint s = 0u; s < kSamples; ++s)
+    if ((mask & (1u << s)) == 0u && bitCount(same[s]) > bitCount(runner)) runner = same[s];
+  uint id;
+  vec2 mean;
+  Pick(mask, ids, id, mean);
+  uint winner = id;
+  imageStore(u_id, p, uvec4(id));
+  imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
+  uvec2 record = uvec2(0u);
+  if (8u * uint(bitCount(runner)) >= 3u * kSamples) {
+    Pick(runner, ids, id, mean);
+    record = uvec2(id, PackRunnerUp(runner, mean, kRunnerUpUndecided));
+  }
+  runner_ups[entry] = record;
+  return winner;
+}
+
+// The 8 neighbours by angle, counter-clockwise from +x in framebuffer coordinates (y down), as
+// geometric_aa.glsl's.
+const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
+                                      ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
+
+// Where edge list entry `entry`'s runner-up gets its colour: the first neighbour, by angle from
+// the direction of its samples' mean (the two either side of it, then the next two out, ...),
+// whose shaded id is on its surface, or else its own shading (counted in list.x of the edge
+// list's entry, for the frame's statistics).
+void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
+  uvec2 record = runner_ups[entry];
+  if ((record.y & 0xffu) == 0u) return;
+  uint tb = frame.aa.x;
+  uvec3 tv = record.x == 0u ? uvec3(0u)
+                            : TriangleVertices(drawables[VisDrawable(record.x, tb)].ids,
+                                               VisTriangle(record.x, tb));
+  vec2 toward = RunnerUpMean(record.y) - vec2(0.5);
+  float sector = atan(toward.y, toward.x) / (0.25 * 3.14159265359);
+  if (sector < 0.0) sector += 8.0;
+  // The two neighbours either side of that direction (counter-clockwise order: the first one
+  // first), then the next two out on either side, and so on. Taking the nearer of the two first
+  // instead measured worse (tessera-aa-quality edge PSNR: DamagedHelmet 27.02 -> 26.89 dB,
+  // Sponza 29.83 -> 29.81, the edge scene unchanged).
+  int first = int(floor(sector)) & 7;
+  ivec2 size = imageSize(u_id);
+  uint source = kRunnerUpShaded;
+  for (int k = 0; k < 8 && source == kRunnerUpShaded; ++k) {
+    // first, first + 1, first - 1, first + 2, ...
+    int n = (first + ((k & 1) == 0 ? -(k / 2) : (k + 1) / 2) + 8) & 7;
+    ivec2 q = p + kNeighbours[n];
+    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+    uint other = imageLoad(u_id, q).r;
+    uvec3 ov = other == 0u ? uvec3(0u)
+                           : TriangleVertices(drawables[VisDrawable(other, tb)].ids,
+                                              VisTriangle(other, tb));
+    if (SameSurface(record.x, other, tv, ov)) source = uint(n);
+  }
+  if (source == kRunnerUpShaded) {
+    atomicAdd(entries[edges].list.x, 1u);
+    Append(MaterialOf(record.x, edges), false);
+  }
+  runner_ups[entry].y = (record.y & 0x0fffffffu) | (source << 28);
+}
+
+void main() {
+  uint mode = push.params.x;
+  uint edges = push.params.y;  // the edge list's entry
+  if (mode == kResolveArgs) {
+    if (gl_LocalInvocationIndex == 0u) {
+      uint groups = (entries[edges].dispatch.w + kShadeGroupSize - 1u) / kShadeGroupSize;
+      uint width = min(groups, kShadeDispatchWidth);
+      entries[edges].dispatch.xyz =
+          uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
+    }
+    return;
+  }
+  ivec2 p;
+  if (mode == kResolveUniform) {  // an 8x8 tile per workgroup
+    uint l = gl_LocalInvocationIndex;
+    p = ivec2(gl_WorkGroupID.xy) * 8 + ivec2(l % 8u, l / 8u);
+    if (any(greaterThanEqual(p, ivec2(frame.counts.zw)))) return;
+  }
+  uint entry = 0u;
+  if (mode != kResolveUniform) {  // kResolveEdges, kResolveRunnerUps: one listed pixel each
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    entry = group * kShadeGroupSize + gl_LocalInvocationIndex;
+    if (entry >= entries[edges].dispatch.w) return;
+    uint packed = pixels[entry];
+    p = ivec2(packed & 0xffffu, packed >> 16);
+    if (mode == kResolveRunnerUps) {
+      DecideRunnerUp(p, entry, edges);
+      return;
+    }
+  }
+  uint ids[kSamples];
+  bool uniform_id = true;
+  for (uint s = 0u; s < kSamples; ++s) {
+    ids[s] = texelFetch(u_vis, p, int(s)).r;
+    uniform_id = uniform_id && ids[s] == ids[0];
+  }
+  if (mode == kResolveEdges) {
+    Append(MaterialOf(Group(p, entry, ids), edges), false);
+  } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
+    imageStore(u_id, p, uvec4(ids[0]));
+    imageStore(u_coverage, p, uvec4(PackCoverage((1u << kSamples) - 1u, vec2(0.5))));
+    Append(MaterialOf(ids[0], edges), false);
+  } else {
+    pixels[atomicAdd(entries[edges].dispatch.w, 1u)] = uint(p.x) | (uint(p.y) << 16);
+  }
+}
