@@ -101,7 +101,8 @@ class VisibilityPass final : public Pass {
 
 // The resolve pass (compute): the scene's sets 0 and 1 plus a set 2 of its own (gpu::kVisSet):
 // the visibility samples, the ids and coverage words it writes, the scene's index and vertex
-// buffers, and the shading's entries and pixel lists (for its edge list).
+// buffers, and the shading's entries and pixel lists (its edge list, and each material's pixel
+// count, which the resolve makes for the classification).
 class VisResolvePass final : public Pass {
  public:
   static absl::StatusOr<std::unique_ptr<VisResolvePass>> Create(const vk::Context& ctx,

@@ -4,8 +4,8 @@
 // resolved to the id of the surface each pixel shows, its coverage and mean sample position);
 // then, all in compute:
 //  - vis_classify: per pixel its material (the drawable's; the sky's where no surface is); per
-//    material a count, a scan into list offsets and indirect dispatch sizes, and the list of its
-//    pixels (shaders/common/vis_classify.glsl);
+//    material a count (vis_mlaa: counted by its resolve already), a scan into list offsets and
+//    indirect dispatch sizes, and the list of its pixels (shaders/common/vis_classify.glsl);
 //  - shade: per material on screen one vkCmdDispatchIndirect over exactly its pixels, with its
 //    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads
 //    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id

@@ -376,7 +376,8 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                    "geometry culling's prefix sum in shared memory"});
   if (!info.subgroup_ballot)
     out.push_back({"subgroup ballot in compute shaders",
-                   "visibility classification with one atomic per pixel"});
+                   "visibility classification and vis_mlaa's resolve count with one atomic per "
+                   "pixel"});
   if (!info.sampler_minmax)
     out.push_back({"samplerFilterMinmax on R32_SFLOAT",
                    "the depth pyramid reads four texels and takes their minimum"});

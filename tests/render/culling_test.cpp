@@ -247,6 +247,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_FALSE(info.multi_draw_indirect);
   EXPECT_FALSE(info.subgroup_arithmetic);
   EXPECT_FALSE(info.sampler_minmax);
+  EXPECT_FALSE(info.subgroup_ballot);
   std::vector<std::string> missing;
   for (const DeviceFallback& f : info.fallbacks) missing.push_back(f.missing);
   for (const char* want : {"drawIndirectCount", "multiDrawIndirect"})
@@ -293,7 +294,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   }
   // vis_mlaa: its resolve counts each pixel's surface and its classification lists the
   // runner-ups, one atomic per subgroup and material with ballots, one per pixel without.
-  if (r.device_info().visibility_buffer) {
+  if (r.device_info().visibility_buffer && r.device_info().subgroup_ballot) {
     Settings s = Small(CullingMode::kGpuFrustum);
     s.width = 160;
     s.height = 96;
