@@ -350,6 +350,11 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
       frame.stats.shaded_pixels += d.w;
       frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
     }
+    if (capture) {
+      capture->shade_lists.clear();
+      for (uint32_t m = 0; m <= f.shade.materials; ++m)
+        capture->shade_lists.push_back({entries[m].dispatch.w, entries[m].list.y});
+    }
     if (plan.Has(PassId::kVisResolve)) {
       frame.stats.edge_pixels = entries[f.shade.materials + 1].dispatch.w;
       frame.stats.runner_up_pixels = entries[f.shade.materials + 1].list.x;

@@ -161,6 +161,10 @@ struct FrameCapture {
   std::vector<glm::vec2> motion;
   float exposure_log2 = 0.0f;  // auto exposure: the view's adapted average log2 luma (else NaN)
   glm::mat4 view{1.0f}, proj{1.0f};
+  // The visibility shading: per material, then the sky, the pixel count its list was sized by
+  // (x) and how many pixels were appended to it (y). Equal in every entry when each pixel (and
+  // runner-up) was counted in the list it was appended to; else a list ran into the next one.
+  std::vector<glm::uvec2> shade_lists;
 };
 
 struct Frame {

@@ -380,10 +380,21 @@ TEST(AaTest, VisMlaaGolden) {
   s.height = 192;
   s.aa = AaMode::kVisMlaa;
   s.samples = 4;
-  absl::StatusOr<Frame> vis = r.Render(*scene, camera, s);
+  FrameCapture capture;
+  absl::StatusOr<Frame> vis = r.Render(*scene, camera, s, &capture);
   ASSERT_TRUE(vis.ok()) << vis.status();
   ASSERT_EQ(vis->settings.effective.aa, AaMode::kVisMlaa) << Notes(*vis);
   EXPECT_FALSE(HasNote(*vis, "aa")) << Notes(*vis);
+  // The resolve counted each pixel's surface (and each runner-up shaded) in the material list
+  // the classification appended it to, and every pixel is in one list.
+  ASSERT_FALSE(capture.shade_lists.empty());
+  uint64_t listed = 0;
+  for (size_t m = 0; m < capture.shade_lists.size(); ++m) {
+    EXPECT_EQ(capture.shade_lists[m].x, capture.shade_lists[m].y) << "material " << m;
+    listed += capture.shade_lists[m].y;
+  }
+  EXPECT_EQ(listed, uint64_t(s.width) * s.height + vis->stats.runner_up_pixels)
+      << vis->stats.runner_up_pixels << " runner-ups";
   s.aa = AaMode::kNone;
   absl::StatusOr<Frame> none = r.Render(*scene, camera, s);
   ASSERT_TRUE(none.ok()) << none.status();
