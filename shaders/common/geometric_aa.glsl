@@ -35,9 +35,6 @@ layout(location = 0) out vec4 out_color;
 #endif
 
 const float kPi = 3.14159265359;
-// The 8 neighbours by angle, counter-clockwise from +x in framebuffer coordinates (y down).
-const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
-                                      ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
 
 vec3 Fetch(ivec2 p) { return LoadColor(clamp(p, ivec2(0), ColorSize() - 1)).rgb; }
 

@@ -3,7 +3,7 @@
 #define TESSERA_RUNNER_UP_GLSL
 // A runner-up surface's word (vis_resolve.comp; the record's other word is the id to shade):
 // bits 0-7 its samples, 8-17 and 18-27 their mean position (x, y; 10-bit fixed point over
-// [0, 1]), 28-31 where its colour comes from: neighbour 0-7 (geometric_aa.glsl's kNeighbours)
+// [0, 1]), 28-31 where its colour comes from: neighbour 0-7 (kNeighbours below)
 // shows it, kRunnerUpShaded: shaded here, kRunnerUpUndecided: before kResolveRunnerUps.
 const uint kRunnerUpShaded = 8u;
 const uint kRunnerUpUndecided = 15u;
@@ -13,4 +13,9 @@ uint PackRunnerUp(uint mask, vec2 mean, uint source) {
 }
 vec2 RunnerUpMean(uint word) { return vec2((word >> 8) & 0x3ffu, (word >> 18) & 0x3ffu) / 1023.0; }
 uint RunnerUpSource(uint word) { return word >> 28; }
+
+// The 8 neighbours by angle, counter-clockwise from +x in framebuffer coordinates (y down): the
+// runner-up's sources, and geometric AA's compass directions.
+const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
+                                      ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
 #endif

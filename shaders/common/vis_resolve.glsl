@@ -151,11 +151,6 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
   return winner;
 }
 
-// The 8 neighbours by angle, counter-clockwise from +x in framebuffer coordinates (y down), as
-// geometric_aa.glsl's.
-const ivec2 kNeighbours[8] = ivec2[8](ivec2(1, 0), ivec2(1, 1), ivec2(0, 1), ivec2(-1, 1),
-                                      ivec2(-1, 0), ivec2(-1, -1), ivec2(0, -1), ivec2(1, -1));
-
 // Where edge list entry `entry`'s runner-up gets its colour: the first neighbour, by angle from
 // the direction of its samples' mean (the two either side of it, then the next two out, ...),
 // whose shaded id is on its surface, or else its own shading (counted in list.x of the edge

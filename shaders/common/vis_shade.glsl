@@ -17,15 +17,9 @@ vec2 g_pixel;  // the pixel's centre, for shading.glsl's tile and AO lookups
 
 layout(local_size_x = kShadeGroupSize) in;
 
-layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+#include "common/shade_lists.glsl"
 layout(set = kVisSet, binding = kShadeBindingId) uniform usampler2D u_vis_id;
 layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
-layout(set = kVisSet, binding = kShadeBindingEntries, std430) readonly buffer EntryBlock {
-  GpuShadeEntry entries[];
-};
-layout(set = kVisSet, binding = kShadeBindingPixels, std430) readonly buffer PixelBlock {
-  uint pixels[];
-};
 #ifdef VIS_MLAA
 layout(set = kVisSet, binding = kShadeBindingCoverage) uniform usampler2D u_vis_coverage;
 layout(set = kVisSet, binding = kShadeBindingSamples) uniform usampler2DMS u_vis_samples;

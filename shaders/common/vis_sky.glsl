@@ -8,14 +8,8 @@
 
 layout(local_size_x = kShadeGroupSize) in;
 
-layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+#include "common/shade_lists.glsl"
 layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
-layout(set = kVisSet, binding = kShadeBindingEntries, std430) readonly buffer EntryBlock {
-  GpuShadeEntry entries[];
-};
-layout(set = kVisSet, binding = kShadeBindingPixels, std430) readonly buffer PixelBlock {
-  uint pixels[];
-};
 #ifdef VIS_MLAA
 #include "common/runner_up_shading.glsl"
 #endif
