@@ -424,16 +424,27 @@ class FullscreenProgram {
   // Every pixel of `outputs` written once (cleared contents are not loaded): one full-screen
   // triangle, or in compute one invocation per pixel (outputs in the general layout).
   // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's).
+  // `variant`: the shaders' specialization constant 0, built by Ensure (variant 0 by Create).
   void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
             const std::vector<VkImageView>& outputs, const void* push,
-            VkExtent2D extent = {0, 0}) const;
+            VkExtent2D extent = {0, 0}, uint32_t variant = 0) const;
+  // A program whose shaders have variants (specialization constant 0: a number its pass makes
+  // from the settings, e.g. the tonemap's view, bloom and curve) builds the pipeline of a variant
+  // on its first use, the one these settings run (fragment or compute). lavapipe runs the code of
+  // untaken branches under a lane mask, so a branch on a push constant costs what its code does;
+  // a variant holds only the code it runs.
+  absl::Status Ensure(const vk::Context& ctx, const Settings& s, uint32_t variant);
 
  private:
+  bool RunsCompute(const Settings& s) const { return !compute_shader_.empty() && rule_(s); }
+  absl::StatusOr<vk::Pipeline> Build(const vk::Context& ctx, bool compute, uint32_t variant) const;
+
   VkDevice device_ = VK_NULL_HANDLE;
+  std::string name_, fragment_shader_, compute_shader_;  // no compute shader: empty
+  std::vector<VkFormat> outputs_;
   PassLayout layout_;
-  vk::Pipeline pipeline_;
   PassLayout compute_layout_;
-  vk::Pipeline compute_pipeline_;  // null without a compute shader
+  std::map<uint32_t, vk::Pipeline> pipelines_, compute_pipelines_;  // by variant
   ComputeRule rule_ = &Compute;
   uint32_t inputs_ = 0;
   uint32_t push_size_ = 0;

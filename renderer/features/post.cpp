@@ -5,6 +5,7 @@
 #include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
@@ -32,6 +33,10 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
                                                             ComputeRule rule) {
   FullscreenProgram p;
   p.device_ = ctx.device();
+  p.name_ = name;
+  p.fragment_shader_ = fragment_shader;
+  p.compute_shader_ = compute_shader ? compute_shader : "";
+  p.outputs_ = std::move(outputs);
   p.rule_ = rule;
   p.inputs_ = inputs;
   p.push_size_ = push_size;
@@ -43,41 +48,60 @@ absl::StatusOr<FullscreenProgram> FullscreenProgram::Create(const vk::Context& c
   if (push_size > 0) push.push_back({VK_SHADER_STAGE_FRAGMENT_BIT, 0, push_size});
   ASSIGN_OR_RETURN(PassLayout layout, PassLayout::Create(ctx, bindings, push, name));
   p.layout_ = std::move(layout);
-  vk::GraphicsPipelineDesc d;
-  d.name = name;
-  d.vertex_shader = "fullscreen.vert";
-  d.fragment_shader = fragment_shader;
-  d.layout = p.layout_.pipeline_layout();
-  d.scene_vertex_input = false;
-  const uint32_t output_count = uint32_t(outputs.size());
-  d.color_formats = std::move(outputs);
-  ASSIGN_OR_RETURN(p.pipeline_, vk::CreateGraphicsPipeline(ctx, d));
-  if (compute_shader == nullptr) return p;
+  ASSIGN_OR_RETURN(p.pipelines_[0], p.Build(ctx, false, 0));
+  if (p.compute_shader_.empty()) return p;
   for (VkDescriptorSetLayoutBinding& b : bindings) b.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
-  for (uint32_t i = 0; i < output_count; ++i)
+  for (uint32_t i = 0; i < p.outputs_.size(); ++i)
     bindings.push_back({inputs + i, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1,
                         VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
   for (VkPushConstantRange& r : push) r.stageFlags = VK_SHADER_STAGE_COMPUTE_BIT;
   const std::string compute_name = std::string(name) + ".compute";
   ASSIGN_OR_RETURN(p.compute_layout_,
                    PassLayout::Create(ctx, bindings, push, compute_name.c_str()));
-  ASSIGN_OR_RETURN(p.compute_pipeline_,
-                   vk::CreateComputePipeline(ctx, compute_name, compute_shader,
-                                             p.compute_layout_.pipeline_layout()));
+  ASSIGN_OR_RETURN(p.compute_pipelines_[0], p.Build(ctx, true, 0));
   return p;
+}
+
+absl::StatusOr<vk::Pipeline> FullscreenProgram::Build(const vk::Context& ctx, bool compute,
+                                                      uint32_t variant) const {
+  const std::string suffix = variant == 0 ? "" : absl::StrCat(".", variant);
+  if (compute) {
+    return vk::CreateComputePipeline(ctx, name_ + ".compute" + suffix, compute_shader_,
+                                     compute_layout_.pipeline_layout(), {variant});
+  }
+  vk::GraphicsPipelineDesc d;
+  d.name = name_ + suffix;
+  d.vertex_shader = "fullscreen.vert";
+  d.fragment_shader = fragment_shader_;
+  d.layout = layout_.pipeline_layout();
+  d.scene_vertex_input = false;
+  d.color_formats = outputs_;
+  d.fragment_constants = {variant};
+  return vk::CreateGraphicsPipeline(ctx, d);
+}
+
+absl::Status FullscreenProgram::Ensure(const vk::Context& ctx, const Settings& s,
+                                       uint32_t variant) {
+  const bool compute = RunsCompute(s);
+  std::map<uint32_t, vk::Pipeline>& built = compute ? compute_pipelines_ : pipelines_;
+  if (built.count(variant)) return absl::OkStatus();
+  ASSIGN_OR_RETURN(vk::Pipeline pipeline, Build(ctx, compute, variant));
+  built.emplace(variant, std::move(pipeline));
+  return absl::OkStatus();
 }
 
 void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
                              const std::vector<VkImageView>& outputs, const void* push,
-                             VkExtent2D extent) const {
-  if (compute_pipeline_.handle() != VK_NULL_HANDLE && rule_(*ctx.settings)) {
+                             VkExtent2D extent, uint32_t variant) const {
+  if (RunsCompute(*ctx.settings)) {
     SetWriter w(device_, compute_layout_.Allocate(ctx));
     for (uint32_t i = 0; i < inputs_; ++i)
       w.Sampled(i, inputs[i].sampler, inputs[i].view, inputs[i].layout);
     for (uint32_t i = 0; i < outputs.size(); ++i) w.Storage(inputs_ + i, outputs[i]);
     w.Update();
     const VkPipelineLayout layout = compute_layout_.pipeline_layout();
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, compute_pipeline_.handle());
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                      compute_pipelines_.at(variant).handle());
     const VkDescriptorSet set = w.set();
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0,
                             nullptr);
@@ -104,7 +128,7 @@ void FullscreenProgram::Draw(const PassContext& ctx, const std::vector<PostInput
     colors.push_back(c);
   }
   BeginRendering(ctx, colors.data(), uint32_t(colors.size()), nullptr, extent);
-  vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline_.handle());
+  vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipelines_.at(variant).handle());
   vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout_.pipeline_layout(), 0,
                           1, &set, 0, nullptr);
   vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
@@ -168,15 +192,15 @@ class TonemapPass final : public PostPass {
  public:
   using PostPass::PostPass;
   PassId id() const override { return PassId::kTonemap; }
+  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+    return program_.Ensure(ctx, s, Variant(s));
+  }
   void Record(PassContext& ctx) override {
     const Settings& s = *ctx.settings;
     const ExposureFrame& e = *ctx.exposure;
     const bool bloom = s.bloom;
     const gpu::TonemapPush push{
-        glm::vec4(e.params.x, e.params.y, e.params.z,
-                  s.tonemapper == Tonemapper::kPhotographic ? 1.0f : 0.0f),
-        glm::uvec4(s.debug_view != DebugView::kNone ? 1u : 0u, static_cast<uint32_t>(s.debug_view),
-                   bloom ? 1u : 0u, 0u),
+        e.params,
         glm::vec4(s.bloom_strength / float(kBloomLevels), 1.0f / float(kBloomLevels), 0.0f, 0.0f)};
     // The atlas is in shader-read layout outside the shadow pass, ao in the frame graph's
     // sampled state (1x1 stand-ins without shadows, ssao); without bloom, ao's image stands in
@@ -189,7 +213,23 @@ class TonemapPass final : public PostPass {
                   {Nearest(PostColor(ctx)), Linear(*ctx.ao_view),
                    Nearest(*ctx.shadow_atlas_view), bloom_in,
                    {e.view, nearest_.handle(), e.layout}},
-                  {ctx.targets->ldr.view()}, &push);
+                  {ctx.targets->ldr.view()}, &push, {0, 0}, Variant(s));
+  }
+
+ private:
+  // The shader's variant (tonemap.glsl's kVariant): what it shows, bloom, curve and exposure.
+  static uint32_t Variant(const Settings& s) {
+    uint32_t view = gpu::kTonemapViewPlain;  // debug views of surfaces: the colour as shaded
+    switch (s.debug_view) {
+      case DebugView::kNone: view = gpu::kTonemapViewColor; break;
+      case DebugView::kBloom: view = gpu::kTonemapViewBloom; break;
+      case DebugView::kShadowAtlas: view = gpu::kTonemapViewAtlas; break;
+      case DebugView::kSsao: view = gpu::kTonemapViewSsao; break;
+      default: break;
+    }
+    return view | (s.bloom ? gpu::kTonemapBloom : 0u) |
+           (s.tonemapper == Tonemapper::kPhotographic ? gpu::kTonemapPhotographic : 0u) |
+           (s.exposure_mode == ExposureMode::kAuto ? gpu::kTonemapAutoExposure : 0u);
   }
 };
 

@@ -11,6 +11,7 @@
 // Then the visibility pipeline's classification and compute shading (vis_shade.cpp) shade each
 // pixel's surface once, at that mean position, and the geometric AA pass (post.cpp) blends the
 // partly covered pixels.
+#include <array>
 #include <bit>
 #include <string>
 
@@ -132,15 +133,23 @@ class VisResolvePass final : public Pass {
   }
   PassId id() const override { return PassId::kVisResolve; }
 
-  // A pipeline per sample count (vis_resolve.comp's kSamples); one atomic per subgroup and
-  // material where compute shaders have ballots, else per pixel (vis_resolve_atomic.comp).
+  // A pipeline per sample count (vis_resolve.comp's kSamples) and mode (kMode: each dispatch's
+  // shader holds only its own code; one shader for the four cost lavapipe the grouping's
+  // arithmetic on every pixel of the uniform pass); one atomic per subgroup and material where
+  // compute shaders have ballots, else per pixel (vis_resolve_atomic.comp).
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
     if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
-    return pipelines_.Ensure(s.samples, [&](uint32_t samples) {
-      return vk::CreateComputePipeline(
-          ctx, "vis_resolve",
-          ctx.info().subgroup_ballot ? "vis_resolve.comp" : "vis_resolve_atomic.comp",
-          layout_.pipeline_layout(), {samples});
+    return pipelines_.Ensure(s.samples, [&](uint32_t samples) -> absl::StatusOr<ModePipelines> {
+      ModePipelines made;
+      for (uint32_t mode = 0; mode < made.size(); ++mode) {
+        ASSIGN_OR_RETURN(
+            made[mode],
+            vk::CreateComputePipeline(
+                ctx, "vis_resolve",
+                ctx.info().subgroup_ballot ? "vis_resolve.comp" : "vis_resolve_atomic.comp",
+                layout_.pipeline_layout(), {samples, mode}));
+      }
+      return made;
     });
   }
 
@@ -155,10 +164,10 @@ class VisResolvePass final : public Pass {
                          VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     WriteSet(ctx);
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                      pipelines_.at(ctx.samples).handle());
     auto push = [&](uint32_t mode) {
-      const gpu::ShadePush p{glm::uvec4(mode, edges, 0u, 0u)};
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
+                        pipelines_.at(ctx.samples)[mode].handle());
+      const gpu::ShadePush p{glm::uvec4(0u, edges, 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(p), &p);
     };
@@ -203,7 +212,8 @@ class VisResolvePass final : public Pass {
 
   VkDevice device_ = VK_NULL_HANDLE;
   PassLayout layout_;
-  PerSampleCount<vk::Pipeline> pipelines_;
+  using ModePipelines = std::array<vk::Pipeline, 4>;  // per kResolve* mode
+  PerSampleCount<ModePipelines> pipelines_;
   vk::Sampler sampler_;
 };
 

@@ -16,6 +16,7 @@
 // classification of DamagedHelmet at 1280x720).
 // Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
 #include <algorithm>
+#include <array>
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
@@ -114,12 +115,15 @@ void ComputeBarrier(VkCommandBuffer cmd, bool indirect = false) {
 // resolve's edge list, with vis_mlaa's layout).
 class VisClassifyPass final : public Pass {
  public:
-  VisClassifyPass(ShadeLayout one, vk::Pipeline pipeline, ShadeLayout mlaa,
-                  vk::Pipeline mlaa_pipeline)
+  // A pipeline per mode (vis_classify.glsl's specialization constant 0, kClassify*): the one
+  // sample pipeline's and vis_mlaa's. A mode a layout does not run has a null pipeline.
+  using ModePipelines = std::array<vk::Pipeline, 4>;
+  VisClassifyPass(ShadeLayout one, ModePipelines pipelines, ShadeLayout mlaa,
+                  ModePipelines mlaa_pipelines)
       : one_(std::move(one)),
-        pipeline_(std::move(pipeline)),
+        pipelines_(std::move(pipelines)),
         mlaa_(std::move(mlaa)),
-        mlaa_pipeline_(std::move(mlaa_pipeline)) {}
+        mlaa_pipelines_(std::move(mlaa_pipelines)) {}
   PassId id() const override { return PassId::kVisClassify; }
 
   void Record(PassContext& ctx) override {
@@ -139,13 +143,13 @@ class VisClassifyPass final : public Pass {
           VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
           VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     }
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                      (vis_mlaa ? mlaa_pipeline_ : pipeline_).handle());
+    const ModePipelines& pipelines = vis_mlaa ? mlaa_pipelines_ : pipelines_;
     layout.Bind(ctx);
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     auto push = [&](uint32_t mode) {
-      const gpu::ShadePush p{glm::uvec4(mode, sb.materials, vis_mlaa ? 1u : 0u, 0u)};
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[mode].handle());
+      const gpu::ShadePush p{glm::uvec4(0u, sb.materials, vis_mlaa ? 1u : 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(p), &p);
     };
@@ -184,9 +188,9 @@ class VisClassifyPass final : public Pass {
 
  private:
   ShadeLayout one_;
-  vk::Pipeline pipeline_;
+  ModePipelines pipelines_;
   ShadeLayout mlaa_;
-  vk::Pipeline mlaa_pipeline_;
+  ModePipelines mlaa_pipelines_;
 };
 
 // The shading pipelines: one sample or vis_mlaa's, each with and without shading.glsl's
@@ -247,19 +251,25 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& c
                    ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaaClassify));
   // One atomic per subgroup and material where compute shaders have ballots, else per pixel.
   const bool ballots = ctx.info().subgroup_ballot;
-  ASSIGN_OR_RETURN(
-      vk::Pipeline pipeline,
-      vk::CreateComputePipeline(ctx, "vis_classify",
-                                ballots ? "vis_classify.comp" : "vis_classify_atomic.comp",
-                                one.pipeline_layout()));
-  ASSIGN_OR_RETURN(
-      vk::Pipeline mlaa_pipeline,
-      vk::CreateComputePipeline(
-          ctx, "vis_classify.vis_mlaa",
-          ballots ? "vis_classify_mlaa.comp" : "vis_classify_atomic_mlaa.comp",
-          mlaa.pipeline_layout()));
-  return std::make_unique<VisClassifyPass>(std::move(one), std::move(pipeline), std::move(mlaa),
-                                           std::move(mlaa_pipeline));
+  VisClassifyPass::ModePipelines pipelines, mlaa_pipelines;
+  for (const uint32_t mode : {gpu::kClassifyCount, gpu::kClassifyScan, gpu::kClassifyFill}) {
+    ASSIGN_OR_RETURN(pipelines[mode], vk::CreateComputePipeline(
+                                          ctx, "vis_classify",
+                                          ballots ? "vis_classify.comp" : "vis_classify_atomic.comp",
+                                          one.pipeline_layout(), {mode}));
+  }
+  // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
+  for (const uint32_t mode :
+       {gpu::kClassifyScan, gpu::kClassifyFillRunnerUps, gpu::kClassifyFill}) {
+    ASSIGN_OR_RETURN(
+        mlaa_pipelines[mode],
+        vk::CreateComputePipeline(
+            ctx, "vis_classify.vis_mlaa",
+            ballots ? "vis_classify_mlaa.comp" : "vis_classify_atomic_mlaa.comp",
+            mlaa.pipeline_layout(), {mode}));
+  }
+  return std::make_unique<VisClassifyPass>(std::move(one), std::move(pipelines), std::move(mlaa),
+                                           std::move(mlaa_pipelines));
 }
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,

@@ -173,7 +173,8 @@ TS_CONST uint kRunnerUpEntry = 0x80000000u;
 // of the shading (the edge list borrows the pixel lists and the entry after the sky's).
 TS_CONST uint kResolveBindingId = 1;
 TS_CONST uint kResolveBindingCoverage = 6;
-// vis_resolve.comp's modes (push params.x; params.y is the edge list's entry).
+// vis_resolve.comp's modes (specialization constant 1, a pipeline per mode; push params.y is the
+// edge list's entry).
 TS_CONST uint kResolveUniform = 0;  // per pixel: samples that agree are written, others listed
 TS_CONST uint kResolveArgs = 1;     // one workgroup: the edge dispatch's size
 TS_CONST uint kResolveEdges = 2;    // per listed edge pixel: group the samples by surface
@@ -185,7 +186,7 @@ TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // A material's dispatch is at most this many workgroups wide (more rows above: the indirect
 // dispatch stays inside maxComputeWorkGroupCount, 65535, at any frame size).
 TS_CONST uint kShadeDispatchWidth = 4096;
-// vis_classify's modes (push constant params.x).
+// vis_classify's modes (specialization constant 0, a pipeline per mode).
 TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
@@ -230,6 +231,16 @@ TS_CONST uint kDebugShadowAtlas = 7;  // the tonemap pass shows the atlas
 TS_CONST uint kDebugCascades = 8;     // surfaces tinted by the sun cascade that shadows them
 TS_CONST uint kDebugSsao = 9;         // the tonemap pass shows the blurred AO
 TS_CONST uint kDebugBloom = 10;       // the tonemap pass shows the bloom
+// The tonemap's variant (specialization constant 0, a pipeline per variant used): what it shows
+// (bits 0-2) and its effects.
+TS_CONST uint kTonemapViewColor = 0;  // the frame: exposed, bloom added, tonemapped
+TS_CONST uint kTonemapViewBloom = 1;  // the bloom at strength 1, tonemapped
+TS_CONST uint kTonemapViewAtlas = 2;  // the shadow atlas's depths
+TS_CONST uint kTonemapViewSsao = 3;   // the blurred ambient obscurance
+TS_CONST uint kTonemapViewPlain = 4;  // other debug views: the colour as the shading wrote it
+TS_CONST uint kTonemapBloom = 8;
+TS_CONST uint kTonemapPhotographic = 16;  // else Khronos PBR Neutral
+TS_CONST uint kTonemapAutoExposure = 32;
 
 // Vertex attribute locations of the single scene vertex buffer (see scene::Vertex).
 TS_CONST uint kAttrPosition = 0;
@@ -355,12 +366,11 @@ struct GpuShadeEntry {
 //   layout(push_constant) uniform Push { TS_PUSH_TONEMAP } push;
 // and C++ gets the struct of the same members below (sizes static_asserted in
 // renderer/gpu_layout_check.cpp; push-constant blocks are std430, which these layouts match).
-// tonemap.frag: exposure = Exposure()'s params, w: tonemapper (0 PBR Neutral, 1 photographic);
-// mode x: 1 for debug views (no exposure, no tonemap), y: debug view (kDebug*), z: 1 with bloom;
-// bloom x: strength / levels (the upsample chain sums its levels), y: 1 / levels.
+// tonemap.frag: exposure = Exposure()'s params; bloom x: strength / levels (the upsample chain
+// sums its levels), y: 1 / levels. What it shows, bloom, the curve and auto exposure are its
+// variant (kTonemap*, specialization constant 0).
 #define TS_PUSH_TONEMAP \
   vec4 exposure;        \
-  uvec4 mode;           \
   vec4 bloom;
 // geometric_aa.frag: the visibility samples, 1 to show the coverage mask, id triangle bits;
 // geometric_aa_edges.comp: mode (kGeometricAa*), the edge list's entry.
@@ -444,9 +454,9 @@ struct GpuShadeEntry {
   uvec4 size;
 // shadow.vert, shadow_mask.vert: world -> the face's clip space.
 #define TS_PUSH_SHADOW mat4 view_proj;
-// vis_classify.comp: x mode (kClassify*), y materials (the sky's entry is the next);
-// vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry; vis_resolve.comp:
-// x mode (kResolve*), y the edge list's entry.
+// vis_classify.comp: y materials (the sky's entry is the next; the mode is a specialization
+// constant); vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry;
+// vis_resolve.comp: y the edge list's entry (the mode is a specialization constant).
 #define TS_PUSH_SHADE uvec4 params;
 
 #ifdef __cplusplus

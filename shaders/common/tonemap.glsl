@@ -12,6 +12,14 @@ layout(set = 0, binding = 2) uniform sampler2D u_atlas;     // shadow atlas dept
 layout(set = 0, binding = 3) uniform sampler2D u_bloom;     // bloom, half size (bilinear)
 layout(set = 0, binding = 4) uniform sampler2D u_exposure;  // auto exposure's state (nearest)
 layout(push_constant) uniform Push { TS_PUSH_TONEMAP } push;  // common/gpu_types.h
+// The variant (kTonemap*): a pipeline per combination used, so each holds only the code it runs
+// (lavapipe runs untaken branches under a lane mask: one shader for every view, curve and effect
+// cost its full-screen pass four times a plain tonemap's).
+layout(constant_id = 0) const uint kVariant = kTonemapViewColor;
+const uint kView = kVariant & 7u;
+const bool kBloom = (kVariant & kTonemapBloom) != 0u;
+const bool kPhotographic = (kVariant & kTonemapPhotographic) != 0u;
+const bool kAutoExposure = (kVariant & kTonemapAutoExposure) != 0u;
 #ifdef TESSERA_COMPUTE
 vec4 out_color;
 #else
@@ -53,19 +61,18 @@ vec3 Photographic(vec3 color) {
 
 vec3 Tonemap(vec3 c) {
   c = clamp(c, vec3(0.0), vec3(65504.0));  // no inf: both curves divide by the peak or luma
-  return push.exposure.w > 0.5 ? Photographic(c) : PbrNeutral(c);
+  return kPhotographic ? Photographic(c) : PbrNeutral(c);
 }
 
 void PostMain() {
   vec2 size = vec2(textureSize(u_hdr, 0));
-  uint debug_view = push.mode.y;
   vec2 uv = FRAG_COORD / size;
-  if (debug_view == kDebugBloom) {  // the bloom at strength 1, tonemapped
+  if (kView == kTonemapViewBloom) {  // the bloom at strength 1, tonemapped
     out_color = vec4(clamp(Tonemap(textureLod(u_bloom, uv, 0.0).rgb * push.bloom.y), 0.0, 1.0),
                      1.0);
     return;
   }
-  if (debug_view == kDebugShadowAtlas) {
+  if (kView == kTonemapViewAtlas) {
     // The atlas as a square at the left, full height: near the light dark, far and empty
     // white. The power spreads the perspective maps' depths, which crowd near 1.
     vec2 square = FRAG_COORD / size.y;
@@ -73,16 +80,16 @@ void PostMain() {
     out_color = vec4(vec3(d), 1.0);
     return;
   }
-  if (debug_view == kDebugSsao) {
+  if (kView == kTonemapViewSsao) {
     out_color = vec4(vec3(textureLod(u_ao, uv, 0.0).r), 1.0);
     return;
   }
   vec3 hdr = texelFetch(u_hdr, ivec2(FRAG_COORD), 0).rgb;
-  if (push.mode.x != 0u) {  // the other debug views: the colour as the shading wrote it
+  if (kView == kTonemapViewPlain) {  // the other debug views: the colour as the shading wrote it
     out_color = vec4(clamp(hdr, 0.0, 1.0), 1.0);
     return;
   }
-  vec3 c = hdr * Exposure(u_exposure, push.exposure);
-  if (push.mode.z != 0u) c += textureLod(u_bloom, uv, 0.0).rgb * push.bloom.x;
+  vec3 c = hdr * (kAutoExposure ? Exposure(u_exposure, push.exposure) : push.exposure.x);
+  if (kBloom) c += textureLod(u_bloom, uv, 0.0).rgb * push.bloom.x;
   out_color = vec4(clamp(Tonemap(c), 0.0, 1.0), 1.0);
 }

@@ -2,7 +2,9 @@
 // devices without subgroup ballots): which material each pixel shows, and per material the list
 // of its pixels, so that the shading pass runs one indirect dispatch per material over exactly
 // its pixels (every invocation shades a pixel; lavapipe runs masked-off lanes at full cost, so a
-// dispatch over tiles would shade tiles' other pixels too). Three modes (push params.x):
+// dispatch over tiles would shade tiles' other pixels too). Three modes (specialization
+// constant 0, a pipeline per mode: lavapipe runs the code of untaken branches under a lane mask,
+// the scan's barriers included, so one shader for every mode cost the fill the scan's loops):
 //  - kClassifyCount: count each material's pixels (and the sky's);
 //  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size;
 //  - kClassifyFill: append each pixel to its material's list.
@@ -34,6 +36,8 @@ layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) readonly buffer 
 const uint kNoMaterial = 0xffffffffu;
 
 #include "common/shade_append.glsl"
+
+layout(constant_id = 0) const uint kMode = kClassifyCount;
 
 shared uint s_sums[kClassifyTile * kClassifyTile];
 
@@ -69,12 +73,12 @@ void Scan() {
 }
 
 void main() {
-  if (push.params.x == kClassifyScan) {
+  if (kMode == kClassifyScan) {
     Scan();
     return;
   }
 #ifdef VIS_MLAA
-  if (push.params.x == kClassifyFillRunnerUps) {
+  if (kMode == kClassifyFillRunnerUps) {
     // One edge list entry per invocation (the workgroup's 64 invocations, as the shading's).
     uint edges = push.params.y + 1u;
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
@@ -95,7 +99,7 @@ void main() {
            : id == 0u ? push.params.y  // the sky
                       : drawables[VisDrawable(id, frame.aa.x)].ids.y;
   if (m == kNoMaterial) return;
-  if (push.params.x == kClassifyCount) {
+  if (kMode == kClassifyCount) {
     Append(m, false);
   } else {
     uint slot = Append(m, true);

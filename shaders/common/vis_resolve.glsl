@@ -51,6 +51,10 @@ uint MaterialOf(uint id, uint edges) {
 // unroll and the per-sample arrays below stay in registers (lavapipe keeps dynamically indexed
 // local arrays in memory, which made the grouping most of vis_mlaa's frame).
 layout(constant_id = 0) const uint kSamples = 4u;
+// The mode (kResolve*): a specialization constant too, a pipeline per mode, so each dispatch's
+// shader holds only its own code (lavapipe runs both sides of every branch under a lane mask:
+// the uniform pass paid for the grouping's arithmetic on every pixel).
+layout(constant_id = 1) const uint kMode = 0u;
 
 // Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface. Written
 // with vector compares and no loops: a CPU device runs the lanes of a SIMD group together, and
@@ -191,7 +195,7 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
 }
 
 void main() {
-  uint mode = push.params.x;
+  const uint mode = kMode;
   uint edges = push.params.y;  // the edge list's entry
   if (mode == kResolveArgs) {
     if (gl_LocalInvocationIndex == 0u) {
