@@ -30,7 +30,7 @@ int TypeRank(std::string_view type) {
 const std::vector<std::string>& DisableableFeatures() {
   static const std::vector<std::string> names = {
       "draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic", "subgroup_ballot",
-      "sampler_minmax",      "visibility_buffer",   "pipeline_statistics"};
+      "sampler_minmax",      "visibility_buffer",   "pipeline_statistics", "material_variants"};
   return names;
 }
 

@@ -20,7 +20,7 @@ struct DeviceFallback {
 // Optional features a test or user may turn off to exercise their fallbacks on a device that has
 // them (RendererOptions::disable_features, TESSERA_DISABLE_FEATURES=a,b): draw_indirect_count,
 // multi_draw_indirect, subgroup_arithmetic, subgroup_ballot, sampler_minmax, visibility_buffer,
-// pipeline_statistics.
+// pipeline_statistics; and material_variants, which is Tessera's own (DeviceInfo below).
 const std::vector<std::string>& DisableableFeatures();
 
 // What the server and clients need to know about the device.
@@ -46,6 +46,10 @@ struct DeviceInfo {
   bool validation = false;      // validation layers active
   bool sampler_minmax = false;  // min/max reduction samplers on R32F (the depth pyramid)
   bool pipeline_statistics = false;  // pipelineStatisticsQuery
+  // Not a device feature: the shading passes build a pipeline per set of texture slots the
+  // scene's materials use (GpuScene::texture_sets). Disabled, every material is shaded by the
+  // general pipeline, the reference the variants are tested against.
+  bool material_variants = true;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations (the visibility pipeline's
   // classification aggregates its atomics per subgroup with them).

@@ -84,9 +84,27 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
                   cpu.cameras, cpu.warnings, gpu->device_bytes(), {}};
   for (const Animation& a : cpu.animations)
     scene->info_.animations.push_back({a.name, a.duration, uint32_t(a.channels.size())});
+  // The scene's first frame should not wait for the shading pipelines its materials need (one
+  // per set of texture slots they use): build those of the default settings now.
+  ASSIGN_OR_RETURN(const ResolvedSettings defaults, ResolveSettings(Settings{}, caps()));
+  FrameFeatures features;
+  for (const DrawSegment& seg : gpu->segments())
+    features.has_transparent = features.has_transparent || seg.group == AlphaMode::kBlend;
+  RETURN_IF_ERROR(impl_->PreparePasses(PlanFrame(defaults.effective, features),
+                                       defaults.effective, *gpu));
   scene->device_ = impl_->ctx;
   scene->gpu_ = std::move(gpu);
   return SceneHandle(std::move(scene));
+}
+
+absl::Status Renderer::Impl::PreparePasses(const FramePlan& plan, const Settings& s,
+                                           const GpuScene& gs) {
+  for (const PlannedPass& p : plan.passes) {
+    Pass& pass = *passes[static_cast<size_t>(p.id)];
+    RETURN_IF_ERROR(pass.Prepare(*ctx, s));
+    RETURN_IF_ERROR(pass.PrepareScene(*ctx, s, gs));
+  }
+  return absl::OkStatus();
 }
 
 uint64_t Renderer::EstimateDeviceBytes(const CpuScene& scene) const {
@@ -268,8 +286,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.object_motion = f.taa.motion_pass;
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
-  for (const PlannedPass& p : plan.passes)
-    RETURN_IF_ERROR(m.passes[static_cast<size_t>(p.id)]->Prepare(*m.ctx, s));
+  RETURN_IF_ERROR(m.PreparePasses(plan, s, gs));
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool.get(), 0));
   f.scene_set = m.WriteSceneSet(gs, s.shadows, s.ssao, s.ibl);
   PassContext pc = m.MakePassContext(f);

@@ -224,6 +224,9 @@ struct Renderer::Impl {
   absl::StatusOr<GpuScene::ViewVisibility*> Visibility(const GpuScene& scene, uint64_t view);
   // The frame's set 0; binds the shadow atlas when `shadows` (else the 1x1 stand-in).
   VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao, bool ibl);
+  // Each planned pass builds what it lacks for settings `s` and scene `gs` (Pass::Prepare, then
+  // Pass::PrepareScene): before a frame, and with the default settings when a scene is loaded.
+  absl::Status PreparePasses(const FramePlan& plan, const Settings& s, const GpuScene& gs);
   // The long-lived images this frame imports into its graph (FrameTargets::shadow_atlas ...).
   void ImportTargets(const FrameData& f);
   // What the passes record with.

@@ -10,6 +10,7 @@
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
 #include "renderer/vk/pipeline.h"
+#include "shaders/common/gpu_types.h"
 
 namespace tessera {
 
@@ -18,48 +19,49 @@ namespace {
 // Linear HDR background behind the scene.
 constexpr VkClearColorValue kBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
-struct ForwardPipelines {
-  vk::Pipeline pipeline;
-  vk::Pipeline sky;  // forward only
-};
-
-// Pipelines per key = samples | kEffectsKey when shadows, ssao or ibl are on (shading.glsl's
-// specialization constant 0).
+// Shading pipelines per key = samples | kEffectsKey when shadows, ssao or ibl are on (shading.glsl's
+// specialization constant 0) | the material's texture slots << kTexturesShift (its constant 1:
+// a pipeline per set of slots the scene's materials use, GpuScene::texture_sets) | the debug view
+// << kDebugShift (its constant 2, ShadingDebugView).
 constexpr uint32_t kEffectsKey = 0x100;
+constexpr uint32_t kTexturesShift = 16;
+constexpr uint32_t kDebugShift = 24;
 
-absl::StatusOr<ForwardPipelines> CreatePipelines(const vk::Context& ctx, const SceneLayout& layout,
-                                                 PassId id, uint32_t key) {
-  const uint32_t samples = key & ~kEffectsKey;
-  const bool transparent = id == PassId::kTransparent;
+vk::GraphicsPipelineDesc SceneDesc(const SceneLayout& layout, uint32_t samples) {
   vk::GraphicsPipelineDesc d;
-  d.name = transparent ? "transparent" : "forward";
-  d.vertex_shader = "forward.vert";
-  d.fragment_shader = "forward.frag";
   d.layout = layout.pipeline_layout;
   d.color_formats = {kHdrFormat};
   d.depth_format = kDepthFormat;
   d.depth_test = true;
   d.depth_write = false;
   d.depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;
-  d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
   d.samples = static_cast<VkSampleCountFlagBits>(samples);
-  d.fragment_constants = {(key & kEffectsKey) ? 1u : 0u};
-  ASSIGN_OR_RETURN(vk::Pipeline pipeline, vk::CreateGraphicsPipeline(ctx, d));
-  d.fragment_constants.clear();
-  ForwardPipelines p;
-  p.pipeline = std::move(pipeline);
-  if (!transparent) {
-    // Far plane is depth 0: GREATER_OR_EQUAL passes only where the prepass left the clear value.
-    d.name = "sky";
-    d.vertex_shader = "fullscreen.vert";
-    d.fragment_shader = "sky.frag";
-    d.scene_vertex_input = false;
-    d.blend = vk::BlendMode::kNone;
-    absl::StatusOr<vk::Pipeline> s = vk::CreateGraphicsPipeline(ctx, d);
-    if (!s.ok()) return s.status();
-    p.sky = std::move(*s);
-  }
-  return p;
+  return d;
+}
+
+absl::StatusOr<vk::Pipeline> CreateShading(const vk::Context& ctx, const SceneLayout& layout,
+                                           PassId id, uint32_t key) {
+  const bool transparent = id == PassId::kTransparent;
+  vk::GraphicsPipelineDesc d = SceneDesc(layout, key & (kEffectsKey - 1));
+  d.name = transparent ? "transparent" : "forward";
+  d.vertex_shader = "forward.vert";
+  d.fragment_shader = "forward.frag";
+  d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
+  d.fragment_constants = {(key & kEffectsKey) ? 1u : 0u,
+                          (key >> kTexturesShift) & gpu::kMaterialTexturesAll, key >> kDebugShift};
+  return vk::CreateGraphicsPipeline(ctx, d);
+}
+
+// The sky behind the forward pass. Far plane is depth 0: GREATER_OR_EQUAL passes only where the
+// prepass left the clear value.
+absl::StatusOr<vk::Pipeline> CreateSky(const vk::Context& ctx, const SceneLayout& layout,
+                                       uint32_t samples) {
+  vk::GraphicsPipelineDesc d = SceneDesc(layout, samples);
+  d.name = "sky";
+  d.vertex_shader = "fullscreen.vert";
+  d.fragment_shader = "sky.frag";
+  d.scene_vertex_input = false;
+  return vk::CreateGraphicsPipeline(ctx, d);
 }
 
 class ForwardPass final : public Pass {
@@ -68,17 +70,32 @@ class ForwardPass final : public Pass {
   PassId id() const override { return id_; }
 
   absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
-    return pipelines_.Ensure(Key(s, s.aa == AaMode::kMsaa ? s.samples : 1),
-                             [&](uint32_t key) { return CreatePipelines(ctx, layout_, id_, key); });
+    if (id_ == PassId::kTransparent) return absl::OkStatus();
+    return sky_.Ensure(Samples(s),
+                       [&](uint32_t samples) { return CreateSky(ctx, layout_, samples); });
   }
-  static uint32_t Key(const Settings& s, uint32_t samples) {
-    return samples | (s.shadows || s.ssao || s.ibl ? kEffectsKey : 0u);
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
+                            const GpuScene& scene) override {
+    for (const uint32_t textures : scene.texture_sets()) {
+      RETURN_IF_ERROR(shading_.Ensure(Key(s, Samples(s), textures), [&](uint32_t key) {
+        return CreateShading(ctx, layout_, id_, key);
+      }));
+    }
+    return absl::OkStatus();
+  }
+  static uint32_t Samples(const Settings& s) { return s.aa == AaMode::kMsaa ? s.samples : 1; }
+  static uint32_t Key(const Settings& s, uint32_t samples, uint32_t textures) {
+    return samples | (s.shadows || s.ssao || s.ibl ? kEffectsKey : 0u) |
+           (textures << kTexturesShift) | (ShadingDebugView(s) << kDebugShift);
   }
 
   void Record(PassContext& ctx) override {
     const bool transparent = id_ == PassId::kTransparent;
     const uint32_t samples = ForwardSamples(ctx);
-    const ForwardPipelines& p = pipelines_.at(Key(*ctx.settings, samples));
+    const GpuScene& scene = *ctx.scene;
+    auto pipeline_of = [&](uint32_t m) {
+      return shading_.at(Key(*ctx.settings, samples, scene.material_textures(m))).handle();
+    };
     const FrameTargets& t = *ctx.targets;
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     // vis_mlaa draws blended surfaces over its anti-aliased result (the HDR colour, which its
@@ -102,16 +119,22 @@ class ForwardPass final : public Pass {
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     BeginRendering(ctx, &color, &depth);
-    BeginSceneDraw(ctx, p.pipeline.handle());
+    // The scene's set and buffers, with the first set of texture slots' pipeline (each segment
+    // then binds its material's).
+    if (!scene.texture_sets().empty()) {
+      BeginSceneDraw(ctx,
+                     shading_.at(Key(*ctx.settings, samples, scene.texture_sets()[0])).handle());
+    }
     const uint32_t phases = ctx.draws->phases;
     if (transparent) {
-      RecordSegments(ctx, AlphaMode::kBlend, 0, phases);
+      RecordSegments(ctx, AlphaMode::kBlend, 0, phases, true, pipeline_of);
     } else {
-      RecordSegments(ctx, AlphaMode::kOpaque, 0, phases);
-      RecordSegments(ctx, AlphaMode::kMask, 0, phases);
+      RecordSegments(ctx, AlphaMode::kOpaque, 0, phases, true, pipeline_of);
+      RecordSegments(ctx, AlphaMode::kMask, 0, phases, true, pipeline_of);
       // Debug views keep the plain background, so their values read cleanly.
       if (ctx.settings->debug_view == DebugView::kNone) {
-        vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, p.sky.handle());
+        if (scene.texture_sets().empty()) BeginSceneDraw(ctx, sky_.at(samples).handle());
+        vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_.at(samples).handle());
         vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
         vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
       }
@@ -122,7 +145,8 @@ class ForwardPass final : public Pass {
  private:
   PassId id_;
   SceneLayout layout_;
-  PerSampleCount<ForwardPipelines> pipelines_;
+  PerSampleCount<vk::Pipeline> shading_;  // by Key
+  PerSampleCount<vk::Pipeline> sky_;      // by sample count
 };
 
 absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,

@@ -39,6 +39,17 @@ void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* col
   vkCmdSetScissor(ctx.cmd, 0, 1, &full);
 }
 
+uint32_t ShadingDebugView(const Settings& s) {
+  switch (s.debug_view) {
+    case DebugView::kNormals: return gpu::kDebugNormals;
+    case DebugView::kDepth: return gpu::kDebugDepth;
+    case DebugView::kBaseColor: return gpu::kDebugBaseColor;
+    case DebugView::kLightHeatmap: return gpu::kDebugLightHeatmap;
+    case DebugView::kCascades: return gpu::kDebugCascades;
+    default: return gpu::kDebugNone;
+  }
+}
+
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline, VkPipelineLayout layout) {
   vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
   vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
@@ -172,11 +183,17 @@ void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t f
 }  // namespace
 
 void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begin,
-                    uint32_t phase_end, bool textured) {
+                    uint32_t phase_end, bool textured,
+                    absl::FunctionRef<VkPipeline(uint32_t)> pipeline_of) {
   const std::vector<DrawSegment>& segments = ctx.scene->segments();
   DrawState state;
   auto draw = [&](uint32_t s) {
     const DrawSegment& seg = segments[s];
+    const VkPipeline pipeline = pipeline_of(seg.material);
+    if (pipeline != VK_NULL_HANDLE && pipeline != state.pipeline) {
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
+      state.pipeline = pipeline;
+    }
     state.Apply(ctx, seg.double_sided, seg.material, textured);
     for (uint32_t p = phase_begin; p < phase_end; ++p)
       DrawIndirect(ctx, p, false, seg.first_item, seg.item_count, s);

@@ -11,6 +11,7 @@
 #include <memory>
 #include <vector>
 
+#include "absl/functional/function_ref.h"
 #include "absl/status/statusor.h"
 #include "renderer/graph/frame_graph.h"
 #include "renderer/scene/gpu_scene.h"
@@ -344,6 +345,15 @@ class Pass {
     (void)settings;
     return absl::OkStatus();
   }
+  // Then, for the frame's scene: builds what the pass lacks for its materials (the shading
+  // passes: a pipeline per set of texture slots, GpuScene::texture_sets).
+  virtual absl::Status PrepareScene(const vk::Context& ctx, const Settings& settings,
+                                    const GpuScene& scene) {
+    (void)ctx;
+    (void)settings;
+    (void)scene;
+    return absl::OkStatus();
+  }
   // Records the pass. Its resources are already in the layouts PassUses(id()) declares.
   virtual void Record(PassContext& ctx) = 0;
 };
@@ -449,7 +459,7 @@ class FullscreenProgram {
   uint32_t inputs_ = 0;
   uint32_t push_size_ = 0;
 };
-// What a pass builds per sample count (its pipelines), made on first use.
+// What a pass builds per sample count (its pipelines), or per another key, made on first use.
 template <typename T>
 class PerSampleCount {
  public:
@@ -491,17 +501,26 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline,
                     VkPipelineLayout layout = VK_NULL_HANDLE);
 // Binds what a draw needs that differs from the last one drawn: its material's set (when
 // `textured`) and its cull mode. `layout` as BeginSceneDraw's.
+// The debug view shading.glsl draws for these settings (its specialization constant 2): the
+// views of surfaces (normals, base colour, depth, light heatmap, cascades), else kDebugNone
+// (lit; the tonemap shows the other views).
+uint32_t ShadingDebugView(const Settings& s);
+// RecordSegments' default: every segment with the pipeline already bound.
+inline VkPipeline NoPipelineChange(uint32_t) { return VK_NULL_HANDLE; }
 struct DrawState {
   VkPipelineLayout layout = VK_NULL_HANDLE;
   int cull = -1;
   uint32_t material = UINT32_MAX;
+  VkPipeline pipeline = VK_NULL_HANDLE;
   void Apply(const PassContext& ctx, bool double_sided, uint32_t m, bool textured);
 };
 // Draws the segments of `group` from the lists of phases [phase_begin, phase_end), binding each
 // segment's material texture set (when `textured`) and cull mode only when they change. The
-// blend group is drawn in DrawLists::blend_order.
+// blend group is drawn in DrawLists::blend_order. With `pipeline_of`, each segment is drawn with
+// the pipeline it gives for the segment's material (bound when it changes; same layout).
 void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begin,
-                    uint32_t phase_end, bool textured = true);
+                    uint32_t phase_end, bool textured = true,
+                    absl::FunctionRef<VkPipeline(uint32_t)> pipeline_of = NoPipelineChange);
 // Draws every item of the scene, unculled, with direct draws (tests: the drawable-id image).
 void RecordAllDirect(const PassContext& ctx);
 // Draws the opaque group without materials: one indirect draw per batch (cull mode).

@@ -193,30 +193,58 @@ class VisClassifyPass final : public Pass {
   ModePipelines mlaa_pipelines_;
 };
 
-// The shading pipelines: one sample or vis_mlaa's, each with and without shading.glsl's
-// shadows, SSAO and IBL (specialization constant 0).
-struct ShadePipelines {
-  vk::Pipeline plain, effects, sky, mlaa_plain, mlaa_effects, mlaa_sky;
-};
+// The shading pipelines per key: kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp), kEffectsKey with
+// shading.glsl's shadows, SSAO and IBL (specialization constant 0), and the material's texture
+// slots << kTexturesShift (constant 1: a pipeline per set of slots the scene's materials use), and
+// the debug view << kDebugShift (constant 2, ShadingDebugView). The sky's are one each.
+constexpr uint32_t kEffectsKey = 1;
+constexpr uint32_t kMlaaKey = 2;
+constexpr uint32_t kTexturesShift = 8;
+constexpr uint32_t kDebugShift = 16;
 
 class ShadePass final : public Pass {
  public:
-  ShadePass(ShadeLayout one, ShadeLayout mlaa, ShadePipelines pipelines)
-      : one_(std::move(one)), mlaa_(std::move(mlaa)), pipelines_(std::move(pipelines)) {}
+  ShadePass(ShadeLayout one, ShadeLayout mlaa, vk::Pipeline sky, vk::Pipeline mlaa_sky)
+      : one_(std::move(one)),
+        mlaa_(std::move(mlaa)),
+        sky_(std::move(sky)),
+        mlaa_sky_(std::move(mlaa_sky)) {}
   PassId id() const override { return PassId::kShade; }
+
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
+                            const GpuScene& scene) override {
+    for (const uint32_t textures : scene.texture_sets()) {
+      RETURN_IF_ERROR(shading_.Ensure(Key(s, textures), [&](uint32_t key) {
+        const bool vis_mlaa = (key & kMlaaKey) != 0;
+        return vk::CreateComputePipeline(
+            ctx, vis_mlaa ? "shade.vis_mlaa" : "shade",
+            vis_mlaa ? "vis_shade_mlaa.comp" : "vis_shade.comp",
+            (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
+            {(key & kEffectsKey) ? 1u : 0u, (key >> kTexturesShift) & gpu::kMaterialTexturesAll,
+             key >> kDebugShift});
+      }));
+    }
+    return absl::OkStatus();
+  }
+  static uint32_t Key(const Settings& s, uint32_t textures) {
+    return (s.shadows || s.ssao || s.ibl ? kEffectsKey : 0u) |
+           (s.aa == AaMode::kVisMlaa ? kMlaaKey : 0u) | (textures << kTexturesShift) |
+           (ShadingDebugView(s) << kDebugShift);
+  }
 
   void Record(PassContext& ctx) override {
     const Settings& s = *ctx.settings;
-    const bool effects = s.shadows || s.ssao || s.ibl;
-    const ShadePipelines& p = pipelines_;
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
-    const vk::Pipeline& pipeline = vis_mlaa ? (effects ? p.mlaa_effects : p.mlaa_plain)
-                                            : (effects ? p.effects : p.plain);
     const ShadeLayout& layout = vis_mlaa ? mlaa_ : one_;
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
     layout.Bind(ctx);
+    VkPipeline bound = VK_NULL_HANDLE;
     // The materials whose drawables are in the frustum; the others have no pixels.
     for (const uint32_t m : ctx.vis->materials) {
+      const VkPipeline pipeline = shading_.at(Key(s, ctx.scene->material_textures(m))).handle();
+      if (pipeline != bound) {
+        vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
+        bound = pipeline;
+      }
       const VkDescriptorSet material = ctx.scene->material_set(m);
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout.pipeline_layout(),
                               gpu::kMaterialSet, 1, &material, 0, nullptr);
@@ -229,7 +257,7 @@ class ShadePass final : public Pass {
     }
     const uint32_t sky = ctx.shade->materials;
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                      (vis_mlaa ? p.mlaa_sky : p.sky).handle());
+                      (vis_mlaa ? mlaa_sky_ : sky_).handle());
     const gpu::ShadePush push{glm::uvec4(sky, 0u, 0u, 0u)};
     vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
@@ -239,7 +267,8 @@ class ShadePass final : public Pass {
 
  private:
   ShadeLayout one_, mlaa_;  // one sample, vis_mlaa
-  ShadePipelines pipelines_;
+  vk::Pipeline sky_, mlaa_sky_;
+  PerSampleCount<vk::Pipeline> shading_;  // by Key
 };
 
 }  // namespace
@@ -276,19 +305,13 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                                       const SceneLayout& scene) {
   ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample));
   ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa));
-  const VkPipelineLayout pl = one.pipeline_layout(), ml = mlaa.pipeline_layout();
-  ShadePipelines p;
-  ASSIGN_OR_RETURN(p.plain, vk::CreateComputePipeline(ctx, "shade", "vis_shade.comp", pl, {0u}));
-  ASSIGN_OR_RETURN(p.effects,
-                   vk::CreateComputePipeline(ctx, "shade.effects", "vis_shade.comp", pl, {1u}));
-  ASSIGN_OR_RETURN(p.mlaa_plain, vk::CreateComputePipeline(ctx, "shade.vis_mlaa",
-                                                           "vis_shade_mlaa.comp", ml, {0u}));
-  ASSIGN_OR_RETURN(p.mlaa_effects, vk::CreateComputePipeline(ctx, "shade.vis_mlaa.effects",
-                                                             "vis_shade_mlaa.comp", ml, {1u}));
-  ASSIGN_OR_RETURN(p.sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp", pl));
-  ASSIGN_OR_RETURN(p.mlaa_sky,
-                   vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky_mlaa.comp", ml));
-  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(p));
+  ASSIGN_OR_RETURN(vk::Pipeline sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp",
+                                                               one.pipeline_layout()));
+  ASSIGN_OR_RETURN(vk::Pipeline mlaa_sky,
+                   vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky_mlaa.comp",
+                                             mlaa.pipeline_layout()));
+  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(sky),
+                                     std::move(mlaa_sky));
 }
 
 void SetupVisibilityShading(GraphBuilder& b) {

@@ -699,6 +699,7 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
   std::vector<VkDescriptorImageInfo> infos(size_t(material_count) * gpu::kMaterialTextureSlots);
   std::vector<VkDescriptorBufferInfo> buffer_infos(material_count);
   std::vector<VkWriteDescriptorSet> writes;
+  material_textures_.assign(material_count, 0);
   for (uint32_t m = 0; m < material_count; ++m) {
     const gpu::GpuMaterial& g = materials[m];
     const gpu::GpuTextureRef* slots[gpu::kMaterialTextureSlots] = {
@@ -706,6 +707,8 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
         &g.emissive_tex};
     VkDescriptorImageInfo* info = &infos[size_t(m) * gpu::kMaterialTextureSlots];
     for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k) {
+      if (slots[k]->info.x >= 0 || !ctx.info().material_variants)
+        material_textures_[m] |= 1u << k;
       const int bucket = std::max(0, slots[k]->info.x);
       info[k] = {sampler_.handle(), buckets_[bucket].view(),
                  VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
@@ -727,6 +730,9 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
     writes.push_back(w);
   }
   vkUpdateDescriptorSets(ctx.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);
+  texture_sets_ = material_textures_;
+  std::sort(texture_sets_.begin(), texture_sets_.end());
+  texture_sets_.erase(std::unique(texture_sets_.begin(), texture_sets_.end()), texture_sets_.end());
 
   return absl::OkStatus();
 }

@@ -100,6 +100,11 @@ class GpuScene {
   // Descriptor set 1 of material `m`: the material as a uniform range and its textures' buckets.
   VkDescriptorSet material_set(uint32_t m) const { return material_sets_[m]; }
   uint32_t material_count() const { return uint32_t(material_sets_.size()); }
+  // The texture slots material `m` has a texture in (bit k: slot k, gpu::kMaterialTexturesAll),
+  // and the distinct sets of them the scene's materials have, ascending: the shading passes build
+  // a pipeline per set (shading.glsl's specialization constant 1).
+  uint32_t material_textures(uint32_t m) const { return material_textures_[m]; }
+  const std::vector<uint32_t>& texture_sets() const { return texture_sets_; }
   VkSampler sampler() const { return sampler_.handle(); }
   // The draws in item order (DrawPlan): draws()[i] is item i.
   const std::vector<DrawItem>& draws() const { return draws_; }
@@ -178,6 +183,7 @@ class GpuScene {
   VkDevice device_ = VK_NULL_HANDLE;
   vk::UniqueDescriptorPool material_pool_;
   std::vector<VkDescriptorSet> material_sets_;
+  std::vector<uint32_t> material_textures_, texture_sets_;
   std::vector<DrawItem> draws_;
   DrawPlan plan_;
   vk::Buffer cull_items_;

@@ -424,6 +424,7 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   if (off("subgroup_arithmetic")) info.subgroup_arithmetic = false;
   if (off("subgroup_ballot")) info.subgroup_ballot = false;
   if (off("visibility_buffer")) info.visibility_buffer = false;
+  if (off("material_variants")) info.material_variants = false;
   if (off("pipeline_statistics")) supported.pipelineStatisticsQuery = VK_FALSE;
   if (off("multi_draw_indirect")) supported.multiDrawIndirect = VK_FALSE;
   info.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;

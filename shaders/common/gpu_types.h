@@ -121,6 +121,11 @@ TS_CONST uint kBindingNormalTex = 3;
 TS_CONST uint kBindingOcclusionTex = 4;
 TS_CONST uint kBindingEmissiveTex = 5;
 TS_CONST uint kMaterialTextureSlots = 5;
+// The slots a material has a texture in, bit k for slot k (binding 1 + k): the shading's
+// specialization constant 1 (common/shading.glsl), a pipeline per set of slots the scene's
+// materials use, so each holds no code for the slots its materials lack (lavapipe samples a
+// texture under a lane mask even where the branch to it is untaken). All: the general pipeline.
+TS_CONST uint kMaterialTexturesAll = (1u << kMaterialTextureSlots) - 1u;
 // The tonemap pass has its own set: binding 0 is the HDR colour as a sampler2D.
 // ---- vis_mlaa (shaders/common/vis.glsl) ------------------------------------------------------
 // A visibility id: (drawable + 1) << triangle_bits | triangle; 0 = no surface (the sky).

@@ -47,6 +47,20 @@ layout(set = 0, binding = kBindingBrdfLut) uniform sampler2D u_brdf_lut;
 // an untaken branch at a cost (each doubled the shading pass of frames without them), so frames
 // without the effects use a pipeline that has none of their code.
 layout(constant_id = 0) const bool kLightingEffects = false;
+// The texture slots the shaded materials have (gpu::kMaterialTexturesAll: any): a pipeline per set
+// of slots a scene's materials use, so the sampling code of the slots they lack is not there at
+// all (lavapipe ran it under a lane mask: Sponza, whose materials have no occlusion or emissive
+// textures, shaded 20-27% slower with it).
+layout(constant_id = 1) const uint kMaterialTextures = kMaterialTexturesAll;
+
+// The debug view the surfaces show (normals, base_color, depth, light_heatmap, cascades; else
+// kDebugNone: lit), a pipeline per view for the same reason.
+layout(constant_id = 2) const uint kShadingDebugView = kDebugNone;
+
+// Whether the material has a texture in `slot` (its binding - kBindingBaseColorTex).
+bool MaterialHas(uint slot, GpuTextureRef t) {
+  return (kMaterialTextures & (1u << slot)) != 0u && HasTexture(t);
+}
 
 // One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff),
 // times its shadow. `ng` is the unperturbed surface normal (the shadow lookup's normal offset).
@@ -127,7 +141,7 @@ vec3 Heat(uint count) {
 vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   GpuMaterial m = material;
   vec4 base = m.base_color_factor;
-  if (HasTexture(m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
+  if (MaterialHas(0u, m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).
 #ifndef TESSERA_COMPUTE
@@ -136,7 +150,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
 
   float metallic = m.params.x;
   float roughness = m.params.y;
-  if (HasTexture(m.metallic_roughness_tex)) {
+  if (MaterialHas(1u, m.metallic_roughness_tex)) {
     vec4 mr = SampleTexture(u_metallic_roughness_tex, m.metallic_roughness_tex, s.uv0, s.uv1, s.grads);
     roughness *= mr.g;
     metallic *= mr.b;
@@ -148,7 +162,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   float side = s.front_facing ? 1.0 : -1.0;
   vec3 n = normalize(s.normal) * side;
   vec3 ng = n;
-  if (HasTexture(m.normal_tex)) {
+  if (MaterialHas(2u, m.normal_tex)) {
     vec3 t = s.tangent.xyz * side;
     t = normalize(t - n * dot(n, t));
     vec3 b = cross(n, t) * s.tangent.w;
@@ -157,13 +171,13 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
     n = normalize(mat3(t, b, n) * tn);
   }
   float ao = 1.0;
-  if (HasTexture(m.occlusion_tex)) {
+  if (MaterialHas(3u, m.occlusion_tex)) {
     ao = 1.0 + m.params.w * (SampleTexture(u_occlusion_tex, m.occlusion_tex, s.uv0, s.uv1, s.grads).r - 1.0);
   }
   vec3 emissive = m.emissive.rgb;
-  if (HasTexture(m.emissive_tex)) emissive *= SampleTexture(u_emissive_tex, m.emissive_tex, s.uv0, s.uv1, s.grads).rgb;
+  if (MaterialHas(4u, m.emissive_tex)) emissive *= SampleTexture(u_emissive_tex, m.emissive_tex, s.uv0, s.uv1, s.grads).rgb;
 
-  uint debug_view = frame.counts.y;
+  const uint debug_view = kShadingDebugView;
   if (debug_view == kDebugNormals) { return vec4(n * 0.5 + 0.5, 1.0); }
   if (debug_view == kDebugBaseColor) { return vec4(base.rgb, 1.0); }
   if (debug_view == kDebugDepth) {
