@@ -65,7 +65,7 @@ static_assert(sizeof(ShadowUniforms) <= 16384, "must fit the smallest maxUniform
 
 // Push-constant blocks: within the 128 bytes every device has, std430 offsets.
 static_assert(sizeof(TonemapPush) == 32);
-static_assert(sizeof(GeometricAaPush) == 20);
+static_assert(sizeof(GeometricAaPush) == 16);
 static_assert(sizeof(TaaPush) == 96 && offsetof(TaaPush, params) == 64 &&
               offsetof(TaaPush, motion) == 80);
 static_assert(sizeof(MotionPush) == 80 && offsetof(MotionPush, kept) == 64);

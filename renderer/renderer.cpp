@@ -85,13 +85,18 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   for (const Animation& a : cpu.animations)
     scene->info_.animations.push_back({a.name, a.duration, uint32_t(a.channels.size())});
   // The scene's first frame should not wait for the shading pipelines its materials need (one
-  // per set of texture slots they use): build those of the default settings now.
-  ASSIGN_OR_RETURN(const ResolvedSettings defaults, ResolveSettings(Settings{}, caps()));
-  FrameFeatures features;
-  for (const DrawSegment& seg : gpu->segments())
-    features.has_transparent = features.has_transparent || seg.group == AlphaMode::kBlend;
-  RETURN_IF_ERROR(impl_->PreparePasses(PlanFrame(defaults.effective, features),
-                                       defaults.effective, *gpu));
+  // per set of texture slots they use): build those of the default settings now. A failure
+  // here is the first frame's to report (with the settings it asks for), not the load's.
+  if (absl::StatusOr<ResolvedSettings> defaults = ResolveSettings(Settings{}, caps());
+      defaults.ok()) {
+    FrameFeatures features;
+    for (const DrawSegment& seg : gpu->segments())
+      features.has_transparent = features.has_transparent || seg.group == AlphaMode::kBlend;
+    const absl::Status warmed = impl_->PreparePasses(PlanFrame(defaults->effective, features),
+                                                     defaults->effective, *gpu);
+    if (!warmed.ok())
+      Log().warn("scene {}: building its pipelines: {}", cpu.name, warmed.ToString());
+  }
   scene->device_ = impl_->ctx;
   scene->gpu_ = std::move(gpu);
   return SceneHandle(std::move(scene));

@@ -5,8 +5,10 @@
 // pass costs per edge, not per pixel of the frame. The resolve listed the edge pixels (the start
 // of the pixel lists, entry push.edges, dispatched 64 to a workgroup); kGeometricAaBlend writes
 // each one's blend into a list of colours (its neighbours are read unchanged), kGeometricAaWrite
-// stores them into the image. A pixel's runner-up surface (vis_resolve.comp) takes the share of
-// its samples in the blend.
+// stores them into the image. The mode is specialization constant 0, a pipeline each (lavapipe
+// runs an untaken branch under a lane mask: with a push-constant mode the store paid for the
+// blend). A pixel's runner-up surface (vis_resolve.comp) takes the share of its samples in the
+// blend.
 #define TESSERA_COMPUTE
 #define GEOMETRIC_AA_EDGES
 #include "common/geometric_aa.glsl"
@@ -24,13 +26,15 @@ layout(set = 0, binding = kGeometricAaBindingRunnerUps, std430) readonly buffer 
   uvec2 runner_ups[];  // vis_resolve.comp's record per edge pixel
 };
 
+layout(constant_id = 0) const uint kMode = kGeometricAaBlend;
+
 void main() {
   uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
   uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
   if (i >= entries[push.edges].dispatch.w) return;
   uint packed = pixels[i];
   ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
-  if (push.mode == kGeometricAaBlend) {
+  if (kMode == kGeometricAaBlend) {
     // The runner-up surface's colour: a neighbour's that shows it, or its own shading.
     uint runner_word = runner_ups[i].y;
     uint runner_mask = runner_word & 0xffu;

@@ -6,6 +6,7 @@
 // Draws are indirect: one vkCmdDrawIndexedIndirectCount per segment (render group x cull mode x
 // material; see DrawPlan) and culling phase. The material is a descriptor set per segment
 // because lavapipe cannot index samplers dynamically (shaders/common/gpu_types.h).
+#include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
@@ -43,7 +44,7 @@ absl::StatusOr<vk::Pipeline> CreateShading(const vk::Context& ctx, const SceneLa
                                            PassId id, uint32_t key) {
   const bool transparent = id == PassId::kTransparent;
   vk::GraphicsPipelineDesc d = SceneDesc(layout, key & (kEffectsKey - 1));
-  d.name = transparent ? "transparent" : "forward";
+  d.name = absl::StrCat(transparent ? "transparent" : "forward", ".", absl::Hex(key));
   d.vertex_shader = "forward.vert";
   d.fragment_shader = "forward.frag";
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
@@ -74,14 +75,20 @@ class ForwardPass final : public Pass {
     return sky_.Ensure(Samples(s),
                        [&](uint32_t samples) { return CreateSky(ctx, layout_, samples); });
   }
+  // The texture slot sets of the materials this pass draws (blend materials in the transparent
+  // pass, the others in forward).
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
                             const GpuScene& scene) override {
-    for (const uint32_t textures : scene.texture_sets()) {
-      RETURN_IF_ERROR(shading_.Ensure(Key(s, Samples(s), textures), [&](uint32_t key) {
-        return CreateShading(ctx, layout_, id_, key);
-      }));
+    for (const DrawSegment& seg : scene.segments()) {
+      if (!Draws(seg)) continue;
+      RETURN_IF_ERROR(shading_.Ensure(
+          Key(s, Samples(s), scene.material_textures(seg.material)),
+          [&](uint32_t key) { return CreateShading(ctx, layout_, id_, key); }));
     }
     return absl::OkStatus();
+  }
+  bool Draws(const DrawSegment& seg) const {
+    return (seg.group == AlphaMode::kBlend) == (id_ == PassId::kTransparent);
   }
   static uint32_t Samples(const Settings& s) { return s.aa == AaMode::kMsaa ? s.samples : 1; }
   static uint32_t Key(const Settings& s, uint32_t samples, uint32_t textures) {
@@ -119,12 +126,16 @@ class ForwardPass final : public Pass {
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     BeginRendering(ctx, &color, &depth);
-    // The scene's set and buffers, with the first set of texture slots' pipeline (each segment
-    // then binds its material's).
-    if (!scene.texture_sets().empty()) {
-      BeginSceneDraw(ctx,
-                     shading_.at(Key(*ctx.settings, samples, scene.texture_sets()[0])).handle());
+    // The scene's set and buffers, with the first segment's pipeline (each segment then binds
+    // its material's), or the sky's.
+    VkPipeline first = transparent ? VK_NULL_HANDLE : sky_.at(samples).handle();
+    for (const DrawSegment& seg : scene.segments()) {
+      if (Draws(seg)) {
+        first = pipeline_of(seg.material);
+        break;
+      }
     }
+    if (first != VK_NULL_HANDLE) BeginSceneDraw(ctx, first);
     const uint32_t phases = ctx.draws->phases;
     if (transparent) {
       RecordSegments(ctx, AlphaMode::kBlend, 0, phases, true, pipeline_of);
@@ -133,7 +144,6 @@ class ForwardPass final : public Pass {
       RecordSegments(ctx, AlphaMode::kMask, 0, phases, true, pipeline_of);
       // Debug views keep the plain background, so their values read cleanly.
       if (ctx.settings->debug_view == DebugView::kNone) {
-        if (scene.texture_sets().empty()) BeginSceneDraw(ctx, sky_.at(samples).handle());
         vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, sky_.at(samples).handle());
         vkCmdSetCullMode(ctx.cmd, VK_CULL_MODE_NONE);
         vkCmdDraw(ctx.cmd, 3, 1, 0, 0);
@@ -152,7 +162,8 @@ class ForwardPass final : public Pass {
 absl::StatusOr<std::unique_ptr<Pass>> Create(const vk::Context& ctx, const SceneLayout& layout,
                                              PassId id) {
   auto pass = std::make_unique<ForwardPass>(id, layout);
-  if (absl::Status st = pass->Prepare(ctx, Settings{}); !st.ok()) return st;  // 1x, always used
+  // The sky at 1x, always used (the shading pipelines follow the scene: PrepareScene).
+  if (absl::Status st = pass->Prepare(ctx, Settings{}); !st.ok()) return st;
   return pass;
 }
 

@@ -9,6 +9,7 @@
 #include <deque>
 #include <map>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "absl/functional/function_ref.h"
@@ -499,14 +500,14 @@ void ResolveDepthInto(const PassContext& ctx, VkRenderingAttachmentInfo& depth);
 // of its own after the scene's sets).
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline,
                     VkPipelineLayout layout = VK_NULL_HANDLE);
-// Binds what a draw needs that differs from the last one drawn: its material's set (when
-// `textured`) and its cull mode. `layout` as BeginSceneDraw's.
 // The debug view shading.glsl draws for these settings (its specialization constant 2): the
 // views of surfaces (normals, base colour, depth, light heatmap, cascades), else kDebugNone
 // (lit; the tonemap shows the other views).
 uint32_t ShadingDebugView(const Settings& s);
 // RecordSegments' default: every segment with the pipeline already bound.
 inline VkPipeline NoPipelineChange(uint32_t) { return VK_NULL_HANDLE; }
+// Binds what a draw needs that differs from the last one drawn: its material's set (when
+// `textured`) and its cull mode. `layout` as BeginSceneDraw's.
 struct DrawState {
   VkPipelineLayout layout = VK_NULL_HANDLE;
   int cull = -1;

@@ -260,15 +260,20 @@ class GeometricAaPass final : public PostPass {
                                           VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute),
                             LayoutBinding(gpu::kGeometricAaBindingRunnerUps, kBuffer, kCompute)},
                            {{kCompute, 0, sizeof(gpu::GeometricAaPush)}}, "geometric_aa.edges"));
-    ASSIGN_OR_RETURN(edges_, vk::CreateComputePipeline(ctx, "geometric_aa.edges",
+    ASSIGN_OR_RETURN(blend_, vk::CreateComputePipeline(ctx, "geometric_aa.edges",
                                                        "geometric_aa_edges.comp",
-                                                       edge_layout_.pipeline_layout()));
+                                                       edge_layout_.pipeline_layout(),
+                                                       {gpu::kGeometricAaBlend}));
+    ASSIGN_OR_RETURN(write_, vk::CreateComputePipeline(ctx, "geometric_aa.edges.write",
+                                                       "geometric_aa_edges.comp",
+                                                       edge_layout_.pipeline_layout(),
+                                                       {gpu::kGeometricAaWrite}));
     return absl::OkStatus();
   }
 
   void Record(PassContext& ctx) override {
     const FrameTargets& t = *ctx.targets;
-    gpu::GeometricAaPush push{ctx.samples, 0u, ctx.vis->triangle_bits, 0u, 0u};
+    gpu::GeometricAaPush push{ctx.samples, 0u, ctx.vis->triangle_bits, 0u};
     if (ctx.settings->debug_view == DebugView::kAaMask) {
       push.show_mask = 1u;
       program_.Draw(ctx, {Nearest(t.hdr), Nearest(t.vis_coverage), Nearest(t.vis_id)},
@@ -288,29 +293,25 @@ class GeometricAaPass final : public PostPass {
         .Storage(gpu::kGeometricAaBindingOut, t.hdr.view())
         .Update();
     const VkPipelineLayout layout = edge_layout_.pipeline_layout();
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, edges_.handle());
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0,
                             nullptr);
+    vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
     const VkDeviceSize args = VkDeviceSize(push.edges) * sizeof(gpu::GpuShadeEntry);
-    for (uint32_t mode : {gpu::kGeometricAaBlend, gpu::kGeometricAaWrite}) {
-      push.mode = mode;
-      vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-      vkCmdDispatchIndirect(ctx.cmd, sb.entries, args);
-      if (mode == gpu::kGeometricAaBlend) {
-        // The blends are written (and every neighbour read) before any pixel changes.
-        vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                             VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                             VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                             VK_ACCESS_2_SHADER_STORAGE_READ_BIT |
-                                 VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
-      }
-    }
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blend_.handle());
+    vkCmdDispatchIndirect(ctx.cmd, sb.entries, args);
+    // The blends are written (and every neighbour read) before any pixel changes.
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                         VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                         VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                         VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, write_.handle());
+    vkCmdDispatchIndirect(ctx.cmd, sb.entries, args);
   }
 
  private:
   VkDevice device_ = VK_NULL_HANDLE;
   PassLayout edge_layout_;
-  vk::Pipeline edges_;
+  vk::Pipeline blend_, write_;  // kGeometricAaBlend, kGeometricAaWrite
 };
 
 // TAA (shaders/taa.frag): this frame with the reprojected history, clamped to the frame's

@@ -217,7 +217,7 @@ class ShadePass final : public Pass {
       RETURN_IF_ERROR(shading_.Ensure(Key(s, textures), [&](uint32_t key) {
         const bool vis_mlaa = (key & kMlaaKey) != 0;
         return vk::CreateComputePipeline(
-            ctx, vis_mlaa ? "shade.vis_mlaa" : "shade",
+            ctx, absl::StrCat(vis_mlaa ? "shade.vis_mlaa." : "shade.", absl::Hex(key)),
             vis_mlaa ? "vis_shade_mlaa.comp" : "vis_shade.comp",
             (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
             {(key & kEffectsKey) ? 1u : 0u, (key >> kTexturesShift) & gpu::kMaterialTexturesAll,

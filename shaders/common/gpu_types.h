@@ -200,7 +200,8 @@ TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
 TS_CONST uint kClassifyFillRunnerUps = 3;
 // (vis_classify's params.z is 1 when vis_mlaa's edge list, the entry after the sky's, holds the
 // start of the pixel lists: the materials' lists then follow it, and geometric AA reads it last.)
-// geometric_aa_edges.comp's modes (push mode) and its set 0's bindings after the samplers of the
+// geometric_aa_edges.comp's modes (specialization constant 0, a pipeline each) and its set 0's
+// bindings after the samplers of the
 // coverage (1) and ids (2).
 TS_CONST uint kGeometricAaBlend = 1;  // per listed edge pixel: its blend, into the colour list
 TS_CONST uint kGeometricAaWrite = 2;  // per listed edge pixel: the blend, into the HDR colour
@@ -378,12 +379,11 @@ struct GpuShadeEntry {
   vec4 exposure;        \
   vec4 bloom;
 // geometric_aa.frag: the visibility samples, 1 to show the coverage mask, id triangle bits;
-// geometric_aa_edges.comp: mode (kGeometricAa*), the edge list's entry.
+// geometric_aa_edges.comp: also the edge list's entry.
 #define TS_PUSH_GEOMETRIC_AA \
   uint samples;              \
   uint show_mask;            \
   uint triangle_bits;        \
-  uint mode;                 \
   uint edges;
 // taa.frag: this frame's unjittered clip space -> last frame's; params x: current-frame
 // weight, y: history valid (1) or not (0), zw: 1/width, 1/height; motion x: 1 when the motion
