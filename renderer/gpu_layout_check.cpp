@@ -59,8 +59,9 @@ static_assert(offsetof(FrameUniforms, params) == 320);
 
 static_assert(sizeof(GpuShadowView) == 80);
 static_assert(offsetof(ShadowUniforms, cascade_spheres) == 32);
-static_assert(offsetof(ShadowUniforms, views) == 96);
-static_assert(sizeof(ShadowUniforms) == 96 + kMaxShadowViews * 80);
+static_assert(offsetof(ShadowUniforms, shadowed) == 96);
+static_assert(offsetof(ShadowUniforms, views) == 96 + kMaxShadowedLights * 4);
+static_assert(sizeof(ShadowUniforms) == 96 + kMaxShadowedLights * 4 + kMaxShadowViews * 80);
 static_assert(sizeof(ShadowUniforms) <= 16384, "must fit the smallest maxUniformBufferRange");
 
 // Push-constant blocks: within the 128 bytes every device has, std430 offsets.

@@ -316,7 +316,8 @@ struct GpuLight {
   vec4 color_intensity;  // rgb linear colour, a intensity (candela for point/spot, lux for sun)
   vec4 direction_type;   // xyz direction the light points to, w type (kLight*)
   vec4 spot;             // x angle scale, y angle offset (glTF spot falloff),
-                         // z first shadow view + 1 (0: unshadowed), w shadow view count
+                         // z first shadow view + 1 (0: unshadowed), w the sun's cascade count;
+                         // a shadowed local light's: its index in ShadowUniforms.shadowed
 };
 
 // One shadow map in the atlas (renderer/shadows.h has the conventions).
@@ -327,9 +328,13 @@ struct GpuShadowView {
 };
 
 struct ShadowUniforms {
-  uvec4 counts;  // x views, y sun cascades, z unused, w kShadowsOn | kSsaoOn
+  uvec4 counts;  // x views, y sun cascades, z shadowed local lights, w kShadowsOn | kSsaoOn
   vec4 atlas;    // x atlas size in texels, y 1 / size, z normal offset in texels, w unused
   vec4 cascade_spheres[4];  // world xyz centre, w radius (the sphere the cascade covers)
+  // The shadowed local lights' indices in the local lights, four to an element (GpuLight.spot.w
+  // of each is its place here): the shading meets them in its light lists as bits of a mask and
+  // shades them after the others (shading.glsl's DirectLight).
+  uvec4 shadowed[kMaxShadowedLights / 4];
   GpuShadowView views[kMaxShadowViews];
 };
 

@@ -109,20 +109,32 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 
 // Every light's contribution at a point: the global (directional) lights, then the local ones
 // of the tile's list (or all of them, brute force). `with_shadows` is a literal (see above).
+// With shadows, the local loop shades the lights without a shadow map and sets a bit per
+// shadowed light it meets (its place in ShadowUniforms.shadowed); a second loop shades those
+// with their shadows. One loop with the shadow lookup behind a per-light branch ran that lookup
+// for every light of the list on lavapipe (masked), 19% of the full stack's shading of Sponza.
 vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
                  float alpha, bool tiled, uint tile, uint tile_count, bool with_shadows) {
   vec3 color = vec3(0.0);
   for (uint i = 0u; i < frame.counts.x; ++i)
     color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, with_shadows);
-  if (tiled) {
-    uint base = tile * kMaxLightsPerTile;
-    for (uint k = 0u; k < tile_count; ++k)
-      color += ShadeLight(local_lights[tile_lights[base + k]], p, n, ng, v, n_dot_v, c_diff, f0,
-                          alpha, with_shadows);
-  } else {  // brute force: every local light for every pixel
-    for (uint i = 0u; i < frame.lighting.x; ++i)
-      color += ShadeLight(local_lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha,
-                          with_shadows);
+  uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
+  uint count = tiled ? tile_count : frame.lighting.x;
+  uint base = tile * kMaxLightsPerTile;
+  for (uint k = 0u; k < count; ++k) {
+    GpuLight light = local_lights[tiled ? tile_lights[base + k] : k];
+    vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
+    if (with_shadows && light.spot.z > 0.0) {
+      shadowed |= 1u << uint(light.spot.w);
+    } else {
+      color += c;
+    }
+  }
+  while (with_shadows && shadowed != 0u) {
+    uint i = uint(findLSB(shadowed));
+    shadowed &= shadowed - 1u;
+    color += ShadeLight(local_lights[shadow.shadowed[i / 4u][i % 4u]], p, n, ng, v, n_dot_v,
+                        c_diff, f0, alpha, true);
   }
   return color;
 }
