@@ -20,11 +20,11 @@ namespace {
 // Linear HDR background behind the scene.
 constexpr VkClearColorValue kBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
-// Shading pipelines per key = samples | kEffectsKey when shadows, ssao or ibl are on (shading.glsl's
-// specialization constant 0) | the material's texture slots << kTexturesShift (its constant 1:
-// a pipeline per set of slots the scene's materials use, GpuScene::texture_sets) | the debug view
-// << kDebugShift (its constant 2, ShadingDebugView).
-constexpr uint32_t kEffectsKey = 0x100;
+// Shading pipelines per key = samples | the effects << kEffectsShift (shading.glsl's
+// specialization constant 0, ShadingEffects) | the material's texture slots << kTexturesShift
+// (its constant 1: a pipeline per set of slots the scene's materials use,
+// GpuScene::texture_sets) | the debug view << kDebugShift (its constant 2, ShadingDebugView).
+constexpr uint32_t kEffectsShift = 8;
 constexpr uint32_t kTexturesShift = 16;
 constexpr uint32_t kDebugShift = 24;
 
@@ -43,12 +43,12 @@ vk::GraphicsPipelineDesc SceneDesc(const SceneLayout& layout, uint32_t samples) 
 absl::StatusOr<vk::Pipeline> CreateShading(const vk::Context& ctx, const SceneLayout& layout,
                                            PassId id, uint32_t key) {
   const bool transparent = id == PassId::kTransparent;
-  vk::GraphicsPipelineDesc d = SceneDesc(layout, key & (kEffectsKey - 1));
+  vk::GraphicsPipelineDesc d = SceneDesc(layout, key & ((1u << kEffectsShift) - 1));
   d.name = absl::StrCat(transparent ? "transparent" : "forward", ".", absl::Hex(key));
   d.vertex_shader = "forward.vert";
   d.fragment_shader = "forward.frag";
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
-  d.fragment_constants = {(key & kEffectsKey) ? 1u : 0u,
+  d.fragment_constants = {(key >> kEffectsShift) & 7u,
                           (key >> kTexturesShift) & gpu::kMaterialTexturesAll, key >> kDebugShift};
   return vk::CreateGraphicsPipeline(ctx, d);
 }
@@ -92,7 +92,7 @@ class ForwardPass final : public Pass {
   }
   static uint32_t Samples(const Settings& s) { return s.aa == AaMode::kMsaa ? s.samples : 1; }
   static uint32_t Key(const Settings& s, uint32_t samples, uint32_t textures) {
-    return samples | (s.shadows || s.ssao || s.ibl ? kEffectsKey : 0u) |
+    return samples | (ShadingEffects(s) << kEffectsShift) |
            (textures << kTexturesShift) | (ShadingDebugView(s) << kDebugShift);
   }
 

@@ -39,6 +39,11 @@ void BeginRendering(const PassContext& ctx, const VkRenderingAttachmentInfo* col
   vkCmdSetScissor(ctx.cmd, 0, 1, &full);
 }
 
+uint32_t ShadingEffects(const Settings& s) {
+  return (s.shadows ? gpu::kShadowsOn : 0u) | (s.ssao ? gpu::kSsaoOn : 0u) |
+         (s.ibl ? gpu::kIblOn : 0u);
+}
+
 uint32_t ShadingDebugView(const Settings& s) {
   switch (s.debug_view) {
     case DebugView::kNormals: return gpu::kDebugNormals;

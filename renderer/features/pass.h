@@ -504,6 +504,9 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline,
 // views of surfaces (normals, base colour, depth, light heatmap, cascades), else kDebugNone
 // (lit; the tonemap shows the other views).
 uint32_t ShadingDebugView(const Settings& s);
+// The effects shading.glsl has code for with these settings (its specialization constant 0):
+// gpu::kShadowsOn | kSsaoOn | kIblOn.
+uint32_t ShadingEffects(const Settings& s);
 // RecordSegments' default: every segment with the pipeline already bound.
 inline VkPipeline NoPipelineChange(uint32_t) { return VK_NULL_HANDLE; }
 // Binds what a draw needs that differs from the last one drawn: its material's set (when

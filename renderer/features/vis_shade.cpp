@@ -193,12 +193,13 @@ class VisClassifyPass final : public Pass {
   ModePipelines mlaa_pipelines_;
 };
 
-// The shading pipelines per key: kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp), kEffectsKey with
-// shading.glsl's shadows, SSAO and IBL (specialization constant 0), and the material's texture
-// slots << kTexturesShift (constant 1: a pipeline per set of slots the scene's materials use), and
-// the debug view << kDebugShift (constant 2, ShadingDebugView). The sky's are one each.
-constexpr uint32_t kEffectsKey = 1;
-constexpr uint32_t kMlaaKey = 2;
+// The shading pipelines per key: the effects shading.glsl has code for (specialization constant 0,
+// ShadingEffects: shadows, SSAO, IBL), kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp), the
+// material's texture slots << kTexturesShift (constant 1: a pipeline per set of slots the scene's
+// materials use) and the debug view << kDebugShift (constant 2, ShadingDebugView). The sky's are
+// one each.
+constexpr uint32_t kEffectsMask = 7;  // ShadingEffects
+constexpr uint32_t kMlaaKey = 8;
 constexpr uint32_t kTexturesShift = 8;
 constexpr uint32_t kDebugShift = 16;
 
@@ -220,14 +221,14 @@ class ShadePass final : public Pass {
             ctx, absl::StrCat(vis_mlaa ? "shade.vis_mlaa." : "shade.", absl::Hex(key)),
             vis_mlaa ? "vis_shade_mlaa.comp" : "vis_shade.comp",
             (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
-            {(key & kEffectsKey) ? 1u : 0u, (key >> kTexturesShift) & gpu::kMaterialTexturesAll,
+            {key & kEffectsMask, (key >> kTexturesShift) & gpu::kMaterialTexturesAll,
              key >> kDebugShift});
       }));
     }
     return absl::OkStatus();
   }
   static uint32_t Key(const Settings& s, uint32_t textures) {
-    return (s.shadows || s.ssao || s.ibl ? kEffectsKey : 0u) |
+    return ShadingEffects(s) |
            (s.aa == AaMode::kVisMlaa ? kMlaaKey : 0u) | (textures << kTexturesShift) |
            (ShadingDebugView(s) << kDebugShift);
   }

@@ -43,10 +43,13 @@ layout(set = 0, binding = kBindingAo) uniform sampler2D u_ao;
 layout(set = 0, binding = kBindingIrradiance) uniform samplerCube u_irradiance;
 layout(set = 0, binding = kBindingSpecular) uniform samplerCube u_specular;
 layout(set = 0, binding = kBindingBrdfLut) uniform sampler2D u_brdf_lut;
-// Pipelines are built with and without shadows and SSAO (constant 0): lavapipe runs the code of
-// an untaken branch at a cost (each doubled the shading pass of frames without them), so frames
-// without the effects use a pipeline that has none of their code.
-layout(constant_id = 0) const bool kLightingEffects = false;
+// Pipelines are built per set of the effects shadows, SSAO and IBL (constant 0: kShadowsOn |
+// kSsaoOn | kIblOn): lavapipe runs the code of an untaken branch at a cost (each doubled the
+// shading pass of frames without them), so a frame's pipeline has the code of its effects only.
+layout(constant_id = 0) const uint kLightingEffects = 0u;
+const bool kShadowCode = (kLightingEffects & kShadowsOn) != 0u;
+const bool kSsaoCode = (kLightingEffects & kSsaoOn) != 0u;
+const bool kIblCode = (kLightingEffects & kIblOn) != 0u;
 // The texture slots the shaded materials have (gpu::kMaterialTexturesAll: any): a pipeline per set
 // of slots a scene's materials use, so the sampling code of the slots they lack is not there at
 // all (lavapipe ran it under a lane mask: Sponza, whose materials have no occlusion or emissive
@@ -215,7 +218,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
     return vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
   }
 
-  vec3 color = kLightingEffects && (shadow.counts.w & kShadowsOn) != 0u
+  vec3 color = kShadowCode && (shadow.counts.w & kShadowsOn) != 0u
                    ? DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile,
                                  tile_count, true)
                    : DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile,
@@ -228,7 +231,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   // of the BRDF table.
   vec3 r = reflect(-v, n);
   vec3 ambient;
-  if (kLightingEffects && IblOn()) {
+  if (kIblCode && IblOn()) {
     float mips = float(textureQueryLevels(u_specular));
     vec3 prefiltered = textureLod(u_specular, r, roughness * (mips - 1.0)).rgb;
     vec2 ab = textureLod(u_brdf_lut, vec2(n_dot_v, roughness), 0.0).rg;
@@ -240,11 +243,11 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   }
   // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
   // not in the depth it was computed from.
-  if (kLightingEffects && (shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
+  if (kSsaoCode && (shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)
     ao *= textureLod(u_ao, SHADING_PIXEL / vec2(frame.counts.zw), 0.0).r;
   color += ambient * ao;
   color += emissive;
-  if (kLightingEffects && debug_view == kDebugCascades) {
+  if (kShadowCode && debug_view == kDebugCascades) {
     // Lit colour, tinted by the cascade; darker where the sun is shadowed.
     float lum = dot(color, vec3(0.2126, 0.7152, 0.0722));
     return vec4(CascadeColor(s.world) * (0.25 + 0.75 * clamp(lum, 0.0, 1.0)), 1.0);
