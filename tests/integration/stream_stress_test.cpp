@@ -280,6 +280,10 @@ class StressClient {
     call_.stub = v1::RenderService::NewStub(channel_);
     call_.ctx = std::make_unique<grpc::ClientContext>();
     call_.ctx->set_deadline(deadline_);  // bounds every Read, Write and Finish of the stream
+    // A viewer waits for the connection rather than giving up on its first failure: one of the
+    // eight clients once ended before its first frame with "failed to connect to all addresses"
+    // while the server was up, on a machine loaded by a parallel ctest (bounded by the deadline).
+    call_.ctx->set_wait_for_ready(true);
     call_.rw = call_.stub->Stream(call_.ctx.get());
     write_ok_ = true;
     v1::ClientEvent open;
