@@ -126,16 +126,8 @@ class ForwardPass final : public Pass {
     depth.loadOp = VK_ATTACHMENT_LOAD_OP_LOAD;
     depth.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     BeginRendering(ctx, &color, &depth);
-    // The scene's set and buffers, with the first segment's pipeline (each segment then binds
-    // its material's), or the sky's.
-    VkPipeline first = transparent ? VK_NULL_HANDLE : sky_.at(samples).handle();
-    for (const DrawSegment& seg : scene.segments()) {
-      if (Draws(seg)) {
-        first = pipeline_of(seg.material);
-        break;
-      }
-    }
-    if (first != VK_NULL_HANDLE) BeginSceneDraw(ctx, first);
+    // The scene's set and buffers; each segment binds its material's pipeline.
+    BeginSceneDraw(ctx, VK_NULL_HANDLE);
     const uint32_t phases = ctx.draws->phases;
     if (transparent) {
       RecordSegments(ctx, AlphaMode::kBlend, 0, phases, true, pipeline_of);

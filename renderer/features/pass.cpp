@@ -56,7 +56,8 @@ uint32_t ShadingDebugView(const Settings& s) {
 }
 
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline, VkPipelineLayout layout) {
-  vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
+  if (pipeline != VK_NULL_HANDLE)
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline);
   vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS,
                           layout ? layout : ctx.scene_pipeline_layout, 0, 1, &ctx.scene_set, 0,
                           nullptr);

@@ -498,6 +498,7 @@ void ResolveDepthInto(const PassContext& ctx, VkRenderingAttachmentInfo& depth);
 // Shared by the geometry passes: binds the pipeline, the frame's set and the scene buffers.
 // `layout`: the pipeline's layout when it is not the scene's (a pass with sets or push constants
 // of its own after the scene's sets).
+// `pipeline` null: none bound here (RecordSegments' pipeline_of binds each segment's).
 void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline,
                     VkPipelineLayout layout = VK_NULL_HANDLE);
 // The debug view shading.glsl draws for these settings (its specialization constant 2): the
