@@ -30,7 +30,8 @@ int TypeRank(std::string_view type) {
 const std::vector<std::string>& DisableableFeatures() {
   static const std::vector<std::string> names = {
       "draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic", "subgroup_ballot",
-      "sampler_minmax",      "visibility_buffer",   "pipeline_statistics", "material_variants"};
+      "sampler_minmax",      "visibility_buffer",   "pipeline_statistics", "material_variants",
+      "texel_buffers"};
   return names;
 }
 

@@ -26,6 +26,12 @@ static_assert(offsetof(GpuDrawable, normal_matrix) == 64);
 static_assert(offsetof(GpuDrawable, ids) == 128);
 static_assert(offsetof(GpuDrawable, sphere) == 144);
 static_assert(offsetof(GpuDrawable, aabb_max) == 176);
+// vis.glsl reads a drawable as kDrawableTexels texels of 16 bytes (world: texels 0-3, normal
+// matrix 4-6, ids 8).
+static_assert(sizeof(GpuDrawable) == kDrawableTexels * 16);
+static_assert(offsetof(GpuDrawable, normal_matrix) == 4 * 16);
+static_assert(offsetof(GpuDrawable, ids) == 8 * 16);
+static_assert(sizeof(Vertex) == kVertexTexels * 8);
 
 static_assert(sizeof(GpuLight) == 64);
 static_assert(offsetof(GpuLight, spot) == 48);

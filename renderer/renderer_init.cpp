@@ -103,16 +103,18 @@ absl::Status Renderer::Impl::Init() {
   // allocate a set per draw (bloom: eleven). Storage buffers, at most 51 in a frame: the scene
   // set 5, skinning 5, the two culling phases 8 each, light culling 5, vis_mlaa's resolve 5,
   // classification 5, shading 6 and geometric AA 4, and the motion pass 1 (taa, so not with
-  // vis_mlaa); 64 leaves room.
+  // vis_mlaa); 64 leaves room. Texel buffers: 3 in each of the resolve's, the classification's
+  // and the shading's sets.
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 64},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 192},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 48},
+      {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 16},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   dpi.maxSets = 128;
-  dpi.poolSizeCount = 4;
+  dpi.poolSizeCount = 5;
   dpi.pPoolSizes = sizes;
   VK_RETURN_IF_ERROR(vkCreateDescriptorPool(d, &dpi, nullptr, frame_pool.Replace(d)),
                      "descriptor pool");

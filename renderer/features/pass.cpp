@@ -103,14 +103,18 @@ VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout l
 SetWriter& SetWriter::Sampled(uint32_t binding, VkSampler sampler, VkImageView view,
                               VkImageLayout layout) {
   images_.push_back({sampler, view, layout});
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+  Write(binding, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER).pImageInfo = &images_.back();
+  return *this;
+}
+
+VkWriteDescriptorSet& SetWriter::Write(uint32_t binding, VkDescriptorType type) {
+  VkWriteDescriptorSet& w = writes_.emplace_back(VkWriteDescriptorSet{
+      VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET});
   w.dstSet = set_;
   w.dstBinding = binding;
   w.descriptorCount = 1;
-  w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
-  w.pImageInfo = &images_.back();
-  writes_.push_back(w);
-  return *this;
+  w.descriptorType = type;
+  return w;
 }
 
 SetWriter& SetWriter::Storage(uint32_t binding, VkImageView view) {
@@ -122,21 +126,39 @@ SetWriter& SetWriter::Storage(uint32_t binding, VkImageView view) {
 SetWriter& SetWriter::Buffer(uint32_t binding, VkBuffer buffer, VkDescriptorType type,
                              VkDeviceSize offset, VkDeviceSize range) {
   buffers_.push_back({buffer, offset, range});
-  VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
-  w.dstSet = set_;
-  w.dstBinding = binding;
-  w.descriptorCount = 1;
-  w.descriptorType = type;
-  w.pBufferInfo = &buffers_.back();
-  writes_.push_back(w);
+  Write(binding, type).pBufferInfo = &buffers_.back();
+  return *this;
+}
+
+SetWriter& SetWriter::TexelBuffer(uint32_t binding, VkBufferView view) {
+  texel_views_.push_back(view);
+  Write(binding, VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER).pTexelBufferView = &texel_views_.back();
   return *this;
 }
 
 SetWriter& SetWriter::VisibilityBuffers(const PassContext& ctx) {
-  return Buffer(gpu::kVisBindingIndices, ctx.scene->indices().handle())
-      .Buffer(gpu::kVisBindingVertices, ctx.scene->vertices().handle())
+  const GpuScene& scene = *ctx.scene;
+  Buffer(gpu::kVisBindingIndices, scene.indices().handle())
+      .Buffer(gpu::kVisBindingVertices, scene.vertices().handle())
       .Buffer(gpu::kShadeBindingEntries, ctx.shade->entries)
       .Buffer(gpu::kShadeBindingPixels, ctx.shade->pixels);
+  // The pipelines' shaders hold both paths (vis.glsl), so both are bound whichever they read.
+  return TexelBuffer(gpu::kVisBindingIndexTexels, scene.index_texels())
+      .TexelBuffer(gpu::kVisBindingVertexTexels, scene.vertex_texels())
+      .TexelBuffer(gpu::kVisBindingDrawableTexels, scene.drawable_texels());
+}
+
+std::vector<VkDescriptorSetLayoutBinding> VisibilityBufferBindings() {
+  constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
+  constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  constexpr VkDescriptorType kTexels = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+  return {LayoutBinding(gpu::kVisBindingIndices, kBuffer, kCompute),
+          LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
+          LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
+          LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute),
+          LayoutBinding(gpu::kVisBindingIndexTexels, kTexels, kCompute),
+          LayoutBinding(gpu::kVisBindingVertexTexels, kTexels, kCompute),
+          LayoutBinding(gpu::kVisBindingDrawableTexels, kTexels, kCompute)};
 }
 
 void SetWriter::Update() {

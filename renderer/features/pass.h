@@ -295,17 +295,22 @@ class SetWriter {
   SetWriter& Buffer(uint32_t binding, VkBuffer buffer,
                     VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
                     VkDeviceSize offset = 0, VkDeviceSize range = VK_WHOLE_SIZE);
+  SetWriter& TexelBuffer(uint32_t binding, VkBufferView view);
   // The visibility passes' buffers: the scene's index and vertex buffers (kVisBindingIndices,
-  // kVisBindingVertices) and the shading's entries and pixel lists (kShadeBinding*).
+  // kVisBindingVertices) and their texel views with the drawables' (kVisBindingIndexTexels...,
+  // VisibilityBufferBindings), and the shading's entries and pixel lists (kShadeBinding*).
   SetWriter& VisibilityBuffers(const PassContext& ctx);
   void Update();
   VkDescriptorSet set() const { return set_; }
 
  private:
+  // A new write of one descriptor at `binding`, for the caller to point at its info.
+  VkWriteDescriptorSet& Write(uint32_t binding, VkDescriptorType type);
   VkDevice device_;
   VkDescriptorSet set_;
   std::deque<VkDescriptorImageInfo> images_;  // stable addresses for the writes
   std::deque<VkDescriptorBufferInfo> buffers_;
+  std::deque<VkBufferView> texel_views_;
   std::vector<VkWriteDescriptorSet> writes_;
 };
 
@@ -314,6 +319,13 @@ inline VkDescriptorSetLayoutBinding LayoutBinding(uint32_t binding, VkDescriptor
                                                   VkShaderStageFlags stages) {
   return {binding, type, 1, stages, nullptr};
 }
+
+// The bindings SetWriter::VisibilityBuffers writes, for a compute pass's set 2.
+std::vector<VkDescriptorSetLayoutBinding> VisibilityBufferBindings();
+
+// The value of vis.glsl's specialization constant kVisTexels for `scene` (GpuScene::vis_texels):
+// a visibility pass's pipeline is built per value.
+inline uint32_t VisTexels(const GpuScene& scene) { return scene.vis_texels() ? 1u : 0u; }
 
 class PassLayout {
  public:

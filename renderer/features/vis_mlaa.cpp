@@ -113,21 +113,16 @@ class VisResolvePass final : public Pass {
     constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
     constexpr VkDescriptorType kImage = VK_DESCRIPTOR_TYPE_STORAGE_IMAGE;
     constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    ASSIGN_OR_RETURN(
-        p->layout_,
-        PassLayout::Create(
-            ctx,
-            {LayoutBinding(gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
-                           kCompute),
-             LayoutBinding(gpu::kResolveBindingId, kImage, kCompute),
-             LayoutBinding(gpu::kVisBindingIndices, kBuffer, kCompute),
-             LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
-             LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
-             LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute),
-             LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute),
-             LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute)},
-            {{kCompute, 0, sizeof(gpu::ShadePush)}}, "vis_resolve layout",
-            {scene.set_layout, scene.material_set_layout}));
+    std::vector<VkDescriptorSetLayoutBinding> b = VisibilityBufferBindings();
+    b.push_back(LayoutBinding(gpu::kVisBindingSamples, VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+                              kCompute));
+    b.push_back(LayoutBinding(gpu::kResolveBindingId, kImage, kCompute));
+    b.push_back(LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute));
+    b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
+    ASSIGN_OR_RETURN(p->layout_,
+                     PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
+                                        "vis_resolve layout",
+                                        {scene.set_layout, scene.material_set_layout}));
     ASSIGN_OR_RETURN(p->sampler_, CreateClampSampler(ctx, false, "vis_resolve"));
     return p;
   }
@@ -136,21 +131,28 @@ class VisResolvePass final : public Pass {
   // A pipeline per sample count (vis_resolve.comp's kSamples) and mode (kMode: each dispatch's
   // shader holds only its own code; one shader for the four cost lavapipe the grouping's
   // arithmetic on every pixel of the uniform pass); one atomic per subgroup and material where
-  // compute shaders have ballots, else per pixel (vis_resolve_atomic.comp).
-  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+  // compute shaders have ballots, else per pixel (vis_resolve_atomic.comp); and per way of
+  // reading the scene's triangles (vis.glsl's kVisTexels).
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
+                            const GpuScene& scene) override {
     if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
-    return pipelines_.Ensure(s.samples, [&](uint32_t samples) -> absl::StatusOr<ModePipelines> {
+    return pipelines_.Ensure(Key(s.samples, scene),
+                             [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
       ModePipelines made;
       for (uint32_t mode = 0; mode < made.size(); ++mode) {
         ASSIGN_OR_RETURN(
             made[mode],
             vk::CreateComputePipeline(
-                ctx, "vis_resolve",
+                ctx, absl::StrCat("vis_resolve.", absl::Hex(key)),
                 ctx.info().subgroup_ballot ? "vis_resolve.comp" : "vis_resolve_atomic.comp",
-                layout_.pipeline_layout(), {samples, mode}));
+                layout_.pipeline_layout(), {key & 0xffu, mode, 0u, key >> 8}));
       }
       return made;
     });
+  }
+  // The sample count | kVisTexels << 8.
+  static uint32_t Key(uint32_t samples, const GpuScene& scene) {
+    return samples | VisTexels(scene) << 8;
   }
 
   void Record(PassContext& ctx) override {
@@ -166,7 +168,7 @@ class VisResolvePass final : public Pass {
     WriteSet(ctx);
     auto push = [&](uint32_t mode) {
       vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                        pipelines_.at(ctx.samples)[mode].handle());
+                        pipelines_.at(Key(ctx.samples, *ctx.scene))[mode].handle());
       const gpu::ShadePush p{glm::uvec4(0u, edges, 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(p), &p);
@@ -213,7 +215,7 @@ class VisResolvePass final : public Pass {
   VkDevice device_ = VK_NULL_HANDLE;
   PassLayout layout_;
   using ModePipelines = std::array<vk::Pipeline, 4>;  // per kResolve* mode
-  PerSampleCount<ModePipelines> pipelines_;
+  PerSampleCount<ModePipelines> pipelines_;  // by Key
   vk::Sampler sampler_;
 };
 

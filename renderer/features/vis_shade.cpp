@@ -48,13 +48,9 @@ class ShadeLayout {
     constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
     constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
     constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-    std::vector<VkDescriptorSetLayoutBinding> b = {
-        LayoutBinding(gpu::kShadeBindingId, kSampled, kCompute),
-        LayoutBinding(gpu::kShadeBindingColor, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute),
-        LayoutBinding(gpu::kVisBindingIndices, kBuffer, kCompute),
-        LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
-        LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
-        LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute)};
+    std::vector<VkDescriptorSetLayoutBinding> b = VisibilityBufferBindings();
+    b.push_back(LayoutBinding(gpu::kShadeBindingId, kSampled, kCompute));
+    b.push_back(LayoutBinding(gpu::kShadeBindingColor, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, kCompute));
     if (kind != ShadeSet::kOneSample) {
       b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
     }
@@ -196,12 +192,13 @@ class VisClassifyPass final : public Pass {
 // The shading pipelines per key: the effects shading.glsl has code for (specialization constant 0,
 // ShadingEffects: shadows, SSAO, IBL), kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp), the
 // material's texture slots << kTexturesShift (constant 1: a pipeline per set of slots the scene's
-// materials use) and the debug view << kDebugShift (constant 2, ShadingDebugView). The sky's are
-// one each.
+// materials use), the debug view << kDebugShift (constant 2, ShadingDebugView) and how the scene's
+// triangles are read << kTexelsShift (vis.glsl's constant 3, VisTexels). The sky's are one each.
 constexpr uint32_t kEffectsMask = 7;  // ShadingEffects
 constexpr uint32_t kMlaaKey = 8;
 constexpr uint32_t kTexturesShift = 8;
 constexpr uint32_t kDebugShift = 16;
+constexpr uint32_t kTexelsShift = 24;
 
 class ShadePass final : public Pass {
  public:
@@ -215,22 +212,22 @@ class ShadePass final : public Pass {
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
                             const GpuScene& scene) override {
     for (const uint32_t textures : scene.texture_sets()) {
-      RETURN_IF_ERROR(shading_.Ensure(Key(s, textures), [&](uint32_t key) {
+      RETURN_IF_ERROR(shading_.Ensure(Key(s, scene, textures), [&](uint32_t key) {
         const bool vis_mlaa = (key & kMlaaKey) != 0;
         return vk::CreateComputePipeline(
             ctx, absl::StrCat(vis_mlaa ? "shade.vis_mlaa." : "shade.", absl::Hex(key)),
             vis_mlaa ? "vis_shade_mlaa.comp" : "vis_shade.comp",
             (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
             {key & kEffectsMask, (key >> kTexturesShift) & gpu::kMaterialTexturesAll,
-             key >> kDebugShift});
+             (key >> kDebugShift) & 0xffu, key >> kTexelsShift});
       }));
     }
     return absl::OkStatus();
   }
-  static uint32_t Key(const Settings& s, uint32_t textures) {
+  static uint32_t Key(const Settings& s, const GpuScene& scene, uint32_t textures) {
     return ShadingEffects(s) |
            (s.aa == AaMode::kVisMlaa ? kMlaaKey : 0u) | (textures << kTexturesShift) |
-           (ShadingDebugView(s) << kDebugShift);
+           (ShadingDebugView(s) << kDebugShift) | (VisTexels(scene) << kTexelsShift);
   }
 
   void Record(PassContext& ctx) override {
@@ -241,7 +238,8 @@ class ShadePass final : public Pass {
     VkPipeline bound = VK_NULL_HANDLE;
     // The materials whose drawables are in the frustum; the others have no pixels.
     for (const uint32_t m : ctx.vis->materials) {
-      const VkPipeline pipeline = shading_.at(Key(s, ctx.scene->material_textures(m))).handle();
+      const VkPipeline pipeline =
+          shading_.at(Key(s, *ctx.scene, ctx.scene->material_textures(m))).handle();
       if (pipeline != bound) {
         vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
         bound = pipeline;

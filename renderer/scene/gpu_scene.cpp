@@ -12,6 +12,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
+#include "renderer/log.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -355,6 +356,39 @@ absl::Status GpuScene::Keep(vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) {
   return absl::OkStatus();
 }
 
+absl::Status GpuScene::MakeTexelViews(vk::Context& ctx, const std::string& name) {
+  const VkDeviceSize max_texels = ctx.info().max_texel_buffer_elements;
+  bool whole = true;
+  auto view = [&](const vk::Buffer& buffer, VkFormat format, VkDeviceSize texel_bytes,
+                  const char* what, vk::UniqueBufferView* out) -> absl::Status {
+    // Buffer::Create keeps a 4-byte stub for an empty buffer; the index buffer's view then
+    // holds that one texel.
+    const VkDeviceSize texels = std::max<VkDeviceSize>(buffer.size(), 4) / texel_bytes;
+    if (texels == 0)
+      return absl::InternalError(absl::StrCat(name, ".", what, ": smaller than one texel"));
+    whole = whole && texels <= max_texels;
+    VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+    vi.buffer = buffer.handle();
+    vi.format = format;
+    vi.offset = 0;
+    vi.range = std::min(texels, max_texels) * texel_bytes;
+    VK_RETURN_IF_ERROR(vkCreateBufferView(ctx.device(), &vi, nullptr, out->Replace(ctx.device())),
+                       what);
+    ctx.SetName(out->get(), VK_OBJECT_TYPE_BUFFER_VIEW, absl::StrCat(name, ".", what));
+    return absl::OkStatus();
+  };
+  RETURN_IF_ERROR(view(indices_, VK_FORMAT_R32_UINT, 4, "index_texels", &index_texels_));
+  RETURN_IF_ERROR(view(vertices_, VK_FORMAT_R32G32_UINT, 8, "vertex_texels", &vertex_texels_));
+  RETURN_IF_ERROR(view(drawables_, VK_FORMAT_R32G32B32A32_UINT, 16, "drawable_texels",
+                       &drawable_texels_));
+  vis_texels_ = whole && ctx.info().texel_buffers;
+  if (!whole)
+    Log().info("{}: the visibility passes read its geometry from storage buffers (more texels "
+               "than maxTexelBufferElements, {})",
+               name, max_texels);
+  return absl::OkStatus();
+}
+
 absl::Status GpuScene::UploadAnimation(vk::Context& ctx, const CpuScene& scene) {
   const std::string& n = scene.name;
   const SceneAnimator& a = *animator_;
@@ -576,10 +610,12 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
                                      const std::vector<gpu::GpuDrawable>& drawables,
                                      const std::vector<gpu::GpuCullItem>& items) {
   const std::string& n = scene.name;
-  // vis_mlaa's resolve and shading passes read triangles from both buffers.
+  // The visibility passes read triangles from both buffers, and the drawables' records: as
+  // texel buffers where the device has them (MakeTexelViews).
+  constexpr VkBufferUsageFlags texel = VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT;
   constexpr VkBufferUsageFlags kVertexUsage =
       VK_BUFFER_USAGE_VERTEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
-      VK_BUFFER_USAGE_TRANSFER_SRC_BIT;  // and read back by tests (ReadVerticesForTesting)
+      VK_BUFFER_USAGE_TRANSFER_SRC_BIT | texel;  // and read back by tests (ReadVerticesForTesting)
   // An animated scene's deformed drawables have their copies after the scene's vertices. skin.comp
   // indexes every buffer it reads by 32-bit float offsets: checked before anything is made.
   if (animator_) {
@@ -593,7 +629,10 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   }
   std::vector<Vertex> with_copies;
   if (animator_) with_copies = animator_->VertexData(scene);
-  const std::vector<Vertex>& vertices = animator_ ? with_copies : scene.vertices;
+  const bool own = animator_ || scene.vertices.empty();
+  // A buffer holds at least one texel for its view (a scene may have no geometry).
+  if (own && with_copies.empty()) with_copies.resize(1);
+  const std::vector<Vertex>& vertices = own ? with_copies : scene.vertices;
   absl::Status st = Keep(
       vertices_, UploadBuffer(ctx, vertices.data(), vertices.size() * sizeof(Vertex),
                               kVertexUsage, n + ".vertices"));
@@ -601,22 +640,27 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   if (st.ok())
     st = Keep(indices_,
                 UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
-                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,
+                             VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                 texel,
                              n + ".indices"));
   if (!st.ok()) return st;
 
   st = Keep(materials_,
               UploadBuffer(ctx, materials.data(), materials.size() * sizeof(gpu::GpuMaterial),
                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".materials"));
+  const std::vector<gpu::GpuDrawable> one_drawable(drawables.empty() ? 1 : 0);
+  const std::vector<gpu::GpuDrawable>& records = drawables.empty() ? one_drawable : drawables;
   if (st.ok())
     st = Keep(drawables_,
-                UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
-                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".drawables"));
+                UploadBuffer(ctx, records.data(), records.size() * sizeof(gpu::GpuDrawable),
+                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | texel, n + ".drawables"));
   if (st.ok())
     st =
         Keep(cull_items_, UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),
                                          VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".cull_items"));
   if (!st.ok()) return st;
+
+  RETURN_IF_ERROR(MakeTexelViews(ctx, n));
 
   // The same materials for uniform reads, one aligned range per material (set 1, binding 0).
   const VkDeviceSize align =

@@ -94,6 +94,15 @@ class GpuScene {
   const vk::Buffer& indices() const { return indices_; }
   const vk::Buffer& drawables() const { return drawables_; }
   const vk::Buffer& materials() const { return materials_; }
+  // The index, vertex and drawable buffers as uniform texel buffers for the visibility passes
+  // (R32_UINT, R32G32_UINT, R32G32B32A32_UINT: gpu_types.h, kVisBindingIndexTexels), each over
+  // as much of its buffer as maxTexelBufferElements allows. vis_texels(): they cover the whole
+  // buffers and DeviceInfo::texel_buffers is on: the visibility passes read them instead of the
+  // storage buffers.
+  VkBufferView index_texels() const { return index_texels_.get(); }
+  VkBufferView vertex_texels() const { return vertex_texels_.get(); }
+  VkBufferView drawable_texels() const { return drawable_texels_.get(); }
+  bool vis_texels() const { return vis_texels_; }
   // The texture buckets; a scene without textures has one 1x1 placeholder, so every material
   // set binding is valid.
   const std::vector<vk::Image>& texture_buckets() const { return buckets_; }
@@ -170,12 +179,15 @@ class GpuScene {
   absl::Status UploadAnimation(vk::Context& ctx, const CpuScene& scene);
   // Takes `src` into `dst`, counting it in device_bytes().
   absl::Status Keep(vk::Buffer& dst, absl::StatusOr<vk::Buffer> src);
+  absl::Status MakeTexelViews(vk::Context& ctx, const std::string& name);
   absl::Status UploadTextures(vk::Context& ctx, const CpuScene& scene,
                               const TextureBucketPlan& plan);
   absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
                                  VkDescriptorSetLayout material_layout);
 
   vk::Buffer vertices_, indices_, drawables_, materials_;
+  vk::UniqueBufferView index_texels_, vertex_texels_, drawable_texels_;  // after their buffers
+  bool vis_texels_ = false;
   vk::Buffer material_uniforms_;  // the materials again, each at a uniform-offset-aligned stride
   VkDeviceSize material_stride_ = 0;
   std::vector<vk::Image> buckets_;

@@ -350,6 +350,8 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
         VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_ARITHMETIC_BIT;
     info.subgroup_arithmetic = compute && (sub.supportedOperations & kArithmetic) == kArithmetic;
   }
+  info.max_texel_buffer_elements = p.limits.maxTexelBufferElements;
+  info.texel_buffers = true;  // the formats are mandatory: checked in InitDevice
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;
   info.timestamp_period_ns = p.limits.timestampPeriod;
@@ -387,6 +389,10 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                    "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
   if (!info.pipeline_statistics)
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
+  if (!info.texel_buffers)
+    out.push_back({"texel_buffers (disabled)",
+                   "the visibility passes read the scene's vertices, indices and drawables "
+                   "from storage buffers"});
   if (info.max_samples < kMaxSamples)
     out.push_back({absl::StrCat(kMaxSamples, "x multisampling"),
                    absl::StrCat("samples clamped to ", info.max_samples)});
@@ -419,12 +425,24 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
         p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
   }
 
+  // The visibility passes bind the scene's buffers as texel buffers of these formats (on every
+  // device: their shaders hold both paths), which Vulkan requires of every device.
+  for (const VkFormat format :
+       {VK_FORMAT_R32_UINT, VK_FORMAT_R32G32_UINT, VK_FORMAT_R32G32B32A32_UINT}) {
+    VkFormatProperties fp{};
+    vkGetPhysicalDeviceFormatProperties(physical_, format, &fp);
+    if (!(fp.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT))
+      return absl::FailedPreconditionError(
+          absl::StrCat(p.deviceName, " lacks uniform texel buffers of format ", int(format),
+                       " (R32_UINT, R32G32_UINT and R32G32B32A32_UINT are mandatory)"));
+  }
   DescribeDevice(p, driver, supported, validation);
   DeviceInfo& info = info_;
   if (off("subgroup_arithmetic")) info.subgroup_arithmetic = false;
   if (off("subgroup_ballot")) info.subgroup_ballot = false;
   if (off("visibility_buffer")) info.visibility_buffer = false;
   if (off("material_variants")) info.material_variants = false;
+  if (off("texel_buffers")) info.texel_buffers = false;
   if (off("pipeline_statistics")) supported.pipelineStatisticsQuery = VK_FALSE;
   if (off("multi_draw_indirect")) supported.multiDrawIndirect = VK_FALSE;
   info.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;

@@ -1,7 +1,8 @@
 #pragma once
 // Unique<T, Destroy>: a move-only owner of one device-level Vulkan handle, destroyed with
 // Destroy(device, handle, nullptr). For the handles that need nothing more than that (command
-// pools, fences, query pools, descriptor pools and layouts, pipeline layouts, image views);
+// pools, fences, query pools, descriptor pools and layouts, pipeline layouts, image and buffer
+// views);
 // buffers, images and samplers have their own owners in resources.h.
 #include <vulkan/vulkan.h>
 
@@ -54,5 +55,6 @@ using UniqueDescriptorPool = Unique<VkDescriptorPool, vkDestroyDescriptorPool>;
 using UniqueDescriptorSetLayout = Unique<VkDescriptorSetLayout, vkDestroyDescriptorSetLayout>;
 using UniquePipelineLayout = Unique<VkPipelineLayout, vkDestroyPipelineLayout>;
 using UniqueImageView = Unique<VkImageView, vkDestroyImageView>;
+using UniqueBufferView = Unique<VkBufferView, vkDestroyBufferView>;
 
 }  // namespace tessera::vk

@@ -139,6 +139,19 @@ TS_CONST uint kVisSet = 2;              // the vis passes' own descriptor set
 TS_CONST uint kVisBindingSamples = 0;   // resolve: usampler2DMS, the visibility ids
 TS_CONST uint kVisBindingIndices = 2;   // resolve, shade: buffer uint[] the scene's index buffer
 TS_CONST uint kVisBindingVertices = 3;  // resolve, shade: buffer float[] the scene's vertex buffer
+// The same buffers and the scene's drawables as uniform texel buffers (resolve, classification
+// and shading sets): lavapipe loads a storage-buffer word at a per-lane offset in a loop over the
+// lanes, one word at a time, and fetches a texel of up to four words in one gather. The
+// vertices as R32G32_UINT (kVertexTexels per vertex), the indices as R32_UINT, the drawables as
+// R32G32B32A32_UINT (kDrawableTexels each), all bit-exact (uintBitsToFloat). Read where the
+// scene's buffers fit maxTexelBufferElements (GpuScene::vis_texels): vis.glsl's specialization
+// constant kVisTexelsConstant; else the storage buffers (the views then cover what fits).
+TS_CONST uint kVisBindingIndexTexels = 10;
+TS_CONST uint kVisBindingVertexTexels = 11;
+TS_CONST uint kVisBindingDrawableTexels = 12;
+TS_CONST uint kVisTexelsConstant = 3;
+TS_CONST uint kVertexTexels = 7;     // kVertexFloats / 2
+TS_CONST uint kDrawableTexels = 12;  // sizeof(GpuDrawable) / 16 (asserted below)
 // skin.comp: the scene's vertex buffer (read the rest vertices, write the deformed copies),
 // per vertex its joints and weights (two uvec4: joints, then the weights' float bits), the morph
 // deltas (kMorphDeltaFloats each: position, normal, tangent), and the pose (joint matrices, then

@@ -1,5 +1,6 @@
 // vis_mlaa: visibility ids, the standard sample positions, the coverage word, and reading the
-// scene's triangles from its index and vertex buffers (set kVisSet, bindings 2 and 3).
+// scene's triangles and drawables (set kVisSet: bindings 2 and 3, or the texel buffers 10-12).
+// Needs scene.glsl (the drawables' storage buffer).
 #ifndef TESSERA_VIS_GLSL
 #define TESSERA_VIS_GLSL
 #include "gpu_types.h"
@@ -11,6 +12,13 @@ layout(set = kVisSet, binding = kVisBindingIndices, std430) readonly buffer VisI
 layout(set = kVisSet, binding = kVisBindingVertices, std430) readonly buffer VisVertexBlock {
   float vis_vertices[];
 };
+// The same and the drawables as texel buffers (gpu_types.h, kVisBindingIndexTexels): a pipeline
+// reads one or the other, as its specialization constant says.
+layout(set = kVisSet, binding = kVisBindingIndexTexels) uniform usamplerBuffer vis_index_texels;
+layout(set = kVisSet, binding = kVisBindingVertexTexels) uniform usamplerBuffer vis_vertex_texels;
+layout(set = kVisSet, binding = kVisBindingDrawableTexels) uniform usamplerBuffer
+    vis_drawable_texels;
+layout(constant_id = kVisTexelsConstant) const bool kVisTexels = false;
 
 uint VisDrawable(uint id, uint triangle_bits) { return (id >> triangle_bits) - 1u; }
 uint VisTriangle(uint id, uint triangle_bits) { return id & ((1u << triangle_bits) - 1u); }
@@ -42,20 +50,28 @@ uint PackCoverage(uint mask, vec2 mean) {
 uint CoverageMask(uint word) { return word & 0xffu; }
 vec2 CoverageMean(uint word) { return vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0; }
 
-// One vertex of the scene's vertex buffer (scene::Vertex, kVertexFloats floats).
+// One vertex of the scene's vertex buffer (scene::Vertex, kVertexFloats floats; as texels: xy
+// position.xy, then position.z normal.x, normal.yz, tangent.xy, tangent.zw, uv0, uv1).
+vec2 VertexTexel(uint v, uint t) {
+  return uintBitsToFloat(texelFetch(vis_vertex_texels, int(v * kVertexTexels + t)).xy);
+}
 vec3 VertexPosition(uint v) {
+  if (kVisTexels) return vec3(VertexTexel(v, 0u), VertexTexel(v, 1u).x);
   uint b = v * kVertexFloats;
   return vec3(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u]);
 }
 vec3 VertexNormal(uint v) {
+  if (kVisTexels) return vec3(VertexTexel(v, 1u).y, VertexTexel(v, 2u));
   uint b = v * kVertexFloats + 3u;
   return vec3(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u]);
 }
 vec4 VertexTangent(uint v) {
+  if (kVisTexels) return vec4(VertexTexel(v, 3u), VertexTexel(v, 4u));
   uint b = v * kVertexFloats + 6u;
   return vec4(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u], vis_vertices[b + 3u]);
 }
 vec4 VertexUvs(uint v) {  // xy TEXCOORD_0, zw TEXCOORD_1
+  if (kVisTexels) return vec4(VertexTexel(v, 5u), VertexTexel(v, 6u));
   uint b = v * kVertexFloats + 10u;
   return vec4(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u], vis_vertices[b + 3u]);
 }
@@ -64,7 +80,28 @@ vec4 VertexUvs(uint v) {  // xy TEXCOORD_0, zw TEXCOORD_1
 uvec3 TriangleVertices(uvec4 drawable_ids, uint triangle) {
   uint first = drawable_ids.z + 3u * triangle;
   int offset = int(drawable_ids.w);
+  if (kVisTexels) {
+    return uvec3(int(texelFetch(vis_index_texels, int(first)).x) + offset,
+                 int(texelFetch(vis_index_texels, int(first + 1u)).x) + offset,
+                 int(texelFetch(vis_index_texels, int(first + 2u)).x) + offset);
+  }
   return uvec3(uint(int(vis_indices[first]) + offset), uint(int(vis_indices[first + 1u]) + offset),
                uint(int(vis_indices[first + 2u]) + offset));
 }
+
+// Drawable `d`'s record (scene.glsl's drawables[d]): its world matrix, normal matrix and ids.
+uvec4 DrawableTexel(uint d, uint t) {
+  return texelFetch(vis_drawable_texels, int(d * kDrawableTexels + t));
+}
+mat4 DrawableWorld(uint d) {
+  if (!kVisTexels) return drawables[d].world;
+  return mat4(uintBitsToFloat(DrawableTexel(d, 0u)), uintBitsToFloat(DrawableTexel(d, 1u)),
+              uintBitsToFloat(DrawableTexel(d, 2u)), uintBitsToFloat(DrawableTexel(d, 3u)));
+}
+mat3 DrawableNormalMatrix(uint d) {
+  if (!kVisTexels) return mat3(drawables[d].normal_matrix);
+  return mat3(uintBitsToFloat(DrawableTexel(d, 4u).xyz), uintBitsToFloat(DrawableTexel(d, 5u).xyz),
+              uintBitsToFloat(DrawableTexel(d, 6u).xyz));
+}
+uvec4 DrawableIds(uint d) { return kVisTexels ? DrawableTexel(d, 8u) : drawables[d].ids; }
 #endif

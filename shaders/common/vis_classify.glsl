@@ -86,7 +86,7 @@ void main() {
     if (i >= entries[edges].dispatch.w) return;
     uvec2 r = runner_ups[i];
     if ((r.y & 0xffu) == 0u || RunnerUpSource(r.y) != kRunnerUpShaded) return;
-    uint m = r.x == 0u ? push.params.y : drawables[VisDrawable(r.x, frame.aa.x)].ids.y;
+    uint m = r.x == 0u ? push.params.y : DrawableIds(VisDrawable(r.x, frame.aa.x)).y;
     uint slot = Append(m, true);
     pixels[entries[m].list.x + slot] = kRunnerUpEntry | i;
     return;
@@ -97,7 +97,7 @@ void main() {
   uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
   uint m = !inside ? kNoMaterial
            : id == 0u ? push.params.y  // the sky
-                      : drawables[VisDrawable(id, frame.aa.x)].ids.y;
+                      : DrawableIds(VisDrawable(id, frame.aa.x)).y;
   if (m == kNoMaterial) return;
   if (kMode == kClassifyCount) {
     Append(m, false);

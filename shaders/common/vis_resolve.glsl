@@ -44,7 +44,7 @@ layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) buffer RunnerUpB
 // The entry an id's pixels are counted in: its drawable's material's, or the sky's (the entry
 // before the edge list's).
 uint MaterialOf(uint id, uint edges) {
-  return id == 0u ? edges - 1u : drawables[VisDrawable(id, frame.aa.x)].ids.y;
+  return id == 0u ? edges - 1u : DrawableIds(VisDrawable(id, frame.aa.x)).y;
 }
 
 // The sample count: a specialization constant (a pipeline per count), so the loops over samples
@@ -116,7 +116,7 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
   uvec3 tv[kSamples];  // each sample's triangle's vertices (0 for none)
   for (uint s = 0u; s < kSamples; ++s)
     tv[s] = ids[s] == 0u ? uvec3(0u)
-                         : TriangleVertices(drawables[VisDrawable(ids[s], tb)].ids,
+                         : TriangleVertices(DrawableIds(VisDrawable(ids[s], tb)),
                                             VisTriangle(ids[s], tb));
   uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
   for (uint s = 0u; s < kSamples; ++s) same[s] = 1u << s;
@@ -164,7 +164,7 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
   if ((record.y & 0xffu) == 0u) return;
   uint tb = frame.aa.x;
   uvec3 tv = record.x == 0u ? uvec3(0u)
-                            : TriangleVertices(drawables[VisDrawable(record.x, tb)].ids,
+                            : TriangleVertices(DrawableIds(VisDrawable(record.x, tb)),
                                                VisTriangle(record.x, tb));
   vec2 toward = RunnerUpMean(record.y) - vec2(0.5);
   float sector = atan(toward.y, toward.x) / (0.25 * 3.14159265359);
@@ -183,7 +183,7 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
     if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
     uint other = imageLoad(u_id, q).r;
     uvec3 ov = other == 0u ? uvec3(0u)
-                           : TriangleVertices(drawables[VisDrawable(other, tb)].ids,
+                           : TriangleVertices(DrawableIds(VisDrawable(other, tb)),
                                               VisTriangle(other, tb));
     if (SameSurface(record.x, other, tv, ov)) source = uint(n);
   }

@@ -37,8 +37,8 @@ Triangle LoadTriangle(uint id) {
   Triangle t;
   uint tb = frame.aa.x;
   t.drawable = VisDrawable(id, tb);
-  mat4 world = drawables[t.drawable].world;
-  t.v = TriangleVertices(drawables[t.drawable].ids, VisTriangle(id, tb));
+  mat4 world = DrawableWorld(t.drawable);
+  t.v = TriangleVertices(DrawableIds(t.drawable), VisTriangle(id, tb));
   t.p0 = (world * vec4(VertexPosition(t.v.x), 1.0)).xyz;
   t.e1 = (world * vec4(VertexPosition(t.v.y), 1.0)).xyz - t.p0;
   t.e2 = (world * vec4(VertexPosition(t.v.z), 1.0)).xyz - t.p0;
@@ -47,7 +47,7 @@ Triangle LoadTriangle(uint id) {
 
 // The surface of `tri` seen through `pixel` (framebuffer pixels), `b` its barycentrics there.
 SurfaceInput VisSurface(Triangle tri, vec3 b, vec2 pixel) {
-  mat4 world = drawables[tri.drawable].world;
+  mat4 world = DrawableWorld(tri.drawable);
   vec3 bx = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel + vec2(1.0, 0.0)));
   vec3 by = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel + vec2(0.0, 1.0)));
   uvec3 v = tri.v;
@@ -65,7 +65,7 @@ SurfaceInput VisSurface(Triangle tri, vec3 b, vec2 pixel) {
 
   SurfaceInput s;
   s.world = tri.p0 + b.y * tri.e1 + b.z * tri.e2;
-  s.normal = mat3(drawables[tri.drawable].normal_matrix) * n;
+  s.normal = DrawableNormalMatrix(tri.drawable) * n;
   s.tangent = vec4(mat3(world) * t.xyz, VertexTangent(v.x).w);
   s.uv0 = uv.xy;
   s.uv1 = uv.zw;

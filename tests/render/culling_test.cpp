@@ -234,15 +234,17 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // without drawIndirectCount (and one command per call without multiDrawIndirect), culling's
 // prefix sum without subgroup arithmetic, classification without ballots, the depth pyramid
 // without min/max samplers; and every material shaded by the general pipeline instead of its set
-// of texture slots' (material_variants: Sponza's materials have two sets). Each frame must equal
-// the one the full feature set renders, pixel for pixel, in every culling mode and both
-// pipelines; and the frame stats must agree.
+// of texture slots' (material_variants: Sponza's materials have two sets); and the visibility
+// passes reading the scene's triangles from storage buffers instead of texel buffers
+// (texel_buffers). Each frame must equal the one the full feature set renders, pixel for pixel,
+// in every culling mode and both pipelines; and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   Renderer& r = SharedRenderer();
   absl::StatusOr<std::unique_ptr<Renderer>> lean = Renderer::Create(
       {.validation = true,
        .disable_features = {"draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic",
-                            "subgroup_ballot", "sampler_minmax", "material_variants"}});
+                            "subgroup_ballot", "sampler_minmax", "material_variants",
+                            "texel_buffers"}});
   ASSERT_TRUE(lean.ok()) << lean.status();
   const DeviceInfo& info = (*lean)->device_info();
   EXPECT_FALSE(info.draw_indirect_count);
@@ -252,6 +254,8 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_FALSE(info.subgroup_ballot);
   EXPECT_FALSE(info.material_variants);
   EXPECT_TRUE(r.device_info().material_variants);
+  EXPECT_FALSE(info.texel_buffers);
+  EXPECT_TRUE(r.device_info().texel_buffers);
   std::vector<std::string> missing;
   for (const DeviceFallback& f : info.fallbacks) missing.push_back(f.missing);
   for (const char* want : {"drawIndirectCount", "multiDrawIndirect"})
