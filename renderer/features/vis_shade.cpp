@@ -111,16 +111,41 @@ void ComputeBarrier(VkCommandBuffer cmd, bool indirect = false) {
 // resolve's edge list, with vis_mlaa's layout).
 class VisClassifyPass final : public Pass {
  public:
-  // A pipeline per mode (vis_classify.glsl's specialization constant 0, kClassify*): the one
-  // sample pipeline's and vis_mlaa's. A mode a layout does not run has a null pipeline.
-  using ModePipelines = std::array<vk::Pipeline, 4>;
-  VisClassifyPass(ShadeLayout one, ModePipelines pipelines, ShadeLayout mlaa,
-                  ModePipelines mlaa_pipelines)
-      : one_(std::move(one)),
-        pipelines_(std::move(pipelines)),
-        mlaa_(std::move(mlaa)),
-        mlaa_pipelines_(std::move(mlaa_pipelines)) {}
+  VisClassifyPass(ShadeLayout one, ShadeLayout mlaa) : one_(std::move(one)), mlaa_(std::move(mlaa)) {}
   PassId id() const override { return PassId::kVisClassify; }
+
+  // A pipeline per mode (vis_classify.glsl's specialization constant 0, kClassify*), for the one
+  // sample classification or vis_mlaa's, and per way of reading the drawables (vis.glsl's
+  // kVisTexels), built for the first frame that needs them. One atomic per subgroup and material
+  // where compute shaders have ballots, else per pixel.
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
+                            const GpuScene& scene) override {
+    const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
+    const bool ballots = ctx.info().subgroup_ballot;
+    return (vis_mlaa ? mlaa_pipelines_ : pipelines_)
+        .Ensure(VisTexels(scene), [&](uint32_t texels) -> absl::StatusOr<ModePipelines> {
+          ModePipelines made;
+          // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
+          const std::vector<uint32_t> modes =
+              vis_mlaa ? std::vector<uint32_t>{gpu::kClassifyScan, gpu::kClassifyFillRunnerUps,
+                                               gpu::kClassifyFill}
+                       : std::vector<uint32_t>{gpu::kClassifyCount, gpu::kClassifyScan,
+                                               gpu::kClassifyFill};
+          const char* shader = vis_mlaa ? (ballots ? "vis_classify_mlaa.comp"
+                                                   : "vis_classify_atomic_mlaa.comp")
+                                        : (ballots ? "vis_classify.comp"
+                                                   : "vis_classify_atomic.comp");
+          for (const uint32_t mode : modes) {
+            ASSIGN_OR_RETURN(
+                made[mode],
+                vk::CreateComputePipeline(
+                    ctx, absl::StrCat(vis_mlaa ? "vis_classify.vis_mlaa." : "vis_classify.", mode,
+                                      texels ? ".texels" : ""),
+                    shader, (vis_mlaa ? mlaa_ : one_).pipeline_layout(), {mode, 0u, 0u, texels}));
+          }
+          return made;
+        });
+  }
 
   void Record(PassContext& ctx) override {
     const ShadeBuffers& sb = *ctx.shade;
@@ -139,7 +164,8 @@ class VisClassifyPass final : public Pass {
           VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
           VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     }
-    const ModePipelines& pipelines = vis_mlaa ? mlaa_pipelines_ : pipelines_;
+    const ModePipelines& pipelines =
+        (vis_mlaa ? mlaa_pipelines_ : pipelines_).at(VisTexels(*ctx.scene));
     layout.Bind(ctx);
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
@@ -183,10 +209,10 @@ class VisClassifyPass final : public Pass {
   }
 
  private:
-  ShadeLayout one_;
-  ModePipelines pipelines_;
-  ShadeLayout mlaa_;
-  ModePipelines mlaa_pipelines_;
+  // A mode the classification does not run has a null pipeline.
+  using ModePipelines = std::array<vk::Pipeline, 4>;
+  ShadeLayout one_, mlaa_;
+  PerSampleCount<ModePipelines> pipelines_, mlaa_pipelines_;  // by VisTexels
 };
 
 // The shading pipelines per key: the effects shading.glsl has code for (specialization constant 0,
@@ -277,27 +303,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& c
   ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample));
   ASSIGN_OR_RETURN(ShadeLayout mlaa,
                    ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaaClassify));
-  // One atomic per subgroup and material where compute shaders have ballots, else per pixel.
-  const bool ballots = ctx.info().subgroup_ballot;
-  VisClassifyPass::ModePipelines pipelines, mlaa_pipelines;
-  for (const uint32_t mode : {gpu::kClassifyCount, gpu::kClassifyScan, gpu::kClassifyFill}) {
-    ASSIGN_OR_RETURN(pipelines[mode], vk::CreateComputePipeline(
-                                          ctx, "vis_classify",
-                                          ballots ? "vis_classify.comp" : "vis_classify_atomic.comp",
-                                          one.pipeline_layout(), {mode}));
-  }
-  // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
-  for (const uint32_t mode :
-       {gpu::kClassifyScan, gpu::kClassifyFillRunnerUps, gpu::kClassifyFill}) {
-    ASSIGN_OR_RETURN(
-        mlaa_pipelines[mode],
-        vk::CreateComputePipeline(
-            ctx, "vis_classify.vis_mlaa",
-            ballots ? "vis_classify_mlaa.comp" : "vis_classify_atomic_mlaa.comp",
-            mlaa.pipeline_layout(), {mode}));
-  }
-  return std::make_unique<VisClassifyPass>(std::move(one), std::move(pipelines), std::move(mlaa),
-                                           std::move(mlaa_pipelines));
+  return std::make_unique<VisClassifyPass>(std::move(one), std::move(mlaa));
 }
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
