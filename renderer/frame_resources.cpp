@@ -265,9 +265,14 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
   tiles = std::max(tiles, 1u);
   if (lights > light_capacity) {
     const uint32_t cap = std::max(lights, light_capacity * 2);
+    local_light_texels.Reset();  // before its buffer goes
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLight),
-                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, vk::MemoryUsage::kDynamic,
-                               "local_lights", &local_lights));
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                   VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
+                               vk::MemoryUsage::kDynamic, "local_lights", &local_lights));
+    ASSIGN_OR_RETURN(local_light_texels,
+                     vk::CreateTexelView(*ctx, local_lights, VK_FORMAT_R32G32B32A32_UINT, 16,
+                                         "local_light_texels"));
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                    VK_BUFFER_USAGE_TRANSFER_SRC_BIT,  // captures
@@ -279,10 +284,14 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
         MakeBuffer(*ctx, VkDeviceSize(tiles) * 4,
                    VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                    vk::MemoryUsage::kDeviceLocal, "tile_counts", &tile_counts));
-    RETURN_IF_ERROR(
-        MakeBuffer(*ctx, VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
-                   VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
-                   vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights));
+    tile_light_texels.Reset();
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(tiles) * gpu::kMaxLightsPerTile * 4,
+                               VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
+                                   VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+                                   VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
+                               vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights));
+    ASSIGN_OR_RETURN(tile_light_texels, vk::CreateTexelView(*ctx, tile_lights, VK_FORMAT_R32_UINT,
+                                                            4, "tile_light_texels"));
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                vk::MemoryUsage::kReadback, "tile_counts_readback",
                                &tile_counts_readback));
@@ -355,6 +364,8 @@ VkDescriptorSet Renderer::Impl::WriteSceneSet(const GpuScene& scene, bool shadow
       .Sampled(gpu::kBindingBrdfLut, ibl_sampler, (on ? ibl->brdf_lut() : ao_placeholder).view())
       .Sampled(gpu::kBindingEnvironment, ibl_sampler,
                (on ? ibl->environment() : cube_placeholder).view())
+      .TexelBuffer(gpu::kBindingLocalLightTexels, local_light_texels.get())
+      .TexelBuffer(gpu::kBindingTileLightTexels, tile_light_texels.get())
       .Update();
   return set;
 }

@@ -32,6 +32,7 @@ static_assert(sizeof(GpuDrawable) == kDrawableTexels * 16);
 static_assert(offsetof(GpuDrawable, normal_matrix) == 4 * 16);
 static_assert(offsetof(GpuDrawable, ids) == 8 * 16);
 static_assert(sizeof(Vertex) == kVertexTexels * 8);
+static_assert(sizeof(GpuLight) == kGpuLightTexels * 16);  // shading.glsl's LocalLight
 
 static_assert(sizeof(GpuLight) == 64);
 static_assert(offsetof(GpuLight, spot) == 48);

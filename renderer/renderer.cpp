@@ -92,8 +92,11 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
     FrameFeatures features;
     for (const DrawSegment& seg : gpu->segments())
       features.has_transparent = features.has_transparent || seg.group == AlphaMode::kBlend;
-    const absl::Status warmed = impl_->PreparePasses(PlanFrame(defaults->effective, features),
-                                                     defaults->effective, *gpu);
+    const Settings& d = defaults->effective;
+    features.light_texels = impl_->LightTexelsFit(
+        gpu->lights().size(), TileGrid{d.width, d.height, d.tile_size}.tiles());
+    const absl::Status warmed =
+        impl_->PreparePasses(PlanFrame(d, features), d, *gpu, features);
     if (!warmed.ok())
       Log().warn("scene {}: building its pipelines: {}", cpu.name, warmed.ToString());
   }
@@ -103,13 +106,19 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
 }
 
 absl::Status Renderer::Impl::PreparePasses(const FramePlan& plan, const Settings& s,
-                                           const GpuScene& gs) {
+                                           const GpuScene& gs, const FrameFeatures& features) {
   for (const PlannedPass& p : plan.passes) {
     Pass& pass = *passes[static_cast<size_t>(p.id)];
     RETURN_IF_ERROR(pass.Prepare(*ctx, s));
-    RETURN_IF_ERROR(pass.PrepareScene(*ctx, s, gs));
+    RETURN_IF_ERROR(pass.PrepareScene(*ctx, s, gs, features));
   }
   return absl::OkStatus();
+}
+
+bool Renderer::Impl::LightTexelsFit(uint64_t lights, uint64_t tiles) const {
+  const uint64_t max = ctx->info().max_texel_buffer_elements;
+  return ctx->info().texel_buffers && lights * gpu::kGpuLightTexels <= max &&
+         tiles * gpu::kMaxLightsPerTile <= max;
 }
 
 uint64_t Renderer::EstimateDeviceBytes(const CpuScene& scene) const {
@@ -289,13 +298,15 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.exposure_valid = f.exposure.state_valid;
   features.pose_pending = gs.pose_pending();
   features.object_motion = f.taa.motion_pass;
+  features.light_texels = f.light_buffers.texels;
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
-  RETURN_IF_ERROR(m.PreparePasses(plan, s, gs));
+  RETURN_IF_ERROR(m.PreparePasses(plan, s, gs, features));
   VK_CHECK(vkResetDescriptorPool(m.ctx->device(), m.frame_pool.get(), 0));
   f.scene_set = m.WriteSceneSet(gs, s.shadows, s.ssao, s.ibl);
   PassContext pc = m.MakePassContext(f);
   pc.post_color = plan.scene_color;
+  pc.features = &features;
   ASSIGN_OR_RETURN(GraphExecutor::Result run,
                    m.executor->Execute(
                        plan, [&](Resource r) -> const vk::Image& { return m.targets.Get(r); },

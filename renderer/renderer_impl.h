@@ -128,6 +128,9 @@ struct Renderer::Impl {
   vk::Buffer tile_counts;
   vk::Buffer tile_lights;
   vk::Buffer tile_counts_readback;
+  // local_lights and tile_lights as texel buffers (gpu::kBindingLocalLightTexels), remade with
+  // them.
+  vk::UniqueBufferView local_light_texels, tile_light_texels;
   vk::Buffer row_lights;  // lights binned by tile row (light_cull.comp)
   uint32_t row_capacity = 0;
   // light_binning gpu: the bounds and row lists the GPU writes (device-local).
@@ -226,7 +229,11 @@ struct Renderer::Impl {
   VkDescriptorSet WriteSceneSet(const GpuScene& scene, bool shadows, bool ssao, bool ibl);
   // Each planned pass builds what it lacks for settings `s` and scene `gs` (Pass::Prepare, then
   // Pass::PrepareScene): before a frame, and with the default settings when a scene is loaded.
-  absl::Status PreparePasses(const FramePlan& plan, const Settings& s, const GpuScene& gs);
+  absl::Status PreparePasses(const FramePlan& plan, const Settings& s, const GpuScene& gs,
+                             const FrameFeatures& features);
+  // Whether `lights` local lights and the light lists of `tiles` tiles fit the device's texel
+  // buffers (LightCullBuffers::texels).
+  bool LightTexelsFit(uint64_t lights, uint64_t tiles) const;
   // The long-lived images this frame imports into its graph (FrameTargets::shadow_atlas ...).
   void ImportTargets(const FrameData& f);
   // What the passes record with.

@@ -18,6 +18,7 @@ absl::Status Renderer::Impl::InitLayouts() {
   constexpr VkDescriptorType kUniform = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
   constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   constexpr VkDescriptorType kSampled = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+  constexpr VkDescriptorType kTexels = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
   std::vector<VkDescriptorSetLayoutBinding> bindings = {
       LayoutBinding(gpu::kBindingFrame, kUniform, kVertexPixel),
       LayoutBinding(gpu::kBindingLights, kUniform, kPixel),
@@ -33,6 +34,8 @@ absl::Status Renderer::Impl::InitLayouts() {
       LayoutBinding(gpu::kBindingSpecular, kSampled, kPixel),
       LayoutBinding(gpu::kBindingBrdfLut, kSampled, kPixel),
       LayoutBinding(gpu::kBindingEnvironment, kSampled, kPixel),
+      LayoutBinding(gpu::kBindingLocalLightTexels, kTexels, kPixel),
+      LayoutBinding(gpu::kBindingTileLightTexels, kTexels, kPixel),
   };
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
@@ -103,14 +106,14 @@ absl::Status Renderer::Impl::Init() {
   // allocate a set per draw (bloom: eleven). Storage buffers, at most 51 in a frame: the scene
   // set 5, skinning 5, the two culling phases 8 each, light culling 5, vis_mlaa's resolve 5,
   // classification 5, shading 6 and geometric AA 4, and the motion pass 1 (taa, so not with
-  // vis_mlaa); 64 leaves room. Texel buffers: 3 in each of the resolve's, the classification's
-  // and the shading's sets.
+  // vis_mlaa); 64 leaves room. Texel buffers: 2 in the scene set, 3 in each of the resolve's,
+  // the classification's and the shading's sets.
   const VkDescriptorPoolSize sizes[] = {
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, 12},
       {VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 64},
       {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, 192},
       {VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 48},
-      {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 16},
+      {VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, 24},
   };
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
   dpi.maxSets = 128;

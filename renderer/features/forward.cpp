@@ -20,13 +20,10 @@ namespace {
 // Linear HDR background behind the scene.
 constexpr VkClearColorValue kBackground{{0.030f, 0.034f, 0.042f, 1.0f}};
 
-// Shading pipelines per key = samples | the effects << kEffectsShift (shading.glsl's
-// specialization constant 0, ShadingEffects) | the material's texture slots << kTexturesShift
-// (its constant 1: a pipeline per set of slots the scene's materials use,
-// GpuScene::texture_sets) | the debug view << kDebugShift (its constant 2, ShadingDebugView).
-constexpr uint32_t kEffectsShift = 8;
-constexpr uint32_t kTexturesShift = 16;
-constexpr uint32_t kDebugShift = 24;
+// Shading pipelines per key = samples | ShadingConstants::Key() << kConstantsShift (a pipeline
+// per set of texture slots the scene's materials use, GpuScene::texture_sets, and per effects,
+// debug view and way of reading the lights).
+constexpr uint32_t kConstantsShift = 4;
 
 vk::GraphicsPipelineDesc SceneDesc(const SceneLayout& layout, uint32_t samples) {
   vk::GraphicsPipelineDesc d;
@@ -43,13 +40,12 @@ vk::GraphicsPipelineDesc SceneDesc(const SceneLayout& layout, uint32_t samples) 
 absl::StatusOr<vk::Pipeline> CreateShading(const vk::Context& ctx, const SceneLayout& layout,
                                            PassId id, uint32_t key) {
   const bool transparent = id == PassId::kTransparent;
-  vk::GraphicsPipelineDesc d = SceneDesc(layout, key & ((1u << kEffectsShift) - 1));
+  vk::GraphicsPipelineDesc d = SceneDesc(layout, key & ((1u << kConstantsShift) - 1));
   d.name = absl::StrCat(transparent ? "transparent" : "forward", ".", absl::Hex(key));
   d.vertex_shader = "forward.vert";
   d.fragment_shader = "forward.frag";
   d.blend = transparent ? vk::BlendMode::kAlpha : vk::BlendMode::kNone;
-  d.fragment_constants = {(key >> kEffectsShift) & 7u,
-                          (key >> kTexturesShift) & gpu::kMaterialTexturesAll, key >> kDebugShift};
+  d.fragment_constants = ShadingConstants::FromKey(key >> kConstantsShift).Values();
   return vk::CreateGraphicsPipeline(ctx, d);
 }
 
@@ -77,12 +73,12 @@ class ForwardPass final : public Pass {
   }
   // The texture slot sets of the materials this pass draws (blend materials in the transparent
   // pass, the others in forward).
-  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
-                            const GpuScene& scene) override {
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
+                            const FrameFeatures& features) override {
     for (const DrawSegment& seg : scene.segments()) {
       if (!Draws(seg)) continue;
       RETURN_IF_ERROR(shading_.Ensure(
-          Key(s, Samples(s), scene.material_textures(seg.material)),
+          Key(Samples(s), ShadingConstantsFor(s, features, scene.material_textures(seg.material))),
           [&](uint32_t key) { return CreateShading(ctx, layout_, id_, key); }));
     }
     return absl::OkStatus();
@@ -91,9 +87,8 @@ class ForwardPass final : public Pass {
     return (seg.group == AlphaMode::kBlend) == (id_ == PassId::kTransparent);
   }
   static uint32_t Samples(const Settings& s) { return s.aa == AaMode::kMsaa ? s.samples : 1; }
-  static uint32_t Key(const Settings& s, uint32_t samples, uint32_t textures) {
-    return samples | (ShadingEffects(s) << kEffectsShift) |
-           (textures << kTexturesShift) | (ShadingDebugView(s) << kDebugShift);
+  static uint32_t Key(uint32_t samples, const ShadingConstants& c) {
+    return samples | c.Key() << kConstantsShift;
   }
 
   void Record(PassContext& ctx) override {
@@ -101,7 +96,10 @@ class ForwardPass final : public Pass {
     const uint32_t samples = ForwardSamples(ctx);
     const GpuScene& scene = *ctx.scene;
     auto pipeline_of = [&](uint32_t m) {
-      return shading_.at(Key(*ctx.settings, samples, scene.material_textures(m))).handle();
+      return shading_
+          .at(Key(samples,
+                  ShadingConstantsFor(*ctx.settings, *ctx.features, scene.material_textures(m))))
+          .handle();
     };
     const FrameTargets& t = *ctx.targets;
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};

@@ -44,6 +44,16 @@ uint32_t ShadingEffects(const Settings& s) {
          (s.ibl ? gpu::kIblOn : 0u);
 }
 
+ShadingConstants ShadingConstantsFor(const Settings& s, const FrameFeatures& features,
+                                     uint32_t textures) {
+  ShadingConstants c;
+  c.effects = ShadingEffects(s);
+  c.textures = textures;
+  c.debug = ShadingDebugView(s);
+  c.light_texels = features.light_texels ? 1u : 0u;
+  return c;
+}
+
 uint32_t ShadingDebugView(const Settings& s) {
   switch (s.debug_view) {
     case DebugView::kNormals: return gpu::kDebugNormals;

@@ -155,6 +155,9 @@ struct LightCullBuffers {
   uint32_t lights = 0;
   uint32_t rows = 0;
   uint64_t row_entries = 0;  // of row_lights in use (header and lists)
+  // The shading reads local_lights and tile_lights through their texel views (FrameFeatures::
+  // light_texels): the frame's lights and lists fit maxTexelBufferElements.
+  bool texels = false;
 };
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a
@@ -278,6 +281,7 @@ struct PassContext {
   uint32_t samples = 1;
   // The HDR colour the post passes read (FramePlan::scene_color).
   Resource post_color = Resource::kHdrColor;
+  const FrameFeatures* features = nullptr;  // what PrepareScene saw
 };
 
 // A pass's own descriptor set layout and pipeline layout (one set), destroyed together.
@@ -359,12 +363,14 @@ class Pass {
     return absl::OkStatus();
   }
   // Then, for the frame's scene: builds what the pass lacks for its materials (the shading
-  // passes: a pipeline per set of texture slots, GpuScene::texture_sets).
+  // passes: a pipeline per set of texture slots, GpuScene::texture_sets) and for what the frame
+  // holds (`features`: e.g. whether its lights fit texel buffers).
   virtual absl::Status PrepareScene(const vk::Context& ctx, const Settings& settings,
-                                    const GpuScene& scene) {
+                                    const GpuScene& scene, const FrameFeatures& features) {
     (void)ctx;
     (void)settings;
     (void)scene;
+    (void)features;
     return absl::OkStatus();
   }
   // Records the pass. Its resources are already in the layouts PassUses(id()) declares.
@@ -520,6 +526,28 @@ uint32_t ShadingDebugView(const Settings& s);
 // The effects shading.glsl has code for with these settings (its specialization constant 0):
 // gpu::kShadowsOn | kSsaoOn | kIblOn.
 uint32_t ShadingEffects(const Settings& s);
+
+// The specialization constants a shading pipeline (forward, transparent, visibility shade) is
+// built with: shading.glsl's 0 (ShadingEffects), 1 (the material's texture slots), 2
+// (ShadingDebugView) and 4 (the lights through texel buffers: FrameFeatures::light_texels), and
+// vis.glsl's 3 (VisTexels; the visibility shading only). Key() packs them into 18 bits for a
+// pass's map of pipelines, which may add bits of its own above kShadingKeyBits.
+struct ShadingConstants {
+  uint32_t effects = 0, textures = 0, debug = 0, vis_texels = 0, light_texels = 0;
+  uint32_t Key() const {
+    return effects | textures << 3 | debug << 8 | vis_texels << 16 | light_texels << 17;
+  }
+  static ShadingConstants FromKey(uint32_t key) {
+    return {key & 7u, (key >> 3) & 31u, (key >> 8) & 0xffu, (key >> 16) & 1u, (key >> 17) & 1u};
+  }
+  // In constant_id order.
+  std::vector<uint32_t> Values() const {
+    return {effects, textures, debug, vis_texels, light_texels};
+  }
+};
+inline constexpr uint32_t kShadingKeyBits = 18;
+ShadingConstants ShadingConstantsFor(const Settings& s, const FrameFeatures& features,
+                                     uint32_t textures);
 // RecordSegments' default: every segment with the pipeline already bound.
 inline VkPipeline NoPipelineChange(uint32_t) { return VK_NULL_HANDLE; }
 // Binds what a draw needs that differs from the last one drawn: its material's set (when

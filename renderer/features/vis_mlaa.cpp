@@ -133,8 +133,8 @@ class VisResolvePass final : public Pass {
   // arithmetic on every pixel of the uniform pass); one atomic per subgroup and material where
   // compute shaders have ballots, else per pixel (vis_resolve_atomic.comp); and per way of
   // reading the scene's triangles (vis.glsl's kVisTexels).
-  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
-                            const GpuScene& scene) override {
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
+                            const FrameFeatures&) override {
     if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
     return pipelines_.Ensure(Key(s.samples, scene),
                              [&](uint32_t key) -> absl::StatusOr<ModePipelines> {

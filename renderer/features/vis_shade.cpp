@@ -118,8 +118,8 @@ class VisClassifyPass final : public Pass {
   // sample classification or vis_mlaa's, and per way of reading the drawables (vis.glsl's
   // kVisTexels), built for the first frame that needs them. One atomic per subgroup and material
   // where compute shaders have ballots, else per pixel.
-  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
-                            const GpuScene& scene) override {
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
+                            const FrameFeatures&) override {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
     const bool ballots = ctx.info().subgroup_ballot;
     return (vis_mlaa ? mlaa_pipelines_ : pipelines_)
@@ -215,16 +215,10 @@ class VisClassifyPass final : public Pass {
   PerSampleCount<ModePipelines> pipelines_, mlaa_pipelines_;  // by VisTexels
 };
 
-// The shading pipelines per key: the effects shading.glsl has code for (specialization constant 0,
-// ShadingEffects: shadows, SSAO, IBL), kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp), the
-// material's texture slots << kTexturesShift (constant 1: a pipeline per set of slots the scene's
-// materials use), the debug view << kDebugShift (constant 2, ShadingDebugView) and how the scene's
-// triangles are read << kTexelsShift (vis.glsl's constant 3, VisTexels). The sky's are one each.
-constexpr uint32_t kEffectsMask = 7;  // ShadingEffects
-constexpr uint32_t kMlaaKey = 8;
-constexpr uint32_t kTexturesShift = 8;
-constexpr uint32_t kDebugShift = 16;
-constexpr uint32_t kTexelsShift = 24;
+// The shading pipelines per key: ShadingConstants::Key() (a pipeline per set of texture slots the
+// scene's materials use, and per effects, debug view and way of reading the scene's triangles and
+// the lights) | kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp). The sky's are one each.
+constexpr uint32_t kMlaaKey = 1u << kShadingKeyBits;
 
 class ShadePass final : public Pass {
  public:
@@ -235,25 +229,25 @@ class ShadePass final : public Pass {
         mlaa_sky_(std::move(mlaa_sky)) {}
   PassId id() const override { return PassId::kShade; }
 
-  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s,
-                            const GpuScene& scene) override {
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
+                            const FrameFeatures& features) override {
     for (const uint32_t textures : scene.texture_sets()) {
-      RETURN_IF_ERROR(shading_.Ensure(Key(s, scene, textures), [&](uint32_t key) {
+      RETURN_IF_ERROR(shading_.Ensure(Key(s, scene, features, textures), [&](uint32_t key) {
         const bool vis_mlaa = (key & kMlaaKey) != 0;
         return vk::CreateComputePipeline(
             ctx, absl::StrCat(vis_mlaa ? "shade.vis_mlaa." : "shade.", absl::Hex(key)),
             vis_mlaa ? "vis_shade_mlaa.comp" : "vis_shade.comp",
             (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
-            {key & kEffectsMask, (key >> kTexturesShift) & gpu::kMaterialTexturesAll,
-             (key >> kDebugShift) & 0xffu, key >> kTexelsShift});
+            ShadingConstants::FromKey(key & ~kMlaaKey).Values());
       }));
     }
     return absl::OkStatus();
   }
-  static uint32_t Key(const Settings& s, const GpuScene& scene, uint32_t textures) {
-    return ShadingEffects(s) |
-           (s.aa == AaMode::kVisMlaa ? kMlaaKey : 0u) | (textures << kTexturesShift) |
-           (ShadingDebugView(s) << kDebugShift) | (VisTexels(scene) << kTexelsShift);
+  static uint32_t Key(const Settings& s, const GpuScene& scene, const FrameFeatures& features,
+                      uint32_t textures) {
+    ShadingConstants c = ShadingConstantsFor(s, features, textures);
+    c.vis_texels = VisTexels(scene);
+    return c.Key() | (s.aa == AaMode::kVisMlaa ? kMlaaKey : 0u);
   }
 
   void Record(PassContext& ctx) override {
@@ -265,7 +259,8 @@ class ShadePass final : public Pass {
     // The materials whose drawables are in the frustum; the others have no pixels.
     for (const uint32_t m : ctx.vis->materials) {
       const VkPipeline pipeline =
-          shading_.at(Key(s, *ctx.scene, ctx.scene->material_textures(m))).handle();
+          shading_.at(Key(s, *ctx.scene, *ctx.features, ctx.scene->material_textures(m)))
+              .handle();
       if (pipeline != bound) {
         vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline);
         bound = pipeline;

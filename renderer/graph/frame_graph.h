@@ -141,6 +141,9 @@ struct FrameFeatures {
   // taa: animated geometry moved since the view's last frame (or the view keeps its first pose):
   // the motion pass runs.
   bool object_motion = false;
+  // The shading reads the local lights and the tiles' light lists through texel buffers (they
+  // fit the device's maxTexelBufferElements; LightCullBuffers::texels).
+  bool light_texels = false;
 };
 
 // A resource moving from one access to another before a pass.

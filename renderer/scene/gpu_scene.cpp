@@ -357,35 +357,20 @@ absl::Status GpuScene::Keep(vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) {
 }
 
 absl::Status GpuScene::MakeTexelViews(vk::Context& ctx, const std::string& name) {
-  const VkDeviceSize max_texels = ctx.info().max_texel_buffer_elements;
-  bool whole = true;
-  auto view = [&](const vk::Buffer& buffer, VkFormat format, VkDeviceSize texel_bytes,
-                  const char* what, vk::UniqueBufferView* out) -> absl::Status {
-    // Buffer::Create keeps a 4-byte stub for an empty buffer; the index buffer's view then
-    // holds that one texel.
-    const VkDeviceSize texels = std::max<VkDeviceSize>(buffer.size(), 4) / texel_bytes;
-    if (texels == 0)
-      return absl::InternalError(absl::StrCat(name, ".", what, ": smaller than one texel"));
-    whole = whole && texels <= max_texels;
-    VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
-    vi.buffer = buffer.handle();
-    vi.format = format;
-    vi.offset = 0;
-    vi.range = std::min(texels, max_texels) * texel_bytes;
-    VK_RETURN_IF_ERROR(vkCreateBufferView(ctx.device(), &vi, nullptr, out->Replace(ctx.device())),
-                       what);
-    ctx.SetName(out->get(), VK_OBJECT_TYPE_BUFFER_VIEW, absl::StrCat(name, ".", what));
-    return absl::OkStatus();
-  };
-  RETURN_IF_ERROR(view(indices_, VK_FORMAT_R32_UINT, 4, "index_texels", &index_texels_));
-  RETURN_IF_ERROR(view(vertices_, VK_FORMAT_R32G32_UINT, 8, "vertex_texels", &vertex_texels_));
-  RETURN_IF_ERROR(view(drawables_, VK_FORMAT_R32G32B32A32_UINT, 16, "drawable_texels",
-                       &drawable_texels_));
+  bool indices = false, vertices = false, drawables = false;
+  ASSIGN_OR_RETURN(index_texels_, vk::CreateTexelView(ctx, indices_, VK_FORMAT_R32_UINT, 4,
+                                                      name + ".index_texels", &indices));
+  ASSIGN_OR_RETURN(vertex_texels_, vk::CreateTexelView(ctx, vertices_, VK_FORMAT_R32G32_UINT, 8,
+                                                       name + ".vertex_texels", &vertices));
+  ASSIGN_OR_RETURN(drawable_texels_,
+                   vk::CreateTexelView(ctx, drawables_, VK_FORMAT_R32G32B32A32_UINT, 16,
+                                       name + ".drawable_texels", &drawables));
+  const bool whole = indices && vertices && drawables;
   vis_texels_ = whole && ctx.info().texel_buffers;
   if (!whole)
     Log().info("{}: the visibility passes read its geometry from storage buffers (more texels "
                "than maxTexelBufferElements, {})",
-               name, max_texels);
+               name, ctx.limits().maxTexelBufferElements);
   return absl::OkStatus();
 }
 

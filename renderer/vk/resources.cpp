@@ -1,5 +1,6 @@
 #include "renderer/vk/resources.h"
 
+#include <algorithm>
 #include <atomic>
 
 #include "absl/strings/str_cat.h"
@@ -315,6 +316,26 @@ absl::StatusOr<MipViews> MipViews::Create(const Context& ctx, const Image& image
     out.views_.push_back(std::move(view));
   }
   return out;
+}
+
+absl::StatusOr<UniqueBufferView> CreateTexelView(const Context& ctx, const Buffer& buffer,
+                                                 VkFormat format, VkDeviceSize texel_bytes,
+                                                 const std::string& name, bool* whole) {
+  // Buffer::Create keeps a 4-byte stub for an empty buffer.
+  const VkDeviceSize texels = std::max<VkDeviceSize>(buffer.size(), 4) / texel_bytes;
+  if (texels == 0) return absl::InternalError(absl::StrCat(name, ": smaller than one texel"));
+  const VkDeviceSize max = ctx.limits().maxTexelBufferElements;
+  if (whole) *whole = texels <= max;
+  VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+  vi.buffer = buffer.handle();
+  vi.format = format;
+  vi.offset = 0;
+  vi.range = std::min(texels, max) * texel_bytes;
+  UniqueBufferView view;
+  VK_RETURN_IF_ERROR(vkCreateBufferView(ctx.device(), &vi, nullptr, view.Replace(ctx.device())),
+                     name.c_str());
+  ctx.SetName(view.get(), VK_OBJECT_TYPE_BUFFER_VIEW, name);
+  return view;
 }
 
 }  // namespace tessera::vk

@@ -197,4 +197,11 @@ void CmdMemoryBarrier(VkCommandBuffer cmd, VkPipelineStageFlags2 src_stage,
                       VkAccessFlags2 src_access, VkPipelineStageFlags2 dst_stage,
                       VkAccessFlags2 dst_access);
 
+// A uniform texel buffer view of `buffer` from its start, as `format` texels of `texel_bytes`:
+// over as many whole texels as the buffer holds, at most maxTexelBufferElements (`whole`, when
+// given, says whether that is all of them). INTERNAL when the buffer is smaller than one texel.
+absl::StatusOr<UniqueBufferView> CreateTexelView(const Context& ctx, const Buffer& buffer,
+                                                 VkFormat format, VkDeviceSize texel_bytes,
+                                                 const std::string& name, bool* whole = nullptr);
+
 }  // namespace tessera::vk

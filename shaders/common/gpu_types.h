@@ -52,6 +52,15 @@ TS_CONST uint kBindingIrradiance = 10;  // samplerCube: IBL diffuse irradiance /
 TS_CONST uint kBindingSpecular = 11;    // samplerCube: IBL prefiltered specular (roughness mips)
 TS_CONST uint kBindingBrdfLut = 12;     // sampler2D: split-sum BRDF (A, B) by (n.v, roughness)
 TS_CONST uint kBindingEnvironment = 13;  // samplerCube: IBL's sky, the background with ibl
+// The local lights and the tiles' light lists again, as uniform texel buffers (R32G32B32A32_UINT,
+// kLightTexels per light; R32_UINT): lavapipe loads a storage-buffer word at a per-lane offset
+// in a loop over the lanes, a word at a time, and fetches a texel in one gather. Read where both
+// fit maxTexelBufferElements (LightCullBuffers::texels): shading.glsl's specialization constant
+// kLightTexelsConstant; else the storage buffers.
+TS_CONST uint kBindingLocalLightTexels = 14;
+TS_CONST uint kBindingTileLightTexels = 15;
+TS_CONST uint kLightTexelsConstant = 4;
+TS_CONST uint kGpuLightTexels = 4;  // sizeof(GpuLight) / 16
 // ---- shadows (shaders/common/shadows.glsl, renderer/shadows.h) --------------------------------
 // Every shadow map of a frame is a "view" in one atlas: the sun's cascades first, then per
 // shadowed local light one view (spot) or six (point: +X, -X, +Y, -Y, +Z, -Z). A light finds its

@@ -26,6 +26,8 @@ layout(set = 0, binding = kBindingTileCounts, std430) readonly buffer TileCountB
 layout(set = 0, binding = kBindingTileLights, std430) readonly buffer TileLightBlock {
   uint tile_lights[];
 };
+layout(set = 0, binding = kBindingLocalLightTexels) uniform usamplerBuffer local_light_texels;
+layout(set = 0, binding = kBindingTileLightTexels) uniform usamplerBuffer tile_light_texels;
 
 vec4 ClipPosition(mat4 world, vec3 position) {
   precise vec4 world_position = world * vec4(position, 1.0);

@@ -60,6 +60,23 @@ layout(constant_id = 1) const uint kMaterialTextures = kMaterialTexturesAll;
 // kDebugNone: lit), a pipeline per view for the same reason.
 layout(constant_id = 2) const uint kShadingDebugView = kDebugNone;
 
+// (Constant 3 is vis.glsl's.) The local lights and the tiles' lists through their texel views
+// (gpu_types.h, kBindingLocalLightTexels), where the frame's fit the device's texel limit.
+layout(constant_id = kLightTexelsConstant) const bool kLightTexels = false;
+GpuLight LocalLight(uint i) {
+  if (!kLightTexels) return local_lights[i];
+  int t = int(i * kGpuLightTexels);
+  GpuLight l;
+  l.position_range = uintBitsToFloat(texelFetch(local_light_texels, t));
+  l.color_intensity = uintBitsToFloat(texelFetch(local_light_texels, t + 1));
+  l.direction_type = uintBitsToFloat(texelFetch(local_light_texels, t + 2));
+  l.spot = uintBitsToFloat(texelFetch(local_light_texels, t + 3));
+  return l;
+}
+uint TileLight(uint k) {
+  return kLightTexels ? texelFetch(tile_light_texels, int(k)).x : tile_lights[k];
+}
+
 // Whether the material has a texture in `slot` (its binding - kBindingBaseColorTex).
 bool MaterialHas(uint slot, GpuTextureRef t) {
   return (kMaterialTextures & (1u << slot)) != 0u && HasTexture(t);
@@ -125,7 +142,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   uint count = tiled ? tile_count : frame.lighting.x;
   uint base = tile * kMaxLightsPerTile;
   for (uint k = 0u; k < count; ++k) {
-    GpuLight light = local_lights[tiled ? tile_lights[base + k] : k];
+    GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
     vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
     if (with_shadows && light.spot.z > 0.0) {
       shadowed |= 1u << uint(light.spot.w);
@@ -136,7 +153,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   while (with_shadows && shadowed != 0u) {
     uint i = uint(findLSB(shadowed));
     shadowed &= shadowed - 1u;
-    color += ShadeLight(local_lights[shadow.shadowed[i / 4u][i % 4u]], p, n, ng, v, n_dot_v,
+    color += ShadeLight(LocalLight(shadow.shadowed[i / 4u][i % 4u]), p, n, ng, v, n_dot_v,
                         c_diff, f0, alpha, true);
   }
   return color;

@@ -234,10 +234,10 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // without drawIndirectCount (and one command per call without multiDrawIndirect), culling's
 // prefix sum without subgroup arithmetic, classification without ballots, the depth pyramid
 // without min/max samplers; and every material shaded by the general pipeline instead of its set
-// of texture slots' (material_variants: Sponza's materials have two sets); and the visibility
-// passes reading the scene's triangles from storage buffers instead of texel buffers
-// (texel_buffers). Each frame must equal the one the full feature set renders, pixel for pixel,
-// in every culling mode and both pipelines; and the frame stats must agree.
+// of texture slots' (material_variants: Sponza's materials have two sets); and the scene's
+// triangles, its local lights and their tile lists read from storage buffers instead of texel
+// buffers (texel_buffers). Each frame must equal the one the full feature set renders, pixel for
+// pixel, in every culling mode and both pipelines; and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   Renderer& r = SharedRenderer();
   absl::StatusOr<std::unique_ptr<Renderer>> lean = Renderer::Create(
@@ -280,6 +280,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
       s.width = 160;
       s.height = 96;
       s.pipeline = pipeline;
+      s.synthetic_lights = 64;  // tiled light lists (texel_buffers: read through texel views)
       const std::string what = std::string(ToString(mode)) + " " + std::string(ToString(pipeline));
       const uint64_t view = 300 + uint64_t(mode) * 4 + uint64_t(pipeline);
       for (int frame = 0; frame < 2; ++frame) {  // gpu_occlusion: the second has a history
