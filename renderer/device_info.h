@@ -20,8 +20,8 @@ struct DeviceFallback {
 // Optional features a test or user may turn off to exercise their fallbacks on a device that has
 // them (RendererOptions::disable_features, TESSERA_DISABLE_FEATURES=a,b): draw_indirect_count,
 // multi_draw_indirect, subgroup_arithmetic, subgroup_ballot, sampler_minmax, visibility_buffer,
-// pipeline_statistics, texel_buffers; and material_variants, which is Tessera's own (DeviceInfo
-// below).
+// pipeline_statistics; and material_variants and texel_buffers, which are Tessera's own
+// (DeviceInfo below).
 const std::vector<std::string>& DisableableFeatures();
 
 // What the server and clients need to know about the device.
@@ -51,11 +51,11 @@ struct DeviceInfo {
   // scene's materials use (GpuScene::texture_sets). Disabled, every material is shaded by the
   // general pipeline, the reference the variants are tested against.
   bool material_variants = true;
-  // The visibility passes read the scene's vertices, indices and drawables through uniform
-  // texel buffers (R32_UINT, R32G32_UINT, R32G32B32A32_UINT, formats every device has) where a
-  // scene's buffers fit max_texel_buffer_elements, else through storage buffers (gpu_types.h,
-  // kVisBindingIndexTexels). Not a device feature: false only where turned off, to test the
-  // storage-buffer path.
+  // The visibility passes read the scene's vertices, indices and drawables, and the shading the
+  // local lights and tile light lists, through uniform texel buffers (R32_UINT, R32G32_UINT,
+  // R32G32B32A32_UINT, formats every device has) where they fit max_texel_buffer_elements, else
+  // through storage buffers (gpu_types.h, kVisBindingIndexTexels, kBindingLocalLightTexels). Not
+  // a device feature: false only where turned off, to test the storage-buffer path.
   bool texel_buffers = false;
   uint32_t max_texel_buffer_elements = 0;  // maxTexelBufferElements
   uint32_t subgroup_size = 1;

@@ -265,14 +265,11 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
   tiles = std::max(tiles, 1u);
   if (lights > light_capacity) {
     const uint32_t cap = std::max(lights, light_capacity * 2);
-    local_light_texels.Reset();  // before its buffer goes
+    local_light_texels.Reset();  // before its buffer goes; made again below
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLight),
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                    VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT,
                                vk::MemoryUsage::kDynamic, "local_lights", &local_lights));
-    ASSIGN_OR_RETURN(local_light_texels,
-                     vk::CreateTexelView(*ctx, local_lights, VK_FORMAT_R32G32B32A32_UINT, 16,
-                                         "local_light_texels"));
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(cap) * sizeof(gpu::GpuLightBounds),
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                    VK_BUFFER_USAGE_TRANSFER_SRC_BIT,  // captures
@@ -290,12 +287,21 @@ absl::Status Renderer::Impl::EnsureLightBuffers(uint32_t lights, uint32_t tiles)
                                    VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
                                    VK_BUFFER_USAGE_TRANSFER_SRC_BIT,
                                vk::MemoryUsage::kDeviceLocal, "tile_lights", &tile_lights));
-    ASSIGN_OR_RETURN(tile_light_texels, vk::CreateTexelView(*ctx, tile_lights, VK_FORMAT_R32_UINT,
-                                                            4, "tile_light_texels"));
     RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(tiles) * 4, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
                                vk::MemoryUsage::kReadback, "tile_counts_readback",
                                &tile_counts_readback));
     tile_capacity = tiles;
+  }
+  // The texel views of whatever buffers are kept (also after a failed remake above, which left
+  // the old buffer and capacity).
+  if (!local_light_texels) {
+    ASSIGN_OR_RETURN(local_light_texels,
+                     vk::CreateTexelView(*ctx, local_lights, VK_FORMAT_R32G32B32A32_UINT, 16,
+                                         "local_light_texels"));
+  }
+  if (!tile_light_texels) {
+    ASSIGN_OR_RETURN(tile_light_texels, vk::CreateTexelView(*ctx, tile_lights, VK_FORMAT_R32_UINT,
+                                                            4, "tile_light_texels"));
   }
   return absl::OkStatus();
 }

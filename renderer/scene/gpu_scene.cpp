@@ -479,8 +479,10 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
                    drawables * (sizeof(gpu::GpuDrawable) + sizeof(gpu::GpuCullItem));
   for (const TextureBucketPlan::Bucket& b : PlanTextureBuckets(scene.textures, max_texture_size).buckets)
     bytes += uint64_t(b.width) * b.height * 4 * b.layers * 4 / 3;
-  if (const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(scene))
-    bytes += AnimationBytes(scene, *a);
+  const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(scene);
+  if (a) bytes += AnimationBytes(scene, *a);
+  // A scene without vertices uploads one, for its texel view (UploadBuffers).
+  if (scene.vertices.empty() && (!a || a->copy_vertices() == 0)) bytes += sizeof(Vertex);
   return bytes;
 }
 
@@ -633,11 +635,9 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   st = Keep(materials_,
               UploadBuffer(ctx, materials.data(), materials.size() * sizeof(gpu::GpuMaterial),
                            VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".materials"));
-  const std::vector<gpu::GpuDrawable> one_drawable(drawables.empty() ? 1 : 0);
-  const std::vector<gpu::GpuDrawable>& records = drawables.empty() ? one_drawable : drawables;
-  if (st.ok())
+  if (st.ok())  // PlanScene keeps one record at least
     st = Keep(drawables_,
-                UploadBuffer(ctx, records.data(), records.size() * sizeof(gpu::GpuDrawable),
+                UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
                              VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | texel, n + ".drawables"));
   if (st.ok())
     st =

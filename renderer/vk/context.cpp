@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cstdlib>
 #include <cstring>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
@@ -391,8 +392,8 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
   if (!info.texel_buffers)
     out.push_back({"texel_buffers (disabled)",
-                   "the visibility passes read the scene's vertices, indices and drawables "
-                   "from storage buffers"});
+                   "the visibility passes read the scene's vertices, indices and drawables, "
+                   "and the shading the lights, from storage buffers"});
   if (info.max_samples < kMaxSamples)
     out.push_back({absl::StrCat(kMaxSamples, "x multisampling"),
                    absl::StrCat("samples clamped to ", info.max_samples)});
@@ -425,16 +426,18 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
         p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
   }
 
-  // The visibility passes bind the scene's buffers as texel buffers of these formats (on every
-  // device: their shaders hold both paths), which Vulkan requires of every device.
-  for (const VkFormat format :
-       {VK_FORMAT_R32_UINT, VK_FORMAT_R32G32_UINT, VK_FORMAT_R32G32B32A32_UINT}) {
+  // The visibility passes and the scene set bind buffers as texel buffers of these formats (on
+  // every device: the shaders hold both paths), which Vulkan requires of every device.
+  const std::pair<VkFormat, const char*> texel_formats[] = {
+      {VK_FORMAT_R32_UINT, "R32_UINT"},
+      {VK_FORMAT_R32G32_UINT, "R32G32_UINT"},
+      {VK_FORMAT_R32G32B32A32_UINT, "R32G32B32A32_UINT"}};
+  for (const auto& [format, name] : texel_formats) {
     VkFormatProperties fp{};
     vkGetPhysicalDeviceFormatProperties(physical_, format, &fp);
     if (!(fp.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT))
-      return absl::FailedPreconditionError(
-          absl::StrCat(p.deviceName, " lacks uniform texel buffers of format ", int(format),
-                       " (R32_UINT, R32G32_UINT and R32G32B32A32_UINT are mandatory)"));
+      return absl::FailedPreconditionError(absl::StrCat(
+          p.deviceName, " lacks uniform texel buffers of ", name, " (a format Vulkan requires)"));
   }
   DescribeDevice(p, driver, supported, validation);
   DeviceInfo& info = info_;

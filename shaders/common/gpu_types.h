@@ -53,7 +53,7 @@ TS_CONST uint kBindingSpecular = 11;    // samplerCube: IBL prefiltered specular
 TS_CONST uint kBindingBrdfLut = 12;     // sampler2D: split-sum BRDF (A, B) by (n.v, roughness)
 TS_CONST uint kBindingEnvironment = 13;  // samplerCube: IBL's sky, the background with ibl
 // The local lights and the tiles' light lists again, as uniform texel buffers (R32G32B32A32_UINT,
-// kLightTexels per light; R32_UINT): lavapipe loads a storage-buffer word at a per-lane offset
+// kGpuLightTexels per light; R32_UINT): lavapipe loads a storage-buffer word at a per-lane offset
 // in a loop over the lanes, a word at a time, and fetches a texel in one gather. Read where both
 // fit maxTexelBufferElements (LightCullBuffers::texels): shading.glsl's specialization constant
 // kLightTexelsConstant; else the storage buffers.
@@ -146,8 +146,8 @@ TS_CONST uint kMaterialTexturesAll = (1u << kMaterialTextureSlots) - 1u;
 TS_CONST uint kVisDefaultTriangleBits = 20;
 TS_CONST uint kVisSet = 2;              // the vis passes' own descriptor set
 TS_CONST uint kVisBindingSamples = 0;   // resolve: usampler2DMS, the visibility ids
-TS_CONST uint kVisBindingIndices = 2;   // resolve, shade: buffer uint[] the scene's index buffer
-TS_CONST uint kVisBindingVertices = 3;  // resolve, shade: buffer float[] the scene's vertex buffer
+TS_CONST uint kVisBindingIndices = 2;   // resolve, classify, shade: buffer uint[] the index buffer
+TS_CONST uint kVisBindingVertices = 3;  // resolve, classify, shade: buffer float[] the vertices
 // The same buffers and the scene's drawables as uniform texel buffers (resolve, classification
 // and shading sets): lavapipe loads a storage-buffer word at a per-lane offset in a loop over the
 // lanes, one word at a time, and fetches a texel of up to four words in one gather. The
@@ -160,7 +160,7 @@ TS_CONST uint kVisBindingVertexTexels = 11;
 TS_CONST uint kVisBindingDrawableTexels = 12;
 TS_CONST uint kVisTexelsConstant = 3;
 TS_CONST uint kVertexTexels = 7;     // kVertexFloats / 2
-TS_CONST uint kDrawableTexels = 12;  // sizeof(GpuDrawable) / 16 (asserted below)
+TS_CONST uint kDrawableTexels = 12;  // sizeof(GpuDrawable) / 16 (gpu_layout_check.cpp)
 // skin.comp: the scene's vertex buffer (read the rest vertices, write the deformed copies),
 // per vertex its joints and weights (two uvec4: joints, then the weights' float bits), the morph
 // deltas (kMorphDeltaFloats each: position, normal, tangent), and the pose (joint matrices, then
