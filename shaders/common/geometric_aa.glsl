@@ -47,6 +47,8 @@ uint IdAt(ivec2 p) {
 // The colour the compass `away` points to: the two neighbours it falls between, by angle, or
 // the one of them that shows another triangle than the pixel's, or the next neighbours out on
 // either side (the nearer in angle first). False when none of these shows another triangle.
+// The neighbours to take are chosen first and their colours fetched once, after: lavapipe runs
+// every side of a branch under a lane mask, so a fetch in each case cost them all.
 bool Borrow(ivec2 p, vec2 away, out vec3 other) {
   float sector = atan(away.y, away.x) / (0.25 * kPi);
   if (sector < 0.0) sector += 8.0;
@@ -56,24 +58,18 @@ bool Borrow(ivec2 p, vec2 away, out vec3 other) {
   uint own = IdAt(p);
   bool use0 = IdAt(p + kNeighbours[i0]) != own;
   bool use1 = IdAt(p + kNeighbours[i1]) != own;
-  other = vec3(0.0);
-  if (use0 && use1) {
-    other = mix(Fetch(p + kNeighbours[i0]), Fetch(p + kNeighbours[i1]), t);
-  } else if (use0 || use1) {
-    other = Fetch(p + kNeighbours[use0 ? i0 : i1]);
-  } else {
-    int a = (i0 + 7) & 7, b = (i1 + 1) & 7;
-    bool a_first = t < 0.5;
-    int first = a_first ? a : b, second = a_first ? b : a;
-    if (IdAt(p + kNeighbours[first]) != own) {
-      other = Fetch(p + kNeighbours[first]);
-    } else if (IdAt(p + kNeighbours[second]) != own) {
-      other = Fetch(p + kNeighbours[second]);
-    } else {
-      return false;
-    }
-  }
-  return true;
+  int a = (i0 + 7) & 7, b = (i1 + 1) & 7;
+  bool a_first = t < 0.5;
+  int first = a_first ? a : b, second = a_first ? b : a;
+  bool use_first = IdAt(p + kNeighbours[first]) != own;
+  bool use_second = IdAt(p + kNeighbours[second]) != own;
+  // j0 alone, or j0 and j1 mixed by t.
+  bool both = use0 && use1;
+  int j0 = use0 ? i0 : use1 ? i1 : use_first ? first : second;
+  vec3 c0 = Fetch(p + kNeighbours[j0]);
+  vec3 c1 = Fetch(p + kNeighbours[i1]);
+  other = both ? mix(c0, c1, t) : c0;
+  return use0 || use1 || use_first || use_second;
 }
 
 // The pixel's colour after geometric AA; `runner` is the runner-up surface's colour and
@@ -87,21 +83,20 @@ vec4 GeometricAa(ivec2 p, vec4 runner, vec2 runner_mean) {
   float owned = float(bitCount(mask)) / float(push.samples);
   if (push.show_mask != 0u) return vec4(vec3(owned), 1.0);
   vec2 away = vec2(0.5) - vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0;
-  if (runner.a > 0.0) {
-    // The samples neither surface owns: the standard sample positions average to the pixel's
-    // centre, so their mean lies along owned * away + runner.a * (0.5 - runner_mean).
-    vec3 known = owned * color.rgb + runner.a * runner.rgb;
-    float rest = 1.0 - owned - runner.a;
-    away += (runner.a / owned) * (vec2(0.5) - runner_mean);
-    vec3 other;
-    if (rest < 0.5 / float(push.samples) || dot(away, away) < 1e-6 || !Borrow(p, away, other))
-      return vec4(known / (owned + runner.a), 1.0);
-    return vec4(known + rest * other, 1.0);
-  }
-  if (mask == full || dot(away, away) < 1e-6) return color;
+  // One Borrow for both cases below (each call's code would run under a lane mask in the other).
+  bool has_runner = runner.a > 0.0;
+  // With a runner-up, the samples neither surface owns: the standard sample positions average to
+  // the pixel's centre, so their mean lies along owned * away + runner.a * (0.5 - runner_mean).
+  vec3 known = owned * color.rgb + runner.a * runner.rgb;
+  float rest = 1.0 - owned - runner.a;
+  if (has_runner) away += (runner.a / owned) * (vec2(0.5) - runner_mean);
+  bool skip = (has_runner ? rest < 0.5 / float(push.samples) : mask == full) ||
+              dot(away, away) < 1e-6;
   vec3 other;
-  if (!Borrow(p, away, other)) return color;  // no other surface in sight: nothing to blend with
-  return vec4(mix(color.rgb, other, 1.0 - owned), 1.0);
+  // Without another surface in sight there is nothing to blend with.
+  bool found = !skip && Borrow(p, away, other);
+  if (has_runner) return vec4(found ? known + rest * other : known / (owned + runner.a), 1.0);
+  return found ? vec4(mix(color.rgb, other, 1.0 - owned), 1.0) : color;
 }
 
 vec4 GeometricAa(ivec2 p) { return GeometricAa(p, vec4(0.0), vec2(0.5)); }
