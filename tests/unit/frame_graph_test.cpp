@@ -2,6 +2,7 @@
 // plan, and the texture bucketing of GpuScene.
 #include "renderer/graph/frame_graph.h"
 #include "renderer/features/features.h"
+#include "renderer/features/pass.h"
 
 #include <gtest/gtest.h>
 
@@ -848,6 +849,53 @@ TEST(PlanTextureBucketsTest, SameInputSamePlan) {
     EXPECT_EQ(a.slots[i].layer, b.slots[i].layer);
   }
   ExpectValidPlan(textures, a, 4096, "40 textures");
+}
+
+}  // namespace
+}  // namespace tessera
+
+namespace tessera {
+namespace {
+
+// The shading passes key their pipelines on ShadingConstants::Key() and build them from
+// FromKey(key).Values(): packing must lose nothing and keep distinct constants apart.
+TEST(ShadingConstantsTest, KeysRoundTripAndNeverCollide) {
+  std::set<uint32_t> keys;
+  size_t count = 0;
+  for (uint32_t effects = 0; effects < 8; ++effects)
+    for (uint32_t textures = 0; textures <= gpu::kMaterialTexturesAll; ++textures)
+      for (uint32_t debug : {gpu::kDebugNone, gpu::kDebugNormals, gpu::kDebugDepth,
+                             gpu::kDebugBaseColor, gpu::kDebugLightHeatmap, gpu::kDebugCascades})
+        for (uint32_t vis_texels = 0; vis_texels < 2; ++vis_texels)
+          for (uint32_t light_texels = 0; light_texels < 2; ++light_texels) {
+            const ShadingConstants c{effects, textures, debug, vis_texels, light_texels};
+            const uint32_t key = c.Key();
+            ASSERT_LT(key, 1u << kShadingKeyBits);
+            const ShadingConstants back = ShadingConstants::FromKey(key);
+            ASSERT_EQ(back.Values(), c.Values()) << key;
+            keys.insert(key);
+            ++count;
+          }
+  EXPECT_EQ(keys.size(), count);
+  // Values() is in constant_id order: effects, textures, debug view, vis.glsl's texels, lights'.
+  EXPECT_EQ((ShadingConstants{1, 2, 3, 0, 1}.Values()), (std::vector<uint32_t>{1, 2, 3, 0, 1}));
+}
+
+TEST(ShadingConstantsTest, FollowTheSettingsAndTheFrame) {
+  Settings s;
+  s.shadows = true;
+  s.ibl = true;
+  s.debug_view = DebugView::kNormals;
+  FrameFeatures features;
+  features.light_texels = true;
+  const ShadingConstants c = ShadingConstantsFor(s, features, 5u);
+  EXPECT_EQ(c.effects, gpu::kShadowsOn | gpu::kIblOn);
+  EXPECT_EQ(c.textures, 5u);
+  EXPECT_EQ(c.debug, gpu::kDebugNormals);
+  EXPECT_EQ(c.light_texels, 1u);
+  EXPECT_EQ(c.vis_texels, 0u);  // the visibility shading sets it from its scene
+  features.light_texels = false;
+  EXPECT_EQ(ShadingConstantsFor(Settings{}, features, 0u).Key(), 0u);
 }
 
 }  // namespace
