@@ -111,7 +111,8 @@ void ComputeBarrier(VkCommandBuffer cmd, bool indirect = false) {
 // resolve's edge list, with vis_mlaa's layout).
 class VisClassifyPass final : public Pass {
  public:
-  VisClassifyPass(ShadeLayout one, ShadeLayout mlaa) : one_(std::move(one)), mlaa_(std::move(mlaa)) {}
+  VisClassifyPass(ShadeLayout one, ShadeLayout mlaa)
+      : one_(std::move(one)), mlaa_(std::move(mlaa)) {}
   PassId id() const override { return PassId::kVisClassify; }
 
   // A pipeline per mode (vis_classify.glsl's specialization constant 0, kClassify*), for the one
