@@ -298,7 +298,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.exposure_valid = f.exposure.state_valid;
   features.pose_pending = gs.pose_pending();
   features.object_motion = f.taa.motion_pass;
-  features.light_texels = f.light_buffers.texels;
+  features.light_texels = m.LightTexelsFit(f.local.size(), f.tiled ? f.grid.tiles() : 1);
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
   RETURN_IF_ERROR(m.PreparePasses(plan, s, gs, features));

@@ -232,7 +232,7 @@ struct Renderer::Impl {
   absl::Status PreparePasses(const FramePlan& plan, const Settings& s, const GpuScene& gs,
                              const FrameFeatures& features);
   // Whether `lights` local lights and the light lists of `tiles` tiles fit the device's texel
-  // buffers (LightCullBuffers::texels).
+  // buffers (FrameFeatures::light_texels).
   bool LightTexelsFit(uint64_t lights, uint64_t tiles) const;
   // The long-lived images this frame imports into its graph (FrameTargets::shadow_atlas ...).
   void ImportTargets(const FrameData& f);

@@ -236,7 +236,6 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
   lb.lights = uint32_t(local.size());
   lb.rows = f.grid.tiles_y();
   lb.gpu_binning = f.tiled && s.light_binning == LightBinning::kGpu;
-  lb.texels = LightTexelsFit(local.size(), f.tiled ? f.grid.tiles() : 1);
   if (lb.gpu_binning) {  // the light-culling pass bounds and bins them into these
     RETURN_IF_ERROR(EnsureGpuBinBuffers(lb.lights, gpu_row_entries));
     lb.bounds = gpu_light_bounds.handle();

@@ -155,9 +155,6 @@ struct LightCullBuffers {
   uint32_t lights = 0;
   uint32_t rows = 0;
   uint64_t row_entries = 0;  // of row_lights in use (header and lists)
-  // The shading reads local_lights and tile_lights through their texel views (FrameFeatures::
-  // light_texels): the frame's lights and lists fit maxTexelBufferElements.
-  bool texels = false;
 };
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a

@@ -259,9 +259,9 @@ uint32_t PlaceSun(ShadowPlacer& placer, const FrameData& f, gpu::GpuLight* gl,
 // Point and spot lights: the most important ones in view. A spot has one view, a point light
 // six (its unrolled cubemap); a light whose faces do not fit even at half size stays
 // unshadowed.
-// Returns how many were shadowed; each is listed in `su.shadowed` and knows its place there.
-uint32_t PlaceLocalLights(ShadowPlacer& placer, const FrameData& f, gpu::GpuLight* ll,
-                          gpu::ShadowUniforms& su, Frame& frame) {
+// Each one shadowed is listed in `su.shadowed` and knows its place there (GpuLight.spot.w).
+void PlaceLocalLights(ShadowPlacer& placer, const FrameData& f, gpu::GpuLight* ll,
+                      gpu::ShadowUniforms& su, Frame& frame) {
   uint32_t shadowed = 0;
   const std::vector<uint32_t> chosen = ChooseShadowedLights(
       f.local, FrustumFromViewProj(f.fu.view_proj), CameraPosition(f.camera), f.s.shadow_lights);
@@ -304,7 +304,6 @@ uint32_t PlaceLocalLights(ShadowPlacer& placer, const FrameData& f, gpu::GpuLigh
                                        " lights did not fit the shadow atlas and are unshadowed "
                                        "(use a larger shadow_atlas_size)")});
   }
-  return shadowed;
 }
 
 }  // namespace
@@ -324,10 +323,9 @@ absl::Status Renderer::Impl::PrepareShadows(FrameData& f, Frame& frame) {
   ShadowPlacer placer(f.gs, f.s, atlas, su, out);
   const uint32_t cascades =
       PlaceSun(placer, f, static_cast<gpu::GpuLight*>(lights_ubo.mapped()), su, frame);
-  const uint32_t shadowed =
-      PlaceLocalLights(placer, f, static_cast<gpu::GpuLight*>(local_lights.mapped()), su, frame);
+  PlaceLocalLights(placer, f, static_cast<gpu::GpuLight*>(local_lights.mapped()), su, frame);
   const uint32_t size = placer.size();
-  su.counts = glm::uvec4(placer.views(), cascades, shadowed, gpu::kShadowsOn);
+  su.counts = glm::uvec4(placer.views(), cascades, 0u, gpu::kShadowsOn);
   su.atlas = glm::vec4(float(size), 1.0f / float(size), 1.5f, 0.0f);
   FrameStats& stats = frame.stats;
   stats.shadow_views = placer.views();

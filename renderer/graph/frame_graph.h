@@ -142,7 +142,7 @@ struct FrameFeatures {
   // the motion pass runs.
   bool object_motion = false;
   // The shading reads the local lights and the tiles' light lists through texel buffers (they
-  // fit the device's maxTexelBufferElements; LightCullBuffers::texels).
+  // fit the device's maxTexelBufferElements: Renderer::Impl::LightTexelsFit).
   bool light_texels = false;
 };
 

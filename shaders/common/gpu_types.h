@@ -53,10 +53,9 @@ TS_CONST uint kBindingSpecular = 11;    // samplerCube: IBL prefiltered specular
 TS_CONST uint kBindingBrdfLut = 12;     // sampler2D: split-sum BRDF (A, B) by (n.v, roughness)
 TS_CONST uint kBindingEnvironment = 13;  // samplerCube: IBL's sky, the background with ibl
 // The local lights and the tiles' light lists again, as uniform texel buffers (R32G32B32A32_UINT,
-// kGpuLightTexels per light; R32_UINT): lavapipe loads a storage-buffer word at a per-lane offset
-// in a loop over the lanes, a word at a time, and fetches a texel in one gather. Read where both
-// fit maxTexelBufferElements (LightCullBuffers::texels): shading.glsl's specialization constant
-// kLightTexelsConstant; else the storage buffers.
+// kGpuLightTexels per light; R32_UINT), for the reason kVisBindingIndexTexels gives. Read where
+// both fit maxTexelBufferElements (FrameFeatures::light_texels): shading.glsl's specialization
+// constant kLightTexelsConstant; else the storage buffers.
 TS_CONST uint kBindingLocalLightTexels = 14;
 TS_CONST uint kBindingTileLightTexels = 15;
 TS_CONST uint kLightTexelsConstant = 4;
@@ -353,7 +352,7 @@ struct GpuShadowView {
 };
 
 struct ShadowUniforms {
-  uvec4 counts;  // x views, y sun cascades, z shadowed local lights, w kShadowsOn | kSsaoOn
+  uvec4 counts;  // x views, y sun cascades, z unused, w kShadowsOn | kSsaoOn
   vec4 atlas;    // x atlas size in texels, y 1 / size, z normal offset in texels, w unused
   vec4 cascade_spheres[4];  // world xyz centre, w radius (the sphere the cascade covers)
   // The shadowed local lights' indices in the local lights, four to an element (GpuLight.spot.w
