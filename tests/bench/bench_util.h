@@ -22,6 +22,14 @@ inline double Median(std::vector<double> v) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+// The extremes, for the spread of a figure (0 for none).
+inline double Min(const std::vector<double>& v) {
+  return v.empty() ? 0.0 : *std::min_element(v.begin(), v.end());
+}
+inline double Max(const std::vector<double>& v) {
+  return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+}
+
 // Nearest-rank percentile, p in (0, 100].
 inline double Percentile(std::vector<double> v, double p) {
   if (v.empty()) return 0.0;

@@ -1,6 +1,7 @@
 // tessera-bench: renders a scene N times per frame size after a warm-up and prints JSON with
-// the median GPU time of every pass, the median total and the CPU stages. A program, not a
-// timed test: compare figures as ratios within one run (the machines are noisy).
+// the median GPU time of every pass and of the total, their spread over the timed frames (min
+// and max), and the CPU stages. A program, not a timed test: compare figures as ratios within
+// one run (the machines are noisy), and read the spread before reading a difference.
 //
 //   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf
 //       --sizes 1280x720,1920x1080 --frames 20 --warmup 3 [--pipeline visibility --aa taa ...]
@@ -32,7 +33,9 @@
 namespace {
 
 using tessera::bench::Fail;
+using tessera::bench::Max;
 using tessera::bench::Median;
+using tessera::bench::Min;
 using tessera::bench::ParseVec3;
 
 }  // namespace
@@ -166,9 +169,13 @@ int main(int argc, char** argv) {
     for (const std::string& name : order)
       passes.push_back({{"pass", name},
                         {"gpu_ms_median", Median(pass_ms[name])},
+                        {"gpu_ms_min", Min(pass_ms[name])},
+                        {"gpu_ms_max", Max(pass_ms[name])},
                         {"timestamp_ms_median", Median(pass_stamp_ms[name])}});
     r["passes"] = passes;
     r["gpu_total_ms_median"] = Median(total);
+    r["gpu_total_ms_min"] = Min(total);
+    r["gpu_total_ms_max"] = Max(total);
     r["cpu_ms_median"] = {{"record", Median(record)},
                           {"submit_wait", Median(submit_wait)},
                           {"readback", Median(readback)},
@@ -194,8 +201,8 @@ int main(int argc, char** argv) {
                   {"deformed_vertices", last.stats.deformed_vertices}};
     if (!skinning_share.empty()) {
       r["skinning_share_median"] = Median(skinning_share);
-      r["skinning_share_min"] = *std::min_element(skinning_share.begin(), skinning_share.end());
-      r["skinning_share_max"] = *std::max_element(skinning_share.begin(), skinning_share.end());
+      r["skinning_share_min"] = Min(skinning_share);
+      r["skinning_share_max"] = Max(skinning_share);
     }
     out["results"].push_back(r);
   }
