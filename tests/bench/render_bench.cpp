@@ -6,6 +6,14 @@
 //   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf
 //       --sizes 1280x720,1920x1080 --frames 20 --warmup 3 [--pipeline visibility --aa taa ...]
 //
+// A comparison in one run: --versus "FLAGS" renders every frame a second time with FLAGS
+// (settings flags, and --disable-features a,b for a second renderer without those device
+// features) applied over the others, alternating which goes first, and adds "versus" to each
+// result: the other side's figures and, per frame pair, the ratio other / this of the total and
+// of every pass both have (median, min, max). The machine's drift between runs then cancels:
+//   tessera-bench --scene ... --pipeline forward --versus "--pipeline visibility"
+//   tessera-bench --scene ... --pipeline visibility --versus "--disable-features texel_buffers"
+//
 // Animated scenes: --animation NAME [--time S] poses the scene; --play FPS advances the time by
 // 1/FPS each frame, as a playing stream does, so every frame skins again (the skinning pass's
 // share of the frame is in "skinning_share"). The skinned crowd:
@@ -38,140 +46,80 @@ using tessera::bench::Median;
 using tessera::bench::Min;
 using tessera::bench::ParseVec3;
 
-}  // namespace
+// One side of a measurement: a renderer, its scene and view, the settings it renders with, and
+// what its timed frames measured (reset per frame size).
+struct Side {
+  tessera::Renderer* renderer = nullptr;
+  tessera::SceneHandle scene;
+  tessera::Settings settings;
+  uint64_t view = 0;
+  float start_time = 0.0f;  // --play: the scene time of the first frame
+  std::map<std::string, std::vector<double>> pass_ms, pass_stamp_ms;
+  std::vector<std::string> order;
+  std::vector<double> total, record, submit_wait, readback, encode, encode_one, ratio,
+      skinning_share;
+  std::vector<std::map<std::string, double>> frame_passes;  // per timed frame: pass -> ms
+  tessera::Frame last;
 
-int main(int argc, char** argv) {
-  using namespace tessera;
-  std::string scene_path, device;
-  std::vector<std::pair<uint32_t, uint32_t>> sizes = {{1280, 720}, {1920, 1080}};
-  uint32_t frames = 20, warmup = 3;
-  double play_fps = 0.0;
-  std::optional<glm::vec3> eye, target;
-  Settings base;
-  SettingMask named;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    auto value = [&]() -> std::string {
-      if (i + 1 >= argc) Fail(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--scene")
-      scene_path = value();
-    else if (arg == "--device")
-      device = value();
-    else if (arg == "--frames") {
-      if (!absl::SimpleAtoi(value(), &frames) || frames == 0) Fail("--frames");
-    } else if (arg == "--warmup") {
-      if (!absl::SimpleAtoi(value(), &warmup)) Fail("--warmup");
-    } else if (arg == "--play") {
-      if (!absl::SimpleAtod(value(), &play_fps) || !(play_fps > 0.0)) Fail("--play wants FPS > 0");
-    } else if (arg == "--eye")
-      eye = ParseVec3(value());
-    else if (arg == "--target")
-      target = ParseVec3(value());
-    else if (absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &base, &named);
-             !setting.ok()) {
-      Fail(std::string(setting.status().message()));
-    } else if (*setting) {
-      // a settings flag (renderer/settings_table.h): --culling, --pipeline, --aa, --shadows ...
-    } else if (arg == "--sizes") {
-      sizes.clear();
-      const std::vector<std::string> items = absl::StrSplit(value(), ',');
-      for (const std::string& s : items) {
-        std::vector<std::string> wh = absl::StrSplit(s, 'x');
-        uint32_t w, h;
-        if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &w) || !absl::SimpleAtoi(wh[1], &h))
-          Fail("--sizes wants WxH[,WxH...], got " + s);
-        sizes.emplace_back(w, h);
-      }
-    } else {
-      Fail("unknown option " + arg +
-           " (--scene F --sizes WxH,.. --frames N --warmup N --eye X,Y,Z --target X,Y,Z "
-           "--play FPS --device NAME, and the settings flags of tessera-render)");
-    }
+  void Reset() {
+    pass_ms.clear();
+    pass_stamp_ms.clear();
+    order.clear();
+    total.clear(), record.clear(), submit_wait.clear(), readback.clear(), encode.clear();
+    encode_one.clear(), ratio.clear(), skinning_share.clear(), frame_passes.clear();
   }
 
-  absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
-  if (!renderer.ok()) Fail(std::string(renderer.status().message()));
-  const auto t0 = std::chrono::steady_clock::now();
-  const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
-  const double load_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  const SceneInfo& info = scene->info();
+  // Renders and encodes one frame; a timed one (past the warm-up) is recorded.
+  void RenderFrame(const tessera::Camera& camera, bool timed) {
+    using namespace tessera;
+    absl::StatusOr<Frame> frame = renderer->Render(*scene, camera, settings, view);
+    if (!frame.ok()) Fail(std::string(frame.status().message()));
+    if (absl::StatusOr<std::vector<uint8_t>> jpg = EncodeFrame(*frame, ImageFormat::kJpeg);
+        !jpg.ok()) {
+      Fail(std::string(jpg.status().message()));
+    }
+    // The same encode in one strip, for the ratio (EncodeFrame uses AutoJpegStrips).
+    const auto t_one = std::chrono::steady_clock::now();
+    if (!EncodeJpeg(frame->image, int(settings.jpeg_quality), ChromaSubsampling::k420, 1).ok())
+      Fail("EncodeJpeg");
+    const double one_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_one)
+            .count();
+    if (!timed) return;
+    std::map<std::string, double>& passes = frame_passes.emplace_back();
+    for (const PassTiming& p : frame->passes) {
+      if (!pass_ms.count(p.pass)) order.push_back(p.pass);
+      pass_ms[p.pass].push_back(p.gpu_ms);
+      pass_stamp_ms[p.pass].push_back(p.timestamp_ms);
+      passes[p.pass] += p.gpu_ms;
+    }
+    total.push_back(frame->gpu_total_ms);
+    for (const PassTiming& p : frame->passes)
+      if (p.pass == "skinning") skinning_share.push_back(p.gpu_ms / frame->gpu_total_ms);
+    record.push_back(frame->cpu.record_ms);
+    submit_wait.push_back(frame->cpu.submit_wait_ms);
+    readback.push_back(frame->cpu.readback_ms);
+    encode.push_back(frame->cpu.encode_ms);
+    encode_one.push_back(one_ms);
+    double stamp_total = 0.0;
+    for (const PassTiming& p : frame->passes) stamp_total += p.timestamp_ms;
+    ratio.push_back(stamp_total / std::max(1e-6, frame->cpu.submit_wait_ms));
+    renderer->RecyclePixels(std::move(last.image.pixels));  // as the server gives them back
+    last = std::move(*frame);
+  }
 
-  nlohmann::json out;
-  const DeviceInfo& dev = (*renderer)->device_info();
-  out["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
-  out["scene"] = {{"name", info.name},
-                  {"triangles", info.counts.triangles},
-                  {"primitives", info.counts.primitives},
-                  {"load_ms", load_ms},
-                  {"device_mib", double(info.device_bytes) / (1 << 20)}};
-  out["frames"] = frames;
-  out["warmup"] = warmup;
-  for (const auto& [w, h] : sizes) {
-    Settings s = base;
-    s.width = w;
-    s.height = h;
-    const float aspect = float(w) / float(h);
-    Camera camera = !info.cameras.empty() ? FromSceneCamera(info.cameras[0])
-                                          : FrameBounds(info.bounds, 0.8f, aspect);
-    if (eye && target) {
-      camera = Camera{};
-      camera.eye = *eye;
-      camera.target = *target;
-      camera.znear = 0.05f;
-    }
-    std::map<std::string, std::vector<double>> pass_ms, pass_stamp_ms;
-    std::vector<std::string> order;
-    std::vector<double> total, record, submit_wait, readback, encode, encode_one, ratio;
-    Frame last;
-    std::vector<double> skinning_share;
-    for (uint32_t f = 0; f < warmup + frames; ++f) {
-      if (play_fps > 0.0) s.scene_time = static_cast<float>(base.scene_time + f / play_fps);
-      absl::StatusOr<Frame> frame = (*renderer)->Render(*scene, camera, s);
-      if (!frame.ok()) Fail(std::string(frame.status().message()));
-      if (absl::StatusOr<std::vector<uint8_t>> jpg = EncodeFrame(*frame, ImageFormat::kJpeg);
-          !jpg.ok()) {
-        Fail(std::string(jpg.status().message()));
-      }
-      // The same encode in one strip, for the ratio (EncodeFrame uses AutoJpegStrips).
-      const auto t_one = std::chrono::steady_clock::now();
-      if (!EncodeJpeg(frame->image, int(s.jpeg_quality), ChromaSubsampling::k420, 1).ok())
-        Fail("EncodeJpeg");
-      const double one_ms = std::chrono::duration<double, std::milli>(
-                                std::chrono::steady_clock::now() - t_one)
-                                .count();
-      if (f < warmup) continue;
-      for (const PassTiming& p : frame->passes) {
-        if (!pass_ms.count(p.pass)) order.push_back(p.pass);
-        pass_ms[p.pass].push_back(p.gpu_ms);
-        pass_stamp_ms[p.pass].push_back(p.timestamp_ms);
-      }
-      total.push_back(frame->gpu_total_ms);
-      for (const PassTiming& p : frame->passes)
-        if (p.pass == "skinning") skinning_share.push_back(p.gpu_ms / frame->gpu_total_ms);
-      record.push_back(frame->cpu.record_ms);
-      submit_wait.push_back(frame->cpu.submit_wait_ms);
-      readback.push_back(frame->cpu.readback_ms);
-      encode.push_back(frame->cpu.encode_ms);
-      encode_one.push_back(one_ms);
-      double stamp_total = 0.0;
-      for (const PassTiming& p : frame->passes) stamp_total += p.timestamp_ms;
-      ratio.push_back(stamp_total / std::max(1e-6, frame->cpu.submit_wait_ms));
-      (*renderer)->RecyclePixels(std::move(last.image.pixels));  // as the server gives them back
-      last = std::move(*frame);
-    }
+  nlohmann::json Result(uint32_t w, uint32_t h) const {
+    using namespace tessera;
     nlohmann::json r;
     r["width"] = w;
     r["height"] = h;
     nlohmann::json passes = nlohmann::json::array();
     for (const std::string& name : order)
       passes.push_back({{"pass", name},
-                        {"gpu_ms_median", Median(pass_ms[name])},
-                        {"gpu_ms_min", Min(pass_ms[name])},
-                        {"gpu_ms_max", Max(pass_ms[name])},
-                        {"timestamp_ms_median", Median(pass_stamp_ms[name])}});
+                        {"gpu_ms_median", Median(pass_ms.at(name))},
+                        {"gpu_ms_min", Min(pass_ms.at(name))},
+                        {"gpu_ms_max", Max(pass_ms.at(name))},
+                        {"timestamp_ms_median", Median(pass_stamp_ms.at(name))}});
     r["passes"] = passes;
     r["gpu_total_ms_median"] = Median(total);
     r["gpu_total_ms_min"] = Min(total);
@@ -204,14 +152,197 @@ int main(int argc, char** argv) {
       r["skinning_share_min"] = Min(skinning_share);
       r["skinning_share_max"] = Max(skinning_share);
     }
+    return r;
+  }
+};
+
+// Per frame pair, b / a: the median, min and max of the ratios.
+nlohmann::json PairRatios(const std::vector<double>& a, const std::vector<double>& b) {
+  std::vector<double> r;
+  for (size_t i = 0; i < std::min(a.size(), b.size()); ++i)
+    if (a[i] > 0.0) r.push_back(b[i] / a[i]);
+  return {{"median", Median(r)}, {"min", Min(r)}, {"max", Max(r)}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using namespace tessera;
+  std::string scene_path, device;
+  std::vector<std::pair<uint32_t, uint32_t>> sizes = {{1280, 720}, {1920, 1080}};
+  uint32_t frames = 20, warmup = 3;
+  double play_fps = 0.0;
+  std::optional<glm::vec3> eye, target;
+  Settings base;
+  SettingMask named;
+  std::string versus;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    auto value = [&]() -> std::string {
+      if (i + 1 >= argc) Fail(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--scene")
+      scene_path = value();
+    else if (arg == "--device")
+      device = value();
+    else if (arg == "--frames") {
+      if (!absl::SimpleAtoi(value(), &frames) || frames == 0) Fail("--frames");
+    } else if (arg == "--warmup") {
+      if (!absl::SimpleAtoi(value(), &warmup)) Fail("--warmup");
+    } else if (arg == "--play") {
+      if (!absl::SimpleAtod(value(), &play_fps) || !(play_fps > 0.0)) Fail("--play wants FPS > 0");
+    } else if (arg == "--eye")
+      eye = ParseVec3(value());
+    else if (arg == "--target")
+      target = ParseVec3(value());
+    else if (arg == "--versus")
+      versus = value();
+    else if (absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &base, &named);
+             !setting.ok()) {
+      Fail(std::string(setting.status().message()));
+    } else if (*setting) {
+      // a settings flag (renderer/settings_table.h): --culling, --pipeline, --aa, --shadows ...
+    } else if (arg == "--sizes") {
+      sizes.clear();
+      const std::vector<std::string> items = absl::StrSplit(value(), ',');
+      for (const std::string& s : items) {
+        std::vector<std::string> wh = absl::StrSplit(s, 'x');
+        uint32_t w, h;
+        if (wh.size() != 2 || !absl::SimpleAtoi(wh[0], &w) || !absl::SimpleAtoi(wh[1], &h))
+          Fail("--sizes wants WxH[,WxH...], got " + s);
+        sizes.emplace_back(w, h);
+      }
+    } else {
+      Fail("unknown option " + arg +
+           " (--scene F --sizes WxH,.. --frames N --warmup N --eye X,Y,Z --target X,Y,Z "
+           "--play FPS --device NAME --versus \"FLAGS\", and the settings flags of "
+           "tessera-render)");
+    }
+  }
+  // The other side of --versus: the settings with its flags applied over them, and the device
+  // features its renderer goes without.
+  Settings other = base;
+  std::vector<std::string> other_disabled;
+  if (!versus.empty()) {
+    const std::vector<std::string> args = absl::StrSplit(versus, ' ', absl::SkipEmpty());
+    for (size_t i = 0; i < args.size(); ++i) {
+      const std::string& arg = args[i];
+      auto value = [&]() -> std::string {
+        if (i + 1 >= args.size()) Fail("--versus: " + arg + " needs a value");
+        return args[++i];
+      };
+      if (arg == "--disable-features") {
+        other_disabled = absl::StrSplit(value(), ',', absl::SkipEmpty());
+        continue;
+      }
+      SettingMask other_named;
+      absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &other, &other_named);
+      if (!setting.ok()) Fail("--versus: " + std::string(setting.status().message()));
+      if (!*setting)
+        Fail("--versus: " + arg + " is neither a settings flag nor --disable-features");
+    }
+  }
+
+  absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
+  if (!renderer.ok()) Fail(std::string(renderer.status().message()));
+  const auto t0 = std::chrono::steady_clock::now();
+  const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
+  const double load_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  const SceneInfo& info = scene->info();
+  // The sides: this one, and --versus's on the same renderer and scene (another view, so their
+  // temporal histories stay apart) or on a second renderer without the features it names.
+  Side a, b;
+  a.renderer = renderer->get();
+  a.scene = scene;
+  a.settings = base;
+  a.view = 1;
+  a.start_time = base.scene_time;
+  std::unique_ptr<Renderer> other_renderer;
+  if (!versus.empty()) {
+    b.renderer = a.renderer;
+    b.scene = scene;
+    if (!other_disabled.empty()) {
+      absl::StatusOr<std::unique_ptr<Renderer>> r2 =
+          Renderer::Create({device, false, other_disabled});
+      if (!r2.ok()) Fail("--versus: " + std::string(r2.status().message()));
+      other_renderer = std::move(*r2);
+      b.renderer = other_renderer.get();
+      b.scene = bench::LoadSceneOrDemo(*other_renderer, scene_path);
+    }
+    b.settings = other;
+    b.view = 2;
+    b.start_time = other.scene_time;
+  }
+
+  nlohmann::json out;
+  const DeviceInfo& dev = (*renderer)->device_info();
+  out["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
+  out["scene"] = {{"name", info.name},
+                  {"triangles", info.counts.triangles},
+                  {"primitives", info.counts.primitives},
+                  {"load_ms", load_ms},
+                  {"device_mib", double(info.device_bytes) / (1 << 20)}};
+  out["frames"] = frames;
+  out["warmup"] = warmup;
+  for (const auto& [w, h] : sizes) {
+    const float aspect = float(w) / float(h);
+    Camera camera = !info.cameras.empty() ? FromSceneCamera(info.cameras[0])
+                                          : FrameBounds(info.bounds, 0.8f, aspect);
+    if (eye && target) {
+      camera = Camera{};
+      camera.eye = *eye;
+      camera.target = *target;
+      camera.znear = 0.05f;
+    }
+    std::vector<Side*> sides = {&a};
+    if (!versus.empty()) sides.push_back(&b);
+    for (Side* side : sides) {
+      side->Reset();
+      side->settings.width = w;
+      side->settings.height = h;
+    }
+    for (uint32_t f = 0; f < warmup + frames; ++f) {
+      // --versus: the two sides take turns going first, so neither always follows the other.
+      for (size_t k = 0; k < sides.size(); ++k) {
+        Side& side = *sides[(k + f) % sides.size()];
+        if (play_fps > 0.0)
+          side.settings.scene_time = static_cast<float>(side.start_time + f / play_fps);
+        side.RenderFrame(camera, f >= warmup);
+      }
+    }
+    nlohmann::json r = a.Result(w, h);
+    if (!versus.empty()) {
+      nlohmann::json v;
+      v["flags"] = versus;
+      v["result"] = b.Result(w, h);
+      // Per frame pair, the other side's time over this side's (< 1: the other is faster).
+      v["ratio_total"] = PairRatios(a.total, b.total);
+      nlohmann::json passes = nlohmann::json::object();
+      for (const std::string& name : a.order) {
+        std::vector<double> pa, pb;
+        for (size_t i = 0; i < std::min(a.frame_passes.size(), b.frame_passes.size()); ++i) {
+          const auto ia = a.frame_passes[i].find(name), ib = b.frame_passes[i].find(name);
+          if (ia == a.frame_passes[i].end() || ib == b.frame_passes[i].end()) continue;
+          pa.push_back(ia->second);
+          pb.push_back(ib->second);
+        }
+        if (!pa.empty()) passes[name] = PairRatios(pa, pb);
+      }
+      v["ratio_passes"] = passes;
+      r["versus"] = v;
+    }
     out["results"].push_back(r);
   }
   std::printf("%s\n", out.dump(2).c_str());
   // With TESSERA_VALIDATION=1 (as in the smoke test) any validation message is a failure.
-  if ((*renderer)->validation_message_count() > 0) {
-    for (const std::string& m : (*renderer)->validation_messages())
+  int rc = 0;
+  for (Renderer* r : {renderer->get(), other_renderer.get()}) {
+    if (r == nullptr || r->validation_message_count() == 0) continue;
+    for (const std::string& m : r->validation_messages())
       std::fprintf(stderr, "validation: %s\n", m.c_str());
-    return 1;
+    rc = 1;
   }
-  return 0;
+  return rc;
 }
