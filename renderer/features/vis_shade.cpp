@@ -10,10 +10,10 @@
 //    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads
 //    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id
 //    and shaded once (shaders/vis_shade.comp; vis_mlaa: vis_shade_mlaa.comp, at the surface's
-//    mean sample position); then one over the sky's pixels (vis_sky.comp).
-// The sky is listed rather than written by the classification: lavapipe runs the code of
-// masked-off lanes, so writing it there cost every pixel of the frame (33 -> 20 ms for the
-// classification of DamagedHelmet at 1280x720).
+//    mean sample position); vis_mlaa then one over the sky's pixels (vis_sky_mlaa.comp).
+// The one-sample classification writes the sky where no surface is, in its last pass over the
+// pixels; vis_mlaa's sky is listed and shaded like a material, since the sky can be a pixel's
+// runner-up surface, with a colour of its own at its samples' mean (vis_sky_mlaa.comp).
 // Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
 #include <algorithm>
 #include <array>
@@ -124,7 +124,8 @@ class VisClassifyPass final : public Pass {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
     const bool ballots = ctx.info().subgroup_ballot;
     return (vis_mlaa ? mlaa_pipelines_ : pipelines_)
-        .Ensure(VisTexels(scene), [&](uint32_t texels) -> absl::StatusOr<ModePipelines> {
+        .Ensure(Key(s, scene), [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
+          const uint32_t texels = key & 1u, ibl = key >> 1;
           ModePipelines made;
           // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
           const std::vector<uint32_t> modes =
@@ -141,11 +142,18 @@ class VisClassifyPass final : public Pass {
                 made[mode],
                 vk::CreateComputePipeline(
                     ctx, absl::StrCat(vis_mlaa ? "vis_classify.vis_mlaa." : "vis_classify.", mode,
-                                      texels ? ".texels" : ""),
-                    shader, (vis_mlaa ? mlaa_ : one_).pipeline_layout(), {mode, 0u, 0u, texels}));
+                                      texels ? ".texels" : "", ibl ? ".ibl" : ""),
+                    shader, (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
+                    {mode, ibl, 0u, texels}));
           }
           return made;
         });
+  }
+  // The pipelines' key: the way the drawables are read (vis.glsl's kVisTexels), and for the
+  // one-sample classification, which writes the sky, whether the frame has IBL (its sky).
+  static uint32_t Key(const Settings& s, const GpuScene& scene) {
+    const bool ibl = s.ibl && s.aa != AaMode::kVisMlaa;
+    return VisTexels(scene) | (ibl ? 2u : 0u);
   }
 
   void Record(PassContext& ctx) override {
@@ -166,7 +174,7 @@ class VisClassifyPass final : public Pass {
           VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     }
     const ModePipelines& pipelines =
-        (vis_mlaa ? mlaa_pipelines_ : pipelines_).at(VisTexels(*ctx.scene));
+        (vis_mlaa ? mlaa_pipelines_ : pipelines_).at(Key(*ctx.settings, *ctx.scene));
     layout.Bind(ctx);
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
@@ -213,7 +221,7 @@ class VisClassifyPass final : public Pass {
   // A mode the classification does not run has a null pipeline.
   using ModePipelines = std::array<vk::Pipeline, 4>;
   ShadeLayout one_, mlaa_;
-  PerSampleCount<ModePipelines> pipelines_, mlaa_pipelines_;  // by VisTexels
+  PerSampleCount<ModePipelines> pipelines_, mlaa_pipelines_;  // by Key
 };
 
 // The shading pipelines per key: ShadingConstants::Key() (a pipeline per set of texture slots the
@@ -223,11 +231,8 @@ constexpr uint32_t kMlaaKey = 1u << kShadingKeyBits;
 
 class ShadePass final : public Pass {
  public:
-  ShadePass(ShadeLayout one, ShadeLayout mlaa, vk::Pipeline sky, vk::Pipeline mlaa_sky)
-      : one_(std::move(one)),
-        mlaa_(std::move(mlaa)),
-        sky_(std::move(sky)),
-        mlaa_sky_(std::move(mlaa_sky)) {}
+  ShadePass(ShadeLayout one, ShadeLayout mlaa, vk::Pipeline mlaa_sky)
+      : one_(std::move(one)), mlaa_(std::move(mlaa)), mlaa_sky_(std::move(mlaa_sky)) {}
   PassId id() const override { return PassId::kShade; }
 
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
@@ -276,9 +281,10 @@ class ShadePass final : public Pass {
                             VkDeviceSize(m) * sizeof(gpu::GpuShadeEntry));
       ctx.stats->material_draws++;
     }
+    // vis_mlaa's sky pixels and sky runner-ups (one sample: the classification wrote the sky).
+    if (!vis_mlaa) return;
     const uint32_t sky = ctx.shade->materials;
-    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                      (vis_mlaa ? mlaa_sky_ : sky_).handle());
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, mlaa_sky_.handle());
     const gpu::ShadePush push{glm::uvec4(sky, 0u, 0u, 0u)};
     vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
@@ -288,7 +294,7 @@ class ShadePass final : public Pass {
 
  private:
   ShadeLayout one_, mlaa_;  // one sample, vis_mlaa
-  vk::Pipeline sky_, mlaa_sky_;
+  vk::Pipeline mlaa_sky_;  // vis_mlaa's sky (the one-sample classification writes its own)
   PerSampleCount<vk::Pipeline> shading_;  // by Key
 };
 
@@ -306,13 +312,10 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                                       const SceneLayout& scene) {
   ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample));
   ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa));
-  ASSIGN_OR_RETURN(vk::Pipeline sky, vk::CreateComputePipeline(ctx, "shade.sky", "vis_sky.comp",
-                                                               one.pipeline_layout()));
   ASSIGN_OR_RETURN(vk::Pipeline mlaa_sky,
                    vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky_mlaa.comp",
                                              mlaa.pipeline_layout()));
-  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(sky),
-                                     std::move(mlaa_sky));
+  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(mlaa_sky));
 }
 
 void SetupVisibilityShading(GraphBuilder& b) {
@@ -326,7 +329,11 @@ void SetupVisibilityShading(GraphBuilder& b) {
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite);
-  if (vis_mlaa) b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
+  if (vis_mlaa) {
+    b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
+  } else {
+    b.Use(R::kHdrColor, A::kComputeWrite);  // the sky, where no surface is
+  }
   b.Pass(PassId::kShade)
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)

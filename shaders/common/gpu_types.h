@@ -177,7 +177,7 @@ TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, 
 // motion.frag: the motion of a point that was behind last frame's camera (a uv offset that
 // puts TAA's history lookup off screen; a finite RG16F value).
 TS_CONST float kMotionOffScreen = 4096.0;
-// ---- the visibility pipeline (vis_classify.comp, vis_shade.comp, vis_sky.comp;
+// ---- the visibility pipeline (vis_classify.comp, vis_shade.comp, vis_sky_mlaa.comp;
 // features/vis_shade.cpp) ------------------------------------------------------------------------
 // Set 2 of these passes: the ids, the HDR colour they write, the scene's index and vertex
 // buffers (kVisBindingIndices / kVisBindingVertices, as vis_mlaa's), the per-material entries
@@ -489,7 +489,7 @@ struct GpuShadeEntry {
 // shadow.vert, shadow_mask.vert: world -> the face's clip space.
 #define TS_PUSH_SHADOW mat4 view_proj;
 // vis_classify.comp: y materials (the sky's entry is the next; the mode is a specialization
-// constant); vis_shade.comp: x the material shaded; vis_sky.comp: x the sky's entry;
+// constant); vis_shade.comp: x the material shaded; vis_sky_mlaa.comp: x the sky's entry;
 // vis_resolve.comp: y the edge list's entry (the mode is a specialization constant).
 #define TS_PUSH_SHADE uvec4 params;
 

@@ -17,4 +17,18 @@ vec3 Hemisphere(vec3 dir) {
 vec3 SkyRadiance(vec3 dir) {
   return IblOn() ? textureLod(u_environment, dir, 0.0).rgb : Hemisphere(dir);
 }
+
+// Linear HDR background of debug views (as the forward pass's clear).
+const vec3 kDebugBackground = vec3(0.030, 0.034, 0.042);
+
+// The visibility pipeline's background at a point of the frame (framebuffer pixels): the sky
+// seen through it, or a debug view's plain background. `ibl_code` a constant: false leaves the
+// environment map's code out (lavapipe runs both sides of IblOn() for every lane).
+vec3 VisBackground(vec2 at, bool ibl_code) {
+  if (frame.counts.y != kDebugNone) return kDebugBackground;
+  vec2 ndc = at / vec2(frame.counts.zw) * 2.0 - 1.0;
+  vec4 world = frame.inv_view_proj * vec4(ndc, 1.0, 1.0);  // on the near plane
+  vec3 dir = normalize(world.xyz / world.w - frame.camera_position.xyz);
+  return ibl_code ? SkyRadiance(dir) : Hemisphere(dir);
+}
 #endif

@@ -15,6 +15,7 @@
 // the runner-ups are listed too, as kRunnerUpEntry | their edge list index, by a step dispatched
 // over the edge list (kClassifyFillRunnerUps).
 #include "common/scene.glsl"
+#include "common/sky.glsl"
 #include "common/vis.glsl"
 
 layout(local_size_x = kClassifyTile, local_size_y = kClassifyTile) in;
@@ -27,6 +28,9 @@ layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock 
 layout(set = kVisSet, binding = kShadeBindingPixels, std430) writeonly buffer PixelBlock {
   uint pixels[];
 };
+#ifndef VIS_MLAA
+layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
+#endif
 #ifdef VIS_MLAA
 layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) readonly buffer RunnerUpBlock {
   uvec2 runner_ups[];
@@ -38,6 +42,9 @@ const uint kNoMaterial = 0xffffffffu;
 #include "common/shade_append.glsl"
 
 layout(constant_id = 0) const uint kMode = kClassifyCount;
+// Whether the frame has IBL (Settings::ibl), whose environment map is the sky: a pipeline each,
+// so a frame without it does not pay the map's lookup at every pixel.
+layout(constant_id = 1) const bool kBackgroundIbl = false;
 
 shared uint s_sums[kClassifyTile * kClassifyTile];
 
@@ -95,9 +102,21 @@ void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
   uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
+#ifdef VIS_MLAA
   uint m = !inside ? kNoMaterial
            : id == 0u ? push.params.y  // the sky
                       : DrawableIds(VisDrawable(id, frame.aa.x)).y;
+#else
+  // One sample: the last pass over the pixels writes the sky where no surface is, rather than
+  // listing those pixels for a dispatch of their own. lavapipe computes the background for
+  // every lane here, covered or not, but the list's appends, reads and scattered stores cost
+  // more wherever the sky shows (1280x720: DamagedHelmet, mostly sky, classification and
+  // shading 96-128 -> 68-72 ms; Sponza's atrium, mostly covered, the classification 23-34 ->
+  // 43-46 ms).
+  if (kMode == kClassifyFill && inside && id == 0u)
+    imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
+  uint m = !inside || id == 0u ? kNoMaterial : DrawableIds(VisDrawable(id, frame.aa.x)).y;
+#endif
   if (m == kNoMaterial) return;
   if (kMode == kClassifyCount) {
     Append(m, false);
