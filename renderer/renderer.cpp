@@ -387,6 +387,7 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
       capture->shade_lists.clear();
       for (uint32_t m = 0; m <= f.shade.materials; ++m)
         capture->shade_lists.push_back({entries[m].dispatch.w, entries[m].list.y});
+      capture->background_pixels = entries[f.shade.materials].list.z;
     }
     if (plan.Has(PassId::kVisResolve)) {
       frame.stats.edge_pixels = entries[f.shade.materials + 1].dispatch.w;

@@ -165,6 +165,9 @@ struct FrameCapture {
   // (x) and how many pixels were appended to it (y). Equal in every entry when each pixel (and
   // runner-up) was counted in the list it was appended to; else a list ran into the next one.
   std::vector<glm::uvec2> shade_lists;
+  // The pixels the classification wrote the sky (or a debug view's background) at: those whose
+  // surface is none.
+  uint64_t background_pixels = 0;
 };
 
 struct Frame {

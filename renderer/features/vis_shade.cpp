@@ -11,9 +11,9 @@
 //    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id
 //    and shaded once (shaders/vis_shade.comp; vis_mlaa: vis_shade_mlaa.comp, at the surface's
 //    mean sample position); vis_mlaa then one over the sky's pixels (vis_sky_mlaa.comp).
-// The one-sample classification writes the sky where no surface is, in its last pass over the
-// pixels; vis_mlaa's sky is listed and shaded like a material, since the sky can be a pixel's
-// runner-up surface, with a colour of its own at its samples' mean (vis_sky_mlaa.comp).
+// The classification writes the sky where no surface is (vis_mlaa: where the surface a pixel
+// shows is the sky), in its last pass over the pixels; vis_mlaa lists the sky only where it is a
+// pixel's runner-up surface, with a colour of its own at its samples' mean (vis_sky_mlaa.comp).
 // Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
 #include <algorithm>
 #include <array>
@@ -149,11 +149,10 @@ class VisClassifyPass final : public Pass {
           return made;
         });
   }
-  // The pipelines' key: the way the drawables are read (vis.glsl's kVisTexels), and for the
-  // one-sample classification, which writes the sky, whether the frame has IBL (its sky).
+  // The pipelines' key: the way the drawables are read (vis.glsl's kVisTexels), and whether the
+  // frame has IBL, whose environment is the sky the classification writes.
   static uint32_t Key(const Settings& s, const GpuScene& scene) {
-    const bool ibl = s.ibl && s.aa != AaMode::kVisMlaa;
-    return VisTexels(scene) | (ibl ? 2u : 0u);
+    return VisTexels(scene) | (s.ibl ? 2u : 0u);
   }
 
   void Record(PassContext& ctx) override {
@@ -281,7 +280,8 @@ class ShadePass final : public Pass {
                             VkDeviceSize(m) * sizeof(gpu::GpuShadeEntry));
       ctx.stats->material_draws++;
     }
-    // vis_mlaa's sky pixels and sky runner-ups (one sample: the classification wrote the sky).
+    // vis_mlaa's runner-ups that are the sky (the classification wrote the sky where a pixel
+    // shows it).
     if (!vis_mlaa) return;
     const uint32_t sky = ctx.shade->materials;
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, mlaa_sky_.handle());
@@ -329,11 +329,8 @@ void SetupVisibilityShading(GraphBuilder& b) {
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
       .Use(R::kShadeLists, A::kComputeWrite);
-  if (vis_mlaa) {
-    b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
-  } else {
-    b.Use(R::kHdrColor, A::kComputeWrite);  // the sky, where no surface is
-  }
+  b.Use(R::kHdrColor, A::kComputeWrite);  // the sky, where no surface is
+  if (vis_mlaa) b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
   b.Pass(PassId::kShade)
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)

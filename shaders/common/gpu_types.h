@@ -392,7 +392,8 @@ struct FrameUniforms {
 // The visibility pipeline's record of one material in a frame: its pixels and its dispatch.
 struct GpuShadeEntry {
   uvec4 dispatch;  // xyz: VkDispatchIndirectCommand of its shading, w: pixel count
-  uvec4 list;      // x: its first pixel in the lists, y: fill cursor, zw unused (vis_mlaa's
+  uvec4 list;      // x: its first pixel in the lists, y: fill cursor, z: the sky's entry only,
+                   // the pixels the classification wrote the sky at; w unused (vis_mlaa's
                    // edge list entry: x the runner-up surfaces shaded)
 };
 

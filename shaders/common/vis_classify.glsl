@@ -28,9 +28,7 @@ layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock 
 layout(set = kVisSet, binding = kShadeBindingPixels, std430) writeonly buffer PixelBlock {
   uint pixels[];
 };
-#ifndef VIS_MLAA
 layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
-#endif
 #ifdef VIS_MLAA
 layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) readonly buffer RunnerUpBlock {
   uvec2 runner_ups[];
@@ -102,21 +100,25 @@ void main() {
   ivec2 p = ivec2(gl_GlobalInvocationID.xy);
   bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
   uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
-#ifdef VIS_MLAA
-  uint m = !inside ? kNoMaterial
-           : id == 0u ? push.params.y  // the sky
-                      : DrawableIds(VisDrawable(id, frame.aa.x)).y;
+  // The last pass over the pixels writes the sky where no surface is (vis_mlaa: where the
+  // surface a pixel shows is the sky), at the pixel's centre, rather than listing those pixels
+  // for a dispatch of their own, and counts them in the sky entry's list.z. lavapipe computes
+  // the background for every lane here, covered or not, but the list's appends, reads and
+  // scattered stores cost more wherever the sky shows (1280x720, one sample: DamagedHelmet,
+  // mostly sky, classification and shading 96-128 -> 68-72 ms; Sponza's atrium, mostly
+  // covered, the classification 23-34 -> 43-46 ms). vis_mlaa still lists the sky where it is a
+  // pixel's runner-up surface (kClassifyFillRunnerUps), shaded at its samples' mean.
+  bool sky = inside && id == 0u;
+  if (kMode == kClassifyFill) {
+    if (sky) imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
+#ifdef SHADE_APPEND_SUBGROUPS
+    uint n = subgroupBallotBitCount(subgroupBallot(sky));
+    if (subgroupElect() && n > 0u) atomicAdd(entries[push.params.y].list.z, n);
 #else
-  // One sample: the last pass over the pixels writes the sky where no surface is, rather than
-  // listing those pixels for a dispatch of their own. lavapipe computes the background for
-  // every lane here, covered or not, but the list's appends, reads and scattered stores cost
-  // more wherever the sky shows (1280x720: DamagedHelmet, mostly sky, classification and
-  // shading 96-128 -> 68-72 ms; Sponza's atrium, mostly covered, the classification 23-34 ->
-  // 43-46 ms).
-  if (kMode == kClassifyFill && inside && id == 0u)
-    imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
-  uint m = !inside || id == 0u ? kNoMaterial : DrawableIds(VisDrawable(id, frame.aa.x)).y;
+    if (sky) atomicAdd(entries[push.params.y].list.z, 1u);
 #endif
+  }
+  uint m = !inside || id == 0u ? kNoMaterial : DrawableIds(VisDrawable(id, frame.aa.x)).y;
   if (m == kNoMaterial) return;
   if (kMode == kClassifyCount) {
     Append(m, false);

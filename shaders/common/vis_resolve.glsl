@@ -17,7 +17,8 @@
 // borrows its colour from the first that shows it, and where none does it is shaded here too (a
 // wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote).
 // Every pixel's shaded surface (and every runner-up left to be shaded) is counted in its
-// material's entry as it is decided (common/shade_append.glsl), so the classification goes
+// material's entry as it is decided (a pixel whose surface is the sky is not: the classification
+// writes the sky there; a runner-up that is the sky is, in the sky's entry) (common/shade_append.glsl), so the classification goes
 // straight to its scan and lists (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp)
 // shades each listed id. vis_resolve.comp counts one atomic per subgroup and material,
 // vis_resolve_atomic.comp (devices without subgroup ballots) one per pixel.
@@ -42,7 +43,7 @@ layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) buffer RunnerUpB
 #include "common/shade_append.glsl"
 
 // The entry an id's pixels are counted in: its drawable's material's, or the sky's (the entry
-// before the edge list's).
+// before the edge list's; runner-ups only).
 uint MaterialOf(uint id, uint edges) {
   return id == 0u ? edges - 1u : DrawableIds(VisDrawable(id, frame.aa.x)).y;
 }
@@ -230,12 +231,14 @@ void main() {
     ids[s] = texelFetch(u_vis, p, int(s)).r;
     uniform_id = uniform_id && ids[s] == ids[0];
   }
+  // The pixels whose surface is the sky are not counted: the classification writes the sky there.
   if (mode == kResolveEdges) {
-    Append(MaterialOf(Group(p, entry, ids), edges), false);
+    uint winner = Group(p, entry, ids);
+    if (winner != 0u) Append(MaterialOf(winner, edges), false);
   } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
     imageStore(u_id, p, uvec4(ids[0]));
     imageStore(u_coverage, p, uvec4(PackCoverage((1u << kSamples) - 1u, vec2(0.5))));
-    Append(MaterialOf(ids[0], edges), false);
+    if (ids[0] != 0u) Append(MaterialOf(ids[0], edges), false);
   } else {
     pixels[atomicAdd(entries[edges].dispatch.w, 1u)] = uint(p.x) | (uint(p.y) << 16);
   }

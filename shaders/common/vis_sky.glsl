@@ -1,8 +1,8 @@
-// vis_mlaa's background (vis_sky_mlaa.comp): the sky (or a debug view's plain background) at the
-// pixels vis_classify listed as covered by no surface, each once, and where the sky is a pixel's
-// runner-up surface (vis_resolve.comp), in the direction of its samples' mean, into the edge
-// colours. (The one-sample classification writes the sky itself: vis_classify.glsl.) Needs
-// VIS_MLAA defined (the runner-up records).
+// vis_mlaa's sky where it is a pixel's runner-up surface (vis_resolve.comp) and no neighbour shows
+// it (vis_sky_mlaa.comp): the sky (or a debug view's plain background) in the direction of its
+// samples' mean, into the edge colours. (Where the sky is the surface a pixel shows, the
+// classification writes it: vis_classify.glsl; a plain entry in the sky's list is shaded at the
+// pixel's centre all the same.) Needs VIS_MLAA defined (the runner-up records).
 #include "common/scene.glsl"
 #include "common/sky.glsl"
 #include "common/vis.glsl"
