@@ -3,14 +3,16 @@
 // geometry once into the frame's depth and a triangle id per pixel (vis_mlaa: per sample, then
 // resolved to the id of the surface each pixel shows, its coverage and mean sample position);
 // then, all in compute:
-//  - vis_classify: per pixel its material (the drawable's; the sky's where no surface is); per
-//    material a count (vis_mlaa: counted by its resolve already), a scan into list offsets and
-//    indirect dispatch sizes, and the list of its pixels (shaders/common/vis_classify.glsl);
+//  - vis_classify: per pixel its material (the drawable's); per material a count (vis_mlaa:
+//    counted by its resolve already), a scan into list offsets and indirect dispatch sizes, and
+//    the list of its pixels; and the background where no surface is
+//    (shaders/common/vis_classify.glsl);
 //  - shade: per material on screen one vkCmdDispatchIndirect over exactly its pixels, with its
 //    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads
 //    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id
 //    and shaded once (shaders/vis_shade.comp; vis_mlaa: vis_shade_mlaa.comp, at the surface's
-//    mean sample position); vis_mlaa then one over the sky's pixels (vis_sky_mlaa.comp).
+//    mean sample position); vis_mlaa then one over its runner-up surfaces that are the sky
+//    (vis_sky_mlaa.comp).
 // The classification writes the sky where no surface is (vis_mlaa: where the surface a pixel
 // shows is the sky), in its last pass over the pixels; vis_mlaa lists the sky only where it is a
 // pixel's runner-up surface, with a colour of its own at its samples' mean (vis_sky_mlaa.comp).
@@ -225,7 +227,7 @@ class VisClassifyPass final : public Pass {
 
 // The shading pipelines per key: ShadingConstants::Key() (a pipeline per set of texture slots the
 // scene's materials use, and per effects, debug view and way of reading the scene's triangles and
-// the lights) | kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp). The sky's are one each.
+// the lights) | kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp). vis_mlaa's sky has one.
 constexpr uint32_t kMlaaKey = 1u << kShadingKeyBits;
 
 class ShadePass final : public Pass {

@@ -216,9 +216,10 @@ TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // dispatch stays inside maxComputeWorkGroupCount, 65535, at any frame size).
 TS_CONST uint kShadeDispatchWidth = 4096;
 // vis_classify's modes (specialization constant 0, a pipeline per mode).
-TS_CONST uint kClassifyCount = 0;  // count each material's pixels (and the sky's)
+TS_CONST uint kClassifyCount = 0;  // count each material's pixels
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
-TS_CONST uint kClassifyFill = 2;   // append each pixel to its material's list
+// Append each pixel to its material's list; write the background where no surface is.
+TS_CONST uint kClassifyFill = 2;
 // vis_mlaa: append the runner-up surfaces to be shaded (dispatched over the edge list). With
 // vis_mlaa the resolve counted every pixel and runner-up already: kClassifyCount does not run.
 TS_CONST uint kClassifyFillRunnerUps = 3;

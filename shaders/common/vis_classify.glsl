@@ -5,9 +5,10 @@
 // dispatch over tiles would shade tiles' other pixels too). Three modes (specialization
 // constant 0, a pipeline per mode: lavapipe runs the code of untaken branches under a lane mask,
 // the scan's barriers included, so one shader for every mode cost the fill the scan's loops):
-//  - kClassifyCount: count each material's pixels (and the sky's);
+//  - kClassifyCount: count each material's pixels;
 //  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size;
-//  - kClassifyFill: append each pixel to its material's list.
+//  - kClassifyFill: append each pixel to its material's list, and write the background where no
+//    surface is (counted in the sky entry's list.z).
 // The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by
 // peeling: the lanes of the first lane's material take their ranks from a ballot).
 // With VIS_MLAA (vis_classify_mlaa.comp) the resolve has counted each pixel's surface (and each

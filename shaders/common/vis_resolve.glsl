@@ -17,8 +17,8 @@
 // borrows its colour from the first that shows it, and where none does it is shaded here too (a
 // wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote).
 // Every pixel's shaded surface (and every runner-up left to be shaded) is counted in its
-// material's entry as it is decided (a pixel whose surface is the sky is not: the classification
-// writes the sky there; a runner-up that is the sky is, in the sky's entry) (common/shade_append.glsl), so the classification goes
+// material's entry as it is decided (a pixel whose surface is the sky is not: the
+// classification writes the sky there; a runner-up that is the sky is, in the sky's entry) (common/shade_append.glsl), so the classification goes
 // straight to its scan and lists (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp)
 // shades each listed id. vis_resolve.comp counts one atomic per subgroup and material,
 // vis_resolve_atomic.comp (devices without subgroup ballots) one per pixel.

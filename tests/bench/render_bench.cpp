@@ -6,10 +6,10 @@
 //   tessera-bench --scene ../shared/assets/Sponza/glTF/Sponza.gltf
 //       --sizes 1280x720,1920x1080 --frames 20 --warmup 3 [--pipeline visibility --aa taa ...]
 //
-// A comparison in one run: --versus "FLAGS" renders every frame a second time with FLAGS
-// (settings flags, and --disable-features a,b for a second renderer without those device
-// features) applied over the others, alternating which goes first, and adds "versus" to each
-// result: the other side's figures and, per frame pair, the ratio other / this of the total and
+// A comparison in one run: --versus "FLAGS" renders every frame a second time, on a second
+// renderer with its own copy of the scene, with FLAGS (settings flags, and --disable-features a,b
+// for device features that renderer goes without) applied over the others, alternating which
+// goes first, and adds "versus" to each result: the other side's figures and, per frame pair, the ratio other / this of the total and
 // of every pass both have (median, min, max). The machine's drift between runs then cancels:
 //   tessera-bench --scene ... --pipeline forward --versus "--pipeline visibility"
 //   tessera-bench --scene ... --pipeline visibility --versus "--disable-features texel_buffers"
@@ -226,6 +226,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> other_disabled;
   if (!versus.empty()) {
     const std::vector<std::string> args = absl::StrSplit(versus, ' ', absl::SkipEmpty());
+    SettingMask other_named = named;  // as on the command line: a row set once stays set
     for (size_t i = 0; i < args.size(); ++i) {
       const std::string& arg = args[i];
       auto value = [&]() -> std::string {
@@ -236,12 +237,13 @@ int main(int argc, char** argv) {
         other_disabled = absl::StrSplit(value(), ',', absl::SkipEmpty());
         continue;
       }
-      SettingMask other_named;
       absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &other, &other_named);
       if (!setting.ok()) Fail("--versus: " + std::string(setting.status().message()));
       if (!*setting)
         Fail("--versus: " + arg + " is neither a settings flag nor --disable-features");
     }
+    if (other.width != base.width || other.height != base.height)
+      Fail("--versus: the frame sizes come from --sizes, for both sides");
   }
 
   absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
@@ -251,8 +253,9 @@ int main(int argc, char** argv) {
   const double load_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   const SceneInfo& info = scene->info();
-  // The sides: this one, and --versus's on the same renderer and scene (another view, so their
-  // temporal histories stay apart) or on a second renderer without the features it names.
+  // The sides: this one, and --versus's on a renderer and scene of its own (without the features
+  // it names): nothing one side keeps between frames (the animation's pose, the shadow atlas,
+  // histories) is reused or invalidated by the other.
   Side a, b;
   a.renderer = renderer->get();
   a.scene = scene;
@@ -261,16 +264,12 @@ int main(int argc, char** argv) {
   a.start_time = base.scene_time;
   std::unique_ptr<Renderer> other_renderer;
   if (!versus.empty()) {
-    b.renderer = a.renderer;
-    b.scene = scene;
-    if (!other_disabled.empty()) {
-      absl::StatusOr<std::unique_ptr<Renderer>> r2 =
-          Renderer::Create({device, false, other_disabled});
-      if (!r2.ok()) Fail("--versus: " + std::string(r2.status().message()));
-      other_renderer = std::move(*r2);
-      b.renderer = other_renderer.get();
-      b.scene = bench::LoadSceneOrDemo(*other_renderer, scene_path);
-    }
+    absl::StatusOr<std::unique_ptr<Renderer>> r2 =
+        Renderer::Create({device, false, other_disabled});
+    if (!r2.ok()) Fail("--versus: " + std::string(r2.status().message()));
+    other_renderer = std::move(*r2);
+    b.renderer = other_renderer.get();
+    b.scene = bench::LoadSceneOrDemo(*other_renderer, scene_path);
     b.settings = other;
     b.view = 2;
     b.start_time = other.scene_time;

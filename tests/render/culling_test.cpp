@@ -113,7 +113,7 @@ std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>&
       if (st.pipeline_statistics) {
         // The device's own count of input primitives matches what the draw lists submitted
         // (plus the forward pipeline's full-screen sky triangle; the visibility pipeline's
-        // sky is a compute dispatch).
+        // classification writes its sky in compute).
         const uint64_t sky =
             frame->settings.effective.pipeline == Pipeline::kForward ? 1 : 0;
         EXPECT_EQ(st.primitives_in, st.triangles_submitted + sky) << where;

@@ -365,6 +365,7 @@ TEST(SelectPassesTest, VisibilityPipeline) {
   EXPECT_TRUE(uses(PassId::kVisibility, Resource::kDepth, Access::kDepthWrite));
   EXPECT_TRUE(uses(PassId::kVisibility, Resource::kVisId, Access::kColorWrite));
   EXPECT_TRUE(uses(PassId::kVisClassify, Resource::kShadeLists, Access::kComputeWrite));
+  EXPECT_TRUE(uses(PassId::kVisClassify, Resource::kHdrColor, Access::kComputeWrite));  // sky
   EXPECT_TRUE(uses(PassId::kShade, Resource::kShadeLists, Access::kIndirectRead));
   EXPECT_TRUE(uses(PassId::kShade, Resource::kHdrColor, Access::kComputeWrite));
   // msaa and vis_mlaa are not changed by the setting.
