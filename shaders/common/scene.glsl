@@ -34,4 +34,12 @@ vec4 ClipPosition(mat4 world, vec3 position) {
   precise vec4 clip = frame.view_proj * world_position;
   return clip;
 }
+
+// World-space direction (not normalized) of the camera ray through a point in framebuffer
+// pixels: the visibility shading's surfaces and its background.
+vec3 RayDirection(vec2 pixel) {
+  vec2 ndc = pixel / vec2(frame.counts.zw) * 2.0 - 1.0;
+  vec4 p = frame.inv_view_proj * vec4(ndc, 1.0, 1.0);  // on the near plane (reverse Z)
+  return p.xyz / p.w - frame.camera_position.xyz;
+}
 #endif

@@ -1,13 +1,26 @@
 // The visibility shading's counters (vis_classify.glsl, vis_resolve.comp): Append adds this
-// invocation's pixel to a material's count or fill cursor, one atomic per subgroup and material
+// invocation's pixel to one of a material's counters (its count, its fill cursor, the sky's
+// background count), one atomic per subgroup and material
 // with SHADE_APPEND_SUBGROUPS (WaveMatch by peeling: the lanes of the first lane's material take
 // their ranks from a ballot), else one per invocation. Needs `entries` (GpuShadeEntry[],
 // read-write) declared first.
 #ifndef TESSERA_SHADE_APPEND_GLSL
 #define TESSERA_SHADE_APPEND_GLSL
-// Adds `n` = 1 for this invocation to counter `word` of material m's entry (0: the pixel
-// count, 1: the fill cursor) and returns the value before this invocation's add.
-uint Append(uint m, bool cursor) {
+// The counters of an entry Append adds to.
+const uint kCountPixels = 0u;      // GpuShadeEntry.dispatch.w: the pixels counted for the list
+const uint kCountCursor = 1u;      // list.y: the fill cursor
+const uint kCountBackground = 2u;  // list.z (the sky's entry): the pixels the sky was written at
+
+// Adds n to counter `counter` (kCount*) of material m's entry; returns the value before.
+uint Add(uint m, uint counter, uint n) {
+  return counter == kCountPixels   ? atomicAdd(entries[m].dispatch.w, n)
+         : counter == kCountCursor ? atomicAdd(entries[m].list.y, n)
+                                   : atomicAdd(entries[m].list.z, n);
+}
+
+// Adds 1 for this invocation to counter `counter` (a literal, kCount*) of material m's entry and
+// returns the value before this invocation's add.
+uint Append(uint m, uint counter) {
 #ifdef SHADE_APPEND_SUBGROUPS
   uint slot = 0u;
   bool done = false;
@@ -18,7 +31,7 @@ uint Append(uint m, bool cursor) {
       uint n = subgroupBallotBitCount(same);
       uint base = 0u;
       if (subgroupElect()) {
-        base = cursor ? atomicAdd(entries[m].list.y, n) : atomicAdd(entries[m].dispatch.w, n);
+        base = Add(m, counter, n);
       }
       slot = subgroupBroadcastFirst(base) + subgroupBallotExclusiveBitCount(same);
       done = true;
@@ -26,7 +39,7 @@ uint Append(uint m, bool cursor) {
   }
   return slot;
 #else
-  return cursor ? atomicAdd(entries[m].list.y, 1u) : atomicAdd(entries[m].dispatch.w, 1u);
+  return Add(m, counter, 1u);
 #endif
 }
 #endif

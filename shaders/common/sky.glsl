@@ -26,9 +26,7 @@ const vec3 kDebugBackground = vec3(0.030, 0.034, 0.042);
 // environment map's code out (lavapipe runs both sides of IblOn() for every lane).
 vec3 VisBackground(vec2 at, bool ibl_code) {
   if (frame.counts.y != kDebugNone) return kDebugBackground;
-  vec2 ndc = at / vec2(frame.counts.zw) * 2.0 - 1.0;
-  vec4 world = frame.inv_view_proj * vec4(ndc, 1.0, 1.0);  // on the near plane
-  vec3 dir = normalize(world.xyz / world.w - frame.camera_position.xyz);
+  vec3 dir = normalize(RayDirection(at));
   return ibl_code ? SkyRadiance(dir) : Hemisphere(dir);
 }
 #endif

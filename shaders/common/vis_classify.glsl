@@ -93,7 +93,7 @@ void main() {
     uvec2 r = runner_ups[i];
     if ((r.y & 0xffu) == 0u || RunnerUpSource(r.y) != kRunnerUpShaded) return;
     uint m = r.x == 0u ? push.params.y : DrawableIds(VisDrawable(r.x, frame.aa.x)).y;
-    uint slot = Append(m, true);
+    uint slot = Append(m, kCountCursor);
     pixels[entries[m].list.x + slot] = kRunnerUpEntry | i;
     return;
   }
@@ -110,21 +110,16 @@ void main() {
   // covered, the classification 23-34 -> 43-46 ms). vis_mlaa still lists the sky where it is a
   // pixel's runner-up surface (kClassifyFillRunnerUps), shaded at its samples' mean.
   bool sky = inside && id == 0u;
-  if (kMode == kClassifyFill) {
-    if (sky) imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
-#ifdef SHADE_APPEND_SUBGROUPS
-    uint n = subgroupBallotBitCount(subgroupBallot(sky));
-    if (subgroupElect() && n > 0u) atomicAdd(entries[push.params.y].list.z, n);
-#else
-    if (sky) atomicAdd(entries[push.params.y].list.z, 1u);
-#endif
+  if (kMode == kClassifyFill && sky) {
+    imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
+    Append(push.params.y, kCountBackground);
   }
   uint m = !inside || id == 0u ? kNoMaterial : DrawableIds(VisDrawable(id, frame.aa.x)).y;
   if (m == kNoMaterial) return;
   if (kMode == kClassifyCount) {
-    Append(m, false);
+    Append(m, kCountPixels);
   } else {
-    uint slot = Append(m, true);
+    uint slot = Append(m, kCountCursor);
     pixels[entries[m].list.x + slot] = uint(p.x) | (uint(p.y) << 16);
   }
 }

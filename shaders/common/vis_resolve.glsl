@@ -17,9 +17,9 @@
 // borrows its colour from the first that shows it, and where none does it is shaded here too (a
 // wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote).
 // Every pixel's shaded surface (and every runner-up left to be shaded) is counted in its
-// material's entry as it is decided (a pixel whose surface is the sky is not: the
-// classification writes the sky there; a runner-up that is the sky is, in the sky's entry) (common/shade_append.glsl), so the classification goes
-// straight to its scan and lists (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp)
+// material's entry as it is decided (common/shade_append.glsl; a pixel whose surface is the sky
+// is not: the classification writes the sky there; a runner-up that is the sky is, in the sky's
+// entry), so the classification goes straight to its scan and lists (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp)
 // shades each listed id. vis_resolve.comp counts one atomic per subgroup and material,
 // vis_resolve_atomic.comp (devices without subgroup ballots) one per pixel.
 #include "common/scene.glsl"
@@ -190,7 +190,7 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
   }
   if (source == kRunnerUpShaded) {
     atomicAdd(entries[edges].list.x, 1u);
-    Append(MaterialOf(record.x, edges), false);
+    Append(MaterialOf(record.x, edges), kCountPixels);
   }
   runner_ups[entry].y = (record.y & 0x0fffffffu) | (source << 28);
 }
@@ -234,11 +234,11 @@ void main() {
   // The pixels whose surface is the sky are not counted: the classification writes the sky there.
   if (mode == kResolveEdges) {
     uint winner = Group(p, entry, ids);
-    if (winner != 0u) Append(MaterialOf(winner, edges), false);
+    if (winner != 0u) Append(MaterialOf(winner, edges), kCountPixels);
   } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
     imageStore(u_id, p, uvec4(ids[0]));
     imageStore(u_coverage, p, uvec4(PackCoverage((1u << kSamples) - 1u, vec2(0.5))));
-    if (ids[0] != 0u) Append(MaterialOf(ids[0], edges), false);
+    if (ids[0] != 0u) Append(MaterialOf(ids[0], edges), kCountPixels);
   } else {
     pixels[atomicAdd(entries[edges].dispatch.w, 1u)] = uint(p.x) | (uint(p.y) << 16);
   }

@@ -1,18 +1,11 @@
 // A visibility id's surface point, rebuilt from the scene's buffers: the camera ray through a
 // point of the frame meets the triangle's plane at barycentrics that give every attribute, and
-// the rays through the next pixel right and down give the uv gradients for texture filtering
+// the rays through the next pixel right and down (scene.glsl's RayDirection) give the uv gradients for texture filtering
 // (there are no neighbouring fragments of the same triangle to difference). Shared by
 // vis_mlaa's shading (vis_shade_mlaa.comp) and the visibility pipeline's (vis_shade.comp). Needs
 // scene.glsl, textures.glsl and vis.glsl.
 #ifndef TESSERA_VIS_SURFACE_GLSL
 #define TESSERA_VIS_SURFACE_GLSL
-
-// World-space direction of the camera ray through a point in framebuffer pixels.
-vec3 RayDirection(vec2 pixel) {
-  vec2 ndc = pixel / vec2(frame.counts.zw) * 2.0 - 1.0;
-  vec4 p = frame.inv_view_proj * vec4(ndc, 1.0, 1.0);  // on the near plane (reverse Z)
-  return p.xyz / p.w - frame.camera_position.xyz;
-}
 
 // Barycentrics (b0, b1, b2) of where the ray from the camera along `dir` meets the plane of the
 // triangle p0, p0 + e1, p0 + e2 (Moller-Trumbore: triple products, well conditioned even for

@@ -9,8 +9,9 @@
 // A comparison in one run: --versus "FLAGS" renders every frame a second time, on a second
 // renderer with its own copy of the scene, with FLAGS (settings flags, and --disable-features a,b
 // for device features that renderer goes without) applied over the others, alternating which
-// goes first, and adds "versus" to each result: the other side's figures and, per frame pair, the ratio other / this of the total and
-// of every pass both have (median, min, max). The machine's drift between runs then cancels:
+// goes first, and adds "versus" to each result: the other side's figures and, per frame pair,
+// the ratio other / this of the total and of every pass both have (median, min, max). The
+// machine's drift between runs then cancels:
 //   tessera-bench --scene ... --pipeline forward --versus "--pipeline visibility"
 //   tessera-bench --scene ... --pipeline visibility --versus "--disable-features texel_buffers"
 //
@@ -47,27 +48,23 @@ using tessera::bench::Min;
 using tessera::bench::ParseVec3;
 
 // One side of a measurement: a renderer, its scene and view, the settings it renders with, and
-// what its timed frames measured (reset per frame size).
-struct Side {
-  tessera::Renderer* renderer = nullptr;
-  tessera::SceneHandle scene;
-  tessera::Settings settings;
-  uint64_t view = 0;
-  float start_time = 0.0f;  // --play: the scene time of the first frame
+// what its timed frames measured (Measured, reset per frame size).
+struct Measured {
   std::map<std::string, std::vector<double>> pass_ms, pass_stamp_ms;
   std::vector<std::string> order;
   std::vector<double> total, record, submit_wait, readback, encode, encode_one, ratio,
       skinning_share;
   std::vector<std::map<std::string, double>> frame_passes;  // per timed frame: pass -> ms
+};
+struct Side : Measured {
+  tessera::Renderer* renderer = nullptr;
+  tessera::SceneHandle scene;
+  tessera::Settings settings;
+  uint64_t view = 0;
+  float start_time = 0.0f;  // --play: the scene time of the first frame
   tessera::Frame last;
 
-  void Reset() {
-    pass_ms.clear();
-    pass_stamp_ms.clear();
-    order.clear();
-    total.clear(), record.clear(), submit_wait.clear(), readback.clear(), encode.clear();
-    encode_one.clear(), ratio.clear(), skinning_share.clear(), frame_passes.clear();
-  }
+  void Reset() { static_cast<Measured&>(*this) = Measured{}; }
 
   // Renders and encodes one frame; a timed one (past the warm-up) is recorded.
   void RenderFrame(const tessera::Camera& camera, bool timed) {
