@@ -22,16 +22,15 @@
 
 #include "renderer/camera.h"
 #include "renderer/image_io.h"
-#include "tests/render/golden.h"
 #include "renderer/image_metrics.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/city_scene.h"
 #include "renderer/scene/edge_scene.h"
 #include "shared_renderer.h"
+#include "tests/render/golden.h"
 
 namespace tessera {
 namespace {
-
 
 bool HasNote(const Frame& f, std::string_view field) {
   for (const SettingNote& n : f.settings.notes)
@@ -57,8 +56,8 @@ struct EdgeData {
   EdgeScene edges;
   SceneHandle scene;
   Camera camera;
-  RgbaImage none;       // aa none, base colour
-  RgbaImage reference;  // aa none at 4x width and height, DownsampleBox(.., 4)
+  RgbaImage none;                  // aa none, base colour
+  RgbaImage reference;             // aa none at 4x width and height, DownsampleBox(.., 4)
   std::vector<uint8_t> edge_mask;  // DifferenceMask(reference, none)
   double none_edge_psnr = 0.0;
   double none_coverage_mae = 0.0;
@@ -224,8 +223,7 @@ WireRows WireRowsOf(const EdgeScene& e) {
       hi = std::max(hi, q.y);
     }
   }
-  return {uint32_t(std::max(0.0, std::floor(lo))),
-          std::min(e.height, uint32_t(std::ceil(hi)))};
+  return {uint32_t(std::max(0.0, std::floor(lo))), std::min(e.height, uint32_t(std::ceil(hi)))};
 }
 double WireCoverageMae(const EdgeData& d, const RgbaImage& image) {
   const WireRows w = WireRowsOf(d.edges);
@@ -263,11 +261,11 @@ TEST(AaTest, VisMlaaRunnerUpSurfaces) {
   // 0.88 on lavapipe, 0.79 without the runner-ups (each wire then missing from the pixels where
   // it lost the vote).
   const double closed = (none_mae - vis_mae) / (none_mae - msaa_mae);
-  std::printf("wire rows coverage MAE: none %.4f, msaa %.4f, vis_mlaa %.4f (%.2f of msaa's gain); "
-              "%llu edge pixels, %llu runner-ups shaded\n",
-              none_mae, msaa_mae, vis_mae, closed,
-              static_cast<unsigned long long>(vis->stats.edge_pixels),
-              static_cast<unsigned long long>(vis->stats.runner_up_pixels));
+  std::printf(
+      "wire rows coverage MAE: none %.4f, msaa %.4f, vis_mlaa %.4f (%.2f of msaa's gain); "
+      "%llu edge pixels, %llu runner-ups shaded\n",
+      none_mae, msaa_mae, vis_mae, closed, static_cast<unsigned long long>(vis->stats.edge_pixels),
+      static_cast<unsigned long long>(vis->stats.runner_up_pixels));
   EXPECT_GT(vis->stats.runner_up_pixels, 0u);
   EXPECT_GE(closed, 0.84) << "vis_mlaa's wires: coverage MAE " << vis_mae << ", msaa " << msaa_mae
                           << ", none " << none_mae;
@@ -361,9 +359,14 @@ TEST(AaTest, TaaBlendsHistoryWhileTheCameraMoves) {
   ASSERT_TRUE(r.Render(*scene, orbit(kFrames - 1), none, kNone, &unaliased).ok());
   for (uint64_t v : {kMoving, kSettled}) r.ForgetView(*scene, v);
   const double blended = HdrPsnr(moving.hdr, settled.hdr);
+  const double unaliased_db = HdrPsnr(unaliased.hdr, settled.hdr);
   std::printf("orbiting TAA against the settled view: %.2f dB; no AA %.2f dB\n", blended,
-              HdrPsnr(unaliased.hdr, settled.hdr));
-  EXPECT_GE(blended, 27.5) << "TAA did not blend the moving camera's history";
+              unaliased_db);
+  // Against the same device's frame without AA, not a fixed figure: an NVIDIA H200 measured
+  // both about 1 dB below lavapipe (27.34 and 31.62 dB), and failed the fixed bound tuned here
+  // (27.5). Not blending was 6.5 dB below the frame without AA on lavapipe; blending is 3.8 dB
+  // below it here and 4.3 on the H200.
+  EXPECT_GE(blended, unaliased_db - 5.0) << "TAA did not blend the moving camera's history";
   ExpectNoValidationMessages(r);
 }
 
@@ -487,8 +490,8 @@ TEST(AaTest, AaMaskDebugView) {
         ++interior;
         if (darkest(x, y) != 255) {
           if (interior_not_white == 0)
-            first_bad = "(" + std::to_string(x) + ", " + std::to_string(y) + ") = " +
-                        std::to_string(darkest(x, y));
+            first_bad = "(" + std::to_string(x) + ", " + std::to_string(y) +
+                        ") = " + std::to_string(darkest(x, y));
           ++interior_not_white;
         }
       } else {
@@ -501,12 +504,13 @@ TEST(AaTest, AaMaskDebugView) {
       }
     }
   }
-  std::printf("aa_mask: %llu interior pixels, %llu not white; %llu edge pixels, %llu darker; "
-              "%llu at coverage 0.4-0.6, %llu darker\n",
-              static_cast<unsigned long long>(interior),
-              static_cast<unsigned long long>(interior_not_white),
-              static_cast<unsigned long long>(edge), static_cast<unsigned long long>(edge_darker),
-              static_cast<unsigned long long>(half), static_cast<unsigned long long>(half_darker));
+  std::printf(
+      "aa_mask: %llu interior pixels, %llu not white; %llu edge pixels, %llu darker; "
+      "%llu at coverage 0.4-0.6, %llu darker\n",
+      static_cast<unsigned long long>(interior),
+      static_cast<unsigned long long>(interior_not_white), static_cast<unsigned long long>(edge),
+      static_cast<unsigned long long>(edge_darker), static_cast<unsigned long long>(half),
+      static_cast<unsigned long long>(half_darker));
   ASSERT_GT(interior, 0u);
   EXPECT_EQ(interior_not_white, 0u) << "interior pixels are not white, first " << first_bad;
   EXPECT_GT(edge_darker, 0u) << "no edge pixel shows partial coverage";
@@ -524,7 +528,8 @@ TEST(AaTest, AaMaskDebugView) {
   ASSERT_TRUE(plain.ok()) << plain.status();
   EXPECT_TRUE(HasNote(*asked, "debug_view")) << Notes(*asked);
   EXPECT_EQ(asked->settings.effective.debug_view, DebugView::kNone);
-  EXPECT_EQ(asked->image.pixels, plain->image.pixels) << "aa_mask without vis_mlaa changed the frame";
+  EXPECT_EQ(asked->image.pixels, plain->image.pixels)
+      << "aa_mask without vis_mlaa changed the frame";
   ExpectNoValidationMessages(r);
 }
 
@@ -557,7 +562,7 @@ TEST(AaTest, ManyDrawables) {
   ASSERT_TRUE(none.ok()) << none.status();
   // The view must show drawables whose id + 1 does not fit 12 bits, or it tests nothing.
   const uint64_t wide = uint64_t(std::count_if(capture.ids.begin(), capture.ids.end(),
-                                      [](uint32_t id) { return id > 4095u; }));
+                                               [](uint32_t id) { return id > 4095u; }));
   EXPECT_GT(wide, 0u) << "no pixel shows a drawable past index 4094";
 
   s.aa = AaMode::kVisMlaa;
@@ -635,4 +640,3 @@ TEST(AaTest, SampleCounts) {
 
 }  // namespace
 }  // namespace tessera
-

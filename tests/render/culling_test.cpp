@@ -37,6 +37,27 @@ Settings Small(CullingMode mode) {
   return s;
 }
 
+// "" when the images are equal, else how many pixels differ, by how much at most, and where the
+// first is: what a failure on another device needs to tell rounding from a wrong surface.
+std::string PixelDifference(const RgbaImage& a, const RgbaImage& b) {
+  if (a.width != b.width || a.height != b.height || a.pixels.size() != b.pixels.size())
+    return "sizes differ";
+  size_t count = 0, first = 0;
+  int largest = 0;
+  for (size_t p = 0; p + 4 <= a.pixels.size(); p += 4) {
+    int d = 0;
+    for (size_t c = 0; c < 4; ++c)
+      d = std::max(d, std::abs(int(a.pixels[p + c]) - int(b.pixels[p + c])));
+    if (d == 0) continue;
+    if (count++ == 0) first = p / 4;
+    largest = std::max(largest, d);
+  }
+  if (count == 0) return "";
+  return std::to_string(count) + " of " + std::to_string(a.pixels.size() / 4) +
+         " pixels differ, by up to " + std::to_string(largest) + "/255; the first at (" +
+         std::to_string(first % a.width) + ", " + std::to_string(first / a.width) + ")";
+}
+
 std::set<uint32_t> TrulyVisible(const std::vector<uint32_t>& ids) {
   std::set<uint32_t> out;
   for (uint32_t id : ids)
@@ -87,8 +108,8 @@ std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>&
       std::vector<uint32_t> missing;
       std::set_difference(visible.begin(), visible.end(), drawn.begin(), drawn.end(),
                           std::back_inserter(missing));
-      EXPECT_TRUE(missing.empty()) << where << ": " << missing.size()
-                                   << " visible drawables culled, first " << missing[0];
+      EXPECT_TRUE(missing.empty())
+          << where << ": " << missing.size() << " visible drawables culled, first " << missing[0];
       // The same picture as no culling, pixel for pixel.
       if (frame->image.pixels.size() != reference->image.pixels.size()) {
         ADD_FAILURE() << where << ": image size";
@@ -96,11 +117,11 @@ std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>&
       }
       size_t differing = 0;
       for (size_t i = 0; i < frame->image.pixels.size(); i += 4)
-        differing += std::equal(frame->image.pixels.begin() + i,
-                                frame->image.pixels.begin() + i + 4,
-                                reference->image.pixels.begin() + i)
-                         ? 0
-                         : 1;
+        differing +=
+            std::equal(frame->image.pixels.begin() + i, frame->image.pixels.begin() + i + 4,
+                       reference->image.pixels.begin() + i)
+                ? 0
+                : 1;
       EXPECT_EQ(differing, 0u) << where << ": pixels differ from the unculled image";
       // Statistics hold together.
       const FrameStats& st = frame->stats;
@@ -114,8 +135,7 @@ std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>&
         // The device's own count of input primitives matches what the draw lists submitted
         // (plus the forward pipeline's full-screen sky triangle; the visibility pipeline's
         // classification writes its sky in compute).
-        const uint64_t sky =
-            frame->settings.effective.pipeline == Pipeline::kForward ? 1 : 0;
+        const uint64_t sky = frame->settings.effective.pipeline == Pipeline::kForward ? 1 : 0;
         EXPECT_EQ(st.primitives_in, st.triangles_submitted + sky) << where;
       }
       if (std::getenv("TESSERA_CULLING_VERBOSE"))
@@ -145,8 +165,7 @@ Camera LookAt(glm::vec3 eye, glm::vec3 target) {
 }
 
 TEST(CullingTest, SponzaPathKeepsEveryVisibleDrawable) {
-  absl::StatusOr<GltfSource> src =
-      LoadGltfSourceFromDisk(AssetsDir() + "/Sponza/glTF/Sponza.gltf");
+  absl::StatusOr<GltfSource> src = LoadGltfSourceFromDisk(AssetsDir() + "/Sponza/glTF/Sponza.gltf");
   ASSERT_TRUE(src.ok()) << src.status();
   absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(*src);
   ASSERT_TRUE(scene.ok()) << scene.status();
@@ -182,11 +201,13 @@ TEST(CullingTest, CityPathKeepsEveryVisibleDrawableAndCullsTheHiddenOnes) {
   }
   for (int i = 0; i < 4; ++i) {
     const float a = 0.4f * float(i);  // radians, turning left towards -x
-    path.push_back(LookAt({x, 1.7f, z1}, {x - 100.0f * std::sin(a), 1.7f, z1 - 100.0f * std::cos(a)}));
+    path.push_back(
+        LookAt({x, 1.7f, z1}, {x - 100.0f * std::sin(a), 1.7f, z1 - 100.0f * std::cos(a)}));
   }
   path.push_back(LookAt({x, 90.0f, z0 + 40.0f}, {x, 0.0f, z1 - 200.0f}));
   path.push_back(LookAt({x, 1.7f, z0 - 2.0f}, {x, 1.7f, z0 - 100.0f}));
-  const std::vector<ModeResult> r = CheckPath(**scene, path, "city", /*first_frame=*/2, /*end_frame=*/10);
+  const std::vector<ModeResult> r =
+      CheckPath(**scene, path, "city", /*first_frame=*/2, /*end_frame=*/10);
   // At street level almost everything in the frustum is hidden. Over the walk and the turn
   // (the third to the tenth frame: once the view has history, and before the cuts, which cost
   // a frame each),
@@ -261,8 +282,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   for (const char* want : {"drawIndirectCount", "multiDrawIndirect"})
     EXPECT_NE(std::find(missing.begin(), missing.end(), want), missing.end()) << want;
 
-  absl::StatusOr<GltfSource> src =
-      LoadGltfSourceFromDisk(AssetsDir() + "/Sponza/glTF/Sponza.gltf");
+  absl::StatusOr<GltfSource> src = LoadGltfSourceFromDisk(AssetsDir() + "/Sponza/glTF/Sponza.gltf");
   ASSERT_TRUE(src.ok()) << src.status();
   absl::StatusOr<SceneHandle> full_scene = r.LoadScene(*src);
   ASSERT_TRUE(full_scene.ok()) << full_scene.status();
@@ -274,8 +294,8 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   std::vector<Pipeline> pipelines = {Pipeline::kForward};
   if (r.device_info().visibility_buffer) pipelines.push_back(Pipeline::kVisibility);
   for (Pipeline pipeline : pipelines) {
-    for (CullingMode mode : {CullingMode::kNone, CullingMode::kCpuFrustum,
-                             CullingMode::kGpuFrustum, CullingMode::kGpuOcclusion}) {
+    for (CullingMode mode : {CullingMode::kNone, CullingMode::kCpuFrustum, CullingMode::kGpuFrustum,
+                             CullingMode::kGpuOcclusion}) {
       Settings s = Small(mode);
       s.width = 160;
       s.height = 96;
@@ -314,7 +334,16 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
     ASSERT_TRUE(a.ok()) << a.status();
     ASSERT_TRUE(b.ok()) << b.status();
     ASSERT_EQ(b->settings.effective.aa, AaMode::kVisMlaa);
-    EXPECT_EQ(a->image.pixels, b->image.pixels) << "vis_mlaa";
+    EXPECT_EQ(PixelDifference(a->image, b->image), "") << "vis_mlaa";
+    // Each device renders the frame again to the same bits: a difference between the devices
+    // that either shows against itself is a race, not a fallback. (An NVIDIA H200 failed the
+    // comparison above with equal edge, runner-up and shaded counts, before this was checked.)
+    absl::StatusOr<Frame> a2 = r.Render(**full_scene, cam, s, 340);
+    absl::StatusOr<Frame> b2 = (*lean)->Render(**lean_scene, cam, s, 340);
+    ASSERT_TRUE(a2.ok()) << a2.status();
+    ASSERT_TRUE(b2.ok()) << b2.status();
+    EXPECT_EQ(PixelDifference(a->image, a2->image), "") << "vis_mlaa again, full device";
+    EXPECT_EQ(PixelDifference(b->image, b2->image), "") << "vis_mlaa again, lean device";
     EXPECT_GT(a->stats.edge_pixels, 0u);
     EXPECT_EQ(a->stats.edge_pixels, b->stats.edge_pixels);
     EXPECT_EQ(a->stats.runner_up_pixels, b->stats.runner_up_pixels);
