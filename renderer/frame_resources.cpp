@@ -102,8 +102,11 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
   // The AA mode's targets, at its sample count.
   const uint32_t n = s.samples;
   const bool msaa = s.aa == AaMode::kMsaa, vis = s.aa == AaMode::kVisMlaa;
+  // vis_mlaa_coverage analytic: one sample rasterized (the frame's depth and a one-sample
+  // visibility target), the others found by the resolve.
+  const bool analytic = vis && s.vis_mlaa_coverage == VisMlaaCoverage::kAnalytic;
   t.samples = msaa || vis ? n : 1;
-  if (msaa || vis) {
+  if (msaa || (vis && !analytic)) {
     ASSIGN_OR_RETURN(auto* d, get(R::kDepthMs, kDepthFormat, kDepth, "depth_ms", width, height, n));
     t.depth_ms = d->image;
   }
@@ -113,7 +116,8 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
   }
   if (vis) {
     ASSIGN_OR_RETURN(auto* v,
-                     get(R::kVisMs, kIdFormat, kColor | kSampled, "visibility", width, height, n));
+                     get(R::kVisMs, kIdFormat, kColor | kSampled, "visibility", width, height,
+                         analytic ? 1 : n));
     t.vis_ms = v->image;
     ASSIGN_OR_RETURN(auto* cov, get(R::kVisCoverage, kIdFormat, kSampled | kStorage,
                                     "vis_coverage", width, height));

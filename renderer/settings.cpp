@@ -55,6 +55,11 @@ const std::vector<std::string_view>& EnumNames<LightBinning>() {
   static const std::vector<std::string_view> names{"auto", "cpu", "gpu"};
   return names;
 }
+template <>
+const std::vector<std::string_view>& EnumNames<VisMlaaCoverage>() {
+  static const std::vector<std::string_view> names{"auto", "raster", "analytic"};
+  return names;
+}
 
 namespace {
 
@@ -87,6 +92,7 @@ std::string_view ToString(Tonemapper v) { return NameOf(v); }
 std::string_view ToString(Pipeline v) { return NameOf(v); }
 std::string_view ToString(PostStage v) { return NameOf(v); }
 std::string_view ToString(LightBinning v) { return NameOf(v); }
+std::string_view ToString(VisMlaaCoverage v) { return NameOf(v); }
 absl::StatusOr<Tonemapper> ParseTonemapper(std::string_view s) {
   return Parse<Tonemapper>("tonemapper", s);
 }
@@ -192,6 +198,13 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     // Measured (README, "The visibility pipeline"): GPUs run full-screen fragment work on their
     // graphics part only (an H200's TAA at 4K: 6.0 ms as a fragment pass, 0.x in compute).
     e.post_stage = caps.cpu ? PostStage::kFragment : PostStage::kCompute;
+  }
+  if (e.vis_mlaa_coverage == VisMlaaCoverage::kAuto) {
+    // raster on every device for now. analytic rasterizes a quarter of the samples (an H200's
+    // 4x visibility pass at 4K: 19.3 ms, one sample 5.3) but measured worse edges on lavapipe
+    // (README, "Anti-aliasing") and costs lavapipe more in its resolve than it saves; it has
+    // not run on a GPU yet.
+    e.vis_mlaa_coverage = VisMlaaCoverage::kRaster;
   }
   if (e.light_binning == LightBinning::kAuto) {
     // Measured on lavapipe (README, "Forward+"): the two compute steps cost more GPU time than

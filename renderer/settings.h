@@ -33,6 +33,12 @@ enum class PostStage : uint32_t { kAuto = 0, kFragment, kCompute };
 // from the lights alone. auto: cpu on CPU devices (the GPU steps cost lavapipe more than the
 // CPU spends), gpu elsewhere.
 enum class LightBinning : uint32_t { kAuto = 0, kCpu, kGpu };
+// How vis_mlaa finds which triangle each of a pixel's samples sees: rasterized into a
+// multisampled visibility buffer, or derived from a one-sample visibility buffer: where a
+// pixel's 3x3 neighbourhood shows more than one id, the camera ray through each sample position
+// is intersected with the neighbourhood's triangles and the nearest hit is the sample's
+// (shaders/common/vis_resolve.glsl). auto: raster (ResolveSettings says why).
+enum class VisMlaaCoverage : uint32_t { kAuto = 0, kRaster, kAnalytic };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {
   kNone = 0,
@@ -66,6 +72,7 @@ struct Settings {
   bool light_culling = true;     // forward+ tile lists; false: every light for every pixel
   bool tile_depth_mask = true;   // 2.5D depth mask per tile (false: min/max depth bounds only)
   LightBinning light_binning = LightBinning::kAuto;
+  VisMlaaCoverage vis_mlaa_coverage = VisMlaaCoverage::kAuto;
   // Shadows: the sun's cascades and the `shadow_lights` most important point and spot lights,
   // in one depth atlas of shadow_atlas_size^2 texels (a power of two, 512..8192; clamped to the
   // device). With shadow_cache, a map is re-rendered only when its view changed.
@@ -161,6 +168,8 @@ template <>
 const std::vector<std::string_view>& EnumNames<PostStage>();
 template <>
 const std::vector<std::string_view>& EnumNames<LightBinning>();
+template <>
+const std::vector<std::string_view>& EnumNames<VisMlaaCoverage>();
 
 // Names used by the CLI, JSON output and the proto ("invalid" for a value out of range).
 std::string_view ToString(AaMode v);
@@ -171,6 +180,7 @@ std::string_view ToString(DebugView v);
 std::string_view ToString(Pipeline v);
 std::string_view ToString(PostStage v);
 std::string_view ToString(LightBinning v);
+std::string_view ToString(VisMlaaCoverage v);
 absl::StatusOr<AaMode> ParseAaMode(std::string_view s);
 absl::StatusOr<CullingMode> ParseCullingMode(std::string_view s);
 absl::StatusOr<ExposureMode> ParseExposureMode(std::string_view s);

@@ -252,6 +252,13 @@ std::vector<SettingRow> BuildTable() {
                                         "FXAA run: fragment, compute, or auto (the faster on "
                                         "the device)"),
                     {Value("post-stage", "S")}));
+  t.push_back(Flags(Row<&S::vis_mlaa_coverage>("vis_mlaa_coverage", "vis_mlaa coverage",
+                                               "how vis_mlaa finds each sample's triangle: "
+                                               "raster (a multisampled visibility buffer), "
+                                               "analytic (one sample rasterized, the others "
+                                               "ray-tested against the neighbours' triangles), "
+                                               "or auto"),
+                    {Value("vis-mlaa-coverage", "HOW")}));
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),
                     {Value("debug", "VIEW")}));

@@ -3,7 +3,8 @@
 //    sample the id of its drawable and triangle, plus multisampled depth (resolved to the
 //    frame's single-sampled depth for light culling, the depth pyramid and transparency). The
 //    visibility pipeline (vis_shade.cpp) uses the same pass at one sample, straight into the
-//    frame's depth and ids;
+//    frame's depth and ids; so does vis_mlaa_coverage analytic, into the frame's depth and a
+//    one-sample visibility target, its resolve finding the other samples' ids by ray;
 //  - vis_resolve (compute): per pixel, groups the samples by surface and picks the surface to
 //    shade, a triangle of it, and its coverage mask and mean sample position; only the edge
 //    pixels are grouped, listed by a first pass over the frame; each pixel's surface is counted
@@ -28,6 +29,9 @@ namespace tessera {
 
 namespace {
 
+bool Analytic(const Settings& s) {
+  return s.aa == AaMode::kVisMlaa && s.vis_mlaa_coverage == VisMlaaCoverage::kAnalytic;
+}
 
 class VisibilityPass final : public Pass {
  public:
@@ -39,9 +43,10 @@ class VisibilityPass final : public Pass {
     return pipelines_.Ensure(Samples(s, s.samples),
                              [&](uint32_t samples) { return Create(ctx, samples); });
   }
-  // vis_mlaa's sample count, or 1 for the visibility pipeline.
+  // The samples rasterized: vis_mlaa's count, or 1 for the visibility pipeline and for
+  // vis_mlaa_coverage analytic.
   static uint32_t Samples(const Settings& s, uint32_t samples) {
-    return s.aa == AaMode::kVisMlaa ? samples : 1;
+    return s.aa == AaMode::kVisMlaa && !Analytic(s) ? samples : 1;
   }
 
   void Record(PassContext& ctx) override {
@@ -50,7 +55,9 @@ class VisibilityPass final : public Pass {
     const uint32_t samples = Samples(*ctx.settings, ctx.samples);
     const Pipelines& p = pipelines_.at(samples);
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
-    color.imageView = samples > 1 ? ctx.targets->vis_ms.view() : ctx.targets->vis_id.view();
+    // vis_mlaa's samples go to their own target (the resolve writes vis_id from them).
+    color.imageView = ctx.settings->aa == AaMode::kVisMlaa ? ctx.targets->vis_ms.view()
+                                                           : ctx.targets->vis_id.view();
     color.imageLayout = VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
     color.loadOp = late ? VK_ATTACHMENT_LOAD_OP_LOAD : VK_ATTACHMENT_LOAD_OP_CLEAR;
     color.storeOp = VK_ATTACHMENT_STORE_OP_STORE;
@@ -136,7 +143,7 @@ class VisResolvePass final : public Pass {
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures&) override {
     if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
-    return pipelines_.Ensure(Key(s.samples, scene),
+    return pipelines_.Ensure(Key(s.samples, s, scene),
                              [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
       ModePipelines made;
       for (uint32_t mode = 0; mode < made.size(); ++mode) {
@@ -144,15 +151,19 @@ class VisResolvePass final : public Pass {
             made[mode],
             vk::CreateComputePipeline(
                 ctx, absl::StrCat("vis_resolve.", absl::Hex(key)),
-                ctx.info().subgroup_ballot ? "vis_resolve.comp" : "vis_resolve_atomic.comp",
-                layout_.pipeline_layout(), {key & 0xffu, mode, 0u, key >> 8}));
+                ShaderFor(key >> 9, ctx.info().subgroup_ballot), layout_.pipeline_layout(),
+                {key & 0xffu, mode, 0u, (key >> 8) & 1u}));
       }
       return made;
     });
   }
-  // The sample count | kVisTexels << 8.
-  static uint32_t Key(uint32_t samples, const GpuScene& scene) {
-    return samples | VisTexels(scene) << 8;
+  // The sample count | kVisTexels << 8 | analytic << 9.
+  static uint32_t Key(uint32_t samples, const Settings& s, const GpuScene& scene) {
+    return samples | VisTexels(scene) << 8 | uint32_t(Analytic(s)) << 9;
+  }
+  static const char* ShaderFor(bool analytic, bool ballot) {
+    if (analytic) return ballot ? "vis_resolve_analytic.comp" : "vis_resolve_analytic_atomic.comp";
+    return ballot ? "vis_resolve.comp" : "vis_resolve_atomic.comp";
   }
 
   void Record(PassContext& ctx) override {
@@ -168,7 +179,7 @@ class VisResolvePass final : public Pass {
     WriteSet(ctx);
     auto push = [&](uint32_t mode) {
       vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
-                        pipelines_.at(Key(ctx.samples, *ctx.scene))[mode].handle());
+                        pipelines_.at(Key(ctx.samples, *ctx.settings, *ctx.scene))[mode].handle());
       const gpu::ShadePush p{glm::uvec4(0u, edges, 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(p), &p);
@@ -237,7 +248,9 @@ void AddVisibilityPass(GraphBuilder& b, bool late) {
   b.Pass(late ? PassId::kVisibilityLate : PassId::kVisibility)
       .Use(Resource::kDrawLists, Access::kIndirectRead)
       .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
-  if (b.settings().aa == AaMode::kVisMlaa) {
+  if (b.settings().aa == AaMode::kVisMlaa && Analytic(b.settings())) {  // one sample
+    b.Use(Resource::kDepth, Access::kDepthWrite).Use(Resource::kVisMs, Access::kColorWrite);
+  } else if (b.settings().aa == AaMode::kVisMlaa) {
     b.Use(Resource::kDepthMs, Access::kDepthWrite)
         .Use(Resource::kVisMs, Access::kColorWrite)
         .Use(Resource::kDepth, Access::kDepthResolve);

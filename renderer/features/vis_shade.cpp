@@ -58,7 +58,6 @@ class ShadeLayout {
     }
     if (kind == ShadeSet::kVisMlaa) {
       b.push_back(LayoutBinding(gpu::kShadeBindingCoverage, kSampled, kCompute));
-      b.push_back(LayoutBinding(gpu::kShadeBindingSamples, kSampled, kCompute));
       b.push_back(LayoutBinding(gpu::kShadeBindingEdgeColors, kBuffer, kCompute));
     }
     ASSIGN_OR_RETURN(l.layout_,
@@ -81,7 +80,6 @@ class ShadeLayout {
     if (kind_ != ShadeSet::kOneSample) w.Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups);
     if (kind_ == ShadeSet::kVisMlaa) {
       w.Sampled(gpu::kShadeBindingCoverage, sampler_.handle(), ctx.targets->vis_coverage.view())
-          .Sampled(gpu::kShadeBindingSamples, sampler_.handle(), ctx.targets->vis_ms.view())
           .Buffer(gpu::kShadeBindingEdgeColors, ctx.shade->edge_colors);
     }
     w.Update();
@@ -343,7 +341,6 @@ void SetupVisibilityShading(GraphBuilder& b) {
       .UseIfPresent(R::kLightLists, A::kComputeRead);
   if (vis_mlaa) {
     b.Use(R::kVisCoverage, A::kComputeRead)
-        .Use(R::kVisMs, A::kComputeRead)
         .Use(R::kEdgeSurfaces, A::kComputeWrite);  // the runner-ups' colours
   }
 }

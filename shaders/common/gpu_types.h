@@ -187,7 +187,6 @@ TS_CONST uint kShadeBindingColor = 1;    // image2D rgba16f: the HDR colour (wri
 TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 2] (sky, edges)
 TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
 TS_CONST uint kShadeBindingCoverage = 6;  // vis_mlaa: usampler2D, the resolve's coverage word
-TS_CONST uint kShadeBindingSamples = 7;   // vis_mlaa: usampler2DMS, the visibility samples
 // vis_mlaa's runner-up surfaces, one uvec2 per entry of the resolve's edge list: the id to shade
 // and its coverage word (mask 0: none). Written by vis_resolve.comp, read by the classification,
 // the shading and geometric AA.

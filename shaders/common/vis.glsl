@@ -104,4 +104,51 @@ mat3 DrawableNormalMatrix(uint d) {
               uintBitsToFloat(DrawableTexel(d, 6u).xyz));
 }
 uvec4 DrawableIds(uint d) { return kVisTexels ? DrawableTexel(d, 8u) : drawables[d].ids; }
+
+// Barycentrics (b0, b1, b2) of where the ray from the camera along `dir` meets the plane of the
+// triangle p0, p0 + e1, p0 + e2 (Moller-Trumbore: triple products, well conditioned even for
+// thin triangles, where the normal equations lose the digits the uv gradients need).
+vec3 Barycentrics(vec3 p0, vec3 e1, vec3 e2, vec3 dir) {
+  vec3 t = frame.camera_position.xyz - p0;
+  vec3 pv = cross(dir, e2);
+  float det = dot(e1, pv);
+  float inv = abs(det) > 1e-30 ? 1.0 / det : 0.0;
+  float b1 = dot(t, pv) * inv;
+  float b2 = dot(dir, cross(t, e1)) * inv;
+  return vec3(1.0 - b1 - b2, b1, b2);
+}
+
+struct Triangle {
+  uint drawable;
+  uvec3 v;
+  vec3 p0, e1, e2;  // world space
+};
+
+Triangle LoadTriangle(uint id) {
+  Triangle t;
+  uint tb = frame.aa.x;
+  t.drawable = VisDrawable(id, tb);
+  mat4 world = DrawableWorld(t.drawable);
+  t.v = TriangleVertices(DrawableIds(t.drawable), VisTriangle(id, tb));
+  t.p0 = (world * vec4(VertexPosition(t.v.x), 1.0)).xyz;
+  t.e1 = (world * vec4(VertexPosition(t.v.y), 1.0)).xyz - t.p0;
+  t.e2 = (world * vec4(VertexPosition(t.v.z), 1.0)).xyz - t.p0;
+  return t;
+}
+
+// The barycentrics (xyz) and the distance in lengths of `dir` (w) of where the camera ray along
+// `dir` meets the plane of `tri` (Moller-Trumbore, as Barycentrics).
+vec4 RayHit(Triangle tri, vec3 dir) {
+  vec3 t = frame.camera_position.xyz - tri.p0;
+  vec3 pv = cross(dir, tri.e2);
+  float det = dot(tri.e1, pv);
+  float inv = abs(det) > 1e-30 ? 1.0 / det : 0.0;
+  vec3 qv = cross(t, tri.e1);
+  float b1 = dot(t, pv) * inv;
+  float b2 = dot(dir, qv) * inv;
+  return vec4(1.0 - b1 - b2, b1, b2, dot(tri.e2, qv) * inv);
+}
+
+// Whether barycentrics b lie in their triangle (a little outside counts: the shared edges).
+bool Inside(vec3 b) { return min(b.x, min(b.y, b.z)) >= -1e-4; }
 #endif

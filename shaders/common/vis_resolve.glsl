@@ -1,5 +1,7 @@
 // vis_mlaa resolve: groups a pixel's visibility samples by surface and picks the surface to
-// shade. Two samples are on one surface when they hit the same triangle, or triangles of the
+// shade. The samples are the multisampled visibility buffer's, or with VIS_RESOLVE_ANALYTIC
+// (vis_mlaa_coverage analytic: vis_resolve_analytic.comp) found from a one-sample buffer by
+// intersecting each sample's camera ray with the triangles nearby pixels show (AnalyticSamples). Two samples are on one surface when they hit the same triangle, or triangles of the
 // same drawable that share a vertex: the same index, or two vertices at almost the same
 // position whose normals are within 8.1 degrees (dot > 0.99), or joined through other samples.
 // The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
@@ -28,7 +30,11 @@
 layout(local_size_x = kShadeGroupSize) in;
 
 layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+#ifdef VIS_RESOLVE_ANALYTIC
+layout(set = kVisSet, binding = kVisBindingSamples) uniform usampler2D u_vis;  // one sample
+#else
 layout(set = kVisSet, binding = kVisBindingSamples) uniform usampler2DMS u_vis;
+#endif
 layout(set = kVisSet, binding = kResolveBindingId, r32ui) uniform uimage2D u_id;
 layout(set = kVisSet, binding = kResolveBindingCoverage, r32ui) uniform writeonly uimage2D u_coverage;
 layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
@@ -109,6 +115,70 @@ void Pick(uint mask, uint ids[kSamples], out uint id, out vec2 mean) {
     if (s == nearest) id = ids[s];
 }
 
+// The id whose triangle the shading intersects at `mean` (the pixel's fraction, as the coverage
+// word or runner-up record quantized it): `id`, or where the camera ray through `mean` misses
+// its triangle (a surface spanning several triangles), the first of the surface's other samples'
+// triangles that holds it.
+uint ContainingId(ivec2 p, uint mask, uint ids[kSamples], uint id, vec2 mean) {
+  if (id == 0u) return 0u;
+  vec3 dir = RayDirection(vec2(p) + mean);
+  Triangle tri = LoadTriangle(id);
+  bool inside = Inside(Barycentrics(tri.p0, tri.e1, tri.e2, dir));
+  uint found = id;
+  for (uint s = 0u; s < kSamples; ++s) {
+    if (inside || (mask & (1u << s)) == 0u || ids[s] == id) continue;
+    Triangle t = LoadTriangle(ids[s]);
+    if (Inside(Barycentrics(t.p0, t.e1, t.e2, dir))) {
+      found = ids[s];
+      inside = true;
+    }
+  }
+  return found;
+}
+
+#ifdef VIS_RESOLVE_ANALYTIC
+// vis_mlaa_coverage analytic: the one-sample id of pixel p + d (the frame's border repeated
+// outside it).
+uint IdAt(ivec2 p, ivec2 d) {
+  return texelFetch(u_vis, clamp(p + d, ivec2(0), ivec2(frame.counts.zw) - 1), 0).r;
+}
+
+// Each sample's id: the nearest hit of the camera ray through the sample position among the
+// triangles the 5x5 pixels around p show (a sliver of a mesh that covers part of p may show at
+// no nearer pixel centre). A sample none of them holds sees the sky where p's 3x3 neighbourhood
+// shows it, else p's own id. An alpha-masked triangle claims samples in its own pixel only: its
+// cut-outs are inside the triangle, where the rays cannot see them.
+void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
+  uint c[25];
+  for (int k = 0; k < 25; ++k) c[k] = IdAt(p, ivec2(k % 5 - 2, k / 5 - 2));
+  float nearest[kSamples];
+  for (uint s = 0u; s < kSamples; ++s) {
+    ids[s] = 0xffffffffu;
+    nearest[s] = 3.4e38;
+  }
+  bool sky = false;
+  for (int k = 0; k < 25; ++k) {
+    uint id = c[k];
+    bool near = abs(k % 5 - 2) <= 1 && abs(k / 5 - 2) <= 1;
+    sky = sky || (near && id == 0u);
+    bool seen = id == 0u;
+    for (int j = 0; j < k; ++j) seen = seen || c[j] == id;
+    if (seen) continue;
+    Triangle tri = LoadTriangle(id);
+    if (id != c[12] && materials[DrawableIds(tri.drawable).y].flags.x == kAlphaMask) continue;
+    for (uint s = 0u; s < kSamples; ++s) {
+      vec4 hit = RayHit(tri, RayDirection(vec2(p) + SamplePosition(kSamples, s)));
+      if (Inside(hit.xyz) && hit.w > 0.0 && hit.w < nearest[s]) {
+        nearest[s] = hit.w;
+        ids[s] = id;
+      }
+    }
+  }
+  for (uint s = 0u; s < kSamples; ++s)
+    if (ids[s] == 0xffffffffu) ids[s] = sky ? 0u : c[12];
+}
+#endif
+
 // Groups the samples by surface (the transitive closure of SameSurface) and writes the outputs
 // for the surface with the most samples (ties: the one holding the lowest sample), and edge list
 // entry `entry`'s runner-up. Returns the id to shade.
@@ -144,13 +214,15 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
   uint id;
   vec2 mean;
   Pick(mask, ids, id, mean);
+  id = ContainingId(p, mask, ids, id, CoverageMean(PackCoverage(mask, mean)));
   uint winner = id;
   imageStore(u_id, p, uvec4(id));
   imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
   uvec2 record = uvec2(0u);
   if (8u * uint(bitCount(runner)) >= 3u * kSamples) {
     Pick(runner, ids, id, mean);
-    record = uvec2(id, PackRunnerUp(runner, mean, kRunnerUpUndecided));
+    uint word = PackRunnerUp(runner, mean, kRunnerUpUndecided);
+    record = uvec2(ContainingId(p, runner, ids, id, RunnerUpMean(word)), word);
   }
   runner_ups[entry] = record;
   return winner;
@@ -227,10 +299,21 @@ void main() {
   }
   uint ids[kSamples];
   bool uniform_id = true;
+#ifdef VIS_RESOLVE_ANALYTIC
+  // A pixel is an edge pixel where its 3x3 neighbourhood shows more than one id.
+  if (mode == kResolveEdges) {
+    AnalyticSamples(p, ids);
+  } else {
+    uint own = IdAt(p, ivec2(0));
+    for (int k = 0; k < 9; ++k) uniform_id = uniform_id && IdAt(p, ivec2(k % 3 - 1, k / 3 - 1)) == own;
+    for (uint s = 0u; s < kSamples; ++s) ids[s] = own;
+  }
+#else
   for (uint s = 0u; s < kSamples; ++s) {
     ids[s] = texelFetch(u_vis, p, int(s)).r;
     uniform_id = uniform_id && ids[s] == ids[0];
   }
+#endif
   // The pixels whose surface is the sky are not counted: the classification writes the sky there.
   if (mode == kResolveEdges) {
     uint winner = Group(p, entry, ids);

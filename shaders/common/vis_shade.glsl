@@ -22,7 +22,6 @@ layout(set = kVisSet, binding = kShadeBindingId) uniform usampler2D u_vis_id;
 layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
 #ifdef VIS_MLAA
 layout(set = kVisSet, binding = kShadeBindingCoverage) uniform usampler2D u_vis_coverage;
-layout(set = kVisSet, binding = kShadeBindingSamples) uniform usampler2DMS u_vis_samples;
 #include "common/runner_up_shading.glsl"
 #endif
 
@@ -42,38 +41,21 @@ void main() {
   ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
   g_pixel = vec2(p) + 0.5;
 #ifdef VIS_MLAA
-  uint id, mask;
+  uint id;
   vec2 mean;
   if (is_runner_up) {
     uvec2 record = runner_ups[runner_up];
     id = record.x;
-    mask = CoverageMask(record.y);
     mean = RunnerUpMean(record.y);
   } else {
     id = texelFetch(u_vis_id, p, 0).r;
-    uint word = texelFetch(u_vis_coverage, p, 0).r;
-    mask = CoverageMask(word);
-    mean = CoverageMean(word);
+    mean = CoverageMean(texelFetch(u_vis_coverage, p, 0).r);
   }
+  // The resolve gave the id whose triangle holds the mean position where one of the surface's
+  // samples' triangles does (common/vis_resolve.glsl, ContainingId).
   vec2 pixel = vec2(p) + mean;
-  vec3 dir = RayDirection(pixel);
   Triangle tri = LoadTriangle(id);
-  vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, dir);
-  // When the surface spans several triangles, the mean position can miss the nearest sample's
-  // triangle: take the first of the surface's other triangles that contains it.
-  const float kInside = -1e-4;
-  for (uint s = 0u; s < frame.aa.y && min(b.x, min(b.y, b.z)) < kInside; ++s) {
-    if ((mask & (1u << s)) == 0u) continue;
-    uint other = texelFetch(u_vis_samples, p, int(s)).r;
-    if (other == id) continue;
-    Triangle t = LoadTriangle(other);
-    vec3 bt = Barycentrics(t.p0, t.e1, t.e2, dir);
-    if (min(bt.x, min(bt.y, bt.z)) >= kInside) {
-      tri = t;
-      b = bt;
-      id = other;
-    }
-  }
+  vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel));
   vec3 color = ShadeSurface(VisSurface(tri, b, pixel), false).rgb;
   if (is_runner_up) {
     StoreRunnerUpColor(runner_up, color);

@@ -7,37 +7,6 @@
 #ifndef TESSERA_VIS_SURFACE_GLSL
 #define TESSERA_VIS_SURFACE_GLSL
 
-// Barycentrics (b0, b1, b2) of where the ray from the camera along `dir` meets the plane of the
-// triangle p0, p0 + e1, p0 + e2 (Moller-Trumbore: triple products, well conditioned even for
-// thin triangles, where the normal equations lose the digits the uv gradients need).
-vec3 Barycentrics(vec3 p0, vec3 e1, vec3 e2, vec3 dir) {
-  vec3 t = frame.camera_position.xyz - p0;
-  vec3 pv = cross(dir, e2);
-  float det = dot(e1, pv);
-  float inv = abs(det) > 1e-30 ? 1.0 / det : 0.0;
-  float b1 = dot(t, pv) * inv;
-  float b2 = dot(dir, cross(t, e1)) * inv;
-  return vec3(1.0 - b1 - b2, b1, b2);
-}
-
-struct Triangle {
-  uint drawable;
-  uvec3 v;
-  vec3 p0, e1, e2;  // world space
-};
-
-Triangle LoadTriangle(uint id) {
-  Triangle t;
-  uint tb = frame.aa.x;
-  t.drawable = VisDrawable(id, tb);
-  mat4 world = DrawableWorld(t.drawable);
-  t.v = TriangleVertices(DrawableIds(t.drawable), VisTriangle(id, tb));
-  t.p0 = (world * vec4(VertexPosition(t.v.x), 1.0)).xyz;
-  t.e1 = (world * vec4(VertexPosition(t.v.y), 1.0)).xyz - t.p0;
-  t.e2 = (world * vec4(VertexPosition(t.v.z), 1.0)).xyz - t.p0;
-  return t;
-}
-
 // The surface of `tri` seen through `pixel` (framebuffer pixels), `b` its barycentrics there.
 SurfaceInput VisSurface(Triangle tri, vec3 b, vec2 pixel) {
   mat4 world = DrawableWorld(tri.drawable);

@@ -34,8 +34,8 @@
 // metric over an empty selection (e.g. no edge pixels) is null. Everything else is finite.
 //
 //   tessera-aa-quality [--scenes sponza,helmet,edges] [--modes none,msaa,fxaa,taa,vis_mlaa]
-//       [--samples 4] [--width 1280] [--height 720] [--frames 5] [--warmup 1] [--taa-frames 16]
-//       [--edge-cell 24] [--sponza FILE] [--helmet FILE] [--out DIR] [--device NAME] [--smoke]
+//       [--samples 4] [--vis-mlaa-coverage auto] [--width 1280] [--height 720] [--frames 5]
+//       [--warmup 1] [--taa-frames 16] [--edge-cell 24] [--sponza FILE] [--helmet FILE] [--out DIR] [--device NAME] [--smoke]
 //
 // With --out DIR: per scene <scene>_reference.png, <scene>_edge_mask.png, <scene>_<mode>.png
 // and <scene>_contact.png (4x zoomed crops of the busiest edge windows, one column per image).
@@ -88,7 +88,7 @@ constexpr float kSponzaYfov = 1.0f, kSponzaZnear = 0.1f;
 constexpr char kUsage[] =
     "usage: tessera-aa-quality [--scenes sponza,helmet,edges] [--modes "
     "none,msaa,fxaa,taa,vis_mlaa]\n"
-    "    [--samples 1|2|4|8] [--width N] [--height N] [--frames N] [--warmup N] "
+    "    [--samples 1|2|4|8] [--vis-mlaa-coverage auto|raster|analytic] [--width N] [--height N] [--frames N] [--warmup N] "
     "[--taa-frames N]\n"
     "    [--edge-cell N] [--sponza FILE] [--helmet FILE] [--out DIR] [--device NAME] [--smoke]\n"
     "  defaults: all scenes and modes, samples 4, 1280x720 (sponza, helmet; edges renders at its\n"
@@ -115,6 +115,7 @@ struct Options {
   EdgeSceneParams edge;
   std::string sponza_path, helmet_path, out_dir, device;
   bool smoke = false;
+  VisMlaaCoverage coverage = VisMlaaCoverage::kAuto;
 };
 
 uint32_t ParseUint(const std::string& flag, const std::string& s) {
@@ -167,6 +168,12 @@ Options ParseOptions(int argc, char** argv) {
       o.samples = ParseUint(arg, value());
       if (o.samples != 1 && o.samples != 2 && o.samples != 4 && o.samples != 8)
         BadFlag("--samples: want 1, 2, 4 or 8");
+    } else if (arg == "--vis-mlaa-coverage") {
+      const std::string v = value();
+      const auto& names = EnumNames<VisMlaaCoverage>();
+      const auto at = std::find(names.begin(), names.end(), v);
+      if (at == names.end()) BadFlag("--vis-mlaa-coverage: want auto, raster or analytic");
+      o.coverage = static_cast<VisMlaaCoverage>(at - names.begin());
     } else if (arg == "--width") {
       o.width = ParseUint(arg, value());
     } else if (arg == "--height") {
@@ -437,6 +444,7 @@ Json RunScene(Renderer& r, const QualityScene& sc, const Options& o, uint64_t& n
   base.width = sc.width;
   base.height = sc.height;
   base.samples = o.samples;
+  base.vis_mlaa_coverage = o.coverage;
   base.debug_view = sc.debug_view;
 
   Json out;
@@ -510,6 +518,7 @@ Json RunScene(Renderer& r, const QualityScene& sc, const Options& o, uint64_t& n
     m["effective_aa"] = std::string(ToString(e.aa));
     m["samples"] = o.samples;
     m["effective_samples"] = e.samples;
+    if (e.aa == AaMode::kVisMlaa) m["vis_mlaa_coverage"] = std::string(ToString(e.vis_mlaa_coverage));
     m["notes"] = NotesJson(run.last.settings.notes);
     m["frames"] = run.frames;
     m["warmup"] = o.warmup;

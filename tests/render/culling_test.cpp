@@ -323,27 +323,33 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   }
   // vis_mlaa: its resolve counts each pixel's surface and its classification lists the
   // runner-ups, one atomic per subgroup and material with ballots, one per pixel without.
-  if (r.device_info().visibility_buffer && r.device_info().subgroup_ballot) {
+  // Both ways of finding the samples (vis_mlaa_coverage: the resolve shaders of each).
+  for (VisMlaaCoverage coverage : {VisMlaaCoverage::kRaster, VisMlaaCoverage::kAnalytic}) {
+    if (!r.device_info().visibility_buffer || !r.device_info().subgroup_ballot) break;
+    const std::string what = "vis_mlaa " + std::string(ToString(coverage));
+    const uint64_t view = 340 + uint64_t(coverage);
     Settings s = Small(CullingMode::kGpuFrustum);
+    s.vis_mlaa_coverage = coverage;
     s.width = 160;
     s.height = 96;
     s.aa = AaMode::kVisMlaa;
     s.samples = 4;
-    absl::StatusOr<Frame> a = r.Render(**full_scene, cam, s, 340);
-    absl::StatusOr<Frame> b = (*lean)->Render(**lean_scene, cam, s, 340);
+    absl::StatusOr<Frame> a = r.Render(**full_scene, cam, s, view);
+    absl::StatusOr<Frame> b = (*lean)->Render(**lean_scene, cam, s, view);
     ASSERT_TRUE(a.ok()) << a.status();
     ASSERT_TRUE(b.ok()) << b.status();
     ASSERT_EQ(b->settings.effective.aa, AaMode::kVisMlaa);
-    EXPECT_EQ(PixelDifference(a->image, b->image), "") << "vis_mlaa";
+    ASSERT_EQ(b->settings.effective.vis_mlaa_coverage, coverage);
+    EXPECT_EQ(PixelDifference(a->image, b->image), "") << what;
     // Each device renders the frame again to the same bits: a difference between the devices
     // that either shows against itself is a race, not a fallback. (An NVIDIA H200 failed the
     // comparison above with equal edge, runner-up and shaded counts, before this was checked.)
-    absl::StatusOr<Frame> a2 = r.Render(**full_scene, cam, s, 340);
-    absl::StatusOr<Frame> b2 = (*lean)->Render(**lean_scene, cam, s, 340);
+    absl::StatusOr<Frame> a2 = r.Render(**full_scene, cam, s, view);
+    absl::StatusOr<Frame> b2 = (*lean)->Render(**lean_scene, cam, s, view);
     ASSERT_TRUE(a2.ok()) << a2.status();
     ASSERT_TRUE(b2.ok()) << b2.status();
-    EXPECT_EQ(PixelDifference(a->image, a2->image), "") << "vis_mlaa again, full device";
-    EXPECT_EQ(PixelDifference(b->image, b2->image), "") << "vis_mlaa again, lean device";
+    EXPECT_EQ(PixelDifference(a->image, a2->image), "") << what << " again, full device";
+    EXPECT_EQ(PixelDifference(b->image, b2->image), "") << what << " again, lean device";
     EXPECT_GT(a->stats.edge_pixels, 0u);
     EXPECT_EQ(a->stats.edge_pixels, b->stats.edge_pixels);
     EXPECT_EQ(a->stats.runner_up_pixels, b->stats.runner_up_pixels);

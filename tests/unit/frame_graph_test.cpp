@@ -62,6 +62,9 @@ std::vector<Settings> SettingsVariants() {
         s.aa = static_cast<AaMode>(aa % 5);
         s.pipeline = (aa / 5) % 2 == 0 ? Pipeline::kForward : Pipeline::kVisibility;
         s.post_stage = aa < 10 ? PostStage::kFragment : PostStage::kCompute;
+        // vis_mlaa ignores the pipeline: the same bit picks its coverage.
+        s.vis_mlaa_coverage =
+            (aa / 5) % 2 == 0 ? VisMlaaCoverage::kRaster : VisMlaaCoverage::kAnalytic;
         s.culling = static_cast<CullingMode>(c);
         s.shadows = effects & 1;
         s.ssao = effects & 2;
@@ -375,6 +378,33 @@ TEST(SelectPassesTest, VisibilityPipeline) {
     Settings v = f;
     v.pipeline = Pipeline::kVisibility;
     EXPECT_EQ(SelectPasses(v, {}), SelectPasses(f, {})) << ToString(aa);
+  }
+}
+
+// vis_mlaa_coverage: raster draws the samples into the multisampled targets and resolves the
+// depth; analytic draws one sample straight into the frame's depth and its own id target, the
+// same passes either way.
+TEST(SelectPassesTest, VisMlaaCoverage) {
+  Settings raster;
+  raster.aa = AaMode::kVisMlaa;
+  raster.vis_mlaa_coverage = VisMlaaCoverage::kRaster;
+  Settings analytic = raster;
+  analytic.vis_mlaa_coverage = VisMlaaCoverage::kAnalytic;
+  EXPECT_EQ(SelectPasses(raster, {}), SelectPasses(analytic, {}));
+  auto uses = [](const Settings& s, PassId id, Resource r, Access a) {
+    const FramePlan plan = PlanFrame(s, {});
+    const std::vector<ResourceUse>& u = UsesOf(plan, id);
+    return std::any_of(u.begin(), u.end(),
+                       [&](const ResourceUse& x) { return x.resource == r && x.access == a; });
+  };
+  EXPECT_TRUE(uses(raster, PassId::kVisibility, Resource::kDepthMs, Access::kDepthWrite));
+  EXPECT_TRUE(uses(raster, PassId::kVisibility, Resource::kDepth, Access::kDepthResolve));
+  EXPECT_FALSE(uses(analytic, PassId::kVisibility, Resource::kDepthMs, Access::kDepthWrite));
+  EXPECT_TRUE(uses(analytic, PassId::kVisibility, Resource::kDepth, Access::kDepthWrite));
+  for (const Settings& s : {raster, analytic}) {
+    EXPECT_TRUE(uses(s, PassId::kVisibility, Resource::kVisMs, Access::kColorWrite));
+    EXPECT_TRUE(uses(s, PassId::kVisResolve, Resource::kVisMs, Access::kComputeRead));
+    EXPECT_TRUE(uses(s, PassId::kVisResolve, Resource::kVisId, Access::kComputeWrite));
   }
 }
 

@@ -170,6 +170,7 @@ std::optional<std::string> TypedName(std::string_view row, const Settings& s) {
   if (row == "pipeline") return std::string(ToString(s.pipeline));
   if (row == "post_stage") return std::string(ToString(s.post_stage));
   if (row == "light_binning") return std::string(ToString(s.light_binning));
+  if (row == "vis_mlaa_coverage") return std::string(ToString(s.vis_mlaa_coverage));
   return std::nullopt;
 }
 
@@ -197,7 +198,7 @@ TEST(SettingsTableTest, EveryEnumValueOfEveryRowRoundTrips) {
               absl::StrCat("settings.", std::string(row.name), ": ", row.choices.size(),
                            " is out of range (", row.RangeText(), ")"));
   }
-  EXPECT_EQ(enums, 8);
+  EXPECT_EQ(enums, 9);
 }
 
 // --- command line -----------------------------------------------------------------------------

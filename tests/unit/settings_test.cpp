@@ -143,6 +143,10 @@ const std::vector<Field>& AllFields() {
                        if (row.name == "post_stage" && a.post_stage == PostStage::kAuto &&
                            b.post_stage != PostStage::kAuto)
                          return true;
+                       if (row.name == "vis_mlaa_coverage" &&
+                           a.vis_mlaa_coverage == VisMlaaCoverage::kAuto &&
+                           b.vis_mlaa_coverage != VisMlaaCoverage::kAuto)
+                         return true;
                        if (row.name == "light_binning" &&
                            a.light_binning == LightBinning::kAuto &&
                            b.light_binning != LightBinning::kAuto)
@@ -308,6 +312,8 @@ TEST(ResolveSettingsTest, EveryRequestIsHonouredOrNoted) {
     add("pipeline " + std::to_string(v), [v](Settings& s) { s.pipeline = static_cast<Pipeline>(v); });
     add("post_stage " + std::to_string(v),
         [v](Settings& s) { s.post_stage = static_cast<PostStage>(v); });
+    add("vis_mlaa_coverage " + std::to_string(v),
+        [v](Settings& s) { s.vis_mlaa_coverage = static_cast<VisMlaaCoverage>(v); });
     add("light_binning " + std::to_string(v),
         [v](Settings& s) { s.light_binning = static_cast<LightBinning>(v); });
   }
