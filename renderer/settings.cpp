@@ -200,10 +200,10 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     e.post_stage = caps.cpu ? PostStage::kFragment : PostStage::kCompute;
   }
   if (e.vis_mlaa_coverage == VisMlaaCoverage::kAuto) {
-    // raster on every device for now. analytic rasterizes a quarter of the samples (an H200's
-    // 4x visibility pass at 4K: 19.3 ms, one sample 5.3) but measured worse edges on lavapipe
-    // (README, "Anti-aliasing") and costs lavapipe more in its resolve than it saves; it has
-    // not run on a GPU yet.
+    // raster on every device for now. analytic rasterizes one sample instead of several (on an
+    // H200, Sponza's 4-sample visibility pass at 4K took 19.3 ms, the one-sample pass 5.3: the
+    // README's figures) but its resolve costs lavapipe far more than it saves, its edges are a
+    // little worse (README, "Anti-aliasing"), and it has not run on a GPU yet.
     e.vis_mlaa_coverage = VisMlaaCoverage::kRaster;
   }
   if (e.light_binning == LightBinning::kAuto) {

@@ -53,7 +53,8 @@ struct FrameTargets {
   vk::MipViewsRef hiz_levels;  // one storage view per level
   uint32_t hiz_width = 1, hiz_height = 1;
   VkBuffer readback = VK_NULL_HANDLE;  // width * height * 4 bytes, host visible
-  uint32_t samples = 1;                // of the multisampled targets (msaa, vis_mlaa), else 1
+  uint32_t samples = 1;                // msaa's and vis_mlaa's samples (vis_mlaa_coverage analytic:
+                                       // the resolve's; its targets have one), else 1
   vk::ImageRef depth_ms, hdr_ms, vis_ms;
   vk::ImageRef vis_id, vis_coverage;
   vk::ImageRef post_hdr;

@@ -126,6 +126,7 @@ class VisResolvePass final : public Pass {
     b.push_back(LayoutBinding(gpu::kResolveBindingId, kImage, kCompute));
     b.push_back(LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute));
     b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
+    b.push_back(LayoutBinding(gpu::kResolveBindingAdjacency, kBuffer, kCompute));
     ASSIGN_OR_RETURN(p->layout_,
                      PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
                                         "vis_resolve layout",
@@ -214,6 +215,7 @@ class VisResolvePass final : public Pass {
         .Storage(gpu::kResolveBindingId, ctx.targets->vis_id.view())
         .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
         .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
+        .Buffer(gpu::kResolveBindingAdjacency, ctx.scene->adjacency().handle())
         .VisibilityBuffers(ctx)
         .Update();
     const VkPipelineLayout layout = layout_.pipeline_layout();

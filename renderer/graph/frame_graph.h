@@ -15,15 +15,16 @@ namespace tessera {
 // The frame's transient resources.
 // kDepth is always single-sampled: with multisampling it is the resolve of kDepthMs (the
 // farthest sample where the device can), which light culling, the depth pyramid, TAA and the
-// transparent pass of vis_mlaa read.
+// transparent pass of vis_mlaa read; vis_mlaa_coverage analytic draws it at one sample (the
+// pixel centre's depth).
 enum class Resource : uint8_t {
   kDepth,
   kHdrColor,  // the shaded frame (for msaa: the resolve of kHdrMs)
   kLdrColor,  // tonemapped, sRGB
   kHiz,
-  kDepthMs,        // msaa / vis_mlaa: multisampled depth
+  kDepthMs,        // msaa / vis_mlaa (raster coverage): multisampled depth
   kHdrMs,          // msaa: multisampled colour
-  kVisMs,          // vis_mlaa: multisampled visibility ids (drawable | triangle per sample)
+  kVisMs,          // vis_mlaa: the visibility ids (drawable | triangle per sample; analytic: one)
   kVisId,          // vis_mlaa, visibility pipeline: per pixel the id of the triangle to shade
   kVisCoverage,    // vis_mlaa: per pixel the coverage mask and mean position of its surface
   kPostHdr,        // taa's output and vis_mlaa's aa_mask view, tonemapped

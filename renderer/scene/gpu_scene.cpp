@@ -13,6 +13,7 @@
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
 #include "renderer/log.h"
+#include "renderer/scene/adjacency.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
@@ -474,7 +475,9 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
   const uint64_t drawables = std::max<size_t>(1, scene.drawables.size());
   const uint64_t align = std::max<uint64_t>(16, uniform_align);
   const uint64_t stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
+  // The indices, and their adjacency (one word each, at least one).
   uint64_t bytes = scene.vertices.size() * sizeof(Vertex) + scene.indices.size() * sizeof(uint32_t) +
+                   std::max<size_t>(1, scene.indices.size()) * sizeof(uint32_t) +
                    materials * (sizeof(gpu::GpuMaterial) + stride) +
                    drawables * (sizeof(gpu::GpuDrawable) + sizeof(gpu::GpuCullItem));
   for (const TextureBucketPlan::Bucket& b : PlanTextureBuckets(scene.textures, max_texture_size).buckets)
@@ -630,6 +633,12 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
                              VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                  texel,
                              n + ".indices"));
+  if (st.ok()) {
+    std::vector<uint32_t> adjacency = TriangleAdjacency(scene);
+    if (adjacency.empty()) adjacency.push_back(kNoNeighbour);  // keep the binding valid
+    st = Keep(adjacency_, UploadBuffer(ctx, adjacency.data(), adjacency.size() * sizeof(uint32_t),
+                                       VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".adjacency"));
+  }
   if (!st.ok()) return st;
 
   st = Keep(materials_,

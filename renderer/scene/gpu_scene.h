@@ -92,6 +92,8 @@ class GpuScene {
 
   const vk::Buffer& vertices() const { return vertices_; }
   const vk::Buffer& indices() const { return indices_; }
+  // Per index, the triangle across that edge (adjacency.h), for vis_mlaa_coverage analytic.
+  const vk::Buffer& adjacency() const { return adjacency_; }
   const vk::Buffer& drawables() const { return drawables_; }
   const vk::Buffer& materials() const { return materials_; }
   // The index, vertex and drawable buffers as uniform texel buffers for the visibility passes
@@ -185,7 +187,7 @@ class GpuScene {
   absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
                                  VkDescriptorSetLayout material_layout);
 
-  vk::Buffer vertices_, indices_, drawables_, materials_;
+  vk::Buffer vertices_, indices_, adjacency_, drawables_, materials_;
   vk::UniqueBufferView index_texels_, vertex_texels_, drawable_texels_;  // after their buffers
   bool vis_texels_ = false;
   vk::Buffer material_uniforms_;  // the materials again, each at a uniform-offset-aligned stride

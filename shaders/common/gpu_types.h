@@ -144,7 +144,8 @@ TS_CONST uint kMaterialTexturesAll = (1u << kMaterialTextureSlots) - 1u;
 // the drawable takes the bits it needs and the triangles the rest (FrameUniforms.aa.x).
 TS_CONST uint kVisDefaultTriangleBits = 20;
 TS_CONST uint kVisSet = 2;              // the vis passes' own descriptor set
-TS_CONST uint kVisBindingSamples = 0;   // resolve: usampler2DMS, the visibility ids
+// resolve: the visibility ids, usampler2DMS (raster coverage) or usampler2D (analytic: one sample)
+TS_CONST uint kVisBindingSamples = 0;
 TS_CONST uint kVisBindingIndices = 2;   // resolve, classify, shade: buffer uint[] the index buffer
 TS_CONST uint kVisBindingVertices = 3;  // resolve, classify, shade: buffer float[] the vertices
 // The same buffers and the scene's drawables as uniform texel buffers (resolve, classification
@@ -201,6 +202,9 @@ TS_CONST uint kRunnerUpEntry = 0x80000000u;
 // of the shading (the edge list borrows the pixel lists and the entry after the sky's).
 TS_CONST uint kResolveBindingId = 1;
 TS_CONST uint kResolveBindingCoverage = 6;
+// vis_mlaa_coverage analytic: buffer uint[], per index of the index buffer the triangle across
+// that edge (renderer/scene/adjacency.h; 0xffffffff: none).
+TS_CONST uint kResolveBindingAdjacency = 7;
 // vis_resolve.comp's modes (specialization constant 1, a pipeline per mode; push params.y is the
 // edge list's entry).
 TS_CONST uint kResolveUniform = 0;  // per pixel: samples that agree are written, others listed

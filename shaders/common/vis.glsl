@@ -136,19 +136,6 @@ Triangle LoadTriangle(uint id) {
   return t;
 }
 
-// The barycentrics (xyz) and the distance in lengths of `dir` (w) of where the camera ray along
-// `dir` meets the plane of `tri` (Moller-Trumbore, as Barycentrics).
-vec4 RayHit(Triangle tri, vec3 dir) {
-  vec3 t = frame.camera_position.xyz - tri.p0;
-  vec3 pv = cross(dir, tri.e2);
-  float det = dot(tri.e1, pv);
-  float inv = abs(det) > 1e-30 ? 1.0 / det : 0.0;
-  vec3 qv = cross(t, tri.e1);
-  float b1 = dot(t, pv) * inv;
-  float b2 = dot(dir, qv) * inv;
-  return vec4(1.0 - b1 - b2, b1, b2, dot(tri.e2, qv) * inv);
-}
-
 // Whether barycentrics b lie in their triangle (a little outside counts: the shared edges).
 bool Inside(vec3 b) { return min(b.x, min(b.y, b.z)) >= -1e-4; }
 #endif

@@ -143,39 +143,124 @@ uint IdAt(ivec2 p, ivec2 d) {
   return texelFetch(u_vis, clamp(p + d, ivec2(0), ivec2(frame.counts.zw) - 1), 0).r;
 }
 
-// Each sample's id: the nearest hit of the camera ray through the sample position among the
-// triangles the 5x5 pixels around p show (a sliver of a mesh that covers part of p may show at
-// no nearer pixel centre). A sample none of them holds sees the sky where p's 3x3 neighbourhood
-// shows it, else p's own id. An alpha-masked triangle claims samples in its own pixel only: its
-// cut-outs are inside the triangle, where the rays cannot see them.
+layout(set = kVisSet, binding = kResolveBindingAdjacency, std430) readonly buffer AdjacencyBlock {
+  uint adjacency[];  // per index: the triangle across the edge from that corner to the next
+};
+
+// Whether `tri` covers framebuffer point `at` (x: 1 or 0) and its depth there (y, reverse Z:
+// larger is nearer), as the visibility pass's vertex shader and the rasterizer find them: edge
+// functions in screen space, depth affine in screen space. Well conditioned for the thin
+// triangles of a silhouette, where a ray's barycentrics lose their digits. A triangle reaching
+// behind the camera (w <= 0 at a corner) is not tested: it shows at a pixel centre nearby.
+float Edge(vec2 a, vec2 b, vec2 q) { return (b.x - a.x) * (q.y - a.y) - (b.y - a.y) * (q.x - a.x); }
+struct ScreenTriangle {
+  vec2 s0, s1, s2;
+  vec3 z;       // depth at each corner
+  float area;   // twice the signed area; 0: not testable
+};
+ScreenTriangle Project(Triangle tri) {
+  vec4 c0 = frame.view_proj * vec4(tri.p0, 1.0);
+  vec4 c1 = frame.view_proj * vec4(tri.p0 + tri.e1, 1.0);
+  vec4 c2 = frame.view_proj * vec4(tri.p0 + tri.e2, 1.0);
+  ScreenTriangle t;
+  vec2 size = vec2(frame.counts.zw);
+  t.s0 = (c0.xy / c0.w * 0.5 + 0.5) * size;
+  t.s1 = (c1.xy / c1.w * 0.5 + 0.5) * size;
+  t.s2 = (c2.xy / c2.w * 0.5 + 0.5) * size;
+  t.z = vec3(c0.z / c0.w, c1.z / c1.w, c2.z / c2.w);
+  t.area = min(c0.w, min(c1.w, c2.w)) > 0.0 ? Edge(t.s0, t.s1, t.s2) : 0.0;
+  return t;
+}
+vec2 ScreenHit(ScreenTriangle t, vec2 at) {
+  if (abs(t.area) < 1e-12) return vec2(0.0);
+  vec3 b = vec3(Edge(t.s1, t.s2, at), Edge(t.s2, t.s0, at), Edge(t.s0, t.s1, at)) / t.area;
+  return vec2(min(b.x, min(b.y, b.z)) >= -1e-5 ? 1.0 : 0.0, dot(b, t.z));
+}
+
+// Each sample's id: the nearest triangle covering the sample position among the triangles the
+// 3x3 pixels around p show and the triangles one and two edges away from those (the thin
+// triangles of a curved silhouette and the slivers of a fan, which no pixel centre shows, border
+// the ones that are shown). A sample none of them covers sees the sky where the 3x3 shows it, else p's own id.
+// An alpha-masked triangle's cut-outs are in its texture, which is not sampled here: it claims a
+// sample only where p, or a pixel on the sample's side of p (across the nearer vertical,
+// horizontal or diagonal edge), showed it (or the triangle it borders), that is where its alpha
+// test passed nearby, and not at all where it lies in front of p's own surface at p's centre
+// although p does not show it (p's centre is in one of its holes). The distinct ids are gathered
+// first (at most kCandidates), so each triangle is loaded and tested once: a CPU device runs
+// its lanes together, and a loop over the pixels cost every lane the tests of every id any lane
+// had not seen.
+// The ids shown and the triangles next to them, then the triangles next to those (two steps
+// across edges: the demo's vis_mlaa 35.5 dB from raster's against 34.1 with one).
+const uint kRinged = 16u, kCandidates = 32u;
 void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
-  uint c[25];
-  for (int k = 0; k < 25; ++k) c[k] = IdAt(p, ivec2(k % 5 - 2, k / 5 - 2));
-  float nearest[kSamples];
-  for (uint s = 0u; s < kSamples; ++s) {
-    ids[s] = 0xffffffffu;
-    nearest[s] = 3.4e38;
-  }
+  uint tb = frame.aa.x;
+  uint own = IdAt(p, ivec2(0));
+  uint candidates[kCandidates];
+  uint where[kCandidates];  // bit k: the 3x3's pixel k (row-major) shows it (or the one it borders)
+  uint count = 0u;
   bool sky = false;
-  for (int k = 0; k < 25; ++k) {
-    uint id = c[k];
-    bool near = abs(k % 5 - 2) <= 1 && abs(k / 5 - 2) <= 1;
-    sky = sky || (near && id == 0u);
+  for (uint k = 0u; k < 9u; ++k) {
+    uint id = IdAt(p, ivec2(int(k % 3u) - 1, int(k / 3u) - 1));
+    sky = sky || id == 0u;
     bool seen = id == 0u;
-    for (int j = 0; j < k; ++j) seen = seen || c[j] == id;
-    if (seen) continue;
+    for (uint j = 0u; j < count; ++j) {
+      if (candidates[j] == id) {
+        seen = true;
+        where[j] |= 1u << k;
+      }
+    }
+    if (!seen) {
+      candidates[count] = id;
+      where[count++] = 1u << k;
+    }
+  }
+  for (uint c = 0u; c < count && c < kRinged; ++c) {
+    uint id = candidates[c];
+    uint first = DrawableIds(VisDrawable(id, tb)).z + 3u * VisTriangle(id, tb);
+    for (uint e = 0u; e < 3u; ++e) {
+      uint t = adjacency[first + e];
+      uint next = (id & ~((1u << tb) - 1u)) | t;
+      bool seen = t == 0xffffffffu;
+      for (uint j = 0u; j < count; ++j) seen = seen || candidates[j] == next;
+      if (!seen && count < kCandidates) {
+        candidates[count] = next;
+        where[count++] = where[c];
+      }
+    }
+  }
+  vec2 spots[kSamples];
+  float nearest[kSamples];
+  uint side[kSamples];  // the 3x3 pixels a masked triangle must show to claim the sample
+  vec2 centre = vec2(p) + 0.5;
+  float own_at_centre = own == 0u ? 0.0 : ScreenHit(Project(LoadTriangle(own)), centre).y;
+  for (uint s = 0u; s < kSamples; ++s) {
+    vec2 at = SamplePosition(kSamples, s);
+    spots[s] = vec2(p) + at;
+    uint qx = at.x < 0.5 ? 0u : 2u, qy = at.y < 0.5 ? 0u : 6u;  // column, row * 3
+    side[s] = (1u << 4u) | (1u << (3u + qx)) | (1u << (1u + qy)) | (1u << (qx + qy));
+    ids[s] = 0xffffffffu;
+    nearest[s] = -1.0;  // reverse Z: larger is nearer
+  }
+  for (uint j = 0u; j < count; ++j) {
+    uint id = candidates[j];
     Triangle tri = LoadTriangle(id);
-    if (id != c[12] && materials[DrawableIds(tri.drawable).y].flags.x == kAlphaMask) continue;
+    ScreenTriangle st = Project(tri);
+    bool masked = id != own && materials[DrawableIds(tri.drawable).y].flags.x == kAlphaMask;
+    if (masked) {
+      vec2 at_centre = ScreenHit(st, centre);
+      if (at_centre.x > 0.0 && at_centre.y > own_at_centre) continue;
+    }
     for (uint s = 0u; s < kSamples; ++s) {
-      vec4 hit = RayHit(tri, RayDirection(vec2(p) + SamplePosition(kSamples, s)));
-      if (Inside(hit.xyz) && hit.w > 0.0 && hit.w < nearest[s]) {
-        nearest[s] = hit.w;
+      vec2 hit = ScreenHit(st, spots[s]);
+      bool may = !masked || (where[j] & side[s]) != 0u;
+      if (may && hit.x > 0.0 && hit.y > nearest[s]) {
+        nearest[s] = hit.y;
         ids[s] = id;
       }
     }
   }
   for (uint s = 0u; s < kSamples; ++s)
-    if (ids[s] == 0xffffffffu) ids[s] = sky ? 0u : c[12];
+    if (ids[s] == 0xffffffffu) ids[s] = sky ? 0u : own;
 }
 #endif
 

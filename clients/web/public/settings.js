@@ -24,8 +24,8 @@ export function inPanel(name) {
 export const SETTING_SECTIONS = [
   {
     id: 'image', title: 'Image', open: true,
-    names: ['aa', 'samples', 'exposure_mode', 'exposure_ev', 'tonemapper'],
-    match: /^(aa_|exposure|tonemap)/,
+    names: ['aa', 'samples', 'vis_mlaa_coverage', 'exposure_mode', 'exposure_ev', 'tonemapper'],
+    match: /^(aa_|vis_mlaa|exposure|tonemap)/,
   },
   {
     id: 'lighting', title: 'Lighting', open: true,

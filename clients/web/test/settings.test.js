@@ -46,7 +46,8 @@ const SERVER_SETTINGS = ['aa', 'samples', 'culling', 'scene_lights', 'synthetic_
   'tile_size', 'light_radius_min', 'light_radius_max', 'lights_animated', 'light_time', 'light_culling',
   'tile_depth_mask', 'light_binning', 'shadows', 'shadow_atlas_size', 'shadow_lights', 'shadow_cache', 'ssao',
   'ssao_radius', 'ssao_strength', 'ssao_half_res', 'bloom', 'bloom_strength', 'ibl', 'exposure_mode',
-  'exposure_ev', 'tonemapper', 'pipeline', 'post_stage', 'debug_view', 'jpeg_quality', 'jpeg_444'];
+  'exposure_ev', 'tonemapper', 'pipeline', 'post_stage', 'vis_mlaa_coverage', 'debug_view', 'jpeg_quality',
+  'jpeg_444'];
 
 test('every setting the server sends lands in one named section, none in "Other"', () => {
   const groups = groupSettings(SERVER_SETTINGS);
@@ -57,6 +58,7 @@ test('every setting the server sends lands in one named section, none in "Other"
   const section = (name) => groups.find((g) => g.names.includes(name)).id;
   assert.equal(section('aa'), 'image');
   assert.equal(section('tonemapper'), 'image');
+  assert.equal(section('vis_mlaa_coverage'), 'image');
   assert.equal(section('exposure_ev'), 'image');
   assert.equal(section('ibl'), 'lighting');
   assert.equal(section('shadow_cache'), 'shadows');

@@ -1,0 +1,90 @@
+// TriangleAdjacency (renderer/scene/adjacency.h): the triangle across each edge, matched by
+// position, for vis_mlaa_coverage analytic's resolve.
+#include "renderer/scene/adjacency.h"
+
+#include <gtest/gtest.h>
+
+#include "renderer/scene/demo_scene.h"
+
+namespace tessera {
+namespace {
+
+// A unit square as two triangles whose shared edge's vertices are split (a seam: the same
+// positions, other indices), then a lone triangle after it in the same scene.
+CpuScene Square() {
+  CpuScene s;
+  for (glm::vec3 p : {glm::vec3(0, 0, 0), glm::vec3(1, 0, 0), glm::vec3(1, 1, 0),  // triangle 0
+                      glm::vec3(0, 0, 0), glm::vec3(1, 1, 0), glm::vec3(0, 1, 0)}) {
+    Vertex v;
+    v.position = p;
+    s.vertices.push_back(v);
+  }
+  s.indices = {0, 1, 2, 3, 4, 5};
+  Primitive square;
+  square.first_index = 0;
+  square.index_count = 6;
+  square.vertex_count = 6;
+  s.primitives.push_back(square);
+  // A second primitive over the same vertices, its indices after the square's: its triangle is
+  // the square's first, but adjacency stays within a primitive.
+  s.indices.insert(s.indices.end(), {0, 1, 2});
+  Primitive lone;
+  lone.first_index = 6;
+  lone.index_count = 3;
+  lone.vertex_count = 6;
+  s.primitives.push_back(lone);
+  return s;
+}
+
+TEST(AdjacencyTest, SharedEdgesByPosition) {
+  const std::vector<uint32_t> a = TriangleAdjacency(Square());
+  ASSERT_EQ(a.size(), 9u);
+  // Triangle 0: edges 0-1, 1-2 (the diagonal, shared with triangle 1), 2-0.
+  EXPECT_EQ(a[0], kNoNeighbour);
+  EXPECT_EQ(a[1], kNoNeighbour);
+  EXPECT_EQ(a[2], 1u);
+  // Triangle 1: edges 3-4 (the diagonal), 4-5, 5-3.
+  EXPECT_EQ(a[3], 0u);
+  EXPECT_EQ(a[4], kNoNeighbour);
+  EXPECT_EQ(a[5], kNoNeighbour);
+  for (size_t i = 6; i < 9; ++i) EXPECT_EQ(a[i], kNoNeighbour) << i;
+}
+
+// The demo scene's sphere, a closed surface: every edge of it has a neighbour across it (its
+// seam's vertices, computed at 0 and 2 pi, meet on the grid), except the zero-length edges of
+// the triangles at its poles; and each neighbour has both ends of the edge.
+TEST(AdjacencyTest, DemoSpheresAreClosed) {
+  const CpuScene scene = BuildDemoScene();
+  const std::vector<uint32_t> a = TriangleAdjacency(scene);
+  ASSERT_EQ(a.size(), scene.indices.size());
+  size_t edges = 0, joined = 0;
+  for (const Drawable& d : scene.drawables) {
+    const Primitive& p = scene.primitives[d.primitive];
+    if (scene.meshes[d.mesh].name != "Red plastic sphere") continue;
+    auto at = [&](uint32_t i) {
+      return scene.vertices[p.first_vertex + scene.indices[p.first_index + i]].position;
+    };
+    for (uint32_t i = 0; i < p.index_count; ++i) {
+      const uint32_t t = i / 3, e = i % 3;
+      if (at(3 * t + e) == at(3 * t + (e + 1) % 3)) continue;  // a pole's degenerate edge
+      ++edges;
+      const uint32_t n = a[p.first_index + i];
+      if (n == kNoNeighbour) continue;
+      ++joined;
+      ASSERT_LT(n, p.index_count / 3);
+      // The neighbour has both ends of the edge among its corners (to the grid's precision).
+      for (const glm::vec3 end : {at(3 * t + e), at(3 * t + (e + 1) % 3)}) {
+        bool found = false;
+        for (uint32_t k = 0; k < 3; ++k) found = found || glm::distance(at(3 * n + k), end) < 1e-5f;
+        EXPECT_TRUE(found) << "triangle " << t << " edge " << e << " -> " << n;
+      }
+    }
+    break;  // the spheres share one range
+  }
+  ASSERT_GT(edges, 0u);
+  std::printf("demo sphere: %zu of %zu edges joined\n", joined, edges);
+  EXPECT_EQ(joined, edges);
+}
+
+}  // namespace
+}  // namespace tessera
