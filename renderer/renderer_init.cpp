@@ -103,8 +103,8 @@ absl::Status Renderer::Impl::Init() {
   // Per frame: the scene set, light culling, two culling phases, a set per pyramid level, the
   // vis_mlaa and post passes' sets.
   // Shadows, ssao, ibl: six more images and a uniform buffer in the scene set; the post passes
-  // allocate a set per draw (bloom: eleven). Storage buffers, at most 51 in a frame: the scene
-  // set 5, skinning 5, the two culling phases 8 each, light culling 5, vis_mlaa's resolve 5,
+  // allocate a set per draw (bloom: eleven). Storage buffers, at most 52 in a frame: the scene
+  // set 5, skinning 5, the two culling phases 8 each, light culling 5, vis_mlaa's resolve 6,
   // classification 5, shading 6 and geometric AA 4, and the motion pass 1 (taa, so not with
   // vis_mlaa); 64 leaves room. Texel buffers: 2 in the scene set, 3 in each of the resolve's,
   // the classification's and the shading's sets.

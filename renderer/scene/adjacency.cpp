@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <limits>
-#include <set>
 #include <unordered_map>
 
 #include "absl/hash/hash.h"
@@ -34,12 +33,18 @@ Point Snap(const glm::vec3& p, const glm::dvec3& origin, double step) {
 
 std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
   std::vector<uint32_t> adjacency(scene.indices.size(), kNoNeighbour);
-  std::unordered_map<EdgeKey, uint32_t, absl::Hash<EdgeKey>> first;  // edge -> 3t + e
-  std::set<std::array<uint32_t, 3>> done;  // primitives sharing a range (materials apart)
+  // An index range is done once: primitives sharing one (the same mesh with other materials)
+  // share its answer, and one overlapping a range already done is left without neighbours
+  // rather than given triangle numbers counted from another first index.
+  std::vector<bool> claimed(scene.indices.size(), false);
   for (const Primitive& p : scene.primitives) {
-    if (!done.insert({p.first_index, p.index_count, p.first_vertex}).second) continue;
-    first.clear();
     const uint32_t triangles = p.index_count / 3;
+    if (triangles == 0 || uint64_t(p.first_index) + 3 * triangles > scene.indices.size()) continue;
+    if (claimed[p.first_index]) continue;
+    bool overlaps = false;
+    for (uint32_t i = 0; i < 3 * triangles; ++i) overlaps = overlaps || claimed[p.first_index + i];
+    if (overlaps) continue;
+    for (uint32_t i = 0; i < 3 * triangles; ++i) claimed[p.first_index + i] = true;
     auto position = [&](uint32_t i) -> const glm::vec3& {
       return scene.vertices[p.first_vertex + scene.indices[p.first_index + i]].position;
     };
@@ -51,6 +56,10 @@ std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
     const glm::dvec3 size = hi - lo;
     const double extent = std::max(size.x, std::max(size.y, size.z));
     const double step = extent > 0.0 ? std::ldexp(extent, -20) : 1.0;
+    // A map per primitive, sized for it (clearing one shared map costs its largest bucket array
+    // again for every later primitive).
+    std::unordered_map<EdgeKey, uint32_t, absl::Hash<EdgeKey>> first;  // edge -> 3t + e
+    first.reserve(3 * size_t(triangles));
     for (uint32_t t = 0; t < triangles; ++t) {
       for (uint32_t e = 0; e < 3; ++e) {
         const Point a = Snap(position(3 * t + e), lo, step);

@@ -16,6 +16,8 @@ inline constexpr uint32_t kNoNeighbour = 0xffffffffu;
 // e to corner (e + 1) % 3, or kNoNeighbour. Edges are matched by their ends' positions, so a
 // seam that splits vertices (normals, texture coordinates) still joins; where more than two
 // triangles share an edge each is given one of the others. Degenerate edges have none.
+// Primitives sharing an index range share its answer; a range that overlaps one already done
+// without being it gets none.
 std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene);
 
 }  // namespace tessera

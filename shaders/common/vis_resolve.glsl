@@ -1,8 +1,9 @@
 // vis_mlaa resolve: groups a pixel's visibility samples by surface and picks the surface to
 // shade. The samples are the multisampled visibility buffer's, or with VIS_RESOLVE_ANALYTIC
 // (vis_mlaa_coverage analytic: vis_resolve_analytic.comp) found from a one-sample buffer by
-// intersecting each sample's camera ray with the triangles nearby pixels show (AnalyticSamples). Two samples are on one surface when they hit the same triangle, or triangles of the
-// same drawable that share a vertex: the same index, or two vertices at almost the same
+// testing each sample position against the triangles nearby pixels show and their neighbours
+// (AnalyticSamples). Two samples are on one surface when they hit the same triangle, or
+// triangles of the same drawable that share a vertex: the same index, or two vertices at almost the same
 // position whose normals are within 8.1 degrees (dot > 0.99), or joined through other samples.
 // The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
 //  - u_id: the id of the winning sample nearest the mean position of the winning samples
@@ -185,7 +186,8 @@ vec2 ScreenHit(ScreenTriangle t, vec2 at) {
 // sample only where p, or a pixel on the sample's side of p (across the nearer vertical,
 // horizontal or diagonal edge), showed it (or the triangle it borders), that is where its alpha
 // test passed nearby, and not at all where it lies in front of p's own surface at p's centre
-// although p does not show it (p's centre is in one of its holes). The distinct ids are gathered
+// although p does not show it (p's centre is in one of its holes). A single-sided triangle
+// facing away is skipped, as the rasterizer culls it. The distinct ids are gathered
 // first (at most kCandidates), so each triangle is loaded and tested once: a CPU device runs
 // its lanes together, and a loop over the pixels cost every lane the tests of every id any lane
 // had not seen.
@@ -195,6 +197,15 @@ const uint kRinged = 16u, kCandidates = 32u;
 void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
   uint tb = frame.aa.x;
   uint own = IdAt(p, ivec2(0));
+  // A pixel whose own triangle reaches behind the camera (not testable in screen space: a
+  // large triangle close by) keeps it at every sample.
+  ScreenTriangle own_screen;
+  own_screen.area = 1.0;
+  if (own != 0u) own_screen = Project(LoadTriangle(own));
+  if (own_screen.area == 0.0) {
+    for (uint s = 0u; s < kSamples; ++s) ids[s] = own;
+    return;
+  }
   uint candidates[kCandidates];
   uint where[kCandidates];  // bit k: the 3x3's pixel k (row-major) shows it (or the one it borders)
   uint count = 0u;
@@ -220,6 +231,8 @@ void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
     for (uint e = 0u; e < 3u; ++e) {
       uint t = adjacency[first + e];
       uint next = (id & ~((1u << tb) - 1u)) | t;
+      // (A triangle reached again keeps the pixels it was first found from: merging them here
+      // cost lavapipe the resolve twice over, for masked triangles' side rule only.)
       bool seen = t == 0xffffffffu;
       for (uint j = 0u; j < count; ++j) seen = seen || candidates[j] == next;
       if (!seen && count < kCandidates) {
@@ -232,7 +245,7 @@ void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
   float nearest[kSamples];
   uint side[kSamples];  // the 3x3 pixels a masked triangle must show to claim the sample
   vec2 centre = vec2(p) + 0.5;
-  float own_at_centre = own == 0u ? 0.0 : ScreenHit(Project(LoadTriangle(own)), centre).y;
+  float own_at_centre = own == 0u ? 0.0 : ScreenHit(own_screen, centre).y;
   for (uint s = 0u; s < kSamples; ++s) {
     vec2 at = SamplePosition(kSamples, s);
     spots[s] = vec2(p) + at;
@@ -245,7 +258,11 @@ void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
     uint id = candidates[j];
     Triangle tri = LoadTriangle(id);
     ScreenTriangle st = Project(tri);
-    bool masked = id != own && materials[DrawableIds(tri.drawable).y].flags.x == kAlphaMask;
+    uvec4 flags = materials[DrawableIds(tri.drawable).y].flags;  // x alpha mode, y double-sided
+    // The visibility pass culls single-sided back faces (front: counter-clockwise in Vulkan's
+    // framebuffer terms, a negative Edge area here); the walk across edges reaches them.
+    if (flags.y == 0u && st.area > 0.0) continue;
+    bool masked = id != own && flags.x == kAlphaMask;
     if (masked) {
       vec2 at_centre = ScreenHit(st, centre);
       if (at_centre.x > 0.0 && at_centre.y > own_at_centre) continue;
@@ -253,7 +270,8 @@ void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
     for (uint s = 0u; s < kSamples; ++s) {
       vec2 hit = ScreenHit(st, spots[s]);
       bool may = !masked || (where[j] & side[s]) != 0u;
-      if (may && hit.x > 0.0 && hit.y > nearest[s]) {
+      // Depth above 1 is in front of the near plane, which the rasterizer clips.
+      if (may && hit.x > 0.0 && hit.y <= 1.0 && hit.y > nearest[s]) {
         nearest[s] = hit.y;
         ids[s] = id;
       }
