@@ -252,12 +252,12 @@ std::vector<SettingRow> BuildTable() {
                                         "FXAA run: fragment, compute, or auto (the faster on "
                                         "the device)"),
                     {Value("post-stage", "S")}));
-  t.push_back(Flags(Row<&S::vis_mlaa_coverage>("vis_mlaa_coverage", "vis_mlaa coverage",
+  t.push_back(Flags(Row<&S::vis_mlaa_coverage>("vis_mlaa_coverage", "Visibility AA coverage",
                                                "how vis_mlaa finds each sample's triangle: "
                                                "raster (a multisampled visibility buffer), "
                                                "analytic (one sample rasterized, the others "
-                                               "ray-tested against the neighbours' triangles), "
-                                               "or auto"),
+                                               "tested against the triangles nearby pixels "
+                                               "show), or auto (raster)"),
                     {Value("vis-mlaa-coverage", "HOW")}));
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),
