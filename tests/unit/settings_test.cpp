@@ -136,21 +136,11 @@ const std::vector<Field>& AllFields() {
     std::vector<Field> out;
     for (const SettingRow& row : SettingsTable()) {
       out.push_back({std::string(row.name), [&row](const Settings& a, const Settings& b) {
-                       // pipeline auto asks the renderer to choose: any choice honours it.
-                       if (row.name == "pipeline" && a.pipeline == Pipeline::kAuto &&
-                           b.pipeline != Pipeline::kAuto)
-                         return true;
-                       if (row.name == "post_stage" && a.post_stage == PostStage::kAuto &&
-                           b.post_stage != PostStage::kAuto)
-                         return true;
-                       if (row.name == "vis_mlaa_coverage" &&
-                           a.vis_mlaa_coverage == VisMlaaCoverage::kAuto &&
-                           b.vis_mlaa_coverage != VisMlaaCoverage::kAuto)
-                         return true;
-                       if (row.name == "light_binning" &&
-                           a.light_binning == LightBinning::kAuto &&
-                           b.light_binning != LightBinning::kAuto)
-                         return true;
+                       // An enum row's "auto" (pipeline, post_stage, vis_mlaa_coverage,
+                       // light_binning) asks the renderer to choose: any choice honours it.
+                       const bool chooses = row.type == SettingType::kEnum &&
+                                            !row.choices.empty() && row.choices[0] == "auto";
+                       if (chooses && row.get(a) == 0.0 && row.get(b) != 0.0) return true;
                        return row.get(a) == row.get(b);
                      }});
     }
