@@ -104,7 +104,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
   const bool msaa = s.aa == AaMode::kMsaa, vis = s.aa == AaMode::kVisMlaa;
   // vis_mlaa_coverage analytic: one sample rasterized (the frame's depth and a one-sample
   // visibility target), the others found by the resolve.
-  const bool analytic = vis && s.vis_mlaa_coverage == VisMlaaCoverage::kAnalytic;
+  const bool analytic = VisMlaaAnalytic(s);
   t.samples = msaa || vis ? n : 1;
   if (msaa || (vis && !analytic)) {
     ASSIGN_OR_RETURN(auto* d, get(R::kDepthMs, kDepthFormat, kDepth, "depth_ms", width, height, n));

@@ -198,5 +198,10 @@ inline bool ShadesVisibility(const Settings& s) {
 inline bool DrawsVisibility(const Settings& s) {
   return s.aa == AaMode::kVisMlaa || ShadesVisibility(s);
 }
+// Whether vis_mlaa rasterizes one sample and its resolve finds the others' ids analytically
+// (vis_mlaa_coverage analytic; effective settings have no kAuto).
+inline bool VisMlaaAnalytic(const Settings& s) {
+  return s.aa == AaMode::kVisMlaa && s.vis_mlaa_coverage == VisMlaaCoverage::kAnalytic;
+}
 
 }  // namespace tessera

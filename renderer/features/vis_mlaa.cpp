@@ -4,7 +4,8 @@
 //    frame's single-sampled depth for light culling, the depth pyramid and transparency). The
 //    visibility pipeline (vis_shade.cpp) uses the same pass at one sample, straight into the
 //    frame's depth and ids; so does vis_mlaa_coverage analytic, into the frame's depth and a
-//    one-sample visibility target, its resolve finding the other samples' ids by ray;
+//    one-sample visibility target, its resolve finding the other samples' ids by testing them
+//    against the nearby triangles in screen space;
 //  - vis_resolve (compute): per pixel, groups the samples by surface and picks the surface to
 //    shade, a triangle of it, and its coverage mask and mean sample position; only the edge
 //    pixels are grouped, listed by a first pass over the frame; each pixel's surface is counted
@@ -29,10 +30,6 @@ namespace tessera {
 
 namespace {
 
-bool Analytic(const Settings& s) {
-  return s.aa == AaMode::kVisMlaa && s.vis_mlaa_coverage == VisMlaaCoverage::kAnalytic;
-}
-
 class VisibilityPass final : public Pass {
  public:
   VisibilityPass(PassId id, const SceneLayout& layout) : id_(id), layout_(layout) {}
@@ -46,7 +43,7 @@ class VisibilityPass final : public Pass {
   // The samples rasterized: vis_mlaa's count, or 1 for the visibility pipeline and for
   // vis_mlaa_coverage analytic.
   static uint32_t Samples(const Settings& s, uint32_t samples) {
-    return s.aa == AaMode::kVisMlaa && !Analytic(s) ? samples : 1;
+    return s.aa == AaMode::kVisMlaa && !VisMlaaAnalytic(s) ? samples : 1;
   }
 
   void Record(PassContext& ctx) override {
@@ -160,7 +157,7 @@ class VisResolvePass final : public Pass {
   }
   // The sample count | kVisTexels << 8 | analytic << 9.
   static uint32_t Key(uint32_t samples, const Settings& s, const GpuScene& scene) {
-    return samples | VisTexels(scene) << 8 | uint32_t(Analytic(s)) << 9;
+    return samples | VisTexels(scene) << 8 | uint32_t(VisMlaaAnalytic(s)) << 9;
   }
   static const char* ShaderFor(bool analytic, bool ballot) {
     if (analytic) return ballot ? "vis_resolve_analytic.comp" : "vis_resolve_analytic_atomic.comp";
@@ -250,7 +247,7 @@ void AddVisibilityPass(GraphBuilder& b, bool late) {
   b.Pass(late ? PassId::kVisibilityLate : PassId::kVisibility)
       .Use(Resource::kDrawLists, Access::kIndirectRead)
       .UseIfPresent(Resource::kPosedGeometry, Access::kGeometryRead);
-  if (b.settings().aa == AaMode::kVisMlaa && Analytic(b.settings())) {  // one sample
+  if (VisMlaaAnalytic(b.settings())) {  // one sample
     b.Use(Resource::kDepth, Access::kDepthWrite).Use(Resource::kVisMs, Access::kColorWrite);
   } else if (b.settings().aa == AaMode::kVisMlaa) {
     b.Use(Resource::kDepthMs, Access::kDepthWrite)

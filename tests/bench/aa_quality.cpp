@@ -63,6 +63,7 @@
 #include "renderer/renderer.h"
 #include "renderer/scene/edge_scene.h"
 #include "renderer/scene/gltf_import.h"
+#include "renderer/settings_table.h"
 
 #ifndef TESSERA_DEFAULT_ASSETS_DIR
 #define TESSERA_DEFAULT_ASSETS_DIR "../shared/assets"
@@ -169,11 +170,12 @@ Options ParseOptions(int argc, char** argv) {
       if (o.samples != 1 && o.samples != 2 && o.samples != 4 && o.samples != 8)
         BadFlag("--samples: want 1, 2, 4 or 8");
     } else if (arg == "--vis-mlaa-coverage") {
-      const std::string v = value();
-      const auto& names = EnumNames<VisMlaaCoverage>();
-      const auto at = std::find(names.begin(), names.end(), v);
-      if (at == names.end()) BadFlag("--vis-mlaa-coverage: want auto, raster or analytic");
-      o.coverage = static_cast<VisMlaaCoverage>(at - names.begin());
+      // The settings table's parser (renderer/settings_table.h), as tessera-bench's flags.
+      Settings parsed;
+      SettingMask set;
+      const absl::StatusOr<bool> ok = ParseSettingFlag(arg, value, &parsed, &set);
+      if (!ok.ok()) BadFlag(std::string(ok.status().message()));
+      o.coverage = parsed.vis_mlaa_coverage;
     } else if (arg == "--width") {
       o.width = ParseUint(arg, value());
     } else if (arg == "--height") {
