@@ -200,12 +200,13 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     e.post_stage = caps.cpu ? PostStage::kFragment : PostStage::kCompute;
   }
   if (e.vis_mlaa_coverage == VisMlaaCoverage::kAuto) {
-    // raster on every device for now. analytic rasterizes one sample instead of several (on an
-    // H200, Sponza's 4-sample visibility pass at 4K took 19.3 ms, the one-sample pass 5.3: the
-    // README's figures) but its resolve costs lavapipe far more than it saves, its edges are a
-    // little worse (README, "Anti-aliasing"). On an H200 it halved vis_mlaa's 4K frame; it
-    // becomes the GPUs' default once the GPU test suite has run with it as the default.
-    e.vis_mlaa_coverage = VisMlaaCoverage::kRaster;
+    // Measured (README, "Anti-aliasing" and "The visibility pipeline"): on an H200 analytic
+    // halves vis_mlaa's 4K frame (Sponza, full stack with 20000 lights: 0.50x raster's; plain
+    // 0.43x; 720p 0.63x), rasterizing one sample where raster's 4-sample visibility pass took
+    // 19.3 ms, with edges within 0.04 dB of raster's on Sponza and the helmet (0.9 dB below on
+    // the wire scene). On lavapipe its resolve costs far more than the samples it saves (the
+    // frame 2.0-2.4x raster's), so CPU devices keep raster.
+    e.vis_mlaa_coverage = caps.cpu ? VisMlaaCoverage::kRaster : VisMlaaCoverage::kAnalytic;
   }
   if (e.light_binning == LightBinning::kAuto) {
     // Measured on lavapipe (README, "Forward+"): the two compute steps cost more GPU time than

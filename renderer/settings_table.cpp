@@ -257,7 +257,8 @@ std::vector<SettingRow> BuildTable() {
                                                "raster (a multisampled visibility buffer), "
                                                "analytic (one sample rasterized, the others "
                                                "tested against the triangles nearby pixels "
-                                               "show), or auto (raster)"),
+                                               "show), or auto (analytic on GPUs, raster on "
+                                               "CPU devices)"),
                     {Value("vis-mlaa-coverage", "HOW")}));
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),

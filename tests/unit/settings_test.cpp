@@ -351,12 +351,26 @@ TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
   EXPECT_TRUE(r->notes.empty());
   EXPECT_EQ(r->effective.post_stage, PostStage::kCompute);
   EXPECT_EQ(r->effective.light_binning, LightBinning::kGpu);
+  EXPECT_EQ(r->effective.vis_mlaa_coverage, VisMlaaCoverage::kAnalytic);
   r = ResolveSettings(Settings{}, cpu);
   ASSERT_TRUE(r.ok());
   EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
   EXPECT_EQ(r->effective.post_stage, PostStage::kFragment);
   EXPECT_EQ(r->effective.light_binning, LightBinning::kCpu);
+  EXPECT_EQ(r->effective.vis_mlaa_coverage, VisMlaaCoverage::kRaster);
   EXPECT_TRUE(r->notes.empty());
+  // vis_mlaa_coverage asked for explicitly is honoured on either device, without a note.
+  for (VisMlaaCoverage c : {VisMlaaCoverage::kRaster, VisMlaaCoverage::kAnalytic}) {
+    for (const DeviceCaps& caps : {gpu, cpu}) {
+      Settings s;
+      s.aa = AaMode::kVisMlaa;
+      s.vis_mlaa_coverage = c;
+      r = ResolveSettings(s, caps);
+      ASSERT_TRUE(r.ok());
+      EXPECT_EQ(r->effective.vis_mlaa_coverage, c) << ToString(c);
+      EXPECT_TRUE(r->notes.empty()) << ToString(c);
+    }
+  }
   // Asked for explicitly, each is honoured on either device.
   for (Pipeline p : {Pipeline::kForward, Pipeline::kVisibility}) {
     for (const DeviceCaps& caps : {gpu, cpu}) {
