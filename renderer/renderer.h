@@ -28,6 +28,9 @@ struct RendererOptions {
   // Optional device features to treat as absent, to test their fallbacks (DisableableFeatures();
   // also TESSERA_DISABLE_FEATURES=a,b).
   std::vector<std::string> disable_features;
+  // Treat the device's storage buffer range as at most this many bytes (0: the device's), to
+  // test what a scene larger than a device's storage buffers does (vk::ContextOptions).
+  uint64_t max_storage_buffer_range = 0;
 };
 
 // What a loaded scene is, without its geometry.

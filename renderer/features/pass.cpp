@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <utility>
 
+#include "renderer/vk/context.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
 
@@ -146,10 +147,17 @@ SetWriter& SetWriter::TexelBuffer(uint32_t binding, VkBufferView view) {
   return *this;
 }
 
+VkDeviceSize StorageRange(const PassContext& ctx, const vk::Buffer& buffer) {
+  return std::min<VkDeviceSize>(buffer.size(), ctx.vk->limits().maxStorageBufferRange);
+}
+
 SetWriter& SetWriter::VisibilityBuffers(const PassContext& ctx) {
   const GpuScene& scene = *ctx.scene;
-  Buffer(gpu::kVisBindingIndices, scene.indices().handle())
-      .Buffer(gpu::kVisBindingVertices, scene.vertices().handle())
+  constexpr VkDescriptorType kStorage = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+  Buffer(gpu::kVisBindingIndices, scene.indices().handle(), kStorage, 0,
+         StorageRange(ctx, scene.indices()))
+      .Buffer(gpu::kVisBindingVertices, scene.vertices().handle(), kStorage, 0,
+              StorageRange(ctx, scene.vertices()))
       .Buffer(gpu::kShadeBindingEntries, ctx.shade->entries)
       .Buffer(gpu::kShadeBindingPixels, ctx.shade->pixels);
   // The pipelines' shaders hold both paths (vis.glsl), so both are bound whichever they read.

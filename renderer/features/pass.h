@@ -316,6 +316,12 @@ class SetWriter {
   std::vector<VkWriteDescriptorSet> writes_;
 };
 
+// The range of a storage buffer binding of `buffer`: all of it, or as much as the device's
+// maxStorageBufferRange allows. The scene's index and vertex buffers (and the adjacency) may be
+// larger; a frame whose shaders would read past the range does not run those shaders
+// (Renderer::Impl::CheckVisibilityIds: texel views instead, or another path).
+VkDeviceSize StorageRange(const PassContext& ctx, const vk::Buffer& buffer);
+
 // One binding of a descriptor set layout: a single descriptor of `type` for `stages`.
 inline VkDescriptorSetLayoutBinding LayoutBinding(uint32_t binding, VkDescriptorType type,
                                                   VkShaderStageFlags stages) {

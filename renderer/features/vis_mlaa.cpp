@@ -13,6 +13,7 @@
 // Then the visibility pipeline's classification and compute shading (vis_shade.cpp) shade each
 // pixel's surface once, at that mean position, and the geometric AA pass (post.cpp) blends the
 // partly covered pixels.
+#include <algorithm>
 #include <array>
 #include <bit>
 #include <string>
@@ -212,7 +213,8 @@ class VisResolvePass final : public Pass {
         .Storage(gpu::kResolveBindingId, ctx.targets->vis_id.view())
         .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
         .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
-        .Buffer(gpu::kResolveBindingAdjacency, ctx.scene->adjacency().handle())
+        .Buffer(gpu::kResolveBindingAdjacency, ctx.scene->adjacency().handle(),
+                VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 0, StorageRange(ctx, ctx.scene->adjacency()))
         .VisibilityBuffers(ctx)
         .Update();
     const VkPipelineLayout layout = layout_.pipeline_layout();
@@ -312,7 +314,9 @@ uint32_t VisTriangleBits(uint32_t drawables) {
 uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings& settings) {
   // A visibility id holds the drawable and the triangle; a scene whose largest drawable has
   // more triangles than the id leaves room for is drawn without one: vis_mlaa with msaa, the
-  // visibility pipeline forward.
+  // visibility pipeline forward. So is a scene whose triangles the visibility passes cannot
+  // read: index or vertex buffer beyond the device's storage buffer range, and not covered by
+  // texel views (GpuScene::vis_texels).
   const uint32_t triangle_bits = VisTriangleBits(uint32_t(gs.draws().size()));
   Settings& s = settings.effective;
   const uint32_t most = gs.max_draw_triangles();
@@ -329,7 +333,20 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
   } else if (list_bytes > range) {
     why = absl::StrCat("the ", s.width, "x", s.height, " frame's pixel lists need ", list_bytes,
                        " bytes, more than the device's storage buffer range (", range, ")");
+  } else if (!gs.vis_texels() && std::max(gs.indices().size(), gs.vertices().size()) > range) {
+    why = absl::StrCat("the scene's index and vertex buffers (", gs.indices().size(), " and ",
+                       gs.vertices().size(), " bytes) exceed the device's storage buffer range (",
+                       range, ") and its texel buffers do not cover them");
   } else {
+    // vis_mlaa_coverage analytic reads the adjacency (one word per index) as a storage buffer.
+    if (VisMlaaAnalytic(s) && gs.adjacency().size() > range) {
+      settings.notes.push_back(
+          {"vis_mlaa_coverage",
+           absl::StrCat("not applied: the scene's triangle adjacency (", gs.adjacency().size(),
+                        " bytes) exceeds the device's storage buffer range (", range,
+                        "); raster")});
+      s.vis_mlaa_coverage = VisMlaaCoverage::kRaster;
+    }
     return triangle_bits;
   }
   settings.notes.push_back({vis_mlaa ? "aa" : "pipeline",

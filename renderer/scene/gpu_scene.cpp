@@ -9,6 +9,7 @@
 #include <cstring>
 #include <map>
 #include <tuple>
+#include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
@@ -616,6 +617,35 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
         PlanPoseBuffer(a).size / sizeof(float) >= k32)
       return absl::InvalidArgumentError(absl::StrCat(
           n, ": too many animated vertices, joints or morph deltas for 32-bit indices"));
+  }
+  // What every frame binds whole as one storage buffer must fit the device's range (lavapipe:
+  // 128 MiB). The index and vertex buffers of a still scene need not: the draws read them as
+  // vertex input, the visibility passes through texel views or, where those do not cover them,
+  // not at all (Renderer::Impl::CheckVisibilityIds).
+  {
+    const uint64_t range = ctx.limits().maxStorageBufferRange;
+    std::vector<std::pair<std::string, uint64_t>> whole = {
+        {absl::StrCat("its ", materials.size(), " materials"), materials.size() * sizeof(gpu::GpuMaterial)},
+        {absl::StrCat("its ", drawables.size(), " drawables"), drawables.size() * sizeof(gpu::GpuDrawable)},
+        {absl::StrCat("its ", items.size(), " culling records"), items.size() * sizeof(gpu::GpuCullItem)}};
+    if (animator_) {  // skin.comp writes the posed vertices, the motion pass reads them
+      const SceneAnimator& a = *animator_;
+      whole.push_back({absl::StrCat("its ", scene.vertices.size() + a.copy_vertices(),
+                                    " vertices (animated: posed in a compute pass)"),
+                       (scene.vertices.size() + a.copy_vertices()) * sizeof(Vertex)});
+      whole.push_back({absl::StrCat("its ", scene.morph_deltas.size(), " morph target deltas"),
+                       scene.morph_deltas.size() * gpu::kMorphDeltaFloats * sizeof(float)});
+      if (a.skinned())
+        whole.push_back({absl::StrCat("its ", scene.vertices.size(), " vertices' joints and weights"),
+                         scene.vertices.size() * 2 * sizeof(glm::uvec4)});
+      whole.push_back({"the pose", PlanPoseBuffer(a).size});
+    }
+    for (const auto& [what, bytes] : whole) {
+      if (bytes > range)
+        return absl::InvalidArgumentError(absl::StrCat(
+            n, ": ", what, " take ", bytes, " bytes in one storage buffer, more than the "
+            "device's maxStorageBufferRange (", range, " bytes)"));
+    }
   }
   std::vector<Vertex> with_copies;
   if (animator_) with_copies = animator_->VertexData(scene);

@@ -182,6 +182,11 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   RETURN_IF_ERROR(ctx->InitInstance(validation));
   RETURN_IF_ERROR(ctx->PickDevice(wanted));
   RETURN_IF_ERROR(ctx->InitDevice(validation, disabled));
+  if (options.max_storage_buffer_range != 0) {
+    uint32_t& range = ctx->limits_.maxStorageBufferRange;
+    range = uint32_t(std::min<uint64_t>(range, options.max_storage_buffer_range));
+    Log().info("storage buffer range taken as {} bytes (max_storage_buffer_range)", range);
+  }
   const DeviceInfo& info = ctx->info_;
   Log().info("vulkan device: {} ({}, {} {}), max samples {}, validation {}", info.name, info.type,
              info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");

@@ -27,6 +27,10 @@ struct ContextOptions {
   // $TESSERA_DISABLE_FEATURES, comma-separated), so that their fallbacks can be tested on a
   // device that has them. An unknown name is INVALID_ARGUMENT.
   std::vector<std::string> disable_features;
+  // Treat the device's maxStorageBufferRange as at most this many bytes (0: the device's own), so
+  // that the paths for scenes larger than a device's storage buffers can be tested on a device
+  // whose range is larger.
+  uint64_t max_storage_buffer_range = 0;
 };
 
 class Context {

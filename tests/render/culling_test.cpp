@@ -359,6 +359,124 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   ExpectNoValidationMessages(**lean);
 }
 
+// A scene larger than the device's storage buffers (lavapipe's range is 128 MiB: some 2.4
+// million vertices) renders the same pixels: the bindings of the scene's index and vertex
+// buffers stop at the range and the visibility passes read them through texel views; where
+// those are missing too, or vis_mlaa's adjacency does not fit, the frame takes the other path
+// and says so. What every frame binds whole (materials, drawables) must fit: the upload is
+// refused, naming them. Here the range is taken as smaller than DamagedHelmet's vertex buffer,
+// then than its index buffer.
+TEST(FallbackTest, SceneLargerThanTheStorageBufferRange) {
+  Renderer& r = SharedRenderer();
+  if (!r.device_info().visibility_buffer || !r.device_info().texel_buffers)
+    GTEST_SKIP() << "needs the visibility buffer and texel buffers";
+  absl::StatusOr<GltfSource> src =
+      LoadGltfSourceFromDisk(AssetsDir() + "/DamagedHelmet/glTF-Binary/DamagedHelmet.glb");
+  ASSERT_TRUE(src.ok()) << src.status();
+  absl::StatusOr<CpuScene> cpu = ImportGltf(*src);
+  ASSERT_TRUE(cpu.ok()) << cpu.status();
+  const uint64_t vertex_bytes = cpu->vertices.size() * sizeof(Vertex);
+  const uint64_t index_bytes = cpu->indices.size() * sizeof(uint32_t);  // and the adjacency's
+  ASSERT_GT(vertex_bytes, index_bytes + 4096);
+  absl::StatusOr<SceneHandle> full_scene = r.LoadScene(*src);
+  ASSERT_TRUE(full_scene.ok()) << full_scene.status();
+  Camera cam;
+  cam.eye = {0.5f, 0.4f, 2.6f};
+  cam.target = {0.0f, 0.0f, 0.0f};
+  Settings base;
+  base.width = 96;  // the pixel lists (vis_mlaa: 12 bytes a pixel) fit every range below
+  base.height = 64;
+  auto render = [&](Renderer& rr, const Scene& scene, const Settings& s) {
+    absl::StatusOr<Frame> f = rr.Render(scene, cam, s);
+    EXPECT_TRUE(f.ok()) << f.status();
+    return f.ok() ? *std::move(f) : Frame{};
+  };
+  auto note = [](const Frame& f, const std::string& field) {
+    for (const SettingNote& n : f.settings.notes)
+      if (n.field == field) return n.message;
+    return std::string();
+  };
+  auto with = [&](Pipeline pipeline, AaMode aa, VisMlaaCoverage coverage) {
+    Settings s = base;
+    s.pipeline = pipeline;
+    s.aa = aa;
+    s.samples = 4;
+    s.vis_mlaa_coverage = coverage;
+    return s;
+  };
+  using enum VisMlaaCoverage;
+  const Settings visibility = with(Pipeline::kVisibility, AaMode::kNone, kAuto);
+  const Settings forward = with(Pipeline::kForward, AaMode::kNone, kAuto);
+  const Settings analytic = with(Pipeline::kAuto, AaMode::kVisMlaa, kAnalytic);
+  const Settings raster = with(Pipeline::kAuto, AaMode::kVisMlaa, kRaster);
+  const Settings msaa = with(Pipeline::kAuto, AaMode::kMsaa, kAuto);
+  const Frame want_visibility = render(r, **full_scene, visibility);
+  const Frame want_forward = render(r, **full_scene, forward);
+  const Frame want_analytic = render(r, **full_scene, analytic);
+  const Frame want_raster = render(r, **full_scene, raster);
+  const Frame want_msaa = render(r, **full_scene, msaa);
+  ASSERT_EQ(want_visibility.settings.effective.pipeline, Pipeline::kVisibility);
+  ASSERT_EQ(want_analytic.settings.effective.vis_mlaa_coverage, VisMlaaCoverage::kAnalytic);
+
+  struct Case {
+    const char* what;
+    uint64_t range;
+    std::vector<std::string> disabled;
+  };
+  for (const Case& c : {Case{"vertices past the range", index_bytes + 1024, {}},
+                        Case{"vertices past the range, no texel buffers", index_bytes + 1024,
+                             {"texel_buffers"}},
+                        Case{"indices past the range too", index_bytes - 4, {}}}) {
+    SCOPED_TRACE(c.what);
+    absl::StatusOr<std::unique_ptr<Renderer>> narrow = Renderer::Create(
+        {.validation = true, .disable_features = c.disabled, .max_storage_buffer_range = c.range});
+    ASSERT_TRUE(narrow.ok()) << narrow.status();
+    absl::StatusOr<SceneHandle> scene = (*narrow)->LoadScene(*src);
+    ASSERT_TRUE(scene.ok()) << scene.status();
+    const bool texels = c.disabled.empty();
+    const Frame vis = render(**narrow, **scene, visibility);
+    const Frame mlaa = render(**narrow, **scene, analytic);
+    if (texels) {  // the texel views cover the geometry: nothing changes
+      EXPECT_EQ(vis.settings.effective.pipeline, Pipeline::kVisibility);
+      EXPECT_TRUE(vis.settings.notes.empty()) << note(vis, "pipeline");
+      EXPECT_EQ(PixelDifference(vis.image, want_visibility.image), "");
+      EXPECT_EQ(mlaa.settings.effective.aa, AaMode::kVisMlaa);
+    } else {  // the visibility passes cannot read the geometry: forward, msaa
+      EXPECT_EQ(vis.settings.effective.pipeline, Pipeline::kForward);
+      EXPECT_NE(note(vis, "pipeline").find("storage buffer range"), std::string::npos)
+          << note(vis, "pipeline");
+      EXPECT_EQ(PixelDifference(vis.image, want_forward.image), "");
+      EXPECT_EQ(mlaa.settings.effective.aa, AaMode::kMsaa);
+      EXPECT_NE(note(mlaa, "aa").find("storage buffer range"), std::string::npos)
+          << note(mlaa, "aa");
+      EXPECT_EQ(PixelDifference(mlaa.image, want_msaa.image), "");
+    }
+    if (texels && c.range >= index_bytes) {  // the adjacency fits: analytic as asked
+      EXPECT_EQ(mlaa.settings.effective.vis_mlaa_coverage, VisMlaaCoverage::kAnalytic);
+      EXPECT_TRUE(mlaa.settings.notes.empty()) << note(mlaa, "vis_mlaa_coverage");
+      EXPECT_EQ(PixelDifference(mlaa.image, want_analytic.image), "");
+    } else if (texels) {  // it does not: raster
+      EXPECT_EQ(mlaa.settings.effective.vis_mlaa_coverage, VisMlaaCoverage::kRaster);
+      EXPECT_NE(note(mlaa, "vis_mlaa_coverage").find("storage buffer range"), std::string::npos)
+          << note(mlaa, "vis_mlaa_coverage");
+      EXPECT_EQ(PixelDifference(mlaa.image, want_raster.image), "");
+    }
+    ExpectNoValidationMessages(**narrow);
+  }
+  // One material's record past the range: refused at upload, naming it.
+  absl::StatusOr<std::unique_ptr<Renderer>> tiny =
+      Renderer::Create({.validation = true, .max_storage_buffer_range = 16});
+  ASSERT_TRUE(tiny.ok()) << tiny.status();
+  absl::StatusOr<SceneHandle> refused = (*tiny)->LoadScene(*src);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument) << refused.status();
+  EXPECT_NE(refused.status().message().find("materials"), std::string::npos) << refused.status();
+  EXPECT_NE(refused.status().message().find("maxStorageBufferRange"), std::string::npos)
+      << refused.status();
+  ExpectNoValidationMessages(**tiny);
+  ExpectNoValidationMessages(r);
+}
+
 // Feature names are checked: a typo must not silently test the full path.
 TEST(FallbackTest, UnknownFeatureIsRefused) {
   absl::StatusOr<std::unique_ptr<Renderer>> r =
