@@ -113,7 +113,9 @@ struct FrameStats {
   // compute invocations (those rounded up to whole workgroups per material).
   uint64_t shaded_pixels = 0;
   uint64_t shading_invocations = 0;
-  uint64_t edge_pixels = 0;  // vis_mlaa: pixels whose samples hit more than one triangle
+  // vis_mlaa: the pixels the resolve grouped: whose samples hit more than one triangle (raster
+  // coverage), whose 3x3 neighbourhood shows more than one surface (analytic).
+  uint64_t edge_pixels = 0;
   // vis_mlaa: edge pixels whose runner-up surface (at least 3/8 of the samples, shown by no
   // neighbour) was shaded as well.
   uint64_t runner_up_pixels = 0;

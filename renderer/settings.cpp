@@ -204,8 +204,9 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     // halves vis_mlaa's 4K frame (Sponza, full stack with 20000 lights: 0.50x raster's; plain
     // 0.43x; 720p 0.63x), rasterizing one sample where raster's 4-sample visibility pass took
     // 19.3 ms, with edges within 0.04 dB of raster's on Sponza and the helmet (0.9 dB below on
-    // the wire scene). On lavapipe its resolve costs more than the samples it saves (the
-    // frame 1.45-1.6x raster's), so CPU devices keep raster.
+    // the wire scene; measured before the resolve stopped listing the pixels inside a surface,
+    // which halved it on lavapipe). On lavapipe its resolve costs more than the samples it
+    // saves (the frame 1.45-1.6x raster's), so CPU devices keep raster.
     e.vis_mlaa_coverage = caps.cpu ? VisMlaaCoverage::kRaster : VisMlaaCoverage::kAnalytic;
   }
   if (e.light_binning == LightBinning::kAuto) {

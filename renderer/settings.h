@@ -35,9 +35,10 @@ enum class PostStage : uint32_t { kAuto = 0, kFragment, kCompute };
 enum class LightBinning : uint32_t { kAuto = 0, kCpu, kGpu };
 // How vis_mlaa finds which triangle each of a pixel's samples sees: rasterized into a
 // multisampled visibility buffer, or derived from a one-sample visibility buffer: where a
-// pixel's 3x3 neighbourhood shows more than one id, the camera ray through each sample position
-// is intersected with the neighbourhood's triangles and the nearest hit is the sample's
-// (shaders/common/vis_resolve.glsl). auto: raster (ResolveSettings says why).
+// pixel's 3x3 neighbourhood shows more than one surface, each sample position is tested in
+// screen space against the triangles the neighbourhood shows and those one and two edges away,
+// and the nearest covering one is the sample's (shaders/common/vis_resolve.glsl). auto:
+// analytic on GPUs, raster on CPU devices (ResolveSettings says why).
 enum class VisMlaaCoverage : uint32_t { kAuto = 0, kRaster, kAnalytic };
 // Values match kDebug* in shaders/common/gpu_types.h.
 enum class DebugView : uint32_t {

@@ -287,7 +287,8 @@ struct PassContext {
 VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout layout);
 
 // Writes the bindings of a descriptor set: combined image samplers, storage images (general
-// layout) and whole buffers, in one vkUpdateDescriptorSets.
+// layout) and buffers (whole unless a range is given: StorageRange for the scene's geometry), in
+// one vkUpdateDescriptorSets.
 class SetWriter {
  public:
   SetWriter(VkDevice device, VkDescriptorSet set) : device_(device), set_(set) {}

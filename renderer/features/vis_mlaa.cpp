@@ -334,9 +334,15 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
     why = absl::StrCat("the ", s.width, "x", s.height, " frame's pixel lists need ", list_bytes,
                        " bytes, more than the device's storage buffer range (", range, ")");
   } else if (!gs.vis_texels() && std::max(gs.indices().size(), gs.vertices().size()) > range) {
-    why = absl::StrCat("the scene's index and vertex buffers (", gs.indices().size(), " and ",
-                       gs.vertices().size(), " bytes) exceed the device's storage buffer range (",
-                       range, ") and its texel buffers do not cover them");
+    const bool indices = gs.indices().size() > range, vertices = gs.vertices().size() > range;
+    why = absl::StrCat("the scene's ", indices ? "index" : "", indices && vertices ? " and " : "",
+                       vertices ? "vertex" : "", " buffer", indices && vertices ? "s" : "", " (",
+                       indices ? absl::StrCat(gs.indices().size(), " bytes") : "",
+                       indices && vertices ? ", " : "",
+                       vertices ? absl::StrCat(gs.vertices().size(), " bytes") : "",
+                       ") exceed", indices && vertices ? "" : "s",
+                       " the device's storage buffer range (", range,
+                       ") and its texel buffers do not cover ", indices && vertices ? "them" : "it");
   } else {
     // vis_mlaa_coverage analytic reads the adjacency (one word per index) as a storage buffer.
     if (VisMlaaAnalytic(s) && gs.adjacency().size() > range) {
@@ -344,7 +350,7 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
           {"vis_mlaa_coverage",
            absl::StrCat("not applied: the scene's triangle adjacency (", gs.adjacency().size(),
                         " bytes) exceeds the device's storage buffer range (", range,
-                        "); raster")});
+                        "); rendered with raster coverage")});
       s.vis_mlaa_coverage = VisMlaaCoverage::kRaster;
     }
     return triangle_bits;

@@ -621,29 +621,32 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   // What every frame binds whole as one storage buffer must fit the device's range (lavapipe:
   // 128 MiB). The index and vertex buffers of a still scene need not: the draws read them as
   // vertex input, the visibility passes through texel views or, where those do not cover them,
-  // not at all (Renderer::Impl::CheckVisibilityIds).
+  // not at all (Renderer::Impl::CheckVisibilityIds). Nor need a scene's whose animation only
+  // moves nodes: only skinning and morph targets (skin.comp) bind the vertices, the deltas, the
+  // joints and the pose, and TAA's motion pass a copy of the posed vertices.
   {
     const uint64_t range = ctx.limits().maxStorageBufferRange;
-    std::vector<std::pair<std::string, uint64_t>> whole = {
-        {absl::StrCat("its ", materials.size(), " materials"), materials.size() * sizeof(gpu::GpuMaterial)},
-        {absl::StrCat("its ", drawables.size(), " drawables"), drawables.size() * sizeof(gpu::GpuDrawable)},
-        {absl::StrCat("its ", items.size(), " culling records"), items.size() * sizeof(gpu::GpuCullItem)}};
-    if (animator_) {  // skin.comp writes the posed vertices, the motion pass reads them
+    using Need = std::pair<std::string, uint64_t>;
+    std::vector<Need> whole = {
+        {absl::StrCat(materials.size(), " materials"), materials.size() * sizeof(gpu::GpuMaterial)},
+        {absl::StrCat(drawables.size(), " drawables"), drawables.size() * sizeof(gpu::GpuDrawable)},
+        {absl::StrCat(items.size(), " culling records"), items.size() * sizeof(gpu::GpuCullItem)}};
+    if (animator_ && animator_->copy_vertices() > 0) {
       const SceneAnimator& a = *animator_;
-      whole.push_back({absl::StrCat("its ", scene.vertices.size() + a.copy_vertices(),
-                                    " vertices (animated: posed in a compute pass)"),
-                       (scene.vertices.size() + a.copy_vertices()) * sizeof(Vertex)});
-      whole.push_back({absl::StrCat("its ", scene.morph_deltas.size(), " morph target deltas"),
+      const uint64_t posed = scene.vertices.size() + a.copy_vertices();
+      whole.push_back({absl::StrCat(posed, " vertices (deformed: skinned or morphed)"),
+                       posed * sizeof(Vertex)});
+      whole.push_back({absl::StrCat(scene.morph_deltas.size(), " morph target deltas"),
                        scene.morph_deltas.size() * gpu::kMorphDeltaFloats * sizeof(float)});
       if (a.skinned())
-        whole.push_back({absl::StrCat("its ", scene.vertices.size(), " vertices' joints and weights"),
+        whole.push_back({absl::StrCat(scene.vertices.size(), " vertices' joints and weights"),
                          scene.vertices.size() * 2 * sizeof(glm::uvec4)});
-      whole.push_back({"the pose", PlanPoseBuffer(a).size});
+      whole.push_back({"pose (joint matrices, weights, records)", PlanPoseBuffer(a).size});
     }
     for (const auto& [what, bytes] : whole) {
       if (bytes > range)
         return absl::InvalidArgumentError(absl::StrCat(
-            n, ": ", what, " take ", bytes, " bytes in one storage buffer, more than the "
+            n, ": its ", what, ": ", bytes, " bytes in one storage buffer, more than the "
             "device's maxStorageBufferRange (", range, " bytes)"));
     }
   }

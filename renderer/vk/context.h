@@ -29,7 +29,9 @@ struct ContextOptions {
   std::vector<std::string> disable_features;
   // Treat the device's maxStorageBufferRange as at most this many bytes (0: the device's own), so
   // that the paths for scenes larger than a device's storage buffers can be tested on a device
-  // whose range is larger.
+  // whose range is larger. Only what reads limits() sees it: the validation layers check the
+  // device's own range, and buffers sized below Vulkan's minimum range (128 MiB) are not checked
+  // against it.
   uint64_t max_storage_buffer_range = 0;
 };
 

@@ -451,7 +451,7 @@ void main() {
   if (mode == kResolveEdges) {
     uint winner = Group(p, entry, ids);
     if (winner != 0u) Append(MaterialOf(winner, edges), kCountPixels);
-  } else if (uniform_id) {  // one triangle covers the pixel (or none): shade it at the centre
+  } else if (uniform_id) {  // one triangle (analytic: one surface) or none: at the centre
     imageStore(u_id, p, uvec4(ids[0]));
     imageStore(u_coverage, p, uvec4(PackCoverage((1u << kSamples) - 1u, vec2(0.5))));
     if (ids[0] != 0u) Append(MaterialOf(ids[0], edges), kCountPixels);

@@ -394,6 +394,44 @@ TEST(AnimationRender, CullingUsesThePosedBounds) {
   ExpectNoValidationMessages(SharedRenderer());
 }
 
+// Skinning and morph targets bind the posed vertices as one storage buffer (skin.comp): a
+// deformed scene whose vertices exceed the device's storage buffer range is refused at upload,
+// naming them. A scene whose animation only moves nodes binds none of its vertices so: it loads
+// and renders the same under that range. (The range is taken as 2 KiB here, below both scenes'
+// vertex buffers and above their materials', drawables' and culling records'.)
+TEST(AnimationRender, StorageBufferRangeRefusesOnlyDeformedScenes) {
+  constexpr uint64_t kRange = 2048;
+  absl::StatusOr<std::unique_ptr<Renderer>> narrow =
+      Renderer::Create({.validation = true, .max_storage_buffer_range = kRange});
+  ASSERT_TRUE(narrow.ok()) << narrow.status();
+  const Loaded moving = Load("trs_nodes");
+  const Loaded deformed = Load("skinned_cylinder");
+  ASSERT_TRUE(moving.scene);
+  ASSERT_TRUE(deformed.scene);
+  ASSERT_GT(moving.cpu.vertices.size() * sizeof(Vertex), kRange);
+  ASSERT_GT(deformed.cpu.vertices.size() * sizeof(Vertex), kRange);
+
+  absl::StatusOr<SceneHandle> refused = (*narrow)->LoadScene(deformed.cpu);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument) << refused.status();
+  EXPECT_NE(refused.status().message().find("vertices (deformed"), std::string::npos)
+      << refused.status();
+  EXPECT_NE(refused.status().message().find("maxStorageBufferRange"), std::string::npos)
+      << refused.status();
+
+  absl::StatusOr<SceneHandle> loaded = (*narrow)->LoadScene(moving.cpu);
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  const Settings s = At(Small(64, 48), "move", 0.5f);
+  const Camera cam = Framing((*loaded)->info(), s);
+  absl::StatusOr<Frame> got = (*narrow)->Render(**loaded, cam, s);
+  ASSERT_TRUE(got.ok()) << got.status();
+  const Frame want = RenderOk(*moving.scene, cam, s);
+  EXPECT_EQ(got->image.pixels, want.image.pixels);
+  EXPECT_EQ(got->stats.animated_drawables, want.stats.animated_drawables);
+  EXPECT_GT(got->stats.animated_drawables, 0u);
+  ExpectNoValidationMessages(**narrow);
+}
+
 TEST(AnimationRender, CachedShadowMapsAreRenderedAgainForANewPose) {
   const Loaded l = Load("skinned_cylinder");
   ASSERT_TRUE(l.scene);
