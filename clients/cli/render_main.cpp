@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "renderer/renderer.h"
@@ -225,6 +226,20 @@ int main(int argc, char** argv) {
     j["notes"] = nlohmann::json::array();
     for (const SettingNote& n : frame.settings.notes)
       j["notes"].push_back({{"field", n.field}, {"message", n.message}});
+    // The settings the frame ran with, every row of the settings table (auto resolved).
+    nlohmann::json& effective = j["settings"] = nlohmann::json::object();
+    for (const SettingRow& row : SettingsTable()) {
+      const double v = row.get(frame.settings.effective);
+      nlohmann::json& out = effective[std::string(row.name)];
+      if (row.type == SettingType::kBool)
+        out = v != 0.0;
+      else if (row.type == SettingType::kUint)
+        out = uint64_t(v);
+      else if (row.type == SettingType::kFloat)
+        out = std::strtod(row.Format(v).c_str(), nullptr);  // 0.05, not the float's 0.0500000007
+      else
+        out = row.Format(v);
+    }
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("device   %s (%s, %s), max %ux MSAA, max %u px\n", dev.name.c_str(),
@@ -281,6 +296,16 @@ int main(int argc, char** argv) {
                   frame.settings.effective.tile_size, frame.stats.tile_lights_avg,
                   frame.stats.tile_lights_p50, frame.stats.tile_lights_p95,
                   frame.stats.tile_lights_max, frame.stats.tile_overflows);
+    // What each setting left to the renderer ("auto") ran as on this device.
+    std::string chosen;
+    for (const SettingRow& row : SettingsTable()) {
+      if (row.type != SettingType::kEnum || row.choices.empty() || row.choices[0] != "auto" ||
+          row.get(settings) != 0.0)
+        continue;
+      absl::StrAppend(&chosen, chosen.empty() ? "" : ", ", std::string(row.name), " ",
+                      row.Format(row.get(frame.settings.effective)));
+    }
+    if (!chosen.empty()) std::printf("auto: %s\n", chosen.c_str());
     for (const SettingNote& n : frame.settings.notes)
       std::printf("note: %s: %s\n", n.field.c_str(), n.message.c_str());
   }
