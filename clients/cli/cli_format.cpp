@@ -38,7 +38,20 @@ std::string SettingsSummary(const v1::RenderSettings& s) {
     if (s.has_samples() && (s.aa() == v1::AA_MSAA || s.aa() == v1::AA_VIS_MLAA)) {
       absl::StrAppend(&aa, " x", s.samples());
     }
+    if (s.aa() == v1::AA_VIS_MLAA && s.vis_mlaa_coverage() != v1::VIS_MLAA_COVERAGE_UNSPECIFIED) {
+      absl::StrAppend(&aa, " (", Name(s.vis_mlaa_coverage(), v1::VisMlaaCoverage_descriptor()),
+                      " coverage)");
+    }
     parts.push_back(aa);
+  }
+  // How the frame runs (a frame's settings: what auto chose on the server's device).
+  if (s.pipeline() != v1::PIPELINE_UNSPECIFIED)
+    parts.push_back(absl::StrCat("pipeline ", Name(s.pipeline(), v1::Pipeline_descriptor())));
+  if (s.post_stage() != v1::POST_STAGE_UNSPECIFIED)
+    parts.push_back(absl::StrCat("post passes ", Name(s.post_stage(), v1::PostStage_descriptor())));
+  if (s.light_binning() != v1::LIGHT_BINNING_UNSPECIFIED) {
+    parts.push_back(
+        absl::StrCat("light binning ", Name(s.light_binning(), v1::LightBinning_descriptor())));
   }
   if (s.culling() != v1::CULLING_MODE_UNSPECIFIED) {
     parts.push_back(absl::StrCat("culling ", Name(s.culling(), v1::CullingMode_descriptor())));

@@ -53,6 +53,14 @@ w, h = struct.unpack(">II", b[16:24])
 assert (w, h) == (96, 64), (w, h)
 PY
 
+# The frame's settings line says what the server's auto chose (how vis_mlaa found its samples,
+# the pipeline, where the post passes ran, where the lights were binned).
+"$tessera" render --scene demo --width 64 --height 48 --aa vis_mlaa -o "$work/vis.png" \
+  > "$work/vis.txt"
+tr -d '\n' < "$work/vis.txt" | tr -s ' ' |
+  grep -Eq "aa (vis_mlaa x[0-9]+ \((raster|analytic) coverage\)|msaa x[0-9]+), .*pipeline (visibility|forward), post passes (fragment|compute), light binning (cpu|gpu)" ||
+  fail "render's settings line lacks what auto chose: $(cat "$work/vis.txt")"
+
 "$tessera" --json stream --scene demo --frames 3 --orbit --width 64 --height 48 \
   --save "$work/frames" > "$work/stream.json"
 [[ $(ls "$work/frames" | wc -l) -eq 3 ]] || fail "stream --save did not write 3 frames"
