@@ -44,7 +44,8 @@ std::string SettingsSummary(const v1::RenderSettings& s) {
     }
     parts.push_back(aa);
   }
-  // How the frame runs (a frame's settings: what auto chose on the server's device).
+  // How the frame runs: in a frame's settings what auto chose on the server's device; in the
+  // server's defaults or a bench configuration, as given (e.g. "auto").
   if (s.pipeline() != v1::PIPELINE_UNSPECIFIED)
     parts.push_back(absl::StrCat("pipeline ", Name(s.pipeline(), v1::Pipeline_descriptor())));
   if (s.post_stage() != v1::POST_STAGE_UNSPECIFIED)

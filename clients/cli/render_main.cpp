@@ -1,6 +1,7 @@
 // tessera-render: renders a glTF scene (or the built-in demo scene) offline to a JPEG or PNG
 // and prints the GPU time of every pass. The future `tessera render` talks to the daemon; this
 // tool runs the same renderer in-process, for deploy/run.sh, benchmarks and debugging.
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -65,6 +66,22 @@ template <typename T>
 T OrFail(absl::StatusOr<T> v) {
   if (!v.ok()) Fail(std::string(v.status().message()));
   return std::move(*v);
+}
+
+// The enum rows the command line left at "auto" (value 0) that bore on the frame: the renderer
+// chose them for the device (vis_mlaa_coverage only when the frame ran vis_mlaa).
+std::vector<const tessera::SettingRow*> AutoRows(const tessera::Settings& asked,
+                                                 const tessera::Settings& ran) {
+  using namespace tessera;
+  std::vector<const SettingRow*> rows;
+  for (const SettingRow& row : SettingsTable()) {
+    if (row.type != SettingType::kEnum || row.choices.empty() || row.choices[0] != "auto" ||
+        row.get(asked) != 0.0)
+      continue;
+    if (row.name == "vis_mlaa_coverage" && ran.aa != AaMode::kVisMlaa) continue;
+    rows.push_back(&row);
+  }
+  return rows;
 }
 
 }  // namespace
@@ -226,20 +243,29 @@ int main(int argc, char** argv) {
     j["notes"] = nlohmann::json::array();
     for (const SettingNote& n : frame.settings.notes)
       j["notes"].push_back({{"field", n.field}, {"message", n.message}});
-    // The settings the frame ran with, every row of the settings table (auto resolved).
+    // The settings the frame ran with, every row of the settings table (auto resolved), and the
+    // rows left at auto that bore on the frame.
     nlohmann::json& effective = j["settings"] = nlohmann::json::object();
     for (const SettingRow& row : SettingsTable()) {
       const double v = row.get(frame.settings.effective);
       nlohmann::json& out = effective[std::string(row.name)];
-      if (row.type == SettingType::kBool)
+      if (row.type == SettingType::kBool) {
         out = v != 0.0;
-      else if (row.type == SettingType::kUint)
+      } else if (row.type == SettingType::kUint) {
         out = uint64_t(v);
-      else if (row.type == SettingType::kFloat)
-        out = std::strtod(row.Format(v).c_str(), nullptr);  // 0.05, not the float's 0.0500000007
-      else
+      } else if (row.type == SettingType::kFloat) {
+        // The shortest decimal that reads back as the float: 0.05, not 0.0500000007.
+        char text[32];
+        const std::to_chars_result r = std::to_chars(text, text + sizeof(text), float(v));
+        out = std::strtod(std::string(text, r.ptr).c_str(), nullptr);
+      } else {
         out = row.Format(v);
+      }
     }
+    effective["animation"] = frame.settings.effective.animation;
+    j["auto"] = nlohmann::json::array();
+    for (const SettingRow* row : AutoRows(settings, frame.settings.effective))
+      j["auto"].push_back(std::string(row->name));
     std::printf("%s\n", j.dump(2).c_str());
   } else {
     std::printf("device   %s (%s, %s), max %ux MSAA, max %u px\n", dev.name.c_str(),
@@ -298,12 +324,9 @@ int main(int argc, char** argv) {
                   frame.stats.tile_lights_max, frame.stats.tile_overflows);
     // What each setting left to the renderer ("auto") ran as on this device.
     std::string chosen;
-    for (const SettingRow& row : SettingsTable()) {
-      if (row.type != SettingType::kEnum || row.choices.empty() || row.choices[0] != "auto" ||
-          row.get(settings) != 0.0)
-        continue;
-      absl::StrAppend(&chosen, chosen.empty() ? "" : ", ", std::string(row.name), " ",
-                      row.Format(row.get(frame.settings.effective)));
+    for (const SettingRow* row : AutoRows(settings, frame.settings.effective)) {
+      absl::StrAppend(&chosen, chosen.empty() ? "" : ", ", std::string(row->name), " ",
+                      row->Format(row->get(frame.settings.effective)));
     }
     if (!chosen.empty()) std::printf("auto: %s\n", chosen.c_str());
     for (const SettingNote& n : frame.settings.notes)
