@@ -88,6 +88,11 @@ struct SettingRow {
   std::string Format(double value) const;
   // The range as text for usage and clients: `range`, or the enum names joined by '|'.
   std::string RangeText() const;
+  // Whether value 0 is "auto", the renderer choosing per device (pipeline, post_stage,
+  // light_binning, vis_mlaa_coverage): an enum row whose first name is "auto".
+  bool Chooses() const {
+    return type == SettingType::kEnum && !choices.empty() && choices[0] == "auto";
+  }
 };
 
 // Every row, in Settings' member order.

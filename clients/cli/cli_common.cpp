@@ -1,4 +1,5 @@
 #include "clients/cli/cli_common.h"
+#include "clients/cli/json_float.h"
 
 #include <arpa/inet.h>
 #include <netdb.h>
@@ -453,17 +454,6 @@ int ParseEnumShortName(const pb::EnumDescriptor* type, absl::string_view name) {
 }
 
 namespace {
-
-// The shortest decimal that reads back as the same float, so 0.8f prints as 0.8 and not
-// 0.800000011920929.
-double FloatForJson(float f) {
-  if (!std::isfinite(f)) return f;
-  char buf[32];
-  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf) - 1, f);
-  if (ec != std::errc()) return f;
-  *end = '\0';
-  return std::strtod(buf, nullptr);
-}
 
 Json FieldValue(const pb::Message& msg, const pb::FieldDescriptor* f, int index) {
   const pb::Reflection* r = msg.GetReflection();

@@ -1,7 +1,6 @@
 // tessera-render: renders a glTF scene (or the built-in demo scene) offline to a JPEG or PNG
 // and prints the GPU time of every pass. The future `tessera render` talks to the daemon; this
 // tool runs the same renderer in-process, for deploy/run.sh, benchmarks and debugging.
-#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -15,6 +14,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
+#include "clients/cli/json_float.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "renderer/settings_table.h"
@@ -75,9 +75,7 @@ std::vector<const tessera::SettingRow*> AutoRows(const tessera::Settings& asked,
   using namespace tessera;
   std::vector<const SettingRow*> rows;
   for (const SettingRow& row : SettingsTable()) {
-    if (row.type != SettingType::kEnum || row.choices.empty() || row.choices[0] != "auto" ||
-        row.get(asked) != 0.0)
-      continue;
+    if (!row.Chooses() || row.get(asked) != 0.0) continue;
     if (row.name == "vis_mlaa_coverage" && ran.aa != AaMode::kVisMlaa) continue;
     rows.push_back(&row);
   }
@@ -254,10 +252,7 @@ int main(int argc, char** argv) {
       } else if (row.type == SettingType::kUint) {
         out = uint64_t(v);
       } else if (row.type == SettingType::kFloat) {
-        // The shortest decimal that reads back as the float: 0.05, not 0.0500000007.
-        char text[32];
-        const std::to_chars_result r = std::to_chars(text, text + sizeof(text), float(v));
-        out = std::strtod(std::string(text, r.ptr).c_str(), nullptr);
+        out = cli::FloatForJson(float(v));  // 0.05, not 0.0500000007
       } else {
         out = row.Format(v);
       }

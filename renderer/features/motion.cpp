@@ -61,13 +61,9 @@ class MotionPass final : public Pass {
       const VkDescriptorSet kept = layout_.Allocate(ctx);
       // Without deformed drawables the binding is unused; the scene's vertices stand in (as
       // much of them as a storage binding may hold: GpuScene::Upload checks only the deformed).
-      if (taa.kept)
-        SetWriter(device_, kept).Buffer(0, taa.kept->handle()).Update();
-      else
-        SetWriter(device_, kept)
-            .Buffer(0, gs.vertices().handle(), VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 0,
-                    StorageRange(ctx, gs.vertices()))
-            .Update();
+      SetWriter(device_, kept)
+          .StorageBuffer(0, ctx, taa.kept ? *taa.kept : gs.vertices())
+          .Update();
       BeginSceneDraw(ctx, opaque_.handle(), layout);
       vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, 2, 1, &kept, 0,
                               nullptr);

@@ -147,17 +147,16 @@ SetWriter& SetWriter::TexelBuffer(uint32_t binding, VkBufferView view) {
   return *this;
 }
 
-VkDeviceSize StorageRange(const PassContext& ctx, const vk::Buffer& buffer) {
-  return std::min<VkDeviceSize>(buffer.size(), ctx.vk->limits().maxStorageBufferRange);
+SetWriter& SetWriter::StorageBuffer(uint32_t binding, const PassContext& ctx,
+                                    const vk::Buffer& buffer) {
+  return Buffer(binding, buffer.handle(), VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 0,
+                std::min<VkDeviceSize>(buffer.size(), ctx.vk->limits().maxStorageBufferRange));
 }
 
 SetWriter& SetWriter::VisibilityBuffers(const PassContext& ctx) {
   const GpuScene& scene = *ctx.scene;
-  constexpr VkDescriptorType kStorage = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-  Buffer(gpu::kVisBindingIndices, scene.indices().handle(), kStorage, 0,
-         StorageRange(ctx, scene.indices()))
-      .Buffer(gpu::kVisBindingVertices, scene.vertices().handle(), kStorage, 0,
-              StorageRange(ctx, scene.vertices()))
+  StorageBuffer(gpu::kVisBindingIndices, ctx, scene.indices())
+      .StorageBuffer(gpu::kVisBindingVertices, ctx, scene.vertices())
       .Buffer(gpu::kShadeBindingEntries, ctx.shade->entries)
       .Buffer(gpu::kShadeBindingPixels, ctx.shade->pixels);
   // The pipelines' shaders hold both paths (vis.glsl), so both are bound whichever they read.

@@ -287,8 +287,8 @@ struct PassContext {
 VkDescriptorSet AllocateFrameSet(const PassContext& ctx, VkDescriptorSetLayout layout);
 
 // Writes the bindings of a descriptor set: combined image samplers, storage images (general
-// layout) and buffers (whole unless a range is given: StorageRange for the scene's geometry), in
-// one vkUpdateDescriptorSets.
+// layout) and buffers (whole unless a range is given, or up to the device's storage buffer range:
+// StorageBuffer), in one vkUpdateDescriptorSets.
 class SetWriter {
  public:
   SetWriter(VkDevice device, VkDescriptorSet set) : device_(device), set_(set) {}
@@ -299,6 +299,11 @@ class SetWriter {
                     VkDescriptorType type = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER,
                     VkDeviceSize offset = 0, VkDeviceSize range = VK_WHOLE_SIZE);
   SetWriter& TexelBuffer(uint32_t binding, VkBufferView view);
+  // `buffer` as a storage buffer, all of it or as much as the device's maxStorageBufferRange
+  // allows. The scene's index and vertex buffers (and the adjacency) may be larger; a frame whose
+  // shaders would read past the range does not run those shaders
+  // (Renderer::Impl::CheckVisibilityIds: texel views instead, or another path).
+  SetWriter& StorageBuffer(uint32_t binding, const PassContext& ctx, const vk::Buffer& buffer);
   // The visibility passes' buffers: the scene's index and vertex buffers (kVisBindingIndices,
   // kVisBindingVertices) and their texel views with the drawables' (kVisBindingIndexTexels...,
   // VisibilityBufferBindings), and the shading's entries and pixel lists (kShadeBinding*).
@@ -316,12 +321,6 @@ class SetWriter {
   std::deque<VkBufferView> texel_views_;
   std::vector<VkWriteDescriptorSet> writes_;
 };
-
-// The range of a storage buffer binding of `buffer`: all of it, or as much as the device's
-// maxStorageBufferRange allows. The scene's index and vertex buffers (and the adjacency) may be
-// larger; a frame whose shaders would read past the range does not run those shaders
-// (Renderer::Impl::CheckVisibilityIds: texel views instead, or another path).
-VkDeviceSize StorageRange(const PassContext& ctx, const vk::Buffer& buffer);
 
 // One binding of a descriptor set layout: a single descriptor of `type` for `stages`.
 inline VkDescriptorSetLayoutBinding LayoutBinding(uint32_t binding, VkDescriptorType type,

@@ -17,8 +17,11 @@
 #include <array>
 #include <bit>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "common/status_macros.h"
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
@@ -213,8 +216,7 @@ class VisResolvePass final : public Pass {
         .Storage(gpu::kResolveBindingId, ctx.targets->vis_id.view())
         .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
         .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
-        .Buffer(gpu::kResolveBindingAdjacency, ctx.scene->adjacency().handle(),
-                VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 0, StorageRange(ctx, ctx.scene->adjacency()))
+        .StorageBuffer(gpu::kResolveBindingAdjacency, ctx, ctx.scene->adjacency())
         .VisibilityBuffers(ctx)
         .Update();
     const VkPipelineLayout layout = layout_.pipeline_layout();
@@ -334,15 +336,16 @@ uint32_t Renderer::Impl::CheckVisibilityIds(const GpuScene& gs, ResolvedSettings
     why = absl::StrCat("the ", s.width, "x", s.height, " frame's pixel lists need ", list_bytes,
                        " bytes, more than the device's storage buffer range (", range, ")");
   } else if (!gs.vis_texels() && std::max(gs.indices().size(), gs.vertices().size()) > range) {
-    const bool indices = gs.indices().size() > range, vertices = gs.vertices().size() > range;
-    why = absl::StrCat("the scene's ", indices ? "index" : "", indices && vertices ? " and " : "",
-                       vertices ? "vertex" : "", " buffer", indices && vertices ? "s" : "", " (",
-                       indices ? absl::StrCat(gs.indices().size(), " bytes") : "",
-                       indices && vertices ? ", " : "",
-                       vertices ? absl::StrCat(gs.vertices().size(), " bytes") : "",
-                       ") exceed", indices && vertices ? "" : "s",
+    std::vector<std::string> over;
+    for (const auto& [what, buffer] :
+         {std::pair{"index", &gs.indices()}, std::pair{"vertex", &gs.vertices()}}) {
+      if (buffer->size() > range)
+        over.push_back(absl::StrCat(what, " buffer (", buffer->size(), " bytes)"));
+    }
+    const bool both = over.size() == 2;
+    why = absl::StrCat("the scene's ", absl::StrJoin(over, " and "), both ? " exceed" : " exceeds",
                        " the device's storage buffer range (", range,
-                       ") and its texel buffers do not cover ", indices && vertices ? "them" : "it");
+                       ") and its texel buffers do not cover ", both ? "them" : "it");
   } else {
     // vis_mlaa_coverage analytic reads the adjacency (one word per index) as a storage buffer.
     if (VisMlaaAnalytic(s) && gs.adjacency().size() > range) {

@@ -138,9 +138,7 @@ const std::vector<Field>& AllFields() {
       out.push_back({std::string(row.name), [&row](const Settings& a, const Settings& b) {
                        // An enum row's "auto" (pipeline, post_stage, vis_mlaa_coverage,
                        // light_binning) asks the renderer to choose: any choice honours it.
-                       const bool chooses = row.type == SettingType::kEnum &&
-                                            !row.choices.empty() && row.choices[0] == "auto";
-                       if (chooses && row.get(a) == 0.0 && row.get(b) != 0.0) return true;
+                       if (row.Chooses() && row.get(a) == 0.0 && row.get(b) != 0.0) return true;
                        return row.get(a) == row.get(b);
                      }});
     }
