@@ -21,7 +21,9 @@ void main() {
   gl_Position = ClipPosition(world, in_position);
   v_world = (world * vec4(in_position, 1.0)).xyz;
   v_normal = mat3(drawables[gl_InstanceIndex].normal_matrix) * in_normal;
-  v_tangent = vec4(mat3(world) * in_tangent.xyz, in_tangent.w);
+  // A mirrored drawable's tangent frame has the other handedness (normal_matrix[3][3]: -1).
+  v_tangent = vec4(mat3(world) * in_tangent.xyz,
+                   in_tangent.w * drawables[gl_InstanceIndex].normal_matrix[3][3]);
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
 }

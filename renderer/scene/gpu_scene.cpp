@@ -86,6 +86,48 @@ absl::StatusOr<vk::Buffer> UploadBuffer(vk::Context& ctx, const void* data, size
   return buffer;
 }
 
+}  // namespace
+
+bool MirrorsWinding(const glm::mat4& world) { return glm::determinant(glm::mat3(world)) < 0.0f; }
+
+MirrorPlan PlanMirroredRanges(const CpuScene& scene) {
+  MirrorPlan plan;
+  plan.first.assign(scene.primitives.size(), kNotMirrored);
+  uint64_t next = scene.indices.size();
+  for (const Drawable& d : scene.drawables) {
+    if (d.primitive >= scene.primitives.size() || !MirrorsWinding(d.world)) continue;
+    uint32_t& first = plan.first[d.primitive];
+    if (first != kNotMirrored) continue;
+    first = uint32_t(next);
+    next += scene.primitives[d.primitive].index_count;
+  }
+  plan.indices = next - scene.indices.size();
+  return plan;
+}
+
+void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
+                          std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency) {
+  indices.resize(scene.indices.size() + plan.indices);
+  adjacency.resize(indices.size(), kNoNeighbour);
+  for (uint32_t p = 0; p < plan.first.size(); ++p) {
+    if (plan.first[p] == kNotMirrored) continue;
+    const uint32_t from = scene.primitives[p].first_index, to = plan.first[p];
+    for (uint32_t t = 0; t < scene.primitives[p].index_count / 3; ++t) {
+      // (a, b, c) -> (a, c, b): its edges a-c, c-b, b-a are the original's third, second and
+      // first, so each takes that edge's neighbour (the same triangle numbers).
+      const uint32_t i = from + 3 * t, o = to + 3 * t;
+      indices[o] = indices[i];
+      indices[o + 1] = indices[i + 2];
+      indices[o + 2] = indices[i + 1];
+      adjacency[o] = adjacency[i + 2];
+      adjacency[o + 1] = adjacency[i + 1];
+      adjacency[o + 2] = adjacency[i];
+    }
+  }
+}
+
+namespace {
+
 // A drawable's world matrix and bounds in its record.
 void PlaceRecord(const glm::mat4& world, const Aabb& bounds, gpu::GpuDrawable& g) {
   g.world = world;
@@ -96,6 +138,9 @@ void PlaceRecord(const glm::mat4& world, const Aabb& bounds, gpu::GpuDrawable& g
                                     normal[1][1] + normal[1][2] + normal[2][0] + normal[2][1] +
                                     normal[2][2]);
   g.normal_matrix = glm::mat4(finite ? normal : glm::mat3(1.0f));
+  // The bitangent's sign (GpuDrawable::normal_matrix[3][3]): a mirroring transform turns the
+  // tangent frame's handedness over, which the shaders' cross(normal, tangent) does not see.
+  g.normal_matrix[3][3] = MirrorsWinding(world) ? -1.0f : 1.0f;
   g.sphere = glm::vec4(bounds.center(), bounds.radius());
   g.aabb_min = glm::vec4(bounds.min, 0.0f);
   g.aabb_max = glm::vec4(bounds.max, 0.0f);
@@ -477,8 +522,10 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
   const uint64_t align = std::max<uint64_t>(16, uniform_align);
   const uint64_t stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
   // The indices, and their adjacency (one word each, at least one).
-  uint64_t bytes = scene.vertices.size() * sizeof(Vertex) + scene.indices.size() * sizeof(uint32_t) +
-                   std::max<size_t>(1, scene.indices.size()) * sizeof(uint32_t) +
+  // With the mirrored drawables' copies (PlanMirroredRanges).
+  const uint64_t indices = scene.indices.size() + PlanMirroredRanges(scene).indices;
+  uint64_t bytes = scene.vertices.size() * sizeof(Vertex) + indices * sizeof(uint32_t) +
+                   std::max<uint64_t>(1, indices) * sizeof(uint32_t) +
                    materials * (sizeof(gpu::GpuMaterial) + stride) +
                    drawables * (sizeof(gpu::GpuDrawable) + sizeof(gpu::GpuCullItem));
   for (const TextureBucketPlan::Bucket& b : PlanTextureBuckets(scene.textures, max_texture_size).buckets)
@@ -543,6 +590,8 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
       moves[ad.drawable] = 1;
     }
   }
+  // A mirrored drawable draws its primitive's copy wound the other way (PlanMirroredRanges).
+  mirrors_ = PlanMirroredRanges(scene);
   for (uint32_t i = 0; i < scene.drawables.size(); ++i) {
     const Drawable& d = scene.drawables[i];
     const Primitive& p = scene.primitives[d.primitive];
@@ -550,10 +599,12 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
     gpu::GpuDrawable g{};
     PlaceRecord(d.world, d.world_bounds, g);
     const uint32_t material = scene.materials.empty() ? 0u : p.material;
-    g.ids = glm::uvec4(d.primitive, material, p.first_index, first_vertex[i]);
+    const uint32_t first_index =
+        MirrorsWinding(d.world) ? mirrors_.first[d.primitive] : p.first_index;
+    g.ids = glm::uvec4(d.primitive, material, first_index, first_vertex[i]);
     drawables.push_back(g);
     max_draw_triangles_ = std::max(max_draw_triangles_, p.index_count / 3);
-    draws_.push_back({i, material, p.first_index, p.index_count,
+    draws_.push_back({i, material, first_index, p.index_count,
                       static_cast<int32_t>(first_vertex[i]), m.alpha_mode, m.double_sided,
                       d.world_bounds});
     if (!moves[i]) static_bounds_.extend(d.world_bounds);
@@ -660,14 +711,20 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
       vertices_, UploadBuffer(ctx, vertices.data(), vertices.size() * sizeof(Vertex),
                               kVertexUsage, n + ".vertices"));
   if (st.ok() && animator_) st = UploadAnimation(ctx, scene);
+  std::vector<uint32_t> adjacency = TriangleAdjacency(scene);
+  std::vector<uint32_t> mirrored;  // the scene's indices and the mirrored drawables' copies
+  if (mirrors_.indices > 0) {
+    mirrored = scene.indices;
+    AppendMirroredRanges(scene, mirrors_, mirrored, adjacency);
+  }
+  const std::vector<uint32_t>& indices = mirrors_.indices > 0 ? mirrored : scene.indices;
   if (st.ok())
     st = Keep(indices_,
-                UploadBuffer(ctx, scene.indices.data(), scene.indices.size() * sizeof(uint32_t),
+                UploadBuffer(ctx, indices.data(), indices.size() * sizeof(uint32_t),
                              VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                  texel,
                              n + ".indices"));
   if (st.ok()) {
-    std::vector<uint32_t> adjacency = TriangleAdjacency(scene);
     if (adjacency.empty()) adjacency.push_back(kNoNeighbour);  // keep the binding valid
     st = Keep(adjacency_, UploadBuffer(ctx, adjacency.data(), adjacency.size() * sizeof(uint32_t),
                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".adjacency"));

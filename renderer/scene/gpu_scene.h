@@ -80,6 +80,23 @@ struct DrawPlan {
 };
 DrawPlan PlanDraws(const std::vector<DrawItem>& draws);
 
+// glTF (3.7.2.1): the determinant of a node's world transform gives its triangles' winding:
+// counter-clockwise front faces where it is positive, clockwise where negative (a mirrored
+// node). The pipelines cull with counter-clockwise front faces, so a mirrored drawable draws a
+// copy of its primitive's indices wound the other way: appended to the scene's index buffer,
+// once per primitive (pure data, unit-tested).
+bool MirrorsWinding(const glm::mat4& world);
+inline constexpr uint32_t kNotMirrored = 0xffffffffu;
+struct MirrorPlan {
+  std::vector<uint32_t> first;  // per primitive: its copy's first index, or kNotMirrored
+  uint64_t indices = 0;         // indices appended after the scene's
+};
+MirrorPlan PlanMirroredRanges(const CpuScene& scene);
+// Appends the copies to `indices` (the scene's) and their neighbours to `adjacency`
+// (TriangleAdjacency's: each copy's triangles keep their numbers, and so their neighbours).
+void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
+                          std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency);
+
 class GpuScene {
  public:
   // Uploads `scene` and waits for the copies. Errors: RESOURCE_EXHAUSTED when device memory
@@ -207,6 +224,7 @@ class GpuScene {
   uint64_t device_bytes_ = 0;
   uint64_t serial_ = 0;
   uint32_t max_draw_triangles_ = 0;
+  MirrorPlan mirrors_;  // PlanScene's, for UploadBuffers
   // Animation: the animator, each drawable's item (draws_ index), the bounds of the drawables
   // that never move, and the device side (see the accessors).
   std::unique_ptr<SceneAnimator> animator_;

@@ -309,7 +309,9 @@ struct GpuMaterial {
 // it through gl_InstanceIndex (no push constant per draw).
 struct GpuDrawable {
   mat4 world;
-  mat4 normal_matrix;  // inverse transpose of world's upper 3x3, in a mat4 for layout
+  // Inverse transpose of world's upper 3x3, in a mat4 for layout; [3][3] the tangent frame's
+  // handedness: -1 where world mirrors (negative determinant), else 1.
+  mat4 normal_matrix;
   uvec4 ids;           // x primitive, y material, z first index, w vertex offset (int bits)
   vec4 sphere;         // world bounding sphere: xyz centre, w radius
   vec4 aabb_min;       // world AABB

@@ -103,6 +103,11 @@ mat3 DrawableNormalMatrix(uint d) {
   return mat3(uintBitsToFloat(DrawableTexel(d, 4u).xyz), uintBitsToFloat(DrawableTexel(d, 5u).xyz),
               uintBitsToFloat(DrawableTexel(d, 6u).xyz));
 }
+// -1 where the drawable's transform mirrors it (its tangent frame's handedness turns over), else 1.
+float DrawableHandedness(uint d) {
+  if (!kVisTexels) return drawables[d].normal_matrix[3][3];
+  return uintBitsToFloat(DrawableTexel(d, 7u).w);
+}
 uvec4 DrawableIds(uint d) { return kVisTexels ? DrawableTexel(d, 8u) : drawables[d].ids; }
 
 // Barycentrics (b0, b1, b2) of where the ray from the camera along `dir` meets the plane of the

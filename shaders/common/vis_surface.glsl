@@ -28,7 +28,7 @@ SurfaceInput VisSurface(Triangle tri, vec3 b, vec2 pixel) {
   SurfaceInput s;
   s.world = tri.p0 + b.y * tri.e1 + b.z * tri.e2;
   s.normal = DrawableNormalMatrix(tri.drawable) * n;
-  s.tangent = vec4(mat3(world) * t.xyz, VertexTangent(v.x).w);
+  s.tangent = vec4(mat3(world) * t.xyz, VertexTangent(v.x).w * DrawableHandedness(tri.drawable));
   s.uv0 = uv.xy;
   s.uv1 = uv.zw;
   s.grads = UvGradients(uv_dx, uv_dy);

@@ -3,6 +3,7 @@
 // goldens (then look at every one before committing it). On a mismatch the actual image and
 // an amplified diff are written to $TESSERA_TEST_OUTPUT_DIR.
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -456,6 +457,104 @@ TEST(RenderTest, DebugViewsMatchCpuReference) {
   EXPECT_NEAR(normal.z, 255, 1);
   // The corner is background: no surface there.
   EXPECT_NE(glm::ivec3(f->image.pixels[0], f->image.pixels[1], f->image.pixels[2]), normal);
+  ExpectNoValidationMessages(r);
+}
+
+// `source` with its scene's root nodes under one that mirrors them (scale -1 along x).
+GltfSource Mirrored(GltfSource source) {
+  std::vector<uint8_t>& text = source.files.at(source.main_file);
+  nlohmann::json gltf = nlohmann::json::parse(text.begin(), text.end());
+  nlohmann::json& scene = gltf["scenes"][gltf.value("scene", 0)];
+  gltf["nodes"].push_back({{"name", "mirror"}, {"scale", {-1.0, 1.0, 1.0}},
+                           {"children", scene["nodes"]}});
+  scene["nodes"] = {gltf["nodes"].size() - 1};
+  const std::string out = gltf.dump();
+  text.assign(out.begin(), out.end());
+  return source;
+}
+
+// glTF: a node whose transform mirrors (negative determinant) winds its triangles clockwise, so
+// its front faces stay in front. The Box mirrored along x is the same box: the same pixels as
+// the original in both pipelines, with msaa and with vis_mlaa (inside out, before: 20 dB). And
+// the tangent frame's handedness turns over with the mirror, so a normal map bends the normals
+// as it did.
+TEST(RenderTest, MirroredNodesKeepTheirFrontFacesAndNormalMaps) {
+  Renderer& r = SharedRenderer();
+  auto load = [&](const std::string& relative, bool mirror) -> SceneHandle {
+    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(
+        Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/" + relative);
+    EXPECT_TRUE(source.ok()) << source.status();
+    if (!source.ok()) return nullptr;
+    absl::StatusOr<SceneHandle> scene = r.LoadScene(mirror ? Mirrored(*source) : *source);
+    EXPECT_TRUE(scene.ok()) << scene.status();
+    return scene.ok() ? *scene : nullptr;
+  };
+  const SceneHandle box = load("Box/glTF/Box.gltf", false);
+  const SceneHandle box_mirrored = load("Box/glTF/Box.gltf", true);
+  ASSERT_TRUE(box && box_mirrored);
+  const Camera box_camera = FrameBounds(box->info().bounds, 0.8f, 4.0f / 3.0f, {0.6f, 0.5f, 1.0f});
+  struct Mode {
+    Pipeline pipeline;
+    AaMode aa;
+    VisMlaaCoverage coverage = VisMlaaCoverage::kRaster;
+  };
+  std::vector<Mode> modes = {{Pipeline::kForward, AaMode::kNone}, {Pipeline::kForward, AaMode::kMsaa}};
+  if (r.device_info().visibility_buffer) {
+    modes.push_back({Pipeline::kVisibility, AaMode::kNone});
+    modes.push_back({Pipeline::kVisibility, AaMode::kVisMlaa});
+    // Analytic coverage reads the copy's triangle adjacency.
+    modes.push_back({Pipeline::kVisibility, AaMode::kVisMlaa, VisMlaaCoverage::kAnalytic});
+  }
+  for (const auto& [pipeline, aa, coverage] : modes) {
+    Settings s = SmallSettings(160, 120);
+    s.pipeline = pipeline;
+    s.aa = aa;
+    s.vis_mlaa_coverage = coverage;
+    absl::StatusOr<Frame> want = r.Render(*box, box_camera, s);
+    absl::StatusOr<Frame> got = r.Render(*box_mirrored, box_camera, s);
+    ASSERT_TRUE(want.ok()) << want.status();
+    ASSERT_TRUE(got.ok()) << got.status();
+    EXPECT_EQ(got->image.pixels, want->image.pixels)
+        << ToString(pipeline) << " " << ToString(aa) << " " << ToString(coverage) << ": "
+        << Psnr(got->image, want->image).value_or(-1.0) << " dB";
+  }
+
+  // The normal map: a quad facing the camera whose map tilts every normal halfway towards its
+  // bitangent, drawn as it is and mirrored along x (the same quad, its tangent turned round):
+  // the same normal either way, and so the same pixel in the normals debug view.
+  for (Pipeline pipeline : {Pipeline::kForward, Pipeline::kVisibility}) {
+    if (pipeline == Pipeline::kVisibility && !r.device_info().visibility_buffer) continue;
+    uint8_t centre[2][3];
+    for (int mirror = 0; mirror < 2; ++mirror) {
+      CpuScene quad = QuadScene(glm::vec4(1.0f));
+      for (Vertex& v : quad.vertices) v.tangent = glm::vec4(1, 0, 0, 1);
+      auto image = std::make_shared<Image>();
+      image->name = "tilted normals";
+      image->width = image->height = 1;
+      image->rgba8 = {128, 191, 238, 255};  // (0, 0.5, 0.87) in tangent space
+      quad.textures.push_back({image, false});
+      quad.materials[0].normal.texture = 0;
+      if (mirror) quad.drawables[0].world = glm::scale(glm::mat4(1.0f), glm::vec3(-1, 1, 1));
+      absl::StatusOr<SceneHandle> scene = r.LoadScene(quad);
+      ASSERT_TRUE(scene.ok()) << scene.status();
+      Camera camera;
+      camera.eye = glm::vec3(0.0f, 0.0f, 3.0f);
+      camera.target = glm::vec3(0.0f);
+      Settings s = SmallSettings(64, 64);
+      s.pipeline = pipeline;
+      s.debug_view = DebugView::kNormals;
+      absl::StatusOr<Frame> f = r.Render(**scene, camera, s);
+      ASSERT_TRUE(f.ok()) << f.status();
+      const size_t i = (size_t(32) * 64 + 32) * 4;
+      for (int c = 0; c < 3; ++c) centre[mirror][c] = f->image.pixels[i + c];
+    }
+    const std::string what(ToString(pipeline));
+    // Tilted: y towards 0.5 (not the quad's own normal, 0), x untouched.
+    EXPECT_NEAR(centre[0][0], SrgbByte(0.5f), 2) << what;
+    EXPECT_NEAR(centre[0][1], SrgbByte(0.75f), 3) << what;
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(centre[1][c], centre[0][c], 1) << what << ", mirrored, channel " << c;
+  }
   ExpectNoValidationMessages(r);
 }
 

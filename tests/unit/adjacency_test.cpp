@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include "renderer/scene/demo_scene.h"
+#include "renderer/scene/gpu_scene.h"
 
 namespace tessera {
 namespace {
@@ -48,6 +51,42 @@ TEST(AdjacencyTest, SharedEdgesByPosition) {
   EXPECT_EQ(a[4], kNoNeighbour);
   EXPECT_EQ(a[5], kNoNeighbour);
   for (size_t i = 6; i < 9; ++i) EXPECT_EQ(a[i], kNoNeighbour) << i;
+}
+
+// A mirrored drawable (negative determinant) draws a copy of its primitive wound the other way,
+// appended once per primitive whatever its instances; each copied triangle keeps its neighbour
+// across each (now reversed) edge.
+TEST(AdjacencyTest, MirroredCopiesKeepTheirNeighbours) {
+  CpuScene s = Square();
+  Drawable plain, mirrored, mirrored_again, lone;
+  plain.primitive = mirrored.primitive = mirrored_again.primitive = 0;
+  lone.primitive = 1;
+  mirrored.world = mirrored_again.world = glm::scale(glm::mat4(1.0f), glm::vec3(1.0f, -2.0f, 1.0f));
+  lone.world = glm::scale(glm::mat4(1.0f), glm::vec3(-1.0f, -1.0f, 1.0f));  // a turn, not a mirror
+  s.drawables = {plain, mirrored, mirrored_again, lone};
+  EXPECT_FALSE(MirrorsWinding(plain.world));
+  EXPECT_TRUE(MirrorsWinding(mirrored.world));
+  EXPECT_FALSE(MirrorsWinding(lone.world));
+  const MirrorPlan plan = PlanMirroredRanges(s);
+  ASSERT_EQ(plan.first.size(), 2u);
+  EXPECT_EQ(plan.first[0], 9u);  // after the scene's nine indices
+  EXPECT_EQ(plan.first[1], kNotMirrored);
+  EXPECT_EQ(plan.indices, 6u);
+  std::vector<uint32_t> indices = s.indices, adjacency = TriangleAdjacency(s);
+  AppendMirroredRanges(s, plan, indices, adjacency);
+  ASSERT_EQ(indices.size(), 15u);
+  ASSERT_EQ(adjacency.size(), 15u);
+  for (uint32_t t = 0; t < 2; ++t) {
+    const uint32_t o = 3 * t, c = 9 + 3 * t;
+    EXPECT_EQ(indices[c], indices[o]);
+    EXPECT_EQ(indices[c + 1], indices[o + 2]);
+    EXPECT_EQ(indices[c + 2], indices[o + 1]);
+  }
+  // The diagonal was triangle 0's edge 2 (2-0) and triangle 1's edge 0 (3-4); in the copies,
+  // (0, 2, 1) and (3, 5, 4), it is edge 0 (0-2) and edge 2 (4-3), still shared.
+  EXPECT_EQ(adjacency[9], 1u);
+  EXPECT_EQ(adjacency[12 + 2], 0u);
+  for (uint32_t i : {10u, 11u, 12u, 13u}) EXPECT_EQ(adjacency[i], kNoNeighbour) << i;
 }
 
 // The demo scene's sphere, a closed surface: every edge of it has a neighbour across it (its
