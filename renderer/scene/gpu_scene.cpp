@@ -96,10 +96,17 @@ MirrorPlan PlanMirroredRanges(const CpuScene& scene) {
   uint64_t next = scene.indices.size();
   for (const Drawable& d : scene.drawables) {
     if (d.primitive >= scene.primitives.size() || !MirrorsWinding(d.world)) continue;
+    const Primitive& p = scene.primitives[d.primitive];
     uint32_t& first = plan.first[d.primitive];
-    if (first != kNotMirrored) continue;
+    // A skinned mesh's node transform is not its vertices' (glTF ignores it; the joints place
+    // them): it keeps its winding. So does a primitive outside the index buffer (a malformed
+    // scene) or one whose copy would not fit 32-bit indices.
+    if (first != kNotMirrored || p.skinned ||
+        uint64_t(p.first_index) + p.index_count > scene.indices.size() ||
+        next + p.index_count > uint64_t(UINT32_MAX))
+      continue;
     first = uint32_t(next);
-    next += scene.primitives[d.primitive].index_count;
+    next += p.index_count;
   }
   plan.indices = next - scene.indices.size();
   return plan;
@@ -140,6 +147,7 @@ void PlaceRecord(const glm::mat4& world, const Aabb& bounds, gpu::GpuDrawable& g
   g.normal_matrix = glm::mat4(finite ? normal : glm::mat3(1.0f));
   // The bitangent's sign (GpuDrawable::normal_matrix[3][3]): a mirroring transform turns the
   // tangent frame's handedness over, which the shaders' cross(normal, tangent) does not see.
+  // (A skinned drawable's posed record has the identity here: its joints are not looked at.)
   g.normal_matrix[3][3] = MirrorsWinding(world) ? -1.0f : 1.0f;
   g.sphere = glm::vec4(bounds.center(), bounds.radius());
   g.aabb_min = glm::vec4(bounds.min, 0.0f);
@@ -599,8 +607,9 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
     gpu::GpuDrawable g{};
     PlaceRecord(d.world, d.world_bounds, g);
     const uint32_t material = scene.materials.empty() ? 0u : p.material;
+    const uint32_t mirrored = mirrors_.first[d.primitive];
     const uint32_t first_index =
-        MirrorsWinding(d.world) ? mirrors_.first[d.primitive] : p.first_index;
+        MirrorsWinding(d.world) && mirrored != kNotMirrored ? mirrored : p.first_index;
     g.ids = glm::uvec4(d.primitive, material, first_index, first_vertex[i]);
     drawables.push_back(g);
     max_draw_triangles_ = std::max(max_draw_triangles_, p.index_count / 3);

@@ -84,7 +84,8 @@ DrawPlan PlanDraws(const std::vector<DrawItem>& draws);
 // counter-clockwise front faces where it is positive, clockwise where negative (a mirrored
 // node). The pipelines cull with counter-clockwise front faces, so a mirrored drawable draws a
 // copy of its primitive's indices wound the other way: appended to the scene's index buffer,
-// once per primitive (pure data, unit-tested).
+// once per primitive (pure data, unit-tested). Skinned primitives keep their winding: glTF
+// ignores a skinned mesh's node transform.
 bool MirrorsWinding(const glm::mat4& world);
 inline constexpr uint32_t kNotMirrored = 0xffffffffu;
 struct MirrorPlan {

@@ -34,6 +34,19 @@ SceneHandle LoadAsset(const std::string& relative) {
   return scene.ok() ? *scene : nullptr;
 }
 
+// `source` with its scene's root nodes under one that mirrors them (scale -1 along x).
+GltfSource Mirrored(GltfSource source) {
+  std::vector<uint8_t>& text = source.files.at(source.main_file);
+  nlohmann::json gltf = nlohmann::json::parse(text.begin(), text.end());
+  nlohmann::json& scene = gltf["scenes"][gltf.value("scene", 0)];
+  gltf["nodes"].push_back({{"name", "mirror"}, {"scale", {-1.0, 1.0, 1.0}},
+                           {"children", scene["nodes"]}});
+  scene["nodes"] = {gltf["nodes"].size() - 1};
+  const std::string out = gltf.dump();
+  text.assign(out.begin(), out.end());
+  return source;
+}
+
 Settings SmallSettings(uint32_t w, uint32_t h) {
   Settings s;
   s.width = w;
@@ -371,6 +384,18 @@ TEST(RenderTest, DeviceBytesEstimateMatchesTheUpload) {
   absl::StatusOr<SceneHandle> scene = renderer.LoadScene(demo);
   ASSERT_TRUE(scene.ok()) << scene.status();
   EXPECT_EQ(renderer.EstimateDeviceBytes(demo), (*scene)->info().device_bytes);
+  // A mirrored node's drawables draw copies of their indices (and their adjacency).
+  absl::StatusOr<GltfSource> box = LoadGltfSourceFromDisk(
+      Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/BoxTextured/glTF/BoxTextured.gltf");
+  ASSERT_TRUE(box.ok()) << box.status();
+  absl::StatusOr<CpuScene> plain = ImportGltf(*box);
+  absl::StatusOr<CpuScene> mirrored = ImportGltf(Mirrored(*box));
+  ASSERT_TRUE(plain.ok() && mirrored.ok());
+  absl::StatusOr<SceneHandle> mirrored_scene = renderer.LoadScene(*mirrored);
+  ASSERT_TRUE(mirrored_scene.ok()) << mirrored_scene.status();
+  EXPECT_EQ(renderer.EstimateDeviceBytes(*mirrored), (*mirrored_scene)->info().device_bytes);
+  EXPECT_EQ(renderer.EstimateDeviceBytes(*mirrored),
+            renderer.EstimateDeviceBytes(*plain) + 2 * plain->indices.size() * sizeof(uint32_t));
 }
 
 TEST(RenderTest, SceneMayOutliveTheRenderer) {
@@ -460,19 +485,6 @@ TEST(RenderTest, DebugViewsMatchCpuReference) {
   ExpectNoValidationMessages(r);
 }
 
-// `source` with its scene's root nodes under one that mirrors them (scale -1 along x).
-GltfSource Mirrored(GltfSource source) {
-  std::vector<uint8_t>& text = source.files.at(source.main_file);
-  nlohmann::json gltf = nlohmann::json::parse(text.begin(), text.end());
-  nlohmann::json& scene = gltf["scenes"][gltf.value("scene", 0)];
-  gltf["nodes"].push_back({{"name", "mirror"}, {"scale", {-1.0, 1.0, 1.0}},
-                           {"children", scene["nodes"]}});
-  scene["nodes"] = {gltf["nodes"].size() - 1};
-  const std::string out = gltf.dump();
-  text.assign(out.begin(), out.end());
-  return source;
-}
-
 // glTF: a node whose transform mirrors (negative determinant) winds its triangles clockwise, so
 // its front faces stay in front. The Box mirrored along x is the same box: the same pixels as
 // the original in both pipelines, with msaa and with vis_mlaa (inside out, before: 20 dB). And
@@ -514,9 +526,12 @@ TEST(RenderTest, MirroredNodesKeepTheirFrontFacesAndNormalMaps) {
     absl::StatusOr<Frame> got = r.Render(*box_mirrored, box_camera, s);
     ASSERT_TRUE(want.ok()) << want.status();
     ASSERT_TRUE(got.ok()) << got.status();
-    EXPECT_EQ(got->image.pixels, want->image.pixels)
-        << ToString(pipeline) << " " << ToString(aa) << " " << ToString(coverage) << ": "
-        << Psnr(got->image, want->image).value_or(-1.0) << " dB";
+    // Identical on lavapipe; the mirrored faces' triangles split them along the other diagonal,
+    // which a device may interpolate a rounding apart. Inside out it was 20 dB.
+    absl::StatusOr<double> psnr = Psnr(got->image, want->image);
+    ASSERT_TRUE(psnr.ok()) << psnr.status();
+    EXPECT_GE(*psnr, 45.0) << ToString(pipeline) << " " << ToString(aa) << " "
+                           << ToString(coverage);
   }
 
   // The normal map: a quad facing the camera whose map tilts every normal halfway towards its
@@ -553,7 +568,7 @@ TEST(RenderTest, MirroredNodesKeepTheirFrontFacesAndNormalMaps) {
     EXPECT_NEAR(centre[0][0], SrgbByte(0.5f), 2) << what;
     EXPECT_NEAR(centre[0][1], SrgbByte(0.75f), 3) << what;
     for (int c = 0; c < 3; ++c)
-      EXPECT_NEAR(centre[1][c], centre[0][c], 1) << what << ", mirrored, channel " << c;
+      EXPECT_NEAR(centre[1][c], centre[0][c], 2) << what << ", mirrored, channel " << c;
   }
   ExpectNoValidationMessages(r);
 }

@@ -87,6 +87,17 @@ TEST(AdjacencyTest, MirroredCopiesKeepTheirNeighbours) {
   EXPECT_EQ(adjacency[9], 1u);
   EXPECT_EQ(adjacency[12 + 2], 0u);
   for (uint32_t i : {10u, 11u, 12u, 13u}) EXPECT_EQ(adjacency[i], kNoNeighbour) << i;
+
+  // A skinned primitive keeps its winding (glTF ignores its node's transform), and so does one
+  // whose indices lie outside the index buffer.
+  s.drawables[3].world = mirrored.world;
+  EXPECT_EQ(PlanMirroredRanges(s).first[1], 9u + 6u);
+  s.primitives[1].skinned = true;
+  EXPECT_EQ(PlanMirroredRanges(s).first[1], kNotMirrored);
+  s.primitives[1].skinned = false;
+  s.primitives[1].index_count = 6;  // past the end
+  EXPECT_EQ(PlanMirroredRanges(s).first[1], kNotMirrored);
+  EXPECT_EQ(PlanMirroredRanges(s).indices, 6u);
 }
 
 // The demo scene's sphere, a closed surface: every edge of it has a neighbour across it (its
