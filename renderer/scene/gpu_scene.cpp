@@ -607,9 +607,7 @@ void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* d
     gpu::GpuDrawable g{};
     PlaceRecord(d.world, d.world_bounds, g);
     const uint32_t material = scene.materials.empty() ? 0u : p.material;
-    const uint32_t mirrored = mirrors_.first[d.primitive];
-    const uint32_t first_index =
-        MirrorsWinding(d.world) && mirrored != kNotMirrored ? mirrored : p.first_index;
+    const uint32_t first_index = mirrors_.FirstIndex(scene, d);
     g.ids = glm::uvec4(d.primitive, material, first_index, first_vertex[i]);
     drawables.push_back(g);
     max_draw_triangles_ = std::max(max_draw_triangles_, p.index_count / 3);
@@ -720,15 +718,16 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
       vertices_, UploadBuffer(ctx, vertices.data(), vertices.size() * sizeof(Vertex),
                               kVertexUsage, n + ".vertices"));
   if (st.ok() && animator_) st = UploadAnimation(ctx, scene);
+  if (!st.ok()) return st;
+  // Each index's neighbour, and the mirrored drawables' copies after the scene's indices.
   std::vector<uint32_t> adjacency = TriangleAdjacency(scene);
-  std::vector<uint32_t> mirrored;  // the scene's indices and the mirrored drawables' copies
+  std::vector<uint32_t> mirrored;
   if (mirrors_.indices > 0) {
     mirrored = scene.indices;
     AppendMirroredRanges(scene, mirrors_, mirrored, adjacency);
   }
   const std::vector<uint32_t>& indices = mirrors_.indices > 0 ? mirrored : scene.indices;
-  if (st.ok())
-    st = Keep(indices_,
+  st = Keep(indices_,
                 UploadBuffer(ctx, indices.data(), indices.size() * sizeof(uint32_t),
                              VK_BUFFER_USAGE_INDEX_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                  texel,

@@ -91,6 +91,11 @@ inline constexpr uint32_t kNotMirrored = 0xffffffffu;
 struct MirrorPlan {
   std::vector<uint32_t> first;  // per primitive: its copy's first index, or kNotMirrored
   uint64_t indices = 0;         // indices appended after the scene's
+  // The first index `d` draws from: its primitive's copy where it mirrors and has one.
+  uint32_t FirstIndex(const CpuScene& scene, const Drawable& d) const {
+    const bool copy = MirrorsWinding(d.world) && first[d.primitive] != kNotMirrored;
+    return copy ? first[d.primitive] : scene.primitives[d.primitive].first_index;
+  }
 };
 MirrorPlan PlanMirroredRanges(const CpuScene& scene);
 // Appends the copies to `indices` (the scene's) and their neighbours to `adjacency`

@@ -24,16 +24,6 @@ namespace tessera {
 namespace {
 
 
-SceneHandle LoadAsset(const std::string& relative) {
-  const std::string path = Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/" + relative;
-  absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(path);
-  EXPECT_TRUE(source.ok()) << source.status();
-  if (!source.ok()) return nullptr;
-  absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(*source);
-  EXPECT_TRUE(scene.ok()) << scene.status();
-  return scene.ok() ? *scene : nullptr;
-}
-
 // `source` with its scene's root nodes under one that mirrors them (scale -1 along x).
 GltfSource Mirrored(GltfSource source) {
   std::vector<uint8_t>& text = source.files.at(source.main_file);
@@ -45,6 +35,18 @@ GltfSource Mirrored(GltfSource source) {
   const std::string out = gltf.dump();
   text.assign(out.begin(), out.end());
   return source;
+}
+
+// `mirrored`: under a node that mirrors it (Mirrored).
+SceneHandle LoadAsset(const std::string& relative, bool mirrored = false) {
+  const std::string path = Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/" + relative;
+  absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(path);
+  EXPECT_TRUE(source.ok()) << source.status();
+  if (!source.ok()) return nullptr;
+  absl::StatusOr<SceneHandle> scene =
+      SharedRenderer().LoadScene(mirrored ? Mirrored(*source) : *source);
+  EXPECT_TRUE(scene.ok()) << scene.status();
+  return scene.ok() ? *scene : nullptr;
 }
 
 Settings SmallSettings(uint32_t w, uint32_t h) {
@@ -492,17 +494,8 @@ TEST(RenderTest, DebugViewsMatchCpuReference) {
 // as it did.
 TEST(RenderTest, MirroredNodesKeepTheirFrontFacesAndNormalMaps) {
   Renderer& r = SharedRenderer();
-  auto load = [&](const std::string& relative, bool mirror) -> SceneHandle {
-    absl::StatusOr<GltfSource> source = LoadGltfSourceFromDisk(
-        Env("TESSERA_ASSETS_DIR", TESSERA_DEFAULT_ASSETS_DIR) + "/" + relative);
-    EXPECT_TRUE(source.ok()) << source.status();
-    if (!source.ok()) return nullptr;
-    absl::StatusOr<SceneHandle> scene = r.LoadScene(mirror ? Mirrored(*source) : *source);
-    EXPECT_TRUE(scene.ok()) << scene.status();
-    return scene.ok() ? *scene : nullptr;
-  };
-  const SceneHandle box = load("Box/glTF/Box.gltf", false);
-  const SceneHandle box_mirrored = load("Box/glTF/Box.gltf", true);
+  const SceneHandle box = LoadAsset("Box/glTF/Box.gltf");
+  const SceneHandle box_mirrored = LoadAsset("Box/glTF/Box.gltf", /*mirrored=*/true);
   ASSERT_TRUE(box && box_mirrored);
   const Camera box_camera = FrameBounds(box->info().bounds, 0.8f, 4.0f / 3.0f, {0.6f, 0.5f, 1.0f});
   struct Mode {
