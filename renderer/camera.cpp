@@ -69,6 +69,20 @@ glm::vec3 CameraPosition(const Camera& c) {
   return c.eye;
 }
 
+PixelRays PixelRaysFor(const glm::mat4& view_proj, const glm::vec3& eye, uint32_t width,
+                       uint32_t height) {
+  const glm::dmat4 inv = glm::inverse(glm::dmat4(view_proj));
+  const glm::dvec3 from(eye);
+  const double w = double(width), h = double(height);
+  auto ray = [&](double x, double y) {
+    const glm::dvec4 p = inv * glm::dvec4(x / w * 2.0 - 1.0, y / h * 2.0 - 1.0, 1.0, 1.0);
+    return glm::dvec3(p) / p.w - from;
+  };
+  const glm::dvec3 origin = ray(0.0, 0.0);
+  return {glm::vec3(origin), glm::vec3((ray(w, 0.0) - origin) / w),
+          glm::vec3((ray(0.0, h) - origin) / h)};
+}
+
 Camera FrameBounds(const Aabb& bounds, float yfov, float aspect, glm::vec3 direction) {
   Camera cam;
   cam.yfov = yfov;

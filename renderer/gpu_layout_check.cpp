@@ -54,15 +54,16 @@ static_assert(offsetof(CullUniforms, hiz) == 192);
 static_assert(offsetof(CullUniforms, frame) == 208);
 static_assert(kDrawCommandWords * 4 == 20, "VkDrawIndexedIndirectCommand");
 
-static_assert(sizeof(FrameUniforms) == 5 * 64 + 8 * 16);
-static_assert(offsetof(FrameUniforms, prev_view_proj) == 384);
-static_assert(offsetof(FrameUniforms, aa) == 368);
-static_assert(offsetof(FrameUniforms, lighting) == 336);
-static_assert(offsetof(FrameUniforms, depth_params) == 352);
-static_assert(offsetof(FrameUniforms, inv_view_proj) == 192);
-static_assert(offsetof(FrameUniforms, camera_position) == 256);
-static_assert(offsetof(FrameUniforms, counts) == 304);
-static_assert(offsetof(FrameUniforms, params) == 320);
+static_assert(sizeof(FrameUniforms) == 4 * 64 + 11 * 16);
+static_assert(offsetof(FrameUniforms, prev_view_proj) == 368);
+static_assert(offsetof(FrameUniforms, aa) == 352);
+static_assert(offsetof(FrameUniforms, lighting) == 320);
+static_assert(offsetof(FrameUniforms, depth_params) == 336);
+static_assert(offsetof(FrameUniforms, ray_origin) == 192);
+static_assert(offsetof(FrameUniforms, ray_dy) == 224);
+static_assert(offsetof(FrameUniforms, camera_position) == 240);
+static_assert(offsetof(FrameUniforms, counts) == 288);
+static_assert(offsetof(FrameUniforms, params) == 304);
 
 static_assert(sizeof(GpuShadowView) == 80);
 static_assert(offsetof(ShadowUniforms, cascade_spheres) == 32);

@@ -300,6 +300,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.pose_pending = gs.pose_pending();
   features.object_motion = f.taa.motion_pass;
   features.light_texels = m.LightTexelsFit(f.local.size(), f.tiled ? f.grid.tiles() : 1);
+  features.count_background = capture != nullptr;
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
   RETURN_IF_ERROR(m.PreparePasses(plan, s, gs, features));

@@ -472,8 +472,12 @@ absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
     history.view_proj = f.unjittered_view_proj;
   }
   fu.view_proj = fu.proj * fu.view;
-  fu.inv_view_proj = glm::inverse(fu.view_proj);
   fu.camera_position = glm::vec4(CameraPosition(f.camera), 1.0f);
+  const PixelRays rays =
+      PixelRaysFor(fu.view_proj, glm::vec3(fu.camera_position), s.width, s.height);
+  fu.ray_origin = glm::vec4(rays.origin, 0.0f);
+  fu.ray_dx = glm::vec4(rays.dx, 0.0f);
+  fu.ray_dy = glm::vec4(rays.dy, 0.0f);
   fu.ambient_sky = glm::vec4(0.40f, 0.52f, 0.75f, s.ibl ? 1.0f : 0.0f);
   fu.ambient_ground = glm::vec4(0.24f, 0.21f, 0.18f, 0.0f);
   return absl::OkStatus();

@@ -120,12 +120,12 @@ class VisClassifyPass final : public Pass {
   // kVisTexels), built for the first frame that needs them. One atomic per subgroup and material
   // where compute shaders have ballots, else per pixel.
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
-                            const FrameFeatures&) override {
+                            const FrameFeatures& features) override {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
     const bool ballots = ctx.info().subgroup_ballot;
     return (vis_mlaa ? mlaa_pipelines_ : pipelines_)
-        .Ensure(Key(s, scene), [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
-          const uint32_t texels = key & 1u, ibl = key >> 1;
+        .Ensure(Key(s, scene, features), [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
+          const uint32_t texels = key & 1u, ibl = (key >> 1) & 1u, count_background = key >> 2;
           ModePipelines made;
           // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
           const std::vector<uint32_t> modes =
@@ -142,17 +142,19 @@ class VisClassifyPass final : public Pass {
                 made[mode],
                 vk::CreateComputePipeline(
                     ctx, absl::StrCat(vis_mlaa ? "vis_classify.vis_mlaa." : "vis_classify.", mode,
-                                      texels ? ".texels" : "", ibl ? ".ibl" : ""),
+                                      texels ? ".texels" : "", ibl ? ".ibl" : "",
+                                      count_background ? ".count_background" : ""),
                     shader, (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
-                    {mode, ibl, 0u, texels}));
+                    {mode, ibl, count_background, texels}));
           }
           return made;
         });
   }
-  // The pipelines' key: the way the drawables are read (vis.glsl's kVisTexels), and whether the
-  // frame has IBL, whose environment is the sky the classification writes.
-  static uint32_t Key(const Settings& s, const GpuScene& scene) {
-    return VisTexels(scene) | (s.ibl ? 2u : 0u);
+  // The pipelines' key: the way the drawables are read (vis.glsl's kVisTexels), whether the
+  // frame has IBL, whose environment is the sky the classification writes, and whether it
+  // counts the sky's pixels (FrameFeatures::count_background).
+  static uint32_t Key(const Settings& s, const GpuScene& scene, const FrameFeatures& features) {
+    return VisTexels(scene) | (s.ibl ? 2u : 0u) | (features.count_background ? 4u : 0u);
   }
 
   void Record(PassContext& ctx) override {
@@ -173,7 +175,8 @@ class VisClassifyPass final : public Pass {
           VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     }
     const ModePipelines& pipelines =
-        (vis_mlaa ? mlaa_pipelines_ : pipelines_).at(Key(*ctx.settings, *ctx.scene));
+        (vis_mlaa ? mlaa_pipelines_ : pipelines_)
+            .at(Key(*ctx.settings, *ctx.scene, *ctx.features));
     layout.Bind(ctx);
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;

@@ -145,6 +145,10 @@ struct FrameFeatures {
   // The shading reads the local lights and the tiles' light lists through texel buffers (they
   // fit the device's maxTexelBufferElements: Renderer::Impl::LightTexelsFit).
   bool light_texels = false;
+  // A FrameCapture asks for the frame (tests): the visibility classification also counts the
+  // pixels it wrote the sky at (FrameCapture::background_pixels), which frames without one do
+  // not pay for (about 8 ms of a mostly-sky 1280x720 frame on lavapipe).
+  bool count_background = false;
 };
 
 // A resource moving from one access to another before a pass.

@@ -382,7 +382,12 @@ struct FrameUniforms {
   mat4 view;
   mat4 proj;
   mat4 view_proj;
-  mat4 inv_view_proj;    // clip -> world, for the sky's view rays
+  // The camera ray through a point of the frame (xyz; renderer/camera.h's PixelRays, from the
+  // jittered view_proj): scene.glsl's RayDirection(pixel) = ray_origin + pixel.x * ray_dx +
+  // pixel.y * ray_dy.
+  vec4 ray_origin;
+  vec4 ray_dx;
+  vec4 ray_dy;
   vec4 camera_position;  // xyz world position
   vec4 ambient_sky;      // rgb radiance from above; w: 1 with IBL (the environment maps)
   vec4 ambient_ground;   // rgb radiance from below

@@ -8,7 +8,7 @@
 //  - kClassifyCount: count each material's pixels;
 //  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size;
 //  - kClassifyFill: append each pixel to its material's list, and write the background where no
-//    surface is (counted in the sky entry's list.z).
+//    surface is (counted in the sky entry's list.z where kCountSky says so).
 // The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by
 // peeling: the lanes of the first lane's material take their ranks from a ballot).
 // With VIS_MLAA (vis_classify_mlaa.comp) the resolve has counted each pixel's surface (and each
@@ -44,6 +44,10 @@ layout(constant_id = 0) const uint kMode = kClassifyCount;
 // Whether the frame has IBL (Settings::ibl), whose environment map is the sky: a pipeline each,
 // so a frame without it does not pay the map's lookup at every pixel.
 layout(constant_id = 1) const bool kBackgroundIbl = false;
+// Whether the fill counts the pixels it writes the sky at (frames with a FrameCapture: the tests
+// check that every pixel is listed or the sky): one subgroup atomic per 8 lanes that hold sky,
+// about 8 ms of a mostly-sky 1280x720 frame on lavapipe, which other frames skip.
+layout(constant_id = 2) const bool kCountSky = false;
 
 shared uint s_sums[kClassifyTile * kClassifyTile];
 
@@ -112,7 +116,7 @@ void main() {
   bool sky = inside && id == 0u;
   if (kMode == kClassifyFill && sky) {
     imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
-    Append(push.params.y, kCountBackground);
+    if (kCountSky) Append(push.params.y, kCountBackground);
   }
   uint m = !inside || id == 0u ? kNoMaterial : DrawableIds(VisDrawable(id, frame.aa.x)).y;
   if (m == kNoMaterial) return;

@@ -213,6 +213,61 @@ TEST(ProjectionMatrixTest, FieldOfViewAndAspectMapFrustumEdgesToNdcEdges) {
 }
 
 // ---------------------------------------------------------------------------------------------
+// PixelRaysFor
+
+// The affine rays are the per-pixel unprojection they replace (through the inverse of the same
+// matrix, in double), to float precision, for cameras near and far from the origin and with
+// TAA's sub-pixel jitter in the projection; they end on the near plane; and they hit the pixel
+// they are for: eye + t * ray(x, y) projects to framebuffer pixel (x, y). (That last check needs
+// the matrix's centre of projection to be the eye to the digits the test asks, so it takes the
+// cameras near the origin: 1200 m out, the float view-projection's own rounding puts its centre
+// millimetres off the eye, pixels at 1 m.)
+TEST(PixelRaysTest, RaysAreTheUnprojectionOfTheirPixels) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  for (const glm::vec3 eye : {glm::vec3(0.0f, 0.0f, 3.0f), glm::vec3(9.0f, 1.6f, -0.4f),
+                              glm::vec3(-250.0f, 40.0f, 1200.0f)}) {
+    for (const auto& [width, height] : {std::pair{1280u, 720u}, std::pair{3840u, 2160u},
+                                        std::pair{97u, 301u}}) {
+      Camera cam;
+      cam.eye = eye;
+      cam.target = eye + glm::vec3(-14.0f, 1.9f, 0.7f);
+      cam.znear = 0.05f;
+      cam.yfov = 0.9f;
+      glm::mat4 proj = ProjectionMatrix(cam, float(width) / float(height));
+      proj[2][0] += 2.0f * 0.37f / float(width);  // jitter, as TAA applies it
+      proj[2][1] += 2.0f * -0.21f / float(height);
+      const glm::mat4 view_proj = proj * ViewMatrix(cam);
+      const glm::dmat4 vp(view_proj), inv = glm::inverse(vp);
+      const PixelRays rays = PixelRaysFor(view_proj, eye, width, height);
+      double worst_rel = 0.0, worst_px = 0.0, worst_depth = 0.0;
+      for (int i = 0; i < 50; ++i) {
+        const glm::vec2 pixel(unit(rng) * float(width), unit(rng) * float(height));
+        // As the shaders evaluate it, in float.
+        const glm::vec3 dir = rays.origin + pixel.x * rays.dx + pixel.y * rays.dy;
+        const glm::dvec4 p = inv * glm::dvec4(pixel.x / width * 2.0 - 1.0,
+                                              pixel.y / height * 2.0 - 1.0, 1.0, 1.0);
+        const glm::dvec3 unprojected = glm::dvec3(p) / p.w - glm::dvec3(eye);
+        worst_rel = std::max(worst_rel, glm::length(glm::dvec3(dir) - unprojected) /
+                                            glm::length(unprojected));
+        const glm::dvec4 near = vp * glm::dvec4(glm::dvec3(eye) + glm::dvec3(dir), 1.0);
+        worst_depth = std::max(worst_depth, std::abs(near.z / near.w - 1.0));
+        if (std::abs(eye.z) > 100.0f) continue;
+        for (double t : {20.0, 3000.0}) {  // 1 m and 150 m out
+          const glm::dvec4 c = vp * glm::dvec4(glm::dvec3(eye) + t * glm::dvec3(dir), 1.0);
+          const glm::dvec2 at((c.x / c.w * 0.5 + 0.5) * width, (c.y / c.w * 0.5 + 0.5) * height);
+          worst_px = std::max(worst_px, glm::length(at - glm::dvec2(pixel)));
+        }
+      }
+      const std::string what = "eye z " + std::to_string(eye.z) + ", " + std::to_string(width);
+      EXPECT_LT(worst_rel, 1e-5) << what;
+      EXPECT_LT(worst_depth, 1e-4) << what << ": the rays end on the near plane";
+      EXPECT_LT(worst_px, 0.05) << what;
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
 // FrameBounds
 
 // Every corner of `bounds` must be in front of the near plane and inside the NDC square.
