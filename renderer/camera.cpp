@@ -69,10 +69,11 @@ glm::vec3 CameraPosition(const Camera& c) {
   return c.eye;
 }
 
-PixelRays PixelRaysFor(const glm::mat4& view_proj, const glm::vec3& eye, uint32_t width,
-                       uint32_t height) {
+PixelRays PixelRaysFor(const glm::mat4& view_proj, uint32_t width, uint32_t height) {
   const glm::dmat4 inv = glm::inverse(glm::dmat4(view_proj));
-  const glm::dvec3 from(eye);
+  // The centre of projection: the point the matrix sends to clip (0, 0, z, 0).
+  const glm::dvec4 centre = inv * glm::dvec4(0.0, 0.0, 1.0, 0.0);
+  const glm::dvec3 from = glm::dvec3(centre) / centre.w;
   const double w = double(width), h = double(height);
   auto ray = [&](double x, double y) {
     const glm::dvec4 p = inv * glm::dvec4(x / w * 2.0 - 1.0, y / h * 2.0 - 1.0, 1.0, 1.0);

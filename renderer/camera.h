@@ -38,19 +38,22 @@ glm::mat4 ProjectionMatrix(const Camera& camera, float aspect);
 glm::vec3 CameraPosition(const Camera& camera);
 
 // The camera ray through a point of a width x height frame (framebuffer pixels, y down): from
-// `eye` to the point's place on the near plane of `view_proj` (reverse Z). A perspective
-// projection's w is the same all over the near plane, so the ray is affine in the pixel:
-// ray(x, y) = origin + x * dx + y * dy, computed here in double precision. The shaders read it
-// from FrameUniforms (shaders/common/scene.glsl's RayDirection) instead of unprojecting each
-// pixel through the inverse view-projection, which cost lavapipe's visibility classification
-// about 10 ms of a 1280x720 frame and lost digits to the camera's distance from the origin.
+// the centre of projection of `view_proj` (reverse Z) to the point's place on its near plane.
+// A perspective projection's w is the same all over the near plane, so the ray is affine in
+// the pixel: ray(x, y) = origin + x * dx + y * dy, computed here in double precision. The
+// shaders read it from FrameUniforms (shaders/common/scene.glsl's RayDirection) instead of
+// unprojecting each pixel through the inverse view-projection and subtracting the camera's
+// position, which cost lavapipe's visibility classification about 10 ms of a 1280x720 frame.
+// The rays start at the matrix's own centre rather than the camera's position: a float
+// view-projection 1 km from the origin has its centre about 0.1 mm off the eye, which tilts
+// rays aimed at a near plane 5 cm away by pixels (the shaders cast them from the camera's
+// position; that offset then moves a hit by 0.1 mm / its distance).
 struct PixelRays {
   glm::vec3 origin;  // the ray through the frame's corner (0, 0)
   glm::vec3 dx;      // its change per pixel right
   glm::vec3 dy;      // and down
 };
-PixelRays PixelRaysFor(const glm::mat4& view_proj, const glm::vec3& eye, uint32_t width,
-                       uint32_t height);
+PixelRays PixelRaysFor(const glm::mat4& view_proj, uint32_t width, uint32_t height);
 
 // A camera looking at the centre of `bounds` from `direction` (pointing from the scene towards
 // the camera), at the nearest distance where all eight corners of the box are in view (plus 5%).

@@ -473,8 +473,7 @@ absl::Status Renderer::Impl::PrepareCamera(FrameData& f) {
   }
   fu.view_proj = fu.proj * fu.view;
   fu.camera_position = glm::vec4(CameraPosition(f.camera), 1.0f);
-  const PixelRays rays =
-      PixelRaysFor(fu.view_proj, glm::vec3(fu.camera_position), s.width, s.height);
+  const PixelRays rays = PixelRaysFor(fu.view_proj, s.width, s.height);
   fu.ray_origin = glm::vec4(rays.origin, 0.0f);
   fu.ray_dx = glm::vec4(rays.dx, 0.0f);
   fu.ray_dy = glm::vec4(rays.dy, 0.0f);
