@@ -21,7 +21,7 @@ PACKAGES=(
   # Prometheus metrics endpoint of tesserad (prometheus-cpp core + pull, civetweb HTTP)
   prometheus-cpp-dev
   # image encoding, logging
-  libturbojpeg0-dev libpng-dev libspdlog-dev libfmt-dev
+  libturbojpeg0-dev libpng-dev zlib1g-dev libspdlog-dev libfmt-dev
   # video streams (h264 sessions; libavcodec with libx264, swscale for RGB->YUV, libavformat for
   # the CLI's .mp4; Debian builds these with --enable-gpl: see the README's licence section)
   libavcodec-dev libavformat-dev libswscale-dev libavutil-dev

@@ -2,13 +2,17 @@
 
 #include <png.h>
 #include <turbojpeg.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <csetjmp>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
+#include <initializer_list>
+#include <span>
 #include <limits>
 #include <thread>
 #include <utility>
@@ -39,6 +43,25 @@ class TjHandle {
 };
 
 std::string TjError(tjhandle h) { return tjGetErrorStr2(h); }
+
+// Runs work(k) for every strip k < count on up to one thread per hardware thread (the calling
+// thread among them); what each strip produces must depend on k alone.
+template <typename Work>
+void ForEachStrip(uint32_t count, Work work) {
+  const uint32_t threads = std::clamp(std::thread::hardware_concurrency(), 1u, count);
+  auto run = [&](uint32_t first) {
+    for (uint32_t k = first; k < count; k += threads) work(k);
+  };
+  std::vector<std::jthread> pool;
+  uint32_t started = 1;
+  try {
+    for (; started < threads; ++started) pool.emplace_back(run, started);
+  } catch (const std::system_error&) {
+    // No thread to be had: this thread does the strips of those not started too.
+  }
+  for (uint32_t t = started; t < threads; ++t) run(t);
+  run(0);
+}
 
 // ---- JPEG in strips ------------------------------------------------------------------------
 //
@@ -132,44 +155,85 @@ void PngWarningFn(png_structp, png_const_charp) {
   // Warnings (bad ancillary chunks, gamma oddities) do not affect the pixels we return.
 }
 
-struct PngWriteState {
-  PngErrorState error;
-  const RgbaImage* image = nullptr;
-  std::vector<png_bytep> rows;
-  std::vector<uint8_t> out;
-};
+// ---- PNG encoding in strips (zlib) -----------------------------------------------------------
+//
+// Every row is Paeth-filtered (filter type 4; the row above is the image's, so the filtered bytes
+// do not depend on the strips). The strips' filtered rows are deflated independently (raw
+// deflate, zlib's run-length strategy), each ended with a sync flush but the last, so that the
+// pieces concatenate into one deflate stream; the zlib header and the Adler-32 of all the
+// filtered bytes (adler32_combine) wrap it, split into one IDAT chunk per strip.
 
-void PngWriteFn(png_structp png, png_bytep data, png_size_t length) {
-  auto* st = static_cast<PngWriteState*>(png_get_io_ptr(png));
-  st->out.insert(st->out.end(), data, data + length);
+uint8_t Paeth(uint8_t a, uint8_t b, uint8_t c) {  // left, above, upper left (PNG spec 9.4)
+  const int p = int(a) + int(b) - int(c);
+  const int pa = std::abs(p - int(a)), pb = std::abs(p - int(b)), pc = std::abs(p - int(c));
+  if (pa <= pb && pa <= pc) return a;
+  return pb <= pc ? b : c;
 }
 
-void PngFlushFn(png_structp) {}
+struct PngStrip {
+  std::vector<uint8_t> deflated;
+  uLong adler = 1;
+  uLong filtered_bytes = 0;
+  bool ok = false;
+};
 
-// Returns false with st->error set on failure.
-bool EncodePngImpl(PngWriteState* st) {
-  png_structp png =
-      png_create_write_struct(PNG_LIBPNG_VER_STRING, &st->error, PngErrorFn, PngWarningFn);
-  if (png == nullptr) return false;
-  png_infop info = png_create_info_struct(png);
-  if (info == nullptr) {
-    png_destroy_write_struct(&png, nullptr);
-    return false;
+// Filters rows [y0, y1) and deflates them, a row at a time (the extra memory is the strip's
+// deflated bytes); `last` ends the deflate stream.
+PngStrip DeflateRows(const RgbaImage& image, uint32_t y0, uint32_t y1, bool last) {
+  PngStrip out;
+  const size_t stride = size_t(image.width) * 4;
+  std::vector<uint8_t> filtered(stride + 1);
+  const std::vector<uint8_t> zeros(stride, 0);
+  z_stream z{};
+  if (deflateInit2(&z, 6, Z_DEFLATED, -15, 8, Z_RLE) != Z_OK) return out;
+  std::vector<uint8_t> buffer(256 * 1024);
+  out.deflated.reserve(size_t(y1 - y0) * (stride + 1) / 2);  // rendered frames: about a third
+  for (uint32_t y = y0; y < y1; ++y) {
+    const uint8_t* row = image.pixels.data() + y * stride;
+    const uint8_t* above = y == 0 ? zeros.data() : row - stride;
+    uint8_t* f = filtered.data();
+    *f++ = 4;  // Paeth
+    for (size_t i = 0; i < 4; ++i) f[i] = uint8_t(row[i] - Paeth(0, above[i], 0));
+    for (size_t i = 4; i < stride; ++i)
+      f[i] = uint8_t(row[i] - Paeth(row[i - 4], above[i], above[i - 4]));
+    out.adler = adler32(out.adler, filtered.data(), uInt(filtered.size()));
+    out.filtered_bytes += uLong(filtered.size());
+    const int flush = y + 1 < y1 ? Z_NO_FLUSH : last ? Z_FINISH : Z_SYNC_FLUSH;
+    z.next_in = filtered.data();
+    z.avail_in = uInt(filtered.size());
+    int rc = Z_OK;
+    do {  // until the row is in and, at the end, everything flushed
+      z.next_out = buffer.data();
+      z.avail_out = uInt(buffer.size());
+      rc = deflate(&z, flush);
+      out.deflated.insert(out.deflated.end(), buffer.data(),
+                          buffer.data() + (buffer.size() - z.avail_out));
+      if (rc == Z_STREAM_ERROR) break;
+    } while (z.avail_out == 0 || z.avail_in != 0);
+    if (rc == Z_STREAM_ERROR || (flush == Z_FINISH && rc != Z_STREAM_END)) {
+      deflateEnd(&z);
+      return out;
+    }
   }
-  if (setjmp(png_jmpbuf(png))) {
-    png_destroy_write_struct(&png, &info);
-    return false;
-  }
-  png_set_write_fn(png, st, PngWriteFn, PngFlushFn);
-  // Level 6 is zlib's default trade-off; golden images are small so speed matters little.
-  png_set_compression_level(png, 6);
-  png_set_IHDR(png, info, st->image->width, st->image->height, 8, PNG_COLOR_TYPE_RGBA,
-               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
-  png_write_info(png, info);
-  png_write_image(png, st->rows.data());
-  png_write_end(png, nullptr);
-  png_destroy_write_struct(&png, &info);
-  return true;
+  deflateEnd(&z);
+  out.ok = true;
+  return out;
+}
+
+void PutBe32(std::vector<uint8_t>& out, uint32_t v) {
+  for (int shift = 24; shift >= 0; shift -= 8) out.push_back(uint8_t(v >> shift));
+}
+
+// Appends a chunk: length, type, data (the concatenation of `parts`), CRC of type and data.
+void PutChunk(std::vector<uint8_t>& out, const char (&type)[5],
+              std::initializer_list<std::span<const uint8_t>> parts) {
+  size_t length = 0;
+  for (const auto& p : parts) length += p.size();
+  PutBe32(out, uint32_t(length));
+  const size_t crc_from = out.size();
+  out.insert(out.end(), type, type + 4);
+  for (const auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+  PutBe32(out, uint32_t(crc32(0, out.data() + crc_from, uInt(out.size() - crc_from))));
 }
 
 struct PngReadState {
@@ -286,31 +350,17 @@ absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int qual
   std::vector<EncodedStrip> parts(count);
   std::vector<absl::Status> status(count);
   // The bytes depend on the strips alone; the threads only on the machine.
-  const uint32_t threads = std::clamp(std::thread::hardware_concurrency(), 1u, count);
-  auto work = [&](uint32_t first) {
-    for (uint32_t k = first; k < count; k += threads) {
-      const uint32_t y0 = k * rows * mcu;
-      absl::StatusOr<std::vector<uint8_t>> jpeg =
-          CompressRows(image, y0, std::min(rows * mcu, image.height - y0), quality, samp);
-      if (!jpeg.ok()) {
-        status[k] = jpeg.status();
-        continue;
-      }
-      parts[k].jpeg = std::move(*jpeg);
-      status[k] = IndexStrip(parts[k]);
+  ForEachStrip(count, [&](uint32_t k) {
+    const uint32_t y0 = k * rows * mcu;
+    absl::StatusOr<std::vector<uint8_t>> jpeg =
+        CompressRows(image, y0, std::min(rows * mcu, image.height - y0), quality, samp);
+    if (!jpeg.ok()) {
+      status[k] = jpeg.status();
+      return;
     }
-  };
-  {
-    std::vector<std::jthread> pool;
-    uint32_t started = 1;
-    try {
-      for (; started < threads; ++started) pool.emplace_back(work, started);
-    } catch (const std::system_error&) {
-      // No thread to be had: this thread encodes the strips of those not started too.
-    }
-    for (uint32_t t = started; t < threads; ++t) work(t);
-    work(0);
-  }
+    parts[k].jpeg = std::move(*jpeg);
+    status[k] = IndexStrip(parts[k]);
+  });
   for (const absl::Status& st : status) RETURN_IF_ERROR(st);
   // Every strip must carry strip 0's tables (TurboJPEG's standard Huffman tables; not so when
   // e.g. TJ_OPTIMIZE in the environment makes each strip's its own): else one strip after all.
@@ -379,19 +429,49 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max
   return image;
 }
 
-absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image) {
+uint32_t AutoPngStrips(const RgbaImage& image) {
+  return std::clamp(image.height / 64, 1u, kMaxPngStrips);
+}
+
+absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image, uint32_t strips) {
   RETURN_IF_ERROR(ValidateImage(image, "EncodePng"));
-  PngWriteState st;
-  st.image = &image;
-  st.rows.resize(image.height);
-  for (uint32_t y = 0; y < image.height; ++y) {
-    // libpng's API is not const-correct; it only reads the rows when writing.
-    st.rows[y] = const_cast<png_bytep>(image.pixels.data() + size_t{y} * image.width * 4);
+  if (strips == 0) strips = AutoPngStrips(image);
+  strips = std::clamp(strips, 1u, std::min(image.height, kMaxPngStrips));
+  const uint32_t rows = (image.height + strips - 1) / strips;
+  const uint32_t count = (image.height + rows - 1) / rows;
+  std::vector<PngStrip> parts(count);
+  ForEachStrip(count, [&](uint32_t k) {
+    parts[k] = DeflateRows(image, k * rows, std::min(image.height, (k + 1) * rows),
+                           k + 1 == count);
+  });
+  uLong adler = 1;
+  size_t deflated = 0;
+  for (const PngStrip& p : parts) {
+    if (!p.ok) return absl::InternalError("EncodePng: zlib's deflate failed");
+    adler = adler32_combine(adler, p.adler, p.filtered_bytes);
+    deflated += p.deflated.size();
   }
-  if (!EncodePngImpl(&st)) {
-    return absl::InternalError(absl::StrCat("EncodePng: ", st.error.message));
+  std::vector<uint8_t> out;
+  out.reserve(deflated + 64 + 12 * count);
+  const uint8_t signature[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  out.insert(out.end(), std::begin(signature), std::end(signature));
+  std::vector<uint8_t> ihdr;
+  PutBe32(ihdr, image.width);
+  PutBe32(ihdr, image.height);
+  ihdr.insert(ihdr.end(), {8, 6, 0, 0, 0});  // 8-bit RGBA, deflate, adaptive filters, no interlace
+  PutChunk(out, "IHDR", {ihdr});
+  const uint8_t zlib_header[] = {0x78, 0x01};  // deflate, 32 KiB window, check bits
+  std::vector<uint8_t> trailer;
+  PutBe32(trailer, uint32_t(adler));
+  for (uint32_t k = 0; k < count; ++k) {
+    const std::span<const uint8_t> head =
+        k == 0 ? std::span<const uint8_t>(zlib_header) : std::span<const uint8_t>();
+    const std::span<const uint8_t> tail =
+        k + 1 == count ? std::span<const uint8_t>(trailer) : std::span<const uint8_t>();
+    PutChunk(out, "IDAT", {head, parts[k].deflated, tail});
   }
-  return std::move(st.out);
+  PutChunk(out, "IEND", {});
+  return out;
 }
 
 absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png, uint64_t max_pixels) {
