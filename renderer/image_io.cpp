@@ -187,7 +187,7 @@ PngStrip DeflateRows(const RgbaImage& image, uint32_t y0, uint32_t y1, bool last
   z_stream z{};
   if (deflateInit2(&z, 6, Z_DEFLATED, -15, 8, Z_RLE) != Z_OK) return out;
   std::vector<uint8_t> buffer(256 * 1024);
-  out.deflated.reserve(size_t(y1 - y0) * (stride + 1) / 2);  // rendered frames: about a third
+  out.deflated.reserve(size_t(y1 - y0) * (stride + 1) / 2);  // rendered frames: a third or less
   for (uint32_t y = y0; y < y1; ++y) {
     const uint8_t* row = image.pixels.data() + y * stride;
     const uint8_t* above = y == 0 ? zeros.data() : row - stride;
@@ -225,6 +225,10 @@ void PutBe32(std::vector<uint8_t>& out, uint32_t v) {
 }
 
 // Appends a chunk: length, type, data (the concatenation of `parts`), CRC of type and data.
+// The largest, one strip of the largest image: its filtered rows plus deflate's worst case.
+static_assert(uint64_t{kMaxImageSide} * (uint64_t{kMaxImageSide} * 4 + 1) * 1001 / 1000 <
+                  (uint64_t{1} << 31),
+              "an IDAT chunk's length must stay below 2^31");
 void PutChunk(std::vector<uint8_t>& out, const char (&type)[5],
               std::initializer_list<std::span<const uint8_t>> parts) {
   size_t length = 0;

@@ -41,10 +41,11 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg,
                                      uint64_t max_pixels = uint64_t{kMaxImageSide} * kMaxImageSide);
 
 // Encodes RGBA8 as a lossless 8-bit RGBA PNG: every row Paeth-filtered, the rows deflated with
-// zlib's run-length strategy in `strips` horizontal strips (at most kMaxPngStrips) on up to one
-// thread per hardware thread, each strip's deflate stream ended with a sync flush and spliced
-// into the one zlib stream (pigz's way). The bytes depend on the image and `strips` alone, not
-// on the machine. strips 0: AutoPngStrips. (Sponza at 1280x720 on the 2-core development
+// zlib's run-length strategy in at most `strips` horizontal strips (at most kMaxPngStrips, as
+// many rows each, the last shorter) on up to one thread per hardware thread, each strip's deflate
+// stream ended with a sync flush and spliced into the one zlib stream (pigz's way). The bytes
+// depend on the image, `strips` and the zlib build, not on the threads or the CPU.
+// strips 0: AutoPngStrips. (Sponza at 1280x720 on the 2-core development
 // machine: libpng's defaults, adaptive filters at zlib level 6, took 634 ms and 1.61 MB; this
 // 85 ms on one thread, 43 ms in 8 strips on two, and 1.60 MB. README, "The CPU side of a large
 // frame".)

@@ -331,8 +331,8 @@ TEST(ImageIo, PngRoundTripIsExact) {
 // The strips splice into one zlib stream: every strip count decodes to the image (noise, which
 // deflate barely shrinks, and a gradient with long runs), for heights that leave short last
 // strips and widths down to one pixel; the bytes depend on the strip count alone (equal on
-// every call; the threads that encode them vary with the machine), strips past the rows are
-// clamped, and a libpng decode checks each chunk's CRC and the stream's Adler-32.
+// every call; the threads that encode them vary with the machine), strips past kMaxPngStrips or
+// the rows are clamped, and a libpng decode checks each chunk's CRC and the stream's Adler-32.
 TEST(ImageIo, PngStripsDecodeToTheImage) {
   for (const auto& [w, h] : {std::pair{1u, 1u}, std::pair{3u, 2u}, std::pair{1u, 200u},
                              std::pair{7u, 64u}, std::pair{33u, 65u}, std::pair{97u, 301u},
@@ -340,7 +340,7 @@ TEST(ImageIo, PngStripsDecodeToTheImage) {
     std::vector<RgbaImage> images = {Noise(w, h)};
     if (w > 1 && h > 1) images.push_back(Gradient(w, h));  // which needs two of each
     for (const RgbaImage& src : images) {
-      std::vector<uint8_t> first;
+      std::vector<uint8_t> one_strip, eight_strips;
       for (uint32_t strips : {1u, 2u, 3u, 8u, 0u, 1000u}) {
         SCOPED_TRACE(testing::Message() << w << "x" << h << ", " << strips << " strips");
         auto png = EncodePng(src, strips);
@@ -348,8 +348,10 @@ TEST(ImageIo, PngStripsDecodeToTheImage) {
         auto again = EncodePng(src, strips);
         ASSERT_TRUE(again.ok());
         EXPECT_EQ(*again, *png);
-        if (strips == 1u) first = *png;
-        if (strips == 1u || h == 1u) EXPECT_EQ(*png, first);
+        if (strips == 1u) one_strip = *png;
+        if (strips == 8u) eight_strips = *png;
+        if (strips == 1000u) EXPECT_EQ(*png, eight_strips) << "clamped to kMaxPngStrips";
+        if (h == 1u) EXPECT_EQ(*png, one_strip) << "one row is one strip";
         auto img = DecodePng(*png);
         ASSERT_TRUE(img.ok()) << img.status();
         EXPECT_EQ(img->width, src.width);
