@@ -208,15 +208,11 @@ PngStrip DeflateRows(const RgbaImage& image, uint32_t y0, uint32_t y1, bool last
       rc = deflate(&z, flush);
       out.deflated.insert(out.deflated.end(), buffer.data(),
                           buffer.data() + (buffer.size() - z.avail_out));
-      if (rc == Z_STREAM_ERROR) break;
-    } while (z.avail_out == 0 || z.avail_in != 0);
-    if (rc == Z_STREAM_ERROR || (flush == Z_FINISH && rc != Z_STREAM_END)) {
-      deflateEnd(&z);
-      return out;
-    }
+    } while (rc != Z_STREAM_ERROR && (z.avail_out == 0 || z.avail_in != 0));
+    out.ok = rc != Z_STREAM_ERROR && (flush != Z_FINISH || rc == Z_STREAM_END);
+    if (!out.ok) break;
   }
   deflateEnd(&z);
-  out.ok = true;
   return out;
 }
 

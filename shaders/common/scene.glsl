@@ -37,11 +37,8 @@ vec4 ClipPosition(mat4 world, vec3 position) {
 
 // World-space direction (not normalized) of the camera ray through a point in framebuffer
 // pixels, from the camera to the point's place on the near plane: the visibility shading's
-// surfaces and the sky of both pipelines. Affine in the pixel (renderer/camera.h, PixelRaysFor:
-// the frame's rays in double precision, aimed from the view-projection's own centre);
-// unprojecting each pixel through the inverse view-projection instead cost lavapipe's
-// classification about 10 ms of a 1280x720 frame (the sky it writes at every lane) and, 1 km
-// from the origin, tilted the rays by pixels.
+// surfaces and the sky of both pipelines. Affine in the pixel: the frame's rays come from
+// renderer/camera.h's PixelRaysFor (why not unproject per pixel: there).
 vec3 RayDirection(vec2 pixel) {
   return frame.ray_origin.xyz + pixel.x * frame.ray_dx.xyz + pixel.y * frame.ray_dy.xyz;
 }
