@@ -116,8 +116,8 @@ struct FrameStats {
   // vis_mlaa: the pixels the resolve grouped: whose samples hit more than one triangle (raster
   // coverage), whose 3x3 neighbourhood shows more than one surface (analytic).
   uint64_t edge_pixels = 0;
-  // vis_mlaa: edge pixels whose runner-up surface (at least 3/8 of the samples, shown by no
-  // neighbour) was shaded as well.
+  // vis_mlaa: edge pixels whose runner-up surface (the one with the next most samples, down to
+  // one sample, where no neighbour shows it) was shaded as well.
   uint64_t runner_up_pixels = 0;
   uint32_t lights = 0;               // punctual lights shaded (incl. the default sun)
   uint32_t local_lights = 0;         // of which point and spot lights (scene + synthetic)

@@ -3,8 +3,9 @@
 // (vis_mlaa_coverage analytic: vis_resolve_analytic.comp) found from a one-sample buffer by
 // testing each sample position against the triangles nearby pixels show and their neighbours
 // (AnalyticSamples). Two samples are on one surface when they hit the same triangle, or
-// triangles of the same drawable that share a vertex: the same index, or two vertices at almost the same
-// position whose normals are within 8.1 degrees (dot > 0.99), or joined through other samples.
+// triangles of the same drawable that share a vertex: the same index, or two vertices at almost
+// the same position whose normals are within 8.1 degrees (dot > 0.99) and whose texture
+// coordinates are the same (not a texture seam), or joined through other samples.
 // The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
 //  - u_id: the id of the winning sample nearest the mean position of the winning samples
 //    (the triangle the shading intersects);
@@ -15,11 +16,14 @@
 // kResolveArgs sizes the indirect dispatch over that list, kResolveEdges groups the listed
 // pixels, every invocation one edge pixel (lavapipe runs masked-off lanes at full cost: as a
 // full-screen fragment pass the grouping cost every 8-pixel block that held an edge pixel).
-// The surface with the next most samples, the runner-up, is recorded where it owns at least 3/8
-// of them (u_runner_ups, one record per edge list entry); kResolveRunnerUps then looks for it in
-// the 8 neighbours' shaded ids, nearest in angle to where its samples lie first: geometric AA
+// The surface with the next most samples, the runner-up, is recorded whatever its share, down to
+// one sample (u_runner_ups, one record per edge list entry); kResolveRunnerUps then looks for it
+// in the 8 neighbours' shaded ids, nearest in angle to where its samples lie first: geometric AA
 // borrows its colour from the first that shows it, and where none does it is shaded here too (a
-// wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote).
+// wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote). Until
+// 2026-11-28 only a runner-up holding 3/8 of the samples was recorded: with 4 samples a wire
+// owning one of them vanished there (the edge scene's wire rows 137 -> 0 in 8-bit sRGB), which
+// left its edge PSNR 1.25 dB below msaa's; now equal to it, for 0.4% more shading on Sponza.
 // Every pixel's shaded surface (and every runner-up left to be shaded) is counted in its
 // material's entry as it is decided (common/shade_append.glsl; a pixel whose surface is the sky
 // is not: the classification writes the sky there; a runner-up that is the sky is, in the sky's
@@ -85,15 +89,26 @@ bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   bvec3 near1 = lessThanEqual(vec3(distance(a1, b0), distance(a1, b1), distance(a1, b2)), eps);
   bvec3 near2 = lessThanEqual(vec3(distance(a2, b0), distance(a2, b1), distance(a2, b2)), eps);
   if (!(any(near0) || any(near1) || any(near2))) return false;
-  // ... with normals within 8.1 degrees.
+  // ... with normals within 8.1 degrees and the same texture coordinates (both sets, within
+  // 1e-4: a vertex written twice differs by rounding, a seam by whole texels). Across a texture
+  // seam (DamagedHelmet's visor rim against its shell) the two sides sample other texels, so
+  // they shade apart as two surfaces would; taken as one, the seam was shaded once and stayed
+  // aliased (tessera-aa-quality, lavapipe: the helmet's edge PSNR 27.23 -> 27.86 dB, msaa 28.09).
   vec3 m0 = normalize(VertexNormal(va.x)), m1 = normalize(VertexNormal(va.y)),
        m2 = normalize(VertexNormal(va.z));
   vec3 n0 = normalize(VertexNormal(vb.x)), n1 = normalize(VertexNormal(vb.y)),
        n2 = normalize(VertexNormal(vb.z));
   const vec3 kCos = vec3(0.99);
-  uvec3 both = uvec3(near0) * uvec3(greaterThan(vec3(dot(m0, n0), dot(m0, n1), dot(m0, n2)), kCos)) +
-               uvec3(near1) * uvec3(greaterThan(vec3(dot(m1, n0), dot(m1, n1), dot(m1, n2)), kCos)) +
-               uvec3(near2) * uvec3(greaterThan(vec3(dot(m2, n0), dot(m2, n1), dot(m2, n2)), kCos));
+  vec4 u0 = VertexUvs(va.x), u1 = VertexUvs(va.y), u2 = VertexUvs(va.z);
+  vec4 w0 = VertexUvs(vb.x), w1 = VertexUvs(vb.y), w2 = VertexUvs(vb.z);
+  const vec3 kUv = vec3(1e-4);
+  uvec3 uv0 = uvec3(lessThanEqual(vec3(distance(u0, w0), distance(u0, w1), distance(u0, w2)), kUv));
+  uvec3 uv1 = uvec3(lessThanEqual(vec3(distance(u1, w0), distance(u1, w1), distance(u1, w2)), kUv));
+  uvec3 uv2 = uvec3(lessThanEqual(vec3(distance(u2, w0), distance(u2, w1), distance(u2, w2)), kUv));
+  uvec3 both =
+      uvec3(near0) * uv0 * uvec3(greaterThan(vec3(dot(m0, n0), dot(m0, n1), dot(m0, n2)), kCos)) +
+      uvec3(near1) * uv1 * uvec3(greaterThan(vec3(dot(m1, n0), dot(m1, n1), dot(m1, n2)), kCos)) +
+      uvec3(near2) * uv2 * uvec3(greaterThan(vec3(dot(m2, n0), dot(m2, n1), dot(m2, n2)), kCos));
   return any(notEqual(both, uvec3(0u)));
 }
 
@@ -338,8 +353,7 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
   uint mask = same[0];
   for (uint s = 1u; s < kSamples; ++s)
     if (bitCount(same[s]) > bitCount(mask)) mask = same[s];
-  // The runner-up: the largest of the other groups (ties: the lowest sample's), when it holds at
-  // least 3/8 of the samples.
+  // The runner-up: the largest of the other groups (ties: the lowest sample's), if any.
   uint runner = 0u;
   for (uint s = 0u; s < kSamples; ++s)
     if ((mask & (1u << s)) == 0u && bitCount(same[s]) > bitCount(runner)) runner = same[s];
@@ -351,7 +365,7 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
   imageStore(u_id, p, uvec4(id));
   imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
   uvec2 record = uvec2(0u);
-  if (8u * uint(bitCount(runner)) >= 3u * kSamples) {
+  if (runner != 0u) {
     Pick(runner, ids, id, mean);
     uint word = PackRunnerUp(runner, mean, kRunnerUpUndecided);
     record = uvec2(ContainingId(p, runner, ids, id, RunnerUpMean(word)), word);
