@@ -172,6 +172,31 @@ gpu::GpuTextureRef MakeTextureRef(const TextureRef& ref, const std::vector<Textu
   return out;
 }
 
+}  // namespace
+
+uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures) {
+  uint32_t used = 0, aperiodic = 0;
+  for (const TextureRef* ref :
+       {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
+    if (ref->texture < 0 || static_cast<size_t>(ref->texture) >= textures.size()) continue;
+    const uint32_t set = std::min(ref->texcoord, 1u);
+    used |= 1u << set;
+    const Texture& t = textures[ref->texture];
+    const glm::mat3 u = ref->uv_transform();
+    bool periodic = t.wrap_s == WrapMode::kRepeat && t.wrap_t == WrapMode::kRepeat;
+    for (int c = 0; c < 2; ++c)
+      for (int r = 0; r < 2; ++r)
+        periodic = periodic && std::abs(u[c][r] - std::round(u[c][r])) <= 1e-6f;
+    if (!periodic) aperiodic |= 1u << set;
+  }
+  uint32_t out = 0;
+  if (used & 1u) out |= gpu::kUvSeamSet0 | ((aperiodic & 1u) ? 0u : gpu::kUvSeamPeriodic0);
+  if (used & 2u) out |= gpu::kUvSeamSet1 | ((aperiodic & 2u) ? 0u : gpu::kUvSeamPeriodic1);
+  return out;
+}
+
+namespace {
+
 gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& textures,
                               const TextureBucketPlan& plan) {
   gpu::GpuMaterial g{};
@@ -179,7 +204,8 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
   g.emissive = glm::vec4(m.emissive_factor * m.emissive_strength, 0.0f);
   g.params = glm::vec4(m.metallic_factor, m.roughness_factor, m.normal_scale, m.occlusion_strength);
   g.params2 = glm::vec4(m.alpha_cutoff, 0.0f, 0.0f, 0.0f);
-  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u, 0u, 0u);
+  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u,
+                       UvSeamSets(m, textures), 0u);
   g.base_color_tex = MakeTextureRef(m.base_color, textures, plan);
   g.metallic_roughness_tex = MakeTextureRef(m.metallic_roughness, textures, plan);
   g.normal_tex = MakeTextureRef(m.normal, textures, plan);

@@ -103,6 +103,13 @@ MirrorPlan PlanMirroredRanges(const CpuScene& scene);
 void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
                           std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency);
 
+// GpuMaterial.flags.z for vis_mlaa's surface test (kUvSeam*, common/gpu_types.h): the texture
+// coordinate sets the material's textures read, and for each whether every texture reading it
+// wraps REPEAT on both axes through a transform that maps whole uv steps to whole texel-grid
+// periods (integer linear part), so vertices whose coordinates differ by whole units sample the
+// same texels. Untextured: 0 (no set compared).
+uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures);
+
 class GpuScene {
  public:
   // Uploads `scene` and waits for the copies. Errors: RESOURCE_EXHAUSTED when device memory

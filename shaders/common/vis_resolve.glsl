@@ -5,7 +5,8 @@
 // (AnalyticSamples). Two samples are on one surface when they hit the same triangle, or
 // triangles of the same drawable that share a vertex: the same index, or two vertices at almost
 // the same position whose normals are within 8.1 degrees (dot > 0.99) and whose texture
-// coordinates are the same (not a texture seam), or joined through other samples.
+// coordinates are the same where the material's textures read them (not a texture seam), or
+// joined through other samples.
 // The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
 //  - u_id: the id of the winning sample nearest the mean position of the winning samples
 //    (the triangle the shading intersects);
@@ -69,6 +70,21 @@ layout(constant_id = 0) const uint kSamples = 4u;
 // the uniform pass paid for the grouping's arithmetic on every pixel).
 layout(constant_id = 1) const uint kMode = 0u;
 
+// Whether two vertices' texture coordinates (xy set 0, zw set 1) are the same in the sets a
+// material's textures read (`sets`, GpuMaterial.flags.z: kUvSeam*), within 1e-4 of a uv unit
+// (relative past 1: a vertex written twice differs by rounding, a seam by texels), and where
+// every texture reading a set repeats with whole-unit periods, up to whole units (a sphere's
+// u = 0 and u = 1 meet on the same texels).
+bool UvSeamSame(vec4 u, vec4 w, uint sets) {
+  bvec4 read = bvec4((sets & kUvSeamSet0) != 0u, (sets & kUvSeamSet0) != 0u,
+                     (sets & kUvSeamSet1) != 0u, (sets & kUvSeamSet1) != 0u);
+  bvec4 periodic = bvec4((sets & kUvSeamPeriodic0) != 0u, (sets & kUvSeamPeriodic0) != 0u,
+                         (sets & kUvSeamPeriodic1) != 0u, (sets & kUvSeamPeriodic1) != 0u);
+  vec4 d = u - w;
+  d -= mix(vec4(0.0), round(d), periodic);
+  return all(lessThanEqual(mix(vec4(0.0), abs(d), read), 1e-4 * max(vec4(1.0), abs(u))));
+}
+
 // Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface. Written
 // with vector compares and no loops: a CPU device runs the lanes of a SIMD group together, and
 // early exits from unrolled loops cost it more than the compares.
@@ -76,7 +92,8 @@ bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   if (a == b) return true;
   uint tb = frame.aa.x;
   if (a == 0u || b == 0u || (a >> tb) != (b >> tb)) return false;
-  // A shared vertex index (most neighbours) needs no vertex loads.
+  // A shared vertex index (most neighbours) needs no vertex loads. (So two triangles either side
+  // of a seam that ends at an unsplit vertex, sharing just that one, stay one surface.)
   if (any(equal(uvec3(va.x), vb)) || any(equal(uvec3(va.y), vb)) || any(equal(uvec3(va.z), vb)))
     return true;
   vec3 a0 = VertexPosition(va.x), a1 = VertexPosition(va.y), a2 = VertexPosition(va.z);
@@ -89,22 +106,22 @@ bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   bvec3 near1 = lessThanEqual(vec3(distance(a1, b0), distance(a1, b1), distance(a1, b2)), eps);
   bvec3 near2 = lessThanEqual(vec3(distance(a2, b0), distance(a2, b1), distance(a2, b2)), eps);
   if (!(any(near0) || any(near1) || any(near2))) return false;
-  // ... with normals within 8.1 degrees and the same texture coordinates (both sets, within
-  // 1e-4: a vertex written twice differs by rounding, a seam by whole texels). Across a texture
-  // seam (DamagedHelmet's visor rim against its shell) the two sides sample other texels, so
-  // they shade apart as two surfaces would; taken as one, the seam was shaded once and stayed
-  // aliased (tessera-aa-quality, lavapipe: the helmet's edge PSNR 27.23 -> 27.86 dB, msaa 28.09).
+  // ... with normals within 8.1 degrees and the same texture coordinates in the sets the
+  // material's textures read (UvSeamSame). Across a texture seam (DamagedHelmet's visor rim
+  // against its shell) the two sides sample other texels, so they shade apart as two surfaces
+  // would; taken as one, the seam was shaded once and stayed aliased (tessera-aa-quality,
+  // lavapipe: the helmet's edge PSNR 27.23 -> 27.86 dB, msaa 28.09).
   vec3 m0 = normalize(VertexNormal(va.x)), m1 = normalize(VertexNormal(va.y)),
        m2 = normalize(VertexNormal(va.z));
   vec3 n0 = normalize(VertexNormal(vb.x)), n1 = normalize(VertexNormal(vb.y)),
        n2 = normalize(VertexNormal(vb.z));
   const vec3 kCos = vec3(0.99);
+  uint sets = materials[DrawableIds(VisDrawable(a, tb)).y].flags.z;
   vec4 u0 = VertexUvs(va.x), u1 = VertexUvs(va.y), u2 = VertexUvs(va.z);
   vec4 w0 = VertexUvs(vb.x), w1 = VertexUvs(vb.y), w2 = VertexUvs(vb.z);
-  const vec3 kUv = vec3(1e-4);
-  uvec3 uv0 = uvec3(lessThanEqual(vec3(distance(u0, w0), distance(u0, w1), distance(u0, w2)), kUv));
-  uvec3 uv1 = uvec3(lessThanEqual(vec3(distance(u1, w0), distance(u1, w1), distance(u1, w2)), kUv));
-  uvec3 uv2 = uvec3(lessThanEqual(vec3(distance(u2, w0), distance(u2, w1), distance(u2, w2)), kUv));
+  uvec3 uv0 = uvec3(UvSeamSame(u0, w0, sets), UvSeamSame(u0, w1, sets), UvSeamSame(u0, w2, sets));
+  uvec3 uv1 = uvec3(UvSeamSame(u1, w0, sets), UvSeamSame(u1, w1, sets), UvSeamSame(u1, w2, sets));
+  uvec3 uv2 = uvec3(UvSeamSame(u2, w0, sets), UvSeamSame(u2, w1, sets), UvSeamSame(u2, w2, sets));
   uvec3 both =
       uvec3(near0) * uv0 * uvec3(greaterThan(vec3(dot(m0, n0), dot(m0, n1), dot(m0, n2)), kCos)) +
       uvec3(near1) * uv1 * uvec3(greaterThan(vec3(dot(m1, n0), dot(m1, n1), dot(m1, n2)), kCos)) +

@@ -136,5 +136,49 @@ TEST(AdjacencyTest, DemoSpheresAreClosed) {
   EXPECT_EQ(joined, edges);
 }
 
+// UvSeamSets (gpu_scene.h): which texture coordinate sets vis_mlaa's surface test compares, and
+// where whole-unit jumps are no seam.
+TEST(UvSeamSetsTest, TheSetsTheTexturesReadAndTheirPeriods) {
+  auto image = std::make_shared<Image>();
+  image->width = image->height = 1;
+  image->rgba8 = {255, 255, 255, 255};
+  std::vector<Texture> textures = {
+      Texture{image, true, WrapMode::kRepeat, WrapMode::kRepeat},
+      Texture{image, false, WrapMode::kClampToEdge, WrapMode::kRepeat},
+      Texture{image, false, WrapMode::kRepeat, WrapMode::kMirroredRepeat}};
+  Material untextured;
+  EXPECT_EQ(UvSeamSets(untextured, textures), 0u);
+
+  Material base;
+  base.base_color.texture = 0;
+  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0);
+  // A whole-number scale (and a 90-degree turn) keeps whole steps whole; half a scale does not.
+  base.base_color.scale = glm::vec2(3.0f, 2.0f);
+  base.base_color.offset = glm::vec2(0.3f, 0.7f);
+  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0);
+  base.base_color.rotation = 1.5707963f;
+  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0);
+  base.base_color.rotation = 0.3f;
+  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0);
+  base.base_color.rotation = 0.0f;
+  base.base_color.scale = glm::vec2(0.5f, 1.0f);
+  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0);
+
+  // Set 1 read by an occlusion map that clamps on one axis: compared, not periodic; set 0 stays
+  // periodic. Another texture on set 0 that mirrors makes set 0 aperiodic too.
+  Material both;
+  both.base_color.texture = 0;
+  both.occlusion.texture = 1;
+  both.occlusion.texcoord = 1;
+  EXPECT_EQ(UvSeamSets(both, textures),
+            gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0 | gpu::kUvSeamSet1);
+  both.normal.texture = 2;
+  EXPECT_EQ(UvSeamSets(both, textures), gpu::kUvSeamSet0 | gpu::kUvSeamSet1);
+  // A texture index out of range reads nothing.
+  Material dangling;
+  dangling.emissive.texture = 7;
+  EXPECT_EQ(UvSeamSets(dangling, textures), 0u);
+}
+
 }  // namespace
 }  // namespace tessera
