@@ -128,6 +128,9 @@ class VisResolvePass final : public Pass {
     b.push_back(LayoutBinding(gpu::kResolveBindingCoverage, kImage, kCompute));
     b.push_back(LayoutBinding(gpu::kShadeBindingRunnerUps, kBuffer, kCompute));
     b.push_back(LayoutBinding(gpu::kResolveBindingAdjacency, kBuffer, kCompute));
+    b.push_back(LayoutBinding(gpu::kResolveBindingSurfaces, kBuffer, kCompute));
+    b.push_back(LayoutBinding(gpu::kResolveBindingSurfaceTexels,
+                              VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER, kCompute));
     ASSIGN_OR_RETURN(p->layout_,
                      PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
                                         "vis_resolve layout",
@@ -217,6 +220,8 @@ class VisResolvePass final : public Pass {
         .Storage(gpu::kResolveBindingCoverage, ctx.targets->vis_coverage.view())
         .Buffer(gpu::kShadeBindingRunnerUps, ctx.shade->runner_ups)
         .StorageBuffer(gpu::kResolveBindingAdjacency, ctx, ctx.scene->adjacency())
+        .StorageBuffer(gpu::kResolveBindingSurfaces, ctx, ctx.scene->surfaces())
+        .TexelBuffer(gpu::kResolveBindingSurfaceTexels, ctx.scene->surface_texels())
         .VisibilityBuffers(ctx)
         .Update();
     const VkPipelineLayout layout = layout_.pipeline_layout();

@@ -29,13 +29,10 @@ Point Snap(const glm::vec3& p, const glm::dvec3& origin, double step) {
   return {std::llround(q.x), std::llround(q.y), std::llround(q.z)};
 }
 
-}  // namespace
-
-std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
-  std::vector<uint32_t> adjacency(scene.indices.size(), kNoNeighbour);
-  // An index range is done once: primitives sharing one (the same mesh with other materials)
-  // share its answer, and one overlapping a range already done is left without neighbours
-  // rather than given triangle numbers counted from another first index.
+// The index ranges to do (TriangleAdjacency's rule): a primitive's, once; one overlapping a range
+// already done is skipped.
+template <typename Fn>
+void ForEachIndexRange(const CpuScene& scene, Fn&& fn) {
   std::vector<bool> claimed(scene.indices.size(), false);
   for (const Primitive& p : scene.primitives) {
     const uint32_t triangles = p.index_count / 3;
@@ -45,17 +42,124 @@ std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
     for (uint32_t i = 0; i < 3 * triangles; ++i) overlaps = overlaps || claimed[p.first_index + i];
     if (overlaps) continue;
     for (uint32_t i = 0; i < 3 * triangles; ++i) claimed[p.first_index + i] = true;
+    fn(p, triangles);
+  }
+}
+
+// The grid of a primitive's positions (its lowest corner and cell size: 2^-20 of its extent).
+struct Grid {
+  glm::dvec3 lo;
+  double step;
+};
+template <typename Position>
+Grid GridOf(uint32_t corners, Position&& position) {
+  glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+  for (uint32_t i = 0; i < corners; ++i) {
+    lo = glm::min(lo, glm::dvec3(position(i)));
+    hi = glm::max(hi, glm::dvec3(position(i)));
+  }
+  const glm::dvec3 size = hi - lo;
+  const double extent = std::max(size.x, std::max(size.y, size.z));
+  return {lo, extent > 0.0 ? std::ldexp(extent, -20) : 1.0};
+}
+
+// Whether texture coordinates u and w (xy set 0, zw set 1) agree in the sets `sets` (kUvSeam*)
+// names: within 1e-4 of a uv unit (relative past 1: a vertex written twice differs by rounding, a
+// seam by texels), up to whole units where the set is periodic.
+bool UvSeamSame(const glm::vec4& u, const glm::vec4& w, uint32_t sets) {
+  for (int c = 0; c < 4; ++c) {
+    const uint32_t set = c < 2 ? kUvSeamSet0 : kUvSeamSet1;
+    const uint32_t periodic = c < 2 ? kUvSeamPeriodic0 : kUvSeamPeriodic1;
+    if ((sets & set) == 0) continue;
+    float d = u[c] - w[c];
+    if (sets & periodic) d -= std::round(d);
+    if (!(std::abs(d) <= 1e-4f * std::max(1.0f, std::abs(u[c])))) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures) {
+  uint32_t used = 0, aperiodic = 0;
+  for (const TextureRef* ref :
+       {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
+    if (ref->texture < 0 || static_cast<size_t>(ref->texture) >= textures.size()) continue;
+    const uint32_t set = std::min(ref->texcoord, 1u);
+    used |= 1u << set;
+    const Texture& t = textures[ref->texture];
+    const glm::mat3 u = ref->uv_transform();
+    bool periodic = t.wrap_s == WrapMode::kRepeat && t.wrap_t == WrapMode::kRepeat;
+    for (int c = 0; c < 2; ++c)
+      for (int r = 0; r < 2; ++r)
+        periodic = periodic && std::abs(u[c][r] - std::round(u[c][r])) <= 1e-6f;
+    if (!periodic) aperiodic |= 1u << set;
+  }
+  uint32_t out = 0;
+  if (used & 1u) out |= kUvSeamSet0 | ((aperiodic & 1u) ? 0u : kUvSeamPeriodic0);
+  if (used & 2u) out |= kUvSeamSet1 | ((aperiodic & 2u) ? 0u : kUvSeamPeriodic1);
+  return out;
+}
+
+std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
+  std::vector<uint32_t> out(scene.indices.begin(), scene.indices.end());
+  ForEachIndexRange(scene, [&](const Primitive& p, uint32_t triangles) {
+    const uint32_t corners = 3 * triangles;
+    auto vertex = [&](uint32_t v) -> const Vertex& { return scene.vertices[p.first_vertex + v]; };
+    auto index = [&](uint32_t i) { return scene.indices[p.first_index + i]; };
+    auto inside = [&](uint32_t v) {
+      return v < p.vertex_count && uint64_t(p.first_vertex) + v < scene.vertices.size();
+    };
+    const Grid grid = GridOf(corners, [&](uint32_t i) -> glm::vec3 {
+      return inside(index(i)) ? vertex(index(i)).position : glm::vec3(0.0f);
+    });
+    const uint32_t sets = p.material < scene.materials.size()
+                              ? UvSeamSets(scene.materials[p.material], scene.textures)
+                              : 0u;
+    // Per grid cell, the vertices standing for themselves there; per vertex, the one it stands
+    // for (kNoNeighbour: not met yet).
+    std::unordered_map<Point, std::vector<uint32_t>, absl::Hash<Point>> cells;
+    cells.reserve(corners);
+    std::vector<uint32_t> stands(p.vertex_count, kNoNeighbour);
+    for (uint32_t i = 0; i < corners; ++i) {
+      const uint32_t v = index(i);
+      if (!inside(v)) continue;  // stands for itself
+      if (stands[v] == kNoNeighbour) {
+        const Vertex& a = vertex(v);
+        const glm::vec3 n = glm::normalize(a.normal);
+        const glm::vec4 uv(a.uv0, a.uv1);
+        std::vector<uint32_t>& cell = cells[Snap(a.position, grid.lo, grid.step)];
+        for (uint32_t r : cell) {
+          const Vertex& b = vertex(r);
+          if (glm::dot(n, glm::normalize(b.normal)) > 0.99f &&
+              UvSeamSame(uv, glm::vec4(b.uv0, b.uv1), sets)) {
+            stands[v] = r;
+            break;
+          }
+        }
+        if (stands[v] == kNoNeighbour) {
+          stands[v] = v;
+          cell.push_back(v);
+        }
+      }
+      out[p.first_index + i] = stands[v];
+    }
+  });
+  return out;
+}
+
+std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
+  std::vector<uint32_t> adjacency(scene.indices.size(), kNoNeighbour);
+  // An index range is done once: primitives sharing one (the same mesh with other materials)
+  // share its answer, and one overlapping a range already done is left without neighbours
+  // rather than given triangle numbers counted from another first index.
+  ForEachIndexRange(scene, [&](const Primitive& p, uint32_t triangles) {
     auto position = [&](uint32_t i) -> const glm::vec3& {
       return scene.vertices[p.first_vertex + scene.indices[p.first_index + i]].position;
     };
-    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
-    for (uint32_t i = 0; i < 3 * triangles; ++i) {
-      lo = glm::min(lo, glm::dvec3(position(i)));
-      hi = glm::max(hi, glm::dvec3(position(i)));
-    }
-    const glm::dvec3 size = hi - lo;
-    const double extent = std::max(size.x, std::max(size.y, size.z));
-    const double step = extent > 0.0 ? std::ldexp(extent, -20) : 1.0;
+    const Grid grid = GridOf(3 * triangles, position);
+    const glm::dvec3 lo = grid.lo;
+    const double step = grid.step;
     // A map per primitive, sized for it (clearing one shared map costs its largest bucket array
     // again for every later primitive).
     std::unordered_map<EdgeKey, uint32_t, absl::Hash<EdgeKey>> first;  // edge -> 3t + e
@@ -75,7 +179,7 @@ std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
         adjacency[p.first_index + 3 * t + e] = other / 3;
       }
     }
-  }
+  });
   return adjacency;
 }
 

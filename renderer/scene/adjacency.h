@@ -20,4 +20,25 @@ inline constexpr uint32_t kNoNeighbour = 0xffffffffu;
 // without being it gets none.
 std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene);
 
+// For vis_mlaa's surface test (SurfaceIndices below): the texture coordinate sets a material's
+// textures read (kUvSeamSet0/1), and for each whether every texture reading it wraps REPEAT on
+// both axes through a transform that maps whole uv steps to whole texel-grid periods (integer
+// linear part: kUvSeamPeriodic0/1), so vertices whose coordinates differ by whole units sample
+// the same texels. Untextured: 0 (no set compared).
+inline constexpr uint32_t kUvSeamSet0 = 1u, kUvSeamSet1 = 2u;
+inline constexpr uint32_t kUvSeamPeriodic0 = 4u, kUvSeamPeriodic1 = 8u;
+uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures);
+
+// For vis_mlaa's surface test (common/vis_resolve.glsl, SameSurface: two triangles of a
+// drawable are on one surface where they share a vertex): one entry per index of scene.indices,
+// the primitive's vertex (numbered as its indices are) that stands for that index's vertex, the
+// first of the primitive's vertices, in index order, at the same position (TriangleAdjacency's
+// grid: 2^-20 of the primitive's size) whose normal is within 8.1 degrees (dot > 0.99) and whose
+// texture coordinates agree, within 1e-4 (relative past 1 uv unit), in the sets UvSeamSets
+// names for its material (up to whole units where they repeat). So vertices split for a hard
+// edge or a texture seam stand apart, and those split for nothing (or for a set no texture
+// reads) stand for one another. Index ranges as TriangleAdjacency's; an index past its
+// primitive's vertices stands for itself.
+std::vector<uint32_t> SurfaceIndices(const CpuScene& scene);
+
 }  // namespace tessera

@@ -113,9 +113,11 @@ MirrorPlan PlanMirroredRanges(const CpuScene& scene) {
 }
 
 void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
-                          std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency) {
+                          std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency,
+                          std::vector<uint32_t>* surfaces) {
   indices.resize(scene.indices.size() + plan.indices);
   adjacency.resize(indices.size(), kNoNeighbour);
+  if (surfaces) surfaces->resize(indices.size(), 0);
   for (uint32_t p = 0; p < plan.first.size(); ++p) {
     if (plan.first[p] == kNotMirrored) continue;
     const uint32_t from = scene.primitives[p].first_index, to = plan.first[p];
@@ -129,6 +131,12 @@ void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
       adjacency[o] = adjacency[i + 2];
       adjacency[o + 1] = adjacency[i + 1];
       adjacency[o + 2] = adjacency[i];
+      if (surfaces) {
+        std::vector<uint32_t>& f = *surfaces;
+        f[o] = f[i];
+        f[o + 1] = f[i + 2];
+        f[o + 2] = f[i + 1];
+      }
     }
   }
 }
@@ -172,31 +180,6 @@ gpu::GpuTextureRef MakeTextureRef(const TextureRef& ref, const std::vector<Textu
   return out;
 }
 
-}  // namespace
-
-uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures) {
-  uint32_t used = 0, aperiodic = 0;
-  for (const TextureRef* ref :
-       {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
-    if (ref->texture < 0 || static_cast<size_t>(ref->texture) >= textures.size()) continue;
-    const uint32_t set = std::min(ref->texcoord, 1u);
-    used |= 1u << set;
-    const Texture& t = textures[ref->texture];
-    const glm::mat3 u = ref->uv_transform();
-    bool periodic = t.wrap_s == WrapMode::kRepeat && t.wrap_t == WrapMode::kRepeat;
-    for (int c = 0; c < 2; ++c)
-      for (int r = 0; r < 2; ++r)
-        periodic = periodic && std::abs(u[c][r] - std::round(u[c][r])) <= 1e-6f;
-    if (!periodic) aperiodic |= 1u << set;
-  }
-  uint32_t out = 0;
-  if (used & 1u) out |= gpu::kUvSeamSet0 | ((aperiodic & 1u) ? 0u : gpu::kUvSeamPeriodic0);
-  if (used & 2u) out |= gpu::kUvSeamSet1 | ((aperiodic & 2u) ? 0u : gpu::kUvSeamPeriodic1);
-  return out;
-}
-
-namespace {
-
 gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& textures,
                               const TextureBucketPlan& plan) {
   gpu::GpuMaterial g{};
@@ -204,8 +187,7 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
   g.emissive = glm::vec4(m.emissive_factor * m.emissive_strength, 0.0f);
   g.params = glm::vec4(m.metallic_factor, m.roughness_factor, m.normal_scale, m.occlusion_strength);
   g.params2 = glm::vec4(m.alpha_cutoff, 0.0f, 0.0f, 0.0f);
-  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u,
-                       UvSeamSets(m, textures), 0u);
+  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u, 0u, 0u);
   g.base_color_tex = MakeTextureRef(m.base_color, textures, plan);
   g.metallic_roughness_tex = MakeTextureRef(m.metallic_roughness, textures, plan);
   g.normal_tex = MakeTextureRef(m.normal, textures, plan);
@@ -438,15 +420,17 @@ absl::Status GpuScene::Keep(vk::Buffer& dst, absl::StatusOr<vk::Buffer> src) {
 }
 
 absl::Status GpuScene::MakeTexelViews(vk::Context& ctx, const std::string& name) {
-  bool indices = false, vertices = false, drawables = false;
+  bool indices = false, vertices = false, drawables = false, surfaces = false;
   ASSIGN_OR_RETURN(index_texels_, vk::CreateTexelView(ctx, indices_, VK_FORMAT_R32_UINT, 4,
                                                       name + ".index_texels", &indices));
+  ASSIGN_OR_RETURN(surface_texels_, vk::CreateTexelView(ctx, surfaces_, VK_FORMAT_R32_UINT, 4,
+                                                        name + ".surface_texels", &surfaces));
   ASSIGN_OR_RETURN(vertex_texels_, vk::CreateTexelView(ctx, vertices_, VK_FORMAT_R32G32_UINT, 8,
                                                        name + ".vertex_texels", &vertices));
   ASSIGN_OR_RETURN(drawable_texels_,
                    vk::CreateTexelView(ctx, drawables_, VK_FORMAT_R32G32B32A32_UINT, 16,
                                        name + ".drawable_texels", &drawables));
-  const bool whole = indices && vertices && drawables;
+  const bool whole = indices && vertices && drawables && surfaces;
   vis_texels_ = whole && ctx.info().texel_buffers;
   if (!whole)
     Log().info("{}: the visibility passes read its geometry from storage buffers (more texels "
@@ -555,11 +539,11 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
   const uint64_t drawables = std::max<size_t>(1, scene.drawables.size());
   const uint64_t align = std::max<uint64_t>(16, uniform_align);
   const uint64_t stride = (sizeof(gpu::GpuMaterial) + align - 1) / align * align;
-  // The indices, and their adjacency (one word each, at least one).
+  // The indices, their adjacency and their surface indices (one word each, at least one).
   // With the mirrored drawables' copies (PlanMirroredRanges).
   const uint64_t indices = scene.indices.size() + PlanMirroredRanges(scene).indices;
   uint64_t bytes = scene.vertices.size() * sizeof(Vertex) + indices * sizeof(uint32_t) +
-                   std::max<uint64_t>(1, indices) * sizeof(uint32_t) +
+                   2 * std::max<uint64_t>(1, indices) * sizeof(uint32_t) +
                    materials * (sizeof(gpu::GpuMaterial) + stride) +
                    drawables * (sizeof(gpu::GpuDrawable) + sizeof(gpu::GpuCullItem));
   for (const TextureBucketPlan::Bucket& b : PlanTextureBuckets(scene.textures, max_texture_size).buckets)
@@ -745,12 +729,14 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
                               kVertexUsage, n + ".vertices"));
   if (st.ok() && animator_) st = UploadAnimation(ctx, scene);
   if (!st.ok()) return st;
-  // Each index's neighbour, and the mirrored drawables' copies after the scene's indices.
+  // Each index's neighbour and the vertex standing for it in vis_mlaa's surface test, and the
+  // mirrored drawables' copies after the scene's indices.
   std::vector<uint32_t> adjacency = TriangleAdjacency(scene);
+  std::vector<uint32_t> surfaces = SurfaceIndices(scene);
   std::vector<uint32_t> mirrored;
   if (mirrors_.indices > 0) {
     mirrored = scene.indices;
-    AppendMirroredRanges(scene, mirrors_, mirrored, adjacency);
+    AppendMirroredRanges(scene, mirrors_, mirrored, adjacency, &surfaces);
   }
   const std::vector<uint32_t>& indices = mirrors_.indices > 0 ? mirrored : scene.indices;
   st = Keep(indices_,
@@ -762,6 +748,12 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
     if (adjacency.empty()) adjacency.push_back(kNoNeighbour);  // keep the binding valid
     st = Keep(adjacency_, UploadBuffer(ctx, adjacency.data(), adjacency.size() * sizeof(uint32_t),
                                        VK_BUFFER_USAGE_STORAGE_BUFFER_BIT, n + ".adjacency"));
+  }
+  if (st.ok()) {
+    if (surfaces.empty()) surfaces.push_back(0);  // keep the binding valid
+    st = Keep(surfaces_, UploadBuffer(ctx, surfaces.data(), surfaces.size() * sizeof(uint32_t),
+                                      VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | texel,
+                                      n + ".surfaces"));
   }
   if (!st.ok()) return st;
 

@@ -100,15 +100,10 @@ struct MirrorPlan {
 MirrorPlan PlanMirroredRanges(const CpuScene& scene);
 // Appends the copies to `indices` (the scene's) and their neighbours to `adjacency`
 // (TriangleAdjacency's: each copy's triangles keep their numbers, and so their neighbours).
+// `surfaces` (SurfaceIndices', adjacency.h; may be null) likewise, corner for corner as the indices.
 void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
-                          std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency);
-
-// GpuMaterial.flags.z for vis_mlaa's surface test (kUvSeam*, common/gpu_types.h): the texture
-// coordinate sets the material's textures read, and for each whether every texture reading it
-// wraps REPEAT on both axes through a transform that maps whole uv steps to whole texel-grid
-// periods (integer linear part), so vertices whose coordinates differ by whole units sample the
-// same texels. Untextured: 0 (no set compared).
-uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures);
+                          std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency,
+                          std::vector<uint32_t>* surfaces = nullptr);
 
 class GpuScene {
  public:
@@ -124,6 +119,11 @@ class GpuScene {
   const vk::Buffer& indices() const { return indices_; }
   // Per index, the triangle across that edge (adjacency.h), for vis_mlaa_coverage analytic.
   const vk::Buffer& adjacency() const { return adjacency_; }
+  // Per index, the vertex that stands for it in vis_mlaa's surface test (SurfaceIndices,
+  // adjacency.h), laid out as the index buffer; and as a texel buffer (R32_UINT) beside
+  // index_texels().
+  const vk::Buffer& surfaces() const { return surfaces_; }
+  VkBufferView surface_texels() const { return surface_texels_.get(); }
   const vk::Buffer& drawables() const { return drawables_; }
   const vk::Buffer& materials() const { return materials_; }
   // The index, vertex and drawable buffers as uniform texel buffers for the visibility passes
@@ -217,8 +217,9 @@ class GpuScene {
   absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
                                  VkDescriptorSetLayout material_layout);
 
-  vk::Buffer vertices_, indices_, adjacency_, drawables_, materials_;
-  vk::UniqueBufferView index_texels_, vertex_texels_, drawable_texels_;  // after their buffers
+  vk::Buffer vertices_, indices_, adjacency_, surfaces_, drawables_, materials_;
+  // after their buffers
+  vk::UniqueBufferView index_texels_, vertex_texels_, drawable_texels_, surface_texels_;
   bool vis_texels_ = false;
   vk::Buffer material_uniforms_;  // the materials again, each at a uniform-offset-aligned stride
   VkDeviceSize material_stride_ = 0;

@@ -205,6 +205,11 @@ TS_CONST uint kResolveBindingCoverage = 6;
 // vis_mlaa_coverage analytic: buffer uint[], per index of the index buffer the triangle across
 // that edge (renderer/scene/adjacency.h; 0xffffffff: none).
 TS_CONST uint kResolveBindingAdjacency = 7;
+// vis_mlaa's surface test: buffer uint[] and the same as a uniform texel buffer (R32_UINT, read
+// as kVisTexelsConstant says), per index of the index buffer the vertex standing for it
+// (renderer/scene/adjacency.h, SurfaceIndices).
+TS_CONST uint kResolveBindingSurfaces = 13;
+TS_CONST uint kResolveBindingSurfaceTexels = 14;
 // vis_resolve.comp's modes (specialization constant 1, a pipeline per mode; push params.y is the
 // edge list's entry).
 TS_CONST uint kResolveUniform = 0;  // per pixel: samples that agree are written, others listed
@@ -244,13 +249,6 @@ TS_CONST uint kGeometricAaBindingRunnerUps = 7;
 TS_CONST uint kAlphaOpaque = 0;
 TS_CONST uint kAlphaMask = 1;
 TS_CONST uint kAlphaBlend = 2;
-// GpuMaterial.flags.z: the texture coordinate sets vis_mlaa's surface test compares (UvSeamSets,
-// renderer/scene/gpu_scene.h): a set some texture of the material reads, and whether every
-// texture reading it repeats with a period of whole uv units (a jump by whole units is no seam).
-TS_CONST uint kUvSeamSet0 = 1u;
-TS_CONST uint kUvSeamSet1 = 2u;
-TS_CONST uint kUvSeamPeriodic0 = 4u;
-TS_CONST uint kUvSeamPeriodic1 = 8u;
 
 TS_CONST uint kLightDirectional = 0;
 TS_CONST uint kLightPoint = 1;
@@ -304,7 +302,7 @@ struct GpuMaterial {
   vec4 emissive;           // rgb: emissive factor * KHR_materials_emissive_strength
   vec4 params;             // x metallic, y roughness, z normal scale, w occlusion strength
   vec4 params2;            // x alpha cutoff (MASK), yzw unused
-  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, z kUvSeam* bits, w unused
+  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, zw unused
   GpuTextureRef base_color_tex;
   GpuTextureRef metallic_roughness_tex;
   GpuTextureRef normal_tex;

@@ -3,9 +3,9 @@
 // (vis_mlaa_coverage analytic: vis_resolve_analytic.comp) found from a one-sample buffer by
 // testing each sample position against the triangles nearby pixels show and their neighbours
 // (AnalyticSamples). Two samples are on one surface when they hit the same triangle, or
-// triangles of the same drawable that share a vertex: the same index, or two vertices at almost
-// the same position whose normals are within 8.1 degrees (dot > 0.99) and whose texture
-// coordinates are the same where the material's textures read them (not a texture seam), or
+// triangles of the same drawable that share a vertex, counting as one the vertices at one
+// position whose normals are within 8.1 degrees (dot > 0.99) and whose texture coordinates are
+// the same where the material's textures read them (not a texture seam: SurfaceCorners), or
 // joined through other samples.
 // The surface owning the most samples wins (ties: the one holding the lowest sample). Writes, per pixel:
 //  - u_id: the id of the winning sample nearest the mean position of the winning samples
@@ -53,6 +53,13 @@ layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
 layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) buffer RunnerUpBlock {
   uvec2 runner_ups[];  // per edge list entry: the id to shade, PackRunnerUp (mask 0: none)
 };
+// Per index of the index buffer, the vertex standing for it in the surface test (SurfaceIndices,
+// renderer/scene/adjacency.h), read as the indices are (vis.glsl's kVisTexels).
+layout(set = kVisSet, binding = kResolveBindingSurfaces, std430) readonly buffer SurfaceBlock {
+  uint surfaces[];
+};
+layout(set = kVisSet, binding = kResolveBindingSurfaceTexels) uniform usamplerBuffer
+    surface_texels;
 #include "common/shade_append.glsl"
 
 // The entry an id's pixels are counted in: its drawable's material's, or the sky's (the entry
@@ -70,63 +77,37 @@ layout(constant_id = 0) const uint kSamples = 4u;
 // the uniform pass paid for the grouping's arithmetic on every pixel).
 layout(constant_id = 1) const uint kMode = 0u;
 
-// Whether two vertices' texture coordinates (xy set 0, zw set 1) are the same in the sets a
-// material's textures read (`sets`, GpuMaterial.flags.z: kUvSeam*), within 1e-4 of a uv unit
-// (relative past 1: a vertex written twice differs by rounding, a seam by texels), and where
-// every texture reading a set repeats with whole-unit periods, up to whole units (a sphere's
-// u = 0 and u = 1 meet on the same texels).
-bool UvSeamSame(vec4 u, vec4 w, uint sets) {
-  bvec4 read = bvec4((sets & kUvSeamSet0) != 0u, (sets & kUvSeamSet0) != 0u,
-                     (sets & kUvSeamSet1) != 0u, (sets & kUvSeamSet1) != 0u);
-  bvec4 periodic = bvec4((sets & kUvSeamPeriodic0) != 0u, (sets & kUvSeamPeriodic0) != 0u,
-                         (sets & kUvSeamPeriodic1) != 0u, (sets & kUvSeamPeriodic1) != 0u);
-  vec4 d = u - w;
-  d -= mix(vec4(0.0), round(d), periodic);
-  return all(lessThanEqual(mix(vec4(0.0), abs(d), read), 1e-4 * max(vec4(1.0), abs(u))));
+// The vertices standing for visibility id `id`'s triangle's corners in the surface test
+// (uvec3(0): the sky). SurfaceIndices (renderer/scene/adjacency.h) chose them on the CPU: of a
+// primitive's vertices at one position (2^-20 of its size) with normals within 8.1 degrees (dot
+// > 0.99) and the same texture coordinates in the sets the material's textures read (up to whole
+// units where they repeat), the first. Across a texture seam (DamagedHelmet's visor rim against
+// its shell) the two sides sample other texels, so they shade apart as two surfaces would; taken
+// as one, the seam was shaded once and stayed aliased (tessera-aa-quality, lavapipe: the helmet's
+// edge PSNR 27.23 -> 27.86 dB, msaa 28.09). Until 2026-11-28 the test compared the two
+// triangles' vertex positions, normals and texture coordinates here, pair by pair: 36-40 ms of
+// Sponza's 93-97 ms resolve on lavapipe (its full stack at 1280x720).
+uvec3 SurfaceCorners(uint id) {
+  if (id == 0u) return uvec3(0u);
+  uint tb = frame.aa.x;
+  uint first = DrawableIds(VisDrawable(id, tb)).z + 3u * VisTriangle(id, tb);
+  if (kVisTexels) {
+    return uvec3(texelFetch(surface_texels, int(first)).x,
+                 texelFetch(surface_texels, int(first + 1u)).x,
+                 texelFetch(surface_texels, int(first + 2u)).x);
+  }
+  return uvec3(surfaces[first], surfaces[first + 1u], surfaces[first + 2u]);
 }
 
-// Whether samples with ids a and b (their triangles' vertices va, vb) are on one surface. Written
-// with vector compares and no loops: a CPU device runs the lanes of a SIMD group together, and
-// early exits from unrolled loops cost it more than the compares.
+// Whether samples with ids a and b (their triangles' SurfaceCorners va, vb) are on one surface:
+// the same triangle, or triangles of one drawable with a corner standing for the same vertex (so
+// two triangles either side of a seam that ends at an unsplit vertex, sharing just that one, are
+// one surface). Vector compares, no loops: a CPU device runs the lanes of a SIMD group together.
 bool SameSurface(uint a, uint b, uvec3 va, uvec3 vb) {
   if (a == b) return true;
   uint tb = frame.aa.x;
   if (a == 0u || b == 0u || (a >> tb) != (b >> tb)) return false;
-  // A shared vertex index (most neighbours) needs no vertex loads. (So two triangles either side
-  // of a seam that ends at an unsplit vertex, sharing just that one, stay one surface.)
-  if (any(equal(uvec3(va.x), vb)) || any(equal(uvec3(va.y), vb)) || any(equal(uvec3(va.z), vb)))
-    return true;
-  vec3 a0 = VertexPosition(va.x), a1 = VertexPosition(va.y), a2 = VertexPosition(va.z);
-  vec3 b0 = VertexPosition(vb.x), b1 = VertexPosition(vb.y), b2 = VertexPosition(vb.z);
-  // "Almost the same position": within 0.1% of the shorter triangle's longest edge.
-  float size_a = max(distance(a0, a1), max(distance(a1, a2), distance(a2, a0)));
-  float size_b = max(distance(b0, b1), max(distance(b1, b2), distance(b2, b0)));
-  vec3 eps = vec3(1e-3 * min(size_a, size_b));
-  bvec3 near0 = lessThanEqual(vec3(distance(a0, b0), distance(a0, b1), distance(a0, b2)), eps);
-  bvec3 near1 = lessThanEqual(vec3(distance(a1, b0), distance(a1, b1), distance(a1, b2)), eps);
-  bvec3 near2 = lessThanEqual(vec3(distance(a2, b0), distance(a2, b1), distance(a2, b2)), eps);
-  if (!(any(near0) || any(near1) || any(near2))) return false;
-  // ... with normals within 8.1 degrees and the same texture coordinates in the sets the
-  // material's textures read (UvSeamSame). Across a texture seam (DamagedHelmet's visor rim
-  // against its shell) the two sides sample other texels, so they shade apart as two surfaces
-  // would; taken as one, the seam was shaded once and stayed aliased (tessera-aa-quality,
-  // lavapipe: the helmet's edge PSNR 27.23 -> 27.86 dB, msaa 28.09).
-  vec3 m0 = normalize(VertexNormal(va.x)), m1 = normalize(VertexNormal(va.y)),
-       m2 = normalize(VertexNormal(va.z));
-  vec3 n0 = normalize(VertexNormal(vb.x)), n1 = normalize(VertexNormal(vb.y)),
-       n2 = normalize(VertexNormal(vb.z));
-  const vec3 kCos = vec3(0.99);
-  uint sets = materials[DrawableIds(VisDrawable(a, tb)).y].flags.z;
-  vec4 u0 = VertexUvs(va.x), u1 = VertexUvs(va.y), u2 = VertexUvs(va.z);
-  vec4 w0 = VertexUvs(vb.x), w1 = VertexUvs(vb.y), w2 = VertexUvs(vb.z);
-  uvec3 uv0 = uvec3(UvSeamSame(u0, w0, sets), UvSeamSame(u0, w1, sets), UvSeamSame(u0, w2, sets));
-  uvec3 uv1 = uvec3(UvSeamSame(u1, w0, sets), UvSeamSame(u1, w1, sets), UvSeamSame(u1, w2, sets));
-  uvec3 uv2 = uvec3(UvSeamSame(u2, w0, sets), UvSeamSame(u2, w1, sets), UvSeamSame(u2, w2, sets));
-  uvec3 both =
-      uvec3(near0) * uv0 * uvec3(greaterThan(vec3(dot(m0, n0), dot(m0, n1), dot(m0, n2)), kCos)) +
-      uvec3(near1) * uv1 * uvec3(greaterThan(vec3(dot(m1, n0), dot(m1, n1), dot(m1, n2)), kCos)) +
-      uvec3(near2) * uv2 * uvec3(greaterThan(vec3(dot(m2, n0), dot(m2, n1), dot(m2, n2)), kCos));
-  return any(notEqual(both, uvec3(0u)));
+  return any(equal(uvec3(va.x), vb)) || any(equal(uvec3(va.y), vb)) || any(equal(uvec3(va.z), vb));
 }
 
 // The mean position of the samples in `mask`, and the id of the one nearest it.
@@ -330,14 +311,12 @@ bool OneSurfaceAround(ivec2 p) {
   uint tb = frame.aa.x;
   uint own = IdAt(p, ivec2(0));
   if (own == 0u) return false;
-  uvec3 ov = TriangleVertices(DrawableIds(VisDrawable(own, tb)), VisTriangle(own, tb));
+  uvec3 ov = SurfaceCorners(own);
   bool one = true;
   for (uint k = 0u; k < 9u; ++k) {
     uint id = IdAt(p, ivec2(int(k % 3u) - 1, int(k / 3u) - 1));
     if (!one || id == own) continue;
-    uvec3 v = id == 0u ? uvec3(0u) : TriangleVertices(DrawableIds(VisDrawable(id, tb)),
-                                                       VisTriangle(id, tb));
-    one = SameSurface(own, id, ov, v);
+    one = SameSurface(own, id, ov, SurfaceCorners(id));
   }
   return one;
 }
@@ -348,11 +327,8 @@ bool OneSurfaceAround(ivec2 p) {
 // entry `entry`'s runner-up. Returns the id to shade.
 uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
   uint tb = frame.aa.x;
-  uvec3 tv[kSamples];  // each sample's triangle's vertices (0 for none)
-  for (uint s = 0u; s < kSamples; ++s)
-    tv[s] = ids[s] == 0u ? uvec3(0u)
-                         : TriangleVertices(DrawableIds(VisDrawable(ids[s], tb)),
-                                            VisTriangle(ids[s], tb));
+  uvec3 tv[kSamples];  // each sample's SurfaceCorners
+  for (uint s = 0u; s < kSamples; ++s) tv[s] = SurfaceCorners(ids[s]);
   uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
   for (uint s = 0u; s < kSamples; ++s) same[s] = 1u << s;
   for (uint i = 0u; i < kSamples; ++i) {
@@ -399,9 +375,7 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
   uvec2 record = runner_ups[entry];
   if ((record.y & 0xffu) == 0u) return;
   uint tb = frame.aa.x;
-  uvec3 tv = record.x == 0u ? uvec3(0u)
-                            : TriangleVertices(DrawableIds(VisDrawable(record.x, tb)),
-                                               VisTriangle(record.x, tb));
+  uvec3 tv = SurfaceCorners(record.x);
   vec2 toward = RunnerUpMean(record.y) - vec2(0.5);
   float sector = atan(toward.y, toward.x) / (0.25 * 3.14159265359);
   if (sector < 0.0) sector += 8.0;
@@ -418,10 +392,7 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
     ivec2 q = p + kNeighbours[n];
     if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
     uint other = imageLoad(u_id, q).r;
-    uvec3 ov = other == 0u ? uvec3(0u)
-                           : TriangleVertices(DrawableIds(VisDrawable(other, tb)),
-                                              VisTriangle(other, tb));
-    if (SameSurface(record.x, other, tv, ov)) source = uint(n);
+    if (SameSurface(record.x, other, tv, SurfaceCorners(other))) source = uint(n);
   }
   if (source == kRunnerUpShaded) {
     atomicAdd(entries[edges].list.x, 1u);

@@ -136,7 +136,72 @@ TEST(AdjacencyTest, DemoSpheresAreClosed) {
   EXPECT_EQ(joined, edges);
 }
 
-// UvSeamSets (gpu_scene.h): which texture coordinate sets vis_mlaa's surface test compares, and
+// SurfaceIndices: each index's vertex, or the first at its position with the same normal and
+// the texture coordinates the material reads, for vis_mlaa's surface test.
+TEST(SurfaceIndicesTest, SplitVerticesStandForOneAnotherUnlessTheyDiffer) {
+  // The square's diagonal vertices 3 and 4 are 0's and 2's split copies, nothing else apart:
+  // they stand for 0 and 2; the second primitive's indices are its own.
+  EXPECT_EQ(SurfaceIndices(Square()), (std::vector<uint32_t>{0, 1, 2, 0, 2, 5, 0, 1, 2}));
+
+  CpuScene hard = Square();  // a crease: vertex 3's normal 45 degrees off
+  hard.vertices[3].normal = glm::normalize(glm::vec3(1, 0, 1));
+  EXPECT_EQ(SurfaceIndices(hard), (std::vector<uint32_t>{0, 1, 2, 3, 2, 5, 0, 1, 2}));
+  hard.vertices[3].normal = glm::normalize(glm::vec3(0.1f, 0, 1));  // 5.7 degrees: one surface
+  EXPECT_EQ(SurfaceIndices(hard)[3], 0u);
+
+  // A texture seam: vertex 4's coordinates differ, where a texture reads them.
+  auto image = std::make_shared<Image>();
+  image->width = image->height = 1;
+  image->rgba8 = {255, 255, 255, 255};
+  CpuScene seam = Square();
+  seam.textures = {Texture{image, true, WrapMode::kClampToEdge, WrapMode::kClampToEdge}};
+  seam.materials.resize(1);
+  seam.materials[0].base_color.texture = 0;
+  seam.vertices[4].uv0 = glm::vec2(0.5f, 0.0f);
+  EXPECT_EQ(SurfaceIndices(seam), (std::vector<uint32_t>{0, 1, 2, 0, 4, 5, 0, 1, 2}));
+  // A whole unit apart under a clamping texture: a seam; under a repeating one: the same texels.
+  seam.vertices[4].uv0 = glm::vec2(1.0f, 0.0f);
+  EXPECT_EQ(SurfaceIndices(seam)[4], 4u);
+  seam.textures[0].wrap_s = seam.textures[0].wrap_t = WrapMode::kRepeat;
+  EXPECT_EQ(SurfaceIndices(seam)[4], 2u);
+  // Apart in set 0 while the texture reads set 1: no seam; apart in set 1 then is one.
+  seam.vertices[4].uv0 = glm::vec2(0.5f, 0.0f);
+  seam.materials[0].base_color.texcoord = 1;
+  EXPECT_EQ(SurfaceIndices(seam)[4], 2u);
+  seam.vertices[4].uv1 = glm::vec2(0.0f, 0.25f);
+  EXPECT_EQ(SurfaceIndices(seam)[4], 4u);
+  // Untextured: the coordinates are not looked at.
+  seam.materials[0].base_color.texture = -1;
+  EXPECT_EQ(SurfaceIndices(seam)[4], 2u);
+}
+
+// A mirrored drawable's copy of its primitive's indices carries their surface indices, corner for
+// corner.
+TEST(SurfaceIndicesTest, MirroredCopiesFollowTheirIndices) {
+  CpuScene s = Square();
+  s.vertices[3].normal = glm::normalize(glm::vec3(1, 0, 1));  // so the corners differ
+  Drawable d;
+  d.primitive = 0;
+  d.world = glm::scale(glm::mat4(1.0f), glm::vec3(-1, 1, 1));
+  s.drawables.push_back(d);
+  const MirrorPlan plan = PlanMirroredRanges(s);
+  ASSERT_EQ(plan.indices, 6u);
+  std::vector<uint32_t> indices = s.indices, adjacency = TriangleAdjacency(s);
+  std::vector<uint32_t> surfaces = SurfaceIndices(s);
+  AppendMirroredRanges(s, plan, indices, adjacency, &surfaces);
+  ASSERT_EQ(surfaces.size(), indices.size());
+  for (uint32_t t = 0; t < 2; ++t) {
+    const uint32_t o = 3 * t, c = plan.first[0] + 3 * t;
+    EXPECT_EQ(surfaces[c], surfaces[o]);
+    EXPECT_EQ(surfaces[c + 1], surfaces[o + 2]);
+    EXPECT_EQ(surfaces[c + 2], surfaces[o + 1]);
+  }
+  EXPECT_EQ(surfaces[plan.first[0] + 3], 3u);  // the copy of (3, 4, 5) is (3, 5, 4)
+  EXPECT_EQ(surfaces[plan.first[0] + 4], 5u);
+  EXPECT_EQ(surfaces[plan.first[0] + 5], 2u);
+}
+
+// UvSeamSets (adjacency.h): which texture coordinate sets vis_mlaa's surface test compares, and
 // where whole-unit jumps are no seam.
 TEST(UvSeamSetsTest, TheSetsTheTexturesReadAndTheirPeriods) {
   auto image = std::make_shared<Image>();
@@ -151,18 +216,18 @@ TEST(UvSeamSetsTest, TheSetsTheTexturesReadAndTheirPeriods) {
 
   Material base;
   base.base_color.texture = 0;
-  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0);
+  EXPECT_EQ(UvSeamSets(base, textures), kUvSeamSet0 | kUvSeamPeriodic0);
   // A whole-number scale (and a 90-degree turn) keeps whole steps whole; half a scale does not.
   base.base_color.scale = glm::vec2(3.0f, 2.0f);
   base.base_color.offset = glm::vec2(0.3f, 0.7f);
-  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0);
+  EXPECT_EQ(UvSeamSets(base, textures), kUvSeamSet0 | kUvSeamPeriodic0);
   base.base_color.rotation = 1.5707963f;
-  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0);
+  EXPECT_EQ(UvSeamSets(base, textures), kUvSeamSet0 | kUvSeamPeriodic0);
   base.base_color.rotation = 0.3f;
-  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0);
+  EXPECT_EQ(UvSeamSets(base, textures), kUvSeamSet0);
   base.base_color.rotation = 0.0f;
   base.base_color.scale = glm::vec2(0.5f, 1.0f);
-  EXPECT_EQ(UvSeamSets(base, textures), gpu::kUvSeamSet0);
+  EXPECT_EQ(UvSeamSets(base, textures), kUvSeamSet0);
 
   // Set 1 read by an occlusion map that clamps on one axis: compared, not periodic; set 0 stays
   // periodic. Another texture on set 0 that mirrors makes set 0 aperiodic too.
@@ -171,9 +236,9 @@ TEST(UvSeamSetsTest, TheSetsTheTexturesReadAndTheirPeriods) {
   both.occlusion.texture = 1;
   both.occlusion.texcoord = 1;
   EXPECT_EQ(UvSeamSets(both, textures),
-            gpu::kUvSeamSet0 | gpu::kUvSeamPeriodic0 | gpu::kUvSeamSet1);
+            kUvSeamSet0 | kUvSeamPeriodic0 | kUvSeamSet1);
   both.normal.texture = 2;
-  EXPECT_EQ(UvSeamSets(both, textures), gpu::kUvSeamSet0 | gpu::kUvSeamSet1);
+  EXPECT_EQ(UvSeamSets(both, textures), kUvSeamSet0 | kUvSeamSet1);
   // A texture index out of range reads nothing.
   Material dangling;
   dangling.emissive.texture = 7;
