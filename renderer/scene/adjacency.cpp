@@ -51,13 +51,17 @@ struct Grid {
   glm::dvec3 lo;
   double step;
 };
+// `position(i)`: corner i's position, or null for none.
 template <typename Position>
 Grid GridOf(uint32_t corners, Position&& position) {
   glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
   for (uint32_t i = 0; i < corners; ++i) {
-    lo = glm::min(lo, glm::dvec3(position(i)));
-    hi = glm::max(hi, glm::dvec3(position(i)));
+    const glm::vec3* q = position(i);
+    if (!q) continue;
+    lo = glm::min(lo, glm::dvec3(*q));
+    hi = glm::max(hi, glm::dvec3(*q));
   }
+  if (lo.x > hi.x) return {glm::dvec3(0.0), 1.0};  // no corner
   const glm::dvec3 size = hi - lo;
   const double extent = std::max(size.x, std::max(size.y, size.z));
   return {lo, extent > 0.0 ? std::ldexp(extent, -20) : 1.0};
@@ -103,6 +107,17 @@ uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures) {
 
 std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
   std::vector<uint32_t> out(scene.indices.begin(), scene.indices.end());
+  // The sets compared for an index range: those of every material drawn with it (primitives
+  // sharing a range: the same mesh with other materials), periodic where periodic for each.
+  std::unordered_map<uint32_t, std::pair<uint32_t, uint32_t>> range_sets;  // used, aperiodic
+  for (const Primitive& p : scene.primitives) {
+    if (p.material >= scene.materials.size()) continue;
+    const uint32_t sets = UvSeamSets(scene.materials[p.material], scene.textures);
+    auto& [used, aperiodic] = range_sets[p.first_index];
+    used |= sets & (kUvSeamSet0 | kUvSeamSet1);
+    if ((sets & kUvSeamSet0) && !(sets & kUvSeamPeriodic0)) aperiodic |= kUvSeamSet0;
+    if ((sets & kUvSeamSet1) && !(sets & kUvSeamPeriodic1)) aperiodic |= kUvSeamSet1;
+  }
   ForEachIndexRange(scene, [&](const Primitive& p, uint32_t triangles) {
     const uint32_t corners = 3 * triangles;
     auto vertex = [&](uint32_t v) -> const Vertex& { return scene.vertices[p.first_vertex + v]; };
@@ -110,12 +125,13 @@ std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
     auto inside = [&](uint32_t v) {
       return v < p.vertex_count && uint64_t(p.first_vertex) + v < scene.vertices.size();
     };
-    const Grid grid = GridOf(corners, [&](uint32_t i) -> glm::vec3 {
-      return inside(index(i)) ? vertex(index(i)).position : glm::vec3(0.0f);
+    const Grid grid = GridOf(corners, [&](uint32_t i) -> const glm::vec3* {
+      return inside(index(i)) ? &vertex(index(i)).position : nullptr;
     });
-    const uint32_t sets = p.material < scene.materials.size()
-                              ? UvSeamSets(scene.materials[p.material], scene.textures)
-                              : 0u;
+    const auto [used, aperiodic] = range_sets[p.first_index];
+    const uint32_t sets = used | ((used & kUvSeamSet0 & ~aperiodic) ? kUvSeamPeriodic0 : 0u) |
+                          ((used & kUvSeamSet1 & ~aperiodic) ? kUvSeamPeriodic1 : 0u);
+    auto cell_of = [&](const glm::vec3& q) { return (glm::dvec3(q) - grid.lo) / grid.step; };
     // Per grid cell, the vertices standing for themselves there; per vertex, the one it stands
     // for (kNoNeighbour: not met yet).
     std::unordered_map<Point, std::vector<uint32_t>, absl::Hash<Point>> cells;
@@ -128,18 +144,31 @@ std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
         const Vertex& a = vertex(v);
         const glm::vec3 n = glm::normalize(a.normal);
         const glm::vec4 uv(a.uv0, a.uv1);
-        std::vector<uint32_t>& cell = cells[Snap(a.position, grid.lo, grid.step)];
-        for (uint32_t r : cell) {
-          const Vertex& b = vertex(r);
-          if (glm::dot(n, glm::normalize(b.normal)) > 0.99f &&
-              UvSeamSame(uv, glm::vec4(b.uv0, b.uv1), sets)) {
-            stands[v] = r;
-            break;
+        // The same position: within half a cell on each axis, so in the vertex's own cell or
+        // the next one on the side of the cell's centre it lies (8 cells): a seam's vertices
+        // computed apart (a sphere's at 0 and 2 pi) meet across a cell border too.
+        const glm::dvec3 q = cell_of(a.position);
+        const Point k = {std::llround(q.x), std::llround(q.y), std::llround(q.z)};
+        for (int c = 0; c < 8 && stands[v] == kNoNeighbour; ++c) {
+          Point probe = k;
+          for (int axis = 0; axis < 3; ++axis)
+            if (c & (1 << axis)) probe[axis] += q[axis] >= double(k[axis]) ? 1 : -1;
+          const auto found = cells.find(probe);
+          if (found == cells.end()) continue;
+          for (uint32_t r : found->second) {
+            const Vertex& b = vertex(r);
+            const glm::dvec3 d = glm::abs(cell_of(b.position) - q);
+            if (std::max(d.x, std::max(d.y, d.z)) <= 0.5 &&
+                glm::dot(n, glm::normalize(b.normal)) > 0.99f &&
+                UvSeamSame(uv, glm::vec4(b.uv0, b.uv1), sets)) {
+              stands[v] = r;
+              break;
+            }
           }
         }
         if (stands[v] == kNoNeighbour) {
           stands[v] = v;
-          cell.push_back(v);
+          cells[k].push_back(v);
         }
       }
       out[p.first_index + i] = stands[v];
@@ -157,7 +186,7 @@ std::vector<uint32_t> TriangleAdjacency(const CpuScene& scene) {
     auto position = [&](uint32_t i) -> const glm::vec3& {
       return scene.vertices[p.first_vertex + scene.indices[p.first_index + i]].position;
     };
-    const Grid grid = GridOf(3 * triangles, position);
+    const Grid grid = GridOf(3 * triangles, [&](uint32_t i) { return &position(i); });
     const glm::dvec3 lo = grid.lo;
     const double step = grid.step;
     // A map per primitive, sized for it (clearing one shared map costs its largest bucket array

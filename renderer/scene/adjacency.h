@@ -31,14 +31,17 @@ uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures);
 
 // For vis_mlaa's surface test (common/vis_resolve.glsl, SameSurface: two triangles of a
 // drawable are on one surface where they share a vertex): one entry per index of scene.indices,
-// the primitive's vertex (numbered as its indices are) that stands for that index's vertex, the
-// first of the primitive's vertices, in index order, at the same position (TriangleAdjacency's
-// grid: 2^-20 of the primitive's size) whose normal is within 8.1 degrees (dot > 0.99) and whose
-// texture coordinates agree, within 1e-4 (relative past 1 uv unit), in the sets UvSeamSets
-// names for its material (up to whole units where they repeat). So vertices split for a hard
-// edge or a texture seam stand apart, and those split for nothing (or for a set no texture
-// reads) stand for one another. Index ranges as TriangleAdjacency's; an index past its
-// primitive's vertices stands for itself.
+// the primitive's vertex (numbered as its indices are) that stands for that index's vertex: the
+// first of the primitive's vertices met in index order that stands for itself, is at the same
+// position (within half a cell of TriangleAdjacency's grid, 2^-20 of the primitive's size, on
+// each axis), has a normal within 8.1 degrees (dot > 0.99) and texture coordinates that agree,
+// within 1e-4 (relative past 1 uv unit), in the sets UvSeamSets names (up to whole units where
+// they repeat). So vertices split for a hard edge or a texture seam stand apart, and those split
+// for nothing (or for a set no texture reads) stand for one another. Index ranges as
+// TriangleAdjacency's; primitives sharing one (the same mesh with other materials) compare the
+// sets any of their materials reads (periodic where periodic for all). Posed (skinned or
+// morphed) vertices keep the answer for their rest positions. An index past its primitive's
+// vertices stands for itself.
 std::vector<uint32_t> SurfaceIndices(const CpuScene& scene);
 
 }  // namespace tessera

@@ -79,14 +79,14 @@ layout(constant_id = 1) const uint kMode = 0u;
 
 // The vertices standing for visibility id `id`'s triangle's corners in the surface test
 // (uvec3(0): the sky). SurfaceIndices (renderer/scene/adjacency.h) chose them on the CPU: of a
-// primitive's vertices at one position (2^-20 of its size) with normals within 8.1 degrees (dot
+// primitive's vertices at one position (within 2^-21 of its size) with normals within 8.1 degrees (dot
 // > 0.99) and the same texture coordinates in the sets the material's textures read (up to whole
 // units where they repeat), the first. Across a texture seam (DamagedHelmet's visor rim against
 // its shell) the two sides sample other texels, so they shade apart as two surfaces would; taken
 // as one, the seam was shaded once and stayed aliased (tessera-aa-quality, lavapipe: the helmet's
 // edge PSNR 27.23 -> 27.86 dB, msaa 28.09). Until 2026-11-28 the test compared the two
 // triangles' vertex positions, normals and texture coordinates here, pair by pair: 36-40 ms of
-// Sponza's 93-97 ms resolve on lavapipe (its full stack at 1280x720).
+// Sponza's 91-100 ms resolve on lavapipe (its full stack at 1280x720).
 uvec3 SurfaceCorners(uint id) {
   if (id == 0u) return uvec3(0u);
   uint tb = frame.aa.x;
@@ -308,7 +308,6 @@ void AnalyticSamples(ivec2 p, out uint ids[kSamples]) {
 // all run the triangle tests: there lavapipe's 8-lane groups skipped them only where all 8 lanes
 // were inside a surface (the resolve 864 -> 719 ms, against 387 here, aa-quality's Sponza view).
 bool OneSurfaceAround(ivec2 p) {
-  uint tb = frame.aa.x;
   uint own = IdAt(p, ivec2(0));
   if (own == 0u) return false;
   uvec3 ov = SurfaceCorners(own);

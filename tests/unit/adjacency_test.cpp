@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "renderer/scene/demo_scene.h"
@@ -173,6 +174,24 @@ TEST(SurfaceIndicesTest, SplitVerticesStandForOneAnotherUnlessTheyDiffer) {
   // Untextured: the coordinates are not looked at.
   seam.materials[0].base_color.texture = -1;
   EXPECT_EQ(SurfaceIndices(seam)[4], 2u);
+  // ... unless another primitive draws the same index range with a material that does.
+  seam.materials.resize(2);
+  seam.materials[1].base_color.texture = 0;
+  seam.materials[1].base_color.texcoord = 1;
+  Primitive textured = seam.primitives[0];
+  textured.material = 1;
+  seam.primitives.push_back(textured);
+  EXPECT_EQ(SurfaceIndices(seam)[4], 4u);
+
+  // The same position within half a cell of the grid (2^-20 of the square's size), across a cell
+  // border too; further apart, two positions.
+  CpuScene near = Square();
+  const float cell = std::ldexp(1.0f, -20);
+  near.vertices[0].position.x = 0.45f * cell;
+  near.vertices[3].position.x = 0.55f * cell;  // the next cell
+  EXPECT_EQ(SurfaceIndices(near)[3], 0u);
+  near.vertices[3].position.x = 1.1f * cell;
+  EXPECT_EQ(SurfaceIndices(near)[3], 3u);
 }
 
 // A mirrored drawable's copy of its primitive's indices carries their surface indices, corner for
