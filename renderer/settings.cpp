@@ -206,7 +206,8 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     // 19.3 ms, with edges within 0.04 dB of raster's on Sponza and the helmet (0.9 dB below on
     // the wire scene; measured before the resolve stopped listing the pixels inside a surface,
     // which halved it on lavapipe). On lavapipe its resolve costs more than the samples it
-    // saves (the frame 1.45-1.6x raster's), so CPU devices keep raster.
+    // saves (the frame 1.45-1.6x raster's; 1.38x on plain Sponza since the surface test moved to
+    // the scene's upload, 2026-11-28), so CPU devices keep raster.
     e.vis_mlaa_coverage = caps.cpu ? VisMlaaCoverage::kRaster : VisMlaaCoverage::kAnalytic;
   }
   if (e.light_binning == LightBinning::kAuto) {
