@@ -84,40 +84,50 @@ bool UvSeamSame(const glm::vec4& u, const glm::vec4& w, uint32_t sets) {
 
 }  // namespace
 
-uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures) {
-  uint32_t used = 0, aperiodic = 0;
-  for (const TextureRef* ref :
-       {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
-    if (ref->texture < 0 || static_cast<size_t>(ref->texture) >= textures.size()) continue;
-    const uint32_t set = std::min(ref->texcoord, 1u);
-    used |= 1u << set;
-    const Texture& t = textures[ref->texture];
-    const glm::mat3 u = ref->uv_transform();
-    bool periodic = t.wrap_s == WrapMode::kRepeat && t.wrap_t == WrapMode::kRepeat;
-    for (int c = 0; c < 2; ++c)
-      for (int r = 0; r < 2; ++r)
-        periodic = periodic && std::abs(u[c][r] - std::round(u[c][r])) <= 1e-6f;
-    if (!periodic) aperiodic |= 1u << set;
+namespace {
+
+// The texture coordinate sets one or more materials' textures read, and those of them some
+// texture reads without whole-unit periods (bit k: set k), as UvSeamSets' bits.
+struct UvUse {
+  uint32_t read = 0, aperiodic = 0;
+  void Add(const Material& m, const std::vector<Texture>& textures) {
+    for (const TextureRef* ref :
+         {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
+      if (ref->texture < 0 || static_cast<size_t>(ref->texture) >= textures.size()) continue;
+      const uint32_t set = 1u << std::min(ref->texcoord, 1u);
+      read |= set;
+      const Texture& t = textures[ref->texture];
+      const glm::mat3 u = ref->uv_transform();
+      bool periodic = t.wrap_s == WrapMode::kRepeat && t.wrap_t == WrapMode::kRepeat;
+      for (int c = 0; c < 2; ++c)
+        for (int r = 0; r < 2; ++r)
+          periodic = periodic && std::abs(u[c][r] - std::round(u[c][r])) <= 1e-6f;
+      if (!periodic) aperiodic |= set;
+    }
   }
-  uint32_t out = 0;
-  if (used & 1u) out |= kUvSeamSet0 | ((aperiodic & 1u) ? 0u : kUvSeamPeriodic0);
-  if (used & 2u) out |= kUvSeamSet1 | ((aperiodic & 2u) ? 0u : kUvSeamPeriodic1);
-  return out;
+  uint32_t Sets() const {
+    static_assert(kUvSeamSet0 == 1u && kUvSeamSet1 == 2u && kUvSeamPeriodic0 == kUvSeamSet0 << 2 &&
+                  kUvSeamPeriodic1 == kUvSeamSet1 << 2);
+    return read | (read & ~aperiodic) << 2;
+  }
+};
+
+}  // namespace
+
+uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures) {
+  UvUse use;
+  use.Add(m, textures);
+  return use.Sets();
 }
 
 std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
   std::vector<uint32_t> out(scene.indices.begin(), scene.indices.end());
   // The sets compared for an index range: those of every material drawn with it (primitives
   // sharing a range: the same mesh with other materials), periodic where periodic for each.
-  std::unordered_map<uint32_t, std::pair<uint32_t, uint32_t>> range_sets;  // used, aperiodic
-  for (const Primitive& p : scene.primitives) {
-    if (p.material >= scene.materials.size()) continue;
-    const uint32_t sets = UvSeamSets(scene.materials[p.material], scene.textures);
-    auto& [used, aperiodic] = range_sets[p.first_index];
-    used |= sets & (kUvSeamSet0 | kUvSeamSet1);
-    if ((sets & kUvSeamSet0) && !(sets & kUvSeamPeriodic0)) aperiodic |= kUvSeamSet0;
-    if ((sets & kUvSeamSet1) && !(sets & kUvSeamPeriodic1)) aperiodic |= kUvSeamSet1;
-  }
+  std::unordered_map<uint32_t, UvUse> range_use;  // by first index
+  for (const Primitive& p : scene.primitives)
+    if (p.material < scene.materials.size())
+      range_use[p.first_index].Add(scene.materials[p.material], scene.textures);
   ForEachIndexRange(scene, [&](const Primitive& p, uint32_t triangles) {
     const uint32_t corners = 3 * triangles;
     auto vertex = [&](uint32_t v) -> const Vertex& { return scene.vertices[p.first_vertex + v]; };
@@ -128,9 +138,7 @@ std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
     const Grid grid = GridOf(corners, [&](uint32_t i) -> const glm::vec3* {
       return inside(index(i)) ? &vertex(index(i)).position : nullptr;
     });
-    const auto [used, aperiodic] = range_sets[p.first_index];
-    const uint32_t sets = used | ((used & kUvSeamSet0 & ~aperiodic) ? kUvSeamPeriodic0 : 0u) |
-                          ((used & kUvSeamSet1 & ~aperiodic) ? kUvSeamPeriodic1 : 0u);
+    const uint32_t sets = range_use[p.first_index].Sets();
     auto cell_of = [&](const glm::vec3& q) { return (glm::dvec3(q) - grid.lo) / grid.step; };
     // Per grid cell, the vertices standing for themselves there; per vertex, the one it stands
     // for (kNoNeighbour: not met yet).

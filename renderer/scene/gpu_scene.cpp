@@ -114,10 +114,10 @@ MirrorPlan PlanMirroredRanges(const CpuScene& scene) {
 
 void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
                           std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency,
-                          std::vector<uint32_t>* surfaces) {
+                          std::vector<uint32_t>& surfaces) {
   indices.resize(scene.indices.size() + plan.indices);
   adjacency.resize(indices.size(), kNoNeighbour);
-  if (surfaces) surfaces->resize(indices.size(), 0);
+  surfaces.resize(indices.size(), 0);
   for (uint32_t p = 0; p < plan.first.size(); ++p) {
     if (plan.first[p] == kNotMirrored) continue;
     const uint32_t from = scene.primitives[p].first_index, to = plan.first[p];
@@ -125,18 +125,15 @@ void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
       // (a, b, c) -> (a, c, b): its edges a-c, c-b, b-a are the original's third, second and
       // first, so each takes that edge's neighbour (the same triangle numbers).
       const uint32_t i = from + 3 * t, o = to + 3 * t;
-      indices[o] = indices[i];
-      indices[o + 1] = indices[i + 2];
-      indices[o + 2] = indices[i + 1];
+      for (std::vector<uint32_t>* corners : {&indices, &surfaces}) {
+        std::vector<uint32_t>& c = *corners;
+        c[o] = c[i];
+        c[o + 1] = c[i + 2];
+        c[o + 2] = c[i + 1];
+      }
       adjacency[o] = adjacency[i + 2];
       adjacency[o + 1] = adjacency[i + 1];
       adjacency[o + 2] = adjacency[i];
-      if (surfaces) {
-        std::vector<uint32_t>& f = *surfaces;
-        f[o] = f[i];
-        f[o + 1] = f[i + 2];
-        f[o + 2] = f[i + 1];
-      }
     }
   }
 }
@@ -736,7 +733,7 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   std::vector<uint32_t> mirrored;
   if (mirrors_.indices > 0) {
     mirrored = scene.indices;
-    AppendMirroredRanges(scene, mirrors_, mirrored, adjacency, &surfaces);
+    AppendMirroredRanges(scene, mirrors_, mirrored, adjacency, surfaces);
   }
   const std::vector<uint32_t>& indices = mirrors_.indices > 0 ? mirrored : scene.indices;
   st = Keep(indices_,

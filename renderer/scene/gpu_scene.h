@@ -100,10 +100,10 @@ struct MirrorPlan {
 MirrorPlan PlanMirroredRanges(const CpuScene& scene);
 // Appends the copies to `indices` (the scene's) and their neighbours to `adjacency`
 // (TriangleAdjacency's: each copy's triangles keep their numbers, and so their neighbours).
-// `surfaces` (SurfaceIndices', adjacency.h; may be null) likewise, corner for corner as the indices.
+// `surfaces` (SurfaceIndices', adjacency.h) likewise, corner for corner as the indices.
 void AppendMirroredRanges(const CpuScene& scene, const MirrorPlan& plan,
                           std::vector<uint32_t>& indices, std::vector<uint32_t>& adjacency,
-                          std::vector<uint32_t>* surfaces = nullptr);
+                          std::vector<uint32_t>& surfaces);
 
 class GpuScene {
  public:

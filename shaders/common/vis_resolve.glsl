@@ -325,7 +325,6 @@ bool OneSurfaceAround(ivec2 p) {
 // for the surface with the most samples (ties: the one holding the lowest sample), and edge list
 // entry `entry`'s runner-up. Returns the id to shade.
 uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
-  uint tb = frame.aa.x;
   uvec3 tv[kSamples];  // each sample's SurfaceCorners
   for (uint s = 0u; s < kSamples; ++s) tv[s] = SurfaceCorners(ids[s]);
   uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
@@ -373,7 +372,6 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
 void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
   uvec2 record = runner_ups[entry];
   if ((record.y & 0xffu) == 0u) return;
-  uint tb = frame.aa.x;
   uvec3 tv = SurfaceCorners(record.x);
   vec2 toward = RunnerUpMean(record.y) - vec2(0.5);
   float sector = atan(toward.y, toward.x) / (0.25 * 3.14159265359);

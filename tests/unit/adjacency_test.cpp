@@ -73,8 +73,9 @@ TEST(AdjacencyTest, MirroredCopiesKeepTheirNeighbours) {
   EXPECT_EQ(plan.first[0], 9u);  // after the scene's nine indices
   EXPECT_EQ(plan.first[1], kNotMirrored);
   EXPECT_EQ(plan.indices, 6u);
-  std::vector<uint32_t> indices = s.indices, adjacency = TriangleAdjacency(s);
-  AppendMirroredRanges(s, plan, indices, adjacency);
+  std::vector<uint32_t> indices = s.indices, adjacency = TriangleAdjacency(s),
+                        surfaces = SurfaceIndices(s);
+  AppendMirroredRanges(s, plan, indices, adjacency, surfaces);
   ASSERT_EQ(indices.size(), 15u);
   ASSERT_EQ(adjacency.size(), 15u);
   for (uint32_t t = 0; t < 2; ++t) {
@@ -207,7 +208,7 @@ TEST(SurfaceIndicesTest, MirroredCopiesFollowTheirIndices) {
   ASSERT_EQ(plan.indices, 6u);
   std::vector<uint32_t> indices = s.indices, adjacency = TriangleAdjacency(s);
   std::vector<uint32_t> surfaces = SurfaceIndices(s);
-  AppendMirroredRanges(s, plan, indices, adjacency, &surfaces);
+  AppendMirroredRanges(s, plan, indices, adjacency, surfaces);
   ASSERT_EQ(surfaces.size(), indices.size());
   for (uint32_t t = 0; t < 2; ++t) {
     const uint32_t o = 3 * t, c = plan.first[0] + 3 * t;
