@@ -48,7 +48,9 @@ uint32_t ShadingEffects(const Settings& s) {
 ShadingConstants ShadingConstantsFor(const Settings& s, const FrameFeatures& features,
                                      uint32_t textures) {
   ShadingConstants c;
-  c.effects = ShadingEffects(s);
+  // The tile lists' loop only where there are local lights: lavapipe runs a loop's body at
+  // least once, masked, even for an empty list (plain Sponza's shading 79-81 -> 69-71 ms).
+  c.effects = ShadingEffects(s) | (features.local_lights > 0 ? gpu::kLocalLightsOn : 0u);
   c.textures = textures;
   c.debug = ShadingDebugView(s);
   c.light_texels = features.light_texels ? 1u : 0u;

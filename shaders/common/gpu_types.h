@@ -71,8 +71,10 @@ TS_CONST uint kMaxShadowViews = 4 + kMaxShadowedLights * 6;
 TS_CONST uint kShadowsOn = 1u;
 TS_CONST uint kSsaoOn = 2u;
 // shading.glsl's specialization constant 0, the effects its pipeline has code for:
-// kShadowsOn | kSsaoOn | kIblOn.
+// kShadowsOn | kSsaoOn | kIblOn | kLocalLightsOn (the frame has point or spot lights with a
+// range: the tile lists' loop).
 TS_CONST uint kIblOn = 4u;
+TS_CONST uint kLocalLightsOn = 8u;
 // ---- the light-culling compute pass (its own set 0) ------------------------------------------
 TS_CONST uint kCullBindingFrame = 0;        // uniform FrameUniforms
 TS_CONST uint kCullBindingLightBounds = 1;  // buffer GpuLightBounds[]

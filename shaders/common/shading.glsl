@@ -50,6 +50,7 @@ layout(constant_id = 0) const uint kLightingEffects = 0u;
 const bool kShadowCode = (kLightingEffects & kShadowsOn) != 0u;
 const bool kSsaoCode = (kLightingEffects & kSsaoOn) != 0u;
 const bool kIblCode = (kLightingEffects & kIblOn) != 0u;
+const bool kLocalLightCode = (kLightingEffects & kLocalLightsOn) != 0u;
 // The texture slots the shaded materials have (gpu::kMaterialTexturesAll: any): a pipeline per set
 // of slots a scene's materials use, so the sampling code of the slots they lack is not there at
 // all (lavapipe ran it under a lane mask: Sponza, whose materials have no occlusion or emissive
@@ -152,15 +153,19 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     }
   }
   uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
-  uint count = tiled ? tile_count : frame.lighting.x;
-  uint base = tile * kMaxLightsPerTile;
-  for (uint k = 0u; k < count; ++k) {
-    GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
-    vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
-    if (with_shadows && light.spot.z > 0.0) {
-      shadowed |= 1u << uint(light.spot.w);
-    } else {
-      color += c;
+  // Only in pipelines for frames with local lights (kLocalLightCode): lavapipe runs the loop's
+  // body once, masked, for an empty list too.
+  if (kLocalLightCode) {
+    uint count = tiled ? tile_count : frame.lighting.x;
+    uint base = tile * kMaxLightsPerTile;
+    for (uint k = 0u; k < count; ++k) {
+      GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
+      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
+      if (with_shadows && light.spot.z > 0.0) {
+        shadowed |= 1u << uint(light.spot.w);
+      } else {
+        color += c;
+      }
     }
   }
   while (with_shadows && (sun != ~0u || shadowed != 0u)) {
@@ -249,7 +254,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   uint tile = uint(SHADING_PIXEL.y) / tile_size * frame.lighting.z + uint(SHADING_PIXEL.x) / tile_size;
   // Blended surfaces are not in the prepass depth the lists were culled against: brute force.
   bool tiled = (frame.lighting.w & 1u) != 0u && m.flags.x != kAlphaBlend;
-  uint tile_count = tiled ? (tile_counts[tile] & ~kTileOverflowBit) : 0u;
+  uint tile_count = tiled && kLocalLightCode ? (tile_counts[tile] & ~kTileOverflowBit) : 0u;
   if (debug_view == kDebugLightHeatmap) {
     return vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
   }

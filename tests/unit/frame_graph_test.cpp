@@ -893,7 +893,7 @@ namespace {
 TEST(ShadingConstantsTest, KeysRoundTripAndNeverCollide) {
   std::set<uint32_t> keys;
   size_t count = 0;
-  for (uint32_t effects = 0; effects < 8; ++effects)
+  for (uint32_t effects = 0; effects < 16; ++effects)
     for (uint32_t textures = 0; textures <= gpu::kMaterialTexturesAll; ++textures)
       for (uint32_t debug : {gpu::kDebugNone, gpu::kDebugNormals, gpu::kDebugDepth,
                              gpu::kDebugBaseColor, gpu::kDebugLightHeatmap, gpu::kDebugCascades})
@@ -927,6 +927,11 @@ TEST(ShadingConstantsTest, FollowTheSettingsAndTheFrame) {
   EXPECT_EQ(c.vis_texels, 0u);  // the visibility shading sets it from its scene
   features.light_texels = false;
   EXPECT_EQ(ShadingConstantsFor(Settings{}, features, 0u).Key(), 0u);
+  // The tile lists' loop only in frames with local lights.
+  features.local_lights = 3;
+  EXPECT_EQ(ShadingConstantsFor(s, features, 5u).effects,
+            gpu::kShadowsOn | gpu::kIblOn | gpu::kLocalLightsOn);
+  EXPECT_EQ(ShadingConstantsFor(Settings{}, features, 0u).effects, gpu::kLocalLightsOn);
 }
 
 }  // namespace
