@@ -24,6 +24,11 @@ struct DeviceFallback {
 // (DeviceInfo below).
 const std::vector<std::string>& DisableableFeatures();
 
+// How the visibility classification and vis_mlaa's resolve add pixels to the materials' lists
+// where compute shaders have ballots (DeviceInfo::subgroup_appends): kAuto, the way measured
+// faster on the kind of device, or one way forced, so that tests run both on one device.
+enum class AppendMode { kAuto, kSubgroup, kPixel };
+
 // What the server and clients need to know about the device.
 struct DeviceInfo {
   std::string name;                  // VkPhysicalDeviceProperties::deviceName
@@ -59,9 +64,14 @@ struct DeviceInfo {
   bool texel_buffers = false;
   uint32_t max_texel_buffer_elements = 0;  // maxTexelBufferElements
   uint32_t subgroup_size = 1;
-  // Compute shaders have subgroup basic and ballot operations (the visibility pipeline's
-  // classification aggregates its atomics per subgroup with them).
+  // Compute shaders have subgroup basic and ballot operations.
   bool subgroup_ballot = false;
+  // The visibility classification and vis_mlaa's resolve add each subgroup's pixels of one
+  // material to its list with one atomic (ballots), else each pixel with its own. Per subgroup
+  // where the device has ballots and is not a CPU device (AppendMode::kAuto): on lavapipe the
+  // ballots' lane loops cost more than the atomics they save (Sponza 1280x720: classification
+  // 18.0 -> 13.6 ms per pixel, vis_mlaa's resolve 57-64 -> 53-55 ms).
+  bool subgroup_appends = false;
   // Compute shaders have subgroup arithmetic (the culling's prefix sum; else shared memory).
   bool subgroup_arithmetic = false;
   // vkCmdDrawIndexedIndirectCount (drawIndirectCount); else every indirect draw runs its list's

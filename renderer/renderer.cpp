@@ -43,7 +43,7 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
   ASSIGN_OR_RETURN(impl->ctx, vk::Context::Create(
                                  {options.device_name, options.validation,
                                   options.disable_features,
-                                  options.max_storage_buffer_range}));
+                                  options.max_storage_buffer_range, options.appends}));
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
     int64_t frames = -1;

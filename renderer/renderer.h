@@ -31,6 +31,9 @@ struct RendererOptions {
   // Treat the device's storage buffer range as at most this many bytes (0: the device's), to
   // test what a scene larger than a device's storage buffers does (vk::ContextOptions).
   uint64_t max_storage_buffer_range = 0;
+  // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends): kAuto, by
+  // the kind of device; forced, to test both ways on one device.
+  AppendMode appends = AppendMode::kAuto;
 };
 
 // What a loaded scene is, without its geometry.

@@ -143,8 +143,9 @@ class VisResolvePass final : public Pass {
   // A pipeline per sample count (vis_resolve.comp's kSamples) and mode (kMode: each dispatch's
   // shader holds only its own code; one shader for the four cost lavapipe the grouping's
   // arithmetic on every pixel of the uniform pass); one atomic per subgroup and material where
-  // compute shaders have ballots, else per pixel (vis_resolve_atomic.comp); and per way of
-  // reading the scene's triangles (vis.glsl's kVisTexels).
+  // the device appends so (DeviceInfo::subgroup_appends), else per pixel
+  // (vis_resolve_atomic.comp); and per way of reading the scene's triangles (vis.glsl's
+  // kVisTexels).
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures&) override {
     if (s.aa != AaMode::kVisMlaa) return absl::OkStatus();
@@ -156,7 +157,7 @@ class VisResolvePass final : public Pass {
             made[mode],
             vk::CreateComputePipeline(
                 ctx, absl::StrCat("vis_resolve.", absl::Hex(key)),
-                ShaderFor(key >> 9, ctx.info().subgroup_ballot), layout_.pipeline_layout(),
+                ShaderFor(key >> 9, ctx.info().subgroup_appends), layout_.pipeline_layout(),
                 {key & 0xffu, mode, 0u, (key >> 8) & 1u}));
       }
       return made;

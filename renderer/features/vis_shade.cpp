@@ -122,7 +122,7 @@ class VisClassifyPass final : public Pass {
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures& features) override {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
-    const bool ballots = ctx.info().subgroup_ballot;
+    const bool ballots = ctx.info().subgroup_appends;
     return (vis_mlaa ? mlaa_pipelines_ : pipelines_)
         .Ensure(Key(s, scene, features), [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
           const uint32_t texels = key & 1u, ibl = (key >> 1) & 1u, count_background = key >> 2;

@@ -181,7 +181,7 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   }
   RETURN_IF_ERROR(ctx->InitInstance(validation));
   RETURN_IF_ERROR(ctx->PickDevice(wanted));
-  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled));
+  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled, options.appends));
   if (options.max_storage_buffer_range != 0) {
     uint32_t& range = ctx->limits_.maxStorageBufferRange;
     range = uint32_t(std::min<uint64_t>(range, options.max_storage_buffer_range));
@@ -407,7 +407,8 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
 
 }  // namespace
 
-absl::Status Context::InitDevice(bool validation, const std::vector<std::string>& disabled) {
+absl::Status Context::InitDevice(bool validation, const std::vector<std::string>& disabled,
+                                 AppendMode appends) {
   auto off = [&](const char* name) {
     return std::find(disabled.begin(), disabled.end(), name) != disabled.end();
   };
@@ -448,6 +449,9 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   DeviceInfo& info = info_;
   if (off("subgroup_arithmetic")) info.subgroup_arithmetic = false;
   if (off("subgroup_ballot")) info.subgroup_ballot = false;
+  info.subgroup_appends =
+      info.subgroup_ballot && (appends == AppendMode::kSubgroup ||
+                               (appends == AppendMode::kAuto && info.type != "cpu"));
   if (off("visibility_buffer")) info.visibility_buffer = false;
   if (off("material_variants")) info.material_variants = false;
   if (off("texel_buffers")) info.texel_buffers = false;

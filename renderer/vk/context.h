@@ -33,6 +33,9 @@ struct ContextOptions {
   // device's own range, and buffers sized below Vulkan's minimum range (128 MiB) are not checked
   // against it.
   uint64_t max_storage_buffer_range = 0;
+  // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends); kAuto: by
+  // the kind of device.
+  AppendMode appends = AppendMode::kAuto;
 };
 
 class Context {
@@ -79,7 +82,8 @@ class Context {
   // its queue family, then the device with the features Tessera uses (and DeviceInfo).
   absl::Status InitInstance(bool validation);
   absl::Status PickDevice(const std::string& wanted);
-  absl::Status InitDevice(bool validation, const std::vector<std::string>& disabled);
+  absl::Status InitDevice(bool validation, const std::vector<std::string>& disabled,
+                          AppendMode appends);
   void DescribeDevice(const VkPhysicalDeviceProperties& p,
                       const VkPhysicalDeviceDriverProperties& driver,
                       const VkPhysicalDeviceFeatures& supported, bool validation);

@@ -274,7 +274,10 @@ int main(int argc, char** argv) {
 
   nlohmann::json out;
   const DeviceInfo& dev = (*renderer)->device_info();
-  out["device"] = {{"name", dev.name}, {"type", dev.type}, {"driver", dev.driver_info}};
+  out["device"] = {{"name", dev.name},
+                   {"type", dev.type},
+                   {"driver", dev.driver_info},
+                   {"appends", dev.subgroup_appends ? "subgroup" : "pixel"}};
   out["scene"] = {{"name", info.name},
                   {"triangles", info.counts.triangles},
                   {"primitives", info.counts.primitives},

@@ -260,7 +260,14 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // buffers (texel_buffers). Each frame must equal the one the full feature set renders, pixel for
 // pixel, in every culling mode and both pipelines; and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
-  Renderer& r = SharedRenderer();
+  // The full feature set appends per subgroup even on a CPU device (which by default appends
+  // per pixel: DeviceInfo::subgroup_appends), so the lean device's per-pixel appends are
+  // compared with the ballots'.
+  absl::StatusOr<std::unique_ptr<Renderer>> full =
+      Renderer::Create({.validation = true, .appends = AppendMode::kSubgroup});
+  ASSERT_TRUE(full.ok()) << full.status();
+  Renderer& r = **full;
+  EXPECT_EQ(r.device_info().subgroup_appends, r.device_info().subgroup_ballot);
   absl::StatusOr<std::unique_ptr<Renderer>> lean = Renderer::Create(
       {.validation = true,
        .disable_features = {"draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic",
@@ -273,6 +280,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_FALSE(info.subgroup_arithmetic);
   EXPECT_FALSE(info.sampler_minmax);
   EXPECT_FALSE(info.subgroup_ballot);
+  EXPECT_FALSE(info.subgroup_appends);
   EXPECT_FALSE(info.material_variants);
   EXPECT_TRUE(r.device_info().material_variants);
   EXPECT_FALSE(info.texel_buffers);
@@ -480,6 +488,18 @@ TEST(FallbackTest, SceneLargerThanTheStorageBufferRange) {
 }
 
 // Feature names are checked: a typo must not silently test the full path.
+// The visibility passes append per subgroup where the device has ballots and is not a CPU
+// device, unless told otherwise (DeviceInfo::subgroup_appends).
+TEST(FallbackTest, AppendsFollowTheKindOfDeviceUnlessForced) {
+  const DeviceInfo& d = SharedRenderer().device_info();
+  EXPECT_EQ(d.subgroup_appends, d.subgroup_ballot && d.type != "cpu") << d.type;
+  absl::StatusOr<std::unique_ptr<Renderer>> pixel =
+      Renderer::Create({.validation = true, .appends = AppendMode::kPixel});
+  ASSERT_TRUE(pixel.ok()) << pixel.status();
+  EXPECT_FALSE((*pixel)->device_info().subgroup_appends);
+  EXPECT_EQ((*pixel)->device_info().subgroup_ballot, d.subgroup_ballot);
+}
+
 TEST(FallbackTest, UnknownFeatureIsRefused) {
   absl::StatusOr<std::unique_ptr<Renderer>> r =
       Renderer::Create({.disable_features = {"draw_indirect_cnt"}});
