@@ -2,6 +2,7 @@
 // prepass depth and the per-light bounds and row bins (prepared on the CPU, or, with
 // light_binning gpu, by two compute dispatches before it); a buffer barrier then hands the
 // lists to the fragment shaders, and the counts are copied out for the frame's statistics.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -173,6 +174,10 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
       (l.type == LightType::kDirectional || l.range <= 0.0f ? global : local).push_back(l);
   }
   if (global.empty() && local.empty()) global.push_back(DefaultSun());
+  // Directional lights first: the one PlaceSun shadows is then global light 0, which the
+  // shading reads at a constant index (shading.glsl's DirectLight).
+  std::stable_partition(global.begin(), global.end(),
+                        [](const Light& l) { return l.type == LightType::kDirectional; });
   if (global.size() > gpu::kMaxLights) {
     frame.settings.notes.push_back(
         {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", global.size(),

@@ -142,16 +142,11 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
                  float alpha, bool tiled, uint tile, uint tile_count, bool with_shadows) {
   vec3 color = vec3(0.0);
-  uint sun = ~0u;  // the shadowed global light
-  for (uint i = 0u; i < frame.counts.x; ++i) {
-    GpuLight light = lights[i];
-    vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
-    if (with_shadows && light.spot.z > 0.0) {
-      sun = i;
-    } else {
-      color += c;
-    }
-  }
+  // A shadowed sun is global light 0 (PrepareLights puts the directional lights first, PlaceSun
+  // shadows the first and counts its cascades in shadow.counts.y): the shadowed loop shades it.
+  bool sun = with_shadows && shadow.counts.y > 0u;
+  for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
+    color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
   uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
   // Only in pipelines for frames with local lights (kLocalLightCode): on lavapipe the loop cost
   // 10 ms of plain Sponza's shading with no light to shade.
@@ -168,11 +163,11 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       }
     }
   }
-  while (with_shadows && (sun != ~0u || shadowed != 0u)) {
+  while (with_shadows && (sun || shadowed != 0u)) {
     GpuLight light;
-    if (sun != ~0u) {
-      light = lights[sun];
-      sun = ~0u;
+    if (sun) {
+      light = lights[0];
+      sun = false;
     } else {
       uint i = uint(findLSB(shadowed));
       shadowed &= shadowed - 1u;

@@ -118,6 +118,44 @@ TEST(ShadowTest, MatchesGolden) {
   ExpectNoValidationMessages(SharedRenderer());
 }
 
+// The shading finds the shadowed sun at global light 0 (PrepareLights puts directional lights
+// first): a global light listed before the sun (a point light without a range, here of no
+// intensity) must not take its place, so the picture is the demo's own.
+TEST(ShadowTest, SunShadowWhateverTheOrderOfTheGlobalLights) {
+  CpuScene cpu = BuildDemoScene();
+  Light first;
+  first.name = "dark global point light";
+  first.type = LightType::kPoint;
+  first.intensity = 0.0f;
+  first.range = 0.0f;  // global: it reaches everywhere
+  first.position = {0.0f, 3.0f, 0.0f};
+  cpu.lights.insert(cpu.lights.begin(), first);
+  absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(cpu);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  // The forward pass, the visibility pipeline's shading and vis_mlaa's.
+  for (const auto& [pipeline, aa] : {std::pair{Pipeline::kForward, AaMode::kNone},
+                                     std::pair{Pipeline::kVisibility, AaMode::kNone},
+                                     std::pair{Pipeline::kAuto, AaMode::kVisMlaa}}) {
+    const std::string what = std::string(ToString(pipeline)) + " " + std::string(ToString(aa));
+    Settings on = Lit(true, false, aa);
+    on.pipeline = pipeline;
+    Settings off = on;
+    off.shadows = false;
+    const Frame reordered = RenderOrDie(**scene, BackCamera(), on);
+    const Frame demo = RenderOrDie(*SharedDemoScene(), BackCamera(), on);
+    EXPECT_EQ(reordered.stats.shadowed_lights, demo.stats.shadowed_lights) << what;
+    absl::StatusOr<double> psnr = Psnr(reordered.image, demo.image);
+    ASSERT_TRUE(psnr.ok());
+    EXPECT_GT(*psnr, 60.0) << what;
+    const glm::vec3 q = GoldSphereShadow();
+    const Frame unshadowed = RenderOrDie(**scene, BackCamera(), off);
+    EXPECT_LT(LumaAt(reordered.image, BackCamera(), q),
+              0.75f * LumaAt(unshadowed.image, BackCamera(), q))
+        << what;
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
 // Point and spot lights alone (the demo without its sun): their cubemaps and spot map.
 TEST(ShadowTest, LocalLightsMatchGolden) {
   CpuScene cpu = BuildDemoScene();
