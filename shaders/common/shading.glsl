@@ -85,11 +85,14 @@ bool MaterialHas(uint slot, GpuTextureRef t) {
 
 // One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff),
 // times its shadow. `ng` is the unperturbed surface normal (the shadow lookup's normal offset).
-// `with_shadows` is a literal at every call: the shader compiler folds the shadow code away from
-// the loops of frames without shadows (on lavapipe, an untaken branch to it inside the light
-// loop still doubled the shading pass).
+// `shadow_kind` is a constant at every call (none, the sun's cascades, a point or spot light's
+// map): the shader compiler keeps that lookup's code alone (on lavapipe, an untaken branch to a
+// lookup inside the light loop still doubled the shading pass).
+const uint kNoShadow = 0u;
+const uint kSunShadow = 1u;
+const uint kLocalShadow = 2u;
 vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff,
-                vec3 f0, float alpha, bool with_shadows) {
+                vec3 f0, float alpha, uint shadow_kind) {
   uint type = uint(light.direction_type.w);
   vec3 l;
   float attenuation = 1.0;
@@ -113,8 +116,9 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
   }
   float n_dot_l = dot(n, l);
   if (n_dot_l <= 0.0 || attenuation <= 0.0) return vec3(0.0);
-  if (with_shadows && light.spot.z > 0.0) {
-    attenuation *= ShadowFactor(light, p, ng);
+  if (shadow_kind != kNoShadow && light.spot.z > 0.0) {
+    attenuation *=
+        shadow_kind == kSunShadow ? SunShadow(light, p, ng) : LocalShadow(light, p, ng);
     if (attenuation <= 0.0) return vec3(0.0);
   }
   vec3 h = normalize(l + v);
@@ -131,22 +135,26 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 // Every light's contribution at a point: the global lights (directional, or point and spot
 // lights without a range), then the local ones of the tile's list (or all of them, brute
 // force). `with_shadows` is a constant: whether the frame's pipeline has shadows (kShadowCode).
-// The shadow lookups have one loop of their own, after the others: those loops leave the
-// shadowed lights to it (the sun, which PlaceSun alone shadows of the global lights, and a bit
-// per shadowed local light met in the list: its place in ShadowUniforms.shadowed), and it shades
-// them with one lookup each. A lookup behind a per-light branch in the list's loop ran for every
-// light of the list on lavapipe, under a lane mask (19% of Sponza's full-stack shading). The
-// sun in this loop rather than with a lookup in the global lights' loop: Sponza with shadows
-// and no local lights shades 3-4 ms faster on lavapipe (one lookup's code, not two); with 1024
-// lights no difference was measurable.
+// With shadows, the sun (the one global light PlaceSun shadows) is shaded on its own, straight
+// after the others, with the sun's lookup alone; the shadowed local lights have a loop of their
+// own after the list's: the list's loop shades the lights without a shadow map and sets a bit
+// per shadowed light it meets (its place in ShadowUniforms.shadowed). A lookup behind a
+// per-light branch in the list's loop ran for every light of the list on lavapipe, under a lane
+// mask (19% of Sponza's full-stack shading); one lookup for both kinds ran each kind's code for
+// the other (README, "Specialization, not branches").
 vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
                  float alpha, bool tiled, uint tile, uint tile_count, bool with_shadows) {
   vec3 color = vec3(0.0);
   // A shadowed sun is global light 0 (PrepareLights puts the directional lights first, PlaceSun
-  // shadows the first and counts its cascades in shadow.counts.y): the shadowed loop shades it.
+  // shadows the first and counts its cascades in shadow.counts.y), shaded below with its shadow.
+  // Without one, that light 0 is the loop's and the block's result is dropped.
   bool sun = with_shadows && shadow.counts.y > 0u;
   for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
-    color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
+    color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
+  if (with_shadows) {
+    vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kSunShadow);
+    color += sun ? c : vec3(0.0);
+  }
   uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
   // Only in pipelines for frames with local lights (kLocalLightCode): on lavapipe the loop cost
   // 10 ms of plain Sponza's shading with no light to shade.
@@ -155,7 +163,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     uint base = tile * kMaxLightsPerTile;
     for (uint k = 0u; k < count; ++k) {
       GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
-      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false);
+      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
       if (with_shadows && light.spot.z > 0.0) {
         shadowed |= 1u << uint(light.spot.w);
       } else {
@@ -163,17 +171,11 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       }
     }
   }
-  while (with_shadows && (sun || shadowed != 0u)) {
-    GpuLight light;
-    if (sun) {
-      light = lights[0];
-      sun = false;
-    } else {
-      uint i = uint(findLSB(shadowed));
-      shadowed &= shadowed - 1u;
-      light = LocalLight(shadow.shadowed[i / 4u][i % 4u]);
-    }
-    color += ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, true);
+  while (with_shadows && shadowed != 0u) {
+    uint i = uint(findLSB(shadowed));
+    shadowed &= shadowed - 1u;
+    color += ShadeLight(LocalLight(shadow.shadowed[i / 4u][i % 4u]), p, n, ng, v, n_dot_v,
+                        c_diff, f0, alpha, kLocalShadow);
   }
   return color;
 }

@@ -49,39 +49,48 @@ uint SunCascade(vec3 p) {
   return count;
 }
 
-// How much of `light` reaches `p` (1 lit .. 0 shadowed). `ng` is the surface's geometric
-// normal: the lookup point moves along it by a texel or two (normal offset), which with the
-// rasterizer's slope-scaled bias keeps lit surfaces free of acne.
-float ShadowFactor(GpuLight light, vec3 p, vec3 ng) {
-  uint first = uint(light.spot.z);
-  if (first == 0u || (shadow.counts.w & kShadowsOn) == 0u) return 1.0;
-  uint view = first - 1u;
-  uint type = uint(light.direction_type.w);
-  // The lookup point moves first, then picks its cascade or face: a face picked from the
-  // unmoved point could send the filter past its border into a neighbouring map. A light's
-  // views share their texel size (a cubemap's faces are one size), so view `first` gives it.
-  GpuShadowView v = shadow.views[view];
-  float texel = v.params.x;
-  if (type != kLightDirectional) {
-    vec3 d = p - light.position_range.xyz;
-    texel *= type == kLightPoint ? max(abs(d.x), max(abs(d.y), abs(d.z)))
-                                 : max(dot(d, light.direction_type.xyz), 0.0);
-  }
-  vec3 q = p + ng * (texel * shadow.atlas.z);
-  if (type == kLightDirectional) {
-    uint c = SunCascade(q);
-    if (c >= shadow.counts.y) return 1.0;  // beyond the shadow distance: lit
-    view += c;
-    // Cascades differ in texel size: the offset is the chosen cascade's.
-    q = p + ng * (shadow.views[view].params.x * shadow.atlas.z);
-  } else if (type == kLightPoint) {
-    view += CubeFace(q - light.position_range.xyz);
-  }
-  v = shadow.views[view];
-  vec4 c = v.world_to_atlas * vec4(q, 1.0);
+// How much of a light reaches `p` (1 lit .. 0 shadowed): the sun through its cascades
+// (SunShadow), a point or spot light through a cubemap face or the spot's view (LocalShadow).
+// Two functions, not one branching on the light's type: lavapipe runs every branch's code, so
+// one function ran each kind's lookup for the other. `ng` is the surface's geometric normal: the
+// lookup point moves along it by a texel or two (normal offset), which with the rasterizer's
+// slope-scaled bias keeps lit surfaces free of acne. The point moves first, then picks its
+// cascade or face: one picked from the unmoved point could send the filter past its border into
+// a neighbouring map.
+
+// The lookup of `q` in shadow view `view`.
+float ShadowLookup(uint view, vec3 q) {
+  vec4 c = shadow.views[view].world_to_atlas * vec4(q, 1.0);
   vec3 tc = c.xyz / c.w;
   if (tc.z >= 1.0) return 1.0;  // past the map's far plane
   return ShadowPcf(vec3(tc.xy * shadow.atlas.x, tc.z));
+}
+
+float SunShadow(GpuLight light, vec3 p, vec3 ng) {
+  uint first = uint(light.spot.z);
+  if (first == 0u || (shadow.counts.w & kShadowsOn) == 0u) return 1.0;
+  uint view = first - 1u;
+  // The cascade is picked with the first cascade's offset; cascades differ in texel size, so
+  // the lookup then offsets by the chosen one's.
+  uint c = SunCascade(p + ng * (shadow.views[view].params.x * shadow.atlas.z));
+  if (c >= shadow.counts.y) return 1.0;  // beyond the shadow distance: lit
+  view += c;
+  return ShadowLookup(view, p + ng * (shadow.views[view].params.x * shadow.atlas.z));
+}
+
+float LocalShadow(GpuLight light, vec3 p, vec3 ng) {
+  uint first = uint(light.spot.z);
+  if (first == 0u || (shadow.counts.w & kShadowsOn) == 0u) return 1.0;
+  uint view = first - 1u;
+  // A light's views share their texel size at distance 1 (a cubemap's faces are one size),
+  // scaled by the distance along the face's axis (point) or the spot's axis.
+  vec3 d = p - light.position_range.xyz;
+  bool point = uint(light.direction_type.w) == kLightPoint;
+  float dist = point ? max(abs(d.x), max(abs(d.y), abs(d.z)))
+                     : max(dot(d, light.direction_type.xyz), 0.0);
+  vec3 q = p + ng * (shadow.views[view].params.x * dist * shadow.atlas.z);
+  if (point) view += CubeFace(q - light.position_range.xyz);
+  return ShadowLookup(view, q);
 }
 
 // Debug view "cascades": the colour of the sun cascade that covers `p`.
