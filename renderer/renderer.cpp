@@ -100,7 +100,7 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
     // shading pipelines differ with and without (kLocalLightsOn).
     if (d.scene_lights) {
       for (const Light& l : gpu->lights())
-        features.local_lights += l.type != LightType::kDirectional && l.range > 0.0f ? 1u : 0u;
+        features.local_lights += l.type == LightType::kDirectional || l.range <= 0.0f ? 0u : 1u;
     }
     features.local_lights += d.synthetic_lights;
     const absl::Status warmed =

@@ -127,6 +127,9 @@ absl::Status Renderer::Impl::Init() {
   RETURN_IF_ERROR(MakeBuffer(*ctx, sizeof(gpu::GpuLight) * gpu::kMaxLights,
                              VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT, vk::MemoryUsage::kDynamic,
                              "lights", &lights_ubo));
+  // Zeroed once: the shading reads light 0 for the sun block even in frames without global
+  // lights (its result dropped), and a zero light has no shadow map to look up.
+  std::memset(lights_ubo.mapped(), 0, sizeof(gpu::GpuLight) * gpu::kMaxLights);
   RETURN_IF_ERROR(EnsureRowBuffer(1024));
   Log().info("per-frame buffers (uniforms, lights, light lists) in {} memory",
              (frame_ubo.memory_flags() & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) ? "device-local"

@@ -181,7 +181,8 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
   if (global.size() > gpu::kMaxLights) {
     frame.settings.notes.push_back(
         {"scene_lights", absl::StrCat("only the first ", gpu::kMaxLights, " of ", global.size(),
-                                      " directional or unbounded lights are shaded")});
+                                      " directional or unbounded lights (directional first) "
+                                      "are shaded")});
     global.resize(gpu::kMaxLights);
   }
   if (s.synthetic_lights > 0) {

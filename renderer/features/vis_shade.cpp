@@ -118,7 +118,7 @@ class VisClassifyPass final : public Pass {
   // A pipeline per mode (vis_classify.glsl's specialization constant 0, kClassify*), for the one
   // sample classification or vis_mlaa's, and per way of reading the drawables (vis.glsl's
   // kVisTexels), built for the first frame that needs them. One atomic per subgroup and material
-  // where compute shaders have ballots, else per pixel.
+  // where the device appends so (DeviceInfo::subgroup_appends), else per pixel.
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures& features) override {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;

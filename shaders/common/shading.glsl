@@ -43,9 +43,10 @@ layout(set = 0, binding = kBindingAo) uniform sampler2D u_ao;
 layout(set = 0, binding = kBindingIrradiance) uniform samplerCube u_irradiance;
 layout(set = 0, binding = kBindingSpecular) uniform samplerCube u_specular;
 layout(set = 0, binding = kBindingBrdfLut) uniform sampler2D u_brdf_lut;
-// Pipelines are built per set of the effects shadows, SSAO and IBL (constant 0: kShadowsOn |
-// kSsaoOn | kIblOn): lavapipe runs the code of an untaken branch at a cost (each doubled the
-// shading pass of frames without them), so a frame's pipeline has the code of its effects only.
+// Pipelines are built per set of the effects shadows, SSAO and IBL, and local lights (constant 0:
+// kShadowsOn | kSsaoOn | kIblOn | kLocalLightsOn): lavapipe runs the code of an untaken branch at
+// a cost (each doubled the shading pass of frames without them), so a frame's pipeline has the
+// code of its effects only.
 layout(constant_id = 0) const uint kLightingEffects = 0u;
 const bool kShadowCode = (kLightingEffects & kShadowsOn) != 0u;
 const bool kSsaoCode = (kLightingEffects & kSsaoOn) != 0u;

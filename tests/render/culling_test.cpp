@@ -333,7 +333,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   // runner-ups, one atomic per subgroup and material with ballots, one per pixel without.
   // Both ways of finding the samples (vis_mlaa_coverage: the resolve shaders of each).
   for (VisMlaaCoverage coverage : {VisMlaaCoverage::kRaster, VisMlaaCoverage::kAnalytic}) {
-    if (!r.device_info().visibility_buffer || !r.device_info().subgroup_ballot) break;
+    if (!r.device_info().visibility_buffer || !r.device_info().subgroup_appends) break;
     const std::string what = "vis_mlaa " + std::string(ToString(coverage));
     const uint64_t view = 340 + uint64_t(coverage);
     Settings s = Small(CullingMode::kGpuFrustum);
@@ -487,7 +487,6 @@ TEST(FallbackTest, SceneLargerThanTheStorageBufferRange) {
   ExpectNoValidationMessages(r);
 }
 
-// Feature names are checked: a typo must not silently test the full path.
 // The visibility passes append per subgroup where the device has ballots and is not a CPU
 // device, unless told otherwise (DeviceInfo::subgroup_appends).
 TEST(FallbackTest, AppendsFollowTheKindOfDeviceUnlessForced) {
@@ -500,6 +499,7 @@ TEST(FallbackTest, AppendsFollowTheKindOfDeviceUnlessForced) {
   EXPECT_EQ((*pixel)->device_info().subgroup_ballot, d.subgroup_ballot);
 }
 
+// Feature names are checked: a typo must not silently test the full path.
 TEST(FallbackTest, UnknownFeatureIsRefused) {
   absl::StatusOr<std::unique_ptr<Renderer>> r =
       Renderer::Create({.disable_features = {"draw_indirect_cnt"}});
