@@ -96,11 +96,11 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
     const Settings& d = defaults->effective;
     features.light_texels = impl_->LightTexelsFit(
         gpu->lights().size(), TileGrid{d.width, d.height, d.tile_size}.tiles());
-    // The local lights as PrepareLights counts them (point and spot lights with a range): the
-    // shading pipelines differ with and without (kLocalLightsOn).
+    // The local lights as PrepareLights counts them: the shading pipelines differ with and
+    // without (kLocalLightsOn).
     if (d.scene_lights) {
-      for (const Light& l : gpu->lights())
-        features.local_lights += l.type == LightType::kDirectional || l.range <= 0.0f ? 0u : 1u;
+      const std::vector<Light>& lights = gpu->lights();
+      features.local_lights += uint32_t(std::count_if(lights.begin(), lights.end(), IsLocalLight));
     }
     features.local_lights += d.synthetic_lights;
     const absl::Status warmed =

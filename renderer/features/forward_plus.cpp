@@ -171,7 +171,7 @@ absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
   if (s.scene_lights) {
     // Point and spot lights without a range reach everywhere: they are global too.
     for (const Light& l : f.gs.lights())
-      (l.type == LightType::kDirectional || l.range <= 0.0f ? global : local).push_back(l);
+      (IsLocalLight(l) ? local : global).push_back(l);
   }
   if (global.empty() && local.empty()) global.push_back(DefaultSun());
   // Directional lights first: the one PlaceSun shadows is then global light 0, which the

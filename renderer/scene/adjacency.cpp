@@ -24,9 +24,13 @@ struct EdgeKey {
   }
 };
 
-Point Snap(const glm::vec3& p, const glm::dvec3& origin, double step) {
-  const glm::dvec3 q = (glm::dvec3(p) - origin) / step;  // 0..2^20 within the primitive
+// The cell holding grid coordinates q.
+Point Round(const glm::dvec3& q) {
   return {std::llround(q.x), std::llround(q.y), std::llround(q.z)};
+}
+
+Point Snap(const glm::vec3& p, const glm::dvec3& origin, double step) {
+  return Round((glm::dvec3(p) - origin) / step);  // 0..2^20 within the primitive
 }
 
 // The index ranges to do (TriangleAdjacency's rule): a primitive's, once; one overlapping a range
@@ -81,10 +85,6 @@ bool UvSeamSame(const glm::vec4& u, const glm::vec4& w, uint32_t sets) {
   }
   return true;
 }
-
-}  // namespace
-
-namespace {
 
 // The texture coordinate sets one or more materials' textures read, and those of them some
 // texture reads without whole-unit periods (bit k: set k), as UvSeamSets' bits.
@@ -156,7 +156,7 @@ std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
         // the next one on the side of the cell's centre it lies (8 cells): a seam's vertices
         // computed apart (a sphere's at 0 and 2 pi) meet across a cell border too.
         const glm::dvec3 q = cell_of(a.position);
-        const Point k = {std::llround(q.x), std::llround(q.y), std::llround(q.z)};
+        const Point k = Round(q);
         for (int c = 0; c < 8 && stands[v] == kNoNeighbour; ++c) {
           Point probe = k;
           for (int axis = 0; axis < 3; ++axis)

@@ -170,6 +170,12 @@ struct Light {
   int32_t node = -1;                       // the glTF node that places it (-1: generated)
 };
 
+// Whether the renderer shades `l` as a local light, culled per tile (a point or spot light with a
+// range), rather than as a global one (directional, or reaching everywhere).
+inline bool IsLocalLight(const Light& l) {
+  return !(l.type == LightType::kDirectional || l.range <= 0.0f);
+}
+
 // A perspective camera from the file, with its node's world transform.
 struct SceneCamera {
   std::string name;

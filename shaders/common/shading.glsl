@@ -135,7 +135,7 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 
 // Every light's contribution at a point: the global lights (directional, or point and spot
 // lights without a range), then the local ones of the tile's list (or all of them, brute
-// force). `with_shadows` is a constant: whether the frame's pipeline has shadows (kShadowCode).
+// force), with shadows where the frame's pipeline has them (kShadowCode).
 // With shadows, the sun (the one global light PlaceSun shadows) is shaded on its own, straight
 // after the others, with the sun's lookup alone; the shadowed local lights have a loop of their
 // own after the list's: the list's loop shades the lights without a shadow map and sets a bit
@@ -144,15 +144,15 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 // mask (19% of Sponza's full-stack shading); one lookup for both kinds ran each kind's code for
 // the other (README, "Specialization, not branches").
 vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
-                 float alpha, bool tiled, uint tile, uint tile_count, bool with_shadows) {
+                 float alpha, bool tiled, uint tile, uint tile_count) {
   vec3 color = vec3(0.0);
   // A shadowed sun is global light 0 (PrepareLights puts the directional lights first, PlaceSun
   // shadows the first and counts its cascades in shadow.counts.y), shaded below with its shadow.
   // Without one, that light 0 is the loop's and the block's result is dropped.
-  bool sun = with_shadows && shadow.counts.y > 0u;
+  bool sun = kShadowCode && shadow.counts.y > 0u;
   for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
     color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
-  if (with_shadows) {
+  if (kShadowCode) {
     vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kSunShadow);
     color += sun ? c : vec3(0.0);
   }
@@ -165,14 +165,14 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     for (uint k = 0u; k < count; ++k) {
       GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
       vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
-      if (with_shadows && light.spot.z > 0.0) {
+      if (kShadowCode && light.spot.z > 0.0) {
         shadowed |= 1u << uint(light.spot.w);
       } else {
         color += c;
       }
     }
   }
-  while (with_shadows && shadowed != 0u) {
+  while (kShadowCode && shadowed != 0u) {
     uint i = uint(findLSB(shadowed));
     shadowed &= shadowed - 1u;
     color += ShadeLight(LocalLight(shadow.shadowed[i / 4u][i % 4u]), p, n, ng, v, n_dot_v,
@@ -257,11 +257,10 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
     return vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
   }
 
-  // One call, with the pipeline's shadow code or without: a choice at run time between two
-  // calls (on shadow.counts.w, which PrepareShadows sets whenever kShadowCode is on) ran both
-  // on lavapipe (Sponza's full stack: shading 179-182 -> 169-171 ms).
-  vec3 color = DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile,
-                           tile_count, kShadowCode);
+  // The pipeline's kShadowCode alone says whether DirectLight looks shadows up: a choice at run
+  // time between two calls (on shadow.counts.w, which PrepareShadows sets whenever kShadowCode
+  // is on) ran both on lavapipe (Sponza's full stack: shading 179-182 -> 169-171 ms).
+  vec3 color = DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile, tile_count);
 
   // Ambient. With IBL: the split sum, the irradiance cube times the diffuse colour plus the
   // prefiltered environment along the reflection times the BRDF table's F0 scale and bias.
