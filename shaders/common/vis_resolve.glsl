@@ -133,22 +133,30 @@ void Pick(uint mask, uint ids[kSamples], out uint id, out vec2 mean) {
 // The id whose triangle the shading intersects at `mean` (the pixel's fraction, as the coverage
 // word or runner-up record quantized it): `id`, or where the camera ray through `mean` misses
 // its triangle (a surface spanning several triangles), the first of the surface's other samples'
-// triangles that holds it.
+// triangles that holds it. One triangle per iteration of a loop, each id once: lavapipe runs a
+// loop as many times as its busiest lane needs (at least once), where the four unrolled tests it
+// replaced (one per sample, behind a branch) ran for every lane whatever the branch said.
 uint ContainingId(ivec2 p, uint mask, uint ids[kSamples], uint id, vec2 mean) {
   if (id == 0u) return 0u;
-  vec3 dir = RayDirection(vec2(p) + mean);
-  Triangle tri = LoadTriangle(id);
-  bool inside = Inside(Barycentrics(tri.p0, tri.e1, tri.e2, dir));
-  uint found = id;
+  // Bit s: sample s is the surface's first sample on a triangle other than `id`'s.
+  uint others = 0u;
   for (uint s = 0u; s < kSamples; ++s) {
-    if (inside || (mask & (1u << s)) == 0u || ids[s] == id) continue;
-    Triangle t = LoadTriangle(ids[s]);
-    if (Inside(Barycentrics(t.p0, t.e1, t.e2, dir))) {
-      found = ids[s];
-      inside = true;
-    }
+    bool first = (mask & (1u << s)) != 0u && ids[s] != id;
+    for (uint t = 0u; t < s; ++t) first = first && ((mask & (1u << t)) == 0u || ids[t] != ids[s]);
+    if (first) others |= 1u << s;
   }
-  return found;
+  vec3 dir = RayDirection(vec2(p) + mean);
+  uint candidate = id;
+  while (true) {
+    Triangle tri = LoadTriangle(candidate);
+    if (Inside(Barycentrics(tri.p0, tri.e1, tri.e2, dir))) return candidate;
+    if (others == 0u) return id;
+    uint next = uint(findLSB(others));
+    others &= others - 1u;
+    for (uint s = 0u; s < kSamples; ++s)
+      if (s == next) candidate = ids[s];
+  }
+  return id;
 }
 
 #ifdef VIS_RESOLVE_ANALYTIC
