@@ -401,6 +401,7 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
     if (plan.Has(PassId::kVisResolve)) {
       frame.stats.edge_pixels = entries[f.shade.materials + 1].dispatch.w;
       frame.stats.runner_up_pixels = entries[f.shade.materials + 1].list.x;
+      frame.stats.blend_pixels = entries[f.shade.materials + 2].dispatch.w;
     }
   }
   if (f.tiled) {

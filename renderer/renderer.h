@@ -119,6 +119,9 @@ struct FrameStats {
   // vis_mlaa: the pixels the resolve grouped: whose samples hit more than one triangle (raster
   // coverage), whose 3x3 neighbourhood shows more than one surface (analytic).
   uint64_t edge_pixels = 0;
+  // vis_mlaa: the edge pixels with more than one surface (a runner-up), which geometric AA blends;
+  // the others are edges between triangles of one surface, which it passes through.
+  uint64_t blend_pixels = 0;
   // vis_mlaa: edge pixels whose runner-up surface (the one with the next most samples, down to
   // one sample, where no neighbour shows it) was shaded as well.
   uint64_t runner_up_pixels = 0;

@@ -196,6 +196,7 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_shading_invocations(f.stats.shading_invocations);
   st->set_edge_pixels(f.stats.edge_pixels);
   st->set_runner_up_pixels(f.stats.runner_up_pixels);
+  st->set_blend_pixels(f.stats.blend_pixels);
   st->set_animated_drawables(f.stats.animated_drawables);
   st->set_deformed_vertices(f.stats.deformed_vertices);
 }

@@ -1,11 +1,12 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// vis_mlaa's geometric AA over the edge pixels only (common/geometric_aa.glsl), in place in the
-// frame's HDR colour: every other pixel's surface owns all its samples and passes through, so the
-// pass costs per edge, not per pixel of the frame. The resolve listed the edge pixels (the start
-// of the pixel lists, entry push.edges, dispatched 64 to a workgroup); kGeometricAaBlend writes
-// each one's blend into a list of colours (its neighbours are read unchanged), kGeometricAaWrite
-// stores them into the image. The mode is specialization constant 0, a pipeline each (lavapipe
+// vis_mlaa's geometric AA over the edge pixels with more than one surface only
+// (common/geometric_aa.glsl), in place in the frame's HDR colour: every other pixel's surface owns
+// all its samples and passes through, so the pass costs per edge, not per pixel of the frame. The
+// resolve listed them in its blend list (entry push.edges + 1, its indices into the edge list,
+// entry push.edges, following that list at the start of the pixel lists; dispatched 64 to a
+// workgroup); kGeometricAaBlend writes each one's blend into a list of colours (its neighbours are
+// read unchanged), kGeometricAaWrite stores them into the image. The mode is specialization constant 0, a pipeline each (lavapipe
 // runs an untaken branch under a lane mask: with a push-constant mode the store paid for the
 // blend). A pixel's runner-up surface (vis_resolve.comp) takes the share of its samples in the
 // blend.
@@ -30,8 +31,9 @@ layout(constant_id = 0) const uint kMode = kGeometricAaBlend;
 
 void main() {
   uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-  uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
-  if (i >= entries[push.edges].dispatch.w) return;
+  uint k = group * kShadeGroupSize + gl_LocalInvocationIndex;
+  if (k >= entries[push.edges + 1u].dispatch.w) return;
+  uint i = pixels[entries[push.edges].dispatch.w + k];  // the blend list names an edge list entry
   uint packed = pixels[i];
   ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
   if (kMode == kGeometricAaBlend) {

@@ -231,6 +231,7 @@ int main(int argc, char** argv) {
                   {"shading_invocations", frame.stats.shading_invocations},
                   {"edge_pixels", frame.stats.edge_pixels},
                   {"runner_up_pixels", frame.stats.runner_up_pixels},
+                  {"blend_pixels", frame.stats.blend_pixels},
                   {"lights", frame.stats.lights},
                   {"local_lights", frame.stats.local_lights},
                   {"tile_lights_avg", frame.stats.tile_lights_avg},

@@ -159,10 +159,12 @@ struct LightCullBuffers {
 };
 
 // The visibility pipeline's buffers (handles owned by the renderer): per material a
-// GpuShadeEntry, one more for the sky (entry `materials`) and one for vis_mlaa's edge list
-// (`materials + 1`), the pixel lists (a uint per pixel of the frame, three with vis_mlaa: its
-// resolve lists its edge pixels there first, and the materials' lists follow it, so geometric AA
-// can read it after the shading; they hold the runner-up surfaces too), and a host copy of the entries for the frame's statistics.
+// GpuShadeEntry, one more for the sky (entry `materials`) and two for vis_mlaa's edge list
+// (`materials + 1`) and blend list (`materials + 2`: the edge pixels with more than one surface,
+// by edge list index), the pixel lists (a uint per pixel of the frame, four with vis_mlaa: its
+// resolve lists its edge pixels there first, then the blend list, and the materials' lists follow
+// them, so geometric AA can read both after the shading; they hold the runner-up surfaces too),
+// and a host copy of the entries for the frame's statistics.
 struct ShadeBuffers {
   VkBuffer entries = VK_NULL_HANDLE;
   VkBuffer pixels = VK_NULL_HANDLE;

@@ -235,9 +235,9 @@ class TonemapPass final : public PostPass {
 
 // vis_mlaa's geometric AA (shaders/common/geometric_aa.glsl): pixels whose surface owns every
 // sample pass through; the others blend with the two neighbours their coverage points away from.
-// It runs over the resolve's edge list only, in place in the HDR colour
-// (shaders/geometric_aa_edges.comp: each edge pixel's blend into a list, then into the image), so
-// its cost comes from the edges. The aa_mask debug view, which shows every pixel, is a full-screen
+// It runs over the resolve's blend list only (its edge pixels with more than one surface), in
+// place in the HDR colour (shaders/geometric_aa_edges.comp: each listed pixel's blend into a list,
+// then into the image), so its cost comes from the edges. The aa_mask debug view, which shows every pixel, is a full-screen
 // program into the post-AA colour (fragment or compute: post_stage).
 class GeometricAaPass final : public PostPass {
  public:
@@ -296,7 +296,8 @@ class GeometricAaPass final : public PostPass {
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout, 0, 1, &set, 0,
                             nullptr);
     vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
-    const VkDeviceSize args = VkDeviceSize(push.edges) * sizeof(gpu::GpuShadeEntry);
+    // Dispatched over the blend list (the edge pixels with more than one surface).
+    const VkDeviceSize args = VkDeviceSize(push.edges + 1) * sizeof(gpu::GpuShadeEntry);
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blend_.handle());
     vkCmdDispatchIndirect(ctx.cmd, sb.entries, args);
     // The blends are written (and every neighbour read) before any pixel changes.

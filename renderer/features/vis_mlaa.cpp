@@ -175,18 +175,22 @@ class VisResolvePass final : public Pass {
   void Record(PassContext& ctx) override {
     const ShadeBuffers& sb = *ctx.shade;
     const uint32_t edges = sb.materials + 1;  // the entry after the sky's
+    const uint32_t blend = edges + 1;           // the edge pixels with a runner-up
     const VkDeviceSize entry = VkDeviceSize(edges) * sizeof(gpu::GpuShadeEntry);
-    // Every material's, the sky's and the edge list's entry start at zero: the resolve counts
-    // each pixel's surface in its material's (the classification then goes straight to its scan).
-    vkCmdFillBuffer(ctx.cmd, sb.entries, 0, entry + sizeof(gpu::GpuShadeEntry), 0);
+    const VkDeviceSize blend_entry = VkDeviceSize(blend) * sizeof(gpu::GpuShadeEntry);
+    // Every material's, the sky's, the edge list's and the blend list's entry start at zero: the
+    // resolve counts each pixel's surface in its material's (the classification then goes straight
+    // to its scan).
+    vkCmdFillBuffer(ctx.cmd, sb.entries, 0, blend_entry + sizeof(gpu::GpuShadeEntry), 0);
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT,
                          VK_ACCESS_2_TRANSFER_WRITE_BIT, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
     WriteSet(ctx);
-    auto push = [&](uint32_t mode) {
+    // params.x: the list kResolveArgs sizes.
+    auto push = [&](uint32_t mode, uint32_t list = 0) {
       vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE,
                         pipelines_.at(Key(ctx.samples, *ctx.settings, *ctx.scene))[mode].handle());
-      const gpu::ShadePush p{glm::uvec4(0u, edges, 0u, 0u)};
+      const gpu::ShadePush p{glm::uvec4(list, edges, 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout_.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(p), &p);
     };
@@ -195,19 +199,22 @@ class VisResolvePass final : public Pass {
     const VkPipelineStageFlags2 compute = VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT;
     const VkAccessFlags2 rw = VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT;
     vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, compute, rw);
-    push(gpu::kResolveArgs);
+    push(gpu::kResolveArgs, edges);
     vkCmdDispatch(ctx.cmd, 1, 1, 1);
     vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                          compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                          rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
     push(gpu::kResolveEdges);
     vkCmdDispatchIndirect(ctx.cmd, sb.entries, entry);
+    vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, compute, rw);
+    push(gpu::kResolveArgs, blend);
+    vkCmdDispatch(ctx.cmd, 1, 1, 1);
     // The runner-ups look at the ids every edge pixel now has.
     vk::CmdMemoryBarrier(ctx.cmd, compute, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
                          compute | VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
                          rw | VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
     push(gpu::kResolveRunnerUps);
-    vkCmdDispatchIndirect(ctx.cmd, sb.entries, entry);
+    vkCmdDispatchIndirect(ctx.cmd, sb.entries, blend_entry);
   }
 
  private:

@@ -108,7 +108,7 @@ void ComputeBarrier(VkCommandBuffer cmd, bool indirect = false) {
 }
 
 // vis_mlaa's classification also lists the runner-up surfaces to shade (dispatched over the
-// resolve's edge list, with vis_mlaa's layout).
+// resolve's blend list, with vis_mlaa's layout).
 class VisClassifyPass final : public Pass {
  public:
   VisClassifyPass(ShadeLayout one, ShadeLayout mlaa)
@@ -162,7 +162,7 @@ class VisClassifyPass final : public Pass {
     const bool vis_mlaa = ctx.settings->aa == AaMode::kVisMlaa;
     const ShadeLayout& layout = vis_mlaa ? mlaa_ : one_;
     // The scene's materials and the sky's entry (and, copied for the statistics, vis_mlaa's
-    // edge list's).
+    // edge list's and blend list's).
     const VkDeviceSize entry_bytes =
         VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry);
     // The counts start at zero (the graph ordered this after the last frame's reads); vis_mlaa's
@@ -190,21 +190,21 @@ class VisClassifyPass final : public Pass {
       push(mode);
       vkCmdDispatch(ctx.cmd, x, y, 1);
     };
-    auto over_edges = [&](uint32_t mode) {  // the resolve's edge list, sized by the resolve
+    auto over_blend = [&](uint32_t mode) {  // the resolve's blend list, sized by the resolve
       push(mode);
       vkCmdDispatchIndirect(ctx.cmd, sb.entries,
-                            VkDeviceSize(sb.materials + 1) * sizeof(gpu::GpuShadeEntry));
+                            VkDeviceSize(sb.materials + 2) * sizeof(gpu::GpuShadeEntry));
     };
     if (!vis_mlaa) {
       step(gpu::kClassifyCount, gx, gy);
       ComputeBarrier(ctx.cmd);
     }
     step(gpu::kClassifyScan, 1, 1);
-    // vis_mlaa: the runner-ups' step runs over the edge list sized by the resolve (an indirect
+    // vis_mlaa: the runner-ups' step runs over the blend list sized by the resolve (an indirect
     // read, ordered after every storage write to the entries).
     ComputeBarrier(ctx.cmd, /*indirect=*/vis_mlaa);
     if (vis_mlaa) {
-      over_edges(gpu::kClassifyFillRunnerUps);
+      over_blend(gpu::kClassifyFillRunnerUps);
       ComputeBarrier(ctx.cmd);
     }
     step(gpu::kClassifyFill, gx, gy);
@@ -213,7 +213,7 @@ class VisClassifyPass final : public Pass {
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
                          VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COPY_BIT,
                          VK_ACCESS_2_TRANSFER_READ_BIT);
-    const VkBufferCopy copy{0, 0, entry_bytes + sizeof(gpu::GpuShadeEntry)};
+    const VkBufferCopy copy{0, 0, entry_bytes + 2 * sizeof(gpu::GpuShadeEntry)};
     vkCmdCopyBuffer(ctx.cmd, sb.entries, sb.entries_readback, 1, &copy);
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
                          VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
@@ -371,13 +371,14 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
   // The materials the shading dispatches for (the others have no pixels).
   f.vis.materials = MaterialsInFrustum(f.gs, FrustumFromViewProj(f.fu.view_proj));
   const uint32_t materials = f.gs.material_count();
-  // vis_mlaa's edge list (at most a pixel each) precedes the materials' lists, which hold its
-  // runner-up surfaces too (at most one per edge pixel).
+  // vis_mlaa's edge list (at most a pixel each) and blend list (at most an edge pixel each)
+  // precede the materials' lists, which hold its runner-up surfaces too (at most one per edge
+  // pixel).
   const uint64_t pixels =
-      uint64_t(f.s.width) * f.s.height * (f.s.aa == AaMode::kVisMlaa ? 3 : 1);
-  // And the sky's entry, and vis_mlaa's edge list's (vis_mlaa.cpp).
-  if (materials + 2 > shade_material_capacity) {
-    const uint32_t cap = std::max(materials + 2, shade_material_capacity * 2);
+      uint64_t(f.s.width) * f.s.height * (f.s.aa == AaMode::kVisMlaa ? 4 : 1);
+  // And the sky's entry, and vis_mlaa's edge list's and blend list's (vis_mlaa.cpp).
+  if (materials + 3 > shade_material_capacity) {
+    const uint32_t cap = std::max(materials + 3, shade_material_capacity * 2);
     const VkDeviceSize bytes = VkDeviceSize(cap) * sizeof(gpu::GpuShadeEntry);
     RETURN_IF_ERROR(MakeBuffer(*ctx, bytes,
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |

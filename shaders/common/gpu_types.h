@@ -187,7 +187,7 @@ TS_CONST float kMotionOffScreen = 4096.0;
 // and the pixel lists.
 TS_CONST uint kShadeBindingId = 0;       // usampler2D: the visibility id per pixel
 TS_CONST uint kShadeBindingColor = 1;    // image2D rgba16f: the HDR colour (written)
-TS_CONST uint kShadeBindingEntries = 4;  // buffer GpuShadeEntry[materials + 2] (sky, edges)
+TS_CONST uint kShadeBindingEntries = 4;  // GpuShadeEntry[materials + 3] (sky, edges, blend)
 TS_CONST uint kShadeBindingPixels = 5;   // buffer uint[]: x | y << 16, grouped by material
 TS_CONST uint kShadeBindingCoverage = 6;  // vis_mlaa: usampler2D, the resolve's coverage word
 // vis_mlaa's runner-up surfaces, one uvec2 per entry of the resolve's edge list: the id to shade
@@ -213,12 +213,13 @@ TS_CONST uint kResolveBindingAdjacency = 7;
 TS_CONST uint kResolveBindingSurfaces = 13;
 TS_CONST uint kResolveBindingSurfaceTexels = 14;
 // vis_resolve.comp's modes (specialization constant 1, a pipeline per mode; push params.y is the
-// edge list's entry).
+// edge list's entry, the blend list's the next).
 TS_CONST uint kResolveUniform = 0;  // per pixel: samples that agree are written, others listed
-TS_CONST uint kResolveArgs = 1;     // one workgroup: the edge dispatch's size
-TS_CONST uint kResolveEdges = 2;    // per listed edge pixel: group the samples by surface
-// per listed edge pixel with a runner-up: drops it where a neighbour geometric AA borrows from
-// shows it (it needs the ids kResolveEdges wrote); counts the others (edge entry list.x)
+TS_CONST uint kResolveArgs = 1;     // one workgroup: the size of the dispatch over entry params.x
+// per listed edge pixel: group the samples by surface; list those with a runner-up (the blend list)
+TS_CONST uint kResolveEdges = 2;
+// per blend list entry: drops the runner-up where a neighbour geometric AA borrows from shows it
+// (it needs the ids kResolveEdges wrote); counts the others (edge entry list.x)
 TS_CONST uint kResolveRunnerUps = 3;
 TS_CONST uint kClassifyTile = 8;         // vis_classify: 8x8 pixels per workgroup
 TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
@@ -230,11 +231,12 @@ TS_CONST uint kClassifyCount = 0;  // count each material's pixels
 TS_CONST uint kClassifyScan = 1;   // one workgroup: list offsets and dispatch sizes
 // Append each pixel to its material's list; write the background where no surface is.
 TS_CONST uint kClassifyFill = 2;
-// vis_mlaa: append the runner-up surfaces to be shaded (dispatched over the edge list). With
+// vis_mlaa: append the runner-up surfaces to be shaded (dispatched over the blend list). With
 // vis_mlaa the resolve counted every pixel and runner-up already: kClassifyCount does not run.
 TS_CONST uint kClassifyFillRunnerUps = 3;
-// (vis_classify's params.z is 1 when vis_mlaa's edge list, the entry after the sky's, holds the
-// start of the pixel lists: the materials' lists then follow it, and geometric AA reads it last.)
+// (vis_classify's params.z is 1 when vis_mlaa's edge list and blend list, the entries after the
+// sky's, hold the start of the pixel lists: the materials' lists then follow them, and geometric
+// AA reads them last.)
 // geometric_aa_edges.comp's modes (specialization constant 0, a pipeline each) and its set 0's
 // bindings after the samplers of the
 // coverage (1) and ids (2).
@@ -427,7 +429,7 @@ struct GpuShadeEntry {
   vec4 exposure;        \
   vec4 bloom;
 // geometric_aa.frag: the visibility samples, 1 to show the coverage mask, id triangle bits;
-// geometric_aa_edges.comp: also the edge list's entry.
+// geometric_aa_edges.comp: also the edge list's entry (the blend list's is the next).
 #define TS_PUSH_GEOMETRIC_AA \
   uint samples;              \
   uint show_mask;            \
@@ -509,7 +511,8 @@ struct GpuShadeEntry {
 #define TS_PUSH_SHADOW mat4 view_proj;
 // vis_classify.comp: y materials (the sky's entry is the next; the mode is a specialization
 // constant); vis_shade.comp: x the material shaded; vis_sky_mlaa.comp: x the sky's entry;
-// vis_resolve.comp: y the edge list's entry (the mode is a specialization constant).
+// vis_resolve.comp: y the edge list's entry, x the entry kResolveArgs sizes (the mode is a
+// specialization constant).
 #define TS_PUSH_SHADE uvec4 params;
 
 #ifdef __cplusplus

@@ -14,7 +14,7 @@
 // With VIS_MLAA (vis_classify_mlaa.comp) the resolve has counted each pixel's surface (and each
 // runner-up surface left to be shaded) in its material's entry, so kClassifyCount does not run;
 // the runner-ups are listed too, as kRunnerUpEntry | their edge list index, by a step dispatched
-// over the edge list (kClassifyFillRunnerUps).
+// over the resolve's blend list (the edge pixels with a runner-up: kClassifyFillRunnerUps).
 #include "common/scene.glsl"
 #include "common/sky.glsl"
 #include "common/vis.glsl"
@@ -26,7 +26,8 @@ layout(set = kVisSet, binding = kShadeBindingId) uniform usampler2D u_vis_id;
 layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
   GpuShadeEntry entries[];
 };
-layout(set = kVisSet, binding = kShadeBindingPixels, std430) writeonly buffer PixelBlock {
+// (Read by vis_mlaa's runner-up step: the resolve's blend list.)
+layout(set = kVisSet, binding = kShadeBindingPixels, std430) buffer PixelBlock {
   uint pixels[];
 };
 layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
@@ -69,8 +70,11 @@ void Scan() {
     s_sums[i] += add;
     barrier();
   }
-  // vis_mlaa: the lists follow the resolve's edge list, which geometric AA reads after them.
-  uint base = push.params.z != 0u ? entries[push.params.y + 1u].dispatch.w : 0u;
+  // vis_mlaa: the lists follow the resolve's edge list and blend list, which geometric AA reads
+  // after them.
+  uint base = push.params.z != 0u
+                  ? entries[push.params.y + 1u].dispatch.w + entries[push.params.y + 2u].dispatch.w
+                  : 0u;
   uint offset = base + s_sums[i] - sum;
   for (uint m = begin; m < end; ++m) {
     uint count = entries[m].dispatch.w;
@@ -89,11 +93,13 @@ void main() {
   }
 #ifdef VIS_MLAA
   if (kMode == kClassifyFillRunnerUps) {
-    // One edge list entry per invocation (the workgroup's 64 invocations, as the shading's).
+    // One blend list entry per invocation (the workgroup's 64 invocations, as the shading's),
+    // which names an edge list entry.
     uint edges = push.params.y + 1u;
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint i = group * kShadeGroupSize + gl_LocalInvocationIndex;
-    if (i >= entries[edges].dispatch.w) return;
+    uint k = group * kShadeGroupSize + gl_LocalInvocationIndex;
+    if (k >= entries[edges + 1u].dispatch.w) return;
+    uint i = pixels[entries[edges].dispatch.w + k];
     uvec2 r = runner_ups[i];
     if ((r.y & 0xffu) == 0u || RunnerUpSource(r.y) != kRunnerUpShaded) return;
     uint m = r.x == 0u ? push.params.y : DrawableIds(VisDrawable(r.x, frame.aa.x)).y;

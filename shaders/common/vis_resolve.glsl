@@ -14,11 +14,18 @@
 // Only edge pixels (samples on more than one triangle; analytic: a 3x3 neighbourhood showing
 // more than one surface) are grouped, so the cost comes from the edges: mode kResolveUniform
 // writes every pixel whose samples agree and lists the others,
-// kResolveArgs sizes the indirect dispatch over that list, kResolveEdges groups the listed
+// kResolveArgs sizes the indirect dispatch over that list (and later over the blend list),
+// kResolveEdges groups the listed
 // pixels, every invocation one edge pixel (lavapipe runs masked-off lanes at full cost: as a
 // full-screen fragment pass the grouping cost every 8-pixel block that held an edge pixel).
 // The surface with the next most samples, the runner-up, is recorded whatever its share, down to
-// one sample (u_runner_ups, one record per edge list entry); kResolveRunnerUps then looks for it
+// one sample (u_runner_ups, one record per edge list entry), and the edge pixels that have one
+// (more than one surface) are listed again, by their edge list index, in the blend list (the
+// entry after the edge list's; its indices follow the edge list in the pixel lists): the others
+// are edges between triangles of one surface (164,481 of Sponza's 215,261 at 1280x720), which
+// geometric AA passes through, so the runner-ups' steps and geometric AA run over the blend
+// list only (lavapipe runs every lane through the code of every branch, so returning early for
+// the others saved nothing). kResolveRunnerUps then looks for the runner-up
 // in the 8 neighbours' shaded ids, nearest in angle to where its samples lie first: geometric AA
 // borrows its colour from the first that shows it, and where none does it is shaded here too (a
 // wire or a gap thinner than a pixel otherwise vanishes wherever it loses the vote). Until
@@ -331,8 +338,9 @@ bool OneSurfaceAround(ivec2 p) {
 
 // Groups the samples by surface (the transitive closure of SameSurface) and writes the outputs
 // for the surface with the most samples (ties: the one holding the lowest sample), and edge list
-// entry `entry`'s runner-up. Returns the id to shade.
-uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
+// entry `entry`'s runner-up, listing the entry in the blend list where it has one. Returns the id
+// to shade.
+uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
   uvec3 tv[kSamples];  // each sample's SurfaceCorners
   for (uint s = 0u; s < kSamples; ++s) tv[s] = SurfaceCorners(ids[s]);
   uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
@@ -370,6 +378,10 @@ uint Group(ivec2 p, uint entry, uint ids[kSamples]) {
     record = uvec2(ContainingId(p, runner, ids, id, RunnerUpMean(word)), word);
   }
   runner_ups[entry] = record;
+  // The blend list (after the edge list, which the uniform pass has finished).
+  if (runner != 0u) {
+    pixels[entries[edges].dispatch.w + atomicAdd(entries[edges + 1u].dispatch.w, 1u)] = entry;
+  }
   return winner;
 }
 
@@ -409,11 +421,12 @@ void DecideRunnerUp(ivec2 p, uint entry, uint edges) {
 void main() {
   const uint mode = kMode;
   uint edges = push.params.y;  // the edge list's entry
-  if (mode == kResolveArgs) {
+  if (mode == kResolveArgs) {  // sizes the dispatch over entry params.x's list
+    uint list = push.params.x;
     if (gl_LocalInvocationIndex == 0u) {
-      uint groups = (entries[edges].dispatch.w + kShadeGroupSize - 1u) / kShadeGroupSize;
+      uint groups = (entries[list].dispatch.w + kShadeGroupSize - 1u) / kShadeGroupSize;
       uint width = min(groups, kShadeDispatchWidth);
-      entries[edges].dispatch.xyz =
+      entries[list].dispatch.xyz =
           uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
     }
     return;
@@ -428,7 +441,12 @@ void main() {
   if (mode != kResolveUniform) {  // kResolveEdges, kResolveRunnerUps: one listed pixel each
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     entry = group * kShadeGroupSize + gl_LocalInvocationIndex;
-    if (entry >= entries[edges].dispatch.w) return;
+    if (mode == kResolveRunnerUps) {  // the blend list's entry'th edge pixel
+      if (entry >= entries[edges + 1u].dispatch.w) return;
+      entry = pixels[entries[edges].dispatch.w + entry];
+    } else if (entry >= entries[edges].dispatch.w) {
+      return;
+    }
     uint packed = pixels[entry];
     p = ivec2(packed & 0xffffu, packed >> 16);
     if (mode == kResolveRunnerUps) {
@@ -456,7 +474,7 @@ void main() {
 #endif
   // The pixels whose surface is the sky are not counted: the classification writes the sky there.
   if (mode == kResolveEdges) {
-    uint winner = Group(p, entry, ids);
+    uint winner = Group(p, entry, edges, ids);
     if (winner != 0u) Append(MaterialOf(winner, edges), kCountPixels);
   } else if (uniform_id) {  // one triangle (analytic: one surface) or none: at the centre
     imageStore(u_id, p, uvec4(ids[0]));

@@ -142,6 +142,7 @@ struct Side : Measured {
                   {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels},
                   {"edge_pixels", last.stats.edge_pixels},
                   {"runner_up_pixels", last.stats.runner_up_pixels},
+                  {"blend_pixels", last.stats.blend_pixels},
                   {"animated_drawables", last.stats.animated_drawables},
                   {"deformed_vertices", last.stats.deformed_vertices}};
     if (!skinning_share.empty()) {

@@ -437,6 +437,17 @@ TEST(AaTest, TaaBlendsHistoryWhileTheCameraMoves) {
 // vis_mlaa on a lit scene (metals, a textured, a normal-mapped, an alpha-masked and a blended
 // object) against its golden; the shading is the same BRDF as without AA, so the frames differ
 // on the edges only.
+// vis_mlaa 4x on the demo scene at 256x192, its samples found as `coverage` says.
+Settings DemoVisMlaa(VisMlaaCoverage coverage) {
+  Settings s;
+  s.width = 256;
+  s.height = 192;
+  s.aa = AaMode::kVisMlaa;
+  s.samples = 4;
+  s.vis_mlaa_coverage = coverage;
+  return s;
+}
+
 TEST(AaTest, VisMlaaGolden) {
   Renderer& r = SharedRenderer();
   TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(r);
@@ -448,12 +459,7 @@ TEST(AaTest, VisMlaaGolden) {
   uint64_t raster_edges = 0;
   for (VisMlaaCoverage coverage : {VisMlaaCoverage::kRaster, VisMlaaCoverage::kAnalytic}) {
     SCOPED_TRACE(ToString(coverage));
-    Settings s;
-    s.width = 256;
-    s.height = 192;
-    s.aa = AaMode::kVisMlaa;
-    s.samples = 4;
-    s.vis_mlaa_coverage = coverage;
+    Settings s = DemoVisMlaa(coverage);
     FrameCapture capture;
     absl::StatusOr<Frame> vis = r.Render(*scene, camera, s, &capture);
     ASSERT_TRUE(vis.ok()) << vis.status();
@@ -503,6 +509,49 @@ TEST(AaTest, VisMlaaGolden) {
     // pixels whose samples fall on two triangles; 14384 when such pixels were listed too).
     EXPECT_LE(vis->stats.edge_pixels, raster_edges)
         << "analytic lists the pixels inside a surface as edges";
+  }
+}
+
+// The resolve lists its edge pixels with more than one surface again, in its blend list, and the
+// runner-ups' steps and geometric AA run over that list only: the edge pixels whose samples fall
+// on triangles of one surface (the demo spheres' tessellation) own every sample and pass through.
+// The blend list must hold exactly the pixels the aa_mask view shows darker than white (whose
+// surface does not own every sample): one left out keeps its aliased edge, one too many costs.
+// The demo scene with its glass made opaque: the blended surfaces are drawn over the mask.
+TEST(AaTest, VisMlaaBlendsOnlyPixelsWithTwoSurfaces) {
+  Renderer& r = SharedRenderer();
+  TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(r);
+  CpuScene demo = BuildDemoScene();
+  for (Material& m : demo.materials)
+    if (m.alpha_mode == AlphaMode::kBlend) m.alpha_mode = AlphaMode::kOpaque;
+  absl::StatusOr<SceneHandle> scene = r.LoadScene(std::move(demo));
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  const Camera camera = FromSceneCamera((*scene)->info().cameras[0]);
+  for (VisMlaaCoverage coverage : {VisMlaaCoverage::kRaster, VisMlaaCoverage::kAnalytic}) {
+    SCOPED_TRACE(ToString(coverage));
+    Settings s = DemoVisMlaa(coverage);
+    s.debug_view = DebugView::kAaMask;
+    absl::StatusOr<Frame> f = r.Render(**scene, camera, s);
+    ASSERT_TRUE(f.ok()) << f.status();
+    ASSERT_EQ(f->settings.effective.debug_view, DebugView::kAaMask) << Notes(*f);
+    uint64_t darker = 0;
+    for (size_t i = 0; i < f->image.pixels.size(); i += 4) {
+      const uint8_t* p = &f->image.pixels[i];
+      darker += std::min({p[0], p[1], p[2]}) < 255 ? 1 : 0;
+    }
+    std::printf("demo 256x192, %s: %llu edge pixels, %llu blended, %llu not white in aa_mask\n",
+                ToString(coverage).data(), static_cast<unsigned long long>(f->stats.edge_pixels),
+                static_cast<unsigned long long>(f->stats.blend_pixels),
+                static_cast<unsigned long long>(darker));
+    EXPECT_GT(f->stats.blend_pixels, 0u);
+    EXPECT_EQ(f->stats.blend_pixels, darker);
+    if (coverage == VisMlaaCoverage::kRaster) {
+      EXPECT_LT(f->stats.blend_pixels, f->stats.edge_pixels)
+          << "every edge pixel is blended, the ones inside a surface too";
+    } else {
+      EXPECT_LE(f->stats.blend_pixels, f->stats.edge_pixels);
+    }
+    ExpectNoValidationMessages(r);
   }
 }
 
