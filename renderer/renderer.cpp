@@ -96,13 +96,17 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
     const Settings& d = defaults->effective;
     features.light_texels = impl_->LightTexelsFit(
         gpu->lights().size(), TileGrid{d.width, d.height, d.tile_size}.tiles());
-    // The local lights as PrepareLights counts them: the shading pipelines differ with and
-    // without (kLocalLightsOn).
+    // The local and global lights as PrepareLights counts them: the shading pipelines differ
+    // with and without local lights (kLocalLightsOn) and by the global lights' loop
+    // (kGlobalLightsOn). A scene without lights of its own gets a sun.
+    uint32_t local = 0, global = 0;
     if (d.scene_lights) {
       const std::vector<Light>& lights = gpu->lights();
-      features.local_lights += uint32_t(std::count_if(lights.begin(), lights.end(), IsLocalLight));
+      local = uint32_t(std::count_if(lights.begin(), lights.end(), IsLocalLight));
+      global = uint32_t(lights.size()) - local;
     }
-    features.local_lights += d.synthetic_lights;
+    features.local_lights = local + d.synthetic_lights;
+    features.global_lights = local == 0 && global == 0 ? 1u : global;
     const absl::Status warmed =
         impl_->PreparePasses(PlanFrame(d, features), d, *gpu, features);
     if (!warmed.ok())
@@ -301,6 +305,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   FrameFeatures features;
   features.has_transparent = !f.draws.blend_order.empty();
   features.local_lights = uint32_t(f.local.size());
+  features.global_lights = uint32_t(f.global.size());
   features.shadow_atlas_valid = !f.shadows.atlas_new;
   features.taa_history_valid = f.taa.history_valid;
   features.exposure_valid = f.exposure.state_valid;

@@ -531,28 +531,28 @@ void BeginSceneDraw(const PassContext& ctx, VkPipeline pipeline,
 uint32_t ShadingDebugView(const Settings& s);
 // The effects shading.glsl has code for with these settings (its specialization constant 0):
 // gpu::kShadowsOn | kSsaoOn | kIblOn. ShadingConstantsFor adds kLocalLightsOn for a frame with
-// local lights.
+// local lights and kGlobalLightsOn for one whose global lights need DirectLight's loop.
 uint32_t ShadingEffects(const Settings& s);
 
 // The specialization constants a shading pipeline (forward, transparent, visibility shade) is
 // built with: shading.glsl's 0 (ShadingEffects), 1 (the material's texture slots), 2
 // (ShadingDebugView) and 4 (the lights through texel buffers: FrameFeatures::light_texels), and
-// vis.glsl's 3 (VisTexels; the visibility shading only). Key() packs them into 19 bits for a
+// vis.glsl's 3 (VisTexels; the visibility shading only). Key() packs them into 20 bits for a
 // pass's map of pipelines, which may add bits of its own above kShadingKeyBits.
 struct ShadingConstants {
   uint32_t effects = 0, textures = 0, debug = 0, vis_texels = 0, light_texels = 0;
   uint32_t Key() const {
-    return effects | textures << 4 | debug << 9 | vis_texels << 17 | light_texels << 18;
+    return effects | textures << 5 | debug << 10 | vis_texels << 18 | light_texels << 19;
   }
   static ShadingConstants FromKey(uint32_t key) {
-    return {key & 15u, (key >> 4) & 31u, (key >> 9) & 0xffu, (key >> 17) & 1u, (key >> 18) & 1u};
+    return {key & 31u, (key >> 5) & 31u, (key >> 10) & 0xffu, (key >> 18) & 1u, (key >> 19) & 1u};
   }
   // In constant_id order.
   std::vector<uint32_t> Values() const {
     return {effects, textures, debug, vis_texels, light_texels};
   }
 };
-inline constexpr uint32_t kShadingKeyBits = 19;
+inline constexpr uint32_t kShadingKeyBits = 20;
 ShadingConstants ShadingConstantsFor(const Settings& s, const FrameFeatures& features,
                                      uint32_t textures);
 // RecordSegments' default: every segment with the pipeline already bound.

@@ -134,6 +134,7 @@ std::string_view PassName(PassId id);
 struct FrameFeatures {
   bool has_transparent = false;  // any visible BLEND drawable
   uint32_t local_lights = 0;     // point and spot lights to shade
+  uint32_t global_lights = 0;    // directional and unbounded lights to shade
   // What the long-lived resources hold as the frame starts (else their contents are undefined).
   bool shadow_atlas_valid = false;  // the atlas holds earlier frames' maps
   bool taa_history_valid = false;   // the view's history holds its last frame

@@ -72,9 +72,12 @@ TS_CONST uint kShadowsOn = 1u;
 TS_CONST uint kSsaoOn = 2u;
 // shading.glsl's specialization constant 0, the effects its pipeline has code for:
 // kShadowsOn | kSsaoOn | kIblOn | kLocalLightsOn (the frame has point or spot lights with a
-// range: the tile lists' loop).
+// range: the tile lists' loop) | kGlobalLightsOn (the frame has global lights for the global
+// lights' loop: any without shadows, more than one with them, where the first is shaded on its
+// own).
 TS_CONST uint kIblOn = 4u;
 TS_CONST uint kLocalLightsOn = 8u;
+TS_CONST uint kGlobalLightsOn = 16u;
 // ---- the light-culling compute pass (its own set 0) ------------------------------------------
 TS_CONST uint kCullBindingFrame = 0;        // uniform FrameUniforms
 TS_CONST uint kCullBindingLightBounds = 1;  // buffer GpuLightBounds[]

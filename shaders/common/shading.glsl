@@ -43,15 +43,16 @@ layout(set = 0, binding = kBindingAo) uniform sampler2D u_ao;
 layout(set = 0, binding = kBindingIrradiance) uniform samplerCube u_irradiance;
 layout(set = 0, binding = kBindingSpecular) uniform samplerCube u_specular;
 layout(set = 0, binding = kBindingBrdfLut) uniform sampler2D u_brdf_lut;
-// Pipelines are built per set of the effects shadows, SSAO and IBL, and local lights (constant 0:
-// kShadowsOn | kSsaoOn | kIblOn | kLocalLightsOn): lavapipe runs the code of an untaken branch at
-// a cost (each doubled the shading pass of frames without them), so a frame's pipeline has the
-// code of its effects only.
+// Pipelines are built per set of the effects shadows, SSAO and IBL, local lights and the global
+// lights' loop (constant 0: kShadowsOn | kSsaoOn | kIblOn | kLocalLightsOn | kGlobalLightsOn):
+// lavapipe runs the code of an untaken branch at a cost (each doubled the shading pass of frames
+// without them), so a frame's pipeline has the code of its effects only.
 layout(constant_id = 0) const uint kLightingEffects = 0u;
 const bool kShadowCode = (kLightingEffects & kShadowsOn) != 0u;
 const bool kSsaoCode = (kLightingEffects & kSsaoOn) != 0u;
 const bool kIblCode = (kLightingEffects & kIblOn) != 0u;
 const bool kLocalLightCode = (kLightingEffects & kLocalLightsOn) != 0u;
+const bool kGlobalLoopCode = (kLightingEffects & kGlobalLightsOn) != 0u;
 // The texture slots the shaded materials have (gpu::kMaterialTexturesAll: any): a pipeline per set
 // of slots a scene's materials use, so the sampling code of the slots they lack is not there at
 // all (lavapipe ran it under a lane mask: Sponza, whose materials have no occlusion or emissive
@@ -148,13 +149,20 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   vec3 color = vec3(0.0);
   // A shadowed sun is global light 0 (PrepareLights puts the directional lights first, PlaceSun
   // shadows the first and counts its cascades in shadow.counts.y), shaded below with its shadow.
-  // Without one, that light 0 is the loop's and the block's result is dropped.
+  // Without one, that light 0 is the loop's and the block's result is dropped. The loop is only
+  // in pipelines for frames with global lights for it (kGlobalLoopCode): with shadows, more than
+  // one; a loop's body ran on lavapipe with nothing to shade (Sponza's full stack, whose one
+  // global light is the sun: shading 164-180 -> 152-167 ms without it).
   bool sun = kShadowCode && shadow.counts.y > 0u;
-  for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
-    color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
+  if (kGlobalLoopCode) {
+    for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
+      color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
+  }
   if (kShadowCode) {
     vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kSunShadow);
-    color += sun ? c : vec3(0.0);
+    // Without the loop the frame has one global light at most, shaded here with its cascades
+    // or without (SunShadow looks up only a light that has them).
+    color += (kGlobalLoopCode ? sun : frame.counts.x > 0u) ? c : vec3(0.0);
   }
   uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
   // Only in pipelines for frames with local lights (kLocalLightCode): on lavapipe the loop cost

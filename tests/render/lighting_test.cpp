@@ -66,6 +66,27 @@ float LumaAt(const RgbaImage& image, const Camera& camera, glm::vec3 world) {
   return sum / 9.0f;
 }
 
+// Lit(shadows on) for each way of shading: the forward pass, the visibility pipeline's shading
+// and vis_mlaa's, with a name for the messages.
+std::vector<std::pair<std::string, Settings>> ShadowedPaths() {
+  std::vector<std::pair<std::string, Settings>> out;
+  for (const auto& [pipeline, aa] : {std::pair{Pipeline::kForward, AaMode::kNone},
+                                     std::pair{Pipeline::kVisibility, AaMode::kNone},
+                                     std::pair{Pipeline::kAuto, AaMode::kVisMlaa}}) {
+    Settings on = Lit(true, false, aa);
+    on.pipeline = pipeline;
+    out.push_back({std::string(ToString(pipeline)) + " " + std::string(ToString(aa)), on});
+  }
+  return out;
+}
+
+double MeanLuma(const RgbaImage& image) {
+  double sum = 0.0;
+  for (uint32_t y = 0; y < image.height; ++y)
+    for (uint32_t x = 0; x < image.width; ++x) sum += Luma(image, int(x), int(y));
+  return sum / (double(image.width) * image.height);
+}
+
 // Where the sun's ray through the centre of the demo's gold sphere meets the floor.
 glm::vec3 GoldSphereShadow() {
   const glm::vec3 center(-1.6f, 0.5f, 0.3f);
@@ -132,13 +153,7 @@ TEST(ShadowTest, SunShadowWhateverTheOrderOfTheGlobalLights) {
   cpu.lights.insert(cpu.lights.begin(), first);
   absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(cpu);
   ASSERT_TRUE(scene.ok()) << scene.status();
-  // The forward pass, the visibility pipeline's shading and vis_mlaa's.
-  for (const auto& [pipeline, aa] : {std::pair{Pipeline::kForward, AaMode::kNone},
-                                     std::pair{Pipeline::kVisibility, AaMode::kNone},
-                                     std::pair{Pipeline::kAuto, AaMode::kVisMlaa}}) {
-    const std::string what = std::string(ToString(pipeline)) + " " + std::string(ToString(aa));
-    Settings on = Lit(true, false, aa);
-    on.pipeline = pipeline;
+  for (const auto& [what, on] : ShadowedPaths()) {
     Settings off = on;
     off.shadows = false;
     const Frame reordered = RenderOrDie(**scene, BackCamera(), on);
@@ -152,6 +167,43 @@ TEST(ShadowTest, SunShadowWhateverTheOrderOfTheGlobalLights) {
     EXPECT_LT(LumaAt(reordered.image, BackCamera(), q),
               0.75f * LumaAt(unshadowed.image, BackCamera(), q))
         << what;
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// With shadows the first global light is shaded on its own, and a frame with no other global
+// light has no loop over them (kGlobalLightsOn): that light is shaded whether or not it has
+// cascades. Here the demo's only light is an unbounded point light (global, and PlaceSun shadows
+// directional lights only): the same picture with shadows on as off, nothing else casting any,
+// and brighter where it shines than with the light dark.
+TEST(ShadowTest, TheOnlyGlobalLightIsShadedWithoutCascades) {
+  auto scene_with = [](float intensity) {
+    CpuScene cpu = BuildDemoScene();
+    Light light;
+    light.name = "unbounded point light";
+    light.type = LightType::kPoint;
+    light.intensity = intensity;
+    light.range = 0.0f;  // global: it reaches everywhere
+    light.position = {1.0f, 4.0f, 1.0f};
+    cpu.lights = {light};
+    absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(cpu);
+    EXPECT_TRUE(scene.ok()) << scene.status();
+    return scene.ok() ? *scene : nullptr;
+  };
+  const SceneHandle lit = scene_with(200.0f), dark = scene_with(0.0f);
+  ASSERT_NE(lit, nullptr);
+  ASSERT_NE(dark, nullptr);
+  for (const auto& [what, on] : ShadowedPaths()) {
+    Settings off = on;
+    off.shadows = false;
+    const Frame shadowed = RenderOrDie(*lit, BackCamera(), on);
+    const Frame unshadowed = RenderOrDie(*lit, BackCamera(), off);
+    const Frame unlit = RenderOrDie(*dark, BackCamera(), on);
+    EXPECT_EQ(shadowed.stats.shadowed_lights, 0u) << what;
+    absl::StatusOr<double> psnr = Psnr(shadowed.image, unshadowed.image);
+    ASSERT_TRUE(psnr.ok());
+    EXPECT_GT(*psnr, 60.0) << what;
+    EXPECT_GT(MeanLuma(shadowed.image), MeanLuma(unlit.image) + 20.0) << what;
   }
   ExpectNoValidationMessages(SharedRenderer());
 }

@@ -893,7 +893,7 @@ namespace {
 TEST(ShadingConstantsTest, KeysRoundTripAndNeverCollide) {
   std::set<uint32_t> keys;
   size_t count = 0;
-  for (uint32_t effects = 0; effects < 16; ++effects)
+  for (uint32_t effects = 0; effects < 32; ++effects)
     for (uint32_t textures = 0; textures <= gpu::kMaterialTexturesAll; ++textures)
       for (uint32_t debug : {gpu::kDebugNone, gpu::kDebugNormals, gpu::kDebugDepth,
                              gpu::kDebugBaseColor, gpu::kDebugLightHeatmap, gpu::kDebugCascades})
@@ -932,6 +932,15 @@ TEST(ShadingConstantsTest, FollowTheSettingsAndTheFrame) {
   EXPECT_EQ(ShadingConstantsFor(s, features, 5u).effects,
             gpu::kShadowsOn | gpu::kIblOn | gpu::kLocalLightsOn);
   EXPECT_EQ(ShadingConstantsFor(Settings{}, features, 0u).effects, gpu::kLocalLightsOn);
+  // The global lights' loop only where it has lights: any without shadows; with shadows, more
+  // than the one shaded on its own.
+  features.local_lights = 0;
+  features.global_lights = 1;
+  EXPECT_EQ(ShadingConstantsFor(s, features, 5u).effects, gpu::kShadowsOn | gpu::kIblOn);
+  EXPECT_EQ(ShadingConstantsFor(Settings{}, features, 0u).effects, gpu::kGlobalLightsOn);
+  features.global_lights = 2;
+  EXPECT_EQ(ShadingConstantsFor(s, features, 5u).effects,
+            gpu::kShadowsOn | gpu::kIblOn | gpu::kGlobalLightsOn);
 }
 
 }  // namespace
