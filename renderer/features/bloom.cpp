@@ -72,7 +72,7 @@ class BloomPass final : public Pass {
     for (uint32_t i = levels - 1; i-- > 0;) {  // levels - 2 .. 0
       const VkExtent2D low = extent(i + 1);
       const gpu::BloomUpPush push{
-          glm::vec4(1.0f / float(low.width), 1.0f / float(low.height), 1.0f, 0.0f)};
+          glm::vec4(1.0f / float(low.width), 1.0f / float(low.height), 0.0f, 0.0f)};
       const VkImageView low_view =
           i + 1 == levels - 1 ? t.bloom_down_levels[i + 1] : t.bloom_up_levels[i + 1];
       up_.Draw(ctx,

@@ -473,7 +473,7 @@ struct GpuShadeEntry {
   vec4 src;                \
   vec4 threshold;          \
   vec4 exposure;
-// bloom_up.frag: xy: 1 / u_low size in texels, z: tent radius in u_low texels (1).
+// bloom_up.frag: xy: 1 / u_low size in texels; zw unused.
 #define TS_PUSH_BLOOM_UP vec4 params;
 // exposure.comp: size xy: HDR size in pixels, z: grid width, w: grid height (sample points);
 // params x: rate (>= 1: this frame's value at once, else the fraction of the way to move),
