@@ -1,8 +1,8 @@
 // Shadow lookups in the shadow atlas (renderer/shadows.h has the conventions, the Tesseract
 // pipeline article the method): the sun picks its cascade by the spheres the cascades cover,
 // a point light picks its unrolled cubemap face by comparing the axes of the light-to-surface
-// vector (no lookup texture), a spot light has one view. Each lookup is a 3x3 weighted box
-// PCF made of 4 bilinear comparison taps of the hardware shadow sampler.
+// vector (no lookup texture), a spot light has one view. Each lookup is Tesseract's 3x3 box
+// PCF, made of 4 comparison gathers of the hardware shadow sampler.
 // Needs scene.glsl; fragment shaders only.
 #ifndef TESSERA_SHADOWS_GLSL
 #define TESSERA_SHADOWS_GLSL
@@ -10,22 +10,37 @@
 layout(set = 0, binding = kBindingShadows, std140) uniform ShadowBlock { ShadowUniforms shadow; };
 layout(set = 0, binding = kBindingShadowAtlas) uniform sampler2DShadow u_shadow_atlas;
 
-// Tesseract's filter: the 3x3 box weights of the texels around `tc` (atlas texels, z the depth
-// to compare) folded into 4 bilinear taps placed so each tap's bilinear weights reproduce two
-// by two of them; the weights' renormalization is the seed of a Newton iteration, as there.
+// The weights of a gather's four texels (its order, below) from those of its two columns `wx`
+// and two rows `wy`.
+vec4 Quarter(vec2 wx, vec2 wy) { return vec4(wx.x * wy.y, wx.y * wy.y, wx.y * wy.x, wx.x * wy.x); }
+
+// Tesseract's filter: a box 3 texels wide around `tc` (atlas texels, z the depth to compare)
+// covers the 4x4 texels i - 1 .. i + 2 per axis, where tc lies o past texel i's centre, by
+// (1 - o, 1, 1, o) / 3. Each 2x2 quarter of those is one comparison gather (the texels a
+// bilinear tap at its shared corner reads), weighed here: Tesseract folds the weights into 4
+// bilinear taps placed to reproduce them, which read the same texels, but lavapipe's bilinear
+// comparison taps cost more than its gathers (Sponza's full stack, four alternating rounds:
+// shading 147.8-156.0 -> 143.3-150.2 ms; the shadow goldens 63-65 dB from the taps', a few
+// shadow-edge pixels apart, likely where the taps' weights were rounded to the sampler's
+// subtexel precision). A gather has no level of detail to pick, so it needs no derivatives in
+// the lookups' non-uniform control flow (per light, per cascade).
 float ShadowPcf(vec3 tc) {
-  vec2 offset = fract(tc.xy - 0.5);
-  vec2 center = tc.xy - offset * 0.5;
-  vec4 size = vec4(offset + 1.0, 2.0 - offset);
+  vec2 x = tc.xy - 0.5;
+  vec2 i = floor(x), o = x - i;
   float inv = shadow.atlas.y;
-  // Explicit level 0: the lookups run in non-uniform control flow (per light, per cascade),
-  // where implicit derivatives are undefined.
-  vec4 taps = vec4(
-      textureLod(u_shadow_atlas, vec3((center + vec2(-0.5, -0.5)) * inv, tc.z), 0.0),
-      textureLod(u_shadow_atlas, vec3((center + vec2(1.0, -0.5)) * inv, tc.z), 0.0),
-      textureLod(u_shadow_atlas, vec3((center + vec2(-0.5, 1.0)) * inv, tc.z), 0.0),
-      textureLod(u_shadow_atlas, vec3((center + vec2(1.0, 1.0)) * inv, tc.z), 0.0));
-  return (1.0 / 9.0) * dot(size.zxzx * size.wwyy, taps);
+  // A gather at the corner shared by texels (i0, i0 + 1) x (j0, j0 + 1) returns them as
+  // (i0, j0 + 1), (i0 + 1, j0 + 1), (i0 + 1, j0), (i0, j0).
+  vec4 near_near = textureGather(u_shadow_atlas, i * inv, tc.z);  // texels i - 1, i
+  vec4 far_near = textureGather(u_shadow_atlas, (i + vec2(2.0, 0.0)) * inv, tc.z);
+  vec4 near_far = textureGather(u_shadow_atlas, (i + vec2(0.0, 2.0)) * inv, tc.z);
+  vec4 far_far = textureGather(u_shadow_atlas, (i + 2.0) * inv, tc.z);  // texels i + 1, i + 2
+  // Per axis the weights of a quarter's two texels: the near quarter's (1 - o, 1), the far's
+  // (1, o); a quarter's four, in the gather's order, from its x and y pairs.
+  vec2 near = vec2(1.0) - vec2(o.x, 0.0), far = vec2(1.0, o.x);
+  vec2 near_y = vec2(1.0) - vec2(o.y, 0.0), far_y = vec2(1.0, o.y);
+  float sum = dot(near_near, Quarter(near, near_y)) + dot(far_near, Quarter(far, near_y)) +
+              dot(near_far, Quarter(near, far_y)) + dot(far_far, Quarter(far, far_y));
+  return sum * (1.0 / 9.0);
 }
 
 // Face of a point light's cubemap: the axis of the largest component, positive first
