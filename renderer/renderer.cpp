@@ -98,15 +98,11 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
         gpu->lights().size(), TileGrid{d.width, d.height, d.tile_size}.tiles());
     // The local and global lights as PrepareLights counts them: the shading pipelines differ
     // with and without local lights (kLocalLightsOn) and by the global lights' loop
-    // (kGlobalLightsOn). A scene without lights of its own gets a sun.
-    uint32_t local = 0, global = 0;
-    if (d.scene_lights) {
-      const std::vector<Light>& lights = gpu->lights();
-      local = uint32_t(std::count_if(lights.begin(), lights.end(), IsLocalLight));
-      global = uint32_t(lights.size()) - local;
-    }
-    features.local_lights = local + d.synthetic_lights;
-    features.global_lights = local == 0 && global == 0 ? 1u : global;
+    // (kGlobalLightsOn).
+    std::vector<Light> global, local;
+    Impl::SplitSceneLights(gpu->lights(), d.scene_lights, global, local);
+    features.local_lights = uint32_t(local.size()) + d.synthetic_lights;
+    features.global_lights = uint32_t(global.size());
     const absl::Status warmed =
         impl_->PreparePasses(PlanFrame(d, features), d, *gpu, features);
     if (!warmed.ok())
@@ -404,9 +400,9 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
       capture->background_pixels = entries[f.shade.materials].list.z;
     }
     if (plan.Has(PassId::kVisResolve)) {
-      frame.stats.edge_pixels = entries[f.shade.materials + 1].dispatch.w;
-      frame.stats.runner_up_pixels = entries[f.shade.materials + 1].list.x;
-      frame.stats.blend_pixels = entries[f.shade.materials + 2].dispatch.w;
+      frame.stats.edge_pixels = entries[f.shade.edge_entry()].dispatch.w;
+      frame.stats.runner_up_pixels = entries[f.shade.edge_entry()].list.x;
+      frame.stats.blend_pixels = entries[f.shade.blend_entry()].dispatch.w;
     }
   }
   if (f.tiled) {

@@ -248,6 +248,11 @@ struct Renderer::Impl {
   // motion.cpp (from PrepareCamera): taa's object motion and the view's kept pose.
   absl::Status PrepareMotion(FrameData& f, TaaHistory& history, bool history_valid);
   absl::Status PrepareLights(FrameData& f, Frame& frame);  // forward_plus.cpp
+  // forward_plus.cpp: the scene's lights as PrepareLights starts from them (`scene_lights` off:
+  // none): directional and unbounded ones global, the others local (IsLocalLight), and a sun
+  // (DefaultSun) where that leaves no light at all. The scene-load warm-up counts them too.
+  static void SplitSceneLights(const std::vector<Light>& lights, bool scene_lights,
+                               std::vector<Light>& global, std::vector<Light>& local);
   absl::Status PrepareShadows(FrameData& f, Frame& frame);  // shadows.cpp
   absl::Status PrepareSsao(FrameData& f);                  // ssao.cpp
   absl::Status PrepareIbl(FrameData& f, Frame& frame);     // ibl.cpp

@@ -29,11 +29,11 @@ layout(set = 0, binding = kGeometricAaBindingRunnerUps, std430) readonly buffer 
 
 layout(constant_id = 0) const uint kMode = kGeometricAaBlend;
 
+#include "common/blend_list.glsl"
+
 void main() {
-  uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-  uint k = group * kShadeGroupSize + gl_LocalInvocationIndex;
-  if (k >= entries[push.edges + 1u].dispatch.w) return;
-  uint i = pixels[entries[push.edges].dispatch.w + k];  // the blend list names an edge list entry
+  uint i;  // the edge list entry
+  if (!BlendListEntry(push.edges, i)) return;
   uint packed = pixels[i];
   ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
   if (kMode == kGeometricAaBlend) {

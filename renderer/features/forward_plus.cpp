@@ -162,18 +162,22 @@ constexpr uint64_t kMaxTileListBytes = 128ull << 20;
 
 }  // namespace
 
+void Renderer::Impl::SplitSceneLights(const std::vector<Light>& lights, bool scene_lights,
+                                      std::vector<Light>& global, std::vector<Light>& local) {
+  if (scene_lights) {
+    // Point and spot lights without a range reach everywhere: they are global too.
+    for (const Light& l : lights) (IsLocalLight(l) ? local : global).push_back(l);
+  }
+  if (global.empty() && local.empty()) global.push_back(DefaultSun());
+}
+
 absl::Status Renderer::Impl::PrepareLights(FrameData& f, Frame& frame) {
   // Directional lights are global (uniform buffer); point and spot lights, the scene's and the
   // synthetic ones, are local and culled per tile. A scene without lights gets a sun.
   const Settings& s = f.s;
   std::vector<Light>& global = f.global;
   std::vector<Light>& local = f.local;
-  if (s.scene_lights) {
-    // Point and spot lights without a range reach everywhere: they are global too.
-    for (const Light& l : f.gs.lights())
-      (IsLocalLight(l) ? local : global).push_back(l);
-  }
-  if (global.empty() && local.empty()) global.push_back(DefaultSun());
+  SplitSceneLights(f.gs.lights(), s.scene_lights, global, local);
   // Directional lights first: the one PlaceSun shadows is then global light 0, which the
   // shading reads at a constant index (shading.glsl's DirectLight).
   std::stable_partition(global.begin(), global.end(),

@@ -175,6 +175,9 @@ struct ShadeBuffers {
   VkBuffer runner_ups = VK_NULL_HANDLE;
   VkBuffer edge_colors = VK_NULL_HANDLE;
   uint32_t materials = 0;
+  // vis_mlaa's entries after the sky's: the edge list's and the blend list's.
+  uint32_t edge_entry() const { return materials + 1; }
+  uint32_t blend_entry() const { return materials + 2; }
 };
 
 struct PassStats {

@@ -281,7 +281,7 @@ class GeometricAaPass final : public PostPass {
       return;
     }
     const ShadeBuffers& sb = *ctx.shade;
-    push.edges = sb.materials + 1;  // the resolve's edge list: the entry after the sky's
+    push.edges = sb.edge_entry();  // the resolve's edge list (the blend list's entry is the next)
     const VkDescriptorSet set = edge_layout_.Allocate(ctx);
     SetWriter(device_, set)
         .Sampled(1, nearest_.handle(), t.vis_coverage.view())
@@ -297,7 +297,7 @@ class GeometricAaPass final : public PostPass {
                             nullptr);
     vkCmdPushConstants(ctx.cmd, layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, sizeof(push), &push);
     // Dispatched over the blend list (the edge pixels with more than one surface).
-    const VkDeviceSize args = VkDeviceSize(push.edges + 1) * sizeof(gpu::GpuShadeEntry);
+    const VkDeviceSize args = VkDeviceSize(sb.blend_entry()) * sizeof(gpu::GpuShadeEntry);
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, blend_.handle());
     vkCmdDispatchIndirect(ctx.cmd, sb.entries, args);
     // The blends are written (and every neighbour read) before any pixel changes.

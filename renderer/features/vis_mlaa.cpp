@@ -174,8 +174,7 @@ class VisResolvePass final : public Pass {
 
   void Record(PassContext& ctx) override {
     const ShadeBuffers& sb = *ctx.shade;
-    const uint32_t edges = sb.materials + 1;  // the entry after the sky's
-    const uint32_t blend = edges + 1;           // the edge pixels with a runner-up
+    const uint32_t edges = sb.edge_entry(), blend = sb.blend_entry();
     const VkDeviceSize entry = VkDeviceSize(edges) * sizeof(gpu::GpuShadeEntry);
     const VkDeviceSize blend_entry = VkDeviceSize(blend) * sizeof(gpu::GpuShadeEntry);
     // Every material's, the sky's, the edge list's and the blend list's entry start at zero: the

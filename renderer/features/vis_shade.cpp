@@ -193,7 +193,7 @@ class VisClassifyPass final : public Pass {
     auto over_blend = [&](uint32_t mode) {  // the resolve's blend list, sized by the resolve
       push(mode);
       vkCmdDispatchIndirect(ctx.cmd, sb.entries,
-                            VkDeviceSize(sb.materials + 2) * sizeof(gpu::GpuShadeEntry));
+                            VkDeviceSize(sb.blend_entry()) * sizeof(gpu::GpuShadeEntry));
     };
     if (!vis_mlaa) {
       step(gpu::kClassifyCount, gx, gy);

@@ -36,8 +36,8 @@ float ShadowPcf(vec3 tc) {
   vec4 far_far = textureGather(u_shadow_atlas, (i + 2.0) * inv, tc.z);  // texels i + 1, i + 2
   // Per axis the weights of a quarter's two texels: the near quarter's (1 - o, 1), the far's
   // (1, o); a quarter's four, in the gather's order, from its x and y pairs.
-  vec2 near = vec2(1.0) - vec2(o.x, 0.0), far = vec2(1.0, o.x);
-  vec2 near_y = vec2(1.0) - vec2(o.y, 0.0), far_y = vec2(1.0, o.y);
+  vec2 near = vec2(1.0 - o.x, 1.0), far = vec2(1.0, o.x);
+  vec2 near_y = vec2(1.0 - o.y, 1.0), far_y = vec2(1.0, o.y);
   float sum = dot(near_near, Quarter(near, near_y)) + dot(far_near, Quarter(far, near_y)) +
               dot(near_far, Quarter(near, far_y)) + dot(far_far, Quarter(far, far_y));
   return sum * (1.0 / 9.0);

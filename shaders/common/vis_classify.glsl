@@ -40,6 +40,7 @@ layout(set = kVisSet, binding = kShadeBindingRunnerUps, std430) readonly buffer 
 const uint kNoMaterial = 0xffffffffu;
 
 #include "common/shade_append.glsl"
+#include "common/blend_list.glsl"
 
 layout(constant_id = 0) const uint kMode = kClassifyCount;
 // Whether the frame has IBL (Settings::ibl), whose environment map is the sky: a pipeline each,
@@ -72,9 +73,8 @@ void Scan() {
   }
   // vis_mlaa: the lists follow the resolve's edge list and blend list, which geometric AA reads
   // after them.
-  uint base = push.params.z != 0u
-                  ? entries[push.params.y + 1u].dispatch.w + entries[push.params.y + 2u].dispatch.w
-                  : 0u;
+  uint edges = push.params.y + 1u;
+  uint base = push.params.z != 0u ? BlendListStart(edges) + BlendListLength(edges) : 0u;
   uint offset = base + s_sums[i] - sum;
   for (uint m = begin; m < end; ++m) {
     uint count = entries[m].dispatch.w;
@@ -93,13 +93,9 @@ void main() {
   }
 #ifdef VIS_MLAA
   if (kMode == kClassifyFillRunnerUps) {
-    // One blend list entry per invocation (the workgroup's 64 invocations, as the shading's),
-    // which names an edge list entry.
-    uint edges = push.params.y + 1u;
-    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
-    uint k = group * kShadeGroupSize + gl_LocalInvocationIndex;
-    if (k >= entries[edges + 1u].dispatch.w) return;
-    uint i = pixels[entries[edges].dispatch.w + k];
+    // One blend list entry per invocation (the workgroup's 64 invocations, as the shading's).
+    uint i;  // the edge list entry it names
+    if (!BlendListEntry(push.params.y + 1u, i)) return;
     uvec2 r = runner_ups[i];
     if ((r.y & 0xffu) == 0u || RunnerUpSource(r.y) != kRunnerUpShaded) return;
     uint m = r.x == 0u ? push.params.y : DrawableIds(VisDrawable(r.x, frame.aa.x)).y;

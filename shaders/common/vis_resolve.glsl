@@ -68,6 +68,7 @@ layout(set = kVisSet, binding = kResolveBindingSurfaces, std430) readonly buffer
 layout(set = kVisSet, binding = kResolveBindingSurfaceTexels) uniform usamplerBuffer
     surface_texels;
 #include "common/shade_append.glsl"
+#include "common/blend_list.glsl"
 
 // The entry an id's pixels are counted in: its drawable's material's, or the sky's (the entry
 // before the edge list's; runner-ups only).
@@ -380,7 +381,7 @@ uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
   runner_ups[entry] = record;
   // The blend list (after the edge list, which the uniform pass has finished).
   if (runner != 0u) {
-    pixels[entries[edges].dispatch.w + atomicAdd(entries[edges + 1u].dispatch.w, 1u)] = entry;
+    pixels[BlendListStart(edges) + atomicAdd(entries[edges + 1u].dispatch.w, 1u)] = entry;
   }
   return winner;
 }
@@ -431,28 +432,25 @@ void main() {
     }
     return;
   }
+  uint entry = 0u;
+  if (mode == kResolveRunnerUps) {  // one blend list entry each
+    if (!BlendListEntry(edges, entry)) return;
+    uint packed = pixels[entry];
+    DecideRunnerUp(ivec2(packed & 0xffffu, packed >> 16), entry, edges);
+    return;
+  }
   ivec2 p;
   if (mode == kResolveUniform) {  // an 8x8 tile per workgroup
     uint l = gl_LocalInvocationIndex;
     p = ivec2(gl_WorkGroupID.xy) * 8 + ivec2(l % 8u, l / 8u);
     if (any(greaterThanEqual(p, ivec2(frame.counts.zw)))) return;
   }
-  uint entry = 0u;
-  if (mode != kResolveUniform) {  // kResolveEdges, kResolveRunnerUps: one listed pixel each
+  if (mode == kResolveEdges) {  // one edge list entry each
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     entry = group * kShadeGroupSize + gl_LocalInvocationIndex;
-    if (mode == kResolveRunnerUps) {  // the blend list's entry'th edge pixel
-      if (entry >= entries[edges + 1u].dispatch.w) return;
-      entry = pixels[entries[edges].dispatch.w + entry];
-    } else if (entry >= entries[edges].dispatch.w) {
-      return;
-    }
+    if (entry >= entries[edges].dispatch.w) return;
     uint packed = pixels[entry];
     p = ivec2(packed & 0xffffu, packed >> 16);
-    if (mode == kResolveRunnerUps) {
-      DecideRunnerUp(p, entry, edges);
-      return;
-    }
   }
   uint ids[kSamples];
   bool uniform_id = true;
