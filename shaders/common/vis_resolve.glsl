@@ -354,10 +354,12 @@ uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
       }
     }
   }
-  for (uint k = 0u; k < kSamples; ++k)  // closure: join through members (kSamples rounds)
+  // The closure, Warshall's way: after step k, a sample's set holds every sample joined to it
+  // through samples 0..k (kSamples^2 steps, where repeating a pass joining each set's members'
+  // sets until nothing changes took kSamples^3).
+  for (uint k = 0u; k < kSamples; ++k)
     for (uint s = 0u; s < kSamples; ++s)
-      for (uint t = 0u; t < kSamples; ++t)
-        if ((same[s] & (1u << t)) != 0u) same[s] |= same[t];
+      if ((same[s] & (1u << k)) != 0u) same[s] |= same[k];
   uint mask = same[0];
   for (uint s = 1u; s < kSamples; ++s)
     if (bitCount(same[s]) > bitCount(mask)) mask = same[s];
