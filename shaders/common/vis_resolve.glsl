@@ -144,15 +144,14 @@ void Pick(uint mask, uint ids[kSamples], out uint id, out vec2 mean) {
 // triangles that holds it. One triangle per iteration of a loop, each id once: lavapipe runs a
 // loop as many times as its busiest lane needs (at least once), where the four unrolled tests it
 // replaced (one per sample, behind a branch) ran for every lane whatever the branch said.
-uint ContainingId(ivec2 p, uint mask, uint ids[kSamples], uint id, vec2 mean) {
+// `firsts`: bit s set where sample s is the first of the pixel's samples with its id.
+uint ContainingId(ivec2 p, uint mask, uint ids[kSamples], uint firsts, uint id, vec2 mean) {
   if (id == 0u) return 0u;
-  // Bit s: sample s is the surface's first sample on a triangle other than `id`'s.
-  uint others = 0u;
-  for (uint s = 0u; s < kSamples; ++s) {
-    bool first = (mask & (1u << s)) != 0u && ids[s] != id;
-    for (uint t = 0u; t < s; ++t) first = first && ((mask & (1u << t)) == 0u || ids[t] != ids[s]);
-    if (first) others |= 1u << s;
-  }
+  // Bit s: sample s is the surface's first sample on a triangle other than `id`'s (samples with
+  // one id are on one surface, so the first of them is in `mask` when any is).
+  uint others = mask & firsts;
+  for (uint s = 0u; s < kSamples; ++s)
+    if (ids[s] == id) others &= ~(1u << s);
   vec3 dir = RayDirection(vec2(p) + mean);
   uint candidate = id;
   while (true) {
@@ -346,8 +345,10 @@ uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
   for (uint s = 0u; s < kSamples; ++s) tv[s] = SurfaceCorners(ids[s]);
   uint same[kSamples];  // bit t of same[s]: sample t is on sample s's surface
   for (uint s = 0u; s < kSamples; ++s) same[s] = 1u << s;
+  uint firsts = (1u << kSamples) - 1u;  // bit s: no earlier sample has sample s's id
   for (uint i = 0u; i < kSamples; ++i) {
     for (uint j = i + 1u; j < kSamples; ++j) {
+      if (ids[i] == ids[j]) firsts &= ~(1u << j);
       if (SameSurface(ids[i], ids[j], tv[i], tv[j])) {
         same[i] |= 1u << j;
         same[j] |= 1u << i;
@@ -370,7 +371,7 @@ uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
   uint id;
   vec2 mean;
   Pick(mask, ids, id, mean);
-  id = ContainingId(p, mask, ids, id, CoverageMean(PackCoverage(mask, mean)));
+  id = ContainingId(p, mask, ids, firsts, id, CoverageMean(PackCoverage(mask, mean)));
   uint winner = id;
   imageStore(u_id, p, uvec4(id));
   imageStore(u_coverage, p, uvec4(PackCoverage(mask, mean)));
@@ -378,7 +379,7 @@ uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
   if (runner != 0u) {
     Pick(runner, ids, id, mean);
     uint word = PackRunnerUp(runner, mean, kRunnerUpUndecided);
-    record = uvec2(ContainingId(p, runner, ids, id, RunnerUpMean(word)), word);
+    record = uvec2(ContainingId(p, runner, ids, firsts, id, RunnerUpMean(word)), word);
   }
   runner_ups[entry] = record;
   // The blend list (after the edge list, which the uniform pass has finished).
