@@ -204,7 +204,8 @@ TS_CONST uint kShadeBindingEdgeColors = 9;
 TS_CONST uint kRunnerUpEntry = 0x80000000u;
 // vis_resolve.comp's set 2: the samples (kVisBindingSamples), the ids and coverage words it
 // writes (r32ui storage images), the index and vertex buffers, and the entries and pixel lists
-// of the shading (the edge list borrows the pixel lists and the entry after the sky's).
+// of the shading (the edge list, and the blend list after it, borrow the pixel lists and the two
+// entries after the sky's: common/blend_list.glsl).
 TS_CONST uint kResolveBindingId = 1;
 TS_CONST uint kResolveBindingCoverage = 6;
 // vis_mlaa_coverage analytic: buffer uint[], per index of the index buffer the triangle across
