@@ -6,10 +6,12 @@
 #ifndef TESSERA_BLEND_LIST_GLSL
 #define TESSERA_BLEND_LIST_GLSL
 
-// Where the blend list starts in the pixel lists: after the edge list, entry `edges`.
+// The blend list's entry: the one after the edge list's, `edges`.
+uint BlendListCounter(uint edges) { return edges + 1u; }
+// Where the blend list starts in the pixel lists: after the edge list.
 uint BlendListStart(uint edges) { return entries[edges].dispatch.w; }
 // Its length.
-uint BlendListLength(uint edges) { return entries[edges + 1u].dispatch.w; }
+uint BlendListLength(uint edges) { return entries[BlendListCounter(edges)].dispatch.w; }
 
 // The invocation's blend list entry, one per invocation of a dispatch over it (kShadeGroupSize
 // to a workgroup, as the resolve's args step sized it): the edge list entry it names, or false

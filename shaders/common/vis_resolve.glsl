@@ -380,12 +380,11 @@ uint Group(ivec2 p, uint entry, uint edges, uint ids[kSamples]) {
     Pick(runner, ids, id, mean);
     uint word = PackRunnerUp(runner, mean, kRunnerUpUndecided);
     record = uvec2(ContainingId(p, runner, ids, firsts, id, RunnerUpMean(word)), word);
+    // Listed in the blend list, after the edge list (which the uniform pass has finished).
+    uint k = atomicAdd(entries[BlendListCounter(edges)].dispatch.w, 1u);
+    pixels[BlendListStart(edges) + k] = entry;
   }
   runner_ups[entry] = record;
-  // The blend list (after the edge list, which the uniform pass has finished).
-  if (runner != 0u) {
-    pixels[BlendListStart(edges) + atomicAdd(entries[edges + 1u].dispatch.w, 1u)] = entry;
-  }
   return winner;
 }
 
