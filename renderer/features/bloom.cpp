@@ -36,6 +36,19 @@ class BloomPass final : public Pass {
         nearest_(std::move(nearest)) {}
   PassId id() const override { return PassId::kBloom; }
 
+  // The downsample's variants (gpu_types.h): the first level's and the others', each also in
+  // 2x2 pixels an invocation in compute (for a level exactly half its source, HalvesExactly).
+  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+    if (!s.bloom) return absl::OkStatus();
+    const bool compute = FullscreenProgram::Compute(s);
+    for (uint32_t variant : {0u, gpu::kBloomDownFirst, gpu::kBloomDownQuads,
+                             gpu::kBloomDownFirst | gpu::kBloomDownQuads}) {
+      if (!compute && (variant & gpu::kBloomDownQuads)) continue;
+      RETURN_IF_ERROR(down_.Ensure(ctx, s, variant));
+    }
+    return absl::OkStatus();
+  }
+
   void Record(PassContext& ctx) override {
     const FrameTargets& t = *ctx.targets;
     const uint32_t levels = uint32_t(t.bloom_down_levels.size());
@@ -59,12 +72,17 @@ class BloomPass final : public Pass {
                             ctx.exposure->params};
     for (uint32_t i = 0; i < levels; ++i) {
       const VkExtent2D src = i == 0 ? VkExtent2D{t.width, t.height} : extent(i - 1);
-      down.src = glm::vec4(1.0f / float(src.width), 1.0f / float(src.height), i == 0 ? 1.0f : 0.0f,
-                           0.0f);
+      down.src = glm::vec4(1.0f / float(src.width), 1.0f / float(src.height), 0.0f, 0.0f);
       const PostInput in{i == 0 ? PostColor(ctx).view() : t.bloom_down_levels[i - 1],
                          linear_.handle(),
                          i == 0 ? VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL : read};
-      down_.Draw(ctx, {in, exposure}, {t.bloom_down_levels[i]}, &down, extent(i));
+      const uint32_t variant = (i == 0 ? gpu::kBloomDownFirst : 0u) |
+                               (compute && HalvesExactly(src, extent(i)) ? gpu::kBloomDownQuads : 0u);
+      // kBloomDownQuads' invocations take 2x2 pixels each.
+      const VkExtent2D grid = (variant & gpu::kBloomDownQuads)
+                                  ? VkExtent2D{(extent(i).width + 1) / 2, (extent(i).height + 1) / 2}
+                                  : extent(i);
+      down_.Draw(ctx, {in, exposure}, {t.bloom_down_levels[i]}, &down, grid, variant);
       written(t.bloom_down, i);
     }
     // Up: level i of bloom_up = tent(the level below, magnified) + level i of bloom_down; the
@@ -93,6 +111,12 @@ class BloomPass final : public Pass {
   }
 
  private:
+  // Whether a level is exactly half its source, its taps then on the source's texel corners,
+  // shared by neighbouring pixels (bloom_down.comp's kBloomDownQuads variant).
+  static bool HalvesExactly(VkExtent2D src, VkExtent2D level) {
+    return src.width == 2 * level.width && src.height == 2 * level.height;
+  }
+
   // A mip just drawn, to be sampled by the next draw (and bloom_up's level 0 by the tonemap).
   static void ToRead(const PassContext& ctx, const vk::Image& image, uint32_t level) {
     const VkImageMemoryBarrier2 b = vk::MakeImageBarrier(

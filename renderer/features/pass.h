@@ -461,7 +461,9 @@ class FullscreenProgram {
                                                   ComputeRule rule = &Compute);
   // Every pixel of `outputs` written once (cleared contents are not loaded): one full-screen
   // triangle, or in compute one invocation per pixel (outputs in the general layout).
-  // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's).
+  // `extent`: the outputs' size when it is not the frame's (0 x 0: the frame's); in compute, the
+  // grid of invocations, which a shader taking several pixels each makes smaller (bloom_down's
+  // kBloomDownQuads).
   // `variant`: the shaders' specialization constant 0, built by Ensure (variant 0 by Create).
   void Draw(const PassContext& ctx, const std::vector<PostInput>& inputs,
             const std::vector<VkImageView>& outputs, const void* push,

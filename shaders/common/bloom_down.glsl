@@ -30,24 +30,28 @@ float Luma(vec3 c) {
   return dot(c, vec3(0.2126, 0.7152, 0.0722));  // Rec. 709
 }
 
+// The variant (gpu_types.h): kBloomDownFirst, and kBloomDownQuads for bloom_down.comp. A
+// specialization constant, not a branch on the push constants: lavapipe runs an untaken branch's
+// code under a lane mask, so every level would pay for the first level's.
+layout(constant_id = 0) const uint kVariant = 0u;
+const bool kFirst = (kVariant & kBloomDownFirst) != 0u;
+
 float g_scale = 1.0;  // the exposure on the first level, else 1
 
-// One bilinear tap `offset` source texels from the centre, scaled, made non-negative and finite
-// (NaN and negative channels 0, +inf the largest half) so one bad pixel cannot poison the chain.
-vec3 Tap(vec2 offset) {
-  vec3 c = textureLod(u_src, v_uv + offset * push.src.xy, 0.0).rgb * g_scale;
+// One bilinear tap at `uv` (source uv), scaled, made non-negative and finite (NaN and negative
+// channels 0, +inf the largest half) so one bad pixel cannot poison the chain.
+vec3 TapAt(vec2 uv) {
+  vec3 c = textureLod(u_src, uv, 0.0).rgb * g_scale;
   return mix(vec3(0.0), min(c, vec3(kMaxHalf)), greaterThanEqual(c, vec3(0.0)));
 }
 
-void PostMain() {
-  bool first = push.src.z > 0.5;
-  if (first) g_scale = Exposure(u_exposure, push.exposure);
-  vec3 a = Tap(vec2(-2.0, -2.0)), b = Tap(vec2(0.0, -2.0)), c = Tap(vec2(2.0, -2.0));
-  vec3 d = Tap(vec2(-1.0, -1.0)), e = Tap(vec2(1.0, -1.0));
-  vec3 f = Tap(vec2(-2.0, 0.0)), g = Tap(vec2(0.0, 0.0)), h = Tap(vec2(2.0, 0.0));
-  vec3 i = Tap(vec2(-1.0, 1.0)), j = Tap(vec2(1.0, 1.0));
-  vec3 k = Tap(vec2(-2.0, 2.0)), l = Tap(vec2(0.0, 2.0)), m = Tap(vec2(2.0, 2.0));
+// One tap `offset` source texels from the centre.
+vec3 Tap(vec2 offset) { return TapAt(v_uv + offset * push.src.xy); }
 
+// The filter of the 13 taps (named as above): the five boxes, Karis-weighted and thresholded on
+// the first level.
+vec4 BloomDown(vec3 a, vec3 b, vec3 c, vec3 d, vec3 e, vec3 f, vec3 g, vec3 h, vec3 i, vec3 j,
+               vec3 k, vec3 l, vec3 m) {
   // The five box averages and their weights.
   vec3 box[5] = vec3[](0.25 * (d + e + i + j), 0.25 * (a + b + f + g), 0.25 * (b + c + g + h),
                        0.25 * (f + g + k + l), 0.25 * (g + h + l + m));
@@ -56,13 +60,13 @@ void PostMain() {
   vec3 color = vec3(0.0);
   float total = 0.0;
   for (int n = 0; n < 5; ++n) {
-    float w = weight[n] * (first ? 1.0 / (1.0 + Luma(box[n])) : 1.0);  // Karis on level 0
+    float w = weight[n] * (kFirst ? 1.0 / (1.0 + Luma(box[n])) : 1.0);  // Karis on level 0
     color += box[n] * w;
     total += w;
   }
   color /= total;  // total is 1 without Karis
 
-  if (first) {
+  if (kFirst) {
     // Soft-knee threshold: below t - k nothing passes, above t + k the excess br - t, in between
     // a quadratic blend (rq) so the cut-off does not show as a hard edge. Scaling by the
     // brightest channel keeps the hue.
@@ -73,5 +77,14 @@ void PostMain() {
     rq = rq * rq / (4.0 * knee + 1e-5);  // 1e-5: knee 0 is a hard threshold, not 0 / 0
     color *= max(rq, br - t) / max(br, 1e-5);
   }
-  out_color = vec4(color, 1.0);
+  return vec4(color, 1.0);
+}
+
+void PostMain() {
+  if (kFirst) g_scale = Exposure(u_exposure, push.exposure);
+  out_color = BloomDown(Tap(vec2(-2.0, -2.0)), Tap(vec2(0.0, -2.0)), Tap(vec2(2.0, -2.0)),
+                        Tap(vec2(-1.0, -1.0)), Tap(vec2(1.0, -1.0)), Tap(vec2(-2.0, 0.0)),
+                        Tap(vec2(0.0, 0.0)), Tap(vec2(2.0, 0.0)), Tap(vec2(-1.0, 1.0)),
+                        Tap(vec2(1.0, 1.0)), Tap(vec2(-2.0, 2.0)), Tap(vec2(0.0, 2.0)),
+                        Tap(vec2(2.0, 2.0)));
 }

@@ -288,6 +288,11 @@ TS_CONST uint kTonemapViewPlain = 4;  // other debug views: the colour as the sh
 TS_CONST uint kTonemapBloom = 8;
 TS_CONST uint kTonemapPhotographic = 16;  // else Khronos PBR Neutral
 TS_CONST uint kTonemapAutoExposure = 32;
+// The bloom downsample's variant (specialization constant 0): the first level (exposure, Karis
+// average and threshold) and, in compute, 2x2 pixels an invocation for a level exactly half its
+// source (bloom_down.comp: the four pixels' 52 taps are 25 distinct ones).
+TS_CONST uint kBloomDownFirst = 1;
+TS_CONST uint kBloomDownQuads = 2;
 
 // Vertex attribute locations of the single scene vertex buffer (see scene::Vertex).
 TS_CONST uint kAttrPosition = 0;
@@ -467,8 +472,8 @@ struct GpuShadeEntry {
 #define TS_PUSH_SSAO_BLUR \
   ivec4 dir;              \
   vec4 params;
-// bloom_down.frag: src xy: 1 / source size in texels, z: 1 on the first level (exposure, Karis
-// average and threshold) else 0; threshold x: threshold (exposed linear HDR), y: knee (soft knee
+// bloom_down.frag: src xy: 1 / source size in texels, zw unused (the variant, kBloomDownFirst,
+// says which level is the first); threshold x: threshold (exposed linear HDR), y: knee (soft knee
 // width); exposure: Exposure()'s params (first level).
 #define TS_PUSH_BLOOM_DOWN \
   vec4 src;                \
