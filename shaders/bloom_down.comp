@@ -4,7 +4,7 @@
 // the inputs.
 //
 // Variant kBloomDownQuads, for a level exactly half its source (the first level of an even-sized
-// frame, and the next ones while the sizes stay even): output pixel p's taps then sit on source
+// frame, and any later one whose source has even sides): output pixel p's taps then sit on source
 // texel corners, its 9 outer taps (a b c f g h k l m) at the corners 2p - 1, 2p + 1, 2p + 3 per
 // axis and its 4 inner ones (d e i j) at 2p and 2p + 2 (corner c lies between texels c - 1 and
 // c), so neighbouring pixels share them. One invocation filters 2x2 pixels from their 25
@@ -25,7 +25,7 @@ void main() {
   if (kQuads) {
     // Invocation q filters the 2x2 pixels 2q + (0 | 1, 0 | 1): their outer taps at the corners
     // 4q - 1 + 2t (t = 0..3 per axis), their inner ones at 4q + 2t (t = 0..2).
-    if (kFirst) g_scale = Exposure(u_exposure, push.exposure);
+    BeginLevel();
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
     vec3 o[4][4], n[3][3];
     for (int y = 0; y < 4; ++y)

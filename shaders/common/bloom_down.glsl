@@ -37,6 +37,9 @@ layout(constant_id = 0) const uint kVariant = 0u;
 const bool kFirst = (kVariant & kBloomDownFirst) != 0u;
 
 float g_scale = 1.0;  // the exposure on the first level, else 1
+void BeginLevel() {
+  if (kFirst) g_scale = Exposure(u_exposure, push.exposure);
+}
 
 // One bilinear tap at `uv` (source uv), scaled, made non-negative and finite (NaN and negative
 // channels 0, +inf the largest half) so one bad pixel cannot poison the chain.
@@ -81,7 +84,7 @@ vec4 BloomDown(vec3 a, vec3 b, vec3 c, vec3 d, vec3 e, vec3 f, vec3 g, vec3 h, v
 }
 
 void PostMain() {
-  if (kFirst) g_scale = Exposure(u_exposure, push.exposure);
+  BeginLevel();
   out_color = BloomDown(Tap(vec2(-2.0, -2.0)), Tap(vec2(0.0, -2.0)), Tap(vec2(2.0, -2.0)),
                         Tap(vec2(-1.0, -1.0)), Tap(vec2(1.0, -1.0)), Tap(vec2(-2.0, 0.0)),
                         Tap(vec2(0.0, 0.0)), Tap(vec2(2.0, 0.0)), Tap(vec2(-1.0, 1.0)),

@@ -602,9 +602,9 @@ TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
 // SSAO and bloom run as fragment or compute shaders (post_stage): the same picture. (Compute
 // derives each pixel's uv from its index where the fragment shader interpolates it, so bloom's
 // bilinear taps may differ in the last bit.)
-// At 320x180 bloom's compute downsample runs both its variants: levels 0, 1, 2 and 4 halve their
-// source exactly (2x2 pixels an invocation, bloom_down.comp's kBloomDownQuads), levels 3 (80x45 to
-// 40x22) and 5 do not (a pixel an invocation, as the fragment shader).
+// At 320x180 bloom's compute downsample runs both its variants: levels 0, 1 and 3 halve their
+// source exactly (2x2 pixels an invocation, bloom_down.comp's kBloomDownQuads), levels 2 (80x45 to
+// 40x22), 4 (20x11 to 10x5) and 5 do not (a pixel an invocation, as the fragment shader).
 TEST(PostStageTest, SsaoAndBloomAgreeInBothStages) {
   const SceneHandle& scene = SharedDemoScene();
   Settings s = Lit(false, true);
