@@ -178,6 +178,10 @@ struct ShadeBuffers {
   // vis_mlaa's entries after the sky's: the edge list's and the blend list's.
   uint32_t edge_entry() const { return materials + 1; }
   uint32_t blend_entry() const { return materials + 2; }
+  // Then the classification's (every frame; shaders/common/vis_classify.glsl): the sky's list,
+  // and the dispatch sizes of its fill that writes the sky and of the one that lists it.
+  uint32_t sky_list_entry() const { return materials + 3; }
+  uint32_t fill_entry(bool list_sky) const { return materials + (list_sky ? 5 : 4); }
 };
 
 struct PassStats {

@@ -5,8 +5,9 @@
 // then, all in compute:
 //  - vis_classify: per pixel its material (the drawable's); per material a count (vis_mlaa:
 //    counted by its resolve already), a scan into list offsets and indirect dispatch sizes, and
-//    the list of its pixels; and the background where no surface is
-//    (shaders/common/vis_classify.glsl);
+//    the list of its pixels; and the background where no surface is, written by its pass over
+//    the pixels, or where the sky is a small part of the frame, listed there and written by a
+//    dispatch of its own (shaders/common/vis_classify.glsl);
 //  - shade: per material on screen one vkCmdDispatchIndirect over exactly its pixels, with its
 //    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads
 //    a uniform material far faster than an indexed one), each pixel's surface rebuilt from its id
@@ -14,7 +15,7 @@
 //    mean sample position); vis_mlaa then one over its runner-up surfaces that are the sky
 //    (vis_sky_mlaa.comp).
 // The classification writes the sky where no surface is (vis_mlaa: where the surface a pixel
-// shows is the sky), in its last pass over the pixels; vis_mlaa lists the sky only where it is a
+// shows is the sky); vis_mlaa lists the sky only where it is a
 // pixel's runner-up surface, with a colour of its own at its samples' mean (vis_sky_mlaa.comp).
 // Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
 #include <algorithm>
@@ -130,9 +131,11 @@ class VisClassifyPass final : public Pass {
           // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
           const std::vector<uint32_t> modes =
               vis_mlaa ? std::vector<uint32_t>{gpu::kClassifyScan, gpu::kClassifyFillRunnerUps,
-                                               gpu::kClassifyFill}
+                                               gpu::kClassifyFill, gpu::kClassifyFillListSky,
+                                               gpu::kClassifySky}
                        : std::vector<uint32_t>{gpu::kClassifyCount, gpu::kClassifyScan,
-                                               gpu::kClassifyFill};
+                                               gpu::kClassifyFill, gpu::kClassifyFillListSky,
+                                               gpu::kClassifySky};
           const char* shader = vis_mlaa ? (ballots ? "vis_classify_mlaa.comp"
                                                    : "vis_classify_atomic_mlaa.comp")
                                         : (ballots ? "vis_classify.comp"
@@ -190,24 +193,30 @@ class VisClassifyPass final : public Pass {
       push(mode);
       vkCmdDispatch(ctx.cmd, x, y, 1);
     };
-    auto over_blend = [&](uint32_t mode) {  // the resolve's blend list, sized by the resolve
+    auto indirect = [&](uint32_t mode, uint32_t entry) {  // sized by the scan (or the resolve)
       push(mode);
-      vkCmdDispatchIndirect(ctx.cmd, sb.entries,
-                            VkDeviceSize(sb.blend_entry()) * sizeof(gpu::GpuShadeEntry));
+      vkCmdDispatchIndirect(ctx.cmd, sb.entries, VkDeviceSize(entry) * sizeof(gpu::GpuShadeEntry));
     };
     if (!vis_mlaa) {
       step(gpu::kClassifyCount, gx, gy);
       ComputeBarrier(ctx.cmd);
     }
     step(gpu::kClassifyScan, 1, 1);
-    // vis_mlaa: the runner-ups' step runs over the blend list sized by the resolve (an indirect
-    // read, ordered after every storage write to the entries).
-    ComputeBarrier(ctx.cmd, /*indirect=*/vis_mlaa);
-    if (vis_mlaa) {
-      over_blend(gpu::kClassifyFillRunnerUps);
-      ComputeBarrier(ctx.cmd);
+    // The next steps' dispatch sizes are read from the entries (an indirect read, ordered after
+    // every storage write to them).
+    ComputeBarrier(ctx.cmd, /*indirect=*/true);
+    if (vis_mlaa) {  // over the blend list, sized by the resolve
+      indirect(gpu::kClassifyFillRunnerUps, sb.blend_entry());
+      ComputeBarrier(ctx.cmd, /*indirect=*/true);
     }
-    step(gpu::kClassifyFill, gx, gy);
+    // The fill that writes the sky, or the one that lists it (the scan gave the other no
+    // workgroups), then the listed sky. (Each dispatch size is read from the entries after a
+    // step that wrote to them: a barrier before each.)
+    indirect(gpu::kClassifyFill, sb.fill_entry(false));
+    ComputeBarrier(ctx.cmd, /*indirect=*/true);
+    indirect(gpu::kClassifyFillListSky, sb.fill_entry(true));
+    ComputeBarrier(ctx.cmd, /*indirect=*/true);
+    indirect(gpu::kClassifySky, sb.sky_list_entry());
     // This pass's own copy of the entries for the statistics (the graph orders the entries
     // before the shading's dispatches).
     vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
@@ -221,7 +230,7 @@ class VisClassifyPass final : public Pass {
 
  private:
   // A mode the classification does not run has a null pipeline.
-  using ModePipelines = std::array<vk::Pipeline, 4>;
+  using ModePipelines = std::array<vk::Pipeline, 6>;
   ShadeLayout one_, mlaa_;
   PerSampleCount<ModePipelines> pipelines_, mlaa_pipelines_;  // by Key
 };
@@ -373,12 +382,14 @@ absl::Status Renderer::Impl::PrepareShade(FrameData& f) {
   const uint32_t materials = f.gs.material_count();
   // vis_mlaa's edge list (at most a pixel each) and blend list (at most an edge pixel each)
   // precede the materials' lists, which hold its runner-up surfaces too (at most one per edge
-  // pixel).
+  // pixel). The sky's list follows them, in frames that list it (a pixel each no other list
+  // holds).
   const uint64_t pixels =
       uint64_t(f.s.width) * f.s.height * (f.s.aa == AaMode::kVisMlaa ? 4 : 1);
-  // And the sky's entry, and vis_mlaa's edge list's and blend list's (vis_mlaa.cpp).
-  if (materials + 3 > shade_material_capacity) {
-    const uint32_t cap = std::max(materials + 3, shade_material_capacity * 2);
+  // And the sky's entry, vis_mlaa's edge list's and blend list's (vis_mlaa.cpp), the sky list's
+  // and the two fills' (ShadeBuffers::sky_list_entry).
+  if (materials + 6 > shade_material_capacity) {
+    const uint32_t cap = std::max(materials + 6, shade_material_capacity * 2);
     const VkDeviceSize bytes = VkDeviceSize(cap) * sizeof(gpu::GpuShadeEntry);
     RETURN_IF_ERROR(MakeBuffer(*ctx, bytes,
                                VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |

@@ -238,6 +238,12 @@ TS_CONST uint kClassifyFill = 2;
 // vis_mlaa: append the runner-up surfaces to be shaded (dispatched over the blend list). With
 // vis_mlaa the resolve counted every pixel and runner-up already: kClassifyCount does not run.
 TS_CONST uint kClassifyFillRunnerUps = 3;
+// kClassifyFill, but listing the pixels where no surface is in the sky list's entry (the fourth
+// after the materials': ShadeBuffers::sky_list_entry) rather than writing the background there;
+// the scan sizes the dispatch of one of the two to the frame, the other's to nothing.
+TS_CONST uint kClassifyFillListSky = 4;
+// Per listed sky pixel: the background.
+TS_CONST uint kClassifySky = 5;
 // (vis_classify's params.z is 1 when vis_mlaa's edge list and blend list, the entries after the
 // sky's, hold the start of the pixel lists: the materials' lists then follow them, and geometric
 // AA reads them last.)

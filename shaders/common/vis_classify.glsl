@@ -6,9 +6,12 @@
 // constant 0, a pipeline per mode: lavapipe runs the code of untaken branches under a lane mask,
 // the scan's barriers included, so one shader for every mode cost the fill the scan's loops):
 //  - kClassifyCount: count each material's pixels;
-//  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size;
-//  - kClassifyFill: append each pixel to its material's list, and write the background where no
-//    surface is (counted in the sky entry's list.z where kCountSky says so).
+//  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size, and
+//    the sizes of the dispatches below (SkyDispatches);
+//  - kClassifyFill or kClassifyFillListSky (the other's dispatch is empty): append each pixel to
+//    its material's list, and write the background where no surface is, or list those pixels
+//    (counted in the sky entry's list.z where kCountSky says so);
+//  - kClassifySky: the background at each listed pixel.
 // The appends of a subgroup's lanes that show one material are one atomic (WaveMatch by
 // peeling: the lanes of the first lane's material take their ranks from a ballot).
 // With VIS_MLAA (vis_classify_mlaa.comp) the resolve has counted each pixel's surface (and each
@@ -53,6 +56,43 @@ layout(constant_id = 2) const bool kCountSky = false;
 
 shared uint s_sums[kClassifyTile * kClassifyTile];
 
+// The sky: where a frame shows little of it, the fill lists its pixels (kClassifyFillListSky)
+// and kClassifySky writes the background there, a pixel an invocation; else the fill writes it
+// (kClassifyFill). The scan knows how many pixels show the sky (those no list counted), so it
+// sizes one fill's dispatch to the frame and the other's to nothing. lavapipe ran the
+// background's code (with IBL, the environment map's lookup) for every lane of the fill, sky or
+// not: 5.5 ms of Sponza's 12.3 ms classification in its full stack, where the sky is 1% of the
+// frame. Listing the pixels costs more where the sky shows much (1280x720, one sample:
+// DamagedHelmet, mostly sky, classification and shading 68-72 -> 96-128 ms listing them all).
+uint SkyListEntry() { return push.params.y + 3u; }  // ShadeBuffers::sky_list_entry
+uint FillEntry(bool list_sky) { return push.params.y + (list_sky ? 5u : 4u); }
+// The largest share of the frame (1 / kListSkyBelow) whose sky is listed.
+const uint kListSkyBelow = 8u;
+
+uvec4 DispatchFor(uint invocations) {
+  uint groups = (invocations + kShadeGroupSize - 1u) / kShadeGroupSize;
+  uint width = min(groups, kShadeDispatchWidth);
+  return uvec4(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u, invocations);
+}
+
+// (Scan's first invocation.) The sky's pixels: the frame's less those listed, less vis_mlaa's
+// runner-ups, which its lists hold too; its list follows the materials' lists, which end at
+// `end`.
+void SkyDispatches(uint end) {
+  uint frame_pixels = frame.counts.z * frame.counts.w;
+  uint listed = end - (push.params.z != 0u ? BlendListStart(push.params.y + 1u) +
+                                                 BlendListLength(push.params.y + 1u) +
+                                                 entries[push.params.y + 1u].list.x
+                                           : 0u);
+  uint sky = frame_pixels - listed;
+  bool list_sky = sky < frame_pixels / kListSkyBelow;
+  entries[SkyListEntry()].dispatch = DispatchFor(list_sky ? sky : 0u);
+  entries[SkyListEntry()].list = uvec4(end, 0u, 0u, 0u);
+  uvec4 tiles = uvec4((frame.counts.zw + kClassifyTile - 1u) / kClassifyTile, 1u, 0u);
+  entries[FillEntry(list_sky)].dispatch = tiles;
+  entries[FillEntry(!list_sky)].dispatch = uvec4(0u, 0u, 1u, 0u);
+}
+
 // One workgroup: each invocation sums a run of materials, the workgroup scans the 64 sums, and
 // each invocation writes its run's offsets and dispatch sizes.
 void Scan() {
@@ -76,6 +116,7 @@ void Scan() {
   uint edges = push.params.y + 1u;
   uint base = push.params.z != 0u ? BlendListStart(edges) + BlendListLength(edges) : 0u;
   uint offset = base + s_sums[i] - sum;
+  if (i == 0u) SkyDispatches(base + s_sums[lanes - 1u]);
   for (uint m = begin; m < end; ++m) {
     uint count = entries[m].dispatch.w;
     uint groups = (count + kShadeGroupSize - 1u) / kShadeGroupSize;
@@ -89,6 +130,15 @@ void Scan() {
 void main() {
   if (kMode == kClassifyScan) {
     Scan();
+    return;
+  }
+  if (kMode == kClassifySky) {  // one listed pixel each
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint k = group * kShadeGroupSize + gl_LocalInvocationIndex;
+    if (k >= entries[SkyListEntry()].list.y) return;
+    uint packed = pixels[entries[SkyListEntry()].list.x + k];
+    ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
+    imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
     return;
   }
 #ifdef VIS_MLAA
@@ -108,18 +158,19 @@ void main() {
   bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
   uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
   // The last pass over the pixels writes the sky where no surface is (vis_mlaa: where the
-  // surface a pixel shows is the sky), at the pixel's centre, rather than listing those pixels
-  // for a dispatch of their own, and counts them in the sky entry's list.z. lavapipe computes
-  // the background for every lane here, covered or not, but the list's appends, reads and
-  // scattered stores cost more wherever the sky shows (1280x720, one sample: DamagedHelmet,
-  // mostly sky, classification and shading 96-128 -> 68-72 ms; Sponza's atrium, mostly
-  // covered, the classification 23-34 -> 43-46 ms). vis_mlaa still lists the sky where it is a
-  // pixel's runner-up surface (kClassifyFillRunnerUps), shaded at its samples' mean.
+  // surface a pixel shows is the sky), at the pixel's centre, or lists those pixels for
+  // kClassifySky (see SkyListEntry), and counts them in the sky entry's list.z. vis_mlaa also
+  // lists the sky where it is a pixel's runner-up surface (kClassifyFillRunnerUps), shaded at
+  // its samples' mean.
   bool sky = inside && id == 0u;
   if (kMode == kClassifyFill && sky) {
     imageStore(u_color, p, vec4(VisBackground(vec2(p) + 0.5, kBackgroundIbl), 1.0));
-    if (kCountSky) Append(push.params.y, kCountBackground);
   }
+  if (kMode == kClassifyFillListSky && sky) {
+    uint slot = Append(SkyListEntry(), kCountCursor);
+    pixels[entries[SkyListEntry()].list.x + slot] = uint(p.x) | (uint(p.y) << 16);
+  }
+  if (kCountSky && kMode != kClassifyCount && sky) Append(push.params.y, kCountBackground);
   uint m = !inside || id == 0u ? kNoMaterial : DrawableIds(VisDrawable(id, frame.aa.x)).y;
   if (m == kNoMaterial) return;
   if (kMode == kClassifyCount) {

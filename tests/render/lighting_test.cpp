@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "renderer/camera.h"
 #include "renderer/image_metrics.h"
@@ -595,6 +596,57 @@ TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
     absl::StatusOr<double> psnr = Psnr(vis.image, forward.image);
     ASSERT_TRUE(psnr.ok()) << psnr.status();
     EXPECT_GE(*psnr, 40.0) << ToString(aa);
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// The visibility pipeline writes the background at every pixel no surface covers, with the
+// hemisphere sky and with IBL's environment, one sample and vis_mlaa: where the sky is most of
+// the frame, in its classification's pass over the pixels, and where it is less than an eighth,
+// listed by that pass and written by a dispatch of its own (shaders/common/vis_classify.glsl).
+// Each frame matches the forward path's and follows one of the debug view "normals" of the same
+// view and size, whose plain background a missed pixel would show.
+TEST(VisibilityPipelineTest, WritesTheSkyWhereNoSurfaceIs) {
+  TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(SharedRenderer());
+  const SceneHandle& scene = SharedDemoScene();
+  const uint64_t pixels = uint64_t(kWidth) * kHeight;
+  uint64_t view = 990;
+  for (const float target_y : {2.0f, -1.6f}) {  // the sky 60% of the frame, then 6%
+    Camera c = BackCamera();
+    c.target.y = target_y;
+    for (AaMode aa : {AaMode::kNone, AaMode::kVisMlaa}) {
+      for (bool ibl : {false, true}) {
+        const std::string name = std::string(ToString(aa)) + (ibl ? " ibl" : "") +
+                                 (target_y > 1.0f ? ", much sky" : ", little sky");
+        SCOPED_TRACE(name);
+        Settings s = Lit(false, false, aa);
+        s.ibl = ibl;
+        s.pipeline = Pipeline::kVisibility;
+        s.debug_view = DebugView::kNormals;
+        RenderOrDie(*scene, c, s, view);
+        s.debug_view = DebugView::kNone;
+        FrameCapture capture;
+        absl::StatusOr<Frame> vis = SharedRenderer().Render(*scene, c, s, view, &capture);
+        ASSERT_TRUE(vis.ok()) << vis.status();
+        ASSERT_EQ(vis->settings.effective.pipeline, Pipeline::kVisibility);
+        if (target_y > 1.0f) {
+          EXPECT_GT(capture.background_pixels, pixels / 3);
+        } else {
+          EXPECT_GT(capture.background_pixels, pixels / 40);
+          EXPECT_LT(capture.background_pixels, pixels / 8);  // listed
+        }
+        // Against forward without AA (vis_mlaa: as AaTest.VisMlaaGolden compares it).
+        s.pipeline = Pipeline::kForward;
+        s.aa = AaMode::kNone;
+        const Frame forward = RenderOrDie(*scene, c, s, view + 1);
+        absl::StatusOr<double> psnr = Psnr(vis->image, forward.image);
+        ASSERT_TRUE(psnr.ok()) << psnr.status();
+        EXPECT_GE(*psnr, aa == AaMode::kNone ? 40.0 : 30.0);
+        std::printf("%s: sky %.1f%% of the frame, %.2f dB against forward\n", name.c_str(),
+                    100.0 * double(capture.background_pixels) / double(pixels), *psnr);
+        view += 2;
+      }
+    }
   }
   ExpectNoValidationMessages(SharedRenderer());
 }
