@@ -6,7 +6,7 @@
 //  - vis_classify: per pixel its material (the drawable's); per material a count (vis_mlaa:
 //    counted by its resolve already), a scan into list offsets and indirect dispatch sizes, and
 //    the list of its pixels; and the background where no surface is, written by its pass over
-//    the pixels, or where the sky is a small part of the frame, listed there and written by a
+//    the pixels, or where the sky is less than a third of the frame, listed there and written by a
 //    dispatch of its own (shaders/common/vis_classify.glsl);
 //  - shade: per material on screen one vkCmdDispatchIndirect over exactly its pixels, with its
 //    descriptor set 1 bound as a forward draw binds it (lavapipe cannot index samplers, and reads

@@ -602,7 +602,7 @@ TEST(VisibilityPipelineTest, MatchesForwardWithEveryEffect) {
 
 // The visibility pipeline writes the background at every pixel no surface covers, with the
 // hemisphere sky and with IBL's environment, one sample and vis_mlaa: where the sky is most of
-// the frame, in its classification's pass over the pixels, and where it is less than an eighth,
+// the frame, in its classification's pass over the pixels, and where it is less than a third,
 // listed by that pass and written by a dispatch of its own (shaders/common/vis_classify.glsl).
 // Each frame matches the forward path's and follows one of the debug view "normals" of the same
 // view and size, whose plain background a missed pixel would show.
@@ -630,10 +630,10 @@ TEST(VisibilityPipelineTest, WritesTheSkyWhereNoSurfaceIs) {
         ASSERT_TRUE(vis.ok()) << vis.status();
         ASSERT_EQ(vis->settings.effective.pipeline, Pipeline::kVisibility);
         if (target_y > 1.0f) {
-          EXPECT_GT(capture.background_pixels, pixels / 3);
+          EXPECT_GT(capture.background_pixels, pixels / 2);
         } else {
           EXPECT_GT(capture.background_pixels, pixels / 40);
-          EXPECT_LT(capture.background_pixels, pixels / 8);  // listed
+          EXPECT_LT(capture.background_pixels, pixels / 3);  // listed
         }
         // Against forward without AA (vis_mlaa: as AaTest.VisMlaaGolden compares it).
         s.pipeline = Pipeline::kForward;
