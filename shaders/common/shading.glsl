@@ -87,14 +87,11 @@ bool MaterialHas(uint slot, GpuTextureRef t) {
 
 // One punctual light's contribution (glTF KHR_lights_punctual attenuation and spot falloff),
 // times its shadow. `ng` is the unperturbed surface normal (the shadow lookup's normal offset).
-// `shadow_kind` is a constant at every call (none, the sun's cascades, a point or spot light's
-// map): the shader compiler keeps that lookup's code alone (on lavapipe, an untaken branch to a
-// lookup inside the light loop still doubled the shading pass).
-const uint kNoShadow = 0u;
-const uint kSunShadow = 1u;
-const uint kLocalShadow = 2u;
+// `shadowed` is a constant at every call: the shader compiler keeps the lookup's code only where
+// it is true (on lavapipe, an untaken branch to a lookup inside the light loop still doubled the
+// shading pass); `sun`: the light is the sun, looked up through its cascades (LightShadow).
 vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff,
-                vec3 f0, float alpha, uint shadow_kind) {
+                vec3 f0, float alpha, bool shadowed, bool sun) {
   uint type = uint(light.direction_type.w);
   vec3 l;
   float attenuation = 1.0;
@@ -118,9 +115,8 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
   }
   float n_dot_l = dot(n, l);
   if (n_dot_l <= 0.0 || attenuation <= 0.0) return vec3(0.0);
-  if (shadow_kind != kNoShadow && light.spot.z > 0.0) {
-    attenuation *=
-        shadow_kind == kSunShadow ? SunShadow(light, p, ng) : LocalShadow(light, p, ng);
+  if (shadowed && light.spot.z > 0.0) {
+    attenuation *= LightShadow(light, p, ng, sun);
     if (attenuation <= 0.0) return vec3(0.0);
   }
   vec3 h = normalize(l + v);
@@ -137,32 +133,29 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 // Every light's contribution at a point: the global lights (directional, or point and spot
 // lights without a range), then the local ones of the tile's list (or all of them, brute
 // force), with shadows where the frame's pipeline has them (kShadowCode).
-// With shadows, the sun (the one global light PlaceSun shadows) is shaded on its own, straight
-// after the others, with the sun's lookup alone; the shadowed local lights have a loop of their
-// own after the list's: the list's loop shades the lights without a shadow map and sets a bit
-// per shadowed light it meets (its place in ShadowUniforms.shadowed). A lookup behind a
-// per-light branch in the list's loop ran for every light of the list on lavapipe, under a lane
-// mask (19% of Sponza's full-stack shading); one lookup for both kinds ran each kind's code for
-// the other (README, "Specialization, not branches").
+// With shadows, the sun (the one global light PlaceSun shadows) and the shadowed local lights
+// are shaded in a loop of their own, after the list's, one shadow lookup an iteration: the
+// list's loop shades the lights without a shadow map and sets a bit per shadowed light it meets
+// (its place in ShadowUniforms.shadowed). A lookup behind a per-light branch in the list's loop
+// ran for every light of the list on lavapipe, under a lane mask (19% of Sponza's full-stack
+// shading); a lookup per kind of light ran each kind's code for the other (README,
+// "Specialization, not branches"). The sun is the shadowed loop's first iteration: lavapipe runs
+// a loop's body at least once, and with the sun shaded before it, that first iteration looked a
+// shadow up for no light at every pixel without a shadowed local light in its tile (Sponza's
+// full stack at 1280x720: the loop cost 30 of the shading's 140 ms).
 vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
                  float alpha, bool tiled, uint tile, uint tile_count) {
   vec3 color = vec3(0.0);
   // A shadowed sun is global light 0 (PrepareLights puts the directional lights first, PlaceSun
   // shadows the first and counts its cascades in shadow.counts.y), shaded below with its shadow.
-  // Without one, that light 0 is the loop's and the block's result is dropped. The loop is only
-  // in pipelines for frames with global lights for it (kGlobalLoopCode): with shadows, more than
-  // one; a loop's body ran on lavapipe with nothing to shade (Sponza's full stack, whose one
-  // global light is the sun: shading 164-180 -> 152-167 ms without it).
+  // Without one, that light 0 is the loop's here. The loop is only in pipelines for frames with
+  // global lights for it (kGlobalLoopCode): with shadows, more than one; a loop's body ran on
+  // lavapipe with nothing to shade (Sponza's full stack, whose one global light is the sun:
+  // shading 164-180 -> 152-167 ms without it).
   bool sun = kShadowCode && shadow.counts.y > 0u;
   if (kGlobalLoopCode) {
     for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
-      color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
-  }
-  if (kShadowCode) {
-    vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, kSunShadow);
-    // Without the loop the frame has one global light at most, shaded here with its cascades
-    // or without (SunShadow looks up only a light that has them).
-    color += (kGlobalLoopCode ? sun : frame.counts.x > 0u) ? c : vec3(0.0);
+      color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
   }
   uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
   // Only in pipelines for frames with local lights (kLocalLightCode): on lavapipe the loop cost
@@ -172,7 +165,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     uint base = tile * kMaxLightsPerTile;
     for (uint k = 0u; k < count; ++k) {
       GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
-      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, kNoShadow);
+      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
       if (kShadowCode && light.spot.z > 0.0) {
         shadowed |= 1u << uint(light.spot.w);
       } else {
@@ -180,11 +173,30 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       }
     }
   }
-  while (kShadowCode && shadowed != 0u) {
-    uint i = uint(findLSB(shadowed));
-    shadowed &= shadowed - 1u;
-    color += ShadeLight(LocalLight(shadow.shadowed[i / 4u][i % 4u]), p, n, ng, v, n_dot_v,
-                        c_diff, f0, alpha, kLocalShadow);
+  // Light 0 with the sun's lookup (LightShadow looks up only a light that has a map): the sun,
+  // or without the global loop the frame's one global light, if any.
+  bool sun_first = kGlobalLoopCode ? sun : frame.counts.x > 0u;
+  if (kShadowCode && !kLocalLightCode) {
+    vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, true);
+    color += sun_first ? c : vec3(0.0);
+  } else if (kShadowCode) {
+    bool first = true;
+    do {
+      bool is_sun = first && sun_first;
+      bool any = is_sun || shadowed != 0u;  // else this iteration's light is dropped
+      uint i = is_sun || shadowed == 0u ? 0u : uint(findLSB(shadowed));
+      if (!is_sun) shadowed &= shadowed - 1u;
+      // (Local light 0 stands in where there is no shadowed one: an index in range.)
+      GpuLight light;
+      if (is_sun) {
+        light = lights[0];
+      } else {
+        light = LocalLight(any ? shadow.shadowed[i / 4u][i % 4u] : 0u);
+      }
+      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, is_sun);
+      color += any ? c : vec3(0.0);
+      first = false;
+    } while (shadowed != 0u);
   }
   return color;
 }

@@ -64,14 +64,14 @@ uint SunCascade(vec3 p) {
   return count;
 }
 
-// How much of a light reaches `p` (1 lit .. 0 shadowed): the sun through its cascades
-// (SunShadow), a point or spot light through a cubemap face or the spot's view (LocalShadow).
-// Two functions, not one branching on the light's type: lavapipe runs every branch's code, so
-// one function ran each kind's lookup for the other. `ng` is the surface's geometric normal: the
-// lookup point moves along it by a texel or two (normal offset), which with the rasterizer's
-// slope-scaled bias keeps lit surfaces free of acne. The point moves first, then picks its
-// cascade or face: one picked from the unmoved point could send the filter past its border into
-// a neighbouring map.
+// How much of a light reaches `p` (1 lit .. 0 shadowed): the sun (`sun`) through its cascades,
+// a point or spot light through a cubemap face or the spot's view. Each kind picks its view and
+// point with a little arithmetic, and one lookup follows for both: lavapipe runs every branch's
+// code, so a lookup per kind ran each kind's lookup for the other. `ng` is the surface's
+// geometric normal: the lookup point moves along it by a texel or two (normal offset), which
+// with the rasterizer's slope-scaled bias keeps lit surfaces free of acne. The point moves
+// first, then picks its cascade or face: one picked from the unmoved point could send the
+// filter past its border into a neighbouring map.
 
 // The lookup of `q` in shadow view `view`.
 float ShadowLookup(uint view, vec3 q) {
@@ -81,30 +81,28 @@ float ShadowLookup(uint view, vec3 q) {
   return ShadowPcf(vec3(tc.xy * shadow.atlas.x, tc.z));
 }
 
-float SunShadow(GpuLight light, vec3 p, vec3 ng) {
-  uint first = uint(light.spot.z);
-  if (first == 0u || (shadow.counts.w & kShadowsOn) == 0u) return 1.0;
-  uint view = first - 1u;
-  // The cascade is picked with the first cascade's offset; cascades differ in texel size, so
-  // the lookup then offsets by the chosen one's.
-  uint c = SunCascade(p + ng * (shadow.views[view].params.x * shadow.atlas.z));
-  if (c >= shadow.counts.y) return 1.0;  // beyond the shadow distance: lit
-  view += c;
-  return ShadowLookup(view, p + ng * (shadow.views[view].params.x * shadow.atlas.z));
-}
-
-float LocalShadow(GpuLight light, vec3 p, vec3 ng) {
+float LightShadow(GpuLight light, vec3 p, vec3 ng, bool sun) {
   uint first = uint(light.spot.z);
   if (first == 0u || (shadow.counts.w & kShadowsOn) == 0u) return 1.0;
   uint view = first - 1u;
   // A light's views share their texel size at distance 1 (a cubemap's faces are one size),
-  // scaled by the distance along the face's axis (point) or the spot's axis.
+  // scaled by the distance along the face's axis (point) or the spot's axis; the sun's cascade
+  // is picked with the first cascade's offset, and cascades differ in texel size, so the lookup
+  // then offsets by the chosen one's.
   vec3 d = p - light.position_range.xyz;
-  bool point = uint(light.direction_type.w) == kLightPoint;
-  float dist = point ? max(abs(d.x), max(abs(d.y), abs(d.z)))
-                     : max(dot(d, light.direction_type.xyz), 0.0);
+  bool point = !sun && uint(light.direction_type.w) == kLightPoint;
+  float dist = sun     ? 1.0
+               : point ? max(abs(d.x), max(abs(d.y), abs(d.z)))
+                       : max(dot(d, light.direction_type.xyz), 0.0);
   vec3 q = p + ng * (shadow.views[view].params.x * dist * shadow.atlas.z);
-  if (point) view += CubeFace(q - light.position_range.xyz);
+  if (sun) {
+    uint c = SunCascade(q);
+    if (c >= shadow.counts.y) return 1.0;  // beyond the shadow distance: lit
+    view += c;
+    q = p + ng * (shadow.views[view].params.x * shadow.atlas.z);
+  } else if (point) {
+    view += CubeFace(q - light.position_range.xyz);
+  }
   return ShadowLookup(view, q);
 }
 
