@@ -2,7 +2,7 @@
 // devices without subgroup ballots): which material each pixel shows, and per material the list
 // of its pixels, so that the shading pass runs one indirect dispatch per material over exactly
 // its pixels (every invocation shades a pixel; lavapipe runs masked-off lanes at full cost, so a
-// dispatch over tiles would shade tiles' other pixels too). Three modes (specialization
+// dispatch over tiles would shade tiles' other pixels too). Its modes (specialization
 // constant 0, a pipeline per mode: lavapipe runs the code of untaken branches under a lane mask,
 // the scan's barriers included, so one shader for every mode cost the fill the scan's loops):
 //  - kClassifyCount: count each material's pixels;
