@@ -2,10 +2,18 @@
 // invocation's pixel to one of a material's counters (its count, its fill cursor, the sky's
 // background count), one atomic per subgroup and material
 // with SHADE_APPEND_SUBGROUPS (WaveMatch by peeling: the lanes of the first lane's material take
-// their ranks from a ballot), else one per invocation. Needs `entries` (GpuShadeEntry[],
-// read-write) declared first.
+// their ranks from a ballot), else one per invocation; DispatchFor sizes a dispatch over a list.
+// Needs `entries` (GpuShadeEntry[], read-write) declared first.
 #ifndef TESSERA_SHADE_APPEND_GLSL
 #define TESSERA_SHADE_APPEND_GLSL
+// The indirect dispatch (VkDispatchIndirectCommand) over a list of `invocations` entries,
+// kShadeGroupSize to a workgroup, at most kShadeDispatchWidth workgroups wide (more rows above).
+uvec3 DispatchFor(uint invocations) {
+  uint groups = (invocations + kShadeGroupSize - 1u) / kShadeGroupSize;
+  uint width = min(groups, kShadeDispatchWidth);
+  return uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
+}
+
 // The counters of an entry Append adds to.
 const uint kCountPixels = 0u;      // GpuShadeEntry.dispatch.w: the pixels counted for the list
 const uint kCountCursor = 1u;      // list.y: the fill cursor

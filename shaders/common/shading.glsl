@@ -180,9 +180,10 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, true);
     color += sun_first ? c : vec3(0.0);
   } else if (kShadowCode) {
-    bool first = true;
+    bool sun_pending = sun_first;
     do {
-      bool is_sun = first && sun_first;
+      bool is_sun = sun_pending;
+      sun_pending = false;
       bool any = is_sun || shadowed != 0u;  // else this iteration's light is dropped
       uint i = is_sun || shadowed == 0u ? 0u : uint(findLSB(shadowed));
       if (!is_sun) shadowed &= shadowed - 1u;
@@ -195,7 +196,6 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       }
       vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, is_sun);
       color += any ? c : vec3(0.0);
-      first = false;
     } while (shadowed != 0u);
   }
   return color;

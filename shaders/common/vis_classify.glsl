@@ -73,25 +73,16 @@ uint FillEntry(bool list_sky) { return push.params.y + (list_sky ? 5u : 4u); }
 // 15.4-15.5, 15.8-16.5 against 15.2-15.3.
 const uint kListSkyBelow = 3u;
 
-uvec4 DispatchFor(uint invocations) {
-  uint groups = (invocations + kShadeGroupSize - 1u) / kShadeGroupSize;
-  uint width = min(groups, kShadeDispatchWidth);
-  return uvec4(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u, invocations);
-}
-
-// (Scan's first invocation.) The sky's pixels: the frame's less those listed, less vis_mlaa's
-// runner-ups, which its lists hold too; its list follows the materials' lists, which end at
-// `end`.
-void SkyDispatches(uint end) {
+// (Scan's first invocation.) The materials' lists start at `base` and hold `total` entries: the
+// sky's pixels are the frame's less those, less vis_mlaa's runner-ups (counted in the edge
+// list's entry), which the lists hold too. The sky's list follows the materials' lists.
+void SkyDispatches(uint base, uint total) {
   uint frame_pixels = frame.counts.z * frame.counts.w;
-  uint listed = end - (push.params.z != 0u ? BlendListStart(push.params.y + 1u) +
-                                                 BlendListLength(push.params.y + 1u) +
-                                                 entries[push.params.y + 1u].list.x
-                                           : 0u);
-  uint sky = frame_pixels - listed;
+  uint runner_ups = push.params.z != 0u ? entries[push.params.y + 1u].list.x : 0u;
+  uint sky = frame_pixels - (total - runner_ups);
   bool list_sky = sky < frame_pixels / kListSkyBelow;
-  entries[SkyListEntry()].dispatch = DispatchFor(list_sky ? sky : 0u);
-  entries[SkyListEntry()].list = uvec4(end, 0u, 0u, 0u);
+  entries[SkyListEntry()].dispatch = uvec4(DispatchFor(list_sky ? sky : 0u), 0u);
+  entries[SkyListEntry()].list = uvec4(base + total, 0u, 0u, 0u);
   uvec4 tiles = uvec4((frame.counts.zw + kClassifyTile - 1u) / kClassifyTile, 1u, 0u);
   entries[FillEntry(list_sky)].dispatch = tiles;
   entries[FillEntry(!list_sky)].dispatch = uvec4(0u, 0u, 1u, 0u);
@@ -120,12 +111,10 @@ void Scan() {
   uint edges = push.params.y + 1u;
   uint base = push.params.z != 0u ? BlendListStart(edges) + BlendListLength(edges) : 0u;
   uint offset = base + s_sums[i] - sum;
-  if (i == 0u) SkyDispatches(base + s_sums[lanes - 1u]);
+  if (i == 0u) SkyDispatches(base, s_sums[lanes - 1u]);
   for (uint m = begin; m < end; ++m) {
     uint count = entries[m].dispatch.w;
-    uint groups = (count + kShadeGroupSize - 1u) / kShadeGroupSize;
-    uint width = min(groups, kShadeDispatchWidth);
-    entries[m].dispatch.xyz = uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
+    entries[m].dispatch.xyz = DispatchFor(count);
     entries[m].list = uvec4(offset, 0u, 0u, 0u);
     offset += count;
   }

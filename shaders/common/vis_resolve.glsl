@@ -426,12 +426,7 @@ void main() {
   uint edges = push.params.y;  // the edge list's entry
   if (mode == kResolveArgs) {  // sizes the dispatch over entry params.x's list
     uint list = push.params.x;
-    if (gl_LocalInvocationIndex == 0u) {
-      uint groups = (entries[list].dispatch.w + kShadeGroupSize - 1u) / kShadeGroupSize;
-      uint width = min(groups, kShadeDispatchWidth);
-      entries[list].dispatch.xyz =
-          uvec3(width, width == 0u ? 0u : (groups + width - 1u) / width, 1u);
-    }
+    if (gl_LocalInvocationIndex == 0u) entries[list].dispatch.xyz = DispatchFor(entries[list].dispatch.w);
     return;
   }
   uint entry = 0u;
