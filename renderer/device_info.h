@@ -20,8 +20,8 @@ struct DeviceFallback {
 // Optional features a test or user may turn off to exercise their fallbacks on a device that has
 // them (RendererOptions::disable_features, TESSERA_DISABLE_FEATURES=a,b): draw_indirect_count,
 // multi_draw_indirect, subgroup_arithmetic, subgroup_ballot, sampler_minmax, visibility_buffer,
-// pipeline_statistics; and material_variants and texel_buffers, which are Tessera's own
-// (DeviceInfo below).
+// pipeline_statistics; and material_variants, texel_buffers and vertex_pulling, which are
+// Tessera's own (DeviceInfo below).
 const std::vector<std::string>& DisableableFeatures();
 
 // How the visibility classification and vis_mlaa's resolve add pixels to the materials' lists
@@ -63,6 +63,14 @@ struct DeviceInfo {
   // a device feature: false only where turned off, to test the storage-buffer path.
   bool texel_buffers = false;
   uint32_t max_texel_buffer_elements = 0;  // maxTexelBufferElements
+  // The visibility pass pulls its vertices (common/vis_pull.glsl): non-indexed draws whose vertex
+  // shader reads each index and position from the scene's buffers (vis.glsl's) and passes the
+  // triangle on, instead of indexed draws with gl_PrimitiveID in the fragment shader. On CPU
+  // devices: llvmpipe numbers primitives by assembling them again on its single-threaded front
+  // end (Sponza 1280x720, the visibility pass at 4 samples 101-110 -> 91-99 ms). Not on GPUs,
+  // whose post-transform cache shades a shared vertex once. Not a device feature: false on a CPU device only where turned off, to test the
+  // indexed path there.
+  bool vertex_pulling = false;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.
   bool subgroup_ballot = false;

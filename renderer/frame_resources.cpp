@@ -185,7 +185,7 @@ absl::Status Renderer::Impl::EnsureCullBuffers(uint32_t items, uint32_t lists) {
                                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT |
                                             VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   if (commands > command_capacity) {
-    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(commands) * sizeof(VkDrawIndexedIndirectCommand),
+    RETURN_IF_ERROR(MakeBuffer(*ctx, VkDeviceSize(commands) * sizeof(DrawCommand),
                                kListUsage, vk::MemoryUsage::kUpload, "draw_commands",
                                &draw_commands));
     command_capacity = commands;

@@ -52,7 +52,7 @@ static_assert(offsetof(CullUniforms, counts) == 160);
 static_assert(offsetof(CullUniforms, offsets) == 176);
 static_assert(offsetof(CullUniforms, hiz) == 192);
 static_assert(offsetof(CullUniforms, frame) == 208);
-static_assert(kDrawCommandWords * 4 == 20, "VkDrawIndexedIndirectCommand");
+static_assert(kDrawCommandWords == 5 + 4, "VkDrawIndexedIndirectCommand, VkDrawIndirectCommand");
 
 static_assert(sizeof(FrameUniforms) == 4 * 64 + 11 * 16);
 static_assert(offsetof(FrameUniforms, prev_view_proj) == 368);

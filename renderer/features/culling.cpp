@@ -151,7 +151,7 @@ void Renderer::Impl::CountDrawn(const GpuScene& gs, const DrawLists& draws,
   const uint32_t item_count = uint32_t(gs.draws().size());
   const uint32_t segment_count = uint32_t(gs.segments().size());
   const uint32_t list_count = segment_count + uint32_t(gs.batches().size());
-  const auto* commands = static_cast<const VkDrawIndexedIndirectCommand*>(draw_commands.mapped());
+  const auto* commands = static_cast<const DrawCommand*>(draw_commands.mapped());
   const auto* counts = static_cast<const uint32_t*>(draw_counts.mapped());
   struct ListSums {
     uint64_t triangles = 0;
@@ -161,11 +161,10 @@ void Renderer::Impl::CountDrawn(const GpuScene& gs, const DrawLists& draws,
                       uint32_t count_index, std::vector<uint32_t>* drawn) {
     ListSums r;
     const uint32_t n = std::min(counts[draws.CountOffset(phase, count_index) / 4], capacity);
-    const VkDrawIndexedIndirectCommand* c =
-        commands + draws.CommandOffset(phase, batch, first) / sizeof(VkDrawIndexedIndirectCommand);
+    const DrawCommand* c = commands + draws.CommandOffset(phase, batch, first) / sizeof(DrawCommand);
     for (uint32_t k = 0; k < n; ++k) {
-      r.triangles += c[k].indexCount / 3;
-      if (drawn) drawn->push_back(c[k].firstInstance);
+      r.triangles += c[k].indexed.indexCount / 3;
+      if (drawn) drawn->push_back(c[k].indexed.firstInstance);
     }
     r.draws = n;
     return r;
@@ -241,20 +240,20 @@ void Renderer::Impl::WriteCpuLists(const GpuScene& scene, const DrawLists& lists
     if (frustum) visible[i] = AabbIntersectsFrustum(items[i].world_bounds, *frustum) ? 1 : 0;
     in_frustum += visible[i];
   }
-  auto* commands = static_cast<VkDrawIndexedIndirectCommand*>(draw_commands.mapped());
+  auto* commands = static_cast<DrawCommand*>(draw_commands.mapped());
   auto* counts = static_cast<uint32_t*>(draw_counts.mapped());
   auto write = [&](bool batch, uint32_t first, uint32_t count, uint32_t count_index) {
-    VkDrawIndexedIndirectCommand* out =
-        commands + lists.CommandOffset(0, batch, first) / sizeof(VkDrawIndexedIndirectCommand);
+    DrawCommand* out = commands + lists.CommandOffset(0, batch, first) / sizeof(DrawCommand);
     uint32_t n = 0;
     for (uint32_t i = first; i < first + count; ++i) {
       if (!visible[i]) continue;
       const DrawItem& d = items[i];
-      out[n++] = {d.index_count, 1, d.first_index, d.vertex_offset, d.drawable};
+      out[n++] = {{d.index_count, 1, d.first_index, d.vertex_offset, d.drawable},
+                  {d.index_count, 1, d.first_index, d.drawable}};
     }
     counts[lists.CountOffset(0, count_index) / 4] = n;
     // Without drawIndirectCount the draws run the whole list: the rest draws nothing.
-    std::fill(out + n, out + count, VkDrawIndexedIndirectCommand{});
+    std::fill(out + n, out + count, DrawCommand{});
   };
   const uint32_t segments = uint32_t(scene.segments().size());
   for (uint32_t s = 0; s < segments; ++s)

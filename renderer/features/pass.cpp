@@ -2,6 +2,7 @@
 #include "renderer/features/pass.h"
 
 #include <algorithm>
+#include <cstddef>
 #include <utility>
 
 #include "renderer/vk/context.h"
@@ -160,29 +161,38 @@ SetWriter& SetWriter::StorageBuffer(uint32_t binding, const PassContext& ctx,
                 std::min<VkDeviceSize>(buffer.size(), ctx.vk->limits().maxStorageBufferRange));
 }
 
-SetWriter& SetWriter::VisibilityBuffers(const PassContext& ctx) {
+SetWriter& SetWriter::SceneGeometry(const PassContext& ctx) {
   const GpuScene& scene = *ctx.scene;
-  StorageBuffer(gpu::kVisBindingIndices, ctx, scene.indices())
-      .StorageBuffer(gpu::kVisBindingVertices, ctx, scene.vertices())
-      .Buffer(gpu::kShadeBindingEntries, ctx.shade->entries)
-      .Buffer(gpu::kShadeBindingPixels, ctx.shade->pixels);
   // The pipelines' shaders hold both paths (vis.glsl), so both are bound whichever they read.
-  return TexelBuffer(gpu::kVisBindingIndexTexels, scene.index_texels())
+  return StorageBuffer(gpu::kVisBindingIndices, ctx, scene.indices())
+      .StorageBuffer(gpu::kVisBindingVertices, ctx, scene.vertices())
+      .TexelBuffer(gpu::kVisBindingIndexTexels, scene.index_texels())
       .TexelBuffer(gpu::kVisBindingVertexTexels, scene.vertex_texels())
       .TexelBuffer(gpu::kVisBindingDrawableTexels, scene.drawable_texels());
 }
 
-std::vector<VkDescriptorSetLayoutBinding> VisibilityBufferBindings() {
-  constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
+SetWriter& SetWriter::VisibilityBuffers(const PassContext& ctx) {
+  return SceneGeometry(ctx)
+      .Buffer(gpu::kShadeBindingEntries, ctx.shade->entries)
+      .Buffer(gpu::kShadeBindingPixels, ctx.shade->pixels);
+}
+
+std::vector<VkDescriptorSetLayoutBinding> SceneGeometryBindings(VkShaderStageFlags stages) {
   constexpr VkDescriptorType kBuffer = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
   constexpr VkDescriptorType kTexels = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
-  return {LayoutBinding(gpu::kVisBindingIndices, kBuffer, kCompute),
-          LayoutBinding(gpu::kVisBindingVertices, kBuffer, kCompute),
-          LayoutBinding(gpu::kShadeBindingEntries, kBuffer, kCompute),
-          LayoutBinding(gpu::kShadeBindingPixels, kBuffer, kCompute),
-          LayoutBinding(gpu::kVisBindingIndexTexels, kTexels, kCompute),
-          LayoutBinding(gpu::kVisBindingVertexTexels, kTexels, kCompute),
-          LayoutBinding(gpu::kVisBindingDrawableTexels, kTexels, kCompute)};
+  return {LayoutBinding(gpu::kVisBindingIndices, kBuffer, stages),
+          LayoutBinding(gpu::kVisBindingVertices, kBuffer, stages),
+          LayoutBinding(gpu::kVisBindingIndexTexels, kTexels, stages),
+          LayoutBinding(gpu::kVisBindingVertexTexels, kTexels, stages),
+          LayoutBinding(gpu::kVisBindingDrawableTexels, kTexels, stages)};
+}
+
+std::vector<VkDescriptorSetLayoutBinding> VisibilityBufferBindings() {
+  constexpr VkShaderStageFlags kCompute = VK_SHADER_STAGE_COMPUTE_BIT;
+  std::vector<VkDescriptorSetLayoutBinding> b = SceneGeometryBindings(kCompute);
+  b.push_back(LayoutBinding(gpu::kShadeBindingEntries, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kCompute));
+  b.push_back(LayoutBinding(gpu::kShadeBindingPixels, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, kCompute));
+  return b;
 }
 
 void SetWriter::Update() {
@@ -210,15 +220,21 @@ void DrawState::Apply(const PassContext& ctx, bool double_sided, uint32_t m, boo
 
 namespace {
 
+// `pulled`: the commands' non-indexed half (DrawCommand::pulled).
 void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t first_item,
-                  uint32_t capacity, uint32_t count_index) {
+                  uint32_t capacity, uint32_t count_index, bool pulled) {
   const DrawLists& d = *ctx.draws;
-  const VkDeviceSize offset = d.CommandOffset(phase, batch, first_item);
-  constexpr uint32_t kStride = sizeof(VkDrawIndexedIndirectCommand);
+  const VkDeviceSize offset =
+      d.CommandOffset(phase, batch, first_item) + (pulled ? offsetof(DrawCommand, pulled) : 0);
+  constexpr uint32_t kStride = sizeof(DrawCommand);
   const DeviceInfo& info = ctx.vk->info();
   if (info.draw_indirect_count) {
-    vkCmdDrawIndexedIndirectCount(ctx.cmd, d.commands, offset, d.counts,
-                                  d.CountOffset(phase, count_index), capacity, kStride);
+    const VkDeviceSize count_offset = d.CountOffset(phase, count_index);
+    if (pulled)
+      vkCmdDrawIndirectCount(ctx.cmd, d.commands, offset, d.counts, count_offset, capacity, kStride);
+    else
+      vkCmdDrawIndexedIndirectCount(ctx.cmd, d.commands, offset, d.counts, count_offset, capacity,
+                                    kStride);
     ctx.stats->indirect_draws++;
     return;
   }
@@ -226,8 +242,12 @@ void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t f
   // (DrawLists) and draw nothing; as few calls as maxDrawIndirectCount allows.
   const uint32_t per_call = std::max(info.max_draw_indirect_count, 1u);
   for (uint32_t done = 0; done < capacity; done += per_call) {
-    vkCmdDrawIndexedIndirect(ctx.cmd, d.commands, offset + VkDeviceSize(done) * kStride,
-                             std::min(per_call, capacity - done), kStride);
+    const VkDeviceSize at = offset + VkDeviceSize(done) * kStride;
+    const uint32_t n = std::min(per_call, capacity - done);
+    if (pulled)
+      vkCmdDrawIndirect(ctx.cmd, d.commands, at, n, kStride);
+    else
+      vkCmdDrawIndexedIndirect(ctx.cmd, d.commands, at, n, kStride);
     ctx.stats->indirect_draws++;
   }
 }
@@ -236,9 +256,11 @@ void DrawIndirect(const PassContext& ctx, uint32_t phase, bool batch, uint32_t f
 
 void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begin,
                     uint32_t phase_end, bool textured,
-                    absl::FunctionRef<VkPipeline(uint32_t)> pipeline_of) {
+                    absl::FunctionRef<VkPipeline(uint32_t)> pipeline_of,
+                    const PulledGeometry* pulled) {
   const std::vector<DrawSegment>& segments = ctx.scene->segments();
   DrawState state;
+  if (pulled) state.layout = pulled->layout;
   auto draw = [&](uint32_t s) {
     const DrawSegment& seg = segments[s];
     const VkPipeline pipeline = pipeline_of(seg.material);
@@ -248,7 +270,7 @@ void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begi
     }
     state.Apply(ctx, seg.double_sided, seg.material, textured);
     for (uint32_t p = phase_begin; p < phase_end; ++p)
-      DrawIndirect(ctx, p, false, seg.first_item, seg.item_count, s);
+      DrawIndirect(ctx, p, false, seg.first_item, seg.item_count, s, pulled != nullptr);
   };
   if (group == AlphaMode::kBlend) {
     for (uint32_t s : ctx.draws->blend_order) draw(s);
@@ -267,25 +289,37 @@ void RecordAllDirect(const PassContext& ctx) {
   }
 }
 
-void RecordBatches(const PassContext& ctx, uint32_t phase) {
+void RecordBatches(const PassContext& ctx, uint32_t phase, const PulledGeometry* pulled) {
   const std::vector<DrawBatch>& batches = ctx.scene->batches();
   DrawState state;
+  if (pulled) state.layout = pulled->layout;
   const uint32_t segment_count = static_cast<uint32_t>(ctx.scene->segments().size());
   for (uint32_t b = 0; b < batches.size(); ++b) {
     state.Apply(ctx, batches[b].double_sided, 0, /*textured=*/false);
     DrawIndirect(ctx, phase, true, batches[b].first_item, batches[b].item_count,
-                 segment_count + b);
+                 segment_count + b, pulled != nullptr);
   }
 }
 
 void RecordDepthGeometry(const PassContext& ctx, VkPipeline opaque, VkPipeline mask,
-                         uint32_t phase) {
+                         uint32_t phase, const PulledGeometry* pulled) {
+  const VkPipelineLayout layout = pulled ? pulled->layout : VK_NULL_HANDLE;
+  auto begin = [&](VkPipeline pipeline) {
+    BeginSceneDraw(ctx, pipeline, layout);
+    if (!pulled) return;
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, layout, gpu::kVisSet, 1,
+                            &pulled->set, 0, nullptr);
+    const VkBuffer drawables = ctx.scene->drawables().handle();
+    const VkDeviceSize offset = 0;
+    vkCmdBindVertexBuffers(ctx.cmd, gpu::kDrawableInputBinding, 1, &drawables, &offset);
+  };
   if (!ctx.scene->batches().empty()) {
-    BeginSceneDraw(ctx, opaque);
-    RecordBatches(ctx, phase);
+    begin(opaque);
+    RecordBatches(ctx, phase, pulled);
   }
-  BeginSceneDraw(ctx, mask);
-  RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1);
+  begin(mask);
+  RecordSegments(ctx, AlphaMode::kMask, phase, phase + 1, /*textured=*/true, NoPipelineChange,
+                 pulled);
 }
 
 }  // namespace tessera

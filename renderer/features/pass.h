@@ -106,7 +106,15 @@ struct FrameTargets {
   }
 };
 
-// The draws of one frame: indexed indirect commands (firstInstance = drawable) and their counts,
+// One draw of an item (firstInstance = its drawable): indexed, and the same draw non-indexed over
+// the item's range of the index buffer for pulled vertices (common/vis_pull.glsl).
+struct DrawCommand {
+  VkDrawIndexedIndirectCommand indexed;
+  VkDrawIndirectCommand pulled;
+};
+static_assert(sizeof(DrawCommand) == gpu::kDrawCommandWords * 4);
+
+// The draws of one frame: indirect draw commands (DrawCommand) and their counts,
 // written by the culling pass (GPU modes) or by the CPU (none, cpu_frustum), for each segment
 // and batch of the scene's DrawPlan. gpu_occlusion has two phases, the other modes one.
 // Phase p's segment commands start at command 2p * items (each segment at its first item), its
@@ -122,8 +130,7 @@ struct DrawLists {
   std::vector<uint32_t> blend_order;  // segments of the blend group, back to front
 
   VkDeviceSize CommandOffset(uint32_t phase, bool batch, uint32_t first_item) const {
-    return (VkDeviceSize(2 * phase + (batch ? 1 : 0)) * items + first_item) *
-           sizeof(VkDrawIndexedIndirectCommand);
+    return (VkDeviceSize(2 * phase + (batch ? 1 : 0)) * items + first_item) * sizeof(DrawCommand);
   }
   VkDeviceSize CountOffset(uint32_t phase, uint32_t index) const {
     return (VkDeviceSize(phase) * count_stride + index) * sizeof(uint32_t);
@@ -317,6 +324,9 @@ class SetWriter {
   // kVisBindingVertices) and their texel views with the drawables' (kVisBindingIndexTexels...,
   // VisibilityBufferBindings), and the shading's entries and pixel lists (kShadeBinding*).
   SetWriter& VisibilityBuffers(const PassContext& ctx);
+  // The scene's geometry as vis.glsl reads it: the index and vertex buffers and the texel views
+  // of them and of the drawables (SceneGeometryBindings).
+  SetWriter& SceneGeometry(const PassContext& ctx);
   void Update();
   VkDescriptorSet set() const { return set_; }
 
@@ -339,6 +349,8 @@ inline VkDescriptorSetLayoutBinding LayoutBinding(uint32_t binding, VkDescriptor
 
 // The bindings SetWriter::VisibilityBuffers writes, for a compute pass's set 2.
 std::vector<VkDescriptorSetLayoutBinding> VisibilityBufferBindings();
+// The bindings SetWriter::SceneGeometry writes (vis.glsl's), for `stages`.
+std::vector<VkDescriptorSetLayoutBinding> SceneGeometryBindings(VkShaderStageFlags stages);
 
 // The value of vis.glsl's specialization constant kVisTexels for `scene` (GpuScene::vis_texels):
 // a visibility pass's pipeline is built per value.
@@ -575,21 +587,32 @@ struct DrawState {
   VkPipeline pipeline = VK_NULL_HANDLE;
   void Apply(const PassContext& ctx, bool double_sided, uint32_t m, bool textured);
 };
+// The geometry of the visibility pass with pulled vertices (DeviceInfo::vertex_pulling,
+// common/vis_pull.glsl): its pipelines' layout, the scene's sets then a set of the scene's
+// geometry (kVisSet: SceneGeometryBindings), and that set. The draws are the commands'
+// non-indexed halves (DrawCommand::pulled).
+struct PulledGeometry {
+  VkPipelineLayout layout = VK_NULL_HANDLE;
+  VkDescriptorSet set = VK_NULL_HANDLE;
+};
 // Draws the segments of `group` from the lists of phases [phase_begin, phase_end), binding each
 // segment's material texture set (when `textured`) and cull mode only when they change. The
 // blend group is drawn in DrawLists::blend_order. With `pipeline_of`, each segment is drawn with
 // the pipeline it gives for the segment's material (bound when it changes; same layout).
+// With `pulled`, the draws are non-indexed and the material sets bound with its layout.
 void RecordSegments(const PassContext& ctx, AlphaMode group, uint32_t phase_begin,
                     uint32_t phase_end, bool textured = true,
-                    absl::FunctionRef<VkPipeline(uint32_t)> pipeline_of = NoPipelineChange);
+                    absl::FunctionRef<VkPipeline(uint32_t)> pipeline_of = NoPipelineChange,
+                    const PulledGeometry* pulled = nullptr);
 // Draws every item of the scene, unculled, with direct draws (tests: the drawable-id image).
 void RecordAllDirect(const PassContext& ctx);
 // Draws the opaque group without materials: one indirect draw per batch (cull mode).
-void RecordBatches(const PassContext& ctx, uint32_t phase);
+void RecordBatches(const PassContext& ctx, uint32_t phase, const PulledGeometry* pulled = nullptr);
 // The depth prepass's and visibility pass's draws of a phase: the opaque batches with `opaque`,
-// then the alpha-mask segments (materials bound for the alpha test) with `mask`.
+// then the alpha-mask segments (materials bound for the alpha test) with `mask`; with `pulled`,
+// non-indexed (PulledGeometry).
 void RecordDepthGeometry(const PassContext& ctx, VkPipeline opaque, VkPipeline mask,
-                         uint32_t phase);
+                         uint32_t phase, const PulledGeometry* pulled = nullptr);
 
 // The drawable-id pipeline (tests): writes drawable + 1 into an R32_UINT target where a surface
 // lies at the depth attachment's depth (GREATER_OR_EQUAL, no depth writes).

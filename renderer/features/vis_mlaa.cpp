@@ -34,15 +34,22 @@ namespace tessera {
 
 namespace {
 
+// With DeviceInfo::vertex_pulling the pass draws non-indexed and its vertex shaders read the
+// scene's geometry (common/vis_pull.glsl) through a set of their own (`pulled_`), after the
+// scene's two.
 class VisibilityPass final : public Pass {
  public:
-  VisibilityPass(PassId id, const SceneLayout& layout) : id_(id), layout_(layout) {}
+  VisibilityPass(PassId id, const SceneLayout& layout, PassLayout pulled)
+      : id_(id), layout_(layout), pulled_(std::move(pulled)) {}
   PassId id() const override { return id_; }
 
-  absl::Status Prepare(const vk::Context& ctx, const Settings& s) override {
+  // A pipeline pair per sample count, and with pulled vertices per way of reading the scene's
+  // geometry (vis.glsl's kVisTexels).
+  absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
+                            const FrameFeatures&) override {
     if (!DrawsVisibility(s)) return absl::OkStatus();
-    return pipelines_.Ensure(Samples(s, s.samples),
-                             [&](uint32_t samples) { return Create(ctx, samples); });
+    return pipelines_.Ensure(Key(ctx, s, s.samples, scene),
+                             [&](uint32_t key) { return Create(ctx, key); });
   }
   // The samples rasterized: vis_mlaa's count, or 1 for the visibility pipeline and for
   // vis_mlaa_coverage analytic.
@@ -50,11 +57,19 @@ class VisibilityPass final : public Pass {
     return s.aa == AaMode::kVisMlaa && !VisMlaaAnalytic(s) ? samples : 1;
   }
 
+  // The samples | kVisTexels << 8 | pulled << 9 (only with pulled vertices does the pipeline
+  // read the geometry).
+  static uint32_t Key(const vk::Context& ctx, const Settings& s, uint32_t samples,
+                      const GpuScene& scene) {
+    const bool pulled = ctx.info().vertex_pulling;
+    return Samples(s, samples) | (pulled ? VisTexels(scene) << 8 | 1u << 9 : 0u);
+  }
+
   void Record(PassContext& ctx) override {
     const bool late = id_ == PassId::kVisibilityLate;
     const uint32_t phase = late ? 1 : 0;
     const uint32_t samples = Samples(*ctx.settings, ctx.samples);
-    const Pipelines& p = pipelines_.at(samples);
+    const Pipelines& p = pipelines_.at(Key(*ctx.vk, *ctx.settings, ctx.samples, *ctx.scene));
     VkRenderingAttachmentInfo color{VK_STRUCTURE_TYPE_RENDERING_ATTACHMENT_INFO};
     // vis_mlaa's samples go to their own target (the resolve writes vis_id from them).
     color.imageView = ctx.settings->aa == AaMode::kVisMlaa ? ctx.targets->vis_ms.view()
@@ -71,7 +86,13 @@ class VisibilityPass final : public Pass {
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
     if (samples > 1) ResolveDepthInto(ctx, depth);
     BeginRendering(ctx, &color, &depth);
-    RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase);
+    if (ctx.vk->info().vertex_pulling) {
+      const PulledGeometry pulled{pulled_.pipeline_layout(), pulled_.Allocate(ctx)};
+      SetWriter(ctx.vk->device(), pulled.set).SceneGeometry(ctx).Update();
+      RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase, &pulled);
+    } else {
+      RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase);
+    }
     vkCmdEndRendering(ctx.cmd);
   }
 
@@ -79,23 +100,26 @@ class VisibilityPass final : public Pass {
   struct Pipelines {
     vk::Pipeline opaque, mask;
   };
-  absl::StatusOr<Pipelines> Create(const vk::Context& ctx, uint32_t samples) const {
+  absl::StatusOr<Pipelines> Create(const vk::Context& ctx, uint32_t key) const {
+    const bool pulled = (key >> 9) & 1u;
     vk::GraphicsPipelineDesc d;
     d.name = "visibility.opaque";
-    d.vertex_shader = "vis.vert";
-    d.fragment_shader = "vis.frag";
-    d.layout = layout_.pipeline_layout;
+    d.vertex_shader = pulled ? "vis_pull.vert" : "vis.vert";
+    d.fragment_shader = pulled ? "vis_pull.frag" : "vis.frag";
+    d.layout = pulled ? pulled_.pipeline_layout() : layout_.pipeline_layout;
+    d.drawable_instance_input = pulled;
+    if (pulled) d.vertex_constants = {0u, 0u, 0u, (key >> 8) & 1u};  // vis.glsl's constant 3
     d.attribute_mask = 1u << gpu::kAttrPosition;
     d.color_formats = {kIdFormat};
     d.depth_format = kDepthFormat;
     d.depth_test = true;
     d.depth_write = true;
     d.depth_compare = VK_COMPARE_OP_GREATER;
-    d.samples = static_cast<VkSampleCountFlagBits>(samples);
+    d.samples = static_cast<VkSampleCountFlagBits>(key & 0xffu);
     ASSIGN_OR_RETURN(vk::Pipeline opaque, vk::CreateGraphicsPipeline(ctx, d));
     d.name = "visibility.mask";
-    d.vertex_shader = "id.vert";
-    d.fragment_shader = "vis_mask.frag";
+    d.vertex_shader = pulled ? "vis_pull_mask.vert" : "id.vert";
+    d.fragment_shader = pulled ? "vis_pull_mask.frag" : "vis_mask.frag";
     d.attribute_mask =
         (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
     absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
@@ -105,6 +129,7 @@ class VisibilityPass final : public Pass {
 
   PassId id_;
   SceneLayout layout_;
+  PassLayout pulled_;
   PerSampleCount<Pipelines> pipelines_;
 };
 
@@ -249,8 +274,13 @@ class VisResolvePass final : public Pass {
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisibilityPass(const vk::Context& ctx,
                                                            const SceneLayout& layout, PassId id) {
-  (void)ctx;
-  return std::make_unique<VisibilityPass>(id, layout);
+  PassLayout pulled;
+  if (ctx.info().vertex_pulling) {
+    ASSIGN_OR_RETURN(pulled, PassLayout::Create(ctx, SceneGeometryBindings(VK_SHADER_STAGE_VERTEX_BIT),
+                                                {}, "visibility pulled layout",
+                                                {layout.set_layout, layout.material_set_layout}));
+  }
+  return std::make_unique<VisibilityPass>(id, layout, std::move(pulled));
 }
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisResolvePass(const vk::Context& ctx,

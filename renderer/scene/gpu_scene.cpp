@@ -760,7 +760,10 @@ absl::Status GpuScene::UploadBuffers(vk::Context& ctx, const CpuScene& scene,
   if (st.ok())  // PlanScene keeps one record at least
     st = Keep(drawables_,
                 UploadBuffer(ctx, drawables.data(), drawables.size() * sizeof(gpu::GpuDrawable),
-                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | texel, n + ".drawables"));
+                             // a vertex buffer for pulled vertices (common/vis_pull.glsl)
+                             VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_VERTEX_BUFFER_BIT |
+                                 texel,
+                             n + ".drawables"));
   if (st.ok())
     st =
         Keep(cull_items_, UploadBuffer(ctx, items.data(), items.size() * sizeof(gpu::GpuCullItem),

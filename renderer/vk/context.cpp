@@ -358,6 +358,7 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
   }
   info.max_texel_buffer_elements = p.limits.maxTexelBufferElements;
   info.texel_buffers = true;  // the formats are mandatory: checked in InitDevice
+  info.vertex_pulling = p.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;
   info.timestamp_period_ns = p.limits.timestampPeriod;
@@ -399,6 +400,10 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
     out.push_back({"texel_buffers (disabled)",
                    "the visibility passes read the scene's vertices, indices and drawables, "
                    "and the shading the lights, from storage buffers"});
+  if (!info.vertex_pulling && info.type == "cpu")
+    out.push_back({"vertex_pulling (disabled)",
+                   "the visibility pass draws indexed, its fragment shaders reading "
+                   "gl_PrimitiveID"});
   if (info.max_samples < kMaxSamples)
     out.push_back({absl::StrCat(kMaxSamples, "x multisampling"),
                    absl::StrCat("samples clamped to ", info.max_samples)});
@@ -455,6 +460,7 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   if (off("visibility_buffer")) info.visibility_buffer = false;
   if (off("material_variants")) info.material_variants = false;
   if (off("texel_buffers")) info.texel_buffers = false;
+  if (off("vertex_pulling")) info.vertex_pulling = false;
   if (off("pipeline_statistics")) supported.pipelineStatisticsQuery = VK_FALSE;
   if (off("multi_draw_indirect")) supported.multiDrawIndirect = VK_FALSE;
   info.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;

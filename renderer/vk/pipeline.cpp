@@ -1,5 +1,7 @@
 #include "renderer/vk/pipeline.h"
 
+#include <algorithm>
+
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
 #include "renderer/scene/cpu_scene.h"
@@ -40,27 +42,28 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
                                                 const GraphicsPipelineDesc& desc) {
   ScopedShader vs(ctx.device()), fs(ctx.device());
   RETURN_IF_ERROR(vs.Load(desc.vertex_shader));
+  // Constant i at offset 4i, for either stage's list.
+  std::vector<VkSpecializationMapEntry> entries;
+  const size_t most = std::max(desc.vertex_constants.size(), desc.fragment_constants.size());
+  for (uint32_t i = 0; i < most; ++i) entries.push_back({i, i * 4, 4});
+  auto specialize = [&](const std::vector<uint32_t>& constants) {
+    return VkSpecializationInfo{uint32_t(constants.size()), entries.data(), constants.size() * 4,
+                                constants.data()};
+  };
+  const VkSpecializationInfo vertex_spec = specialize(desc.vertex_constants);
+  const VkSpecializationInfo fragment_spec = specialize(desc.fragment_constants);
   std::vector<VkPipelineShaderStageCreateInfo> stages;
   VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
   stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
   stage.module = vs.get();
   stage.pName = "main";
+  if (!desc.vertex_constants.empty()) stage.pSpecializationInfo = &vertex_spec;
   stages.push_back(stage);
-  std::vector<VkSpecializationMapEntry> entries;
-  VkSpecializationInfo spec{};
   if (!desc.fragment_shader.empty()) {
     RETURN_IF_ERROR(fs.Load(desc.fragment_shader));
     stage.stage = VK_SHADER_STAGE_FRAGMENT_BIT;
     stage.module = fs.get();
-    if (!desc.fragment_constants.empty()) {
-      for (uint32_t i = 0; i < desc.fragment_constants.size(); ++i)
-        entries.push_back({i, i * 4, 4});
-      spec.mapEntryCount = uint32_t(entries.size());
-      spec.pMapEntries = entries.data();
-      spec.dataSize = desc.fragment_constants.size() * 4;
-      spec.pData = desc.fragment_constants.data();
-      stage.pSpecializationInfo = &spec;
-    }
+    stage.pSpecializationInfo = desc.fragment_constants.empty() ? nullptr : &fragment_spec;
     stages.push_back(stage);
   }
 
@@ -75,7 +78,22 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
   std::vector<VkVertexInputAttributeDescription> used_attributes;
   VkPipelineVertexInputStateCreateInfo vertex_input{
       VK_STRUCTURE_TYPE_PIPELINE_VERTEX_INPUT_STATE_CREATE_INFO};
-  if (desc.scene_vertex_input) {
+  const VkVertexInputBindingDescription drawables{gpu::kDrawableInputBinding,
+                                                  sizeof(gpu::GpuDrawable),
+                                                  VK_VERTEX_INPUT_RATE_INSTANCE};
+  if (desc.drawable_instance_input) {
+    vertex_input.vertexBindingDescriptionCount = 1;
+    vertex_input.pVertexBindingDescriptions = &drawables;
+    for (uint32_t c = 0; c < 4; ++c)
+      used_attributes.push_back({gpu::kAttrDrawableWorld + c, gpu::kDrawableInputBinding,
+                                 VK_FORMAT_R32G32B32A32_SFLOAT,
+                                 uint32_t(offsetof(gpu::GpuDrawable, world) + 16 * c)});
+    used_attributes.push_back({gpu::kAttrDrawableIds, gpu::kDrawableInputBinding,
+                               VK_FORMAT_R32G32B32A32_UINT,
+                               uint32_t(offsetof(gpu::GpuDrawable, ids))});
+    vertex_input.vertexAttributeDescriptionCount = uint32_t(used_attributes.size());
+    vertex_input.pVertexAttributeDescriptions = used_attributes.data();
+  } else if (desc.scene_vertex_input) {
     vertex_input.vertexBindingDescriptionCount = 1;
     vertex_input.pVertexBindingDescriptions = &binding;
     // A depth-only pipeline reads positions alone: fewer attributes fetched per vertex.

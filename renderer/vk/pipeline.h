@@ -47,6 +47,9 @@ struct GraphicsPipelineDesc {
   std::string fragment_shader;  // empty: depth-only pipeline
   VkPipelineLayout layout = VK_NULL_HANDLE;
   bool scene_vertex_input = true;  // bind the scene vertex layout (else no vertex input)
+  // Instead: the drawables buffer per instance at binding gpu::kDrawableInputBinding, each
+  // drawable's world matrix and ids as attributes (gpu::kAttrDrawableWorld, kAttrDrawableIds).
+  bool drawable_instance_input = false;
   // Attributes bound, a bit per location (gpu::kAttr*); 0: all, or position alone for a
   // depth-only pipeline.
   uint32_t attribute_mask = 0;
@@ -56,8 +59,10 @@ struct GraphicsPipelineDesc {
   bool depth_write = false;
   VkCompareOp depth_compare = VK_COMPARE_OP_GREATER_OR_EQUAL;  // reverse-Z
   BlendMode blend = BlendMode::kNone;
-  // The fragment shader's specialization constants, constant_id i = fragment_constants[i].
+  // The fragment shader's specialization constants, constant_id i = fragment_constants[i]; the
+  // vertex shader's likewise.
   std::vector<uint32_t> fragment_constants;
+  std::vector<uint32_t> vertex_constants;
   // Rasterizer depth bias (shadow maps): constant in depth units, slope-scaled.
   float depth_bias_constant = 0.0f;
   float depth_bias_slope = 0.0f;

@@ -109,6 +109,10 @@ void WriteCommand(uint index, GpuCullItem item) {
   commands[c + 2] = item.draw.x;  // firstIndex
   commands[c + 3] = item.draw.z;  // vertexOffset
   commands[c + 4] = item.draw.w;  // firstInstance = drawable
+  commands[c + 5] = item.draw.y;  // the pulled draw (common/vis_pull.glsl): vertexCount
+  commands[c + 6] = 1u;           // instanceCount
+  commands[c + 7] = item.draw.x;  // firstVertex = firstIndex
+  commands[c + 8] = item.draw.w;  // firstInstance = drawable
 }
 
 void main() {

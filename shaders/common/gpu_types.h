@@ -95,7 +95,7 @@ TS_CONST uint kCullGroupSize = 256;
 TS_CONST uint kCullBindingUniforms = 0;  // readonly buffer CullUniforms
 TS_CONST uint kCullBindingItems = 1;     // buffer GpuCullItem[] (read)
 TS_CONST uint kCullBindingDrawables = 2; // buffer GpuDrawable[] (bounds; read)
-TS_CONST uint kCullBindingCommands = 3;  // buffer uint[] VkDrawIndexedIndirectCommand (written)
+TS_CONST uint kCullBindingCommands = 3;  // buffer uint[] draw commands (kDrawCommandWords, written)
 TS_CONST uint kCullBindingCounts = 4;    // buffer uint[] draw counts + kCullStat* (written)
 TS_CONST uint kCullBindingBases = 5;     // buffer uint[] scratch: visible items before each range
 TS_CONST uint kCullBindingVisPrev = 6;   // buffer uint[] visibility bits of the last frame (read)
@@ -112,7 +112,10 @@ TS_CONST uint kCullStatVisible = 1;    // late phase: items that also passed the
 // that seeding the first phase with last frame's reprojected depth could have saved.
 TS_CONST uint kCullStatStale = 2;
 TS_CONST uint kCullStatCount = 4;
-TS_CONST uint kDrawCommandWords = 5;  // sizeof(VkDrawIndexedIndirectCommand) / 4
+// A draw command (renderer/features/pass.h DrawCommand): the indexed draw, then the same draw
+// non-indexed for pulled vertices (vertexCount = indexCount, firstVertex = firstIndex,
+// firstInstance = the drawable; common/vis_pull.glsl).
+TS_CONST uint kDrawCommandWords = 9;
 // The depth pyramid (hiz_build.comp): level 0 is the depth at the power of two at or below half
 // the frame size, each texel the farthest (reverse Z: minimum) depth of the pixels it covers.
 TS_CONST uint kHizGroupSize = 8;  // 8x8 texels per workgroup
@@ -306,6 +309,12 @@ TS_CONST uint kAttrNormal = 1;
 TS_CONST uint kAttrTangent = 2;
 TS_CONST uint kAttrUv0 = 3;
 TS_CONST uint kAttrUv1 = 4;
+// Pulled vertices (common/vis_pull.glsl): the drawables buffer as a vertex buffer at this
+// binding, per instance (firstInstance = the drawable), its world matrix's columns at locations
+// kAttrDrawableWorld + 0..3 and its ids at kAttrDrawableIds.
+TS_CONST uint kDrawableInputBinding = 1;
+TS_CONST uint kAttrDrawableWorld = 8;
+TS_CONST uint kAttrDrawableIds = 12;
 
 // ---- structs --------------------------------------------------------------------------------
 // A material's reference to one texture layer. uv' = (dot(row0.xyz, (uv,1)), dot(row1.xyz, (uv,1)))

@@ -76,17 +76,18 @@ vec4 VertexUvs(uint v) {  // xy TEXCOORD_0, zw TEXCOORD_1
   return vec4(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u], vis_vertices[b + 3u]);
 }
 
+// The vertex at place k of the index buffer, for a drawable (GpuDrawable.ids: w its vertex
+// offset).
+uint IndexedVertex(uvec4 drawable_ids, uint k) {
+  uint index = kVisTexels ? texelFetch(vis_index_texels, int(k)).x : vis_indices[k];
+  return uint(int(index) + int(drawable_ids.w));
+}
+
 // The vertex indices of a triangle of a drawable (GpuDrawable.ids: z first index, w offset).
 uvec3 TriangleVertices(uvec4 drawable_ids, uint triangle) {
   uint first = drawable_ids.z + 3u * triangle;
-  int offset = int(drawable_ids.w);
-  if (kVisTexels) {
-    return uvec3(int(texelFetch(vis_index_texels, int(first)).x) + offset,
-                 int(texelFetch(vis_index_texels, int(first + 1u)).x) + offset,
-                 int(texelFetch(vis_index_texels, int(first + 2u)).x) + offset);
-  }
-  return uvec3(uint(int(vis_indices[first]) + offset), uint(int(vis_indices[first + 1u]) + offset),
-               uint(int(vis_indices[first + 2u]) + offset));
+  return uvec3(IndexedVertex(drawable_ids, first), IndexedVertex(drawable_ids, first + 1u),
+               IndexedVertex(drawable_ids, first + 2u));
 }
 
 // Drawable `d`'s record (scene.glsl's drawables[d]): its world matrix, normal matrix and ids.

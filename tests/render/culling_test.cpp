@@ -257,7 +257,8 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // without min/max samplers; and every material shaded by the general pipeline instead of its set
 // of texture slots' (material_variants: Sponza's materials have two sets); and the scene's
 // triangles, its local lights and their tile lists read from storage buffers instead of texel
-// buffers (texel_buffers). Each frame must equal the one the full feature set renders, pixel for
+// buffers (texel_buffers); and on a CPU device the visibility pass's indexed draws, whose fragment
+// shaders read gl_PrimitiveID, instead of pulled vertices (vertex_pulling). Each frame must equal the one the full feature set renders, pixel for
 // pixel, in every culling mode and both pipelines; and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   // The full feature set appends per subgroup even on a CPU device (which by default appends
@@ -272,7 +273,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
       {.validation = true,
        .disable_features = {"draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic",
                             "subgroup_ballot", "sampler_minmax", "material_variants",
-                            "texel_buffers"}});
+                            "texel_buffers", "vertex_pulling"}});
   ASSERT_TRUE(lean.ok()) << lean.status();
   const DeviceInfo& info = (*lean)->device_info();
   EXPECT_FALSE(info.draw_indirect_count);
@@ -285,6 +286,10 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_TRUE(r.device_info().material_variants);
   EXPECT_FALSE(info.texel_buffers);
   EXPECT_TRUE(r.device_info().texel_buffers);
+  // Pulled vertices on CPU devices (the test's), indexed draws on GPUs; the lean device draws
+  // indexed either way.
+  EXPECT_FALSE(info.vertex_pulling);
+  EXPECT_EQ(r.device_info().vertex_pulling, r.device_info().type == "cpu");
   std::vector<std::string> missing;
   for (const DeviceFallback& f : info.fallbacks) missing.push_back(f.missing);
   for (const char* want : {"drawIndirectCount", "multiDrawIndirect"})
