@@ -278,7 +278,9 @@ int main(int argc, char** argv) {
   out["device"] = {{"name", dev.name},
                    {"type", dev.type},
                    {"driver", dev.driver_info},
-                   {"appends", dev.subgroup_appends ? "subgroup" : "pixel"}};
+                   {"appends", dev.subgroup_appends ? "subgroup" : "pixel"},
+                   // the visibility pass's (DeviceInfo::vertex_pulling)
+                   {"vertices", dev.vertex_pulling ? "pulled" : "indexed"}};
   out["scene"] = {{"name", info.name},
                   {"triangles", info.counts.triangles},
                   {"primitives", info.counts.primitives},
