@@ -65,11 +65,11 @@ struct DeviceInfo {
   uint32_t max_texel_buffer_elements = 0;  // maxTexelBufferElements
   // The visibility pass pulls its vertices (common/vis_pull.glsl): non-indexed draws whose vertex
   // shader reads each index and position from the scene's buffers (vis.glsl's) and passes the
-  // triangle on, instead of indexed draws with gl_PrimitiveID in the fragment shader. On CPU
-  // devices: llvmpipe numbers primitives by assembling them again on its single-threaded front
-  // end (Sponza 1280x720, the visibility pass at 4 samples 101-110 -> 91-99 ms). Not on GPUs,
-  // whose post-transform cache shades a shared vertex once. Not a device feature: false on a CPU device only where turned off, to test the
-  // indexed path there.
+  // id on, instead of indexed draws with gl_PrimitiveID in the fragment shader. On CPU devices:
+  // llvmpipe numbers primitives by assembling them again on its single-threaded front end
+  // (Sponza 1280x720, the visibility pass at 4 samples 101-110 -> 91-99 ms). Not on GPUs, whose
+  // post-transform cache shades a shared vertex once. Not a device feature: false on a CPU
+  // device only where turned off, to test the indexed path there.
   bool vertex_pulling = false;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.

@@ -86,13 +86,13 @@ class VisibilityPass final : public Pass {
     depth.clearValue.depthStencil = {0.0f, 0};  // reverse Z: far is 0
     if (samples > 1) ResolveDepthInto(ctx, depth);
     BeginRendering(ctx, &color, &depth);
-    if (ctx.vk->info().vertex_pulling) {
-      const PulledGeometry pulled{pulled_.pipeline_layout(), pulled_.Allocate(ctx)};
+    PulledGeometry pulled;
+    const bool pull = ctx.vk->info().vertex_pulling;
+    if (pull) {
+      pulled = {pulled_.pipeline_layout(), pulled_.Allocate(ctx)};
       SetWriter(ctx.vk->device(), pulled.set).SceneGeometry(ctx).Update();
-      RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase, &pulled);
-    } else {
-      RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase);
     }
+    RecordDepthGeometry(ctx, p.opaque.handle(), p.mask.handle(), phase, pull ? &pulled : nullptr);
     vkCmdEndRendering(ctx.cmd);
   }
 

@@ -180,15 +180,13 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, true);
     color += sun_first ? c : vec3(0.0);
   } else if (kShadowCode) {
-    bool sun_pending = sun_first;
     // Counted, at least once: as a do-while on `shadowed` lavapipe shaded a few hundred of
     // Sponza's pixels differently in every run where tiles held three or more shadowed lights
     // (their lanes' company changes with the lists' order; VisibilityPipelineTest.
     // ShadowedLocalLightsRenderTheSameEveryTime). The same iterations per lane either way.
     uint iterations = max(uint(bitCount(shadowed)) + (sun_first ? 1u : 0u), 1u);
     for (uint it = 0u; it < iterations; ++it) {
-      bool is_sun = sun_pending;
-      sun_pending = false;
+      bool is_sun = sun_first && it == 0u;
       bool any = is_sun || shadowed != 0u;  // else this iteration's light is dropped
       uint i = is_sun || shadowed == 0u ? 0u : uint(findLSB(shadowed));
       if (!is_sun) shadowed &= shadowed - 1u;

@@ -426,7 +426,8 @@ void main() {
   uint edges = push.params.y;  // the edge list's entry
   if (mode == kResolveArgs) {  // sizes the dispatch over entry params.x's list
     uint list = push.params.x;
-    if (gl_LocalInvocationIndex == 0u) entries[list].dispatch.xyz = DispatchFor(entries[list].dispatch.w);
+    if (gl_LocalInvocationIndex == 0u)
+      entries[list].dispatch.xyz = DispatchFor(entries[list].dispatch.w);
     return;
   }
   uint entry = 0u;
