@@ -143,6 +143,11 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 // a loop's body at least once, and with the sun shaded before it, that first iteration looked a
 // shadow up for no light at every pixel without a shadowed local light in its tile (Sponza's
 // full stack at 1280x720: the loop cost 30 of the shading's 140 ms).
+// The loops test their end at the bottom of the body, where a `for` tests it at the top:
+// lavapipe's loops (gallivm) only mask a lane off when it leaves, and branch back while any lane
+// is left, so after the last lane left at the top the body ran once more with every lane masked
+// off; the shadowed loop (one to a few iterations) paid that on every pixel. So each loop runs
+// its body at least once, and drops what a lane computes past its own end.
 vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
                  float alpha, bool tiled, uint tile, uint tile_count) {
   vec3 color = vec3(0.0);
@@ -154,8 +159,12 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   // shading 164-180 -> 152-167 ms without it).
   bool sun = kShadowCode && shadow.counts.y > 0u;
   if (kGlobalLoopCode) {
-    for (uint i = sun ? 1u : 0u; i < frame.counts.x; ++i)
-      color += ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
+    for (uint i = sun ? 1u : 0u;;) {
+      vec3 c = ShadeLight(lights[min(i, kMaxLights - 1u)], p, n, ng, v, n_dot_v, c_diff, f0,
+                          alpha, false, false);
+      color += i < frame.counts.x ? c : vec3(0.0);
+      if (++i >= frame.counts.x) break;
+    }
   }
   uint shadowed = 0u;  // bit i: ShadowUniforms.shadowed's light i lights this point's list
   // Only in pipelines for frames with local lights (kLocalLightCode): on lavapipe the loop cost
@@ -163,14 +172,15 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   if (kLocalLightCode) {
     uint count = tiled ? tile_count : frame.lighting.x;
     uint base = tile * kMaxLightsPerTile;
-    for (uint k = 0u; k < count; ++k) {
-      GpuLight light = LocalLight(tiled ? TileLight(base + k) : k);
+    for (uint k = 0u;;) {
+      bool live = k < count;  // else (a list of none) this iteration's light is dropped
+      uint index = tiled ? TileLight(base + (live ? k : 0u)) : k;
+      GpuLight light = LocalLight(live ? index : 0u);
       vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
-      if (kShadowCode && light.spot.z > 0.0) {
-        shadowed |= 1u << uint(light.spot.w);
-      } else {
-        color += c;
-      }
+      bool mapped = kShadowCode && light.spot.z > 0.0;
+      if (live && mapped) shadowed |= 1u << uint(light.spot.w);
+      color += live && !mapped ? c : vec3(0.0);
+      if (++k >= count) break;
     }
   }
   // Light 0 with the sun's lookup (LightShadow looks up only a light that has a map): the sun,
@@ -183,9 +193,10 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     // Counted, at least once: as a do-while on `shadowed` lavapipe shaded a few hundred of
     // Sponza's pixels differently in every run where tiles held three or more shadowed lights
     // (their lanes' company changes with the lists' order; VisibilityPipelineTest.
-    // ShadowedLocalLightsRenderTheSameEveryTime). The same iterations per lane either way.
+    // ShadowedLocalLightsRenderTheSameEveryTime). Tested at the top, the count cost Sponza's
+    // full stack 10-15% of its shading against the do-while (an extra, masked-off iteration).
     uint iterations = max(uint(bitCount(shadowed)) + (sun_first ? 1u : 0u), 1u);
-    for (uint it = 0u; it < iterations; ++it) {
+    for (uint it = 0u;;) {
       bool is_sun = sun_first && it == 0u;
       bool any = is_sun || shadowed != 0u;  // else this iteration's light is dropped
       uint i = is_sun || shadowed == 0u ? 0u : uint(findLSB(shadowed));
@@ -199,6 +210,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       }
       vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, is_sun);
       color += any ? c : vec3(0.0);
+      if (++it >= iterations) break;
     }
   }
   return color;
