@@ -159,9 +159,9 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   // shading 164-180 -> 152-167 ms without it).
   bool sun = kShadowCode && shadow.counts.y > 0u;
   if (kGlobalLoopCode) {
+    // (A later iteration's i is below the count; the first's is 0 or 1, in lights[]'s range.)
     for (uint i = sun ? 1u : 0u;;) {
-      vec3 c = ShadeLight(lights[min(i, kMaxLights - 1u)], p, n, ng, v, n_dot_v, c_diff, f0,
-                          alpha, false, false);
+      vec3 c = ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
       color += i < frame.counts.x ? c : vec3(0.0);
       if (++i >= frame.counts.x) break;
     }
@@ -173,9 +173,10 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
     uint count = tiled ? tile_count : frame.lighting.x;
     uint base = tile * kMaxLightsPerTile;
     for (uint k = 0u;;) {
-      bool live = k < count;  // else (a list of none) this iteration's light is dropped
-      uint index = tiled ? TileLight(base + (live ? k : 0u)) : k;
-      GpuLight light = LocalLight(live ? index : 0u);
+      // Only the first iteration of an empty list is not live (k is 0): its slot's stale index
+      // is replaced by light 0, and the light dropped.
+      bool live = k < count;
+      GpuLight light = LocalLight(live ? (tiled ? TileLight(base + k) : k) : 0u);
       vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
       bool mapped = kShadowCode && light.spot.z > 0.0;
       if (live && mapped) shadowed |= 1u << uint(light.spot.w);

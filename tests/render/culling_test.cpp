@@ -257,10 +257,11 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // without min/max samplers; and every material shaded by the general pipeline instead of its set
 // of texture slots' (material_variants: Sponza's materials have two sets); and the scene's
 // triangles, its local lights and their tile lists read from storage buffers instead of texel
-// buffers (texel_buffers); and on a CPU device the visibility pass's indexed draws, whose fragment
-// shaders read gl_PrimitiveID, instead of pulled vertices (vertex_pulling), and the pulled
-// vertices read from storage buffers (texel_buffers alone off). Each frame must equal the one the full feature set renders, pixel for
-// pixel, in every culling mode and both pipelines; and the frame stats must agree.
+// buffers (texel_buffers); and on a CPU device the visibility pass's indexed draws, whose
+// fragment shaders read gl_PrimitiveID, instead of pulled vertices (vertex_pulling), and the
+// pulled vertices read from storage buffers (texel_buffers alone off). Each frame must equal the
+// one the full feature set renders, pixel for pixel, in every culling mode and both pipelines;
+// and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   // The full feature set appends per subgroup even on a CPU device (which by default appends
   // per pixel: DeviceInfo::subgroup_appends), so the lean device's per-pixel appends are
@@ -397,7 +398,8 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
 // inconsistently. Where a tile held three or more shadowed lights, 25-383 of this frame's
 // 230,400 pixels changed from one run to the next, by up to 41 levels. Two things vary between
 // runs: the order of each material's pixel list (from atomic appends), and with it which pixels
-// share a subgroup. The loop now counts its iterations first (shaders/common/shading.glsl).
+// share a subgroup. The loop now counts its iterations first and tests the count at the bottom
+// (shaders/common/shading.glsl).
 TEST(VisibilityPipelineTest, ShadowedLocalLightsRenderTheSameEveryTime) {
   Renderer& r = SharedRenderer();
   TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(r);
