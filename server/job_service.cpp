@@ -15,7 +15,7 @@ namespace {
 
 // At most this many progress messages wait for a slow watcher; past it the oldest frame event
 // goes (the job snapshot in every message keeps the counts exact; state changes always go).
-constexpr size_t kMaxPendingProgress = 64;
+constexpr size_t kMaxPendingProgress = kWatchReplayFrames;
 
 // WatchJob. The job pushes events into the channel from encoder threads; writes go out one at
 // a time. Decisions are made under the channel's mutex and the gRPC calls after unlocking.

@@ -6,6 +6,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <deque>
 #include <optional>
 #include <set>
 
@@ -194,6 +195,13 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     std::unique_lock lock(mu_);
     v1::JobProgress first;
     *first.mutable_job() = SnapshotLocked();
+    // The frames finished before the watch began (a small frame can finish between SubmitJob
+    // and WatchJob), as their events told them, each with the job as it is now.
+    std::vector<v1::JobProgress> replay(recent_.size());
+    for (size_t i = 0; i < recent_.size(); ++i) {
+      *replay[i].mutable_job() = first.job();
+      *replay[i].mutable_frame() = recent_[i];
+    }
     // Shutting down: CloseWatchers may have run already, so this one gets its end now.
     const bool finished = Terminal(proto_.state());
     const bool done = finished || m_->shutting_down();
@@ -201,6 +209,7 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     std::lock_guard notify(notify_mu_);
     lock.unlock();
     w->Push(first);
+    for (const v1::JobProgress& event : replay) w->Push(event);
     if (done)
       w->Close(finished ? absl::OkStatus() : absl::UnavailableError("server is shutting down"));
   }
@@ -328,6 +337,8 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     *e->mutable_passes() = std::move(*meta.mutable_passes());
     e->set_gpu_total_ms(meta.gpu_total_ms());
     *e->mutable_cpu() = meta.cpu();
+    if (recent_.size() == kWatchReplayFrames) recent_.pop_front();
+    recent_.push_back(*e);
     if (done_.size() == frames_.size() && in_flight_ == 0) {
       EndLocked(lock, v1::JOB_SUCCEEDED, "", &event);
       return;
@@ -423,6 +434,7 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
   std::shared_ptr<StoredScene> scene_;
   std::shared_ptr<SceneLease> lease_;
   std::vector<std::shared_ptr<JobWatcher>> watchers_;
+  std::deque<v1::JobFrameEvent> recent_;  // the last kWatchReplayFrames frames' events, in order
   Clock::time_point run_start_{};
   uint32_t run_frames_ = 0;
 };

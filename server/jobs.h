@@ -66,6 +66,9 @@ class Job;
 
 // The renderer views of job frames: apart from stream session ids (which count from 1).
 inline constexpr uint64_t kJobViewBase = uint64_t(1) << 62;
+// A new watcher hears of at most this many frames finished before it came (the last this
+// daemon finished, with their timings): the WatchJob channel keeps no more for a slow reader.
+inline constexpr size_t kWatchReplayFrames = 64;
 // A journalled job is restored if its range has at most this many frames (the limit may have
 // been lowered since it was submitted; a corrupt range must not allocate gigabytes).
 inline constexpr uint32_t kRestoreFrameCap = 1u << 24;
@@ -88,8 +91,9 @@ class JobManager {
   absl::Status Delete(const std::string& job_id);
   std::vector<v1::Job> List() const;
   absl::StatusOr<v1::Job> Get(const std::string& job_id) const;
-  // Registers `watcher` and pushes the job's state to it first (under the job's lock, so no
-  // event is missed or reordered). A finished job gets its state and Close(OK) at once.
+  // Registers `watcher` and pushes the job's state to it first, then the events of the frames
+  // already finished (the last kWatchReplayFrames; under the job's lock, so no event is
+  // missed, repeated or reordered). A finished job gets these and Close(OK) at once.
   absl::Status Watch(const std::string& job_id, std::shared_ptr<JobWatcher> watcher);
 
   struct StoredFrame {

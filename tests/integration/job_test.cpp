@@ -5,6 +5,7 @@
 #include <grpcpp/grpcpp.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "renderer/image_io.h"
+#include "server/jobs.h"
 #include "server/server.h"
 #include "common/scene_id.h"
 #include "tessera/v1/render_service.grpc.pb.h"
@@ -235,6 +237,41 @@ TEST_F(JobTest, SubmitWatchFetchAndTheSamePixelsAsRenderJobFrame) {
     ASSERT_TRUE(stub_->CancelJob(&ctx, r, &j).ok());
     EXPECT_EQ(j.state(), v1::JOB_SUCCEEDED);
     EXPECT_FALSE(j.spec().has_list()) << "responses leave the camera list out";
+  }
+}
+
+// A watch that begins after frames finished (a small frame can finish between SubmitJob and
+// WatchJob) still hears of them, with their timings: at most the last kWatchReplayFrames.
+TEST_F(JobTest, AWatchAfterTheFramesFinishedStillHearsOfThem) {
+  Start(BaseOptions());
+  const uint32_t n = server::kWatchReplayFrames + 6;
+  v1::JobSpec spec = OrbitSpec("demo", n, 16, 16);
+  spec.set_encoding(v1::IMAGE_JPEG);
+  v1::Job job;
+  ASSERT_TRUE(Submit(stub_.get(), spec, &job).ok());
+  const v1::Job done =
+      WaitJob(stub_.get(), job.job_id(), [](const v1::Job& j) { return j.finished_unix_s() > 0; });
+  ASSERT_EQ(done.state(), v1::JOB_SUCCEEDED) << done.error();
+
+  for (int watch = 0; watch < 2; ++watch) {  // a second watch hears the same
+    const Watched w = WatchToEnd(stub_.get(), job.job_id());
+    ASSERT_TRUE(w.status.ok()) << w.status.error_message();
+    ASSERT_EQ(w.events.size(), 1 + server::kWatchReplayFrames);
+    EXPECT_FALSE(w.events.front().has_frame()) << "the first message is the job's state";
+    std::set<uint32_t> seen;
+    for (size_t i = 1; i < w.events.size(); ++i) {
+      const v1::JobProgress& p = w.events[i];
+      ASSERT_TRUE(p.has_frame());
+      EXPECT_EQ(p.job().state(), v1::JOB_SUCCEEDED) << "each with the job as it is now";
+      EXPECT_EQ(p.job().frames_done(), n);
+      EXPECT_EQ(p.frame().index(), p.frame().frame());
+      EXPECT_EQ(p.frame().sha256().size(), 64u);
+      EXPECT_GT(p.frame().bytes(), 0u);
+      EXPECT_GT(p.frame().passes_size(), 0) << "the frame's timings as it finished";
+      seen.insert(p.frame().frame());
+    }
+    EXPECT_EQ(seen.size(), server::kWatchReplayFrames) << "no frame twice";
+    EXPECT_FALSE(seen.count(0)) << "the last frames finished, not the first";
   }
 }
 
@@ -480,11 +517,15 @@ TEST_F(JobTest, CancelStopsTheJobAndDeleteRemovesIt) {
   }
   EXPECT_EQ(cancelled.state(), v1::JOB_CANCELLED);
   EXPECT_LT(cancelled.frames_done(), 2000u);
-  // A watch of a finished job gets its state and ends.
+  // A watch of a finished job gets its state, the frames it finished, and ends.
   Watched w = WatchToEnd(stub_.get(), job.job_id());
   ASSERT_TRUE(w.status.ok());
-  ASSERT_EQ(w.events.size(), 1u);
-  EXPECT_EQ(w.events[0].job().state(), v1::JOB_CANCELLED);
+  ASSERT_EQ(w.events.size(),
+            1 + std::min<size_t>(cancelled.frames_done(), server::kWatchReplayFrames));
+  for (const v1::JobProgress& p : w.events) {
+    EXPECT_EQ(p.job().state(), v1::JOB_CANCELLED);
+    EXPECT_EQ(p.has_frame(), &p != &w.events[0]);
+  }
   // Nothing more is rendered for it.
   const uint64_t rendered = server_->stats().frames_rendered;
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
@@ -551,8 +592,11 @@ TEST_F(JobTest, ServerDirOutputIsWrittenUnderTheRoot) {
   const Watched w = WatchToEnd(stub_.get(), job.job_id());
   ASSERT_TRUE(w.status.ok());
   EXPECT_EQ(w.events.back().job().state(), v1::JOB_SUCCEEDED);
-  for (const v1::JobProgress& p : w.events)
-    if (p.has_frame()) EXPECT_EQ(p.frame().path().rfind("shots/a/s_00", 0), 0u) << p.frame().path();
+  for (const v1::JobProgress& p : w.events) {
+    if (p.has_frame()) {
+      EXPECT_EQ(p.frame().path().rfind("shots/a/s_00", 0), 0u) << p.frame().path();
+    }
+  }
   grpc::Status st;
   std::map<uint32_t, v1::JobFrame> frames = FetchAll(stub_.get(), job.job_id(), &st);
   ASSERT_TRUE(st.ok());
