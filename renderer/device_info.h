@@ -40,9 +40,12 @@ struct DeviceInfo {
   // Sample counts (bit n = 2^n samples) usable for every multisampled target: float and integer
   // colour attachments, depth, and sampling them (lavapipe: 1 and 4).
   uint32_t sample_counts = 1;
-  // vis_mlaa can run: fragment shaders read gl_PrimitiveID (geometryShader) and the device uses
-  // the standard sample locations the resolve pass assumes.
+  // vis_mlaa can run: the device uses the standard sample locations the resolve pass assumes, and
+  // the visibility pass either reads gl_PrimitiveID or pulls its vertices (vertex_pulling).
   bool visibility_buffer = false;
+  // Fragment shaders read gl_PrimitiveID (geometryShader). Without it the visibility pass always
+  // pulls its vertices, passing each triangle's id on from the vertex shader.
+  bool primitive_id = false;
   bool depth_resolve_min = false;  // multisampled depth resolves to its farthest sample (MIN)
   uint32_t max_image_dimension = 0;  // maxImageDimension2D
   uint32_t max_array_layers = 0;
@@ -68,8 +71,9 @@ struct DeviceInfo {
   // id on, instead of indexed draws with gl_PrimitiveID in the fragment shader. On CPU devices:
   // llvmpipe numbers primitives by assembling them again on its single-threaded front end
   // (Sponza 1280x720, the visibility pass at 4 samples 101-110 -> 91-99 ms). Not on GPUs, whose
-  // post-transform cache shades a shared vertex once. Not a device feature: false on a CPU
-  // device only where turned off, to test the indexed path there.
+  // post-transform cache shades a shared vertex once, unless they lack gl_PrimitiveID
+  // (primitive_id). Not a device feature: false where it is on only where turned off, to test
+  // the indexed path (a device without gl_PrimitiveID then has no visibility buffer).
   bool vertex_pulling = false;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.

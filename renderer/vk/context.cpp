@@ -346,7 +346,10 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
     info.sample_counts |= VK_SAMPLE_COUNT_1_BIT;
     info.max_samples = MaxSamples(info.sample_counts);
     info.depth_resolve_min = (p12.supportedDepthResolveModes & VK_RESOLVE_MODE_MIN_BIT) != 0;
-    info.visibility_buffer = supported.geometryShader && p.limits.standardSampleLocations;
+    // Without gl_PrimitiveID in fragment shaders the visibility pass pulls its vertices and
+    // passes the id on from the vertex shader (vertex_pulling below).
+    info.visibility_buffer = p.limits.standardSampleLocations;
+    info.primitive_id = supported.geometryShader;
     info.subgroup_size = sub.subgroupSize;
     constexpr VkSubgroupFeatureFlags kBallot =
         VK_SUBGROUP_FEATURE_BASIC_BIT | VK_SUBGROUP_FEATURE_BALLOT_BIT;
@@ -358,7 +361,7 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
   }
   info.max_texel_buffer_elements = p.limits.maxTexelBufferElements;
   info.texel_buffers = true;  // the formats are mandatory: checked in InitDevice
-  info.vertex_pulling = p.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU;
+  info.vertex_pulling = p.deviceType == VK_PHYSICAL_DEVICE_TYPE_CPU || !info.primitive_id;
   info.max_image_dimension = p.limits.maxImageDimension2D;
   info.max_array_layers = p.limits.maxImageArrayLayers;
   info.timestamp_period_ns = p.limits.timestampPeriod;
@@ -390,9 +393,15 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
   if (!info.sampler_minmax)
     out.push_back({"samplerFilterMinmax on R32_SFLOAT",
                    "the depth pyramid reads four texels and takes their minimum"});
+  if (!info.primitive_id && info.vertex_pulling)
+    out.push_back({"gl_PrimitiveID in fragment shaders (geometryShader)",
+                   "the visibility pass pulls its vertices and passes each triangle's id on "
+                   "from the vertex shader"});
   if (!info.visibility_buffer)
-    out.push_back({"gl_PrimitiveID in fragment shaders (geometryShader) or standard sample "
-                   "locations",
+    out.push_back({info.primitive_id || info.vertex_pulling
+                       ? "standard sample locations"
+                       : "gl_PrimitiveID in fragment shaders (geometryShader), with "
+                         "vertex_pulling disabled",
                    "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
   if (!info.pipeline_statistics)
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
@@ -461,6 +470,8 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   if (off("material_variants")) info.material_variants = false;
   if (off("texel_buffers")) info.texel_buffers = false;
   if (off("vertex_pulling")) info.vertex_pulling = false;
+  // The visibility pass reads the triangle as gl_PrimitiveID or pulls its vertices.
+  if (!info.primitive_id && !info.vertex_pulling) info.visibility_buffer = false;
   if (off("pipeline_statistics")) supported.pipelineStatisticsQuery = VK_FALSE;
   if (off("multi_draw_indirect")) supported.multiDrawIndirect = VK_FALSE;
   info.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;

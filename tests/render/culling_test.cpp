@@ -129,8 +129,12 @@ std::vector<ModeResult> CheckPath(const Scene& scene, const std::vector<Camera>&
       EXPECT_LE(st.drawables_drawn, st.drawables_in_frustum) << where;
       EXPECT_LE(st.drawables_in_frustum, st.drawables) << where;
       EXPECT_EQ(st.drawables_culled, st.drawables - st.drawables_drawn) << where;
-      if (modes[m] != CullingMode::kGpuOcclusion) EXPECT_EQ(st.drawables_late, 0u) << where;
-      if (modes[m] == CullingMode::kNone) EXPECT_EQ(st.drawables_drawn, st.drawables) << where;
+      if (modes[m] != CullingMode::kGpuOcclusion) {
+        EXPECT_EQ(st.drawables_late, 0u) << where;
+      }
+      if (modes[m] == CullingMode::kNone) {
+        EXPECT_EQ(st.drawables_drawn, st.drawables) << where;
+      }
       if (st.pipeline_statistics) {
         // The device's own count of input primitives matches what the draw lists submitted
         // (plus the forward pipeline's full-screen sky triangle; the visibility pipeline's
@@ -257,8 +261,8 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // without min/max samplers; and every material shaded by the general pipeline instead of its set
 // of texture slots' (material_variants: Sponza's materials have two sets); and the scene's
 // triangles, its local lights and their tile lists read from storage buffers instead of texel
-// buffers (texel_buffers); and on a CPU device the visibility pass's indexed draws, whose
-// fragment shaders read gl_PrimitiveID, instead of pulled vertices (vertex_pulling), and the
+// buffers (texel_buffers); and on a CPU device with gl_PrimitiveID the visibility pass's indexed
+// draws, whose fragment shaders read it, instead of pulled vertices (vertex_pulling), and the
 // pulled vertices read from storage buffers (texel_buffers alone off). Each frame must equal the
 // one the full feature set renders, pixel for pixel, in every culling mode and both pipelines;
 // and the frame stats must agree.
@@ -271,11 +275,16 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   ASSERT_TRUE(full.ok()) << full.status();
   Renderer& r = **full;
   EXPECT_EQ(r.device_info().subgroup_appends, r.device_info().subgroup_ballot);
-  absl::StatusOr<std::unique_ptr<Renderer>> lean = Renderer::Create(
-      {.validation = true,
-       .disable_features = {"draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic",
-                            "subgroup_ballot", "sampler_minmax", "material_variants",
-                            "texel_buffers", "vertex_pulling"}});
+  // The lean device draws the visibility pass indexed, reading gl_PrimitiveID, where the device
+  // has it; without it (SwiftShader) pulling is the visibility pass's only way.
+  std::vector<std::string> off = {"draw_indirect_count", "multi_draw_indirect",
+                                  "subgroup_arithmetic", "subgroup_ballot",
+                                  "sampler_minmax",      "material_variants",
+                                  "texel_buffers"};
+  const bool primitive_id = r.device_info().primitive_id;
+  if (primitive_id) off.push_back("vertex_pulling");
+  absl::StatusOr<std::unique_ptr<Renderer>> lean =
+      Renderer::Create({.validation = true, .disable_features = off});
   ASSERT_TRUE(lean.ok()) << lean.status();
   const DeviceInfo& info = (*lean)->device_info();
   EXPECT_FALSE(info.draw_indirect_count);
@@ -288,10 +297,11 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_TRUE(r.device_info().material_variants);
   EXPECT_FALSE(info.texel_buffers);
   EXPECT_TRUE(r.device_info().texel_buffers);
-  // Pulled vertices on CPU devices (the test's), indexed draws on GPUs; the lean device draws
-  // indexed either way.
-  EXPECT_FALSE(info.vertex_pulling);
-  EXPECT_EQ(r.device_info().vertex_pulling, r.device_info().type == "cpu");
+  // Pulled vertices on CPU devices (the test's) and devices without gl_PrimitiveID, indexed
+  // draws on other GPUs; the lean device draws indexed where it can.
+  EXPECT_EQ(info.vertex_pulling, !primitive_id);
+  EXPECT_EQ(r.device_info().vertex_pulling, r.device_info().type == "cpu" || !primitive_id);
+  EXPECT_EQ(info.visibility_buffer, r.device_info().visibility_buffer);
   std::vector<std::string> missing;
   for (const DeviceFallback& f : info.fallbacks) missing.push_back(f.missing);
   for (const char* want : {"drawIndirectCount", "multiDrawIndirect"})
@@ -558,6 +568,54 @@ TEST(FallbackTest, AppendsFollowTheKindOfDeviceUnlessForced) {
   ASSERT_TRUE(pixel.ok()) << pixel.status();
   EXPECT_FALSE((*pixel)->device_info().subgroup_appends);
   EXPECT_EQ((*pixel)->device_info().subgroup_ballot, d.subgroup_ballot);
+}
+
+// A device that cannot draw the visibility buffer (no standard sample locations; or no
+// gl_PrimitiveID with vertex pulling turned off) lists why, and renders a request for the
+// visibility pipeline forward and one for vis_mlaa as msaa, each saying so, with the pixels of
+// the request it became.
+TEST(FallbackTest, WithoutTheVisibilityBufferVisibilityRendersForwardAndVisMlaaMsaa) {
+  absl::StatusOr<std::unique_ptr<Renderer>> lean =
+      Renderer::Create({.validation = true, .disable_features = {"visibility_buffer"}});
+  ASSERT_TRUE(lean.ok()) << lean.status();
+  Renderer& r = **lean;
+  EXPECT_FALSE(r.device_info().visibility_buffer);
+  bool listed = false;
+  for (const DeviceFallback& f : r.device_info().fallbacks)
+    listed |= f.path == "aa vis_mlaa renders msaa; pipeline visibility renders forward";
+  EXPECT_TRUE(listed) << "the device's fallbacks say what the requests become";
+  absl::StatusOr<SceneHandle> scene = r.LoadScene(BuildDemoScene());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  Camera cam;
+  cam.eye = {0.0f, 3.0f, 9.0f};
+  cam.target = {0.0f, 0.5f, 0.0f};
+  auto noted = [](const Frame& f, const std::string& field) {
+    for (const SettingNote& n : f.settings.notes)
+      if (n.field == field) return true;
+    return false;
+  };
+  auto render = [&](Pipeline pipeline, AaMode aa) {
+    Settings s = Small(CullingMode::kGpuFrustum);
+    s.pipeline = pipeline;
+    s.aa = aa;
+    absl::StatusOr<Frame> f = r.Render(**scene, cam, s);
+    EXPECT_TRUE(f.ok()) << f.status();
+    return f.ok() ? std::move(*f) : Frame();
+  };
+  const Frame forward = render(Pipeline::kForward, AaMode::kNone);
+  const Frame visibility = render(Pipeline::kVisibility, AaMode::kNone);
+  EXPECT_EQ(visibility.settings.effective.pipeline, Pipeline::kForward);
+  EXPECT_TRUE(noted(visibility, "pipeline"));
+  EXPECT_FALSE(noted(forward, "pipeline"));
+  EXPECT_EQ(PixelDifference(visibility.image, forward.image), "");
+
+  const Frame msaa = render(Pipeline::kAuto, AaMode::kMsaa);
+  const Frame vis_mlaa = render(Pipeline::kAuto, AaMode::kVisMlaa);
+  EXPECT_EQ(vis_mlaa.settings.effective.aa, AaMode::kMsaa);
+  EXPECT_EQ(vis_mlaa.settings.effective.samples, msaa.settings.effective.samples);
+  EXPECT_TRUE(noted(vis_mlaa, "aa"));
+  EXPECT_EQ(PixelDifference(vis_mlaa.image, msaa.image), "");
+  ExpectNoValidationMessages(r);
 }
 
 // Feature names are checked: a typo must not silently test the full path.

@@ -183,7 +183,9 @@ TEST(SelectPassesTest, OrderIsFixed) {
     const int shadows = IndexOf(passes, PassId::kShadows);
     const int ao = IndexOf(passes, PassId::kSsao);
     EXPECT_EQ(shadows >= 0, c.settings.shadows) << d;
-    if (shadows >= 0) EXPECT_LT(shadows, forward) << d;
+    if (shadows >= 0) {
+      EXPECT_LT(shadows, forward) << d;
+    }
     EXPECT_EQ(ao >= 0, c.settings.ssao) << d;
     if (ao >= 0) {
       EXPECT_LT(prepass, ao) << d;
@@ -714,7 +716,9 @@ TEST(PlanDrawsTest, SegmentsAndBatchesCoverTheItemsInOrder) {
       }
     }
     // Blending is sorted per frame: each blended draw is its own segment.
-    if (seg.group == AlphaMode::kBlend) EXPECT_EQ(seg.item_count, 1u);
+    if (seg.group == AlphaMode::kBlend) {
+      EXPECT_EQ(seg.item_count, 1u);
+    }
     next += seg.item_count;
   }
   EXPECT_EQ(next, draws.size());
@@ -722,9 +726,10 @@ TEST(PlanDrawsTest, SegmentsAndBatchesCoverTheItemsInOrder) {
   for (size_t k = 1; k < plan.segments.size(); ++k) {
     const DrawSegment& a = plan.segments[k - 1];
     const DrawSegment& b = plan.segments[k];
-    if (b.group != AlphaMode::kBlend)
+    if (b.group != AlphaMode::kBlend) {
       EXPECT_TRUE(a.group != b.group || a.double_sided != b.double_sided ||
                   a.material != b.material);
+    }
   }
   // Batches: exactly the opaque items, one per cull mode.
   uint32_t opaque = 0;
