@@ -46,6 +46,7 @@ struct DeviceInfo {
   // Fragment shaders read gl_PrimitiveID (geometryShader). Without it the visibility pass always
   // pulls its vertices, passing each triangle's id on from the vertex shader.
   bool primitive_id = false;
+  bool standard_sample_locations = false;  // VkPhysicalDeviceLimits::standardSampleLocations
   bool depth_resolve_min = false;  // multisampled depth resolves to its farthest sample (MIN)
   uint32_t max_image_dimension = 0;  // maxImageDimension2D
   uint32_t max_array_layers = 0;
@@ -72,8 +73,8 @@ struct DeviceInfo {
   // llvmpipe numbers primitives by assembling them again on its single-threaded front end
   // (Sponza 1280x720, the visibility pass at 4 samples 101-110 -> 91-99 ms). Not on GPUs, whose
   // post-transform cache shades a shared vertex once, unless they lack gl_PrimitiveID
-  // (primitive_id). Not a device feature: false where it is on only where turned off, to test
-  // the indexed path (a device without gl_PrimitiveID then has no visibility buffer).
+  // (primitive_id). Not a device feature: off where it would be on only when turned off, to
+  // test the indexed path (a device without gl_PrimitiveID then has no visibility buffer).
   bool vertex_pulling = false;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.

@@ -348,7 +348,8 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
     info.depth_resolve_min = (p12.supportedDepthResolveModes & VK_RESOLVE_MODE_MIN_BIT) != 0;
     // Without gl_PrimitiveID in fragment shaders the visibility pass pulls its vertices and
     // passes the id on from the vertex shader (vertex_pulling below).
-    info.visibility_buffer = p.limits.standardSampleLocations;
+    info.standard_sample_locations = p.limits.standardSampleLocations;
+    info.visibility_buffer = info.standard_sample_locations;
     info.primitive_id = supported.geometryShader;
     info.subgroup_size = sub.subgroupSize;
     constexpr VkSubgroupFeatureFlags kBallot =
@@ -398,10 +399,11 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                    "the visibility pass pulls its vertices and passes each triangle's id on "
                    "from the vertex shader"});
   if (!info.visibility_buffer)
-    out.push_back({info.primitive_id || info.vertex_pulling
-                       ? "standard sample locations"
-                       : "gl_PrimitiveID in fragment shaders (geometryShader), with "
-                         "vertex_pulling disabled",
+    out.push_back({!info.standard_sample_locations ? "standard sample locations"
+                   : !info.primitive_id && !info.vertex_pulling
+                       ? "gl_PrimitiveID in fragment shaders (geometryShader), with "
+                         "vertex_pulling disabled"
+                       : "visibility_buffer (disabled)",
                    "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
   if (!info.pipeline_statistics)
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
@@ -409,7 +411,7 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
     out.push_back({"texel_buffers (disabled)",
                    "the visibility passes read the scene's vertices, indices and drawables, "
                    "and the shading the lights, from storage buffers"});
-  if (!info.vertex_pulling && info.type == "cpu")
+  if (!info.vertex_pulling && info.type == "cpu" && info.primitive_id)
     out.push_back({"vertex_pulling (disabled)",
                    "the visibility pass draws indexed, its fragment shaders reading "
                    "gl_PrimitiveID"});
