@@ -172,8 +172,8 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     e.samples = to;
   }
   if (e.aa == AaMode::kVisMlaa && !caps.visibility_buffer) {
-    not_applied("aa", "vis_mlaa needs gl_PrimitiveID in fragment shaders (geometryShader) and "
-                      "standard sample locations; rendered with msaa");
+    not_applied("aa", "vis_mlaa needs the visibility buffer, which this device cannot draw (its "
+                      "fallbacks say why); rendered with msaa");
     e.aa = AaMode::kMsaa;
   }
   // The pipeline that runs, as the effective settings report it: msaa shades forward, vis_mlaa
@@ -217,8 +217,8 @@ absl::StatusOr<ResolvedSettings> ResolveSettings(const Settings& settings, const
     e.light_binning = caps.cpu ? LightBinning::kCpu : LightBinning::kGpu;
   }
   if (ShadesVisibility(e) && !caps.visibility_buffer) {
-    not_applied("pipeline", "the visibility buffer needs gl_PrimitiveID in fragment shaders "
-                            "(geometryShader); shaded forward");
+    not_applied("pipeline", "this device cannot draw the visibility buffer (its fallbacks say "
+                            "why); shaded forward");
     e.pipeline = Pipeline::kForward;
   }
   if (e.shadows && e.shadow_atlas_size > caps.max_image_dimension) {

@@ -346,10 +346,7 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
     info.sample_counts |= VK_SAMPLE_COUNT_1_BIT;
     info.max_samples = MaxSamples(info.sample_counts);
     info.depth_resolve_min = (p12.supportedDepthResolveModes & VK_RESOLVE_MODE_MIN_BIT) != 0;
-    // Without gl_PrimitiveID in fragment shaders the visibility pass pulls its vertices and
-    // passes the id on from the vertex shader (vertex_pulling below).
     info.standard_sample_locations = p.limits.standardSampleLocations;
-    info.visibility_buffer = info.standard_sample_locations;
     info.primitive_id = supported.geometryShader;
     info.subgroup_size = sub.subgroupSize;
     constexpr VkSubgroupFeatureFlags kBallot =
@@ -468,12 +465,13 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   info.subgroup_appends =
       info.subgroup_ballot && (appends == AppendMode::kSubgroup ||
                                (appends == AppendMode::kAuto && info.type != "cpu"));
-  if (off("visibility_buffer")) info.visibility_buffer = false;
   if (off("material_variants")) info.material_variants = false;
   if (off("texel_buffers")) info.texel_buffers = false;
   if (off("vertex_pulling")) info.vertex_pulling = false;
-  // The visibility pass reads the triangle as gl_PrimitiveID or pulls its vertices.
-  if (!info.primitive_id && !info.vertex_pulling) info.visibility_buffer = false;
+  // The resolve assumes the standard sample locations; the visibility pass reads the triangle as
+  // gl_PrimitiveID or pulls its vertices and passes the id on from the vertex shader.
+  info.visibility_buffer = info.standard_sample_locations &&
+                           (info.primitive_id || info.vertex_pulling) && !off("visibility_buffer");
   if (off("pipeline_statistics")) supported.pipelineStatisticsQuery = VK_FALSE;
   if (off("multi_draw_indirect")) supported.multiDrawIndirect = VK_FALSE;
   info.multi_draw_indirect = supported.multiDrawIndirect == VK_TRUE;

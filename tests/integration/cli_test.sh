@@ -92,7 +92,7 @@ assert d["device"]["name"] and d["suite"] == "aa" and d["failed"] == 0, d
 assert [r["config"] for r in d["results"]] == ["aa " + m for m in offered], d["results"]
 for r in d["results"]:
     assert r["ok"] and r["frames"] == 3 and r["fps"] > 0 and r["bytes_median"] > 0, r
-    # A mode the device cannot run (vis_mlaa without gl_PrimitiveID) falls back with a note.
+    # A mode the device cannot run (vis_mlaa without the visibility buffer) falls back with a note.
     assert r["settings"]["aa"] == r["setting"]["aa"] or any(
         n["field"] == "aa" for n in r["notes"]), r
     assert r["gpu_total_median_ms"] > 0 and r["pass_median_ms"], r

@@ -394,7 +394,7 @@ TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
       EXPECT_EQ(noted, p != Pipeline::kAuto && p != runs) << ToString(aa) << " " << ToString(p);
     }
   }
-  // auto on a device without gl_PrimitiveID in fragment shaders: forward, without a note.
+  // auto on a device without the visibility buffer: forward, without a note.
   {
     DeviceCaps no_ids = gpu;
     no_ids.visibility_buffer = false;
@@ -403,7 +403,7 @@ TEST(ResolveSettingsTest, PipelineAutoIsChosenPerDevice) {
     EXPECT_EQ(r->effective.pipeline, Pipeline::kForward);
     EXPECT_TRUE(r->notes.empty());
   }
-  // Without gl_PrimitiveID in fragment shaders there are no visibility ids: forward, noted.
+  // Without the visibility buffer there are no visibility ids: forward, noted.
   DeviceCaps no_vis = gpu;
   no_vis.visibility_buffer = false;
   Settings s;
