@@ -33,12 +33,6 @@
 namespace tessera {
 namespace {
 
-bool HasNote(const Frame& f, std::string_view field) {
-  for (const SettingNote& n : f.settings.notes)
-    if (n.field == field) return true;
-  return false;
-}
-
 // Every note of a frame, for failure messages.
 std::string Notes(const Frame& f) {
   std::string out;

@@ -591,11 +591,6 @@ TEST(FallbackTest, WithoutTheVisibilityBufferVisibilityRendersForwardAndVisMlaaM
   Camera cam;
   cam.eye = {0.0f, 3.0f, 9.0f};
   cam.target = {0.0f, 0.5f, 0.0f};
-  auto noted = [](const Frame& f, const std::string& field) {
-    for (const SettingNote& n : f.settings.notes)
-      if (n.field == field) return true;
-    return false;
-  };
   auto render = [&](Pipeline pipeline, AaMode aa) {
     Settings s = Small(CullingMode::kGpuFrustum);
     s.pipeline = pipeline;
@@ -607,15 +602,15 @@ TEST(FallbackTest, WithoutTheVisibilityBufferVisibilityRendersForwardAndVisMlaaM
   const Frame forward = render(Pipeline::kForward, AaMode::kNone);
   const Frame visibility = render(Pipeline::kVisibility, AaMode::kNone);
   EXPECT_EQ(visibility.settings.effective.pipeline, Pipeline::kForward);
-  EXPECT_TRUE(noted(visibility, "pipeline"));
-  EXPECT_FALSE(noted(forward, "pipeline"));
+  EXPECT_TRUE(HasNote(visibility, "pipeline"));
+  EXPECT_FALSE(HasNote(forward, "pipeline"));
   EXPECT_EQ(PixelDifference(visibility.image, forward.image), "");
 
   const Frame msaa = render(Pipeline::kAuto, AaMode::kMsaa);
   const Frame vis_mlaa = render(Pipeline::kAuto, AaMode::kVisMlaa);
   EXPECT_EQ(vis_mlaa.settings.effective.aa, AaMode::kMsaa);
   EXPECT_EQ(vis_mlaa.settings.effective.samples, msaa.settings.effective.samples);
-  EXPECT_TRUE(noted(vis_mlaa, "aa"));
+  EXPECT_TRUE(HasNote(vis_mlaa, "aa"));
   EXPECT_EQ(PixelDifference(vis_mlaa.image, msaa.image), "");
   ExpectNoValidationMessages(r);
 }

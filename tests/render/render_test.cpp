@@ -113,12 +113,10 @@ TEST_P(GoldenTest, VisibilityPipelineMatchesForward) {
   absl::StatusOr<Frame> vis = r.Render(*scene, camera, s, &capture);
   ASSERT_TRUE(vis.ok()) << vis.status();
   if (!r.device_info().visibility_buffer) {
-    // The device cannot draw ids (SwiftShader: no gl_PrimitiveID): the request renders forward,
-    // says so, and gives forward's pixels.
+    // The device cannot draw ids (no visibility buffer): the request renders forward, says so,
+    // and gives forward's pixels.
     EXPECT_EQ(vis->settings.effective.pipeline, Pipeline::kForward);
-    bool noted = false;
-    for (const SettingNote& n : vis->settings.notes) noted |= n.field == "pipeline";
-    EXPECT_TRUE(noted);
+    EXPECT_TRUE(HasNote(*vis, "pipeline"));
     EXPECT_EQ(vis->image.pixels, forward->image.pixels) << c.name;
     return;
   }
@@ -320,16 +318,11 @@ TEST(RenderTest, UnimplementedSettingsAreReported) {
   s.aa = AaMode::kMsaa;
   absl::StatusOr<Frame> f = r.Render(*scene, Camera{}, s);
   ASSERT_TRUE(f.ok()) << f.status();
-  auto has_note = [&](const std::string& field) {
-    for (const SettingNote& n : f->settings.notes)
-      if (n.field == field) return true;
-    return false;
-  };
-  EXPECT_TRUE(has_note("debug_view"));
+  EXPECT_TRUE(HasNote(*f, "debug_view"));
   EXPECT_EQ(f->settings.effective.debug_view, DebugView::kNone);
   EXPECT_EQ(f->settings.effective.samples, std::min(8u, r.device_info().max_samples));
   if (r.device_info().max_samples < 8) {
-    EXPECT_TRUE(has_note("samples"));
+    EXPECT_TRUE(HasNote(*f, "samples"));
   }
 }
 

@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
@@ -24,13 +25,20 @@ inline Renderer& SharedRenderer() {
   return *renderer;
 }
 
-// vis_mlaa and the visibility pipeline need gl_PrimitiveID in fragment shaders; a device without
-// it (SwiftShader: no geometryShader) renders those requests as msaa and forward, with a note
-// (the settings and fallback tests check that). Tests of the visibility paths themselves skip.
+// vis_mlaa and the visibility pipeline need the visibility buffer (DeviceInfo::visibility_buffer:
+// standard sample locations, and gl_PrimitiveID or pulled vertices); a device without it renders
+// those requests as msaa and forward, with a note (the settings and fallback tests check that).
+// Tests of the visibility paths themselves skip.
 #define TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(renderer)                             \
   if (!(renderer).device_info().visibility_buffer)                                  \
-  GTEST_SKIP() << (renderer).device_info().name                                     \
-               << " cannot draw the visibility buffer (no gl_PrimitiveID in fragment shaders)"
+  GTEST_SKIP() << (renderer).device_info().name << " cannot draw the visibility buffer"
+
+// Whether the frame's settings carry a note on `field` (a request the device changed).
+inline bool HasNote(const Frame& f, std::string_view field) {
+  for (const SettingNote& n : f.settings.notes)
+    if (n.field == field) return true;
+  return false;
+}
 
 // Every validation message a renderer's device reported, as test failures.
 inline void ExpectNoValidationMessages(const Renderer& r) {
