@@ -119,7 +119,9 @@ class VisClassifyPass final : public Pass {
   // A pipeline per mode (vis_classify.glsl's specialization constant 0, kClassify*), for the one
   // sample classification or vis_mlaa's, and per way of reading the drawables (vis.glsl's
   // kVisTexels), built for the first frame that needs them. One atomic per subgroup and material
-  // where the device appends so (DeviceInfo::subgroup_appends), else per pixel.
+  // where the device appends so (DeviceInfo::subgroup_appends), else per pixel. The scan, the one
+  // step with workgroup barriers, has a shader of its own (vis_classify_scan.comp: see
+  // vis_classify.glsl).
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures& features) override {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
@@ -147,7 +149,8 @@ class VisClassifyPass final : public Pass {
                     ctx, absl::StrCat(vis_mlaa ? "vis_classify.vis_mlaa." : "vis_classify.", mode,
                                       texels ? ".texels" : "", ibl ? ".ibl" : "",
                                       count_background ? ".count_background" : ""),
-                    shader, (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
+                    mode == gpu::kClassifyScan ? "vis_classify_scan.comp" : shader,
+                    (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
                     {mode, ibl, count_background, texels}));
           }
           return made;

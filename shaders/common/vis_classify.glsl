@@ -7,7 +7,11 @@
 // the scan's barriers included, so one shader for every mode cost the fill the scan's loops):
 //  - kClassifyCount: count each material's pixels;
 //  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size, and
-//    the sizes of the dispatches below (SkyDispatches);
+//    the sizes of the dispatches below (SkyDispatches). Its own shader, vis_classify_scan.comp
+//    (VIS_CLASSIFY_SCAN), for every device and both pipelines: the only step with workgroup
+//    barriers and shared memory. SwiftShader runs each workgroup of a shader that has barriers
+//    as coroutines, reachable or not: the fill's 8x8 workgroups cost 2.8x as much (DamagedHelmet
+//    640x360, visibility pipeline: the classification 90 -> 32 ms);
 //  - kClassifyFill or kClassifyFillListSky (the other's dispatch is empty): append each pixel to
 //    its material's list, and write the background where no surface is, or list those pixels
 //    (counted in the sky entry's list.z where kCountSky says so);
@@ -54,8 +58,6 @@ layout(constant_id = 1) const bool kBackgroundIbl = false;
 // about 8 ms of a mostly-sky 1280x720 frame on lavapipe, which other frames skip.
 layout(constant_id = 2) const bool kCountSky = false;
 
-shared uint s_sums[kClassifyTile * kClassifyTile];
-
 // The sky: where a frame shows little of it, the fill lists its pixels (kClassifyFillListSky)
 // and kClassifySky writes the background there, a pixel an invocation; else the fill writes it
 // (kClassifyFill). The scan knows how many pixels show the sky (those no list counted), so it
@@ -72,6 +74,9 @@ uint FillEntry(bool list_sky) { return push.params.y + (list_sky ? 5u : 4u); }
 // 12.6-13.1, 14.0-14.2 against 12.7-13.1; with IBL 11.8 against 15.5-16.0, 13.0-13.2 against
 // 15.4-15.5, 15.8-16.5 against 15.2-15.3.
 const uint kListSkyBelow = 3u;
+
+#ifdef VIS_CLASSIFY_SCAN
+shared uint s_sums[kClassifyTile * kClassifyTile];
 
 // (Scan's first invocation.) The materials' lists start at `base` and hold `total` entries: the
 // sky's pixels are the frame's less those, less vis_mlaa's runner-ups (counted in the edge
@@ -120,11 +125,9 @@ void Scan() {
   }
 }
 
+void main() { Scan(); }
+#else
 void main() {
-  if (kMode == kClassifyScan) {
-    Scan();
-    return;
-  }
   if (kMode == kClassifySky) {  // one listed pixel each
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint k = group * kShadeGroupSize + gl_LocalInvocationIndex;
@@ -173,3 +176,4 @@ void main() {
     pixels[entries[m].list.x + slot] = uint(p.x) | (uint(p.y) << 16);
   }
 }
+#endif
