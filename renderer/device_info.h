@@ -20,8 +20,8 @@ struct DeviceFallback {
 // Optional features a test or user may turn off to exercise their fallbacks on a device that has
 // them (RendererOptions::disable_features, TESSERA_DISABLE_FEATURES=a,b): draw_indirect_count,
 // multi_draw_indirect, subgroup_arithmetic, subgroup_ballot, sampler_minmax, visibility_buffer,
-// pipeline_statistics; and material_variants, texel_buffers and vertex_pulling, which are
-// Tessera's own (DeviceInfo below).
+// pipeline_statistics; and material_variants, texel_buffers, vertex_pulling and
+// host_specialization, which are Tessera's own (DeviceInfo below).
 const std::vector<std::string>& DisableableFeatures();
 
 // How the visibility classification and vis_mlaa's resolve add pixels to the materials' lists
@@ -76,6 +76,13 @@ struct DeviceInfo {
   // (primitive_id). Not a device feature: off where it would be on only when turned off, to
   // test the indexed path (a device without gl_PrimitiveID then has no visibility buffer).
   bool vertex_pulling = false;
+  // Specialization constants are applied, and the code they leave unreachable removed, on the
+  // host (vk/spirv_specialize.h) before the driver sees a shader with constants: on SwiftShader,
+  // which does not fold them, so it ran that code under an empty lane mask (every mode of
+  // vis_resolve's shader in each of its dispatches) and ran every workgroup of a shader holding a
+  // barrier anywhere as coroutines. Elsewhere the driver folds them. Not a device feature: off
+  // only where turned off (the driver then specializes, as on other devices).
+  bool host_specialization = false;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.
   bool subgroup_ballot = false;

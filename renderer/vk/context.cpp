@@ -192,6 +192,10 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
              info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
   for (const DeviceFallback& f : info.fallbacks)
     Log().info("vulkan device lacks {}: {}", f.missing, f.path);
+  if (info.host_specialization) {
+    Log().info("specialization constants applied on the host (the driver keeps the code they "
+               "leave unreachable)");
+  }
   return ctx;
 }
 
@@ -314,6 +318,7 @@ void Context::DescribeDevice(const VkPhysicalDeviceProperties& p,
   info.type = TypeName(p.deviceType);
   info.driver_name = driver.driverName;
   info.driver_info = driver.driverInfo;
+  info.host_specialization = driver.driverID == VK_DRIVER_ID_GOOGLE_SWIFTSHADER;
   info.api_version =
       absl::StrCat(VK_API_VERSION_MAJOR(p.apiVersion), ".", VK_API_VERSION_MINOR(p.apiVersion), ".",
                    VK_API_VERSION_PATCH(p.apiVersion));
@@ -468,6 +473,7 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   if (off("material_variants")) info.material_variants = false;
   if (off("texel_buffers")) info.texel_buffers = false;
   if (off("vertex_pulling")) info.vertex_pulling = false;
+  if (off("host_specialization")) info.host_specialization = false;
   // The resolve assumes the standard sample locations; the visibility pass reads the triangle as
   // gl_PrimitiveID or pulls its vertices and passes the id on from the vertex shader.
   info.visibility_buffer = info.standard_sample_locations &&

@@ -280,7 +280,9 @@ int main(int argc, char** argv) {
                    {"driver", dev.driver_info},
                    {"appends", dev.subgroup_appends ? "subgroup" : "pixel"},
                    // the visibility pass's (DeviceInfo::vertex_pulling)
-                   {"vertices", dev.vertex_pulling ? "pulled" : "indexed"}};
+                   {"vertices", dev.vertex_pulling ? "pulled" : "indexed"},
+                   // who applies the specialization constants (DeviceInfo::host_specialization)
+                   {"specialization", dev.host_specialization ? "host" : "driver"}};
   out["scene"] = {{"name", info.name},
                   {"triangles", info.counts.triangles},
                   {"primitives", info.counts.primitives},

@@ -263,9 +263,10 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // triangles, its local lights and their tile lists read from storage buffers instead of texel
 // buffers (texel_buffers); and on a CPU device with gl_PrimitiveID the visibility pass's indexed
 // draws, whose fragment shaders read it, instead of pulled vertices (vertex_pulling), and the
-// pulled vertices read from storage buffers (texel_buffers alone off). Each frame must equal the
-// one the full feature set renders, pixel for pixel, in every culling mode and both pipelines;
-// and the frame stats must agree.
+// pulled vertices read from storage buffers (texel_buffers alone off); and on SwiftShader the
+// shaders specialized by the driver instead of on the host (host_specialization). Each frame
+// must equal the one the full feature set renders, pixel for pixel, in every culling mode and
+// both pipelines; and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   // The full feature set appends per subgroup even on a CPU device (which by default appends
   // per pixel: DeviceInfo::subgroup_appends), so the lean device's per-pixel appends are
@@ -280,7 +281,7 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   std::vector<std::string> off = {"draw_indirect_count", "multi_draw_indirect",
                                   "subgroup_arithmetic", "subgroup_ballot",
                                   "sampler_minmax",      "material_variants",
-                                  "texel_buffers"};
+                                  "texel_buffers",       "host_specialization"};
   const bool primitive_id = r.device_info().primitive_id;
   if (primitive_id) off.push_back("vertex_pulling");
   absl::StatusOr<std::unique_ptr<Renderer>> lean =
@@ -297,6 +298,11 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_TRUE(r.device_info().material_variants);
   EXPECT_FALSE(info.texel_buffers);
   EXPECT_TRUE(r.device_info().texel_buffers);
+  // SwiftShader's shaders specialized on the host, against the driver's specialization.
+  EXPECT_FALSE(info.host_specialization);
+  EXPECT_EQ(r.device_info().host_specialization,
+            r.device_info().driver_name.find("SwiftShader") != std::string::npos)
+      << r.device_info().driver_name;
   // Pulled vertices on CPU devices (the test's) and devices without gl_PrimitiveID, indexed
   // draws on other GPUs; the lean device draws indexed where it can.
   EXPECT_EQ(info.vertex_pulling, !primitive_id);

@@ -3,13 +3,19 @@
 // coroutines, whether a specialization constant leaves them reachable or not (the
 // classification's fill cost 2.8x as much while it shared a shader with the scan:
 // common/vis_classify.glsl). The classification's scan, which needs both, has its own shader.
+// And the host specialization SwiftShader gets (vk/spirv_specialize.h, DeviceInfo::
+// host_specialization): constants frozen, each mode's module holding only its own code.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <string>
 
+#include "renderer/vk/spirv_specialize.h"
+#include "shaders/common/gpu_types.h"
 #include "shaders/shader_registry.h"
+#include "spirv-tools/libspirv.hpp"
 
 namespace tessera {
 namespace {
@@ -18,6 +24,7 @@ struct SpirvUse {
   bool valid = false;      // a SPIR-V module whose instructions end where the words do
   int barriers = 0;        // OpControlBarrier
   int shared = 0;          // OpVariable in the Workgroup storage class
+  int spec_constants = 0;  // OpSpecConstant{True,False,,Composite,Op}
 };
 
 SpirvUse Scan(std::span<const uint32_t> words) {
@@ -30,6 +37,7 @@ SpirvUse Scan(std::span<const uint32_t> words) {
     const uint32_t count = words[i] >> 16, op = words[i] & 0xffffu;
     if (count == 0 || i + count > words.size()) return use;
     if (op == kOpControlBarrier) use.barriers++;
+    if (op >= 48 && op <= 52) use.spec_constants++;  // OpSpecConstantTrue .. OpSpecConstantOp
     if (op == kOpVariable && count >= 4 && words[i + 3] == kWorkgroup) use.shared++;
     i += count;
   }
@@ -62,6 +70,73 @@ TEST(ShaderRegistryTest, TheClassificationScanHasItsBarriers) {
 TEST(ShaderRegistryTest, AnUnknownNameHasNoShader) {
   EXPECT_TRUE(EmbeddedShader("no_such_shader.comp").empty());
   EXPECT_FALSE(Scan(EmbeddedShader("no_such_shader.comp")).valid);
+}
+
+// Host specialization (DeviceInfo::host_specialization, for SwiftShader): the constants are
+// frozen, the code they leave unreachable is gone, and the module is still valid SPIR-V.
+bool ValidVulkanSpirv(const std::vector<uint32_t>& words) {
+  spvtools::SpirvTools tools(SPV_ENV_VULKAN_1_3);
+  spvtools::ValidatorOptions options;
+  options.SetScalarBlockLayout(true);
+  return tools.Validate(words.data(), words.size(), options);
+}
+
+TEST(SpecializeSpirvTest, EachModeKeepsOnlyItsOwnCode) {
+  const std::span<const uint32_t> resolve = EmbeddedShader("vis_resolve_atomic.comp");
+  ASSERT_FALSE(resolve.empty());
+  ASSERT_TRUE(ValidVulkanSpirv({resolve.begin(), resolve.end()})) << "the build's own output";
+  EXPECT_GT(Scan(resolve).spec_constants, 0);
+  // vis_resolve's constants: samples, mode, (unused), texels.
+  absl::StatusOr<std::vector<uint32_t>> uniform =
+      vk::SpecializeSpirv(resolve, std::vector<uint32_t>{4u, gpu::kResolveUniform, 0u, 1u});
+  absl::StatusOr<std::vector<uint32_t>> edges =
+      vk::SpecializeSpirv(resolve, std::vector<uint32_t>{4u, gpu::kResolveEdges, 0u, 1u});
+  ASSERT_TRUE(uniform.ok()) << uniform.status();
+  ASSERT_TRUE(edges.ok()) << edges.status();
+  EXPECT_TRUE(ValidVulkanSpirv(*uniform));
+  EXPECT_TRUE(ValidVulkanSpirv(*edges));
+  EXPECT_EQ(Scan(*uniform).spec_constants, 0);
+  EXPECT_EQ(Scan(*edges).spec_constants, 0);
+  // The uniform pass has none of the grouping, the triangle tests or the runner-ups: a fraction
+  // of the whole shader, and of the edge grouping's.
+  EXPECT_LT(uniform->size() * 3, resolve.size()) << uniform->size() << " of " << resolve.size();
+  EXPECT_LT(uniform->size() * 2, edges->size()) << uniform->size() << " against " << edges->size();
+}
+
+TEST(SpecializeSpirvTest, BooleanConstantsTakeZeroOrOne) {
+  const std::span<const uint32_t> classify = EmbeddedShader("vis_classify_atomic.comp");
+  ASSERT_FALSE(classify.empty());
+  // vis_classify's constants: mode, background from the IBL map (bool), count the sky (bool),
+  // texels (bool). The IBL switch reaches the background through a function's parameter, so
+  // its code stays until the driver inlines (SwiftShader does, then drops it); the modules
+  // differ in that constant alone.
+  absl::StatusOr<std::vector<uint32_t>> plain =
+      vk::SpecializeSpirv(classify, std::vector<uint32_t>{gpu::kClassifyFill, 0u, 0u, 1u});
+  absl::StatusOr<std::vector<uint32_t>> ibl =
+      vk::SpecializeSpirv(classify, std::vector<uint32_t>{gpu::kClassifyFill, 1u, 0u, 1u});
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  ASSERT_TRUE(ibl.ok()) << ibl.status();
+  EXPECT_TRUE(ValidVulkanSpirv(*plain));
+  EXPECT_TRUE(ValidVulkanSpirv(*ibl));
+  EXPECT_EQ(Scan(*plain).spec_constants, 0);
+  EXPECT_EQ(plain->size(), ibl->size());
+  size_t differ = 0;
+  for (size_t i = 0; i < std::min(plain->size(), ibl->size()); ++i)
+    differ += (*plain)[i] != (*ibl)[i];
+  EXPECT_EQ(differ, 1u) << "OpConstantFalse against OpConstantTrue";
+  // Constants past the shader's own are ignored, as Vulkan ignores map entries it has no use for.
+  absl::StatusOr<std::vector<uint32_t>> extra = vk::SpecializeSpirv(
+      classify, std::vector<uint32_t>{gpu::kClassifyFill, 0u, 0u, 1u, 7u, 9u});
+  ASSERT_TRUE(extra.ok()) << extra.status();
+  EXPECT_EQ(*extra, *plain);
+}
+
+TEST(SpecializeSpirvTest, WordsThatAreNotSpirvAreAnError) {
+  const std::vector<uint32_t> junk = {0x07230203u, 0x00010600u, 0u, 5u, 0u, 0xdeadbeefu, 3u};
+  absl::StatusOr<std::vector<uint32_t>> out =
+      vk::SpecializeSpirv(junk, std::vector<uint32_t>{1u});
+  EXPECT_FALSE(out.ok());
+  EXPECT_NE(out.status().message().find("SPIR-V"), std::string::npos) << out.status();
 }
 
 }  // namespace
