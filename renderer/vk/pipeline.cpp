@@ -19,8 +19,10 @@ namespace {
 // shading. Specialized here, SwiftShader shaded a few of its pixels differently from one run to
 // the next (VisibilityPipelineTest.ShadowedLocalLightsRenderTheSameEveryTime: 2-10 of 230,400
 // pixels, by up to 10/255, where a pixel's company in its SIMD group changes with the order of
-// the lists), which its own specialization does not; the cause is not found. The same shading
-// code in the forward pass's fragment shaders is specialized here (its quads do not change).
+// the lists), which its own specialization does not. Timing builds narrowed it to the local
+// lights' loop (DirectLight, common/shading.glsl): without the shadowed lights' loop, or without
+// their lookups, it still varied; without the local lights' loop it did not. The cause is not
+// found. The forward pass's fragment shaders, whose quads do not change, are specialized here.
 bool HostSpecializes(std::string_view shader) {
   return shader != "vis_shade.comp" && shader != "vis_shade_mlaa.comp";
 }
