@@ -19,10 +19,11 @@ namespace {
 // shading. Specialized here, SwiftShader shaded a few of its pixels differently from one run to
 // the next (VisibilityPipelineTest.ShadowedLocalLightsRenderTheSameEveryTime: 2-10 of 230,400
 // pixels, by up to 10/255, where a pixel's company in its SIMD group changes with the order of
-// the lists), which its own specialization does not. Timing builds narrowed it to the local
-// lights' loop (DirectLight, common/shading.glsl): without the shadowed lights' loop, or without
-// their lookups, it still varied; without the local lights' loop it did not. The cause is not
-// found. The forward pass's fragment shaders, whose quads do not change, are specialized here.
+// the lists), which its own specialization does not. It is the local lights' loop (DirectLight,
+// common/shading.glsl), which tests its end at the bottom: tested at its top, the pixels were the
+// same in every run (three runs), but that form cost lavapipe's shading (Sponza, --lights 256:
+// 68-86 ms against 73-102 in four alternating rounds), so the shading is left to the driver here.
+// The forward pass's fragment shaders, whose quads do not change, are specialized here.
 bool HostSpecializes(std::string_view shader) {
   return shader != "vis_shade.comp" && shader != "vis_shade_mlaa.comp";
 }
