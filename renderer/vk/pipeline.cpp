@@ -42,7 +42,8 @@ class ScopedShader {
     std::span<const uint32_t> code = EmbeddedShader(name);
     if (code.empty()) return absl::InternalError(absl::StrCat("shader not embedded: ", name));
     std::vector<uint32_t> specialized;
-    if (ctx.info().host_specialization && !constants.empty() && HostSpecializes(name)) {
+    if (ctx.info().host_specialization && !constants.empty() && HostSpecializes(name) &&
+        HasSpecializationConstants(code)) {
       absl::StatusOr<std::vector<uint32_t>> made = SpecializeSpirv(code, constants);
       if (!made.ok()) return absl::InternalError(absl::StrCat(name, ": ", made.status().message()));
       specialized = std::move(*made);

@@ -42,4 +42,15 @@ absl::StatusOr<std::vector<uint32_t>> SpecializeSpirv(std::span<const uint32_t> 
   return out;
 }
 
+bool HasSpecializationConstants(std::span<const uint32_t> code) {
+  constexpr uint32_t kOpDecorate = 71, kSpecId = 1;
+  for (size_t i = 5; i < code.size();) {  // after the header
+    const uint32_t count = code[i] >> 16, op = code[i] & 0xffffu;
+    if (count == 0 || i + count > code.size()) return false;
+    if (op == kOpDecorate && count >= 3 && code[i + 2] == kSpecId) return true;
+    i += count;
+  }
+  return false;
+}
+
 }  // namespace tessera::vk

@@ -19,4 +19,8 @@ namespace tessera::vk {
 absl::StatusOr<std::vector<uint32_t>> SpecializeSpirv(std::span<const uint32_t> code,
                                                       std::span<const uint32_t> constants);
 
+// Whether `code` declares any specialization constant (an OpDecorate ... SpecId): a shader
+// without one needs no specializing, whatever constants its pipeline passes.
+bool HasSpecializationConstants(std::span<const uint32_t> code);
+
 }  // namespace tessera::vk

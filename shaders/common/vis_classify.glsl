@@ -1,10 +1,12 @@
 // The visibility pipeline's classification (vis_classify.comp, and vis_classify_atomic.comp for
-// devices without subgroup ballots): which material each pixel shows, and per material the list
+// devices without subgroup ballots; vis_mlaa's: the _mlaa ones; the scan for both:
+// vis_classify_scan.comp): which material each pixel shows, and per material the list
 // of its pixels, so that the shading pass runs one indirect dispatch per material over exactly
 // its pixels (every invocation shades a pixel; lavapipe runs masked-off lanes at full cost, so a
 // dispatch over tiles would shade tiles' other pixels too). Its modes (specialization
 // constant 0, a pipeline per mode: lavapipe runs the code of untaken branches under a lane mask,
-// the scan's barriers included, so one shader for every mode cost the fill the scan's loops):
+// so one pipeline for every mode cost the fill the scan's loops; the scan is a shader of its
+// own, below):
 //  - kClassifyCount: count each material's pixels;
 //  - kClassifyScan (one workgroup): each material's first list entry and its dispatch size, and
 //    the sizes of the dispatches below (SkyDispatches). Its own shader, vis_classify_scan.comp
