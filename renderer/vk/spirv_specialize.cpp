@@ -42,15 +42,28 @@ absl::StatusOr<std::vector<uint32_t>> SpecializeSpirv(std::span<const uint32_t> 
   return out;
 }
 
-bool HasSpecializationConstants(std::span<const uint32_t> code) {
-  constexpr uint32_t kOpDecorate = 71, kSpecId = 1;
-  for (size_t i = 5; i < code.size();) {  // after the header
-    const uint32_t count = code[i] >> 16, op = code[i] & 0xffffu;
+bool ForEachSpirvInstruction(
+    std::span<const uint32_t> code,
+    absl::FunctionRef<void(uint32_t opcode, std::span<const uint32_t> instruction)> fn) {
+  constexpr uint32_t kMagic = 0x07230203;
+  constexpr size_t kHeaderWords = 5;
+  if (code.size() < kHeaderWords || code[0] != kMagic) return false;
+  for (size_t i = kHeaderWords; i < code.size();) {
+    const uint32_t count = code[i] >> 16;
     if (count == 0 || i + count > code.size()) return false;
-    if (op == kOpDecorate && count >= 3 && code[i + 2] == kSpecId) return true;
+    fn(code[i] & 0xffffu, code.subspan(i, count));
     i += count;
   }
-  return false;
+  return true;
+}
+
+bool HasSpecializationConstants(std::span<const uint32_t> code) {
+  constexpr uint32_t kOpDecorate = 71, kSpecId = 1;
+  bool found = false;
+  ForEachSpirvInstruction(code, [&](uint32_t op, std::span<const uint32_t> words) {
+    found |= op == kOpDecorate && words.size() >= 3 && words[2] == kSpecId;
+  });
+  return found;
 }
 
 }  // namespace tessera::vk

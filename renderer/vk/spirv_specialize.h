@@ -8,6 +8,7 @@
 #include <span>
 #include <vector>
 
+#include "absl/functional/function_ref.h"
 #include "absl/status/statusor.h"
 
 namespace tessera::vk {
@@ -22,5 +23,12 @@ absl::StatusOr<std::vector<uint32_t>> SpecializeSpirv(std::span<const uint32_t> 
 // Whether `code` declares any specialization constant (an OpDecorate ... SpecId): a shader
 // without one needs no specializing, whatever constants its pipeline passes.
 bool HasSpecializationConstants(std::span<const uint32_t> code);
+
+// Calls fn(opcode, instruction) for each instruction of `code` after the module's header, the
+// instruction's words from its opcode word on. False where `code` is not a SPIR-V module (its
+// magic number) whose instructions end where its words do.
+bool ForEachSpirvInstruction(
+    std::span<const uint32_t> code,
+    absl::FunctionRef<void(uint32_t opcode, std::span<const uint32_t> instruction)> fn);
 
 }  // namespace tessera::vk

@@ -28,20 +28,14 @@ struct SpirvUse {
 };
 
 SpirvUse Scan(std::span<const uint32_t> words) {
-  constexpr uint32_t kMagic = 0x07230203, kOpVariable = 59, kOpControlBarrier = 224;
+  constexpr uint32_t kOpVariable = 59, kOpControlBarrier = 224;
   constexpr uint32_t kWorkgroup = 4;  // StorageClass Workgroup
   SpirvUse use;
-  if (words.size() < 5 || words[0] != kMagic) return use;
-  size_t i = 5;  // after the header
-  while (i < words.size()) {
-    const uint32_t count = words[i] >> 16, op = words[i] & 0xffffu;
-    if (count == 0 || i + count > words.size()) return use;
+  use.valid = vk::ForEachSpirvInstruction(words, [&](uint32_t op, std::span<const uint32_t> w) {
     if (op == kOpControlBarrier) use.barriers++;
     if (op >= 48 && op <= 52) use.spec_constants++;  // OpSpecConstantTrue .. OpSpecConstantOp
-    if (op == kOpVariable && count >= 4 && words[i + 3] == kWorkgroup) use.shared++;
-    i += count;
-  }
-  use.valid = true;
+    if (op == kOpVariable && w.size() >= 4 && w[3] == kWorkgroup) use.shared++;
+  });
   return use;
 }
 
