@@ -121,23 +121,28 @@ class VisClassifyPass final : public Pass {
   // kVisTexels), built for the first frame that needs them. One atomic per subgroup and material
   // where the device appends so (DeviceInfo::subgroup_appends), else per pixel. The scan, the one
   // step with workgroup barriers, has a shader of its own (vis_classify_scan.comp: see
-  // vis_classify.glsl).
+  // vis_classify.glsl) that reads none of the key's constants: one pipeline per layout.
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures& features) override {
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
     const bool ballots = ctx.info().subgroup_appends;
+    vk::Pipeline& scan = scan_[vis_mlaa ? 1 : 0];
+    if (!scan.handle()) {
+      ASSIGN_OR_RETURN(scan, vk::CreateComputePipeline(
+                                 ctx, vis_mlaa ? "vis_classify.vis_mlaa.scan" : "vis_classify.scan",
+                                 "vis_classify_scan.comp",
+                                 (vis_mlaa ? mlaa_ : one_).pipeline_layout()));
+    }
     return (vis_mlaa ? mlaa_pipelines_ : pipelines_)
         .Ensure(Key(s, scene, features), [&](uint32_t key) -> absl::StatusOr<ModePipelines> {
           const uint32_t texels = key & 1u, ibl = (key >> 1) & 1u, count_background = key >> 2;
           ModePipelines made;
           // vis_mlaa: the resolve counted (no kClassifyCount); the runner-ups are listed.
           const std::vector<uint32_t> modes =
-              vis_mlaa ? std::vector<uint32_t>{gpu::kClassifyScan, gpu::kClassifyFillRunnerUps,
-                                               gpu::kClassifyFill, gpu::kClassifyFillListSky,
-                                               gpu::kClassifySky}
-                       : std::vector<uint32_t>{gpu::kClassifyCount, gpu::kClassifyScan,
-                                               gpu::kClassifyFill, gpu::kClassifyFillListSky,
-                                               gpu::kClassifySky};
+              vis_mlaa ? std::vector<uint32_t>{gpu::kClassifyFillRunnerUps, gpu::kClassifyFill,
+                                               gpu::kClassifyFillListSky, gpu::kClassifySky}
+                       : std::vector<uint32_t>{gpu::kClassifyCount, gpu::kClassifyFill,
+                                               gpu::kClassifyFillListSky, gpu::kClassifySky};
           const char* shader = vis_mlaa ? (ballots ? "vis_classify_mlaa.comp"
                                                    : "vis_classify_atomic_mlaa.comp")
                                         : (ballots ? "vis_classify.comp"
@@ -149,8 +154,7 @@ class VisClassifyPass final : public Pass {
                     ctx, absl::StrCat(vis_mlaa ? "vis_classify.vis_mlaa." : "vis_classify.", mode,
                                       texels ? ".texels" : "", ibl ? ".ibl" : "",
                                       count_background ? ".count_background" : ""),
-                    mode == gpu::kClassifyScan ? "vis_classify_scan.comp" : shader,
-                    (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
+                    shader, (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
                     {mode, ibl, count_background, texels}));
           }
           return made;
@@ -187,7 +191,9 @@ class VisClassifyPass final : public Pass {
     const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
     auto push = [&](uint32_t mode) {
-      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[mode].handle());
+      const vk::Pipeline& pipeline =
+          mode == gpu::kClassifyScan ? scan_[vis_mlaa ? 1 : 0] : pipelines[mode];
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipeline.handle());
       const gpu::ShadePush p{glm::uvec4(0u, sb.materials, vis_mlaa ? 1u : 0u, 0u)};
       vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                          sizeof(p), &p);
@@ -232,10 +238,11 @@ class VisClassifyPass final : public Pass {
   }
 
  private:
-  // A mode the classification does not run has a null pipeline.
+  // A mode the classification does not run (and the scan) has a null pipeline.
   using ModePipelines = std::array<vk::Pipeline, 6>;
   ShadeLayout one_, mlaa_;
   PerSampleCount<ModePipelines> pipelines_, mlaa_pipelines_;  // by Key
+  std::array<vk::Pipeline, 2> scan_;  // one sample's layout, vis_mlaa's
 };
 
 // The shading pipelines per key: ShadingConstants::Key() (a pipeline per set of texture slots the
@@ -254,11 +261,21 @@ class ShadePass final : public Pass {
     for (const uint32_t textures : scene.texture_sets()) {
       RETURN_IF_ERROR(shading_.Ensure(Key(s, scene, features, textures), [&](uint32_t key) {
         const bool vis_mlaa = (key & kMlaaKey) != 0;
+        // The driver applies the constants, also where the device has them applied on the host
+        // (DeviceInfo::host_specialization, SwiftShader): specialized there, SwiftShader shaded a
+        // few pixels differently from one run to the next (VisibilityPipelineTest.
+        // ShadowedLocalLightsRenderTheSameEveryTime: 2-10 of 230,400, by up to 10/255, where a
+        // pixel's company in its SIMD group changes with the lists' order), its own
+        // specialization not. It is the local lights' loop (DirectLight, common/shading.glsl),
+        // which tests its end at the bottom: tested at its top, the pixels were the same in every
+        // run (three runs), but that form cost lavapipe's shading (Sponza, --lights 256: 68-86 ms
+        // against 73-102 in four alternating rounds). The forward pass's fragment shaders run the
+        // same loop over quads that do not change, and are specialized on the host.
         return vk::CreateComputePipeline(
             ctx, absl::StrCat(vis_mlaa ? "shade.vis_mlaa." : "shade.", absl::Hex(key)),
             vis_mlaa ? "vis_shade_mlaa.comp" : "vis_shade.comp",
             (vis_mlaa ? mlaa_ : one_).pipeline_layout(),
-            ShadingConstants::FromKey(key & ~kMlaaKey).Values());
+            ShadingConstants::FromKey(key & ~kMlaaKey).Values(), vk::Specialize::kByDriver);
       }));
     }
     return absl::OkStatus();

@@ -1,8 +1,5 @@
 #include "renderer/vk/pipeline.h"
 
-#include <algorithm>
-#include <string_view>
-
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
 #include "renderer/scene/cpu_scene.h"
@@ -15,40 +12,35 @@ namespace tessera::vk {
 
 namespace {
 
-// Which shaders DeviceInfo::host_specialization specializes: all but the visibility pipeline's
-// shading. Specialized here, SwiftShader shaded a few of its pixels differently from one run to
-// the next (VisibilityPipelineTest.ShadowedLocalLightsRenderTheSameEveryTime: 2-10 of 230,400
-// pixels, by up to 10/255, where a pixel's company in its SIMD group changes with the order of
-// the lists), which its own specialization does not. It is the local lights' loop (DirectLight,
-// common/shading.glsl), which tests its end at the bottom: tested at its top, the pixels were the
-// same in every run (three runs), but that form cost lavapipe's shading (Sponza, --lights 256:
-// 68-86 ms against 73-102 in four alternating rounds), so the shading is left to the driver here.
-// The forward pass's fragment shaders, whose quads do not change, are specialized here.
-bool HostSpecializes(std::string_view shader) {
-  return shader != "vis_shade.comp" && shader != "vis_shade_mlaa.comp";
-}
-
-// A shader module that lives only while the pipeline is created.
+// One stage's shader module, which lives only while the pipeline is created, with its
+// specialization: `constants` (constant_id i = constants[i], 32 bits each) go to the driver as
+// VkSpecializationInfo, or are applied here (DeviceInfo::host_specialization, unless `by` says
+// the driver), and then the stage needs none.
 class ScopedShader {
  public:
   ScopedShader(VkDevice device) : device_(device) {}
   ~ScopedShader() {
     if (module_) vkDestroyShaderModule(device_, module_, nullptr);
   }
-  // With `constants` and DeviceInfo::host_specialization the module is the shader specialized
-  // here (specialized() then says the stage needs no VkSpecializationInfo).
+  ScopedShader(const ScopedShader&) = delete;  // stage() points into it
+  ScopedShader& operator=(const ScopedShader&) = delete;
+
   absl::Status Load(const Context& ctx, const std::string& name,
-                    const std::vector<uint32_t>& constants = {}) {
+                    const std::vector<uint32_t>& constants, Specialize by) {
     std::span<const uint32_t> code = EmbeddedShader(name);
     if (code.empty()) return absl::InternalError(absl::StrCat("shader not embedded: ", name));
     std::vector<uint32_t> specialized;
-    if (ctx.info().host_specialization && !constants.empty() && HostSpecializes(name) &&
-        HasSpecializationConstants(code)) {
+    const bool here = ctx.info().host_specialization && by == Specialize::kDeviceDefault;
+    if (here && !constants.empty() && HasSpecializationConstants(code)) {
       absl::StatusOr<std::vector<uint32_t>> made = SpecializeSpirv(code, constants);
       if (!made.ok()) return absl::InternalError(absl::StrCat(name, ": ", made.status().message()));
       specialized = std::move(*made);
       code = specialized;
-      specialized_ = true;
+    } else if (!constants.empty()) {
+      constants_ = constants;
+      for (uint32_t i = 0; i < constants_.size(); ++i) entries_.push_back({i, i * 4, 4});
+      info_ = {uint32_t(entries_.size()), entries_.data(), constants_.size() * 4,
+               constants_.data()};
     }
     VkShaderModuleCreateInfo ci{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
     ci.codeSize = code.size_bytes();
@@ -56,13 +48,22 @@ class ScopedShader {
     VK_RETURN_IF_ERROR(vkCreateShaderModule(device_, &ci, nullptr, &module_), name.c_str());
     return absl::OkStatus();
   }
-  VkShaderModule get() const { return module_; }
-  bool specialized() const { return specialized_; }
+  // The pipeline's stage info for this module (valid while this object lives).
+  VkPipelineShaderStageCreateInfo stage(VkShaderStageFlagBits which) const {
+    VkPipelineShaderStageCreateInfo s{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
+    s.stage = which;
+    s.module = module_;
+    s.pName = "main";
+    s.pSpecializationInfo = constants_.empty() ? nullptr : &info_;
+    return s;
+  }
 
  private:
   VkDevice device_;
   VkShaderModule module_ = VK_NULL_HANDLE;
-  bool specialized_ = false;
+  std::vector<uint32_t> constants_;  // for the driver
+  std::vector<VkSpecializationMapEntry> entries_;
+  VkSpecializationInfo info_{};
 };
 
 }  // namespace
@@ -70,31 +71,13 @@ class ScopedShader {
 absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
                                                 const GraphicsPipelineDesc& desc) {
   ScopedShader vs(ctx.device()), fs(ctx.device());
-  RETURN_IF_ERROR(vs.Load(ctx, desc.vertex_shader, desc.vertex_constants));
-  // Constant i at offset 4i, for either stage's list.
-  std::vector<VkSpecializationMapEntry> entries;
-  const size_t most = std::max(desc.vertex_constants.size(), desc.fragment_constants.size());
-  for (uint32_t i = 0; i < most; ++i) entries.push_back({i, i * 4, 4});
-  auto specialize = [&](const std::vector<uint32_t>& constants) {
-    return VkSpecializationInfo{uint32_t(constants.size()), entries.data(), constants.size() * 4,
-                                constants.data()};
-  };
-  const VkSpecializationInfo vertex_spec = specialize(desc.vertex_constants);
-  const VkSpecializationInfo fragment_spec = specialize(desc.fragment_constants);
-  std::vector<VkPipelineShaderStageCreateInfo> stages;
-  VkPipelineShaderStageCreateInfo stage{VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  stage.stage = VK_SHADER_STAGE_VERTEX_BIT;
-  stage.module = vs.get();
-  stage.pName = "main";
-  if (!desc.vertex_constants.empty() && !vs.specialized()) stage.pSpecializationInfo = &vertex_spec;
-  stages.push_back(stage);
+  RETURN_IF_ERROR(
+      vs.Load(ctx, desc.vertex_shader, desc.vertex_constants, Specialize::kDeviceDefault));
+  std::vector<VkPipelineShaderStageCreateInfo> stages = {vs.stage(VK_SHADER_STAGE_VERTEX_BIT)};
   if (!desc.fragment_shader.empty()) {
-    RETURN_IF_ERROR(fs.Load(ctx, desc.fragment_shader, desc.fragment_constants));
-    stage.stage = VK_SHADER_STAGE_FRAGMENT_BIT;
-    stage.module = fs.get();
-    stage.pSpecializationInfo =
-        desc.fragment_constants.empty() || fs.specialized() ? nullptr : &fragment_spec;
-    stages.push_back(stage);
+    RETURN_IF_ERROR(
+        fs.Load(ctx, desc.fragment_shader, desc.fragment_constants, Specialize::kDeviceDefault));
+    stages.push_back(fs.stage(VK_SHADER_STAGE_FRAGMENT_BIT));
   }
 
   const VkVertexInputBindingDescription binding{0, sizeof(Vertex), VK_VERTEX_INPUT_RATE_VERTEX};
@@ -214,24 +197,12 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
 
 absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
                                                const std::string& shader, VkPipelineLayout layout,
-                                               const std::vector<uint32_t>& constants) {
+                                               const std::vector<uint32_t>& constants,
+                                               Specialize by) {
   ScopedShader cs(ctx.device());
-  RETURN_IF_ERROR(cs.Load(ctx, shader, constants));
+  RETURN_IF_ERROR(cs.Load(ctx, shader, constants, by));
   VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
-  ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
-  ci.stage.stage = VK_SHADER_STAGE_COMPUTE_BIT;
-  ci.stage.module = cs.get();
-  ci.stage.pName = "main";
-  std::vector<VkSpecializationMapEntry> entries;
-  VkSpecializationInfo spec{};
-  if (!constants.empty() && !cs.specialized()) {
-    for (uint32_t i = 0; i < constants.size(); ++i) entries.push_back({i, i * 4, 4});
-    spec.mapEntryCount = uint32_t(entries.size());
-    spec.pMapEntries = entries.data();
-    spec.dataSize = constants.size() * 4;
-    spec.pData = constants.data();
-    ci.stage.pSpecializationInfo = &spec;
-  }
+  ci.stage = cs.stage(VK_SHADER_STAGE_COMPUTE_BIT);
   ci.layout = layout;
   VkPipeline pipeline;
   VK_RETURN_IF_ERROR(

@@ -73,10 +73,15 @@ struct GraphicsPipelineDesc {
 absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
                                                 const GraphicsPipelineDesc& desc);
 
+// Who applies a pipeline's specialization constants: the device's way (on the host where
+// DeviceInfo::host_specialization says so, else the driver), or the driver whatever the device.
+enum class Specialize { kDeviceDefault, kByDriver };
+
 // A compute pipeline from an embedded shader (e.g. "light_cull.comp"); `constants` are its
 // specialization constants 0, 1, ... (32-bit each).
 absl::StatusOr<Pipeline> CreateComputePipeline(const Context& ctx, const std::string& name,
                                                const std::string& shader, VkPipelineLayout layout,
-                                               const std::vector<uint32_t>& constants = {});
+                                               const std::vector<uint32_t>& constants = {},
+                                               Specialize by = Specialize::kDeviceDefault);
 
 }  // namespace tessera::vk
