@@ -20,7 +20,7 @@ struct DeviceFallback {
 // Optional features a test or user may turn off to exercise their fallbacks on a device that has
 // them (RendererOptions::disable_features, TESSERA_DISABLE_FEATURES=a,b): draw_indirect_count,
 // multi_draw_indirect, subgroup_arithmetic, subgroup_ballot, sampler_minmax, visibility_buffer,
-// pipeline_statistics; and material_variants, texel_buffers, vertex_pulling and
+// pipeline_statistics, sampler_indexing; and material_variants, texel_buffers, vertex_pulling and
 // host_specialization, which are Tessera's own (DeviceInfo below).
 const std::vector<std::string>& DisableableFeatures();
 
@@ -28,6 +28,12 @@ const std::vector<std::string>& DisableableFeatures();
 // where compute shaders have ballots (DeviceInfo::subgroup_appends): kAuto, the way measured
 // faster on the kind of device, or one way forced, so that tests run both on one device.
 enum class AppendMode { kAuto, kSubgroup, kPixel };
+
+// How the visibility shading dispatches where the device indexes sampler arrays
+// (DeviceInfo::shade_all_materials): kAuto, the way measured faster on the kind of device, or one
+// way forced (RendererOptions::shading, $TESSERA_SHADE_DISPATCH = all_materials or per_material),
+// so that tests run both on one device.
+enum class ShadeDispatch { kAuto, kAllMaterials, kPerMaterial };
 
 // What the server and clients need to know about the device.
 struct DeviceInfo {
@@ -83,6 +89,18 @@ struct DeviceInfo {
   // barrier anywhere as coroutines. Elsewhere the driver folds them. Not a device feature: off
   // only where turned off (the driver then specializes, as on other devices).
   bool host_specialization = false;
+  // Compute shaders index an array of samplers with a value that differs between invocations
+  // (shaderSampledImageArrayDynamicIndexing and shaderSampledImageArrayNonUniformIndexing).
+  bool sampler_indexing = false;
+  // The visibility shading is one dispatch over every pixel, each reading its material from the
+  // scene's material buffer and its textures from the array of buckets (common/textures.glsl,
+  // SHADE_ALL_MATERIALS), with no classification; else one dispatch per material over the pixel
+  // lists the classification made. Needs sampler_indexing and subgroup ballots (the shading
+  // counts its pixels per subgroup). ShadeDispatch::kAuto: on GPUs only. CPU devices run the
+  // code of both sides of a branch for every lane, so sky pixels cost a surface's shading, and
+  // SwiftShader, which indexes samplers one lane at a time, shaded Sponza's atrium (480x270,
+  // visibility pipeline) in 291 ms this way against 133 ms classified per material.
+  bool shade_all_materials = false;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.
   bool subgroup_ballot = false;

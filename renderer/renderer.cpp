@@ -43,7 +43,8 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
   ASSIGN_OR_RETURN(impl->ctx, vk::Context::Create(
                                  {options.device_name, options.validation,
                                   options.disable_features,
-                                  options.max_storage_buffer_range, options.appends}));
+                                  options.max_storage_buffer_range, options.appends,
+                                  options.shading}));
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
     int64_t frames = -1;
@@ -72,7 +73,10 @@ absl::StatusOr<SceneHandle> Renderer::LoadScene(const GltfSource& source) {
 absl::StatusOr<SceneHandle> Renderer::LoadScene(const CpuScene& cpu) {
   std::lock_guard lock(impl_->mutex);
   ASSIGN_OR_RETURN(std::unique_ptr<GpuScene> gpu,
-                   GpuScene::Upload(*impl_->ctx, cpu, impl_->scene_layout.material_set_layout));
+                   GpuScene::Upload(*impl_->ctx, cpu, impl_->scene_layout.material_set_layout,
+                                    impl_->ctx->info().shade_all_materials
+                                        ? impl_->scene_layout.bucket_set_layout
+                                        : VK_NULL_HANDLE));
   std::shared_ptr<Scene> scene(new Scene());
   // An animated scene's bounds are its rest pose's: skinned meshes are placed by their joints,
   // not by their nodes (what framing cameras look at).
@@ -309,6 +313,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   features.object_motion = f.taa.motion_pass;
   features.light_texels = m.LightTexelsFit(f.local.size(), f.tiled ? f.grid.tiles() : 1);
   features.count_background = capture != nullptr;
+  features.shade_all_materials = m.ctx->info().shade_all_materials;
   const FramePlan plan = PlanFrame(s, features);
   m.ImportTargets(f);
   RETURN_IF_ERROR(m.PreparePasses(plan, s, gs, features));
@@ -385,15 +390,37 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
   frame.stats.primitives_in = run.primitives_in;
   frame.stats.primitives_clipped = run.primitives_clipped;
   frame.stats.fragment_invocations = run.fragment_invocations;
-  if (plan.Has(PassId::kVisClassify)) {
+  if (plan.Has(PassId::kShade)) {
     shade_entries_readback.InvalidateForRead();
     const auto* entries = static_cast<const gpu::GpuShadeEntry*>(shade_entries_readback.mapped());
-    for (uint32_t m = 0; m < f.shade.materials; ++m) {
-      const glm::uvec4& d = entries[m].dispatch;
-      frame.stats.shaded_pixels += d.w;
-      frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
+    const bool classified = plan.Has(PassId::kVisClassify);
+    const gpu::GpuShadeEntry& sky = entries[f.shade.materials];
+    if (classified) {
+      for (uint32_t m = 0; m < f.shade.materials; ++m) {
+        const glm::uvec4& d = entries[m].dispatch;
+        frame.stats.shaded_pixels += d.w;
+        frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
+      }
+    } else {
+      // One dispatch over the frame in 8x8 tiles (vis_shade.cpp, RecordAll), and vis_mlaa's
+      // over its blend list. vis_mlaa's resolve counted each material's pixels (and runner-ups);
+      // a one-sample frame's shading counted its surfaces in the sky's entry (list.w).
+      const uint64_t tiles = uint64_t((f.s.width + 7) / 8) * ((f.s.height + 7) / 8);
+      frame.stats.shading_invocations = tiles * 64;
+      if (plan.Has(PassId::kVisResolve)) {
+        for (uint32_t m = 0; m < f.shade.materials; ++m)
+          frame.stats.shaded_pixels += entries[m].dispatch.w;
+        const glm::uvec4& d = entries[f.shade.blend_entry()].dispatch;
+        frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
+      } else {
+        frame.stats.shaded_pixels = sky.list.w;
+      }
     }
-    if (capture) {
+    if (capture && !classified) {
+      capture->shade_lists.clear();  // no lists: one dispatch shaded every pixel
+      capture->background_pixels = sky.list.z;
+    }
+    if (capture && classified) {
       capture->shade_lists.clear();
       for (uint32_t m = 0; m <= f.shade.materials; ++m)
         capture->shade_lists.push_back({entries[m].dispatch.w, entries[m].list.y});

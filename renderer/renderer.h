@@ -34,6 +34,9 @@ struct RendererOptions {
   // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends): kAuto, by
   // the kind of device; forced, to test both ways on one device.
   AppendMode appends = AppendMode::kAuto;
+  // How the visibility shading dispatches (DeviceInfo::shade_all_materials): kAuto, by the kind
+  // of device (or $TESSERA_SHADE_DISPATCH); forced, to test both ways on one device.
+  ShadeDispatch shading = ShadeDispatch::kAuto;
 };
 
 // What a loaded scene is, without its geometry.

@@ -115,6 +115,7 @@ struct Renderer::Impl {
   std::unique_ptr<GraphExecutor> executor;
   vk::UniqueDescriptorSetLayout scene_set_layout;
   vk::UniqueDescriptorSetLayout material_set_layout;
+  vk::UniqueDescriptorSetLayout bucket_set_layout;
   vk::UniquePipelineLayout scene_pipeline_layout;
   SceneLayout scene_layout;  // the three handles above, as the passes take them
   std::array<std::unique_ptr<Pass>, static_cast<size_t>(PassId::kCount)> passes;

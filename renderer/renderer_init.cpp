@@ -50,13 +50,23 @@ absl::Status Renderer::Impl::InitLayouts() {
   li.pBindings = texture_bindings.data();
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, material_set_layout.Replace(d)),
                      "material set layout");
+  // The bucket set (gpu::kBindingBuckets): every texture bucket, for the visibility shading of
+  // devices that index sampler arrays.
+  VkDescriptorSetLayoutBinding buckets =
+      LayoutBinding(gpu::kBindingBuckets, kSampled, VK_SHADER_STAGE_COMPUTE_BIT);
+  buckets.descriptorCount = gpu::kMaxTextureBuckets;
+  li.bindingCount = 1;
+  li.pBindings = &buckets;
+  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, bucket_set_layout.Replace(d)),
+                     "bucket set layout");
   const VkDescriptorSetLayout set_layouts[] = {scene_set_layout.get(), material_set_layout.get()};
   VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
   pli.setLayoutCount = 2;
   pli.pSetLayouts = set_layouts;
   VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, scene_pipeline_layout.Replace(d)),
                      "scene pipeline layout");
-  scene_layout = {scene_set_layout.get(), material_set_layout.get(), scene_pipeline_layout.get()};
+  scene_layout = {scene_set_layout.get(), material_set_layout.get(), scene_pipeline_layout.get(),
+                  bucket_set_layout.get()};
   return absl::OkStatus();
 }
 

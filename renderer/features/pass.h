@@ -229,11 +229,13 @@ struct TaaFrame {
 
 // Layouts shared by the scene passes: set 0 = frame + lights UBOs, drawable/material SSBOs,
 // local lights and the tile lists;
-// set 1 = the material's texture buckets (shaders/common/gpu_types.h has the bindings).
+// set 1 = the material's texture buckets (shaders/common/gpu_types.h has the bindings), or in
+// the visibility shading of devices that index sampler arrays, the scene's bucket set.
 struct SceneLayout {
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
   VkDescriptorSetLayout material_set_layout = VK_NULL_HANDLE;
   VkPipelineLayout pipeline_layout = VK_NULL_HANDLE;
+  VkDescriptorSetLayout bucket_set_layout = VK_NULL_HANDLE;
 };
 
 // shadows: the atlas (kept by the renderer across frames, outside the frame graph: it is in

@@ -17,9 +17,15 @@
 // The classification writes the sky where no surface is (vis_mlaa: where the surface a pixel
 // shows is the sky); vis_mlaa lists the sky only where it is a
 // pixel's runner-up surface, with a colour of its own at its samples' mean (vis_sky_mlaa.comp).
+// Where the device indexes sampler arrays (DeviceInfo::shade_all_materials: GPUs by default),
+// there is no classification: the shading is one dispatch over the frame's pixels in 8x8 tiles,
+// which writes the sky too, each pixel's material read from the scene's material buffer and its
+// textures from the scene's bucket set (common/textures.glsl, SHADE_ALL_MATERIALS); vis_mlaa then
+// one over its blend list for the runner-ups (ShadePass::RecordAll).
 // Blended surfaces follow in the forward transparent pass, against the visibility pass's depth.
 #include <algorithm>
 #include <array>
+#include <optional>
 
 #include "absl/strings/str_cat.h"
 #include "common/status_macros.h"
@@ -43,8 +49,10 @@ enum class ShadeSet { kOneSample, kVisMlaaClassify, kVisMlaa };
 // Set 2 of these passes and their pipeline layout (sets 0 and 1 are the scene's).
 class ShadeLayout {
  public:
+  // `all_materials`: set 1 is the scene's bucket set (one dispatch shades every material,
+  // DeviceInfo::shade_all_materials), else a material's set.
   static absl::StatusOr<ShadeLayout> Create(const vk::Context& ctx, const SceneLayout& scene,
-                                            ShadeSet kind) {
+                                            ShadeSet kind, bool all_materials = false) {
     ShadeLayout l;
     l.device_ = ctx.device();
     l.kind_ = kind;
@@ -64,7 +72,9 @@ class ShadeLayout {
     ASSIGN_OR_RETURN(l.layout_,
                      PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
                                         "shade layout",
-                                        {scene.set_layout, scene.material_set_layout}));
+                                        {scene.set_layout, all_materials
+                                                               ? scene.bucket_set_layout
+                                                               : scene.material_set_layout}));
     ASSIGN_OR_RETURN(l.sampler_, CreateClampSampler(ctx, false, "shade.ids"));
     return l;
   }
@@ -250,14 +260,27 @@ class VisClassifyPass final : public Pass {
 // the lights) | kMlaaKey for vis_mlaa's (vis_shade_mlaa.comp). vis_mlaa's sky has one.
 constexpr uint32_t kMlaaKey = 1u << kShadingKeyBits;
 
+// The layouts and pipelines of the shading in one dispatch (DeviceInfo::shade_all_materials): set 1
+// the scene's bucket set; per key (ShadePass::Key, with the union of the scene's texture slots),
+// the pixels' pipeline and vis_mlaa's runner-ups'.
+struct AllMaterials {
+  ShadeLayout one, mlaa;
+  PerSampleCount<std::array<vk::Pipeline, 2>> pipelines;  // pixels, runner-ups (vis_mlaa)
+};
+
 class ShadePass final : public Pass {
  public:
-  ShadePass(ShadeLayout one, ShadeLayout mlaa, vk::Pipeline mlaa_sky)
-      : one_(std::move(one)), mlaa_(std::move(mlaa)), mlaa_sky_(std::move(mlaa_sky)) {}
+  ShadePass(ShadeLayout one, ShadeLayout mlaa, vk::Pipeline mlaa_sky,
+            std::optional<AllMaterials> all)
+      : one_(std::move(one)),
+        mlaa_(std::move(mlaa)),
+        mlaa_sky_(std::move(mlaa_sky)),
+        all_(std::move(all)) {}
   PassId id() const override { return PassId::kShade; }
 
   absl::Status PrepareScene(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
                             const FrameFeatures& features) override {
+    if (features.shade_all_materials) return PrepareAll(ctx, s, scene, features);
     for (const uint32_t textures : scene.texture_sets()) {
       RETURN_IF_ERROR(shading_.Ensure(Key(s, scene, features, textures), [&](uint32_t key) {
         const bool vis_mlaa = (key & kMlaaKey) != 0;
@@ -288,6 +311,7 @@ class ShadePass final : public Pass {
   }
 
   void Record(PassContext& ctx) override {
+    if (ctx.features->shade_all_materials) return RecordAll(ctx);
     const Settings& s = *ctx.settings;
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
     const ShadeLayout& layout = vis_mlaa ? mlaa_ : one_;
@@ -325,9 +349,101 @@ class ShadePass final : public Pass {
   }
 
  private:
+  // The texture slots any of the scene's materials has: the one pipeline's (shading.glsl's
+  // specialization constant 1).
+  static uint32_t AllTextures(const GpuScene& scene) {
+    uint32_t textures = 0;
+    for (const uint32_t t : scene.texture_sets()) textures |= t;
+    return textures;
+  }
+
+  absl::Status PrepareAll(const vk::Context& ctx, const Settings& s, const GpuScene& scene,
+                          const FrameFeatures& features) {
+    if (!all_) return absl::InternalError("shade: no bucket-indexing layouts on this device");
+    const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
+    return all_->pipelines
+        .Ensure(Key(s, scene, features, AllTextures(scene)),
+                [&](uint32_t key) -> absl::StatusOr<std::array<vk::Pipeline, 2>> {
+                  const std::vector<uint32_t> constants =
+                      ShadingConstants::FromKey(key & ~kMlaaKey).Values();
+                  const VkPipelineLayout layout =
+                      (vis_mlaa ? all_->mlaa : all_->one).pipeline_layout();
+                  // Specialized by the driver, as the per-material shading (above).
+                  std::array<vk::Pipeline, 2> made;
+                  ASSIGN_OR_RETURN(
+                      made[0],
+                      vk::CreateComputePipeline(
+                          ctx,
+                          absl::StrCat(vis_mlaa ? "shade_all.vis_mlaa." : "shade_all.",
+                                       absl::Hex(key)),
+                          vis_mlaa ? "vis_shade_all_mlaa.comp" : "vis_shade_all.comp", layout,
+                          constants, vk::Specialize::kByDriver));
+                  if (vis_mlaa) {
+                    ASSIGN_OR_RETURN(made[1], vk::CreateComputePipeline(
+                                                  ctx,
+                                                  absl::StrCat("shade_all.runner_ups.",
+                                                               absl::Hex(key)),
+                                                  "vis_shade_all_runner_ups.comp", layout,
+                                                  constants, vk::Specialize::kByDriver));
+                  }
+                  return made;
+                });
+  }
+
+  // One dispatch over the frame's pixels in 8x8 tiles, which writes the sky too; vis_mlaa then
+  // one over its blend list for the runner-up surfaces no neighbour shows. The sky's entry counts
+  // the pixels of the sky (list.z) and, in one-sample frames, of surfaces (list.w; vis_mlaa's
+  // resolve counted those per material).
+  void RecordAll(PassContext& ctx) {
+    const Settings& s = *ctx.settings;
+    const ShadeBuffers& sb = *ctx.shade;
+    const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
+    const ShadeLayout& layout = vis_mlaa ? all_->mlaa : all_->one;
+    const std::array<vk::Pipeline, 2>& pipelines =
+        all_->pipelines.at(Key(s, *ctx.scene, *ctx.features, AllTextures(*ctx.scene)));
+    const VkDeviceSize entry = sizeof(gpu::GpuShadeEntry);
+    // The counts start at zero (vis_mlaa's resolve zeroed the entries and counted in them).
+    if (!vis_mlaa) {
+      vkCmdFillBuffer(ctx.cmd, sb.entries, 0, VkDeviceSize(sb.materials + 1) * entry, 0);
+      vk::CmdMemoryBarrier(
+          ctx.cmd, VK_PIPELINE_STAGE_2_ALL_TRANSFER_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+          VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+          VK_ACCESS_2_SHADER_STORAGE_READ_BIT | VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT);
+    }
+    layout.Bind(ctx);
+    const VkDescriptorSet buckets = ctx.scene->bucket_set();
+    vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout.pipeline_layout(),
+                            gpu::kMaterialSet, 1, &buckets, 0, nullptr);
+    const gpu::ShadePush push{glm::uvec4(sb.materials, sb.edge_entry(), vis_mlaa ? 0u : 1u, 0u)};
+    vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
+                       sizeof(push), &push);
+    vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[0].handle());
+    vkCmdDispatch(ctx.cmd, (ctx.targets->width + 7) / 8, (ctx.targets->height + 7) / 8, 1);
+    ctx.stats->material_draws++;
+    if (vis_mlaa) {
+      // Sized by the resolve (its kResolveArgs step over the blend list).
+      vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+                           VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
+                           VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+      vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[1].handle());
+      vkCmdDispatchIndirect(ctx.cmd, sb.entries, VkDeviceSize(sb.blend_entry()) * entry);
+      ctx.stats->material_draws++;
+    }
+    // The entries for the statistics (as the classification copies them).
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
+                         VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT, VK_PIPELINE_STAGE_2_COPY_BIT,
+                         VK_ACCESS_2_TRANSFER_READ_BIT);
+    const VkBufferCopy copy{0, 0, VkDeviceSize(sb.materials + 3) * entry};
+    vkCmdCopyBuffer(ctx.cmd, sb.entries, sb.entries_readback, 1, &copy);
+    vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COPY_BIT, VK_ACCESS_2_TRANSFER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_2_HOST_BIT, VK_ACCESS_2_HOST_READ_BIT);
+  }
+
   ShadeLayout one_, mlaa_;  // one sample, vis_mlaa
   vk::Pipeline mlaa_sky_;  // vis_mlaa's sky (the one-sample classification writes its own)
   PerSampleCount<vk::Pipeline> shading_;  // by Key
+  std::optional<AllMaterials> all_;  // where the device indexes sampler arrays
 };
 
 }  // namespace
@@ -347,26 +463,39 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
   ASSIGN_OR_RETURN(vk::Pipeline mlaa_sky,
                    vk::CreateComputePipeline(ctx, "shade.vis_mlaa.sky", "vis_sky_mlaa.comp",
                                              mlaa.pipeline_layout()));
-  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(mlaa_sky));
+  std::optional<AllMaterials> all;
+  if (ctx.info().shade_all_materials) {
+    all.emplace();
+    ASSIGN_OR_RETURN(all->one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample, true));
+    ASSIGN_OR_RETURN(all->mlaa, ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa, true));
+  }
+  return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(mlaa_sky),
+                                     std::move(all));
 }
 
 void SetupVisibilityShading(GraphBuilder& b) {
   if (!DrawsVisibility(b.settings())) return;
   const bool vis_mlaa = b.settings().aa == AaMode::kVisMlaa;
+  const bool one_dispatch = b.features().shade_all_materials;
   using R = Resource;
   using A = Access;
   // The entries and lists are rewritten whole each frame.
   if (!b.Imported(R::kShadeLists)) b.Import(R::kShadeLists, A::kNone, A::kIndirectRead);
-  b.Pass(PassId::kVisClassify)
-      .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
-      .Use(R::kVisId, A::kComputeRead)
-      .Use(R::kShadeLists, A::kComputeWrite);
-  b.Use(R::kHdrColor, A::kComputeWrite);  // the sky, where no surface is
-  if (vis_mlaa) b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
+  // Where the shading is one dispatch over every pixel (and vis_mlaa's over its runner-ups), it
+  // writes the sky too and counts in the entries; else the classification does both, and lists
+  // the pixels per material for the shading's dispatches.
+  if (!one_dispatch) {
+    b.Pass(PassId::kVisClassify)
+        .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
+        .Use(R::kVisId, A::kComputeRead)
+        .Use(R::kShadeLists, A::kComputeWrite);
+    b.Use(R::kHdrColor, A::kComputeWrite);  // the sky, where no surface is
+    if (vis_mlaa) b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
+  }
   b.Pass(PassId::kShade)
       .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
       .Use(R::kVisId, A::kComputeRead)
-      .Use(R::kShadeLists, A::kIndirectRead)
+      .Use(R::kShadeLists, one_dispatch ? A::kComputeWrite : A::kIndirectRead)
       .Use(R::kHdrColor, A::kComputeWrite)
       .UseIfPresent(R::kAo, A::kComputeRead)
       .UseIfPresent(R::kShadowAtlas, A::kComputeRead)

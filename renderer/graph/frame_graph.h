@@ -150,6 +150,9 @@ struct FrameFeatures {
   // pixels it wrote the sky at (FrameCapture::background_pixels), which frames without one do
   // not pay for (about 8 ms of a mostly-sky 1280x720 frame on lavapipe).
   bool count_background = false;
+  // The visibility shading is one dispatch over every pixel, with no classification
+  // (DeviceInfo::shade_all_materials).
+  bool shade_all_materials = false;
 };
 
 // A resource moving from one access to another before a pass.

@@ -3,6 +3,7 @@
 #include <stb/stb_image_resize.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <bit>
 #include <cmath>
@@ -555,7 +556,8 @@ uint64_t EstimateDeviceBytes(const CpuScene& scene, uint32_t max_texture_size,
 GpuScene::~GpuScene() = default;
 
 absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, const CpuScene& scene,
-                                                           VkDescriptorSetLayout material_layout) {
+                                                           VkDescriptorSetLayout material_layout,
+                                                           VkDescriptorSetLayout bucket_layout) {
   auto gs = std::make_unique<GpuScene>();
   gs->device_ = ctx.device();
   static std::atomic<uint64_t> next_serial{1};
@@ -583,7 +585,7 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   gs->PlanScene(scene, &drawables, &items);
   RETURN_IF_ERROR(gs->UploadBuffers(ctx, scene, materials, drawables, items));
   RETURN_IF_ERROR(gs->UploadTextures(ctx, scene, plan));
-  RETURN_IF_ERROR(gs->WriteMaterialSets(ctx, materials, material_layout));
+  RETURN_IF_ERROR(gs->WriteMaterialSets(ctx, materials, material_layout, bucket_layout));
   gs->lights_ = scene.lights;
   gs->bounds_ = scene.bounds;
   return gs;
@@ -829,14 +831,18 @@ absl::Status GpuScene::UploadTextures(vk::Context& ctx, const CpuScene& scene,
 
 absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
                                          const std::vector<gpu::GpuMaterial>& materials,
-                                         VkDescriptorSetLayout material_layout) {
+                                         VkDescriptorSetLayout material_layout,
+                                         VkDescriptorSetLayout bucket_layout) {
   // One texture set per material; slots without a texture point at bucket 0 (never sampled).
+  // And the bucket set, where asked for.
   const uint32_t material_count = uint32_t(materials.size());
+  const uint32_t bucket_sets = bucket_layout ? 1u : 0u;
   const VkDescriptorPoolSize pool_sizes[] = {
-      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER, material_count * gpu::kMaterialTextureSlots},
+      {VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER,
+       material_count * gpu::kMaterialTextureSlots + bucket_sets * gpu::kMaxTextureBuckets},
       {VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, material_count}};
   VkDescriptorPoolCreateInfo dpi{VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO};
-  dpi.maxSets = material_count;
+  dpi.maxSets = material_count + bucket_sets;
   dpi.poolSizeCount = 2;
   dpi.pPoolSizes = pool_sizes;
   VK_RETURN_IF_ERROR(
@@ -881,6 +887,24 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
     w.descriptorCount = gpu::kMaterialTextureSlots;  // consecutive bindings
     w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
     w.pImageInfo = info;
+    writes.push_back(w);
+  }
+  std::array<VkDescriptorImageInfo, gpu::kMaxTextureBuckets> bucket_infos;
+  if (bucket_layout) {
+    ai.descriptorSetCount = 1;
+    ai.pSetLayouts = &bucket_layout;
+    VK_RETURN_IF_ERROR(vkAllocateDescriptorSets(ctx.device(), &ai, &bucket_set_),
+                       "bucket descriptor set");
+    for (uint32_t b = 0; b < gpu::kMaxTextureBuckets; ++b) {
+      bucket_infos[b] = {sampler_.handle(), buckets_[b < buckets_.size() ? b : 0].view(),
+                         VK_IMAGE_LAYOUT_SHADER_READ_ONLY_OPTIMAL};
+    }
+    VkWriteDescriptorSet w{VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
+    w.dstSet = bucket_set_;
+    w.dstBinding = gpu::kBindingBuckets;
+    w.descriptorCount = gpu::kMaxTextureBuckets;
+    w.descriptorType = VK_DESCRIPTOR_TYPE_COMBINED_IMAGE_SAMPLER;
+    w.pImageInfo = bucket_infos.data();
     writes.push_back(w);
   }
   vkUpdateDescriptorSets(ctx.device(), uint32_t(writes.size()), writes.data(), 0, nullptr);

@@ -110,9 +110,11 @@ class GpuScene {
   // Uploads `scene` and waits for the copies. Errors: RESOURCE_EXHAUSTED when device memory
   // runs out, INVALID_ARGUMENT when the scene exceeds a device limit (e.g. array layers).
   // `material_layout` is the layout of descriptor set 1 (gpu::kMaterialSet): one set per
-  // material is allocated and written here.
-  static absl::StatusOr<std::unique_ptr<GpuScene>> Upload(vk::Context& ctx, const CpuScene& scene,
-                                                          VkDescriptorSetLayout material_layout);
+  // material is allocated and written here; with `bucket_layout`, also the bucket set
+  // (gpu::kBindingBuckets: every bucket, for the visibility shading that indexes them).
+  static absl::StatusOr<std::unique_ptr<GpuScene>> Upload(
+      vk::Context& ctx, const CpuScene& scene, VkDescriptorSetLayout material_layout,
+      VkDescriptorSetLayout bucket_layout = VK_NULL_HANDLE);
   ~GpuScene();
 
   const vk::Buffer& vertices() const { return vertices_; }
@@ -140,6 +142,9 @@ class GpuScene {
   const std::vector<vk::Image>& texture_buckets() const { return buckets_; }
   // Descriptor set 1 of material `m`: the material as a uniform range and its textures' buckets.
   VkDescriptorSet material_set(uint32_t m) const { return material_sets_[m]; }
+  // The bucket set (every bucket; slots past the scene's buckets hold bucket 0), where Upload
+  // was given its layout; else null.
+  VkDescriptorSet bucket_set() const { return bucket_set_; }
   uint32_t material_count() const { return uint32_t(material_sets_.size()); }
   // The texture slots material `m` has a texture in (bit k: slot k, gpu::kMaterialTexturesAll),
   // and the distinct sets of them the scene's materials have, ascending: the shading passes build
@@ -215,7 +220,8 @@ class GpuScene {
   absl::Status UploadTextures(vk::Context& ctx, const CpuScene& scene,
                               const TextureBucketPlan& plan);
   absl::Status WriteMaterialSets(vk::Context& ctx, const std::vector<gpu::GpuMaterial>& materials,
-                                 VkDescriptorSetLayout material_layout);
+                                 VkDescriptorSetLayout material_layout,
+                                 VkDescriptorSetLayout bucket_layout);
 
   vk::Buffer vertices_, indices_, adjacency_, surfaces_, drawables_, materials_;
   // after their buffers
@@ -228,6 +234,7 @@ class GpuScene {
   VkDevice device_ = VK_NULL_HANDLE;
   vk::UniqueDescriptorPool material_pool_;
   std::vector<VkDescriptorSet> material_sets_;
+  VkDescriptorSet bucket_set_ = VK_NULL_HANDLE;
   std::vector<uint32_t> material_textures_, texture_sets_;
   std::vector<DrawItem> draws_;
   DrawPlan plan_;

@@ -179,9 +179,22 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
           absl::StrCat("disable_features: unknown feature \"", name, "\" (known: ",
                        absl::StrJoin(known, ", "), ")"));
   }
+  ShadeDispatch shading = options.shading;
+  if (const char* env = std::getenv("TESSERA_SHADE_DISPATCH");
+      env && *env && shading == ShadeDispatch::kAuto) {
+    const std::string v = env;
+    if (v == "all_materials") {
+      shading = ShadeDispatch::kAllMaterials;
+    } else if (v == "per_material") {
+      shading = ShadeDispatch::kPerMaterial;
+    } else if (v != "auto") {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "TESSERA_SHADE_DISPATCH: \"", v, "\" is not auto, all_materials or per_material"));
+    }
+  }
   RETURN_IF_ERROR(ctx->InitInstance(validation));
   RETURN_IF_ERROR(ctx->PickDevice(wanted));
-  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled, options.appends));
+  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled, options.appends, shading));
   if (options.max_storage_buffer_range != 0) {
     uint32_t& range = ctx->limits_.maxStorageBufferRange;
     range = uint32_t(std::min<uint64_t>(range, options.max_storage_buffer_range));
@@ -192,6 +205,9 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
              info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
   for (const DeviceFallback& f : info.fallbacks)
     Log().info("vulkan device lacks {}: {}", f.missing, f.path);
+  if (info.shade_all_materials) {
+    Log().info("visibility shading: one dispatch over every pixel, textures indexed per pixel");
+  }
   if (info.host_specialization) {
     Log().info("specialization constants applied on the host (the driver keeps the code they "
                "leave unreachable)");
@@ -407,6 +423,11 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                          "vertex_pulling disabled"
                        : "visibility_buffer (disabled)",
                    "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
+  if (!info.sampler_indexing && info.visibility_buffer)
+    out.push_back({"sampler array indexing (shaderSampledImageArrayDynamicIndexing, "
+                   "shaderSampledImageArrayNonUniformIndexing)",
+                   "the visibility shading classifies the pixels by material and runs one "
+                   "dispatch per material over its list"});
   if (!info.pipeline_statistics)
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
   if (!info.texel_buffers)
@@ -426,7 +447,7 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
 }  // namespace
 
 absl::Status Context::InitDevice(bool validation, const std::vector<std::string>& disabled,
-                                 AppendMode appends) {
+                                 AppendMode appends, ShadeDispatch shading) {
   auto off = [&](const char* name) {
     return std::find(disabled.begin(), disabled.end(), name) != disabled.end();
   };
@@ -520,6 +541,15 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
         (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT) != 0;
   }
   f12.samplerFilterMinmax = info.sampler_minmax ? VK_TRUE : VK_FALSE;
+  info.sampler_indexing = supported.shaderSampledImageArrayDynamicIndexing &&
+                          f12_supported.shaderSampledImageArrayNonUniformIndexing &&
+                          !off("sampler_indexing");
+  enabled.shaderSampledImageArrayDynamicIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
+  f12.shaderSampledImageArrayNonUniformIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
+  info.shade_all_materials =
+      info.sampler_indexing && info.subgroup_ballot && info.visibility_buffer &&
+      (shading == ShadeDispatch::kAllMaterials ||
+       (shading == ShadeDispatch::kAuto && info.type != "cpu"));
   f12.hostQueryReset = f12_supported.hostQueryReset;
   f12.scalarBlockLayout = f12_supported.scalarBlockLayout;
   info.fallbacks = ListFallbacks(info);

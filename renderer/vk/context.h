@@ -36,6 +36,9 @@ struct ContextOptions {
   // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends); kAuto: by
   // the kind of device.
   AppendMode appends = AppendMode::kAuto;
+  // How the visibility shading dispatches (DeviceInfo::shade_all_materials); kAuto: by the kind
+  // of device, or $TESSERA_SHADE_DISPATCH.
+  ShadeDispatch shading = ShadeDispatch::kAuto;
 };
 
 class Context {
@@ -83,7 +86,7 @@ class Context {
   absl::Status InitInstance(bool validation);
   absl::Status PickDevice(const std::string& wanted);
   absl::Status InitDevice(bool validation, const std::vector<std::string>& disabled,
-                          AppendMode appends);
+                          AppendMode appends, ShadeDispatch shading);
   void DescribeDevice(const VkPhysicalDeviceProperties& p,
                       const VkPhysicalDeviceDriverProperties& driver,
                       const VkPhysicalDeviceFeatures& supported, bool validation);

@@ -140,6 +140,11 @@ TS_CONST uint kBindingNormalTex = 3;
 TS_CONST uint kBindingOcclusionTex = 4;
 TS_CONST uint kBindingEmissiveTex = 5;
 TS_CONST uint kMaterialTextureSlots = 5;
+// Or, in the visibility shading of a device that indexes sampler arrays (DeviceInfo::
+// shade_all_materials, common/textures.glsl's SHADE_ALL_MATERIALS), set 1 is the scene's bucket set:
+// every bucket, indexed by a texture's bucket (GpuTextureRef::info.x), the materials read from
+// the scene's material buffer (kBindingMaterials).
+TS_CONST uint kBindingBuckets = 0;  // sampler2DArray[kMaxTextureBuckets]
 // The slots a material has a texture in, bit k for slot k (binding 1 + k): the shading's
 // specialization constant 1 (common/shading.glsl), a pipeline per set of slots the scene's
 // materials use, so each holds no code for the slots its materials lack (lavapipe samples a

@@ -231,7 +231,7 @@ vec3 Heat(uint count) {
 vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   GpuMaterial m = material;
   vec4 base = m.base_color_factor;
-  if (MaterialHas(0u, m.base_color_tex)) base *= SampleTexture(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
+  if (MaterialHas(0u, m.base_color_tex)) base *= SAMPLE_TEXTURE(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).
 #ifndef TESSERA_COMPUTE
@@ -241,7 +241,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   float metallic = m.params.x;
   float roughness = m.params.y;
   if (MaterialHas(1u, m.metallic_roughness_tex)) {
-    vec4 mr = SampleTexture(u_metallic_roughness_tex, m.metallic_roughness_tex, s.uv0, s.uv1, s.grads);
+    vec4 mr = SAMPLE_TEXTURE(u_metallic_roughness_tex, m.metallic_roughness_tex, s.uv0, s.uv1, s.grads);
     roughness *= mr.g;
     metallic *= mr.b;
   }
@@ -256,16 +256,16 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
     vec3 t = s.tangent.xyz * side;
     t = normalize(t - n * dot(n, t));
     vec3 b = cross(n, t) * s.tangent.w;
-    vec3 tn = SampleTexture(u_normal_tex, m.normal_tex, s.uv0, s.uv1, s.grads).xyz * 2.0 - 1.0;
+    vec3 tn = SAMPLE_TEXTURE(u_normal_tex, m.normal_tex, s.uv0, s.uv1, s.grads).xyz * 2.0 - 1.0;
     tn.xy *= m.params.z;
     n = normalize(mat3(t, b, n) * tn);
   }
   float ao = 1.0;
   if (MaterialHas(3u, m.occlusion_tex)) {
-    ao = 1.0 + m.params.w * (SampleTexture(u_occlusion_tex, m.occlusion_tex, s.uv0, s.uv1, s.grads).r - 1.0);
+    ao = 1.0 + m.params.w * (SAMPLE_TEXTURE(u_occlusion_tex, m.occlusion_tex, s.uv0, s.uv1, s.grads).r - 1.0);
   }
   vec3 emissive = m.emissive.rgb;
-  if (MaterialHas(4u, m.emissive_tex)) emissive *= SampleTexture(u_emissive_tex, m.emissive_tex, s.uv0, s.uv1, s.grads).rgb;
+  if (MaterialHas(4u, m.emissive_tex)) emissive *= SAMPLE_TEXTURE(u_emissive_tex, m.emissive_tex, s.uv0, s.uv1, s.grads).rgb;
 
   const uint debug_view = kShadingDebugView;
   if (debug_view == kDebugNormals) { return vec4(n * 0.5 + 0.5, 1.0); }

@@ -17,7 +17,17 @@ vec2 g_pixel;  // the pixel's centre, for shading.glsl's tile and AO lookups
 
 layout(local_size_x = kShadeGroupSize) in;
 
+#ifdef SHADE_ALL_MATERIALS
+layout(push_constant) uniform Push { TS_PUSH_SHADE } push;
+layout(set = kVisSet, binding = kShadeBindingEntries, std430) buffer EntryBlock {
+  GpuShadeEntry entries[];
+};
+layout(set = kVisSet, binding = kShadeBindingPixels, std430) readonly buffer PixelBlock {
+  uint pixels[];
+};
+#else
 #include "common/shade_lists.glsl"
+#endif
 layout(set = kVisSet, binding = kShadeBindingId) uniform usampler2D u_vis_id;
 layout(set = kVisSet, binding = kShadeBindingColor, rgba16f) uniform writeonly image2D u_color;
 #ifdef VIS_MLAA
@@ -25,6 +35,69 @@ layout(set = kVisSet, binding = kShadeBindingCoverage) uniform usampler2D u_vis_
 #include "common/runner_up_shading.glsl"
 #endif
 
+#ifdef SHADE_ALL_MATERIALS
+// One dispatch shades every material (DeviceInfo::shade_all_materials, common/textures.glsl): over
+// the frame in 8x8 tiles, a pixel an invocation, or with SHADE_RUNNER_UPS over vis_mlaa's blend
+// list, an entry an invocation (the runner-up surfaces no neighbour shows). push.params: x the
+// sky's entry, y vis_mlaa's edge list's entry, z 1 where the surfaces shaded are counted (one
+// sample: vis_mlaa's resolve counted them).
+#include "common/blend_list.glsl"
+
+// Adds this subgroup's invocations where `mine` holds to counter `word` (2: list.z, 3: list.w) of
+// the sky's entry: one atomic per subgroup. In the subgroup's uniform control flow.
+void CountSubgroup(bool mine, uint word) {
+  uint n = subgroupBallotBitCount(subgroupBallot(mine));
+  if (subgroupElect() && n > 0u) {
+    if (word == 2u) atomicAdd(entries[push.params.x].list.z, n);
+    else atomicAdd(entries[push.params.x].list.w, n);
+  }
+}
+
+// The colour of the surface of visibility id `id` at `pixel`, shaded with its material.
+vec3 ShadeId(uint id, vec2 pixel) {
+  Triangle tri = LoadTriangle(id);
+  material = materials[DrawableIds(tri.drawable).y];
+  vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel));
+  return ShadeSurface(VisSurface(tri, b, pixel), false).rgb;
+}
+
+void main() {
+#ifdef SHADE_RUNNER_UPS
+  uint entry;
+  if (!BlendListEntry(push.params.y, entry)) return;
+  uvec2 record = runner_ups[entry];
+  if ((record.y & 0xffu) == 0u || RunnerUpSource(record.y) != kRunnerUpShaded) return;
+  uint packed = pixels[entry];
+  ivec2 p = ivec2(packed & 0xffffu, packed >> 16);
+  g_pixel = vec2(p) + 0.5;
+  vec2 pixel = vec2(p) + RunnerUpMean(record.y);
+  // The sky where it is the runner-up: in the direction of its samples' mean.
+  StoreRunnerUpColor(entry, record.x == 0u ? VisBackground(pixel, kIblCode)
+                                           : ShadeId(record.x, pixel));
+#else
+  uint l = gl_LocalInvocationIndex;
+  ivec2 p = ivec2(gl_WorkGroupID.xy) * 8 + ivec2(l % 8u, l / 8u);
+  bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
+  uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
+  CountSubgroup(inside && id == 0u, 2u);
+  if (push.params.z != 0u) CountSubgroup(id != 0u, 3u);
+  if (!inside) return;
+  g_pixel = vec2(p) + 0.5;
+  if (id == 0u) {  // the sky (or a debug view's background), at the pixel's centre
+    imageStore(u_color, p, vec4(VisBackground(g_pixel, kIblCode), 1.0));
+    return;
+  }
+#ifdef VIS_MLAA
+  // At the mean position of the samples the resolve gave the pixel's surface, in the triangle
+  // holding it (common/vis_resolve.glsl, ContainingId).
+  vec2 pixel = vec2(p) + CoverageMean(texelFetch(u_vis_coverage, p, 0).r);
+#else
+  vec2 pixel = g_pixel;
+#endif
+  imageStore(u_color, p, vec4(ShadeId(id, pixel), 1.0));
+#endif
+}
+#else
 void main() {
   uint m = push.params.x;
   uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
@@ -70,3 +143,4 @@ void main() {
   imageStore(u_color, p, vec4(ShadeSurface(VisSurface(tri, b, pixel), false).rgb, 1.0));
 #endif
 }
+#endif

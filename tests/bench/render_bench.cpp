@@ -282,7 +282,9 @@ int main(int argc, char** argv) {
                    // the visibility pass's (DeviceInfo::vertex_pulling)
                    {"vertices", dev.vertex_pulling ? "pulled" : "indexed"},
                    // who applies the specialization constants (DeviceInfo::host_specialization)
-                   {"specialization", dev.host_specialization ? "host" : "driver"}};
+                   {"specialization", dev.host_specialization ? "host" : "driver"},
+                   // the visibility shading's dispatches (DeviceInfo::shade_all_materials)
+                   {"shading", dev.shade_all_materials ? "all_materials" : "per_material"}};
   out["scene"] = {{"name", info.name},
                   {"triangles", info.counts.triangles},
                   {"primitives", info.counts.primitives},

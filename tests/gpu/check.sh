@@ -12,9 +12,12 @@
 #   TESTS          test binaries to run (default: the render, aa, culling, forward+ and lighting tests)
 #   GTEST_FILTER   passed to each of them
 #   SIZES          benchmark sizes (default 1280x720,3840x2160); FRAMES (20), WARMUP (3)
-#   CONFIGS        benchmark configurations: plain, full, vis_mlaa (default all three; vis_mlaa:
-#                  the full stack with vis_mlaa and 20000 lights, raster coverage against
-#                  analytic in one run: the 10 ms target at 4K)
+#   CONFIGS        benchmark configurations: plain, full, vis_mlaa, per_material (default all
+#                  four; vis_mlaa: the full stack with vis_mlaa and 20000 lights, raster coverage
+#                  against analytic in one run: the 10 ms target at 4K; per_material: the
+#                  same with the visibility shading classified and dispatched per material
+#                  (TESSERA_SHADE_DISPATCH=per_material), against vis_mlaa's one dispatch, the
+#                  default where the device indexes sampler arrays)
 #   STEP_TIMEOUT   seconds per step (default 300)
 # The recipe (README, "Checking a GPU"): build, pack with gpu-pack.sh, then have the device tool
 # run `bash .gpu/run-on-gpu.sh 'tests/gpu/check.sh > $OUT/summary.json'` in the checkout.
@@ -30,7 +33,7 @@ mkdir -p "$out"
 tests=${TESTS:-render_tests aa_tests culling_tests forward_plus_tests lighting_tests}
 sizes=${SIZES:-1280x720,3840x2160}
 frames=${FRAMES:-20} warmup=${WARMUP:-3} step=${STEP_TIMEOUT:-300}
-configs=${CONFIGS:-plain full vis_mlaa}
+configs=${CONFIGS:-plain full vis_mlaa per_material}
 export TESSERA_ASSETS_DIR=${TESSERA_ASSETS_DIR:-${A:-$root/../shared/assets}}
 # The checkout's goldens (with tests/render/golden/h200/ for GoldenCheckTest).
 export TESSERA_GOLDEN_DIR=$root/tests/render/golden TESSERA_TEST_OUTPUT_DIR=$out/images
@@ -49,15 +52,19 @@ done
 
 bench=$(find_bin tessera-bench) || exit 2
 for c in $configs; do
+  dispatch=auto
   case $c in
     plain) flags=() ;;
     full) flags=(--aa taa --lights 1024 --shadows --ssao --bloom --auto-exposure --ibl) ;;
     vis_mlaa) flags=(--aa vis_mlaa --vis-mlaa-coverage raster --lights 20000 --shadows --ssao
                      --bloom --auto-exposure --tonemapper photographic --ibl
                      --versus "--vis-mlaa-coverage analytic") ;;
-    *) echo "check.sh: unknown config $c (plain, full, vis_mlaa)" >&2; exit 2 ;;
+    per_material) flags=(--aa vis_mlaa --vis-mlaa-coverage raster --lights 20000 --shadows --ssao
+                         --bloom --auto-exposure --tonemapper photographic --ibl)
+                  dispatch=per_material ;;
+    *) echo "check.sh: unknown config $c (plain, full, vis_mlaa, per_material)" >&2; exit 2 ;;
   esac
-  timeout "$step" "$bench" --scene "$sponza" --sizes "$sizes" --frames "$frames" \
+  TESSERA_SHADE_DISPATCH=$dispatch timeout "$step" "$bench" --scene "$sponza" --sizes "$sizes" --frames "$frames" \
     --warmup "$warmup" --eye 9,1.6,-0.4 --target -5,3.5,0.3 "${flags[@]}" \
     > "$out/bench-$c.json" 2> "$out/bench-$c.log"
   echo $? > "$out/bench-$c.rc"
@@ -109,7 +116,8 @@ for c in configs:
         continue
     for r in b.get("results", []):
         summary["benchmarks"].append({
-            "config": c, "size": "%dx%d" % (r["width"], r["height"]), "aa": r.get("aa"),
+            "config": c, "shading": b.get("device", {}).get("shading"),
+            "size": "%dx%d" % (r["width"], r["height"]), "aa": r.get("aa"),
             "pipeline": r.get("pipeline"), "timing": r.get("timing"),
             "gpu_total_ms_median": r.get("gpu_total_ms_median"),
             "cpu_ms_median": r.get("cpu_ms_median"),

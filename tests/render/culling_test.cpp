@@ -264,7 +264,9 @@ TEST(CullingTest, OcclusionStartsFreshForANewView) {
 // buffers (texel_buffers); and on a CPU device with gl_PrimitiveID the visibility pass's indexed
 // draws, whose fragment shaders read it, instead of pulled vertices (vertex_pulling), and the
 // pulled vertices read from storage buffers (texel_buffers alone off); and on SwiftShader the
-// shaders specialized by the driver instead of on the host (host_specialization). Each frame
+// shaders specialized by the driver instead of on the host (host_specialization); and where the
+// device indexes sampler arrays (SwiftShader, GPUs), the visibility shading per material over the
+// classification's lists instead of one dispatch over every pixel (sampler_indexing). Each frame
 // must equal the one the full feature set renders, pixel for pixel, in every culling mode and
 // both pipelines; and the frame stats must agree.
 TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
@@ -272,7 +274,9 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   // per pixel: DeviceInfo::subgroup_appends), so the lean device's per-pixel appends are
   // compared with the ballots'.
   absl::StatusOr<std::unique_ptr<Renderer>> full =
-      Renderer::Create({.validation = true, .appends = AppendMode::kSubgroup});
+      Renderer::Create({.validation = true,
+                        .appends = AppendMode::kSubgroup,
+                        .shading = ShadeDispatch::kAllMaterials});
   ASSERT_TRUE(full.ok()) << full.status();
   Renderer& r = **full;
   EXPECT_EQ(r.device_info().subgroup_appends, r.device_info().subgroup_ballot);
@@ -281,7 +285,8 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   std::vector<std::string> off = {"draw_indirect_count", "multi_draw_indirect",
                                   "subgroup_arithmetic", "subgroup_ballot",
                                   "sampler_minmax",      "material_variants",
-                                  "texel_buffers",       "host_specialization"};
+                                  "texel_buffers",       "host_specialization",
+                                  "sampler_indexing"};
   const bool primitive_id = r.device_info().primitive_id;
   if (primitive_id) off.push_back("vertex_pulling");
   absl::StatusOr<std::unique_ptr<Renderer>> lean =
@@ -303,6 +308,15 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_EQ(r.device_info().host_specialization,
             r.device_info().driver_name.find("SwiftShader") != std::string::npos)
       << r.device_info().driver_name;
+  // One shading dispatch where the device can (forced: CPU devices shade per material by
+  // default), per material without sampler indexing.
+  EXPECT_FALSE(info.sampler_indexing);
+  EXPECT_FALSE(info.shade_all_materials);
+  EXPECT_EQ(r.device_info().shade_all_materials,
+            r.device_info().sampler_indexing && r.device_info().subgroup_ballot &&
+                r.device_info().visibility_buffer);
+  std::printf("visibility shading compared: %s against per material\n",
+              r.device_info().shade_all_materials ? "one dispatch" : "per material");
   // Pulled vertices on CPU devices (the test's) and devices without gl_PrimitiveID, indexed
   // draws on other GPUs; the lean device draws indexed where it can.
   EXPECT_EQ(info.vertex_pulling, !primitive_id);

@@ -9,6 +9,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 #include <string>
 
 #include "renderer/camera.h"
@@ -649,6 +650,81 @@ TEST(VisibilityPipelineTest, WritesTheSkyWhereNoSurfaceIs) {
     }
   }
   ExpectNoValidationMessages(SharedRenderer());
+}
+
+// Where the device indexes sampler arrays (DeviceInfo::sampler_indexing: SwiftShader, GPUs), the
+// visibility shading in one dispatch over every pixel (DeviceInfo::shade_all_materials: forced
+// here, chosen by default on GPUs) against one dispatch per material over the classification's
+// lists: the demo scene (textured, alpha-masked and plain materials, the sky at 60% of the frame)
+// with shadows, SSAO, IBL and local lights, one sample and vis_mlaa. The same pixels and the same
+// counts; no lists, and every pixel either shaded once or the sky. Skipped where the device cannot
+// index samplers (lavapipe).
+TEST(VisibilityPipelineTest, OneDispatchShadesAsThePerMaterialLists) {
+  TESSERA_SKIP_WITHOUT_VISIBILITY_BUFFER(SharedRenderer());
+  const DeviceInfo& device = SharedRenderer().device_info();
+  if (!device.sampler_indexing || !device.subgroup_ballot) {
+    GTEST_SKIP() << device.name << " does not index sampler arrays in compute shaders (or has no "
+                 << "subgroup ballots): its visibility shading is per material only";
+  }
+  absl::StatusOr<std::unique_ptr<Renderer>> all =
+      Renderer::Create({.validation = true, .shading = ShadeDispatch::kAllMaterials});
+  absl::StatusOr<std::unique_ptr<Renderer>> per =
+      Renderer::Create({.validation = true, .shading = ShadeDispatch::kPerMaterial});
+  ASSERT_TRUE(all.ok()) << all.status();
+  ASSERT_TRUE(per.ok()) << per.status();
+  EXPECT_TRUE((*all)->device_info().shade_all_materials);
+  EXPECT_FALSE((*per)->device_info().shade_all_materials);
+  // GPUs shade in one dispatch unless told otherwise; CPU devices per material.
+  EXPECT_EQ(device.shade_all_materials, device.type != "cpu");
+  absl::StatusOr<SceneHandle> all_scene = (*all)->LoadScene(BuildDemoScene());
+  absl::StatusOr<SceneHandle> per_scene = (*per)->LoadScene(BuildDemoScene());
+  ASSERT_TRUE(all_scene.ok()) << all_scene.status();
+  ASSERT_TRUE(per_scene.ok()) << per_scene.status();
+  Camera c = BackCamera();
+  c.target.y = 2.0f;  // the sky 60% of the frame
+  const uint64_t pixels = uint64_t(kWidth) * kHeight;
+  for (AaMode aa : {AaMode::kNone, AaMode::kVisMlaa}) {
+    SCOPED_TRACE(ToString(aa));
+    Settings s = Lit(true, true, aa);
+    s.pipeline = Pipeline::kVisibility;
+    s.ibl = true;
+    s.synthetic_lights = 32;
+    FrameCapture a_capture, b_capture;
+    absl::StatusOr<Frame> a = (*all)->Render(**all_scene, c, s, 0, &a_capture);
+    absl::StatusOr<Frame> b = (*per)->Render(**per_scene, c, s, 0, &b_capture);
+    ASSERT_TRUE(a.ok()) << a.status();
+    ASSERT_TRUE(b.ok()) << b.status();
+    ASSERT_EQ(a->settings.effective.pipeline, Pipeline::kVisibility);
+    ASSERT_EQ(a->settings.effective.aa, aa);
+    EXPECT_TRUE(a->image.pixels == b->image.pixels) << "the pictures differ";
+    auto has_pass = [](const Frame& f, const char* name) {
+      return std::any_of(f.passes.begin(), f.passes.end(),
+                         [&](const PassTiming& p) { return p.pass == name; });
+    };
+    EXPECT_FALSE(has_pass(*a, "vis_classify"));
+    EXPECT_TRUE(has_pass(*b, "vis_classify"));
+    EXPECT_TRUE(a_capture.shade_lists.empty());
+    EXPECT_FALSE(b_capture.shade_lists.empty());
+    EXPECT_EQ(a->stats.shaded_pixels, b->stats.shaded_pixels);
+    EXPECT_EQ(a_capture.background_pixels, b_capture.background_pixels);
+    EXPECT_GT(a_capture.background_pixels, pixels / 2);
+    EXPECT_EQ(a->stats.edge_pixels, b->stats.edge_pixels);
+    EXPECT_EQ(a->stats.blend_pixels, b->stats.blend_pixels);
+    EXPECT_EQ(a->stats.runner_up_pixels, b->stats.runner_up_pixels);
+    // One invocation per pixel of whole 8x8 tiles (320x180: 40x23 tiles), and vis_mlaa's over
+    // its blend list.
+    const uint64_t tiles = uint64_t(kWidth / 8) * ((kHeight + 7) / 8);
+    if (aa == AaMode::kNone) {
+      EXPECT_EQ(a->stats.shaded_pixels + a_capture.background_pixels, pixels);
+      EXPECT_EQ(a->stats.shading_invocations, tiles * 64);
+    } else {
+      EXPECT_GT(a->stats.runner_up_pixels, 0u);
+      EXPECT_GE(a->stats.shading_invocations, tiles * 64 + a->stats.runner_up_pixels);
+      EXPECT_LE(a->stats.shading_invocations, tiles * 64 + a->stats.blend_pixels + 63);
+    }
+  }
+  ExpectNoValidationMessages(**all);
+  ExpectNoValidationMessages(**per);
 }
 
 // SSAO and bloom run as fragment or compute shaders (post_stage): the same picture. (Compute

@@ -373,6 +373,33 @@ TEST(SelectPassesTest, VisibilityPipeline) {
   EXPECT_TRUE(uses(PassId::kVisClassify, Resource::kHdrColor, Access::kComputeWrite));  // sky
   EXPECT_TRUE(uses(PassId::kShade, Resource::kShadeLists, Access::kIndirectRead));
   EXPECT_TRUE(uses(PassId::kShade, Resource::kHdrColor, Access::kComputeWrite));
+  // Where the shading is one dispatch over every pixel (DeviceInfo::shade_all_materials): no
+  // classification; the shading writes the sky and counts in the entries (vis_mlaa: after its
+  // resolve, and its runner-ups' colours for geometric AA).
+  FrameFeatures one;
+  one.shade_all_materials = true;
+  s.culling = CullingMode::kNone;
+  EXPECT_EQ(SelectPasses(s, one), (std::vector<PassId>{PassId::kVisibility, PassId::kShade,
+                                                       PassId::kTonemap, PassId::kReadback}));
+  for (AaMode aa : {AaMode::kNone, AaMode::kVisMlaa}) {
+    Settings o = s;
+    o.aa = aa;
+    const FramePlan p = PlanFrame(o, one);
+    EXPECT_FALSE(p.Has(PassId::kVisClassify));
+    const std::vector<ResourceUse>& u = UsesOf(p, PassId::kShade);
+    auto shade_uses = [&](Resource r, Access a) {
+      return std::any_of(u.begin(), u.end(),
+                         [&](const ResourceUse& x) { return x.resource == r && x.access == a; });
+    };
+    EXPECT_TRUE(shade_uses(Resource::kShadeLists, Access::kComputeWrite));
+    EXPECT_TRUE(shade_uses(Resource::kHdrColor, Access::kComputeWrite));
+    EXPECT_EQ(shade_uses(Resource::kEdgeSurfaces, Access::kComputeWrite), aa == AaMode::kVisMlaa);
+    if (aa == AaMode::kVisMlaa) {
+      EXPECT_TRUE(p.Has(PassId::kVisResolve));
+      EXPECT_TRUE(p.Has(PassId::kGeometricAa));
+    }
+  }
+  s.culling = CullingMode::kGpuOcclusion;
   // msaa and vis_mlaa are not changed by the setting.
   for (AaMode aa : {AaMode::kMsaa, AaMode::kVisMlaa}) {
     Settings f;

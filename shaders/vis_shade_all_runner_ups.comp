@@ -1,0 +1,11 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_EXT_nonuniform_qualifier : require
+// vis_mlaa's runner-up surfaces in one dispatch over its blend list, where the device indexes
+// sampler arrays (common/vis_shade.glsl, SHADE_ALL_MATERIALS).
+#define SHADE_ALL_MATERIALS
+#define SHADE_RUNNER_UPS
+#define VIS_MLAA
+#include "common/vis_shade.glsl"
