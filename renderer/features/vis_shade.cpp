@@ -395,6 +395,7 @@ class ShadePass final : public Pass {
   // the pixels of the sky (list.z) and, in one-sample frames, of surfaces (list.w; vis_mlaa's
   // resolve counted those per material).
   void RecordAll(PassContext& ctx) {
+    static_assert(gpu::kShadeGroupSize == 64, "vis_shade.glsl maps a workgroup to 8x8 pixels");
     const Settings& s = *ctx.settings;
     const ShadeBuffers& sb = *ctx.shade;
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;

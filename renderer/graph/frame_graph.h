@@ -148,7 +148,8 @@ struct FrameFeatures {
   bool light_texels = false;
   // A FrameCapture asks for the frame (tests): the visibility classification also counts the
   // pixels it wrote the sky at (FrameCapture::background_pixels), which frames without one do
-  // not pay for (about 8 ms of a mostly-sky 1280x720 frame on lavapipe).
+  // not pay for (about 8 ms of a mostly-sky 1280x720 frame on lavapipe). The one-dispatch
+  // shading (shade_all_materials) counts them in every frame, one atomic per subgroup.
   bool count_background = false;
   // The visibility shading is one dispatch over every pixel, with no classification
   // (DeviceInfo::shade_all_materials).

@@ -546,8 +546,12 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
                           !off("sampler_indexing");
   enabled.shaderSampledImageArrayDynamicIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
   f12.shaderSampledImageArrayNonUniformIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
+  // Its vis_mlaa layout holds 16 samplers (set 0's six, the eight buckets, the ids and the
+  // coverage) and 21 sampled images (those and five uniform texel buffers) for one stage.
+  const bool shade_all_limits = p.limits.maxPerStageDescriptorSamplers >= 16 &&
+                                p.limits.maxPerStageDescriptorSampledImages >= 21;
   info.shade_all_materials =
-      info.sampler_indexing && info.subgroup_ballot && info.visibility_buffer &&
+      info.sampler_indexing && info.subgroup_ballot && info.visibility_buffer && shade_all_limits &&
       (shading == ShadeDispatch::kAllMaterials ||
        (shading == ShadeDispatch::kAuto && info.type != "cpu"));
   f12.hostQueryReset = f12_supported.hostQueryReset;

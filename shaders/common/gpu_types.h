@@ -541,7 +541,8 @@ struct GpuShadeEntry {
 // vis_classify.comp: y materials (the sky's entry is the next; the mode is a specialization
 // constant); vis_shade.comp: x the material shaded; vis_sky_mlaa.comp: x the sky's entry;
 // vis_resolve.comp: y the edge list's entry, x the entry kResolveArgs sizes (the mode is a
-// specialization constant).
+// specialization constant); vis_shade_all*.comp: x the sky's entry, y the edge list's entry, z 1
+// where the shading counts the surfaces it shades (one sample).
 #define TS_PUSH_SHADE uvec4 params;
 
 #ifdef __cplusplus

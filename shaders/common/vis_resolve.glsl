@@ -34,9 +34,11 @@
 // left its edge PSNR 1.25 dB below msaa's; now equal to it, for 0.4% more shading on Sponza.
 // Every pixel's shaded surface (and every runner-up left to be shaded) is counted in its
 // material's entry as it is decided (common/shade_append.glsl; a pixel whose surface is the sky
-// is not: the classification writes the sky there; a runner-up that is the sky is, in the sky's
-// entry), so the classification goes straight to its scan and lists (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp)
-// shades each listed id. vis_resolve.comp counts one atomic per subgroup and material,
+// is not: the classification, or the one-dispatch shading, writes the sky there; a runner-up that
+// is the sky is, in the sky's entry), so the classification goes straight to its scan and lists
+// (vis_classify_mlaa.comp), and the shading (vis_shade_mlaa.comp) shades each listed id. Where the
+// shading is one dispatch over every pixel (DeviceInfo::shade_all_materials, vis_shade_all_mlaa.comp)
+// there is no classification, and the counts are the frame's statistics. vis_resolve.comp counts one atomic per subgroup and material,
 // vis_resolve_atomic.comp (devices without subgroup ballots) one per pixel.
 #include "common/scene.glsl"
 #include "common/vis.glsl"

@@ -3,7 +3,9 @@
 // listed for it, each shaded once. The surface is rebuilt from the pixel's visibility id
 // (common/vis_surface.glsl) and shaded by the forward path's material and lighting
 // (common/shading.glsl): at the pixel's centre, or with VIS_MLAA at the mean position of the
-// samples the resolve gave the pixel's surface (vis_resolve.comp).
+// samples the resolve gave the pixel's surface (vis_resolve.comp). With SHADE_ALL_MATERIALS
+// (vis_shade_all*.comp, DeviceInfo::shade_all_materials) one dispatch shades every pixel and the
+// sky instead, with no lists (below).
 #define TESSERA_COMPUTE
 vec2 g_pixel;  // the pixel's centre, for shading.glsl's tile and AO lookups
 #define SHADING_PIXEL g_pixel

@@ -1,7 +1,8 @@
 // vis_mlaa's sky where it is a pixel's runner-up surface (vis_resolve.comp) and no neighbour shows
 // it (vis_sky_mlaa.comp): the sky (or a debug view's plain background) in the direction of its
 // samples' mean, into the edge colours. Where the sky is the surface a pixel shows, the
-// classification writes it (vis_classify.glsl), so the sky's list holds runner-ups only. Needs
+// classification writes it (vis_classify.glsl), so the sky's list holds runner-ups only. (Where
+// the shading is one dispatch, vis_shade_all_runner_ups.comp shades the sky's runner-ups.) Needs
 // VIS_MLAA defined (the runner-up records).
 #include "common/scene.glsl"
 #include "common/sky.glsl"

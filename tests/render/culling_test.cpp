@@ -335,9 +335,12 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   ASSERT_TRUE(lean_scene.ok()) << lean_scene.status();
   // The full feature set but storage buffers: on a CPU device the visibility pass pulls its
   // vertices through them (a scene past the device's texel buffers does), the path neither of
-  // the other two devices takes.
-  absl::StatusOr<std::unique_ptr<Renderer>> storage = Renderer::Create(
-      {.validation = true, .disable_features = {"texel_buffers"}, .appends = AppendMode::kSubgroup});
+  // the other two devices takes (with the one-dispatch shading where the device can).
+  absl::StatusOr<std::unique_ptr<Renderer>> storage =
+      Renderer::Create({.validation = true,
+                        .disable_features = {"texel_buffers"},
+                        .appends = AppendMode::kSubgroup,
+                        .shading = ShadeDispatch::kAllMaterials});
   ASSERT_TRUE(storage.ok()) << storage.status();
   EXPECT_EQ((*storage)->device_info().vertex_pulling, r.device_info().vertex_pulling);
   absl::StatusOr<SceneHandle> storage_scene = (*storage)->LoadScene(*src);
