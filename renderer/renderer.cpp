@@ -386,6 +386,7 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
 
   CountDrawn(f.gs, f.draws, plan.ids(), frame.stats, capture ? &capture->drawn : nullptr);
   frame.stats.indirect_draws = f.pass_stats.indirect_draws;
+  frame.stats.shading_dispatches = f.pass_stats.material_draws;
   frame.stats.pipeline_statistics = run.pipeline_statistics;
   frame.stats.primitives_in = run.primitives_in;
   frame.stats.primitives_clipped = run.primitives_clipped;

@@ -119,6 +119,9 @@ struct FrameStats {
   // compute invocations (those rounded up to whole workgroups per material).
   uint64_t shaded_pixels = 0;
   uint64_t shading_invocations = 0;
+  // Its compute dispatches: one per material in view (classified per material), or one over
+  // every pixel, and vis_mlaa's over its runner-ups (DeviceInfo::shade_all_materials).
+  uint32_t shading_dispatches = 0;
   // vis_mlaa: the pixels the resolve grouped: whose samples hit more than one triangle (raster
   // coverage), whose 3x3 neighbourhood shows more than one surface (analytic).
   uint64_t edge_pixels = 0;

@@ -194,6 +194,7 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   st->set_shadow_evictions(f.stats.shadow_evictions);
   st->set_shaded_pixels(f.stats.shaded_pixels);
   st->set_shading_invocations(f.stats.shading_invocations);
+  st->set_shading_dispatches(f.stats.shading_dispatches);
   st->set_edge_pixels(f.stats.edge_pixels);
   st->set_runner_up_pixels(f.stats.runner_up_pixels);
   st->set_blend_pixels(f.stats.blend_pixels);

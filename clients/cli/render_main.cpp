@@ -229,6 +229,7 @@ int main(int argc, char** argv) {
                   {"fragment_invocations", frame.stats.fragment_invocations},
                   {"shaded_pixels", frame.stats.shaded_pixels},
                   {"shading_invocations", frame.stats.shading_invocations},
+                  {"shading_dispatches", frame.stats.shading_dispatches},
                   {"edge_pixels", frame.stats.edge_pixels},
                   {"runner_up_pixels", frame.stats.runner_up_pixels},
                   {"blend_pixels", frame.stats.blend_pixels},
@@ -313,6 +314,13 @@ int main(int argc, char** argv) {
                   (unsigned long long)frame.stats.primitives_in,
                   (unsigned long long)frame.stats.primitives_clipped,
                   (unsigned long long)frame.stats.fragment_invocations);
+    if (frame.stats.shading_dispatches > 0)
+      std::printf("visibility shading: %llu pixels in %u dispatch%s (%s), %llu invocations\n",
+                  (unsigned long long)frame.stats.shaded_pixels, frame.stats.shading_dispatches,
+                  frame.stats.shading_dispatches == 1 ? "" : "es",
+                  renderer->device_info().shade_all_materials ? "one over every pixel"
+                                                              : "one per material in view",
+                  (unsigned long long)frame.stats.shading_invocations);
     if (frame.stats.local_lights > 0 && frame.settings.effective.light_culling)
       std::printf("lights per %upx tile: avg %.1f, p50 %u, p95 %u, max %u, overflows %u\n",
                   frame.settings.effective.tile_size, frame.stats.tile_lights_avg,

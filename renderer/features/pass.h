@@ -193,7 +193,7 @@ struct ShadeBuffers {
 
 struct PassStats {
   uint32_t indirect_draws = 0;  // vkCmdDrawIndexedIndirectCount calls recorded
-  uint32_t material_draws = 0;  // the visibility shading's dispatches (one per material in view)
+  uint32_t material_draws = 0;  // the visibility shading's dispatches (FrameStats::shading_dispatches)
 };
 
 // The visibility shading (vis_mlaa and the visibility pipeline): the materials of the opaque and

@@ -703,6 +703,8 @@ TEST(VisibilityPipelineTest, OneDispatchShadesAsThePerMaterialLists) {
     };
     EXPECT_FALSE(has_pass(*a, "vis_classify"));
     EXPECT_TRUE(has_pass(*b, "vis_classify"));
+    EXPECT_EQ(a->stats.shading_dispatches, aa == AaMode::kVisMlaa ? 2u : 1u);
+    EXPECT_GT(b->stats.shading_dispatches, 2u);  // the demo's materials in view
     EXPECT_TRUE(a_capture.shade_lists.empty());
     EXPECT_FALSE(b_capture.shade_lists.empty());
     EXPECT_EQ(a->stats.shaded_pixels, b->stats.shaded_pixels);
