@@ -1270,6 +1270,13 @@ TEST(WireConversion, EncodedFrameBecomesTheWireFrame) {
   f.frame.gpu_total_ms = 4.0;
   f.frame.cpu.encode_ms = 3.0;
   f.frame.stats.draws = 11;
+  // The visibility shading's counts, and which way it ran.
+  f.frame.stats.shaded_pixels = 1500;
+  f.frame.stats.shading_invocations = 1536;
+  f.frame.stats.shading_dispatches = 2;
+  f.frame.stats.edge_pixels = 40;
+  f.frame.stats.blend_pixels = 30;
+  f.frame.stats.runner_up_pixels = 20;
   f.data = {1, 2, 3};
   f.format = ImageFormat::kPng;
   f.render_width = 32;
@@ -1295,6 +1302,12 @@ TEST(WireConversion, EncodedFrameBecomesTheWireFrame) {
   EXPECT_EQ(wire.cpu().queue_wait_ms(), 0.5);
   EXPECT_EQ(wire.cpu().total_ms(), 9.0);
   EXPECT_EQ(wire.stats().draws(), 11u);
+  EXPECT_EQ(wire.stats().shaded_pixels(), 1500u);
+  EXPECT_EQ(wire.stats().shading_invocations(), 1536u);
+  EXPECT_EQ(wire.stats().shading_dispatches(), 2u);
+  EXPECT_EQ(wire.stats().edge_pixels(), 40u);
+  EXPECT_EQ(wire.stats().blend_pixels(), 30u);
+  EXPECT_EQ(wire.stats().runner_up_pixels(), 20u);
   EXPECT_EQ(wire.camera().eye().y(), 2.0f);
   EXPECT_EQ(wire.sequence(), 7u);
   EXPECT_EQ(wire.event_id(), 5u);
