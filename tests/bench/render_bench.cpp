@@ -140,6 +140,7 @@ struct Side : Measured {
                   {"fragment_invocations_per_pixel", double(last.stats.fragment_invocations) / pixels},
                   {"shaded_pixels", last.stats.shaded_pixels},
                   {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels},
+                  {"shading_dispatches", last.stats.shading_dispatches},
                   {"edge_pixels", last.stats.edge_pixels},
                   {"runner_up_pixels", last.stats.runner_up_pixels},
                   {"blend_pixels", last.stats.blend_pixels},
