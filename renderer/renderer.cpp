@@ -394,36 +394,25 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
   if (plan.Has(PassId::kShade)) {
     shade_entries_readback.InvalidateForRead();
     const auto* entries = static_cast<const gpu::GpuShadeEntry*>(shade_entries_readback.mapped());
+    // Each material's pixels are counted in its entry (by the classification, vis_mlaa's resolve
+    // or the one-dispatch shading). The classified shading dispatches over each list; the one
+    // dispatch covers the frame (recorded), and vis_mlaa's second its blend list.
     const bool classified = plan.Has(PassId::kVisClassify);
-    const gpu::GpuShadeEntry& sky = entries[f.shade.materials];
-    if (classified) {
-      for (uint32_t m = 0; m < f.shade.materials; ++m) {
-        const glm::uvec4& d = entries[m].dispatch;
-        frame.stats.shaded_pixels += d.w;
-        frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
-      }
-    } else {
-      // One dispatch over the frame in 8x8 tiles (vis_shade.cpp, RecordAll), and vis_mlaa's
-      // over its blend list. vis_mlaa's resolve counted each material's pixels (and runner-ups);
-      // a one-sample frame's shading counted its surfaces in the sky's entry (list.w).
-      const uint64_t tiles = uint64_t((f.s.width + 7) / 8) * ((f.s.height + 7) / 8);
-      frame.stats.shading_invocations = tiles * 64;
-      if (plan.Has(PassId::kVisResolve)) {
-        for (uint32_t m = 0; m < f.shade.materials; ++m)
-          frame.stats.shaded_pixels += entries[m].dispatch.w;
-        const glm::uvec4& d = entries[f.shade.blend_entry()].dispatch;
-        frame.stats.shading_invocations += uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
-      } else {
-        frame.stats.shaded_pixels = sky.list.w;
-      }
+    auto invocations = [&](uint32_t entry) {
+      const glm::uvec4& d = entries[entry].dispatch;
+      return uint64_t(d.x) * d.y * d.z * gpu::kShadeGroupSize;
+    };
+    frame.stats.shading_invocations = f.pass_stats.shading_invocations;
+    for (uint32_t m = 0; m < f.shade.materials; ++m) {
+      frame.stats.shaded_pixels += entries[m].dispatch.w;
+      if (classified) frame.stats.shading_invocations += invocations(m);
     }
-    if (capture && !classified) {
-      capture->shade_lists.clear();  // no lists: one dispatch shaded every pixel
-      capture->background_pixels = sky.list.z;
-    }
-    if (capture && classified) {
+    if (!classified && plan.Has(PassId::kVisResolve))
+      frame.stats.shading_invocations += invocations(f.shade.blend_entry());
+    if (capture) {
+      // No lists where one dispatch shaded every pixel.
       capture->shade_lists.clear();
-      for (uint32_t m = 0; m <= f.shade.materials; ++m)
+      for (uint32_t m = 0; classified && m <= f.shade.materials; ++m)
         capture->shade_lists.push_back({entries[m].dispatch.w, entries[m].list.y});
       capture->background_pixels = entries[f.shade.materials].list.z;
     }

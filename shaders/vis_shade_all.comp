@@ -6,4 +6,5 @@
 // The visibility pipeline's shading in one dispatch over every pixel, where the device indexes
 // sampler arrays (common/vis_shade.glsl, SHADE_ALL_MATERIALS).
 #define SHADE_ALL_MATERIALS
+#define SHADE_APPEND_SUBGROUPS
 #include "common/vis_shade.glsl"

@@ -6,5 +6,6 @@
 // vis_mlaa's shading in one dispatch over every pixel, where the device indexes sampler arrays
 // (common/vis_shade.glsl, SHADE_ALL_MATERIALS).
 #define SHADE_ALL_MATERIALS
+#define SHADE_APPEND_SUBGROUPS
 #define VIS_MLAA
 #include "common/vis_shade.glsl"

@@ -6,6 +6,7 @@
 // vis_mlaa's runner-up surfaces in one dispatch over its blend list, where the device indexes
 // sampler arrays (common/vis_shade.glsl, SHADE_ALL_MATERIALS).
 #define SHADE_ALL_MATERIALS
+#define SHADE_APPEND_SUBGROUPS
 #define SHADE_RUNNER_UPS
 #define VIS_MLAA
 #include "common/vis_shade.glsl"

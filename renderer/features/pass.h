@@ -194,6 +194,9 @@ struct ShadeBuffers {
 struct PassStats {
   uint32_t indirect_draws = 0;  // vkCmdDrawIndexedIndirectCount calls recorded
   uint32_t material_draws = 0;  // the visibility shading's dispatches (FrameStats::shading_dispatches)
+  // The invocations of its direct dispatches (the one-dispatch shading's over the frame); those
+  // of its indirect dispatches are read back with the entries.
+  uint64_t shading_invocations = 0;
 };
 
 // The visibility shading (vis_mlaa and the visibility pipeline): the materials of the opaque and

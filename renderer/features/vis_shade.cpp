@@ -392,10 +392,11 @@ class ShadePass final : public Pass {
 
   // One dispatch over the frame's pixels in 8x8 tiles, which writes the sky too; vis_mlaa then
   // one over its blend list for the runner-up surfaces no neighbour shows. The sky's entry counts
-  // the pixels of the sky (list.z) and, in one-sample frames, of surfaces (list.w; vis_mlaa's
-  // resolve counted those per material).
+  // the sky's pixels and, in one-sample frames, each material's entry its pixels (vis_mlaa's
+  // resolve counted those).
   void RecordAll(PassContext& ctx) {
-    static_assert(gpu::kShadeGroupSize == 64, "vis_shade.glsl maps a workgroup to 8x8 pixels");
+    static_assert(gpu::kClassifyTile * gpu::kClassifyTile == gpu::kShadeGroupSize,
+                  "vis_shade.glsl maps a workgroup to a tile");
     const Settings& s = *ctx.settings;
     const ShadeBuffers& sb = *ctx.shade;
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
@@ -419,8 +420,11 @@ class ShadePass final : public Pass {
     vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[0].handle());
-    vkCmdDispatch(ctx.cmd, (ctx.targets->width + 7) / 8, (ctx.targets->height + 7) / 8, 1);
+    const uint32_t gx = (ctx.targets->width + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
+    const uint32_t gy = (ctx.targets->height + gpu::kClassifyTile - 1) / gpu::kClassifyTile;
+    vkCmdDispatch(ctx.cmd, gx, gy, 1);
     ctx.stats->material_draws++;
+    ctx.stats->shading_invocations += uint64_t(gx) * gy * gpu::kShadeGroupSize;
     if (vis_mlaa) {
       // Sized by the resolve (its kResolveArgs step over the blend list).
       vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,

@@ -233,7 +233,7 @@ TS_CONST uint kResolveEdges = 2;
 // per blend list entry: drops the runner-up where a neighbour geometric AA borrows from shows it
 // (it needs the ids kResolveEdges wrote); counts the others (edge entry list.x)
 TS_CONST uint kResolveRunnerUps = 3;
-TS_CONST uint kClassifyTile = 8;         // vis_classify: 8x8 pixels per workgroup
+TS_CONST uint kClassifyTile = 8;         // vis_classify and the one-dispatch shading: 8x8 pixels per workgroup
 TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // A material's dispatch is at most this many workgroups wide (more rows above: the indirect
 // dispatch stays inside maxComputeWorkGroupCount, 65535, at any frame size).
@@ -542,7 +542,7 @@ struct GpuShadeEntry {
 // constant); vis_shade.comp: x the material shaded; vis_sky_mlaa.comp: x the sky's entry;
 // vis_resolve.comp: y the edge list's entry, x the entry kResolveArgs sizes (the mode is a
 // specialization constant); vis_shade_all*.comp: x the sky's entry, y the edge list's entry, z 1
-// where the shading counts the surfaces it shades (one sample).
+// where the shading counts the surfaces it shades in their materials' entries (one sample).
 #define TS_PUSH_SHADE uvec4 params;
 
 #ifdef __cplusplus

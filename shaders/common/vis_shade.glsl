@@ -39,29 +39,22 @@ layout(set = kVisSet, binding = kShadeBindingCoverage) uniform usampler2D u_vis_
 
 #ifdef SHADE_ALL_MATERIALS
 // One dispatch shades every material (DeviceInfo::shade_all_materials, common/textures.glsl): over
-// the frame in 8x8 tiles, a pixel an invocation, or with SHADE_RUNNER_UPS over vis_mlaa's blend
-// list, an entry an invocation (the runner-up surfaces no neighbour shows). push.params: x the
-// sky's entry, y vis_mlaa's edge list's entry, z 1 where the surfaces shaded are counted (one
-// sample: vis_mlaa's resolve counted them).
+// the frame in 8x8 tiles (kClassifyTile, as the classification's), a pixel an invocation, or with
+// SHADE_RUNNER_UPS over vis_mlaa's blend list, an entry an invocation (the runner-up surfaces no
+// neighbour shows). push.params: x the sky's entry, y vis_mlaa's edge list's entry, z 1 where the
+// shading counts each surface in its material's entry (one sample: vis_mlaa's resolve counted
+// them). The sky's pixels are counted in the sky's entry, as the classification counts them.
+#include "common/shade_append.glsl"
 #include "common/blend_list.glsl"
 
-// Adds this subgroup's invocations where `mine` holds to counter `word` (2: list.z, 3: list.w) of
-// the sky's entry: one atomic per subgroup. In the subgroup's uniform control flow.
-void CountSubgroup(bool mine, uint word) {
-  uint n = subgroupBallotBitCount(subgroupBallot(mine));
-  if (subgroupElect() && n > 0u) {
-    if (word == 2u) atomicAdd(entries[push.params.x].list.z, n);
-    else atomicAdd(entries[push.params.x].list.w, n);
-  }
-}
-
-// The colour of the surface of visibility id `id` at `pixel`, shaded with its material.
-vec3 ShadeId(uint id, vec2 pixel) {
+// The colour of the surface of visibility id `id` at `pixel`, shaded with its material `m`.
+vec3 ShadeId(uint id, uint m, vec2 pixel) {
   Triangle tri = LoadTriangle(id);
-  material = materials[DrawableIds(tri.drawable).y];
+  material = materials[m];
   vec3 b = Barycentrics(tri.p0, tri.e1, tri.e2, RayDirection(pixel));
   return ShadeSurface(VisSurface(tri, b, pixel), false).rgb;
 }
+uint MaterialOf(uint id) { return DrawableIds(VisDrawable(id, frame.aa.x)).y; }
 
 void main() {
 #ifdef SHADE_RUNNER_UPS
@@ -75,20 +68,21 @@ void main() {
   vec2 pixel = vec2(p) + RunnerUpMean(record.y);
   // The sky where it is the runner-up: in the direction of its samples' mean.
   StoreRunnerUpColor(entry, record.x == 0u ? VisBackground(pixel, kIblCode)
-                                           : ShadeId(record.x, pixel));
+                                           : ShadeId(record.x, MaterialOf(record.x), pixel));
 #else
   uint l = gl_LocalInvocationIndex;
-  ivec2 p = ivec2(gl_WorkGroupID.xy) * 8 + ivec2(l % 8u, l / 8u);
-  bool inside = all(lessThan(p, ivec2(frame.counts.zw)));
-  uint id = inside ? texelFetch(u_vis_id, p, 0).r : 0u;
-  CountSubgroup(inside && id == 0u, 2u);
-  if (push.params.z != 0u) CountSubgroup(id != 0u, 3u);
-  if (!inside) return;
+  ivec2 p = ivec2(gl_WorkGroupID.xy) * int(kClassifyTile) +
+            ivec2(l % kClassifyTile, l / kClassifyTile);
+  if (any(greaterThanEqual(p, ivec2(frame.counts.zw)))) return;
   g_pixel = vec2(p) + 0.5;
+  uint id = texelFetch(u_vis_id, p, 0).r;
   if (id == 0u) {  // the sky (or a debug view's background), at the pixel's centre
+    Append(push.params.x, kCountBackground);
     imageStore(u_color, p, vec4(VisBackground(g_pixel, kIblCode), 1.0));
     return;
   }
+  uint m = MaterialOf(id);
+  if (push.params.z != 0u) Append(m, kCountPixels);
 #ifdef VIS_MLAA
   // At the mean position of the samples the resolve gave the pixel's surface, in the triangle
   // holding it (common/vis_resolve.glsl, ContainingId).
@@ -96,7 +90,7 @@ void main() {
 #else
   vec2 pixel = g_pixel;
 #endif
-  imageStore(u_color, p, vec4(ShadeId(id, pixel), 1.0));
+  imageStore(u_color, p, vec4(ShadeId(id, m, pixel), 1.0));
 #endif
 }
 #else

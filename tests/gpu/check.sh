@@ -51,17 +51,16 @@ for t in $tests; do
 done
 
 bench=$(find_bin tessera-bench) || exit 2
+# The issue's frame: the full stack with vis_mlaa and 20000 lights.
+issue_frame=(--aa vis_mlaa --vis-mlaa-coverage raster --lights 20000 --shadows --ssao --bloom
+             --auto-exposure --tonemapper photographic --ibl)
 for c in $configs; do
   dispatch=auto
   case $c in
     plain) flags=() ;;
     full) flags=(--aa taa --lights 1024 --shadows --ssao --bloom --auto-exposure --ibl) ;;
-    vis_mlaa) flags=(--aa vis_mlaa --vis-mlaa-coverage raster --lights 20000 --shadows --ssao
-                     --bloom --auto-exposure --tonemapper photographic --ibl
-                     --versus "--vis-mlaa-coverage analytic") ;;
-    per_material) flags=(--aa vis_mlaa --vis-mlaa-coverage raster --lights 20000 --shadows --ssao
-                         --bloom --auto-exposure --tonemapper photographic --ibl)
-                  dispatch=per_material ;;
+    vis_mlaa) flags=("${issue_frame[@]}" --versus "--vis-mlaa-coverage analytic") ;;
+    per_material) flags=("${issue_frame[@]}") dispatch=per_material ;;
     *) echo "check.sh: unknown config $c (plain, full, vis_mlaa, per_material)" >&2; exit 2 ;;
   esac
   TESSERA_SHADE_DISPATCH=$dispatch timeout "$step" "$bench" --scene "$sponza" --sizes "$sizes" --frames "$frames" \
