@@ -86,8 +86,16 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
                        width, height, 1, 1,
                        compute_ldr && fxaa ? kLdrFormat : VK_FORMAT_UNDEFINED));
   t.ldr = ldr->image;
-  ASSIGN_OR_RETURN(
-      readback, target_pool.AcquireBuffer(*ctx, uint64_t(width) * height * 4, "readback", frame));
+  const uint64_t readback_bytes = uint64_t(width) * height * 4;
+  lent_readback.reset();
+  if (lend_pixels) {
+    ASSIGN_OR_RETURN(lent_readback, readback_ring.Acquire(ctx, readback_bytes, frame));
+  }
+  if (lent_readback) {
+    readback = &lent_readback->buffer;
+  } else {
+    ASSIGN_OR_RETURN(readback, target_pool.AcquireBuffer(*ctx, readback_bytes, "readback", frame));
+  }
   t.readback = readback->handle();
   if (s.culling == CullingMode::kGpuFrustum || s.culling == CullingMode::kGpuOcclusion) {
     // The depth pyramid: a power of two at or below half the frame size, down to 1x1.
@@ -174,6 +182,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
   }
   targets = t;
   target_pool.Trim(frame);
+  readback_ring.Trim(frame);
   return absl::OkStatus();
 }
 

@@ -111,7 +111,7 @@ absl::Status IndexStrip(EncodedStrip& s) {
   return absl::InternalError("EncodeJpeg: a strip has no scan");
 }
 
-absl::StatusOr<std::vector<uint8_t>> CompressRows(const RgbaImage& image, uint32_t y0,
+absl::StatusOr<std::vector<uint8_t>> CompressRows(RgbaView image, uint32_t y0,
                                                   uint32_t rows, int quality, int samp) {
   TjHandle tj(tjInitCompress());
   if (tj.get() == nullptr) {
@@ -179,7 +179,7 @@ struct PngStrip {
 
 // Filters rows [y0, y1) and deflates them, a row at a time (the extra memory is the strip's
 // deflated bytes); `last` ends the deflate stream.
-PngStrip DeflateRows(const RgbaImage& image, uint32_t y0, uint32_t y1, bool last) {
+PngStrip DeflateRows(RgbaView image, uint32_t y0, uint32_t y1, bool last) {
   PngStrip out;
   const size_t stride = size_t(image.width) * 4;
   std::vector<uint8_t> filtered(stride + 1);
@@ -317,17 +317,17 @@ bool DecodePngImpl(PngReadState* st) {
 
 }  // namespace
 
-absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
+absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(RgbaView image, int quality,
                                                 ChromaSubsampling subsampling) {
   return EncodeJpeg(image, quality, subsampling, 1);
 }
 
-uint32_t AutoJpegStrips(const RgbaImage& image) {
+uint32_t AutoJpegStrips(RgbaView image) {
   constexpr uint64_t kMinPixels = 1920 * 1080;
   return uint64_t(image.width) * image.height < kMinPixels ? 1 : kMaxJpegStrips;
 }
 
-absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(const RgbaImage& image, int quality,
+absl::StatusOr<std::vector<uint8_t>> EncodeJpeg(RgbaView image, int quality,
                                                 ChromaSubsampling subsampling, uint32_t strips) {
   if (quality < 1 || quality > 100) {
     return absl::InvalidArgumentError(
@@ -429,11 +429,11 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max
   return image;
 }
 
-uint32_t AutoPngStrips(const RgbaImage& image) {
+uint32_t AutoPngStrips(RgbaView image) {
   return std::clamp(image.height / 64, 1u, kMaxPngStrips);
 }
 
-absl::StatusOr<std::vector<uint8_t>> EncodePng(const RgbaImage& image, uint32_t strips) {
+absl::StatusOr<std::vector<uint8_t>> EncodePng(RgbaView image, uint32_t strips) {
   RETURN_IF_ERROR(ValidateImage(image, "EncodePng"));
   if (strips == 0) strips = AutoPngStrips(image);
   strips = std::clamp(strips, 1u, std::min(image.height, kMaxPngStrips));
@@ -585,7 +585,7 @@ absl::StatusOr<RgbaImage> DiffImage(const RgbaImage& a, const RgbaImage& b, floa
   return out;
 }
 
-absl::Status ValidateImage(const RgbaImage& image, const char* what) {
+absl::Status ValidateImage(RgbaView image, const char* what) {
   if (image.width == 0 || image.height == 0) {
     return absl::InvalidArgumentError(
         absl::StrCat(what, ": empty image (", image.width, "x", image.height, ")"));

@@ -174,7 +174,7 @@ int16_t ToIntermediate(int32_t acc) {
 // Horizontal pass: every source row resampled to columns.start.size() RGBA samples. kTaps is
 // columns.taps when known at compile time (the compiler then unrolls the tap loop), else 0.
 template <size_t kTaps>
-void FilterRows(const RgbaImage& src, const AxisFilter& columns, size_t out_stride, int16_t* out) {
+void FilterRows(RgbaView src, const AxisFilter& columns, size_t out_stride, int16_t* out) {
   const size_t taps = kTaps != 0 ? kTaps : columns.taps;
   const size_t out_width = columns.start.size();
   for (uint32_t y = 0; y < src.height; ++y) {
@@ -233,13 +233,14 @@ void FilterColumns(const int16_t* in, size_t in_stride, const AxisFilter& rows, 
 
 }  // namespace
 
-absl::StatusOr<RgbaImage> ResizeBicubic(const RgbaImage& src, uint32_t width, uint32_t height) {
+absl::StatusOr<RgbaImage> ResizeBicubic(RgbaView src, uint32_t width, uint32_t height) {
   RETURN_IF_ERROR(ValidateImage(src, "ResizeBicubic (source)"));
   if (width == 0 || height == 0 || width > kMaxImageSide || height > kMaxImageSide) {
     return absl::InvalidArgumentError(absl::StrCat("ResizeBicubic: target ", width, "x", height,
                                                    " is not 1..", kMaxImageSide, " per side"));
   }
-  if (width == src.width && height == src.height) return src;
+  if (width == src.width && height == src.height)
+    return RgbaImage{width, height, std::vector<uint8_t>(src.pixels.begin(), src.pixels.end())};
 
   const AxisFilter columns = MakeAxisFilter(src.width, width);
   const AxisFilter rows = MakeAxisFilter(src.height, height);

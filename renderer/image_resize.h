@@ -21,6 +21,6 @@ namespace tessera {
 // weights, so flat areas stay exactly flat, and the result is deterministic and exactly
 // mirror-symmetric (resizing a flipped image gives the flipped result). Scratch memory:
 // width x src.height x 8 bytes. 640x360 -> 1280x720 takes about 8 ms on one core (-O2).
-absl::StatusOr<RgbaImage> ResizeBicubic(const RgbaImage& src, uint32_t width, uint32_t height);
+absl::StatusOr<RgbaImage> ResizeBicubic(RgbaView src, uint32_t width, uint32_t height);
 
 }  // namespace tessera

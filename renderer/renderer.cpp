@@ -45,6 +45,7 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
                                   options.disable_features,
                                   options.max_storage_buffer_range, options.appends,
                                   options.shading}));
+  impl->lend_pixels = options.lend_pixels;
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
     int64_t frames = -1;
@@ -444,12 +445,56 @@ void Renderer::RecyclePixels(std::vector<uint8_t>&& pixels) {
   spare.push_back(std::move(taken));
 }
 
+void Renderer::ReleasePixels(Frame& frame) {
+  frame.lent.Release();
+  RecyclePixels(std::move(frame.image.pixels));
+}
+
+Renderer::LendingStats Renderer::lending() const {
+  std::lock_guard lock(impl_->mutex);
+  return {impl_->readback_ring.size(), impl_->readback_ring.lent()};
+}
+
+LentPixels::LentPixels(std::shared_ptr<ReadbackBuffer> buffer, uint32_t width, uint32_t height)
+    : buffer_(std::move(buffer)), width_(width), height_(height) {}
+
+LentPixels::LentPixels(LentPixels&& o) noexcept
+    : buffer_(std::move(o.buffer_)), width_(o.width_), height_(o.height_) {}
+
+LentPixels& LentPixels::operator=(LentPixels&& o) noexcept {
+  if (this != &o) {
+    Release();
+    buffer_ = std::move(o.buffer_);
+    width_ = o.width_;
+    height_ = o.height_;
+  }
+  return *this;
+}
+
+RgbaView LentPixels::view() const {
+  if (!buffer_) return {};
+  return {width_, height_,
+          {static_cast<const uint8_t*>(buffer_->buffer.mapped()), size_t(width_) * height_ * 4}};
+}
+
+void LentPixels::Release() {
+  if (!buffer_) return;
+  buffer_->lent.store(false, std::memory_order_release);  // the ring may hand it out again
+  buffer_.reset();
+}
+
 void Renderer::Impl::ReadBack(Frame& frame) {
   const auto t_readback = Clock::now();
   const Settings& s = frame.settings.effective;
   readback->InvalidateForRead();
   frame.image.width = s.width;
   frame.image.height = s.height;
+  if (lent_readback) {  // the caller reads the mapped bytes; the ring skips the buffer till then
+    lent_readback->lent.store(true, std::memory_order_relaxed);
+    frame.lent = LentPixels(std::move(lent_readback), s.width, s.height);
+    frame.cpu.readback_ms = MsSince(t_readback);
+    return;
+  }
   const size_t bytes = size_t(s.width) * s.height * 4;
   {
     // The newest given-back buffer that holds the frame without wasting more than its size.
@@ -477,8 +522,8 @@ absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat forma
   const auto t0 = Clock::now();
   absl::StatusOr<std::vector<uint8_t>> bytes =
       format == ImageFormat::kPng
-          ? EncodePng(frame.image)
-          : EncodeJpeg(frame.image, int(frame.settings.effective.jpeg_quality),
+          ? EncodePng(frame.view())
+          : EncodeJpeg(frame.view(), int(frame.settings.effective.jpeg_quality),
                        frame.settings.effective.jpeg_444 ? ChromaSubsampling::k444
                                                          : ChromaSubsampling::k420,
                        /*strips=*/0);  // large frames in strips on several threads

@@ -37,6 +37,10 @@ struct RendererOptions {
   // How the visibility shading dispatches (DeviceInfo::shade_all_materials): kAuto, by the kind
   // of device (or $TESSERA_SHADE_DISPATCH); forced, to test both ways on one device.
   ShadeDispatch shading = ShadeDispatch::kAuto;
+  // Frames lend their pixels where the device copied them (Frame::lent) instead of copying them
+  // out of mapped memory into Frame::image.pixels: for callers that encode a frame and drop it
+  // (the server, tessera-bench). Off, every frame owns its pixels.
+  bool lend_pixels = false;
 };
 
 // What a loaded scene is, without its geometry.
@@ -94,7 +98,7 @@ enum class TimingSource {
 struct CpuTimings {
   double record_ms = 0.0;       // culling, sorting, uniforms, command recording
   double submit_wait_ms = 0.0;  // vkQueueSubmit until the fence signals (summed over submits)
-  double readback_ms = 0.0;     // copying the mapped pixels out
+  double readback_ms = 0.0;     // copying the mapped pixels out (~0 when they are lent)
   double encode_ms = 0.0;       // JPEG/PNG encoding (EncodeFrame)
 };
 
@@ -187,14 +191,45 @@ struct FrameCapture {
   uint64_t background_pixels = 0;
 };
 
+struct ReadbackBuffer;  // renderer/graph/readback_ring.h
+
+// A frame's pixels left in the mapped readback buffer the device copied them into, lent to the
+// holder (RendererOptions::lend_pixels): what the encoders read without a copy. Move-only;
+// dropping it (or Release) hands the buffer back for a later frame, which the device will not
+// write before then. It may be read on any thread and may outlive the Renderer.
+class LentPixels {
+ public:
+  LentPixels() = default;
+  LentPixels(std::shared_ptr<ReadbackBuffer> buffer, uint32_t width, uint32_t height);
+  LentPixels(LentPixels&& o) noexcept;
+  LentPixels& operator=(LentPixels&& o) noexcept;
+  LentPixels(const LentPixels&) = delete;
+  LentPixels& operator=(const LentPixels&) = delete;
+  ~LentPixels() { Release(); }
+
+  explicit operator bool() const { return buffer_ != nullptr; }
+  RgbaView view() const;  // empty when nothing is lent
+  void Release();
+
+ private:
+  std::shared_ptr<ReadbackBuffer> buffer_;
+  uint32_t width_ = 0;
+  uint32_t height_ = 0;
+};
+
 struct Frame {
-  RgbaImage image;                 // settings.effective.width x height, sRGB RGBA8
+  // settings.effective.width x height, sRGB RGBA8; with `lent`, pixels is empty and lent holds
+  // them (view() reads whichever).
+  RgbaImage image;
+  LentPixels lent;
   std::vector<PassTiming> passes;  // in execution order
   TimingSource timing = TimingSource::kGpuTimestamps;
   double gpu_total_ms = 0.0;  // first pass start to last pass end (device time)
   CpuTimings cpu;
   FrameStats stats;
   ResolvedSettings settings;  // effective settings and the notes on what changed
+
+  RgbaView view() const { return lent ? lent.view() : RgbaView(image); }
 };
 
 // kRgba: not encoded; the pixels stay in the frame (a video session encodes them in order when
@@ -250,6 +285,14 @@ class Renderer {
   // it while another frame renders); at most kSparePixelBuffers are kept, the newest.
   void RecyclePixels(std::vector<uint8_t>&& pixels);
   static constexpr size_t kSparePixelBuffers = 2;
+  // Drops the frame's pixels: lent ones go back to the ring, owned ones to RecyclePixels.
+  void ReleasePixels(Frame& frame);
+  // RendererOptions::lend_pixels: the readback buffers it lends from, and how many are lent now.
+  struct LendingStats {
+    size_t buffers = 0;
+    size_t lent = 0;
+  };
+  LendingStats lending() const;
 
   // The device was lost (VK_ERROR_DEVICE_LOST: a GPU reset, a driver failure). The frame that
   // met it and every later one fail with UNAVAILABLE (IsDeviceLost), and this renderer does not
@@ -279,7 +322,7 @@ class Renderer {
   std::unique_ptr<Impl> impl_;
 };
 
-// Encodes the frame's pixels (JPEG with its settings' quality and chroma subsampling, or
+// Encodes the frame's pixels, owned or lent (JPEG with its settings' quality and chroma subsampling, or
 // PNG) and records the time in frame.cpu.encode_ms.
 // JPEG frames of 1920x1080 pixels and more are encoded in strips on several threads (image_io.h).
 absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat format);

@@ -16,6 +16,7 @@
 #include "renderer/features/pass.h"
 #include "renderer/graph/executor.h"
 #include "renderer/graph/frame_graph.h"
+#include "renderer/graph/readback_ring.h"
 #include "renderer/graph/target_pool.h"
 #include "renderer/ibl.h"
 #include "renderer/ibl_maps.h"
@@ -171,7 +172,12 @@ struct Renderer::Impl {
   std::vector<std::vector<uint8_t>> spare_pixels;
   TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
   FrameTargets targets;    // this frame's, from the pool
-  const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool
+  const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool or ring
+  // RendererOptions::lend_pixels: the buffers frames are lent from, and this frame's (null when
+  // they were all lent: the frame reads back into the pool's and is copied out).
+  bool lend_pixels = false;
+  ReadbackRing readback_ring;
+  std::shared_ptr<ReadbackBuffer> lent_readback;
   // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
   // they hold (ShadowAtlas), the uniforms the shading reads, and a 1x1 stand-in bound while
   // shadows are off.

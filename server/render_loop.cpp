@@ -15,8 +15,10 @@ double MsBetween(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
 
-// Upscales an interactive frame to the work's output size and encodes it; `frame` is consumed,
-// its pixel memory given back to `renderer` for the next frames' readback.
+// Upscales an interactive frame to the work's output size and encodes it, reading the pixels
+// where the renderer lent them (or from the frame's own memory); `frame` is consumed, its pixel
+// memory given back to `renderer` for the next frames' readback. kRgba keeps the pixels in the
+// frame for the video session.
 absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double queue_wait_ms,
                                     Renderer& renderer) {
   EncodedFrame out;
@@ -26,9 +28,9 @@ absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double
   if (work.output_width != 0 && work.output_height != 0 &&
       (work.output_width != out.render_width || work.output_height != out.render_height)) {
     const Clock::time_point t0 = Clock::now();
-    ASSIGN_OR_RETURN(RgbaImage upscaled, ResizeBicubic(frame.image, work.output_width,
+    ASSIGN_OR_RETURN(RgbaImage upscaled, ResizeBicubic(frame.view(), work.output_width,
                                                        work.output_height));
-    renderer.RecyclePixels(std::move(frame.image.pixels));
+    renderer.ReleasePixels(frame);
     frame.image = std::move(upscaled);
     upscale_ms = MsBetween(t0, Clock::now());
   }
@@ -37,7 +39,7 @@ absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double
   } else {
     ASSIGN_OR_RETURN(out.data, EncodeFrame(frame, work.format));
     frame.cpu.encode_ms += upscale_ms;  // the upscale is part of encoding
-    renderer.RecyclePixels(std::move(frame.image.pixels));  // the bytes are what goes on
+    renderer.ReleasePixels(frame);  // the bytes are what goes on
   }
   out.frame = std::move(frame);
   out.format = work.format;

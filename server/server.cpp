@@ -398,8 +398,9 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   impl->options = options;
   ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials, Credentials(options));
   RETURN_IF_ERROR(impl->OpenAuth());
-  ASSIGN_OR_RETURN(impl->renderer,
-                   Renderer::Create(RendererOptions{options.device, options.validation}));
+  RendererOptions renderer_options{options.device, options.validation};
+  renderer_options.lend_pixels = true;  // encoded straight from the readback buffers
+  ASSIGN_OR_RETURN(impl->renderer, Renderer::Create(renderer_options));
   impl->store =
       std::make_unique<SceneStore>(options.max_scenes, options.scene_memory_budget_bytes);
   if (options.load_demo_scene) RETURN_IF_ERROR(impl->LoadDemo());

@@ -133,7 +133,7 @@ void StreamSession::OnDone() {
     std::lock_guard lock(mu_);
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
-    if (slot_pixels_) state_->pending_frame_bytes -= slot_pixels_->pixels.size();
+    if (slot_pixels_) state_->pending_frame_bytes -= slot_pixels_->view().pixels.size();
     slot_pixels_.reset();
     st_.lease.reset();  // a deleted scene is freed with its last session
     view = std::move(st_.view);
@@ -169,20 +169,20 @@ std::optional<RenderWork> StreamSession::TakeWork() {
 
 void StreamSession::Deliver(const RenderWork& work, absl::StatusOr<EncodedFrame> frame) {
   std::optional<v1::Frame> wire;  // converted before taking the lock
-  std::optional<RgbaImage> pixels;
+  std::optional<Frame> pixels;
   if (frame.ok()) {
     ToProto(*frame, &wire.emplace());
-    if (frame->format == ImageFormat::kRgba) pixels = std::move(frame->frame.image);
+    if (frame->format == ImageFormat::kRgba) pixels = std::move(frame->frame);
   }
   React([&] {
     const Arrival arrival = schedule_.FrameDone(work.sequence, frame.status());
     if (wire) KeepFrameLocked(arrival, *std::move(wire), &pixels);
   });
-  if (pixels) state_->renderer->RecyclePixels(std::move(pixels->pixels));  // not kept
+  if (pixels) state_->renderer->ReleasePixels(*pixels);  // not kept
 }
 
 void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame,
-                                    std::optional<RgbaImage>* pixels) {
+                                    std::optional<Frame>* pixels) {
   switch (arrival) {
     case Arrival::kIgnored:
       return;
@@ -205,12 +205,12 @@ void StreamSession::KeepFrameLocked(Arrival arrival, v1::Frame frame,
   }
   slot_ = std::move(frame);
   if (slot_pixels_) {  // replaced (latest wins) before it cost an encode
-    state_->pending_frame_bytes -= slot_pixels_->pixels.size();
-    state_->renderer->RecyclePixels(std::move(slot_pixels_->pixels));
+    state_->pending_frame_bytes -= slot_pixels_->view().pixels.size();
+    state_->renderer->ReleasePixels(*slot_pixels_);
   }
   slot_pixels_ = std::exchange(*pixels, std::nullopt);
   // Unencoded pixels held for the client count as pending bytes too, until encoded.
-  if (slot_pixels_) state_->pending_frame_bytes += slot_pixels_->pixels.size();
+  if (slot_pixels_) state_->pending_frame_bytes += slot_pixels_->view().pixels.size();
 }
 
 void StreamSession::Stop() {
@@ -229,7 +229,7 @@ std::optional<SessionState> StreamSession::Handover(const std::string& principal
     st_.token = out->token;
     if (slot_) state_->pending_frame_bytes -= slot_->data().size();
     slot_.reset();
-    if (slot_pixels_) state_->pending_frame_bytes -= slot_pixels_->pixels.size();
+    if (slot_pixels_) state_->pending_frame_bytes -= slot_pixels_->view().pixels.size();
     slot_pixels_.reset();
     decision = DecideLocked(Clock::now());
   }
@@ -522,13 +522,14 @@ void StreamSession::Perform(const StreamDecision& d) {
 // writing_frame_ or finishes the stream meanwhile.
 void StreamSession::EncodeAndWrite() {
   const VideoWrite& job = *writing_video_;
+  const RgbaView pixels = writing_pixels_.view();
   const auto t0 = Clock::now();
   absl::Status st;
   bool fresh = false;
   if (!job.video.h264) {
     // Rendered for h264, taken after the session switched to JPEG.
     absl::StatusOr<std::vector<uint8_t>> jpeg = EncodeJpeg(
-        writing_pixels_, static_cast<int>(writing_frame_.settings().jpeg_quality()),
+        pixels, static_cast<int>(writing_frame_.settings().jpeg_quality()),
         writing_frame_.settings().jpeg_444() ? ChromaSubsampling::k444 : ChromaSubsampling::k420);
     if (jpeg.ok()) {
       writing_frame_.set_data(jpeg->data(), jpeg->size());
@@ -538,13 +539,13 @@ void StreamSession::EncodeAndWrite() {
     }
     encoder_.reset();
   } else if (!encoder_ || encoder_generation_ != job.generation ||
-             encoder_->width() != writing_pixels_.width ||
-             encoder_->height() != writing_pixels_.height ||
+             encoder_->width() != pixels.width ||
+             encoder_->height() != pixels.height ||
              // NVENC keeps the quality it opened with: another one needs a new encoder.
              (!encoder_->per_frame_crf() && encoder_->crf() != job.crf)) {
     video::EncoderOptions o;
-    o.width = writing_pixels_.width;
-    o.height = writing_pixels_.height;
+    o.width = pixels.width;
+    o.height = pixels.height;
     o.kind = job.video.encoder == v1::VIDEO_ENCODER_HARDWARE   ? video::EncoderKind::kHardware
              : job.video.encoder == v1::VIDEO_ENCODER_SOFTWARE ? video::EncoderKind::kSoftware
                                                                : video::EncoderKind::kAuto;
@@ -564,7 +565,7 @@ void StreamSession::EncodeAndWrite() {
   }
   if (st.ok() && job.video.h264) {
     absl::StatusOr<video::Packet> packet =
-        encoder_->Encode(writing_pixels_.pixels.data(), size_t{writing_pixels_.width} * 4,
+        encoder_->Encode(pixels.pixels.data(), size_t{pixels.width} * 4,
                          fresh || job.keyframe, job.crf);
     if (packet.ok()) {
       const double ms = MsSince(t0);
@@ -582,8 +583,8 @@ void StreamSession::EncodeAndWrite() {
       st = packet.status();
     }
   }
-  state_->pending_frame_bytes -= writing_pixels_.pixels.size();
-  state_->renderer->RecyclePixels(std::move(writing_pixels_.pixels));
+  state_->pending_frame_bytes -= pixels.pixels.size();
+  state_->renderer->ReleasePixels(writing_pixels_);
   writing_pixels_ = {};
   if (!st.ok()) {
     // As if the write were done: the stream then ends with the error.

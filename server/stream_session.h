@@ -66,7 +66,7 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
   RenderWork MakeWorkLocked(const FrameStart& start);
   // A rendered frame into the slot (or dropped), as the schedule decides.
   // `pixels` (video sessions' unencoded frames) is taken when the frame is kept.
-  void KeepFrameLocked(Arrival arrival, v1::Frame frame, std::optional<RgbaImage>* pixels);
+  void KeepFrameLocked(Arrival arrival, v1::Frame frame, std::optional<Frame>* pixels);
   void Drop();
 
   // Applies `change` under mu_, then performs what the schedule decides after unlocking.
@@ -113,8 +113,8 @@ class StreamSession final : public grpc::ServerBidiReactor<v1::ClientEvent, v1::
     uint32_t crf = 0;       // this frame's: interactive_crf while the camera moves
   };
   void EncodeAndWrite();
-  std::optional<RgbaImage> slot_pixels_;
-  RgbaImage writing_pixels_;
+  std::optional<Frame> slot_pixels_;  // the rendered frame, for its pixels (owned or lent)
+  Frame writing_pixels_;
   std::optional<VideoWrite> writing_video_;
   bool keyframe_requested_ = false;
   std::unique_ptr<video::Encoder> encoder_;

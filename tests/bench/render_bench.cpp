@@ -15,6 +15,11 @@
 //   tessera-bench --scene ... --pipeline forward --versus "--pipeline visibility"
 //   tessera-bench --scene ... --pipeline visibility --versus "--disable-features texel_buffers"
 //
+// Frames lend their pixels to the encoder where the device copied them, as the server's do
+// (RendererOptions::lend_pixels; "pixels": "lent"); --copy-pixels copies them out of mapped
+// memory first, as before (the readback figure is that copy). Both in one run:
+//   tessera-bench --sizes 3840x2160 --versus "--copy-pixels"
+//
 // Animated scenes: --animation NAME [--time S] poses the scene; --play FPS advances the time by
 // 1/FPS each frame, as a playing stream does, so every frame skins again (the skinning pass's
 // share of the frame is in "skinning_share"). The skinned crowd:
@@ -77,7 +82,7 @@ struct Side : Measured {
     }
     // The same encode in one strip, for the ratio (EncodeFrame uses AutoJpegStrips).
     const auto t_one = std::chrono::steady_clock::now();
-    if (!EncodeJpeg(frame->image, int(settings.jpeg_quality), ChromaSubsampling::k420, 1).ok())
+    if (!EncodeJpeg(frame->view(), int(settings.jpeg_quality), ChromaSubsampling::k420, 1).ok())
       Fail("EncodeJpeg");
     const double one_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_one)
@@ -101,7 +106,7 @@ struct Side : Measured {
     double stamp_total = 0.0;
     for (const PassTiming& p : frame->passes) stamp_total += p.timestamp_ms;
     ratio.push_back(stamp_total / std::max(1e-6, frame->cpu.submit_wait_ms));
-    renderer->RecyclePixels(std::move(last.image.pixels));  // as the server gives them back
+    renderer->ReleasePixels(last);  // as the server gives them back
     last = std::move(*frame);
   }
 
@@ -126,7 +131,8 @@ struct Side : Measured {
                           {"readback", Median(readback)},
                           {"encode_jpeg", Median(encode)},
                           {"encode_jpeg_one_strip", Median(encode_one)}};
-    r["jpeg_strips"] = AutoJpegStrips(last.image);
+    r["jpeg_strips"] = AutoJpegStrips(last.view());
+    r["pixels"] = last.lent ? "lent" : "copied";
     // Frame-total timestamps against the wall clock from submit to fence.
     r["timestamp_total_over_wall"] = Median(ratio);
     r["timing"] =
@@ -175,6 +181,7 @@ int main(int argc, char** argv) {
   Settings base;
   SettingMask named;
   std::string versus;
+  bool copy_pixels = false;  // frames copied out of mapped memory (the server lends them)
   for (int i = 1; i < argc; ++i) {
     const std::string arg = argv[i];
     auto value = [&]() -> std::string {
@@ -197,6 +204,8 @@ int main(int argc, char** argv) {
       target = ParseVec3(value());
     else if (arg == "--versus")
       versus = value();
+    else if (arg == "--copy-pixels")
+      copy_pixels = true;
     else if (absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &base, &named);
              !setting.ok()) {
       Fail(std::string(setting.status().message()));
@@ -215,14 +224,15 @@ int main(int argc, char** argv) {
     } else {
       Fail("unknown option " + arg +
            " (--scene F --sizes WxH,.. --frames N --warmup N --eye X,Y,Z --target X,Y,Z "
-           "--play FPS --device NAME --versus \"FLAGS\", and the settings flags of "
-           "tessera-render)");
+           "--play FPS --device NAME --copy-pixels --versus \"FLAGS\", and the settings flags "
+           "of tessera-render)");
     }
   }
   // The other side of --versus: the settings with its flags applied over them, and the device
   // features its renderer goes without.
   Settings other = base;
   std::vector<std::string> other_disabled;
+  bool other_copy_pixels = copy_pixels;
   if (!versus.empty()) {
     const std::vector<std::string> args = absl::StrSplit(versus, ' ', absl::SkipEmpty());
     SettingMask other_named = named;  // as on the command line: a row set once stays set
@@ -236,16 +246,23 @@ int main(int argc, char** argv) {
         other_disabled = absl::StrSplit(value(), ',', absl::SkipEmpty());
         continue;
       }
+      if (arg == "--copy-pixels") {
+        other_copy_pixels = true;
+        continue;
+      }
       absl::StatusOr<bool> setting = ParseSettingFlag(arg, value, &other, &other_named);
       if (!setting.ok()) Fail("--versus: " + std::string(setting.status().message()));
       if (!*setting)
-        Fail("--versus: " + arg + " is neither a settings flag nor --disable-features");
+        Fail("--versus: " + arg +
+             " is neither a settings flag nor --disable-features or --copy-pixels");
     }
     if (other.width != base.width || other.height != base.height)
       Fail("--versus: the frame sizes come from --sizes, for both sides");
   }
 
-  absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create({device, false});
+  // Frames lend their pixels to the encoder, as the server's do (RendererOptions::lend_pixels).
+  absl::StatusOr<std::unique_ptr<Renderer>> renderer =
+      Renderer::Create({.device_name = device, .lend_pixels = !copy_pixels});
   if (!renderer.ok()) Fail(std::string(renderer.status().message()));
   const auto t0 = std::chrono::steady_clock::now();
   const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
@@ -264,7 +281,9 @@ int main(int argc, char** argv) {
   std::unique_ptr<Renderer> other_renderer;
   if (!versus.empty()) {
     absl::StatusOr<std::unique_ptr<Renderer>> r2 =
-        Renderer::Create({device, false, other_disabled});
+        Renderer::Create({.device_name = device,
+                          .disable_features = other_disabled,
+                          .lend_pixels = !other_copy_pixels});
     if (!r2.ok()) Fail("--versus: " + std::string(r2.status().message()));
     other_renderer = std::move(*r2);
     b.renderer = other_renderer.get();

@@ -13,6 +13,7 @@
 #include <memory>
 #include <string>
 
+#include "renderer/graph/readback_ring.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "renderer/scene/gltf_import.h"
@@ -244,6 +245,101 @@ TEST(RenderTest, RecycledPixelMemoryIsReused) {
   ASSERT_TRUE(c.ok()) << c.status();
   EXPECT_EQ(c->image.pixels.size(), 96u * 64u * 4u);
   EXPECT_EQ(c->image.pixels.capacity(), 96u * 64u * 4u);
+}
+
+// RendererOptions::lend_pixels: a frame's pixels stay in the readback buffer the device copied
+// them into, lent to the holder; the pixels are the copied frame's, a held frame is never written
+// by a later one, a buffer let go is used again, and when every buffer of the size is lent the
+// frame is copied out instead. A lent frame may outlive its renderer.
+TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera near = FromSceneCamera(scene->info().cameras[0]);
+  Camera far = near;
+  far.yfov = near.yfov * 1.6f;  // zoomed out
+  const Settings s = SmallSettings(96, 64);
+  // The same pixels, copied out by the shared renderer on the same device.
+  absl::StatusOr<Frame> want_near = SharedRenderer().Render(*scene, near, s);
+  absl::StatusOr<Frame> want_far = SharedRenderer().Render(*scene, far, s);
+  ASSERT_TRUE(want_near.ok() && want_far.ok());
+  ASSERT_FALSE(want_near->lent);
+  ASSERT_NE(want_near->image.pixels, want_far->image.pixels);
+  auto view_bytes = [](const Frame& f) {
+    const RgbaView v = f.view();
+    return std::vector<uint8_t>(v.pixels.begin(), v.pixels.end());
+  };
+
+  absl::StatusOr<std::unique_ptr<Renderer>> made =
+      Renderer::Create({.validation = true, .lend_pixels = true});
+  ASSERT_TRUE(made.ok()) << made.status();
+  std::unique_ptr<Renderer> r = *std::move(made);
+  absl::StatusOr<SceneHandle> own = r->LoadScene(BuildDemoScene());
+  ASSERT_TRUE(own.ok()) << own.status();
+
+  absl::StatusOr<Frame> a = r->Render(**own, near, s);
+  ASSERT_TRUE(a.ok()) << a.status();
+  ASSERT_TRUE(a->lent);
+  EXPECT_TRUE(a->image.pixels.empty());
+  EXPECT_EQ(a->view().width, 96u);
+  EXPECT_EQ(a->view().height, 64u);
+  EXPECT_EQ(view_bytes(*a), want_near->image.pixels);
+  const uint8_t* a_memory = a->view().pixels.data();
+  // Encoded from where it lies: the same bytes as the copied frame's encoding.
+  absl::StatusOr<std::vector<uint8_t>> a_png = EncodeFrame(*a, ImageFormat::kPng);
+  absl::StatusOr<std::vector<uint8_t>> want_png = EncodeFrame(*want_near, ImageFormat::kPng);
+  ASSERT_TRUE(a_png.ok() && want_png.ok());
+  EXPECT_EQ(*a_png, *want_png);
+
+  // While `a` is held, the next frames read back elsewhere and leave its pixels as they are.
+  std::vector<Frame> held;
+  for (size_t i = 1; i < ReadbackRing::kBuffersPerSize; ++i) {
+    absl::StatusOr<Frame> f = r->Render(**own, far, s);
+    ASSERT_TRUE(f.ok()) << f.status();
+    ASSERT_TRUE(f->lent) << "frame " << i;
+    EXPECT_NE(f->view().pixels.data(), a_memory);
+    EXPECT_EQ(view_bytes(*f), want_far->image.pixels);
+    held.push_back(*std::move(f));
+  }
+  EXPECT_EQ(view_bytes(*a), want_near->image.pixels);
+  EXPECT_EQ(r->lending().buffers, ReadbackRing::kBuffersPerSize);
+  EXPECT_EQ(r->lending().lent, ReadbackRing::kBuffersPerSize);
+
+  // Every buffer is lent: the next frame is copied out, whole.
+  absl::StatusOr<Frame> copied = r->Render(**own, far, s);
+  ASSERT_TRUE(copied.ok()) << copied.status();
+  EXPECT_FALSE(copied->lent);
+  EXPECT_EQ(copied->image.pixels, want_far->image.pixels);
+  EXPECT_EQ(view_bytes(*copied), want_far->image.pixels);
+  EXPECT_EQ(view_bytes(*a), want_near->image.pixels);
+
+  // Let go, `a`'s buffer is the next frame's; moved, a lent frame still holds its buffer.
+  r->ReleasePixels(*a);
+  EXPECT_FALSE(a->lent);
+  EXPECT_EQ(r->lending().lent, ReadbackRing::kBuffersPerSize - 1);
+  absl::StatusOr<Frame> b = r->Render(**own, far, s);
+  ASSERT_TRUE(b.ok()) << b.status();
+  ASSERT_TRUE(b->lent);
+  EXPECT_EQ(b->view().pixels.data(), a_memory);
+  EXPECT_EQ(view_bytes(*b), want_far->image.pixels);
+  Frame moved = *std::move(b);
+  EXPECT_TRUE(moved.lent);
+  EXPECT_EQ(r->lending().lent, ReadbackRing::kBuffersPerSize);
+  held.clear();
+  EXPECT_EQ(r->lending().lent, 1u);
+
+  // A frame of another size gets its own buffers.
+  absl::StatusOr<Frame> wide = r->Render(**own, near, SmallSettings(128, 64));
+  ASSERT_TRUE(wide.ok()) << wide.status();
+  ASSERT_TRUE(wide->lent);
+  EXPECT_EQ(wide->view().pixels.size(), 128u * 64u * 4u);
+  EXPECT_EQ(r->lending().buffers, ReadbackRing::kBuffersPerSize + 1);
+
+  // The renderer goes first; the lent pixels stay readable until they are let go (ASan).
+  ExpectNoValidationMessages(*r);
+  own->reset();
+  r.reset();
+  EXPECT_EQ(view_bytes(moved), want_far->image.pixels);
+  moved.lent.Release();
+  wide->lent.Release();
 }
 
 // Every pass reports a GPU time; the passes fit inside the frame's total, and the total fits
