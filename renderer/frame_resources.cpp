@@ -88,9 +88,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
   t.ldr = ldr->image;
   const uint64_t readback_bytes = uint64_t(width) * height * 4;
   lent_readback.reset();
-  if (lend_pixels) {
-    ASSIGN_OR_RETURN(lent_readback, readback_ring.Acquire(ctx, readback_bytes, frame));
-  }
+  if (lend_pixels) lent_readback = readback_ring.Acquire(ctx, readback_bytes, frame);
   if (lent_readback) {
     readback = &lent_readback->buffer;
   } else {

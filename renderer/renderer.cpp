@@ -45,7 +45,8 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
                                   options.disable_features,
                                   options.max_storage_buffer_range, options.appends,
                                   options.shading}));
-  impl->lend_pixels = options.lend_pixels;
+  impl->lend_pixels = options.lend_pixels && options.lent_buffers > 0;
+  impl->readback_ring = ReadbackRing(options.lent_buffers);
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
     int64_t frames = -1;
@@ -276,10 +277,11 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
   }
   const uint32_t triangle_bits = m.CheckVisibilityIds(gs, frame.settings);
   const Settings& s = frame.settings.effective;
-  const uint64_t targets_before = m.target_pool.created();
+  auto made = [&m] { return m.target_pool.created() + m.readback_ring.created(); };
+  const uint64_t targets_before = made();
   RETURN_IF_ERROR(m.AcquireTargets(
       s, gs.animator() != nullptr && !gs.animator()->drawables().empty()));
-  frame.stats.targets_created = uint32_t(m.target_pool.created() - targets_before);
+  frame.stats.targets_created = uint32_t(made() - targets_before);
 
   // Each feature prepares its part of the frame, in order: the camera (and taa's jitter)
   // first, the lights before the shadows that mark them, the draw lists last.
@@ -330,7 +332,7 @@ absl::StatusOr<Frame> Renderer::RenderFrame(const Scene& scene, const Camera& ca
                          pc.cmd = cmd;
                          m.passes[static_cast<size_t>(id)]->Record(pc);
                        },
-                       t_record));
+                       t_record, s.pass_timing));
   if (plan.Has(PassId::kSkinning)) posed.PoseRecorded();
   RETURN_IF_ERROR(m.FinishFrame(f, plan, std::move(run), frame, capture));
   std::move(rollback).Cancel();
@@ -380,6 +382,7 @@ absl::Status Renderer::Impl::FinishFrame(FrameData& f, const FramePlan& plan,
   frame.gpu_total_ms = run.gpu_total_ms;
   frame.cpu.record_ms = run.record_ms;
   frame.cpu.submit_wait_ms = run.submit_wait_ms;
+  frame.cpu.submissions = run.submissions;
   // The state this frame advanced.
   if (f.visibility) f.visibility->prev ^= 1;  // this frame's bits are the next frame's history
   if (f.s.shadows) shadow_atlas_written = true;  // the faces listed were rendered
@@ -516,6 +519,18 @@ uint64_t Renderer::validation_message_count() const {
 }
 std::vector<std::string> Renderer::validation_messages() const {
   return impl_->ctx->validation_messages();
+}
+
+std::string_view ToString(TimingSource source) {
+  switch (source) {
+    case TimingSource::kGpuTimestamps:
+      return "gpu_timestamps";
+    case TimingSource::kPassWallClock:
+      return "pass_wall_clock";
+    case TimingSource::kFrameWallClock:
+      return "frame_wall_clock";
+  }
+  return "invalid";
 }
 
 absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat format) {

@@ -39,8 +39,11 @@ struct RendererOptions {
   ShadeDispatch shading = ShadeDispatch::kAuto;
   // Frames lend their pixels where the device copied them (Frame::lent) instead of copying them
   // out of mapped memory into Frame::image.pixels: for callers that encode a frame and drop it
-  // (the server, tessera-bench). Off, every frame owns its pixels.
+  // (the server, tessera-bench). Off, every frame owns its pixels. At most `lent_buffers` per
+  // frame size are lent at once (the frames a caller holds, plus the one rendering); a frame
+  // beyond them, or on a device without host-cached memory, is copied out as without lending.
   bool lend_pixels = false;
+  uint32_t lent_buffers = 4;
 };
 
 // What a loaded scene is, without its geometry.
@@ -92,12 +95,17 @@ enum class TimingSource {
   kGpuTimestamps,  // GPU timestamps around each pass (real GPUs)
   kPassWallClock,  // CPU devices (lavapipe): each pass submitted alone and timed by the wall
                    // clock, because lavapipe's per-pass timestamps misattribute work
+  kFrameWallClock,  // CPU devices with Settings::pass_timing off: the frame in one submission,
+                    // its total by the wall clock, the passes as the device's timestamps say
 };
+// "gpu_timestamps", "pass_wall_clock", "frame_wall_clock" (the proto's names, lower case).
+std::string_view ToString(TimingSource source);
 
 // CPU stages of one frame, milliseconds.
 struct CpuTimings {
   double record_ms = 0.0;       // culling, sorting, uniforms, command recording
   double submit_wait_ms = 0.0;  // vkQueueSubmit until the fence signals (summed over submits)
+  uint32_t submissions = 0;     // the frame's queue submissions: 1, or one per pass (pass_timing)
   double readback_ms = 0.0;     // copying the mapped pixels out (~0 when they are lent)
   double encode_ms = 0.0;       // JPEG/PNG encoding (EncodeFrame)
 };

@@ -101,6 +101,12 @@ struct Settings {
   Pipeline pipeline = Pipeline::kAuto;
   PostStage post_stage = PostStage::kAuto;
   DebugView debug_view = DebugView::kNone;
+  // Each pass timed on its own (Frame::passes): on CPU devices each pass is submitted and waited
+  // for alone, timed by the wall clock (TimingSource::kPassWallClock). Off, the frame goes in
+  // one submission with no wait between passes, and the passes carry the device's timestamps,
+  // which lavapipe misattributes between passes (kFrameWallClock; the total is the wall time).
+  // GPUs time every pass with timestamps in one submission either way.
+  bool pass_timing = true;
   uint32_t jpeg_quality = 90;  // 1..100
   bool jpeg_444 = false;       // chroma 4:4:4 instead of 4:2:0
   // glTF animation (renderer/scene/animation.h): the scene is posed with `animation` at

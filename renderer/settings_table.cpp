@@ -263,6 +263,11 @@ std::vector<SettingRow> BuildTable() {
   t.push_back(Flags(Row<&S::debug_view>("debug_view", "Debug view",
                                         "what the picture shows instead of the lit scene"),
                     {Value("debug", "VIEW")}));
+  t.push_back(Flags(Row<&S::pass_timing>("pass_timing", "Per-pass timing",
+                                         "time each pass on its own (CPU devices then submit "
+                                         "and wait for each pass alone; off: one submission, "
+                                         "the passes as the device's timestamps say)"),
+                    {Toggle("pass-timing")}));
   t.push_back(Flags(Range(Row<&S::jpeg_quality>("jpeg_quality", "JPEG quality", "JPEG quality"),
                           1, 100, "1..100"),
                     {Value("quality", "Q")}));

@@ -158,8 +158,17 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
     pp->set_gpu_ms(p.gpu_ms);
     pp->set_timestamp_ms(p.timestamp_ms);
   }
-  o->set_timing_source(f.timing == TimingSource::kGpuTimestamps ? v1::TIMING_GPU_TIMESTAMPS
-                                                                : v1::TIMING_PASS_WALL_CLOCK);
+  switch (f.timing) {
+    case TimingSource::kGpuTimestamps:
+      o->set_timing_source(v1::TIMING_GPU_TIMESTAMPS);
+      break;
+    case TimingSource::kPassWallClock:
+      o->set_timing_source(v1::TIMING_PASS_WALL_CLOCK);
+      break;
+    case TimingSource::kFrameWallClock:
+      o->set_timing_source(v1::TIMING_FRAME_WALL_CLOCK);
+      break;
+  }
   o->set_gpu_total_ms(f.gpu_total_ms);
   v1::CpuTimings* cpu = o->mutable_cpu();
   cpu->set_record_ms(f.cpu.record_ms);

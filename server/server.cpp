@@ -400,6 +400,8 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   RETURN_IF_ERROR(impl->OpenAuth());
   RendererOptions renderer_options{options.device, options.validation};
   renderer_options.lend_pixels = true;  // encoded straight from the readback buffers
+  // The frames out on the encoders, the one rendering, and one a video session holds.
+  renderer_options.lent_buffers = options.max_frames_in_flight + 2;
   ASSIGN_OR_RETURN(impl->renderer, Renderer::Create(renderer_options));
   impl->store =
       std::make_unique<SceneStore>(options.max_scenes, options.scene_memory_budget_bytes);

@@ -189,6 +189,11 @@ std::string TimingSourceText(const std::vector<Result>& results) {
       case v1::TIMING_PASS_WALL_CLOCK:
         words.push_back("each pass submitted alone and timed by the wall clock (CPU device)");
         break;
+      case v1::TIMING_FRAME_WALL_CLOCK:
+        words.push_back(
+            "one submission per frame, timed by the wall clock; passes as the device's "
+            "timestamps say (CPU device)");
+        break;
       default:
         words.push_back(TimingSourceName(static_cast<v1::TimingSource>(s)));
     }

@@ -86,6 +86,7 @@ std::string SettingsSummary(const v1::RenderSettings& s) {
     if (s.has_jpeg_444()) absl::StrAppend(&q, s.jpeg_444() ? " 4:4:4" : " 4:2:0");
     parts.push_back(q);
   }
+  if (s.has_pass_timing() && !s.pass_timing()) parts.push_back("pass timing off");
   if (!s.animation().empty() && s.animation() != "none") {
     parts.push_back(absl::StrFormat("animation %s at %g s%s%s", s.animation(), s.scene_time(),
                                     s.has_loop() && !s.loop() ? " (held at its end)" : "",
@@ -154,6 +155,9 @@ void PrintFrameTimings(const v1::Frame& frame) {
   absl::PrintF("%-20s %10s%s\n", "pass", "gpu ms",
                frame.timing_source() == v1::TIMING_PASS_WALL_CLOCK
                    ? "   (CPU device: each pass submitted alone, timed by the wall clock)"
+               : frame.timing_source() == v1::TIMING_FRAME_WALL_CLOCK
+                   ? "   (CPU device, one submission: the passes as its timestamps say, the "
+                     "total by the wall clock)"
                    : "");
   for (const v1::PassTiming& p : frame.passes())
     absl::PrintF("%-20s %10.3f\n", p.pass(), p.gpu_ms());

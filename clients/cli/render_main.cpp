@@ -209,8 +209,7 @@ int main(int argc, char** argv) {
     for (const PassTiming& p : frame.passes)
       j["passes"].push_back(
           {{"pass", p.pass}, {"gpu_ms", p.gpu_ms}, {"timestamp_ms", p.timestamp_ms}});
-    j["timing"] =
-        frame.timing == TimingSource::kPassWallClock ? "pass_wall_clock" : "gpu_timestamps";
+    j["timing"] = ToString(frame.timing);
     j["gpu_total_ms"] = frame.gpu_total_ms;
     j["cpu_ms"] = {{"record", frame.cpu.record_ms},
                    {"submit_wait", frame.cpu.submit_wait_ms},
@@ -294,6 +293,9 @@ int main(int argc, char** argv) {
     std::printf("%-20s %10s%s\n", "pass", "gpu ms",
                 frame.timing == TimingSource::kPassWallClock
                     ? "   (CPU device: each pass submitted alone, timed by the wall clock)"
+                : frame.timing == TimingSource::kFrameWallClock
+                    ? "   (CPU device, one submission: the passes as its timestamps say, the "
+                      "total by the wall clock)"
                     : "");
     for (const PassTiming& p : frame.passes)
       std::printf("%-20s %10.3f\n", p.pass.c_str(), p.gpu_ms);

@@ -194,10 +194,14 @@ absl::Status GraphExecutor::SubmitAndWait(bool host_read) {
 
 absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
     const FramePlan& plan, const std::function<const vk::Image&(Resource)>& image,
-    const std::function<void(PassId, VkCommandBuffer)>& record, Clock::time_point record_start) {
+    const std::function<void(PassId, VkCommandBuffer)>& record, Clock::time_point record_start,
+    bool pass_timing) {
   Result result;
-  const bool per_pass_submit = ctx_.info().type == "cpu";
-  result.timing = per_pass_submit ? TimingSource::kPassWallClock : TimingSource::kGpuTimestamps;
+  const bool cpu_device = ctx_.info().type == "cpu";
+  const bool per_pass_submit = cpu_device && pass_timing;
+  result.timing = !cpu_device       ? TimingSource::kGpuTimestamps
+                  : per_pass_submit ? TimingSource::kPassWallClock
+                                    : TimingSource::kFrameWallClock;
   const VkQueryPool stamps_pool = timestamps_.get();
   const VkQueryPool stats_pool = statistics_.get();
   BeginOneTime();
@@ -230,6 +234,7 @@ absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
   ASSIGN_OR_RETURN(const double wall, EndSubmitAndWait());
   pass_wall_ms.push_back(wall);
   for (double w : pass_wall_ms) result.submit_wait_ms += w;
+  result.submissions = uint32_t(pass_wall_ms.size());
   if (n == 0) return result;
 
   std::vector<uint64_t> stamps(2 * n);
@@ -249,7 +254,8 @@ absl::StatusOr<GraphExecutor::Result> GraphExecutor::Execute(
     result.passes.push_back({std::string(PassName(plan.passes[i].id)),
                              per_pass_submit ? pass_wall_ms[i] : stamped, stamped});
   }
-  result.gpu_total_ms = per_pass_submit ? result.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
+  // CPU devices: the wall time (their timestamps misattribute work between passes).
+  result.gpu_total_ms = cpu_device ? result.submit_wait_ms : stamp_ms(0, stamps.size() - 1);
   RETURN_IF_ERROR(ReadStatistics(plan, result));
   return result;
 }

@@ -36,6 +36,7 @@ class GraphExecutor {
     double gpu_total_ms = 0.0;
     double record_ms = 0.0;       // CPU time recording (from `record_start`)
     double submit_wait_ms = 0.0;  // submit -> fence, summed over the submits
+  uint32_t submissions = 0;
     // Over the geometry passes, where the device has pipeline statistics.
     bool pipeline_statistics = false;
     uint64_t primitives_in = 0;
@@ -45,14 +46,15 @@ class GraphExecutor {
 
   // Records and submits `plan`, and waits for it: before each pass the transitions the plan
   // lists, on the images `image` gives for the resources; GPU timestamps around each pass and
-  // pipeline statistics around the geometry passes; `record` records the pass itself. On CPU
-  // devices (lavapipe) each pass is submitted and waited for on its own and timed by the wall
-  // clock: lavapipe stamps a pass when its rasterizer threads reach the stamp in their tiles,
-  // so a pass rasterized in one batch would read ~0 ms.
+  // pipeline statistics around the geometry passes; `record` records the pass itself. With
+  // `pass_timing` (Settings::pass_timing) on CPU devices (lavapipe) each pass is submitted and
+  // waited for on its own and timed by the wall clock: lavapipe stamps a pass when its
+  // rasterizer threads reach the stamp in their tiles, so a pass rasterized in one batch would
+  // read ~0 ms. Without it the frame is one submission everywhere.
   absl::StatusOr<Result> Execute(const FramePlan& plan,
                                  const std::function<const vk::Image&(Resource)>& image,
                                  const std::function<void(PassId, VkCommandBuffer)>& record,
-                                 Clock::time_point record_start);
+                                 Clock::time_point record_start, bool pass_timing);
 
   // One-off work outside a frame (test captures, bakes): BeginOneTime(), record into cmd(),
   // then SubmitAndWait(); with `host_read`, transfer writes are made visible to the host.

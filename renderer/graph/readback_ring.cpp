@@ -2,28 +2,43 @@
 
 #include <algorithm>
 
-#include "common/status_macros.h"
 #include "renderer/graph/target_pool.h"
+#include "renderer/log.h"
 
 namespace tessera {
 
-absl::StatusOr<std::shared_ptr<ReadbackBuffer>> ReadbackRing::Acquire(
-    std::shared_ptr<vk::Context> ctx, uint64_t bytes, uint64_t frame) {
+std::shared_ptr<ReadbackBuffer> ReadbackRing::Acquire(std::shared_ptr<vk::Context> ctx,
+                                                      uint64_t bytes, uint64_t frame) {
+  if (unusable_) return nullptr;
   size_t of_size = 0;
+  std::shared_ptr<ReadbackBuffer> free;
   for (const std::shared_ptr<ReadbackBuffer>& b : buffers_) {
     if (b->buffer.size() != bytes) continue;
     ++of_size;
-    if (b->lent.load(std::memory_order_acquire)) continue;
-    b->last_used = frame;
-    return b;
+    b->last_used = frame;  // the size is in use: its buffers, lent or not, are kept
+    if (!free && !b->lent.load(std::memory_order_acquire)) free = b;
   }
-  if (of_size >= kBuffersPerSize) return nullptr;
+  if (free) return free;
+  if (of_size >= per_size_) return nullptr;
   auto b = std::make_shared<ReadbackBuffer>();
-  ASSIGN_OR_RETURN(b->buffer, vk::Buffer::Create(*ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT,
-                                                 vk::MemoryUsage::kReadback, "lent_readback"));
+  absl::StatusOr<vk::Buffer> made = vk::Buffer::Create(
+      *ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kReadback, "lent_readback");
+  if (!made.ok()) {
+    // The copy's pool buffer is one buffer; this would have been one more per frame held.
+    Log().warn("readback: frames are copied out from now on ({})", made.status().ToString());
+    unusable_ = true;
+    return nullptr;
+  }
+  if ((made->memory_flags() & VK_MEMORY_PROPERTY_HOST_CACHED_BIT) == 0) {
+    Log().info("readback: no host-cached memory type; frames are copied out, not lent");
+    unusable_ = true;
+    return nullptr;
+  }
+  b->buffer = *std::move(made);
   b->ctx = std::move(ctx);
   b->last_used = frame;
   buffers_.push_back(b);
+  ++created_;
   return b;
 }
 

@@ -3,10 +3,12 @@
 // lend_pixels): a few mapped, host-cached buffers per frame size, each either free or lent to a
 // LentPixels that the caller holds while it encodes. A frame reads back into a free one and
 // hands it out as it is, so no copy leaves mapped memory; the next frame takes another, so the
-// device never writes into pixels someone still reads. When every buffer of the size is lent
-// the frame is copied out as before (the caller's frames in flight are then more than
-// kBuffersPerSize). Buffers no frame used for TargetPool::kIdleFrames are forgotten; one still
-// lent then lives until its holder lets it go.
+// device never writes into pixels someone still reads. The renderer copies the frame out as
+// before when Acquire has none: every buffer of the size lent (more frames held than
+// RendererOptions::lent_buffers), no host-cached memory type (encoders reading uncached or
+// write-combined memory row by row would be far slower than one copy), or no memory left.
+// The buffers of a size no frame used for TargetPool::kIdleFrames are forgotten; one still lent
+// then lives until its holder lets it go, uncounted.
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -32,21 +34,27 @@ struct ReadbackBuffer {
 
 class ReadbackRing {
  public:
-  // Lendable buffers of one size, at most: the server's frames in flight (3) and the one being
-  // rendered.
-  static constexpr size_t kBuffersPerSize = 4;
+  // Lends from at most `per_size` buffers of each size.
+  explicit ReadbackRing(uint32_t per_size = 4) : per_size_(per_size) {}
 
   // A buffer of `bytes` that nobody holds, marked used by `frame`: one made before, else a new
-  // one while the size has fewer than kBuffersPerSize; nullptr when they are all lent.
-  absl::StatusOr<std::shared_ptr<ReadbackBuffer>> Acquire(std::shared_ptr<vk::Context> ctx,
-                                                          uint64_t bytes, uint64_t frame);
-  // Forgets the buffers unused since `frame` - TargetPool::kIdleFrames.
+  // one while the size has fewer than per_size; nullptr when the frame must be copied out (see
+  // above).
+  std::shared_ptr<ReadbackBuffer> Acquire(std::shared_ptr<vk::Context> ctx, uint64_t bytes,
+                                          uint64_t frame);
+  // Forgets the buffers of the sizes unused since `frame` - TargetPool::kIdleFrames.
   void Trim(uint64_t frame);
   // Buffers the ring holds, and how many of them are lent now.
   size_t size() const { return buffers_.size(); }
   size_t lent() const;
+  uint32_t per_size() const { return per_size_; }
+  // Buffers made so far (FrameStats::targets_created counts them with the pool's).
+  uint64_t created() const { return created_; }
 
  private:
+  uint32_t per_size_;
+  uint64_t created_ = 0;
+  bool unusable_ = false;  // no host-cached memory, or an allocation failed: copy every frame
   std::vector<std::shared_ptr<ReadbackBuffer>> buffers_;
 };
 

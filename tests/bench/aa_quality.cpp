@@ -34,7 +34,7 @@
 // metric over an empty selection (e.g. no edge pixels) is null. Everything else is finite.
 //
 //   tessera-aa-quality [--scenes sponza,helmet,edges] [--modes none,msaa,fxaa,taa,vis_mlaa]
-//       [--samples 4] [--vis-mlaa-coverage auto] [--width 1280] [--height 720] [--frames 5]
+//       [--samples 4] [--vis-mlaa-coverage auto] [--no-pass-timing] [--width 1280] [--height 720] [--frames 5]
 //       [--warmup 1] [--taa-frames 16] [--edge-cell 24] [--sponza FILE] [--helmet FILE] [--out DIR] [--device NAME] [--smoke]
 //
 // With --out DIR: per scene <scene>_reference.png, <scene>_edge_mask.png, <scene>_<mode>.png
@@ -89,8 +89,8 @@ constexpr float kSponzaYfov = 1.0f, kSponzaZnear = 0.1f;
 constexpr char kUsage[] =
     "usage: tessera-aa-quality [--scenes sponza,helmet,edges] [--modes "
     "none,msaa,fxaa,taa,vis_mlaa]\n"
-    "    [--samples 1|2|4|8] [--vis-mlaa-coverage auto|raster|analytic] [--width N] [--height N] [--frames N] [--warmup N] "
-    "[--taa-frames N]\n"
+    "    [--samples 1|2|4|8] [--vis-mlaa-coverage auto|raster|analytic] [--no-pass-timing]\n"
+    "    [--width N] [--height N] [--frames N] [--warmup N] [--taa-frames N]\n"
     "    [--edge-cell N] [--sponza FILE] [--helmet FILE] [--out DIR] [--device NAME] [--smoke]\n"
     "  defaults: all scenes and modes, samples 4, 1280x720 (sponza, helmet; edges renders at its\n"
     "  own size), 1 warm-up + 5 timed frames per mode (taa: at least --taa-frames, 16), edge cell\n"
@@ -117,6 +117,7 @@ struct Options {
   std::string sponza_path, helmet_path, out_dir, device;
   bool smoke = false;
   VisMlaaCoverage coverage = VisMlaaCoverage::kAuto;
+  bool pass_timing = true;  // --no-pass-timing: frames in one submission (Settings::pass_timing)
 };
 
 uint32_t ParseUint(const std::string& flag, const std::string& s) {
@@ -176,6 +177,8 @@ Options ParseOptions(int argc, char** argv) {
       const absl::StatusOr<bool> ok = ParseSettingFlag(arg, value, &parsed, &set);
       if (!ok.ok()) BadFlag(std::string(ok.status().message()));
       o.coverage = parsed.vis_mlaa_coverage;
+    } else if (arg == "--no-pass-timing") {
+      o.pass_timing = false;
     } else if (arg == "--width") {
       o.width = ParseUint(arg, value());
     } else if (arg == "--height") {
@@ -257,10 +260,6 @@ std::string Fmt(double v, int precision) {
   char buf[32];
   std::snprintf(buf, sizeof(buf), "%.*f", precision, v);
   return buf;
-}
-
-const char* TimingName(TimingSource t) {
-  return t == TimingSource::kPassWallClock ? "pass_wall_clock" : "gpu_timestamps";
 }
 
 // Timings of the frames of one render series.
@@ -447,6 +446,7 @@ Json RunScene(Renderer& r, const QualityScene& sc, const Options& o, uint64_t& n
   base.height = sc.height;
   base.samples = o.samples;
   base.vis_mlaa_coverage = o.coverage;
+  base.pass_timing = o.pass_timing;
   base.debug_view = sc.debug_view;
 
   Json out;
@@ -476,7 +476,7 @@ Json RunScene(Renderer& r, const QualityScene& sc, const Options& o, uint64_t& n
 
   std::vector<ModeRun> runs;
   for (AaMode m : o.modes) runs.push_back(RunMode(r, sc, base, m, next_view++, o));
-  out["timing"] = TimingName(runs.front().timings.source);
+  out["timing"] = ToString(runs.front().timings.source);
 
   // The no-AA frame: the none mode's, else one of its own.
   const RgbaImage* none = nullptr;
@@ -544,7 +544,7 @@ Json RunScene(Renderer& r, const QualityScene& sc, const Options& o, uint64_t& n
                sc.name.c_str(), sc.width, sc.height, ref_settings.width, ref_settings.height,
                ref_frame.gpu_total_ms, std::string(ToString(sc.debug_view)).c_str(),
                static_cast<unsigned long long>(edge_count),
-               100.0 * out["edge_fraction"].get<double>(), TimingName(ref_frame.timing));
+               100.0 * out["edge_fraction"].get<double>(), std::string(ToString(ref_frame.timing)).c_str());
   std::fprintf(stderr, "  %-16s %9s %9s %10s %10s %13s %10s\n", "mode", "gpu ms", "wall ms",
                "edge PSNR", "edge SSIM", "nonedge/none", "cov MAE");
   if (ref_cov)

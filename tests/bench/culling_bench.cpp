@@ -216,7 +216,7 @@ Json RunScene(Renderer& r, const BenchScene& sc, const Options& o) {
   out["resolution"] = std::to_string(o.width) + "x" + std::to_string(o.height);
   out["frames"] = sc.path.size();
   out["warmup"] = o.warmup;
-  out["timing"] = timing == TimingSource::kPassWallClock ? "pass_wall_clock" : "gpu_timestamps";
+  out["timing"] = ToString(timing);
   out["truly_visible"] = {{"drawables_per_frame", per_frame(visible_drawables)},
                           {"triangles_per_frame", per_frame(visible_triangles)},
                           {"triangles_submitted_if_exact_per_frame", per_frame(visible_submitted)}};

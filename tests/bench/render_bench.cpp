@@ -135,8 +135,7 @@ struct Side : Measured {
     r["pixels"] = last.lent ? "lent" : "copied";
     // Frame-total timestamps against the wall clock from submit to fence.
     r["timestamp_total_over_wall"] = Median(ratio);
-    r["timing"] =
-        last.timing == TimingSource::kPassWallClock ? "pass_wall_clock" : "gpu_timestamps";
+    r["timing"] = ToString(last.timing);
     const double pixels = double(w) * h;
     r["pipeline"] = ToString(last.settings.effective.pipeline);
     r["aa"] = ToString(last.settings.effective.aa);

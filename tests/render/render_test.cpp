@@ -6,6 +6,11 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
+#include <mutex>
+#include <deque>
+#include <condition_variable>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -13,7 +18,6 @@
 #include <memory>
 #include <string>
 
-#include "renderer/graph/readback_ring.h"
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
 #include "renderer/scene/gltf_import.h"
@@ -268,8 +272,9 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
     return std::vector<uint8_t>(v.pixels.begin(), v.pixels.end());
   };
 
+  constexpr uint32_t kLent = 3;
   absl::StatusOr<std::unique_ptr<Renderer>> made =
-      Renderer::Create({.validation = true, .lend_pixels = true});
+      Renderer::Create({.validation = true, .lend_pixels = true, .lent_buffers = kLent});
   ASSERT_TRUE(made.ok()) << made.status();
   std::unique_ptr<Renderer> r = *std::move(made);
   absl::StatusOr<SceneHandle> own = r->LoadScene(BuildDemoScene());
@@ -282,6 +287,7 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
   EXPECT_EQ(a->view().width, 96u);
   EXPECT_EQ(a->view().height, 64u);
   EXPECT_EQ(view_bytes(*a), want_near->image.pixels);
+  EXPECT_GE(a->stats.targets_created, 1u);  // its readback buffer among them
   const uint8_t* a_memory = a->view().pixels.data();
   // Encoded from where it lies: the same bytes as the copied frame's encoding.
   absl::StatusOr<std::vector<uint8_t>> a_png = EncodeFrame(*a, ImageFormat::kPng);
@@ -291,7 +297,7 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
 
   // While `a` is held, the next frames read back elsewhere and leave its pixels as they are.
   std::vector<Frame> held;
-  for (size_t i = 1; i < ReadbackRing::kBuffersPerSize; ++i) {
+  for (size_t i = 1; i < kLent; ++i) {
     absl::StatusOr<Frame> f = r->Render(**own, far, s);
     ASSERT_TRUE(f.ok()) << f.status();
     ASSERT_TRUE(f->lent) << "frame " << i;
@@ -300,8 +306,8 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
     held.push_back(*std::move(f));
   }
   EXPECT_EQ(view_bytes(*a), want_near->image.pixels);
-  EXPECT_EQ(r->lending().buffers, ReadbackRing::kBuffersPerSize);
-  EXPECT_EQ(r->lending().lent, ReadbackRing::kBuffersPerSize);
+  EXPECT_EQ(r->lending().buffers, kLent);
+  EXPECT_EQ(r->lending().lent, kLent);
 
   // Every buffer is lent: the next frame is copied out, whole.
   absl::StatusOr<Frame> copied = r->Render(**own, far, s);
@@ -314,7 +320,7 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
   // Let go, `a`'s buffer is the next frame's; moved, a lent frame still holds its buffer.
   r->ReleasePixels(*a);
   EXPECT_FALSE(a->lent);
-  EXPECT_EQ(r->lending().lent, ReadbackRing::kBuffersPerSize - 1);
+  EXPECT_EQ(r->lending().lent, kLent - 1);
   absl::StatusOr<Frame> b = r->Render(**own, far, s);
   ASSERT_TRUE(b.ok()) << b.status();
   ASSERT_TRUE(b->lent);
@@ -322,16 +328,63 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
   EXPECT_EQ(view_bytes(*b), want_far->image.pixels);
   Frame moved = *std::move(b);
   EXPECT_TRUE(moved.lent);
-  EXPECT_EQ(r->lending().lent, ReadbackRing::kBuffersPerSize);
+  EXPECT_EQ(r->lending().lent, kLent);
   held.clear();
   EXPECT_EQ(r->lending().lent, 1u);
 
-  // A frame of another size gets its own buffers.
+  // An encoder thread lets frames go while later ones render, alternating views: every frame's
+  // pixels stay its own until it is dropped (some copied out when all are lent).
+  {
+    std::mutex mu;
+    std::condition_variable cv;
+    std::deque<std::pair<Frame, bool>> queue;  // the frame, and whether it is the near view
+    bool done = false;
+    int checked = 0, wrong = 0;
+    std::thread encoder([&] {
+      std::unique_lock lock(mu);
+      for (;;) {
+        cv.wait(lock, [&] { return done || !queue.empty(); });
+        if (queue.empty()) return;
+        auto [f, is_near] = std::move(queue.front());
+        queue.pop_front();
+        lock.unlock();
+        std::this_thread::sleep_for(std::chrono::milliseconds(3));  // encoding it
+        const bool right =
+            view_bytes(f) == (is_near ? want_near->image.pixels : want_far->image.pixels);
+        f.lent.Release();
+        lock.lock();
+        ++checked;
+        wrong += right ? 0 : 1;
+      }
+    });
+    for (int i = 0; i < 12; ++i) {
+      const bool is_near = i % 2 == 0;
+      absl::StatusOr<Frame> f = r->Render(**own, is_near ? near : far, s);
+      ASSERT_TRUE(f.ok()) << f.status();
+      std::lock_guard lock(mu);
+      queue.emplace_back(*std::move(f), is_near);
+      cv.notify_one();
+    }
+    {
+      std::lock_guard lock(mu);
+      done = true;
+      cv.notify_one();
+    }
+    encoder.join();
+    EXPECT_EQ(checked, 12);
+    EXPECT_EQ(wrong, 0);
+  }
+  EXPECT_EQ(r->lending().lent, 1u);  // `moved`
+
+  // A frame of another size gets its own buffers; the first size's, unused for the pool's idle
+  // limit, are forgotten, and `moved`'s stays readable until it is let go.
   absl::StatusOr<Frame> wide = r->Render(**own, near, SmallSettings(128, 64));
   ASSERT_TRUE(wide.ok()) << wide.status();
   ASSERT_TRUE(wide->lent);
   EXPECT_EQ(wide->view().pixels.size(), 128u * 64u * 4u);
-  EXPECT_EQ(r->lending().buffers, ReadbackRing::kBuffersPerSize + 1);
+  for (int i = 0; i < 40; ++i) ASSERT_TRUE(r->Render(**own, near, SmallSettings(128, 64)).ok());
+  EXPECT_EQ(r->lending().buffers, 2u);  // wide's and the one the loop's frames took in turn
+  EXPECT_EQ(view_bytes(moved), want_far->image.pixels);
 
   // The renderer goes first; the lent pixels stay readable until they are let go (ASan).
   ExpectNoValidationMessages(*r);
@@ -375,6 +428,37 @@ TEST(RenderTest, TimingsAreConsistent) {
   EXPECT_GT(f->stats.draws, 0u);
   EXPECT_GT(f->stats.triangles_submitted, 0u);
   EXPECT_EQ(f->timing == TimingSource::kPassWallClock, r.device_info().type == "cpu");
+}
+
+// Settings::pass_timing off: the frame goes in one submission with no wait between passes, and
+// says so (on CPU devices the passes then carry the device's timestamps, the total the wall
+// time); the pixels and the passes are the same.
+TEST(RenderTest, WithoutPassTimingTheFrameIsOneSubmission) {
+  Renderer& r = SharedRenderer();
+  const SceneHandle& scene = SharedDemoScene();
+  const Camera camera = FromSceneCamera(scene->info().cameras[0]);
+  Settings s = SmallSettings(160, 90);
+  absl::StatusOr<Frame> timed = r.Render(*scene, camera, s);
+  s.pass_timing = false;
+  absl::StatusOr<Frame> batched = r.Render(*scene, camera, s);
+  ASSERT_TRUE(timed.ok() && batched.ok());
+  const bool cpu = r.device_info().type == "cpu";
+  EXPECT_TRUE(timed->settings.effective.pass_timing);
+  EXPECT_FALSE(batched->settings.effective.pass_timing);
+  EXPECT_EQ(batched->image.pixels, timed->image.pixels);
+  ASSERT_EQ(batched->passes.size(), timed->passes.size());
+  for (size_t i = 0; i < timed->passes.size(); ++i) {
+    EXPECT_EQ(batched->passes[i].pass, timed->passes[i].pass);
+    // What the timestamps said is what is reported (only CPU devices report otherwise, timed).
+    EXPECT_EQ(batched->passes[i].gpu_ms, batched->passes[i].timestamp_ms) << i;
+  }
+  EXPECT_EQ(batched->cpu.submissions, 1u);
+  EXPECT_EQ(timed->cpu.submissions, cpu ? uint32_t(timed->passes.size()) : 1u);
+  EXPECT_EQ(timed->timing, cpu ? TimingSource::kPassWallClock : TimingSource::kGpuTimestamps);
+  EXPECT_EQ(batched->timing, cpu ? TimingSource::kFrameWallClock : TimingSource::kGpuTimestamps);
+  if (cpu) EXPECT_EQ(batched->gpu_total_ms, batched->cpu.submit_wait_ms);
+  EXPECT_GT(batched->gpu_total_ms, 0.0);
+  ExpectNoValidationMessages(r);
 }
 
 // Work is charged to the pass that did it. With the glass sphere filling a third of the view the

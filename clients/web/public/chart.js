@@ -359,7 +359,10 @@ export function statsRows(frame, { fps = 0, latencyMs = null, bitrate = '–', d
   const shown = size(frame.width, frame.height);
   const rendered = size(frame.render_width ?? frame.width, frame.render_height ?? frame.height);
   const stats = frame.stats ?? {};
-  const wallClock = frame.timing_source === 'TIMING_PASS_WALL_CLOCK' ? ' (wall clock)' : '';
+  const wallClock =
+    frame.timing_source === 'TIMING_PASS_WALL_CLOCK' ? ' (wall clock)'
+    : frame.timing_source === 'TIMING_FRAME_WALL_CLOCK' ? ' (wall clock, one submission)'
+    : '';
   rows.push(
     ['codec', codecLabel(frame)],
     ['decode', Number.isFinite(decodeMs) ? `${formatMs(decodeMs)} ms` : '–'],

@@ -51,7 +51,7 @@ export const SETTING_SECTIONS = [
   {
     id: 'pipeline', title: 'Pipeline and debug', open: false,
     names: ['pipeline', 'post_stage', 'culling', 'light_culling', 'light_binning', 'tile_size',
-      'tile_depth_mask', 'debug_view'],
+      'tile_depth_mask', 'debug_view', 'pass_timing'],
     match: /^(pipeline|post_stage|cull|tile_|debug)|_(culling|binning)$/,
   },
 ];
