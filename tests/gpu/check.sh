@@ -12,12 +12,14 @@
 #   TESTS          test binaries to run (default: the render, aa, culling, forward+ and lighting tests)
 #   GTEST_FILTER   passed to each of them
 #   SIZES          benchmark sizes (default 1280x720,3840x2160); FRAMES (20), WARMUP (3)
-#   CONFIGS        benchmark configurations: plain, full, vis_mlaa, per_material (default all
-#                  four; vis_mlaa: the full stack with vis_mlaa and 20000 lights, raster coverage
-#                  against analytic in one run: the issue's 10 ms target at 4K; per_material: the
-#                  same with the visibility shading classified and dispatched per material
-#                  (TESSERA_SHADE_DISPATCH=per_material), against vis_mlaa's one dispatch, the
-#                  default where the device indexes sampler arrays)
+#   CONFIGS        benchmark configurations: plain, full, vis_mlaa, per_material, readback
+#                  (default all five; vis_mlaa: the full stack with vis_mlaa and 20000 lights,
+#                  raster coverage against analytic in one run: the issue's 10 ms target at 4K;
+#                  per_material: the same with the visibility shading classified and dispatched
+#                  per material (TESSERA_SHADE_DISPATCH=per_material), against vis_mlaa's one
+#                  dispatch, the default where the device indexes sampler arrays; readback: the
+#                  plain frame with its pixels lent to the encoder, as the server does, against
+#                  copied out of mapped memory (--copy-pixels), CPU stages in the summary)
 #   STEP_TIMEOUT   seconds per step (default 300)
 # The recipe (README, "Checking a GPU"): build, pack with gpu-pack.sh, then have the device tool
 # run `bash .gpu/run-on-gpu.sh 'tests/gpu/check.sh > $OUT/summary.json'` in the checkout.
@@ -33,7 +35,7 @@ mkdir -p "$out"
 tests=${TESTS:-render_tests aa_tests culling_tests forward_plus_tests lighting_tests}
 sizes=${SIZES:-1280x720,3840x2160}
 frames=${FRAMES:-20} warmup=${WARMUP:-3} step=${STEP_TIMEOUT:-300}
-configs=${CONFIGS:-plain full vis_mlaa per_material}
+configs=${CONFIGS:-plain full vis_mlaa per_material readback}
 export TESSERA_ASSETS_DIR=${TESSERA_ASSETS_DIR:-${A:-$root/../shared/assets}}
 # The checkout's goldens (with tests/render/golden/h200/ for GoldenCheckTest).
 export TESSERA_GOLDEN_DIR=$root/tests/render/golden TESSERA_TEST_OUTPUT_DIR=$out/images
@@ -61,7 +63,9 @@ for c in $configs; do
     full) flags=(--aa taa --lights 1024 --shadows --ssao --bloom --auto-exposure --ibl) ;;
     vis_mlaa) flags=("${issue_frame[@]}" --versus "--vis-mlaa-coverage analytic") ;;
     per_material) flags=("${issue_frame[@]}") dispatch=per_material ;;
-    *) echo "check.sh: unknown config $c (plain, full, vis_mlaa, per_material)" >&2; exit 2 ;;
+    readback) flags=(--versus "--copy-pixels") ;;
+    *) echo "check.sh: unknown config $c (plain, full, vis_mlaa, per_material, readback)" >&2
+       exit 2 ;;
   esac
   TESSERA_SHADE_DISPATCH=$dispatch timeout "$step" "$bench" --scene "$sponza" --sizes "$sizes" --frames "$frames" \
     --warmup "$warmup" --eye 9,1.6,-0.4 --target -5,3.5,0.3 "${flags[@]}" \
@@ -117,12 +121,14 @@ for c in configs:
         summary["benchmarks"].append({
             "config": c, "shading": b.get("device", {}).get("shading"),
             "size": "%dx%d" % (r["width"], r["height"]), "aa": r.get("aa"),
-            "pipeline": r.get("pipeline"), "timing": r.get("timing"),
+            "pipeline": r.get("pipeline"), "timing": r.get("timing"), "pixels": r.get("pixels"),
             "gpu_total_ms_median": r.get("gpu_total_ms_median"),
             "cpu_ms_median": r.get("cpu_ms_median"),
             "passes_ms_median": {p["pass"]: p["gpu_ms_median"] for p in r.get("passes", [])},
             **({"versus": {"flags": r["versus"]["flags"],
                            "gpu_total_ms_median": r["versus"]["result"].get("gpu_total_ms_median"),
+                           "cpu_ms_median": r["versus"]["result"].get("cpu_ms_median"),
+                           "pixels": r["versus"]["result"].get("pixels"),
                            "ratio_total": r["versus"]["ratio_total"],
                            "passes_ms_median": {p["pass"]: p["gpu_ms_median"] for p in
                                                 r["versus"]["result"].get("passes", [])}}}
