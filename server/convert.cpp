@@ -173,6 +173,7 @@ void FrameToProto(const Frame& f, v1::Frame* o) {
   v1::CpuTimings* cpu = o->mutable_cpu();
   cpu->set_record_ms(f.cpu.record_ms);
   cpu->set_gpu_ms(f.cpu.submit_wait_ms);
+  cpu->set_submissions(f.cpu.submissions);
   cpu->set_readback_ms(f.cpu.readback_ms);
   cpu->set_encode_ms(f.cpu.encode_ms);
   v1::FrameStats* st = o->mutable_stats();

@@ -336,6 +336,7 @@ class Job final : public RenderClient, public std::enable_shared_from_this<Job> 
     FrameMetaToProto(*frame, &meta);
     *e->mutable_passes() = std::move(*meta.mutable_passes());
     e->set_gpu_total_ms(meta.gpu_total_ms());
+    e->set_timing_source(meta.timing_source());
     *e->mutable_cpu() = meta.cpu();
     if (recent_.size() == kWatchReplayFrames) recent_.pop_front();
     recent_.push_back(*e);

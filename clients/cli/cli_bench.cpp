@@ -396,7 +396,8 @@ frames, then N measured frames, the camera orbiting the scene one step per recei
 measured frames: frames/s (wall clock), GPU and CPU time per frame, input-to-frame latency
 p50/p95 (a camera event sent -> the frame that reflects it), KB per frame, the bitrate (bytes
 of the measured frames over their span), and the three most expensive passes; above the table, the device and where its timings come from (device
-timestamps, or each pass timed by the wall clock on a CPU device). A progress bar over all
+timestamps, each pass timed by the wall clock on a CPU device, or, with --no-pass-timing, the
+frame in one submission timed by the wall clock). A progress bar over all
 configurations shows on stderr when it is a terminal.
   --suite S           aa: every AA mode the server offers (the default); culling: every
                       culling mode; lights: 0, 64, 256 and 1024 synthetic lights; all: the three

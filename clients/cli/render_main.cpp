@@ -211,6 +211,7 @@ int main(int argc, char** argv) {
           {{"pass", p.pass}, {"gpu_ms", p.gpu_ms}, {"timestamp_ms", p.timestamp_ms}});
     j["timing"] = ToString(frame.timing);
     j["gpu_total_ms"] = frame.gpu_total_ms;
+    j["submissions"] = frame.cpu.submissions;
     j["cpu_ms"] = {{"record", frame.cpu.record_ms},
                    {"submit_wait", frame.cpu.submit_wait_ms},
                    {"readback", frame.cpu.readback_ms},

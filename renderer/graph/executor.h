@@ -36,7 +36,7 @@ class GraphExecutor {
     double gpu_total_ms = 0.0;
     double record_ms = 0.0;       // CPU time recording (from `record_start`)
     double submit_wait_ms = 0.0;  // submit -> fence, summed over the submits
-  uint32_t submissions = 0;
+    uint32_t submissions = 0;     // 1, or one per pass (CPU devices with pass_timing)
     // Over the geometry passes, where the device has pipeline statistics.
     bool pipeline_statistics = false;
     uint64_t primitives_in = 0;

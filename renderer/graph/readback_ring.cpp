@@ -20,13 +20,18 @@ std::shared_ptr<ReadbackBuffer> ReadbackRing::Acquire(std::shared_ptr<vk::Contex
   }
   if (free) return free;
   if (of_size >= per_size_) return nullptr;
+  if (auto failed = failed_.find(bytes); failed != failed_.end()) {
+    if (failed->second + TargetPool::kIdleFrames >= frame) return nullptr;
+    failed_.erase(failed);  // memory may have been freed since: try again
+  }
   auto b = std::make_shared<ReadbackBuffer>();
   absl::StatusOr<vk::Buffer> made = vk::Buffer::Create(
       *ctx, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::MemoryUsage::kReadback, "lent_readback");
   if (!made.ok()) {
     // The copy's pool buffer is one buffer; this would have been one more per frame held.
-    Log().warn("readback: frames are copied out from now on ({})", made.status().ToString());
-    unusable_ = true;
+    Log().warn("readback: frames of {} bytes are copied out for the next {} frames ({})", bytes,
+               TargetPool::kIdleFrames, made.status().ToString());
+    failed_[bytes] = frame;
     return nullptr;
   }
   if ((made->memory_flags() & VK_MEMORY_PROPERTY_HOST_CACHED_BIT) == 0) {

@@ -6,11 +6,13 @@
 // device never writes into pixels someone still reads. The renderer copies the frame out as
 // before when Acquire has none: every buffer of the size lent (more frames held than
 // RendererOptions::lent_buffers), no host-cached memory type (encoders reading uncached or
-// write-combined memory row by row would be far slower than one copy), or no memory left.
+// write-combined memory row by row would be far slower than one copy), or no memory left for
+// one more of the size (tried again after TargetPool::kIdleFrames frames).
 // The buffers of a size no frame used for TargetPool::kIdleFrames are forgotten; one still lent
 // then lives until its holder lets it go, uncounted.
 #include <atomic>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <vector>
 
@@ -54,7 +56,8 @@ class ReadbackRing {
  private:
   uint32_t per_size_;
   uint64_t created_ = 0;
-  bool unusable_ = false;  // no host-cached memory, or an allocation failed: copy every frame
+  bool unusable_ = false;  // no host-cached memory type: every frame is copied out
+  std::map<uint64_t, uint64_t> failed_;  // sizes whose allocation failed -> the frame it did
   std::vector<std::shared_ptr<ReadbackBuffer>> buffers_;
 };
 

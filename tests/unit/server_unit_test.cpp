@@ -1269,6 +1269,8 @@ TEST(WireConversion, EncodedFrameBecomesTheWireFrame) {
   f.frame.passes = {{"depth_prepass", 1.5, 1.25}, {"forward", 2.5, 2.0}};
   f.frame.gpu_total_ms = 4.0;
   f.frame.cpu.encode_ms = 3.0;
+  f.frame.cpu.submissions = 1;  // the frame in one submission, on a CPU device (pass_timing off)
+  f.frame.timing = TimingSource::kFrameWallClock;
   f.frame.stats.draws = 11;
   // The visibility shading's counts, and which way it ran.
   f.frame.stats.shaded_pixels = 1500;
@@ -1301,6 +1303,8 @@ TEST(WireConversion, EncodedFrameBecomesTheWireFrame) {
   EXPECT_EQ(wire.cpu().encode_ms(), 3.0);
   EXPECT_EQ(wire.cpu().queue_wait_ms(), 0.5);
   EXPECT_EQ(wire.cpu().total_ms(), 9.0);
+  EXPECT_EQ(wire.cpu().submissions(), 1u);
+  EXPECT_EQ(wire.timing_source(), v1::TIMING_FRAME_WALL_CLOCK);
   EXPECT_EQ(wire.stats().draws(), 11u);
   EXPECT_EQ(wire.stats().shaded_pixels(), 1500u);
   EXPECT_EQ(wire.stats().shading_invocations(), 1536u);

@@ -46,8 +46,8 @@ const SERVER_SETTINGS = ['aa', 'samples', 'culling', 'scene_lights', 'synthetic_
   'tile_size', 'light_radius_min', 'light_radius_max', 'lights_animated', 'light_time', 'light_culling',
   'tile_depth_mask', 'light_binning', 'shadows', 'shadow_atlas_size', 'shadow_lights', 'shadow_cache', 'ssao',
   'ssao_radius', 'ssao_strength', 'ssao_half_res', 'bloom', 'bloom_strength', 'ibl', 'exposure_mode',
-  'exposure_ev', 'tonemapper', 'pipeline', 'post_stage', 'vis_mlaa_coverage', 'debug_view', 'jpeg_quality',
-  'jpeg_444'];
+  'exposure_ev', 'tonemapper', 'pipeline', 'post_stage', 'vis_mlaa_coverage', 'debug_view', 'pass_timing',
+  'jpeg_quality', 'jpeg_444'];
 
 test('every setting the server sends lands in one named section, none in "Other"', () => {
   const groups = groupSettings(SERVER_SETTINGS);
@@ -66,6 +66,7 @@ test('every setting the server sends lands in one named section, none in "Other"
   assert.equal(section('jpeg_444'), 'encoding');
   assert.equal(section('light_culling'), 'pipeline');
   assert.equal(section('debug_view'), 'pipeline');
+  assert.equal(section('pass_timing'), 'pipeline');
   // A switch comes before its parameters.
   const post = groups.find((g) => g.id === 'post').names;
   assert.ok(post.indexOf('ssao') < post.indexOf('ssao_radius'));
