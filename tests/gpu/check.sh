@@ -113,7 +113,7 @@ for t in tests:
     summary["tests"][t] = entry
 for c in configs:
     b = load(os.path.join(out, "bench-%s.json" % c))
-    if b is None:
+    if b is None or rc("bench-" + c) != 0:  # a JSON that parses may still end in failure
         summary["benchmarks"].append({"config": c, "exit": rc("bench-" + c),
                                       "error": "see bench-%s.log" % c})
         continue
