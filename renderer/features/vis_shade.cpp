@@ -391,9 +391,9 @@ class ShadePass final : public Pass {
   }
 
   // One dispatch over the frame's pixels in 8x8 tiles, which writes the sky too; vis_mlaa then
-  // one over its blend list for the runner-up surfaces no neighbour shows. The sky's entry counts
-  // the sky's pixels and, in one-sample frames, each material's entry its pixels (vis_mlaa's
-  // resolve counted those).
+  // one over its blend list for the runner-up surfaces no neighbour shows. In one-sample frames
+  // each material's entry counts its pixels (vis_mlaa's resolve counted those); the sky's entry
+  // counts the sky's pixels where a capture asks.
   void RecordAll(PassContext& ctx) {
     static_assert(gpu::kClassifyTile * gpu::kClassifyTile == gpu::kShadeGroupSize,
                   "vis_shade.glsl maps a workgroup to a tile");
@@ -416,7 +416,10 @@ class ShadePass final : public Pass {
     const VkDescriptorSet buckets = ctx.scene->bucket_set();
     vkCmdBindDescriptorSets(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, layout.pipeline_layout(),
                             gpu::kMaterialSet, 1, &buckets, 0, nullptr);
-    const gpu::ShadePush push{glm::uvec4(sb.materials, sb.edge_entry(), vis_mlaa ? 0u : 1u, 0u)};
+    // w: count the sky's pixels, only where a capture asks (FrameFeatures::count_background), as
+    // the classification does.
+    const gpu::ShadePush push{glm::uvec4(sb.materials, sb.edge_entry(), vis_mlaa ? 0u : 1u,
+                                         ctx.features->count_background ? 1u : 0u)};
     vkCmdPushConstants(ctx.cmd, layout.pipeline_layout(), VK_SHADER_STAGE_COMPUTE_BIT, 0,
                        sizeof(push), &push);
     vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[0].handle());

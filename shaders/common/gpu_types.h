@@ -542,7 +542,8 @@ struct GpuShadeEntry {
 // constant); vis_shade.comp: x the material shaded; vis_sky_mlaa.comp: x the sky's entry;
 // vis_resolve.comp: y the edge list's entry, x the entry kResolveArgs sizes (the mode is a
 // specialization constant); vis_shade_all*.comp: x the sky's entry, y the edge list's entry, z 1
-// where the shading counts the surfaces it shades in their materials' entries (one sample).
+// where the shading counts the surfaces it shades in their materials' entries (one sample), w 1
+// where it counts the sky's pixels in the sky's entry (a capture asks).
 #define TS_PUSH_SHADE uvec4 params;
 
 #ifdef __cplusplus

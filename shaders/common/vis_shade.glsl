@@ -77,7 +77,7 @@ void main() {
   g_pixel = vec2(p) + 0.5;
   uint id = texelFetch(u_vis_id, p, 0).r;
   if (id == 0u) {  // the sky (or a debug view's background), at the pixel's centre
-    Append(push.params.x, kCountBackground);
+    if (push.params.w != 0u) Append(push.params.x, kCountBackground);  // a capture asks
     imageStore(u_color, p, vec4(VisBackground(g_pixel, kIblCode), 1.0));
     return;
   }
