@@ -87,8 +87,7 @@ absl::Status Renderer::Impl::AcquireTargets(const Settings& s, bool moving) {
                        compute_ldr && fxaa ? kLdrFormat : VK_FORMAT_UNDEFINED));
   t.ldr = ldr->image;
   const uint64_t readback_bytes = uint64_t(width) * height * 4;
-  lent_readback.reset();
-  if (lend_pixels) lent_readback = readback_ring.Acquire(ctx, readback_bytes, frame);
+  lent_readback = readback_ring.Acquire(ctx, readback_bytes, frame);
   if (lent_readback) {
     readback = &lent_readback->buffer;
   } else {

@@ -45,7 +45,6 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
                                   options.disable_features,
                                   options.max_storage_buffer_range, options.appends,
                                   options.shading}));
-  impl->lend_pixels = options.lend_pixels && options.lent_buffers > 0;
   impl->readback_ring = ReadbackRing(options.lent_buffers);
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
@@ -458,26 +457,19 @@ Renderer::LendingStats Renderer::lending() const {
   return {impl_->readback_ring.size(), impl_->readback_ring.lent()};
 }
 
-LentPixels::LentPixels(std::shared_ptr<ReadbackBuffer> buffer, uint32_t width, uint32_t height)
-    : buffer_(std::move(buffer)), width_(width), height_(height) {}
-
-LentPixels::LentPixels(LentPixels&& o) noexcept
-    : buffer_(std::move(o.buffer_)), width_(o.width_), height_(o.height_) {}
+LentPixels::LentPixels(std::shared_ptr<ReadbackBuffer> buffer) : buffer_(std::move(buffer)) {}
 
 LentPixels& LentPixels::operator=(LentPixels&& o) noexcept {
   if (this != &o) {
     Release();
     buffer_ = std::move(o.buffer_);
-    width_ = o.width_;
-    height_ = o.height_;
   }
   return *this;
 }
 
-RgbaView LentPixels::view() const {
+std::span<const uint8_t> LentPixels::bytes() const {
   if (!buffer_) return {};
-  return {width_, height_,
-          {static_cast<const uint8_t*>(buffer_->buffer.mapped()), size_t(width_) * height_ * 4}};
+  return {static_cast<const uint8_t*>(buffer_->buffer.mapped()), size_t(buffer_->buffer.size())};
 }
 
 void LentPixels::Release() {
@@ -494,24 +486,28 @@ void Renderer::Impl::ReadBack(Frame& frame) {
   frame.image.height = s.height;
   if (lent_readback) {  // the caller reads the mapped bytes; the ring skips the buffer till then
     lent_readback->lent.store(true, std::memory_order_relaxed);
-    frame.lent = LentPixels(std::move(lent_readback), s.width, s.height);
-    frame.cpu.readback_ms = MsSince(t_readback);
-    return;
+    frame.lent = LentPixels(std::move(lent_readback));
+  } else {
+    frame.image.pixels = TakeSparePixels(size_t(s.width) * s.height * 4);
+    std::memcpy(frame.image.pixels.data(), readback->mapped(), frame.image.pixels.size());
   }
-  const size_t bytes = size_t(s.width) * s.height * 4;
+  frame.cpu.readback_ms = MsSince(t_readback);
+}
+
+std::vector<uint8_t> Renderer::Impl::TakeSparePixels(size_t bytes) {
+  std::vector<uint8_t> pixels;
   {
     // The newest given-back buffer that holds the frame without wasting more than its size.
     std::lock_guard lock(spare_mutex);
     for (auto it = spare_pixels.rbegin(); it != spare_pixels.rend(); ++it) {
       if (it->capacity() < bytes || it->capacity() > 2 * bytes) continue;
-      frame.image.pixels = std::move(*it);
+      pixels = std::move(*it);
       spare_pixels.erase(std::next(it).base());
       break;
     }
   }
-  frame.image.pixels.resize(bytes);
-  std::memcpy(frame.image.pixels.data(), readback->mapped(), frame.image.pixels.size());
-  frame.cpu.readback_ms = MsSince(t_readback);
+  pixels.resize(bytes);
+  return pixels;
 }
 
 uint64_t Renderer::validation_message_count() const {

@@ -37,13 +37,12 @@ struct RendererOptions {
   // How the visibility shading dispatches (DeviceInfo::shade_all_materials): kAuto, by the kind
   // of device (or $TESSERA_SHADE_DISPATCH); forced, to test both ways on one device.
   ShadeDispatch shading = ShadeDispatch::kAuto;
-  // Frames lend their pixels where the device copied them (Frame::lent) instead of copying them
-  // out of mapped memory into Frame::image.pixels: for callers that encode a frame and drop it
-  // (the server, tessera-bench). Off, every frame owns its pixels. At most `lent_buffers` per
-  // frame size are lent at once (the frames a caller holds, plus the one rendering); a frame
-  // beyond them, or on a device without host-cached memory, is copied out as without lending.
-  bool lend_pixels = false;
-  uint32_t lent_buffers = 4;
+  // Not 0: frames lend their pixels where the device copied them (Frame::lent) instead of
+  // copying them out of mapped memory into Frame::image.pixels, for callers that encode a frame
+  // and drop it (the server, tessera-bench), from at most this many buffers per frame size (the
+  // frames a caller holds, plus the one rendering); a frame beyond them, or on a device without
+  // host-cached memory, is copied out. 0: every frame owns its pixels.
+  uint32_t lent_buffers = 0;
 };
 
 // What a loaded scene is, without its geometry.
@@ -202,27 +201,25 @@ struct FrameCapture {
 struct ReadbackBuffer;  // renderer/graph/readback_ring.h
 
 // A frame's pixels left in the mapped readback buffer the device copied them into, lent to the
-// holder (RendererOptions::lend_pixels): what the encoders read without a copy. Move-only;
+// holder (RendererOptions::lent_buffers): what the encoders read without a copy. Move-only;
 // dropping it (or Release) hands the buffer back for a later frame, which the device will not
 // write before then. It may be read on any thread and may outlive the Renderer.
 class LentPixels {
  public:
   LentPixels() = default;
-  LentPixels(std::shared_ptr<ReadbackBuffer> buffer, uint32_t width, uint32_t height);
-  LentPixels(LentPixels&& o) noexcept;
+  explicit LentPixels(std::shared_ptr<ReadbackBuffer> buffer);
+  LentPixels(LentPixels&& o) noexcept = default;
   LentPixels& operator=(LentPixels&& o) noexcept;
   LentPixels(const LentPixels&) = delete;
   LentPixels& operator=(const LentPixels&) = delete;
   ~LentPixels() { Release(); }
 
   explicit operator bool() const { return buffer_ != nullptr; }
-  RgbaView view() const;  // empty when nothing is lent
+  std::span<const uint8_t> bytes() const;  // the frame's RGBA; empty when nothing is lent
   void Release();
 
  private:
   std::shared_ptr<ReadbackBuffer> buffer_;
-  uint32_t width_ = 0;
-  uint32_t height_ = 0;
 };
 
 struct Frame {
@@ -237,7 +234,9 @@ struct Frame {
   FrameStats stats;
   ResolvedSettings settings;  // effective settings and the notes on what changed
 
-  RgbaView view() const { return lent ? lent.view() : RgbaView(image); }
+  RgbaView view() const {
+    return lent ? RgbaView(image.width, image.height, lent.bytes()) : RgbaView(image);
+  }
 };
 
 // kRgba: not encoded; the pixels stay in the frame (a video session encodes them in order when
@@ -295,7 +294,7 @@ class Renderer {
   static constexpr size_t kSparePixelBuffers = 2;
   // Drops the frame's pixels: lent ones go back to the ring, owned ones to RecyclePixels.
   void ReleasePixels(Frame& frame);
-  // RendererOptions::lend_pixels: the readback buffers it lends from, and how many are lent now.
+  // RendererOptions::lent_buffers: the readback buffers it lends from, and how many are lent now.
   struct LendingStats {
     size_t buffers = 0;
     size_t lent = 0;

@@ -173,9 +173,8 @@ struct Renderer::Impl {
   TargetPool target_pool;  // every transient target, by (resource, size, samples, mips)
   FrameTargets targets;    // this frame's, from the pool
   const vk::Buffer* readback = nullptr;  // this frame's readback buffer, from the pool or ring
-  // RendererOptions::lend_pixels: the buffers frames are lent from, and this frame's (null when
-  // they were all lent: the frame reads back into the pool's and is copied out).
-  bool lend_pixels = false;
+  // RendererOptions::lent_buffers: the buffers frames are lent from, and this frame's (null when
+  // none is free or lending is off: the frame reads back into the pool's and is copied out).
   ReadbackRing readback_ring;
   std::shared_ptr<ReadbackBuffer> lent_readback;
   // Shadows: the atlas (made at the settings' size on first use), where its faces are and what
@@ -246,6 +245,8 @@ struct Renderer::Impl {
   // What the passes record with.
   PassContext MakePassContext(FrameData& f);
   void ReadBack(Frame& frame);
+  // Pixel memory of `bytes` for a copied-out frame: a given-back buffer that fits, else new.
+  std::vector<uint8_t> TakeSparePixels(size_t bytes);
 
   // The features' per-frame preparation, in the order Render calls them.
   // vis_mlaa.cpp: falls back to msaa when the scene's ids do not fit (with a note).

@@ -399,8 +399,8 @@ absl::StatusOr<std::unique_ptr<Server>> Server::Start(const ServerOptions& optio
   ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials, Credentials(options));
   RETURN_IF_ERROR(impl->OpenAuth());
   RendererOptions renderer_options{options.device, options.validation};
-  renderer_options.lend_pixels = true;  // encoded straight from the readback buffers
-  // The frames out on the encoders, the one rendering, and one a video session holds.
+  // Encoded straight from the readback buffers: the frames out on the encoders, the one
+  // rendering, and one a video session holds.
   renderer_options.lent_buffers = options.max_frames_in_flight + 2;
   ASSIGN_OR_RETURN(impl->renderer, Renderer::Create(renderer_options));
   impl->store =

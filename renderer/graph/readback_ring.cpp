@@ -9,7 +9,7 @@ namespace tessera {
 
 std::shared_ptr<ReadbackBuffer> ReadbackRing::Acquire(std::shared_ptr<vk::Context> ctx,
                                                       uint64_t bytes, uint64_t frame) {
-  if (unusable_) return nullptr;
+  if (unusable_ || per_size_ == 0) return nullptr;
   size_t of_size = 0;
   std::shared_ptr<ReadbackBuffer> free;
   for (const std::shared_ptr<ReadbackBuffer>& b : buffers_) {

@@ -1,6 +1,6 @@
 #pragma once
 // Where a frame's pixels are read back to when the renderer lends them (RendererOptions::
-// lend_pixels): a few mapped, host-cached buffers per frame size, each either free or lent to a
+// lent_buffers): a few mapped, host-cached buffers per frame size, each either free or lent to a
 // LentPixels that the caller holds while it encodes. A frame reads back into a free one and
 // hands it out as it is, so no copy leaves mapped memory; the next frame takes another, so the
 // device never writes into pixels someone still reads. The renderer copies the frame out as
@@ -36,8 +36,8 @@ struct ReadbackBuffer {
 
 class ReadbackRing {
  public:
-  // Lends from at most `per_size` buffers of each size.
-  explicit ReadbackRing(uint32_t per_size = 4) : per_size_(per_size) {}
+  // Lends from at most `per_size` buffers of each size (0: none; Acquire returns nullptr).
+  explicit ReadbackRing(uint32_t per_size = 0) : per_size_(per_size) {}
 
   // A buffer of `bytes` that nobody holds, marked used by `frame`: one made before, else a new
   // one while the size has fewer than per_size; nullptr when the frame must be copied out (see
@@ -49,7 +49,6 @@ class ReadbackRing {
   // Buffers the ring holds, and how many of them are lent now.
   size_t size() const { return buffers_.size(); }
   size_t lent() const;
-  uint32_t per_size() const { return per_size_; }
   // Buffers made so far (FrameStats::targets_created counts them with the pool's).
   uint64_t created() const { return created_; }
 

@@ -16,7 +16,7 @@
 //   tessera-bench --scene ... --pipeline visibility --versus "--disable-features texel_buffers"
 //
 // Frames lend their pixels to the encoder where the device copied them, as the server's do
-// (RendererOptions::lend_pixels; "pixels": "lent"); --copy-pixels copies them out of mapped
+// (RendererOptions::lent_buffers; "pixels": "lent"); --copy-pixels copies them out of mapped
 // memory first, as before (the readback figure is that copy). Both in one run:
 //   tessera-bench --sizes 3840x2160 --versus "--copy-pixels"
 //
@@ -259,9 +259,11 @@ int main(int argc, char** argv) {
       Fail("--versus: the frame sizes come from --sizes, for both sides");
   }
 
-  // Frames lend their pixels to the encoder, as the server's do (RendererOptions::lend_pixels).
-  absl::StatusOr<std::unique_ptr<Renderer>> renderer =
-      Renderer::Create({.device_name = device, .lend_pixels = !copy_pixels});
+  // Frames lend their pixels to the encoder, as the server's do (RendererOptions::lent_buffers:
+  // the frame a side keeps as `last` until the next is encoded, and the one rendering).
+  constexpr uint32_t kLentBuffers = 2;
+  absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create(
+      {.device_name = device, .lent_buffers = copy_pixels ? 0u : kLentBuffers});
   if (!renderer.ok()) Fail(std::string(renderer.status().message()));
   const auto t0 = std::chrono::steady_clock::now();
   const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);
@@ -282,7 +284,7 @@ int main(int argc, char** argv) {
     absl::StatusOr<std::unique_ptr<Renderer>> r2 =
         Renderer::Create({.device_name = device,
                           .disable_features = other_disabled,
-                          .lend_pixels = !other_copy_pixels});
+                          .lent_buffers = other_copy_pixels ? 0u : kLentBuffers});
     if (!r2.ok()) Fail("--versus: " + std::string(r2.status().message()));
     other_renderer = std::move(*r2);
     b.renderer = other_renderer.get();

@@ -251,7 +251,7 @@ TEST(RenderTest, RecycledPixelMemoryIsReused) {
   EXPECT_EQ(c->image.pixels.capacity(), 96u * 64u * 4u);
 }
 
-// RendererOptions::lend_pixels: a frame's pixels stay in the readback buffer the device copied
+// RendererOptions::lent_buffers: a frame's pixels stay in the readback buffer the device copied
 // them into, lent to the holder; the pixels are the copied frame's, a held frame is never written
 // by a later one, a buffer let go is used again, and when every buffer of the size is lent the
 // frame is copied out instead. A lent frame may outlive its renderer.
@@ -274,7 +274,7 @@ TEST(RenderTest, LentPixelsAreTheFramesAndNoLaterFrameWritesThem) {
 
   constexpr uint32_t kLent = 3;
   absl::StatusOr<std::unique_ptr<Renderer>> made =
-      Renderer::Create({.validation = true, .lend_pixels = true, .lent_buffers = kLent});
+      Renderer::Create({.validation = true, .lent_buffers = kLent});
   ASSERT_TRUE(made.ok()) << made.status();
   std::unique_ptr<Renderer> r = *std::move(made);
   absl::StatusOr<SceneHandle> own = r->LoadScene(BuildDemoScene());
