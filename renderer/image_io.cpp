@@ -111,8 +111,8 @@ absl::Status IndexStrip(EncodedStrip& s) {
   return absl::InternalError("EncodeJpeg: a strip has no scan");
 }
 
-absl::StatusOr<std::vector<uint8_t>> CompressRows(RgbaView image, uint32_t y0,
-                                                  uint32_t rows, int quality, int samp) {
+absl::StatusOr<std::vector<uint8_t>> CompressRows(RgbaView image, uint32_t y0, uint32_t rows,
+                                                  int quality, int samp) {
   TjHandle tj(tjInitCompress());
   if (tj.get() == nullptr) {
     return absl::InternalError(absl::StrCat("tjInitCompress: ", TjError(nullptr)));
@@ -429,9 +429,7 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max
   return image;
 }
 
-uint32_t AutoPngStrips(RgbaView image) {
-  return std::clamp(image.height / 64, 1u, kMaxPngStrips);
-}
+uint32_t AutoPngStrips(RgbaView image) { return std::clamp(image.height / 64, 1u, kMaxPngStrips); }
 
 absl::StatusOr<std::vector<uint8_t>> EncodePng(RgbaView image, uint32_t strips) {
   RETURN_IF_ERROR(ValidateImage(image, "EncodePng"));

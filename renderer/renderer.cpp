@@ -40,11 +40,10 @@ Renderer::~Renderer() = default;
 
 absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions& options) {
   auto impl = std::make_unique<Impl>();
-  ASSIGN_OR_RETURN(impl->ctx, vk::Context::Create(
-                                 {options.device_name, options.validation,
-                                  options.disable_features,
-                                  options.max_storage_buffer_range, options.appends,
-                                  options.shading}));
+  ASSIGN_OR_RETURN(
+      impl->ctx,
+      vk::Context::Create({options.device_name, options.validation, options.disable_features,
+                           options.max_storage_buffer_range, options.appends, options.shading}));
   impl->readback_ring = ReadbackRing(options.lent_buffers);
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {

@@ -91,9 +91,9 @@ struct PassTiming {
 
 // Where PassTiming::gpu_ms comes from.
 enum class TimingSource {
-  kGpuTimestamps,  // GPU timestamps around each pass (real GPUs)
-  kPassWallClock,  // CPU devices (lavapipe): each pass submitted alone and timed by the wall
-                   // clock, because lavapipe's per-pass timestamps misattribute work
+  kGpuTimestamps,   // GPU timestamps around each pass (real GPUs)
+  kPassWallClock,   // CPU devices (lavapipe): each pass submitted alone and timed by the wall
+                    // clock, because lavapipe's per-pass timestamps misattribute work
   kFrameWallClock,  // CPU devices with Settings::pass_timing off: the frame in one submission,
                     // its total by the wall clock, the passes as the device's timestamps say
 };
@@ -329,9 +329,9 @@ class Renderer {
   std::unique_ptr<Impl> impl_;
 };
 
-// Encodes the frame's pixels, owned or lent (JPEG with its settings' quality and chroma subsampling, or
-// PNG) and records the time in frame.cpu.encode_ms.
-// JPEG frames of 1920x1080 pixels and more are encoded in strips on several threads (image_io.h).
+// Encodes the frame's pixels, owned or lent (JPEG with its settings' quality and chroma
+// subsampling, or PNG) and records the time in frame.cpu.encode_ms. JPEG frames of 1920x1080 pixels
+// and more are encoded in strips on several threads (image_io.h).
 absl::StatusOr<std::vector<uint8_t>> EncodeFrame(Frame& frame, ImageFormat format);
 
 }  // namespace tessera

@@ -28,8 +28,8 @@ absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double
   if (work.output_width != 0 && work.output_height != 0 &&
       (work.output_width != out.render_width || work.output_height != out.render_height)) {
     const Clock::time_point t0 = Clock::now();
-    ASSIGN_OR_RETURN(RgbaImage upscaled, ResizeBicubic(frame.view(), work.output_width,
-                                                       work.output_height));
+    ASSIGN_OR_RETURN(RgbaImage upscaled,
+                     ResizeBicubic(frame.view(), work.output_width, work.output_height));
     renderer.ReleasePixels(frame);
     frame.image = std::move(upscaled);
     upscale_ms = MsBetween(t0, Clock::now());
@@ -39,7 +39,7 @@ absl::StatusOr<EncodedFrame> Encode(const RenderWork& work, Frame& frame, double
   } else {
     ASSIGN_OR_RETURN(out.data, EncodeFrame(frame, work.format));
     frame.cpu.encode_ms += upscale_ms;  // the upscale is part of encoding
-    renderer.ReleasePixels(frame);  // the bytes are what goes on
+    renderer.ReleasePixels(frame);      // the bytes are what goes on
   }
   out.frame = std::move(frame);
   out.format = work.format;

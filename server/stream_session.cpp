@@ -539,8 +539,7 @@ void StreamSession::EncodeAndWrite() {
     }
     encoder_.reset();
   } else if (!encoder_ || encoder_generation_ != job.generation ||
-             encoder_->width() != pixels.width ||
-             encoder_->height() != pixels.height ||
+             encoder_->width() != pixels.width || encoder_->height() != pixels.height ||
              // NVENC keeps the quality it opened with: another one needs a new encoder.
              (!encoder_->per_frame_crf() && encoder_->crf() != job.crf)) {
     video::EncoderOptions o;
@@ -564,9 +563,8 @@ void StreamSession::EncodeAndWrite() {
     }
   }
   if (st.ok() && job.video.h264) {
-    absl::StatusOr<video::Packet> packet =
-        encoder_->Encode(pixels.pixels.data(), size_t{pixels.width} * 4,
-                         fresh || job.keyframe, job.crf);
+    absl::StatusOr<video::Packet> packet = encoder_->Encode(
+        pixels.pixels.data(), size_t{pixels.width} * 4, fresh || job.keyframe, job.crf);
     if (packet.ok()) {
       const double ms = MsSince(t0);
       writing_frame_.set_data(packet->data.data(), packet->data.size());

@@ -193,7 +193,8 @@ struct ShadeBuffers {
 
 struct PassStats {
   uint32_t indirect_draws = 0;  // vkCmdDrawIndexedIndirectCount calls recorded
-  uint32_t material_draws = 0;  // the visibility shading's dispatches (FrameStats::shading_dispatches)
+  uint32_t material_draws =
+      0;  // the visibility shading's dispatches (FrameStats::shading_dispatches)
   // The invocations of its direct dispatches (the one-dispatch shading's over the frame); those
   // of its indirect dispatches are read back with the entries.
   uint64_t shading_invocations = 0;

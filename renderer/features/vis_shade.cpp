@@ -69,12 +69,10 @@ class ShadeLayout {
       b.push_back(LayoutBinding(gpu::kShadeBindingCoverage, kSampled, kCompute));
       b.push_back(LayoutBinding(gpu::kShadeBindingEdgeColors, kBuffer, kCompute));
     }
-    ASSIGN_OR_RETURN(l.layout_,
-                     PassLayout::Create(ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}},
-                                        "shade layout",
-                                        {scene.set_layout, all_materials
-                                                               ? scene.bucket_set_layout
-                                                               : scene.material_set_layout}));
+    ASSIGN_OR_RETURN(l.layout_, PassLayout::Create(
+                                    ctx, b, {{kCompute, 0, sizeof(gpu::ShadePush)}}, "shade layout",
+                                    {scene.set_layout, all_materials ? scene.bucket_set_layout
+                                                                     : scene.material_set_layout}));
     ASSIGN_OR_RETURN(l.sampler_, CreateClampSampler(ctx, false, "shade.ids"));
     return l;
   }
@@ -361,33 +359,30 @@ class ShadePass final : public Pass {
                           const FrameFeatures& features) {
     if (!all_) return absl::InternalError("shade: no bucket-indexing layouts on this device");
     const bool vis_mlaa = s.aa == AaMode::kVisMlaa;
-    return all_->pipelines
-        .Ensure(Key(s, scene, features, AllTextures(scene)),
-                [&](uint32_t key) -> absl::StatusOr<std::array<vk::Pipeline, 2>> {
-                  const std::vector<uint32_t> constants =
-                      ShadingConstants::FromKey(key & ~kMlaaKey).Values();
-                  const VkPipelineLayout layout =
-                      (vis_mlaa ? all_->mlaa : all_->one).pipeline_layout();
-                  // Specialized by the driver, as the per-material shading (above).
-                  std::array<vk::Pipeline, 2> made;
-                  ASSIGN_OR_RETURN(
-                      made[0],
-                      vk::CreateComputePipeline(
-                          ctx,
-                          absl::StrCat(vis_mlaa ? "shade_all.vis_mlaa." : "shade_all.",
-                                       absl::Hex(key)),
-                          vis_mlaa ? "vis_shade_all_mlaa.comp" : "vis_shade_all.comp", layout,
-                          constants, vk::Specialize::kByDriver));
-                  if (vis_mlaa) {
-                    ASSIGN_OR_RETURN(made[1], vk::CreateComputePipeline(
-                                                  ctx,
-                                                  absl::StrCat("shade_all.runner_ups.",
-                                                               absl::Hex(key)),
-                                                  "vis_shade_all_runner_ups.comp", layout,
-                                                  constants, vk::Specialize::kByDriver));
-                  }
-                  return made;
-                });
+    return all_->pipelines.Ensure(
+        Key(s, scene, features, AllTextures(scene)),
+        [&](uint32_t key) -> absl::StatusOr<std::array<vk::Pipeline, 2>> {
+          const std::vector<uint32_t> constants =
+              ShadingConstants::FromKey(key & ~kMlaaKey).Values();
+          const VkPipelineLayout layout = (vis_mlaa ? all_->mlaa : all_->one).pipeline_layout();
+          // Specialized by the driver, as the per-material shading (above).
+          std::array<vk::Pipeline, 2> made;
+          ASSIGN_OR_RETURN(
+              made[0],
+              vk::CreateComputePipeline(
+                  ctx,
+                  absl::StrCat(vis_mlaa ? "shade_all.vis_mlaa." : "shade_all.", absl::Hex(key)),
+                  vis_mlaa ? "vis_shade_all_mlaa.comp" : "vis_shade_all.comp", layout, constants,
+                  vk::Specialize::kByDriver));
+          if (vis_mlaa) {
+            ASSIGN_OR_RETURN(
+                made[1],
+                vk::CreateComputePipeline(
+                    ctx, absl::StrCat("shade_all.runner_ups.", absl::Hex(key)),
+                    "vis_shade_all_runner_ups.comp", layout, constants, vk::Specialize::kByDriver));
+          }
+          return made;
+        });
   }
 
   // One dispatch over the frame's pixels in 8x8 tiles, which writes the sky too; vis_mlaa then
@@ -430,10 +425,9 @@ class ShadePass final : public Pass {
     ctx.stats->shading_invocations += uint64_t(gx) * gy * gpu::kShadeGroupSize;
     if (vis_mlaa) {
       // Sized by the resolve (its kResolveArgs step over the blend list).
-      vk::CmdMemoryBarrier(ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT,
-                           VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
-                           VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT,
-                           VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
+      vk::CmdMemoryBarrier(
+          ctx.cmd, VK_PIPELINE_STAGE_2_COMPUTE_SHADER_BIT, VK_ACCESS_2_SHADER_STORAGE_WRITE_BIT,
+          VK_PIPELINE_STAGE_2_DRAW_INDIRECT_BIT, VK_ACCESS_2_INDIRECT_COMMAND_READ_BIT);
       vkCmdBindPipeline(ctx.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, pipelines[1].handle());
       vkCmdDispatchIndirect(ctx.cmd, sb.entries, VkDeviceSize(sb.blend_entry()) * entry);
       ctx.stats->material_draws++;
@@ -451,7 +445,7 @@ class ShadePass final : public Pass {
   ShadeLayout one_, mlaa_;  // one sample, vis_mlaa
   vk::Pipeline mlaa_sky_;  // vis_mlaa's sky (the one-sample classification writes its own)
   PerSampleCount<vk::Pipeline> shading_;  // by Key
-  std::optional<AllMaterials> all_;  // where the device indexes sampler arrays
+  std::optional<AllMaterials> all_;       // where the device indexes sampler arrays
 };
 
 }  // namespace
@@ -497,7 +491,7 @@ void SetupVisibilityShading(GraphBuilder& b) {
         .UseIfPresent(R::kPosedGeometry, A::kGeometryRead)
         .Use(R::kVisId, A::kComputeRead)
         .Use(R::kShadeLists, A::kComputeWrite);
-    b.Use(R::kHdrColor, A::kComputeWrite);  // the sky, where no surface is
+    b.Use(R::kHdrColor, A::kComputeWrite);                   // the sky, where no surface is
     if (vis_mlaa) b.Use(R::kEdgeSurfaces, A::kComputeRead);  // the runner-ups to list
   }
   b.Pass(PassId::kShade)

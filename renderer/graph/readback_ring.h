@@ -55,7 +55,7 @@ class ReadbackRing {
  private:
   uint32_t per_size_;
   uint64_t created_ = 0;
-  bool unusable_ = false;  // no host-cached memory type: every frame is copied out
+  bool unusable_ = false;                // no host-cached memory type: every frame is copied out
   std::map<uint64_t, uint64_t> failed_;  // sizes whose allocation failed -> the frame it did
   std::vector<std::shared_ptr<ReadbackBuffer>> buffers_;
 };

@@ -591,7 +591,6 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   return gs;
 }
 
-
 void GpuScene::PlanScene(const CpuScene& scene, std::vector<gpu::GpuDrawable>* drawables_out,
                          std::vector<gpu::GpuCullItem>* items_out) {
   std::vector<gpu::GpuDrawable>& drawables = *drawables_out;

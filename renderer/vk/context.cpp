@@ -424,10 +424,11 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                        : "visibility_buffer (disabled)",
                    "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
   if (!info.sampler_indexing && info.visibility_buffer)
-    out.push_back({"sampler array indexing (shaderSampledImageArrayDynamicIndexing, "
-                   "shaderSampledImageArrayNonUniformIndexing)",
-                   "the visibility shading classifies the pixels by material and runs one "
-                   "dispatch per material over its list"});
+    out.push_back(
+        {"sampler array indexing (shaderSampledImageArrayDynamicIndexing, "
+         "shaderSampledImageArrayNonUniformIndexing)",
+         "the visibility shading classifies the pixels by material and runs one "
+         "dispatch per material over its list"});
   if (!info.pipeline_statistics)
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
   if (!info.texel_buffers)
@@ -550,10 +551,10 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   // coverage) and 21 sampled images (those and five uniform texel buffers) for one stage.
   const bool shade_all_limits = p.limits.maxPerStageDescriptorSamplers >= 16 &&
                                 p.limits.maxPerStageDescriptorSampledImages >= 21;
-  info.shade_all_materials =
-      info.sampler_indexing && info.subgroup_ballot && info.visibility_buffer && shade_all_limits &&
-      (shading == ShadeDispatch::kAllMaterials ||
-       (shading == ShadeDispatch::kAuto && info.type != "cpu"));
+  info.shade_all_materials = info.sampler_indexing && info.subgroup_ballot &&
+                             info.visibility_buffer && shade_all_limits &&
+                             (shading == ShadeDispatch::kAllMaterials ||
+                              (shading == ShadeDispatch::kAuto && info.type != "cpu"));
   f12.hostQueryReset = f12_supported.hostQueryReset;
   f12.scalarBlockLayout = f12_supported.scalarBlockLayout;
   info.fallbacks = ListFallbacks(info);

@@ -141,8 +141,8 @@ TS_CONST uint kBindingOcclusionTex = 4;
 TS_CONST uint kBindingEmissiveTex = 5;
 TS_CONST uint kMaterialTextureSlots = 5;
 // Or, in the visibility shading of a device that indexes sampler arrays (DeviceInfo::
-// shade_all_materials, common/textures.glsl's SHADE_ALL_MATERIALS), set 1 is the scene's bucket set:
-// every bucket, indexed by a texture's bucket (GpuTextureRef::info.x), the materials read from
+// shade_all_materials, common/textures.glsl's SHADE_ALL_MATERIALS), set 1 is the scene's bucket
+// set: every bucket, indexed by a texture's bucket (GpuTextureRef::info.x), the materials read from
 // the scene's material buffer (kBindingMaterials).
 TS_CONST uint kBindingBuckets = 0;  // sampler2DArray[kMaxTextureBuckets]
 // The slots a material has a texture in, bit k for slot k (binding 1 + k): the shading's
@@ -233,7 +233,8 @@ TS_CONST uint kResolveEdges = 2;
 // per blend list entry: drops the runner-up where a neighbour geometric AA borrows from shows it
 // (it needs the ids kResolveEdges wrote); counts the others (edge entry list.x)
 TS_CONST uint kResolveRunnerUps = 3;
-TS_CONST uint kClassifyTile = 8;         // vis_classify and the one-dispatch shading: 8x8 pixels per workgroup
+// vis_classify and the one-dispatch shading: 8x8 pixels per workgroup.
+TS_CONST uint kClassifyTile = 8;
 TS_CONST uint kShadeGroupSize = 64;      // vis_shade: pixels per workgroup
 // A material's dispatch is at most this many workgroups wide (more rows above: the indirect
 // dispatch stays inside maxComputeWorkGroupCount, 65535, at any frame size).

@@ -34,8 +34,10 @@
 // metric over an empty selection (e.g. no edge pixels) is null. Everything else is finite.
 //
 //   tessera-aa-quality [--scenes sponza,helmet,edges] [--modes none,msaa,fxaa,taa,vis_mlaa]
-//       [--samples 4] [--vis-mlaa-coverage auto] [--no-pass-timing] [--width 1280] [--height 720] [--frames 5]
-//       [--warmup 1] [--taa-frames 16] [--edge-cell 24] [--sponza FILE] [--helmet FILE] [--out DIR] [--device NAME] [--smoke]
+//       [--samples 4] [--vis-mlaa-coverage auto] [--no-pass-timing] [--width 1280] [--height 720]
+//       [--frames 5]
+//       [--warmup 1] [--taa-frames 16] [--edge-cell 24] [--sponza FILE] [--helmet FILE] [--out DIR]
+//       [--device NAME] [--smoke]
 //
 // With --out DIR: per scene <scene>_reference.png, <scene>_edge_mask.png, <scene>_<mode>.png
 // and <scene>_contact.png (4x zoomed crops of the busiest edge windows, one column per image).
@@ -539,12 +541,12 @@ Json RunScene(Renderer& r, const QualityScene& sc, const Options& o, uint64_t& n
   out["targets"] = Targets(runs, quality);
 
   // The table.
-  std::fprintf(stderr,
-               "%s %ux%u (reference %ux%u: %.1f ms), %s, edge pixels %llu (%.2f%%), timing %s\n",
-               sc.name.c_str(), sc.width, sc.height, ref_settings.width, ref_settings.height,
-               ref_frame.gpu_total_ms, std::string(ToString(sc.debug_view)).c_str(),
-               static_cast<unsigned long long>(edge_count),
-               100.0 * out["edge_fraction"].get<double>(), std::string(ToString(ref_frame.timing)).c_str());
+  std::fprintf(
+      stderr, "%s %ux%u (reference %ux%u: %.1f ms), %s, edge pixels %llu (%.2f%%), timing %s\n",
+      sc.name.c_str(), sc.width, sc.height, ref_settings.width, ref_settings.height,
+      ref_frame.gpu_total_ms, std::string(ToString(sc.debug_view)).c_str(),
+      static_cast<unsigned long long>(edge_count), 100.0 * out["edge_fraction"].get<double>(),
+      std::string(ToString(ref_frame.timing)).c_str());
   std::fprintf(stderr, "  %-16s %9s %9s %10s %10s %13s %10s\n", "mode", "gpu ms", "wall ms",
                "edge PSNR", "edge SSIM", "nonedge/none", "cov MAE");
   if (ref_cov)

@@ -139,18 +139,19 @@ struct Side : Measured {
     const double pixels = double(w) * h;
     r["pipeline"] = ToString(last.settings.effective.pipeline);
     r["aa"] = ToString(last.settings.effective.aa);
-    r["stats"] = {{"draws", last.stats.draws},
-                  {"triangles_submitted", last.stats.triangles_submitted},
-                  {"drawables_culled", last.stats.drawables_culled},
-                  {"fragment_invocations_per_pixel", double(last.stats.fragment_invocations) / pixels},
-                  {"shaded_pixels", last.stats.shaded_pixels},
-                  {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels},
-                  {"shading_dispatches", last.stats.shading_dispatches},
-                  {"edge_pixels", last.stats.edge_pixels},
-                  {"runner_up_pixels", last.stats.runner_up_pixels},
-                  {"blend_pixels", last.stats.blend_pixels},
-                  {"animated_drawables", last.stats.animated_drawables},
-                  {"deformed_vertices", last.stats.deformed_vertices}};
+    r["stats"] = {
+        {"draws", last.stats.draws},
+        {"triangles_submitted", last.stats.triangles_submitted},
+        {"drawables_culled", last.stats.drawables_culled},
+        {"fragment_invocations_per_pixel", double(last.stats.fragment_invocations) / pixels},
+        {"shaded_pixels", last.stats.shaded_pixels},
+        {"shading_invocations_per_pixel", double(last.stats.shading_invocations) / pixels},
+        {"shading_dispatches", last.stats.shading_dispatches},
+        {"edge_pixels", last.stats.edge_pixels},
+        {"runner_up_pixels", last.stats.runner_up_pixels},
+        {"blend_pixels", last.stats.blend_pixels},
+        {"animated_drawables", last.stats.animated_drawables},
+        {"deformed_vertices", last.stats.deformed_vertices}};
     if (!skinning_share.empty()) {
       r["skinning_share_median"] = Median(skinning_share);
       r["skinning_share_min"] = Min(skinning_share);
@@ -262,8 +263,8 @@ int main(int argc, char** argv) {
   // Frames lend their pixels to the encoder, as the server's do (RendererOptions::lent_buffers:
   // the frame a side keeps as `last` until the next is encoded, and the one rendering).
   constexpr uint32_t kLentBuffers = 2;
-  absl::StatusOr<std::unique_ptr<Renderer>> renderer = Renderer::Create(
-      {.device_name = device, .lent_buffers = copy_pixels ? 0u : kLentBuffers});
+  absl::StatusOr<std::unique_ptr<Renderer>> renderer =
+      Renderer::Create({.device_name = device, .lent_buffers = copy_pixels ? 0u : kLentBuffers});
   if (!renderer.ok()) Fail(std::string(renderer.status().message()));
   const auto t0 = std::chrono::steady_clock::now();
   const SceneHandle scene = bench::LoadSceneOrDemo(**renderer, scene_path);

@@ -475,8 +475,7 @@ TEST(AaTest, VisMlaaGolden) {
     EXPECT_GT(capture.background_pixels, 0u);  // the demo's view has sky
     if (r.device_info().shade_all_materials) {
       EXPECT_TRUE(capture.shade_lists.empty());
-      EXPECT_GE(vis->stats.shaded_pixels + capture.background_pixels,
-                uint64_t(s.width) * s.height);
+      EXPECT_GE(vis->stats.shaded_pixels + capture.background_pixels, uint64_t(s.width) * s.height);
       EXPECT_LE(vis->stats.shaded_pixels + capture.background_pixels,
                 uint64_t(s.width) * s.height + vis->stats.runner_up_pixels);
     } else {

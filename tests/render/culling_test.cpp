@@ -282,11 +282,10 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   EXPECT_EQ(r.device_info().subgroup_appends, r.device_info().subgroup_ballot);
   // The lean device draws the visibility pass indexed, reading gl_PrimitiveID, where the device
   // has it; without it (SwiftShader) pulling is the visibility pass's only way.
-  std::vector<std::string> off = {"draw_indirect_count", "multi_draw_indirect",
-                                  "subgroup_arithmetic", "subgroup_ballot",
-                                  "sampler_minmax",      "material_variants",
-                                  "texel_buffers",       "host_specialization",
-                                  "sampler_indexing"};
+  std::vector<std::string> off = {
+      "draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic",
+      "subgroup_ballot",     "sampler_minmax",      "material_variants",
+      "texel_buffers",       "host_specialization", "sampler_indexing"};
   const bool primitive_id = r.device_info().primitive_id;
   if (primitive_id) off.push_back("vertex_pulling");
   absl::StatusOr<std::unique_ptr<Renderer>> lean =
@@ -312,9 +311,9 @@ TEST(FallbackTest, EveryFallbackRendersTheSamePixels) {
   // default), per material without sampler indexing.
   EXPECT_FALSE(info.sampler_indexing);
   EXPECT_FALSE(info.shade_all_materials);
-  EXPECT_EQ(r.device_info().shade_all_materials,
-            r.device_info().sampler_indexing && r.device_info().subgroup_ballot &&
-                r.device_info().visibility_buffer);
+  EXPECT_EQ(r.device_info().shade_all_materials, r.device_info().sampler_indexing &&
+                                                     r.device_info().subgroup_ballot &&
+                                                     r.device_info().visibility_buffer);
   std::printf("visibility shading compared: %s against per material\n",
               r.device_info().shade_all_materials ? "one dispatch" : "per material");
   // Pulled vertices on CPU devices (the test's) and devices without gl_PrimitiveID, indexed

@@ -3,20 +3,20 @@
 // goldens (then look at every one before committing it). On a mismatch the actual image and
 // an amplified diff are written to $TESSERA_TEST_OUTPUT_DIR.
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <chrono>
-#include <thread>
-#include <mutex>
-#include <deque>
-#include <condition_variable>
 #include <cmath>
+#include <condition_variable>
 #include <cstdlib>
+#include <deque>
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 
 #include "renderer/renderer.h"
 #include "renderer/scene/demo_scene.h"
@@ -409,10 +409,10 @@ TEST(RenderTest, TimingsAreConsistent) {
   const bool forward = f->settings.effective.pipeline == Pipeline::kForward;
   const bool classified = !forward && !r.device_info().shade_all_materials;
   std::vector<std::string> expected =
-      forward ? std::vector<std::string>{"depth_prepass", "light_cull", "forward", "transparent",
-                                         "tonemap", "readback"}
-              : std::vector<std::string>{"visibility", "light_cull", "vis_classify", "shade",
-                                         "transparent", "tonemap", "readback"};
+      forward ? std::vector<std::string>{"depth_prepass", "light_cull", "forward",
+                                         "transparent",   "tonemap",    "readback"}
+              : std::vector<std::string>{"visibility",  "light_cull", "vis_classify", "shade",
+                                         "transparent", "tonemap",    "readback"};
   if (!forward && !classified) expected.erase(expected.begin() + 2);
   const size_t shading = classified ? 3 : 2;
   ASSERT_EQ(f->passes.size(), expected.size());

@@ -44,8 +44,8 @@ TEST(ShaderRegistryTest, PerPixelVisibilityShadersHaveNoWorkgroupBarriers) {
        {"vis_classify.comp", "vis_classify_atomic.comp", "vis_classify_mlaa.comp",
         "vis_classify_atomic_mlaa.comp", "vis_resolve.comp", "vis_resolve_atomic.comp",
         "vis_resolve_analytic.comp", "vis_resolve_analytic_atomic.comp", "vis_shade.comp",
-        "vis_shade_mlaa.comp", "vis_sky_mlaa.comp", "vis_shade_all.comp",
-        "vis_shade_all_mlaa.comp", "vis_shade_all_runner_ups.comp"}) {
+        "vis_shade_mlaa.comp", "vis_sky_mlaa.comp", "vis_shade_all.comp", "vis_shade_all_mlaa.comp",
+        "vis_shade_all_runner_ups.comp"}) {
     SCOPED_TRACE(name);
     const SpirvUse use = Scan(EmbeddedShader(name));
     ASSERT_TRUE(use.valid) << "not embedded, or not SPIR-V";
