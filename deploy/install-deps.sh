@@ -22,6 +22,8 @@ PACKAGES=(
   prometheus-cpp-dev
   # image encoding, logging
   libturbojpeg0-dev libpng-dev zlib1g-dev libspdlog-dev libfmt-dev
+  # WebP textures (EXT_texture_webp)
+  libwebp-dev
   # video streams (h264 sessions; libavcodec with libx264, swscale for RGB->YUV, libavformat for
   # the CLI's .mp4; Debian builds these with --enable-gpl: see the README's licence section)
   libavcodec-dev libavformat-dev libswscale-dev libavutil-dev

@@ -2,6 +2,8 @@
 
 #include <png.h>
 #include <turbojpeg.h>
+#include <webp/decode.h>
+#include <webp/encode.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -12,8 +14,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <initializer_list>
-#include <span>
 #include <limits>
+#include <span>
 #include <thread>
 #include <utility>
 
@@ -24,6 +26,44 @@
 namespace tessera {
 namespace {
 
+const char* WebpStatusName(VP8StatusCode status) {
+  switch (status) {
+    case VP8_STATUS_OK:
+      return "ok";
+    case VP8_STATUS_OUT_OF_MEMORY:
+      return "out of memory";
+    case VP8_STATUS_INVALID_PARAM:
+      return "invalid parameter";
+    case VP8_STATUS_BITSTREAM_ERROR:
+      return "not a WebP bitstream";
+    case VP8_STATUS_UNSUPPORTED_FEATURE:
+      return "unsupported feature";
+    case VP8_STATUS_SUSPENDED:
+      return "suspended";
+    case VP8_STATUS_USER_ABORT:
+      return "aborted";
+    case VP8_STATUS_NOT_ENOUGH_DATA:
+      return "cut short";
+  }
+  return "unknown status";
+}
+
+// The RGBA8 image a decoder of `who` fills, once its header's size is checked: each side
+// 1..kMaxImageSide, at most `max_pixels` in all.
+absl::StatusOr<RgbaImage> DecodeTarget(const char* who, int width, int height,
+                                       uint64_t max_pixels) {
+  if (width <= 0 || height <= 0 || static_cast<uint32_t>(width) > kMaxImageSide ||
+      static_cast<uint32_t>(height) > kMaxImageSide ||
+      uint64_t(width) * uint64_t(height) > max_pixels) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(who, ": dimensions out of range (", width, "x", height, ")"));
+  }
+  RgbaImage image;
+  image.width = static_cast<uint32_t>(width);
+  image.height = static_cast<uint32_t>(height);
+  image.pixels.resize(size_t{image.width} * image.height * 4);
+  return image;
+}
 
 // ---- TurboJPEG ---------------------------------------------------------------------------
 
@@ -409,16 +449,7 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max
                           &height, &subsamp, &colorspace) != 0) {
     return absl::InvalidArgumentError(absl::StrCat("DecodeJpeg: bad header: ", TjError(tj.get())));
   }
-  if (width <= 0 || height <= 0 || static_cast<uint32_t>(width) > kMaxImageSide ||
-      static_cast<uint32_t>(height) > kMaxImageSide ||
-      uint64_t(width) * uint64_t(height) > max_pixels) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("DecodeJpeg: dimensions out of range (", width, "x", height, ")"));
-  }
-  RgbaImage image;
-  image.width = static_cast<uint32_t>(width);
-  image.height = static_cast<uint32_t>(height);
-  image.pixels.resize(size_t{image.width} * image.height * 4);
+  ASSIGN_OR_RETURN(RgbaImage image, DecodeTarget("DecodeJpeg", width, height, max_pixels));
   // Stop on warnings: a truncated scan is only a warning to libjpeg (it pads with grey),
   // and we would rather report it than hand back a half-grey frame.
   if (tjDecompress2(tj.get(), jpeg.data(), static_cast<unsigned long>(jpeg.size()),
@@ -427,6 +458,57 @@ absl::StatusOr<RgbaImage> DecodeJpeg(std::span<const uint8_t> jpeg, uint64_t max
     return absl::InvalidArgumentError(absl::StrCat("DecodeJpeg: ", TjError(tj.get())));
   }
   return image;
+}
+
+bool IsWebp(std::span<const uint8_t> d) {
+  return d.size() >= 12 && std::memcmp(d.data(), "RIFF", 4) == 0 &&
+         std::memcmp(d.data() + 8, "WEBP", 4) == 0;
+}
+
+bool ReadWebpSize(std::span<const uint8_t> webp, uint32_t* width, uint32_t* height) {
+  int w = 0, h = 0;
+  if (!IsWebp(webp) || !WebPGetInfo(webp.data(), webp.size(), &w, &h) || w <= 0 || h <= 0)
+    return false;
+  *width = uint32_t(w);
+  *height = uint32_t(h);
+  return true;
+}
+
+absl::StatusOr<RgbaImage> DecodeWebp(std::span<const uint8_t> webp, uint64_t max_pixels) {
+  if (webp.empty()) return absl::InvalidArgumentError("DecodeWebp: empty input");
+  WebPBitstreamFeatures features;
+  // The RIFF header and the first chunk's: the size, alpha and animation, nothing decoded.
+  const VP8StatusCode header = WebPGetFeatures(webp.data(), webp.size(), &features);
+  if (header != VP8_STATUS_OK) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("DecodeWebp: bad header (", WebpStatusName(header), ")"));
+  }
+  if (features.has_animation) {
+    return absl::InvalidArgumentError("DecodeWebp: an animated WebP (only still images decode)");
+  }
+  const int width = features.width, height = features.height;
+  ASSIGN_OR_RETURN(RgbaImage image, DecodeTarget("DecodeWebp", width, height, max_pixels));
+  // Into our buffer, at the size the header gave (libwebp refuses data of another size).
+  if (WebPDecodeRGBAInto(webp.data(), webp.size(), image.pixels.data(), image.pixels.size(),
+                         width * 4) == nullptr) {
+    return absl::InvalidArgumentError(
+        "DecodeWebp: the image data is corrupt or cut short (libwebp could not decode it)");
+  }
+  return image;
+}
+
+absl::StatusOr<std::vector<uint8_t>> EncodeWebpLossless(RgbaView image) {
+  RETURN_IF_ERROR(ValidateImage(image, "EncodeWebpLossless"));
+  uint8_t* out = nullptr;
+  const size_t size = WebPEncodeLosslessRGBA(image.pixels.data(), int(image.width),
+                                             int(image.height), int(image.width) * 4, &out);
+  if (size == 0 || out == nullptr) {
+    WebPFree(out);
+    return absl::InternalError("EncodeWebpLossless: libwebp's encoder failed");
+  }
+  std::vector<uint8_t> bytes(out, out + size);
+  WebPFree(out);
+  return bytes;
 }
 
 uint32_t AutoPngStrips(RgbaView image) { return std::clamp(image.height / 64, 1u, kMaxPngStrips); }

@@ -69,6 +69,17 @@ uint32_t AutoPngStrips(RgbaView image);
 // Decodes any PNG (gray, palette, 16-bit, with/without alpha) to RGBA8; sizes as DecodeJpeg.
 absl::StatusOr<RgbaImage> DecodePng(std::span<const uint8_t> png,
                                     uint64_t max_pixels = uint64_t{kMaxImageSide} * kMaxImageSide);
+// Decodes a WebP image (lossy or lossless, with or without alpha; not animated) to RGBA8 with
+// libwebp; sizes as DecodeJpeg. Lossy WebP without alpha decodes with alpha 255.
+absl::StatusOr<RgbaImage> DecodeWebp(std::span<const uint8_t> webp,
+                                     uint64_t max_pixels = uint64_t{kMaxImageSide} * kMaxImageSide);
+// Whether `data` starts as a WebP file does ("RIFF", a size, "WEBP").
+bool IsWebp(std::span<const uint8_t> data);
+// A WebP image's width and height from its headers (libwebp's WebPGetInfo), nothing decoded;
+// false when they are cut short or not WebP.
+bool ReadWebpSize(std::span<const uint8_t> webp, uint32_t* width, uint32_t* height);
+// Encodes RGBA8 as lossless WebP (libwebp; tests make WebP textures with it).
+absl::StatusOr<std::vector<uint8_t>> EncodeWebpLossless(RgbaView image);
 // INVALID_ARGUMENT naming `what` when the image is empty, larger than kMaxImageSide on a side,
 // or its pixel buffer does not hold width x height RGBA.
 absl::Status ValidateImage(RgbaView image, const char* what);

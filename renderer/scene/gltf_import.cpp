@@ -53,15 +53,17 @@ float ToFloat(double d) {
 
 // ---------------------------------------------------------------------------------------------
 // tinygltf callbacks: files come only from the file set; images decode with libpng and
-// TurboJPEG (image_io.h), the decoders the frames use. Not stb_image: fuzzing found that the
-// Debian 12 build writes past a Huffman table on a crafted JPEG (tests/fuzz/regressions/image),
-// and glTF 2.0 allows only PNG and JPEG images anyway.
+// TurboJPEG (image_io.h), the decoders the frames use, and EXT_texture_webp's sources with
+// libwebp. Not stb_image: fuzzing found that the Debian 12 build writes past a Huffman table on
+// a crafted JPEG (tests/fuzz/regressions/image), and glTF 2.0 allows only PNG and JPEG images
+// anyway.
 
 struct LoadContext {
   const GltfSource* source = nullptr;
   const ImportLimits* limits = nullptr;
   std::map<std::string, std::string> alias;  // tinygltf-decoded URI -> key in source->files
   std::vector<bool> image_needed;            // referenced by some texture
+  std::vector<bool> image_webp;              // an EXT_texture_webp source: may be WebP
   uint64_t decoded_bytes = 0;                // RGBA8 bytes of the images decoded so far
   absl::Status error;                        // first error raised inside a callback
 };
@@ -162,24 +164,34 @@ bool ReadImageHeader(const uint8_t* d, size_t n, uint32_t* w, uint32_t* h) {
 bool IsPng(const uint8_t* d, size_t n) { return n >= 8 && std::memcmp(d, "\x89PNG\r\n\x1a\n", 8) == 0; }
 bool IsJpeg(const uint8_t* d, size_t n) { return n >= 3 && d[0] == 0xFF && d[1] == 0xD8 && d[2] == 0xFF; }
 
+// PNG or JPEG, or with `webp` (an EXT_texture_webp source) WebP too.
 absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
-                                         const ImportLimits& limits, uint64_t already_decoded) {
+                                         const ImportLimits& limits, uint64_t already_decoded,
+                                         bool webp) {
   if (bytes == nullptr || size == 0) return absl::InvalidArgumentError("no image data");
+  const std::span<const uint8_t> file(bytes, size);
   const bool png = IsPng(bytes, size);
-  if (!png && !IsJpeg(bytes, size)) {
+  const bool is_webp = !png && IsWebp(file);
+  if (is_webp && !webp) {
     return absl::InvalidArgumentError(
-        "not a PNG or JPEG image (the image types glTF 2.0 allows)");
+        "a WebP image, which glTF allows only as a texture's EXT_texture_webp source");
   }
-  uint32_t w = 0, h = 0;
-  if (!ReadImageHeader(bytes, size, &w, &h)) {
+  if (!png && !is_webp && !IsJpeg(bytes, size)) {
     return absl::InvalidArgumentError(
-        absl::StrCat("cannot decode: the ", png ? "PNG" : "JPEG", " header is cut short or "
-                     "declares no size"));
+        webp ? "not a PNG, JPEG or WebP image"
+             : "not a PNG or JPEG image (the image types glTF 2.0 allows)");
+  }
+  const char* type = png ? "PNG" : is_webp ? "WebP" : "JPEG";
+  uint32_t w = 0, h = 0;
+  if (is_webp ? !ReadWebpSize(file, &w, &h) : !ReadImageHeader(bytes, size, &w, &h)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("cannot decode: the ", type, " header is cut short or declares no size"));
   }
   RETURN_IF_ERROR(CheckImageSize(w, h, limits, already_decoded));
-  const std::span<const uint8_t> file(bytes, size);
   const uint64_t max_pixels = uint64_t(w) * h;  // what the header promised, and was checked
-  absl::StatusOr<RgbaImage> image = png ? DecodePng(file, max_pixels) : DecodeJpeg(file, max_pixels);
+  absl::StatusOr<RgbaImage> image = png       ? DecodePng(file, max_pixels)
+                                    : is_webp ? DecodeWebp(file, max_pixels)
+                                              : DecodeJpeg(file, max_pixels);
   if (!image.ok()) {
     return absl::InvalidArgumentError(absl::StrCat("cannot decode: ", image.status().message()));
   }
@@ -197,7 +209,10 @@ bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::s
   auto* ctx = static_cast<LoadContext*>(user);
   // The declared type (a bufferView image's mimeType, a data: URI's media type) is the data's.
   const size_t n = size_t(std::max(size, 0));
-  const char* actual = IsPng(bytes, n) ? "image/png" : IsJpeg(bytes, n) ? "image/jpeg" : nullptr;
+  const char* actual = IsPng(bytes, n)                              ? "image/png"
+                       : IsJpeg(bytes, n)                           ? "image/jpeg"
+                       : IsWebp(std::span<const uint8_t>(bytes, n)) ? "image/webp"
+                                                                    : nullptr;
   if (actual != nullptr && !image->mimeType.empty() && image->mimeType != actual) {
     if (ctx->error.ok()) {
       ctx->error = Invalid(ctx->source->main_file, absl::StrCat("images[", index, "].mimeType"),
@@ -209,8 +224,9 @@ bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::s
   if (index < 0 || size_t(index) >= ctx->image_needed.size() || !ctx->image_needed[index]) {
     return true;  // no texture uses it: skip the decode
   }
+  const bool webp = size_t(index) < ctx->image_webp.size() && ctx->image_webp[index];
   absl::StatusOr<DecodedImage> decoded =
-      DecodeImage(bytes, size_t(std::max(size, 0)), *ctx->limits, ctx->decoded_bytes);
+      DecodeImage(bytes, size_t(std::max(size, 0)), *ctx->limits, ctx->decoded_bytes, webp);
   if (decoded.ok()) {
     ctx->decoded_bytes += decoded->rgba8.size();
     image->width = int(decoded->width);
@@ -1457,14 +1473,22 @@ class Converter {
     }
     const tinygltf::Texture& gt = m_.textures[texture];
     const std::string field = absl::StrCat("textures[", texture, "]");
-    if (gt.source >= 0) {
-      RETURN_IF_ERROR(CheckIndex(field + ".source", gt.source, m_.images.size(), "image"));
+    // EXT_texture_webp's source where the texture has one (the pre-scan checked it); its core
+    // source is then a fallback for other viewers.
+    int source = gt.source;
+    if (const auto ext = gt.extensions.find("EXT_texture_webp");
+        ext != gt.extensions.end() && Uses("EXT_texture_webp") && ext->second.Has("source")) {
+      source = ext->second.Get("source").GetNumberAsInt();
+      RETURN_IF_ERROR(CheckIndex(field + ".extensions.EXT_texture_webp.source", source,
+                                 m_.images.size(), "image"));
+    } else if (source >= 0) {
+      RETURN_IF_ERROR(CheckIndex(field + ".source", source, m_.images.size(), "image"));
     }
     if (gt.sampler >= 0) {
       RETURN_IF_ERROR(CheckIndex(field + ".sampler", gt.sampler, m_.samplers.size(), "sampler"));
     }
     int32_t& result = texture_cache_[{texture, srgb}] = -1;
-    Texture t{.image = gt.source >= 0 ? ImageFor(gt.source) : nullptr, .srgb = srgb};
+    Texture t{.image = source >= 0 ? ImageFor(source) : nullptr, .srgb = srgb};
     if (t.image == nullptr) {
       Warn(field + ": no decoded image source (extension-only sources are not supported)");
       return result;
@@ -1771,9 +1795,13 @@ class Converter {
 }  // namespace
 
 const std::vector<std::string_view>& SupportedGltfExtensions() {
-  static const std::vector<std::string_view> names{
-      "EXT_meshopt_compression", "KHR_draco_mesh_compression", "KHR_lights_punctual",
-      "KHR_materials_emissive_strength", "KHR_mesh_quantization", "KHR_texture_transform"};
+  static const std::vector<std::string_view> names{"EXT_meshopt_compression",
+                                                   "EXT_texture_webp",
+                                                   "KHR_draco_mesh_compression",
+                                                   "KHR_lights_punctual",
+                                                   "KHR_materials_emissive_strength",
+                                                   "KHR_mesh_quantization",
+                                                   "KHR_texture_transform"};
   return names;
 }
 
@@ -1790,7 +1818,8 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
   LoadContext ctx{.source = &source,
                   .limits = &limits,
                   .alias = std::move(pre->alias),
-                  .image_needed = std::move(pre->image_needed)};
+                  .image_needed = std::move(pre->image_needed),
+                  .image_webp = std::move(pre->image_webp)};
 
   tinygltf::TinyGLTF loader;
   loader.SetFsCallbacks(
@@ -1831,7 +1860,7 @@ absl::StatusOr<CpuScene> ImportGltf(const GltfSource& source, const ImportLimits
 
 absl::StatusOr<DecodedImage> DecodeTextureImage(const uint8_t* bytes, size_t size,
                                                 const ImportLimits& limits) {
-  return DecodeImage(bytes, size, limits, 0);
+  return DecodeImage(bytes, size, limits, 0, /*webp=*/true);
 }
 
 }  // namespace tessera

@@ -45,7 +45,8 @@ struct DecodedImage {
 };
 
 // Decodes a texture image the way the importer does: PNG (libpng) or JPEG (TurboJPEG), the
-// types glTF 2.0 allows, to RGBA8. The header is read first, so a size over
+// types glTF 2.0 allows, or WebP (libwebp; the importer allows it for EXT_texture_webp
+// sources only), to RGBA8. The header is read first, so a size over
 // limits.max_image_dimension or max_image_bytes is refused (RESOURCE_EXHAUSTED naming the
 // limit) before any pixel memory is allocated; anything else that does not decode is
 // INVALID_ARGUMENT. Messages do not name the image: the caller does.

@@ -487,6 +487,10 @@ class PreScan {
     size_t payload = 0;
     if (u.rfind("data:", 0) == 0) {
       if (IsTinygltfDataUri(u, &payload)) return std::string::npos;
+      // (tinygltf 2.7 decodes no image/webp data: URI; it would take it for a file name.)
+      if (absl::StartsWith(u, "data:image/webp"))
+        return Invalid(file_, field, "a WebP image in a data: URI is not supported (put it in a ",
+                       "file or a bufferView)");
       return Invalid(file_, field, "unsupported data: URI (base64 buffer and image types only)");
     }
     ASSIGN_OR_RETURN(std::string key, Resolve(field, u));
@@ -945,7 +949,9 @@ class PreScan {
                  bv && (!JsonUint(bv, &view) || view >= views)) {
         return Invalid(file_, field + ".bufferView", "out of range (", views, " bufferViews)");
       } else if (bv && Member(im, "mimeType") == nullptr) {
-        return Invalid(file_, field + ".bufferView", "needs a mimeType (image/png or image/jpeg)");
+        return Invalid(file_, field + ".bufferView",
+                       "needs a mimeType (image/png, image/jpeg, or image/webp with "
+                       "EXT_texture_webp)");
       } else if (bv && result_->meshopt_views.count(uint32_t(view))) {
         // tinygltf reads image bytes straight from the buffer, before anything is decoded.
         return Invalid(file_, field + ".bufferView", "bufferViews[", view,
@@ -953,9 +959,28 @@ class PreScan {
       }
     }
     result_->image_needed.assign(count, false);
+    result_->image_webp.assign(count, false);
+    const bool webp = Lists(j, "extensionsUsed", "EXT_texture_webp");
     for (size_t t = 0; t < ArraySize(j, "textures"); ++t) {
+      const json& texture = j["textures"][t];
+      // EXT_texture_webp: the texture samples its WebP source; its core source (optional) is a
+      // PNG or JPEG fallback for viewers without the extension, not decoded here.
+      if (const json* ext =
+              webp ? Member(Member(texture, "extensions"), "EXT_texture_webp") : nullptr) {
+        const std::string field = absl::StrCat("textures[", t, "].extensions.EXT_texture_webp");
+        if (!ext->is_object()) return Invalid(file_, field, "not an object");
+        uint64_t source = 0;
+        const json* s = Member(*ext, "source");
+        if (s == nullptr) return Invalid(file_, field + ".source", "missing (an image index)");
+        if (!JsonUint(s, &source) || source >= count) {
+          return Invalid(file_, field + ".source", "out of range (", count, " images)");
+        }
+        result_->image_needed[source] = true;
+        result_->image_webp[source] = true;
+        continue;
+      }
       uint64_t source = 0;
-      if (JsonUint(Member(j["textures"][t], "source"), &source) && source < count) {
+      if (JsonUint(Member(texture, "source"), &source) && source < count) {
         result_->image_needed[source] = true;
       }
     }

@@ -49,7 +49,8 @@ struct PreScanResult {
   // (mesh, primitive) -> its indices accessor, for Draco primitives (taken out of the JSON).
   std::map<std::pair<uint32_t, uint32_t>, uint32_t> draco_indices;
   std::map<std::string, std::string> alias;     // tinygltf-decoded URI -> key in source.files
-  std::vector<bool> image_needed;               // per image: referenced by some texture
+  std::vector<bool> image_needed;  // per image: a texture samples it (its WebP source, if any)
+  std::vector<bool> image_webp;    // per image: an EXT_texture_webp source (may be WebP data)
   std::vector<std::string> warnings;            // unsupported extensionsUsed, in order
 };
 

@@ -1,8 +1,9 @@
 // libFuzzer target: image decoding. The first byte picks the decoder, the rest is the file:
-//   0: as the glTF importer decodes textures (DecodeTextureImage: header check, then libpng or
-//      TurboJPEG, RGBA8)
+//   0: as the glTF importer decodes textures (DecodeTextureImage: header check, then libpng,
+//      TurboJPEG or libwebp, RGBA8)
 //   1: DecodePng (libpng; the CLI reads PNG frames and golden images with it)
 //   2: DecodeJpeg (TurboJPEG; the CLI and tests decode JPEG frames with it)
+//   3: DecodeWebp (libwebp; EXT_texture_webp textures)
 // A decoded image must be as large as it says, and within the limits it was decoded under.
 #include <cstddef>
 #include <cstdint>
@@ -16,7 +17,7 @@ constexpr uint64_t kMaxPixels = 1u << 22;
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size == 0) return 0;
-  const uint8_t which = data[0] % 3;
+  const uint8_t which = data[0] % 4;
   const std::span<const uint8_t> file(data + 1, size - 1);
   if (which == 0) {
     tessera::ImportLimits limits;
@@ -33,8 +34,9 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     }
     return 0;
   }
-  absl::StatusOr<tessera::RgbaImage> image =
-      which == 1 ? tessera::DecodePng(file, kMaxPixels) : tessera::DecodeJpeg(file, kMaxPixels);
+  absl::StatusOr<tessera::RgbaImage> image = which == 1   ? tessera::DecodePng(file, kMaxPixels)
+                                             : which == 2 ? tessera::DecodeJpeg(file, kMaxPixels)
+                                                          : tessera::DecodeWebp(file, kMaxPixels);
   if (image.ok() && (!tessera::ValidateImage(*image, "fuzz").ok() ||
                      uint64_t(image->width) * image->height > kMaxPixels))
     __builtin_trap();

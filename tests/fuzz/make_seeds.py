@@ -4,7 +4,7 @@
 The seeds are committed; run this again only to change them:
     tests/fuzz/make_seeds.py [--assets ../shared/assets]
 glTF seeds are small sample assets packed as file sets (file_set.h) plus hand-made edge cases;
-image seeds are small PNG/JPEG files behind a decoder-selector byte (fuzz_image.cpp), with PNG
+image seeds are small PNG/JPEG/WebP files behind a decoder-selector byte (fuzz_image.cpp), with PNG
 variants made here (grey, palette, 16-bit, alpha); request seeds are text-format messages
 encoded with `protoc --encode` behind a request-selector byte (fuzz_request.cpp).
 """
@@ -35,6 +35,20 @@ def pack(files):
     return bytes(out)
 
 
+# WebP (EXT_texture_webp), 6x4 RGBA made with libwebp 1.2.4: lossless (VP8L), and lossy with
+# alpha (VP8X, ALPH, VP8).
+WEBP = {
+    "lossless.webp": bytes.fromhex(
+        "5249464640000000574542505650384c330000002f05c00010990a44f43f3611d1ff0091b68d7f6b33"
+        "54787a0962c114778f298140b24cfe46b30848129f47cf7335028ca0770000"),
+    "lossy_alpha.webp": bytes.fromhex(
+        "524946468200000057454250565038580a00000010000000050000030000414c50480c000000010ff0"
+        "c0ff8888d08488fe075650382050000000b001009d012a0600040002003425b00274010ef6a22000f8"
+        "609b5efb7af460d380439ff3ff1ffe3fdbd80bbeed670f7c7ff836c4f9d50f60ff8eae6ff26ffd08fe"
+        "a9ff1816ff937ff881050ef2000000"),
+}
+
+
 def gltf_file_set(path):
     """The .gltf and every file its buffers and images name (the main file first)."""
     base = os.path.dirname(path)
@@ -56,6 +70,14 @@ def gltf_seeds(assets):
                 "SimpleMeshes/glTF/SimpleMeshes.gltf", "TextureCoordinateTest/glTF/TextureCoordinateTest.gltf"]:
         name = os.path.basename(rel).replace(".gltf", "")
         write("gltf", name + ".tsfs", pack(gltf_file_set(os.path.join(assets, rel))))
+    # BoxTextured sampling a WebP source (EXT_texture_webp), its PNG the fallback.
+    files = gltf_file_set(os.path.join(assets, "BoxTextured/glTF/BoxTextured.gltf"))
+    doc = json.loads(files[0][1])
+    doc["extensionsUsed"] = ["EXT_texture_webp"]
+    doc["images"].append({"uri": "lossless.webp", "mimeType": "image/webp"})
+    doc["textures"][0]["extensions"] = {"EXT_texture_webp": {"source": len(doc["images"]) - 1}}
+    files[0] = (files[0][0], json.dumps(doc).encode())
+    write("gltf", "BoxTextured_webp.tsfs", pack(files + [("lossless.webp", WEBP["lossless.webp"])]))
     for rel in ["Box/glTF-Binary/Box.glb", "BoxTextured/glTF-Binary/BoxTextured.glb",
                 "OrientationTest/glTF-Binary/OrientationTest.glb", "Box/glTF-Embedded/Box.gltf"]:
         with open(os.path.join(assets, rel), "rb") as f:
@@ -221,10 +243,13 @@ def image_seeds(assets):
                 "Sponza/glTF/16885566240357350108.jpg"]:
         with open(os.path.join(assets, rel), "rb") as f:
             files.append((os.path.basename(rel), f.read()))
+    files += list(WEBP.items())
     for name, data in files:
         write("image", "texture_" + name, b"\0" + data)  # as the importer decodes textures
         if name.endswith(".png"):
             write("image", "libpng_" + name, b"\1" + data)
+        elif name.endswith(".webp"):
+            write("image", "libwebp_" + name, b"\3" + data)
         else:
             write("image", "turbojpeg_" + name, b"\2" + data)
 

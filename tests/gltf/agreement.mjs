@@ -138,6 +138,26 @@ function animated({ times = [0, 1, 2], values = [0, 0, 0, 1, 0, 0, 1, 1, 0], typ
   };
 }
 
+// BoxTextured.gltf with a 6x4 lossless WebP image (libwebp 1.2.4; the fuzz seed
+// tests/fuzz/corpus/image/texture_lossless.webp) as images[1], file lossless.webp, and an edit.
+const texturedDir = path.join(args.assets, 'BoxTextured', 'glTF');
+const webp = Buffer.from('5249464640000000574542505650384c330000002f05c00010990a44f43f3611d1ff0091b6'
+  + '8d7f6b3354787a0962c114778f298140b24cfe46b30848129f47cf7335028ca0770000', 'hex');
+function texturedWith(name, edit) {
+  const dir = path.join(args.out, 'cases', name);
+  fs.mkdirSync(dir, { recursive: true });
+  const j = JSON.parse(fs.readFileSync(path.join(texturedDir, 'BoxTextured.gltf'), 'utf8'));
+  for (const f of ['BoxTextured0.bin', 'CesiumLogoFlat.png'])
+    fs.copyFileSync(path.join(texturedDir, f), path.join(dir, f));
+  fs.writeFileSync(path.join(dir, 'lossless.webp'), webp);
+  j.images.push({ uri: 'lossless.webp', mimeType: 'image/webp' });
+  j.extensionsUsed = ['EXT_texture_webp'];
+  j.textures[0].extensions = { EXT_texture_webp: { source: 1 } };
+  edit(j);
+  fs.writeFileSync(path.join(dir, 'BoxTextured.gltf'), JSON.stringify(j));
+  return { name: `generated/${name}`, file: path.join(dir, 'BoxTextured.gltf') };
+}
+
 function glbWith(name, edit) {
   const src = fs.readFileSync(path.join(args.assets, 'Box', 'glTF-Binary', 'Box.glb'));
   const out = Buffer.from(src);
@@ -187,6 +207,14 @@ const cases = [
     j.materials[0].pbrMetallicRoughness.baseColorTexture = {
       index: 0, extensions: { KHR_texture_transform: { scale: [2] } } };
   }),
+  // EXT_texture_webp: a WebP source with the PNG as fallback, one without a fallback (the
+  // extension required), and a source that names no image.
+  texturedWith('webp_source_with_fallback', () => {}),
+  texturedWith('webp_source_required', (j) => {
+    j.extensionsRequired = ['EXT_texture_webp'];
+    delete j.textures[0].source;
+  }),
+  texturedWith('webp_source_missing', (j) => { j.textures[0].extensions.EXT_texture_webp.source = 4; }),
   generated('texture_source_missing', (j) => {
     j.textures = [{ source: 4 }];
     j.materials[0].pbrMetallicRoughness.baseColorTexture = { index: 0 };

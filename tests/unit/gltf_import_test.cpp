@@ -15,13 +15,14 @@
 #include <fstream>
 #include <functional>
 #include <map>
-#include <set>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include "renderer/image_io.h"
 #include "tests/unit/compressed_sources.h"
 
 namespace tessera {
@@ -880,7 +881,7 @@ TEST(GltfImportMalformed, CopiesBoundedByTheFileSet) {
 TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");
-  for (const char* ext : {"EXT_texture_webp", "KHR_materials_unlit"}) {
+  for (const char* ext : {"KHR_texture_basisu", "KHR_materials_unlit"}) {
     ExpectInvalid(ImportGltf(Edited(box, [&](json& j) { j["extensionsRequired"] = {ext}; })),
                   {"extensionsRequired", std::string("unsupported required extension ") + ext});
   }
@@ -905,6 +906,110 @@ TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
   ASSERT_TRUE(used.ok()) << used.status();
   ASSERT_EQ(used->warnings.size(), 1u);
   EXPECT_NE(used->warnings[0].find("KHR_materials_unlit"), std::string::npos) << used->warnings[0];
+}
+
+// ----- EXT_texture_webp -------------------------------------------------------------------------
+
+// BoxTextured with its texture as lossless WebP too (CesiumLogoFlat.webp, images[1]), and
+// `edit` applied; the PNG's decoded pixels in *png.
+GltfSource WebpBox(const std::function<void(json&)>& edit, RgbaImage* png = nullptr) {
+  GltfSource src = Source("BoxTextured/glTF/BoxTextured.gltf");
+  absl::StatusOr<RgbaImage> decoded = DecodePng(src.files.at("CesiumLogoFlat.png"));
+  EXPECT_TRUE(decoded.ok()) << decoded.status();
+  if (!decoded.ok()) return src;
+  absl::StatusOr<std::vector<uint8_t>> webp = EncodeWebpLossless(*decoded);
+  EXPECT_TRUE(webp.ok()) << webp.status();
+  if (!webp.ok()) return src;
+  src.files["CesiumLogoFlat.webp"] = *webp;
+  if (png) *png = *decoded;
+  return Edited(std::move(src), [&](json& j) {
+    j["images"].push_back({{"uri", "CesiumLogoFlat.webp"}, {"mimeType", "image/webp"}});
+    j["extensionsUsed"] = {"EXT_texture_webp"};
+    j["textures"][0]["extensions"]["EXT_texture_webp"] = {{"source", 1}};
+    edit(j);
+  });
+}
+
+// The texture samples its WebP source: with a PNG fallback (the extension used), and without
+// one (required); the pixels are the PNG's, whose lossless WebP copy it is.
+TEST(GltfImportWebp, TheTextureSamplesItsWebpSource) {
+  REQUIRE_ASSETS();
+  RgbaImage png;
+  const GltfSource with_fallback = WebpBox([](json&) {}, &png);
+  const GltfSource webp_only = WebpBox([](json& j) {
+    j["extensionsRequired"] = {"EXT_texture_webp"};
+    j["textures"][0].erase("source");
+  });
+  for (const GltfSource* src : {&with_fallback, &webp_only}) {
+    absl::StatusOr<CpuScene> s = ImportGltf(*src);
+    ASSERT_TRUE(s.ok()) << s.status();
+    ASSERT_EQ(s->textures.size(), 1u);
+    ASSERT_NE(s->textures[0].image, nullptr);
+    EXPECT_EQ(s->textures[0].image->name, "CesiumLogoFlat.webp");
+    EXPECT_EQ(s->textures[0].image->width, png.width);
+    EXPECT_EQ(s->textures[0].image->height, png.height);
+    EXPECT_TRUE(s->textures[0].image->rgba8 == png.pixels) << "the WebP's pixels differ";
+    EXPECT_TRUE(s->textures[0].srgb);
+    EXPECT_EQ(s->warnings, std::vector<std::string>{});
+  }
+  // Without the extension in extensionsUsed its object is refused (as any undeclared one).
+  ExpectInvalid(ImportGltf(WebpBox([](json& j) { j.erase("extensionsUsed"); })),
+                {"textures[0].extensions.EXT_texture_webp", "not declared in extensionsUsed"});
+}
+
+// What a client may get wrong, each refused naming the field or image.
+TEST(GltfImportWebp, MalformedSourcesAreRefusedNamingThem) {
+  REQUIRE_ASSETS();
+  ExpectInvalid(ImportGltf(WebpBox([](json& j) {
+                  j["textures"][0]["extensions"]["EXT_texture_webp"]["source"] = 7;
+                })),
+                {"textures[0].extensions.EXT_texture_webp.source", "out of range (2 images)"});
+  ExpectInvalid(ImportGltf(WebpBox([](json& j) {
+                  j["textures"][0]["extensions"]["EXT_texture_webp"].erase("source");
+                })),
+                {"textures[0].extensions.EXT_texture_webp.source", "missing"});
+  ExpectInvalid(
+      ImportGltf(WebpBox([](json& j) { j["textures"][0]["extensions"]["EXT_texture_webp"] = 1; })),
+      {"textures[0].extensions.EXT_texture_webp", "not an object"});
+  // WebP data as a core source: glTF 2.0 allows only PNG and JPEG there.
+  ExpectInvalid(ImportGltf(WebpBox([](json& j) {
+                  j["textures"][0].erase("extensions");
+                  j["textures"][0]["source"] = 1;
+                })),
+                {"images[1]", "WebP", "EXT_texture_webp"});
+  // In a bufferView (as a .glb holds it), with its mimeType; the declared type is the data's.
+  auto in_buffer_view = [](const char* mime_type) {
+    GltfSource src = WebpBox([](json&) {});
+    std::vector<uint8_t>& bin = src.files.at("BoxTextured0.bin");
+    const std::vector<uint8_t> webp = src.files.at("CesiumLogoFlat.webp");
+    src.files.erase("CesiumLogoFlat.webp");
+    bin.resize((bin.size() + 3) / 4 * 4);
+    const size_t offset = bin.size();
+    bin.insert(bin.end(), webp.begin(), webp.end());
+    return Edited(std::move(src), [&](json& j) {
+      j["buffers"][0]["byteLength"] = bin.size();
+      j["bufferViews"].push_back(
+          {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", webp.size()}});
+      j["images"][1] = {{"bufferView", j["bufferViews"].size() - 1}, {"mimeType", mime_type}};
+    });
+  };
+  absl::StatusOr<CpuScene> viewed = ImportGltf(in_buffer_view("image/webp"));
+  ASSERT_TRUE(viewed.ok()) << viewed.status();
+  EXPECT_EQ(viewed->textures[0].image->width, 256u);
+  ExpectInvalid(ImportGltf(in_buffer_view("image/png")),
+                {"images[1].mimeType", "the data is image/webp"});
+  // tinygltf 2.7 decodes no image/webp data: URI: refused saying so.
+  ExpectInvalid(ImportGltf(WebpBox(
+                    [](json& j) { j["images"][1]["uri"] = "data:image/webp;base64,UklGRg=="; })),
+                {"images[1].uri", "a WebP image in a data: URI is not supported"});
+  // Cut short: named, not decoded in part.
+  GltfSource cut = WebpBox([](json&) {});
+  cut.files["CesiumLogoFlat.webp"].resize(cut.files["CesiumLogoFlat.webp"].size() / 2);
+  ExpectInvalid(ImportGltf(cut), {"images[1]", "CesiumLogoFlat.webp", "cannot decode"});
+  // Its header's size is held to the limits before anything is decoded.
+  ImportLimits small;
+  small.max_image_dimension = 128;
+  ExpectOverLimit(ImportGltf(WebpBox([](json&) {}), small), {"images[1]", "max_image_dimension"});
 }
 
 TEST(GltfImportMalformed, AssetVersion) {

@@ -315,6 +315,51 @@ TEST(ImageIo, JpegDecodeRejectsBadInput) {
   EXPECT_FALSE(DecodeJpeg(*png).ok());
 }
 
+// ---- WebP (EXT_texture_webp textures) -------------------------------------------------------
+
+// Lossless WebP keeps every channel where alpha is not 0 (libwebp may change the colour of
+// fully transparent pixels unless told not to): noise with alpha 1..255 round-trips exactly.
+TEST(ImageIo, WebpLosslessRoundTripIsExact) {
+  RgbaImage src = Noise(37, 23);
+  for (size_t i = 3; i < src.pixels.size(); i += 4)
+    src.pixels[i] = std::max<uint8_t>(src.pixels[i], 1);
+  auto webp = EncodeWebpLossless(src);
+  ASSERT_TRUE(webp.ok()) << webp.status();
+  EXPECT_TRUE(IsWebp(*webp));
+  uint32_t w = 0, h = 0;
+  ASSERT_TRUE(ReadWebpSize(*webp, &w, &h));
+  EXPECT_EQ(w, 37u);
+  EXPECT_EQ(h, 23u);
+  auto img = DecodeWebp(*webp);
+  ASSERT_TRUE(img.ok()) << img.status();
+  EXPECT_EQ(img->width, src.width);
+  EXPECT_EQ(img->height, src.height);
+  EXPECT_EQ(img->pixels, src.pixels);
+}
+
+TEST(ImageIo, WebpDecodeRejectsBadInput) {
+  EXPECT_EQ(DecodeWebp({}).status().code(), absl::StatusCode::kInvalidArgument);
+  auto png = EncodePng(Gradient(8, 8));
+  ASSERT_TRUE(png.ok());
+  EXPECT_FALSE(IsWebp(*png));
+  uint32_t w = 0, h = 0;
+  EXPECT_FALSE(ReadWebpSize(*png, &w, &h));
+  absl::StatusOr<RgbaImage> not_webp = DecodeWebp(*png);
+  ASSERT_FALSE(not_webp.ok());
+  EXPECT_NE(not_webp.status().message().find("bad header"), std::string::npos) << not_webp.status();
+  auto webp = EncodeWebpLossless(Gradient(64, 64));
+  ASSERT_TRUE(webp.ok()) << webp.status();
+  // Cut anywhere: the header's own check or the decode fails, never a half image.
+  for (size_t keep : {size_t{11}, size_t{30}, webp->size() / 2, webp->size() - 1}) {
+    std::span<const uint8_t> truncated(webp->data(), keep);
+    EXPECT_FALSE(DecodeWebp(truncated).ok()) << "kept " << keep << " of " << webp->size();
+  }
+  // The size is checked against max_pixels before anything is decoded.
+  absl::StatusOr<RgbaImage> over = DecodeWebp(*webp, 64 * 64 - 1);
+  ASSERT_FALSE(over.ok());
+  EXPECT_NE(over.status().message().find("64x64"), std::string::npos) << over.status();
+}
+
 // ---- PNG -----------------------------------------------------------------------------------
 
 TEST(ImageIo, PngRoundTripIsExact) {
