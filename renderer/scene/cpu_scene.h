@@ -152,6 +152,9 @@ struct Drawable {
   uint32_t mesh = 0;
   uint32_t node = 0;  // glTF node index, for messages
   Aabb world_bounds;
+  // EXT_mesh_gpu_instancing: this instance's transform under its node (`world` is the node's
+  // world transform times it; an animated node's drawables are posed so). Identity otherwise.
+  glm::mat4 instance{1.0f};
 };
 
 enum class LightType : uint32_t { kDirectional = 0, kPoint = 1, kSpot = 2 };

@@ -1663,6 +1663,91 @@ class Converter {
     return matrix ? *matrix : trs.Matrix();
   }
 
+  // EXT_mesh_gpu_instancing: the transforms of node `index`'s instances under it (T * R * S of
+  // its TRANSLATION, ROTATION and SCALE accessors, each optional, all of one count), or one
+  // identity without the extension. Each instance of its mesh's `primitives` is a drawable, so
+  // the count is held to max_drawables before anything is read.
+  absl::StatusOr<std::vector<glm::mat4>> Instances(int index, size_t primitives) {
+    const tinygltf::Node& n = m_.nodes[index];
+    const auto ext = n.extensions.find("EXT_mesh_gpu_instancing");
+    if (ext == n.extensions.end() || !Uses("EXT_mesh_gpu_instancing")) {
+      return std::vector<glm::mat4>{glm::mat4(1.0f)};
+    }
+    const std::string path = absl::StrCat("nodes[", index, "].extensions.EXT_mesh_gpu_instancing");
+    if (n.skin >= 0) return Err(path, "instances of a skinned mesh are not supported");
+    // (tinygltf drops an empty object.)
+    if (!ext->second.Has("attributes")) {
+      return Err(path + ".attributes",
+                 "missing or empty (an object naming TRANSLATION, ROTATION or SCALE accessors)");
+    }
+    const tinygltf::Value& attributes = ext->second.Get("attributes");
+    if (!attributes.IsObject()) return Err(path + ".attributes", "not an object");
+    static constexpr const char* kNames[3] = {"TRANSLATION", "ROTATION", "SCALE"};
+    AccessorView views[3];
+    uint64_t count = UINT64_MAX;
+    std::string first;  // the attribute that set `count`
+    for (int k = 0; k < 3; ++k) {
+      if (!attributes.Has(kNames[k])) continue;
+      const std::string field = absl::StrCat(path, ".attributes.", kNames[k]);
+      const tinygltf::Value& a = attributes.Get(kNames[k]);
+      if (!a.IsInt()) return Err(field, "not an accessor index");
+      ASSIGN_OR_RETURN(views[k], View(a.GetNumberAsInt(), field));
+      const AccessorView& v = views[k];
+      const int t = v.component_type;
+      const bool is_float = t == TINYGLTF_COMPONENT_TYPE_FLOAT;
+      const bool small = t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT ||
+                         t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
+                         t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
+      const bool is_signed =
+          t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT;
+      // The extension's table: ROTATION as FLOAT or normalized signed BYTE/SHORT (as animation
+      // rotations); TRANSLATION and SCALE as FLOAT, or quantized with KHR_mesh_quantization.
+      const bool rotation = k == 1;
+      const bool allowed = rotation ? is_float || (small && is_signed && v.normalized)
+                                    : is_float || (small && quantization_);
+      const std::string what =
+          absl::StrCat(v.normalized ? "normalized " : "", ComponentTypeName(t));
+      if (v.type != (rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3) || !allowed) {
+        return Err(field, "unsupported type/componentType for ", kNames[k], " (",
+                   tinygltf::GetNumComponentsInType(uint32_t(v.type)), " x ", what, ")");
+      }
+      if (count != UINT64_MAX && v.count != count) {
+        return Err(field, "count ", v.count, " differs from ", first, "'s ", count);
+      }
+      if (count == UINT64_MAX) first = kNames[k];
+      count = v.count;
+    }
+    if (count == UINT64_MAX) {
+      return Err(path + ".attributes", "names none of TRANSLATION, ROTATION and SCALE");
+    }
+    if (count * std::max<size_t>(primitives, 1) >
+        uint64_t(limits_.max_drawables) -
+            std::min<uint64_t>(s_.drawables.size(), limits_.max_drawables)) {
+      return OverMax(path, "drawable count", s_.drawables.size() + count * primitives,
+                     "max_drawables", limits_.max_drawables);
+    }
+    std::vector<glm::mat4> out;
+    out.reserve(count);
+    for (uint64_t i = 0; i < count; ++i) {
+      NodeTransform trs;
+      if (views[0].data) trs.translation = glm::vec3(ReadVec(views[0], i));
+      if (views[1].data) {
+        const glm::vec4 q = ReadVec(views[1], i);
+        const glm::quat r(q.w, q.x, q.y, q.z);
+        const float len = glm::length(r);
+        if (len > 1e-12f && std::isfinite(len)) trs.rotation = r / len;
+      }
+      if (views[2].data) trs.scale = glm::vec3(ReadVec(views[2], i));
+      const glm::mat4 m = trs.Matrix();
+      for (int c = 0; c < 4; ++c) {
+        if (!Finite(glm::vec3(m[c])) || !std::isfinite(m[c][3]))
+          return Err(path, "instance ", i, "'s transform is not finite");
+      }
+      out.push_back(m);
+    }
+    return out;
+  }
+
   absl::Status PlaceNode(int index, const glm::mat4& world) {
     const tinygltf::Node& n = m_.nodes[index];
     const std::string path = absl::StrCat("nodes[", index, "]");
@@ -1675,24 +1760,30 @@ class Converter {
       RETURN_IF_ERROR(CheckIndex(path + ".mesh", n.mesh, m_.meshes.size(), "mesh"));
       absl::StatusOr<uint32_t> mesh = ConvertMesh(n.mesh);
       if (!mesh.ok()) return mesh.status();
-      for (uint32_t prim : s_.meshes[*mesh].primitives) {
-        if (s_.drawables.size() >= limits_.max_drawables) {
-          return OverMax(path, "drawable count", s_.drawables.size() + 1, "max_drawables",
-                         limits_.max_drawables);
+      ASSIGN_OR_RETURN(const std::vector<glm::mat4> instances,
+                       Instances(index, s_.meshes[*mesh].primitives.size()));
+      for (const glm::mat4& instance : instances) {
+        const glm::mat4 placed = world * instance;
+        for (uint32_t prim : s_.meshes[*mesh].primitives) {
+          if (s_.drawables.size() >= limits_.max_drawables) {
+            return OverMax(path, "drawable count", s_.drawables.size() + 1, "max_drawables",
+                           limits_.max_drawables);
+          }
+          const Primitive& p = s_.primitives[prim];
+          const Aabb world_bounds = p.bounds.transformed(placed);
+          // Finite positions times a finite transform can still overflow float.
+          if (!Finite(world_bounds.min) || !Finite(world_bounds.max)) {
+            return Err(path, "mesh ", *mesh, " placed by this node has non-finite world bounds");
+          }
+          s_.drawables.push_back(Drawable{.world = placed,
+                                          .primitive = prim,
+                                          .mesh = *mesh,
+                                          .node = uint32_t(index),
+                                          .world_bounds = world_bounds,
+                                          .instance = instance});
+          s_.bounds.extend(s_.drawables.back().world_bounds);
+          s_.counts.triangles += p.index_count / 3;
         }
-        const Primitive& p = s_.primitives[prim];
-        const Aabb world_bounds = p.bounds.transformed(world);
-        // Finite positions times a finite transform can still overflow float.
-        if (!Finite(world_bounds.min) || !Finite(world_bounds.max)) {
-          return Err(path, "mesh ", *mesh, " placed by this node has non-finite world bounds");
-        }
-        s_.drawables.push_back(Drawable{.world = world,
-                                        .primitive = prim,
-                                        .mesh = *mesh,
-                                        .node = uint32_t(index),
-                                        .world_bounds = world_bounds});
-        s_.bounds.extend(s_.drawables.back().world_bounds);
-        s_.counts.triangles += p.index_count / 3;
       }
     }
     if (n.camera >= 0) {
@@ -1795,13 +1886,10 @@ class Converter {
 }  // namespace
 
 const std::vector<std::string_view>& SupportedGltfExtensions() {
-  static const std::vector<std::string_view> names{"EXT_meshopt_compression",
-                                                   "EXT_texture_webp",
-                                                   "KHR_draco_mesh_compression",
-                                                   "KHR_lights_punctual",
-                                                   "KHR_materials_emissive_strength",
-                                                   "KHR_mesh_quantization",
-                                                   "KHR_texture_transform"};
+  static const std::vector<std::string_view> names{
+      "EXT_mesh_gpu_instancing",    "EXT_meshopt_compression", "EXT_texture_webp",
+      "KHR_draco_mesh_compression", "KHR_lights_punctual",     "KHR_materials_emissive_strength",
+      "KHR_mesh_quantization",      "KHR_texture_transform"};
   return names;
 }
 

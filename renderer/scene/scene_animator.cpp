@@ -44,6 +44,7 @@ std::unique_ptr<SceneAnimator> SceneAnimator::Create(const CpuScene& scene) {
     AnimatedDrawable ad;
     ad.drawable = i;
     ad.node = d.node;
+    ad.instance = d.instance;
     ad.primitive = d.primitive;
     const bool skinned = p.skinned && node.skin >= 0 && size_t(node.skin) < scene.skins.size() &&
                          scene.skin_joints.size() == scene.vertices.size();
@@ -183,7 +184,7 @@ bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
   for (size_t i = 0; i < drawables_.size(); ++i) {
     const AnimatedDrawable& ad = drawables_[i];
     if (!ad.deformed) {
-      world_[i] = pose.world[ad.node];
+      world_[i] = pose.world[ad.node] * ad.instance;
       bounds_[i] = rest_bounds_[i].transformed(world_[i]);
       continue;
     }
@@ -214,7 +215,7 @@ bool SceneAnimator::Pose(int animation, double scene_time, bool loop) {
         if (j < joints) b.extend(grown(box).transformed(joints_[ad.joint_base + j]));
       bounds_[i] = b;
     } else {
-      world_[i] = pose.world[ad.node];
+      world_[i] = pose.world[ad.node] * ad.instance;
       bounds_[i] = grown(pb.rest).transformed(world_[i]);
     }
   }

@@ -26,6 +26,7 @@ namespace tessera {
 struct AnimatedDrawable {
   uint32_t drawable = 0;   // into CpuScene::drawables (and the Drawable buffer)
   uint32_t node = 0;
+  glm::mat4 instance{1.0f};  // Drawable::instance: its transform under the node
   uint32_t primitive = 0;
   int32_t skin = -1;       // skinned: the node's skin (else -1)
   bool deformed = false;   // skinned or morphed: its vertices are rewritten each pose

@@ -13,6 +13,7 @@ import path from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { NodeIO } from '@gltf-transform/core';
 import { ALL_EXTENSIONS } from '@gltf-transform/extensions';
+import { instance } from '@gltf-transform/functions';
 
 const here = path.dirname(fileURLToPath(import.meta.url));
 const cli = path.join(here, 'node_modules', '@gltf-transform', 'cli', 'bin', 'cli.js');
@@ -76,6 +77,31 @@ for (const asset of args.assetsList.split(',')) {
     asset, variant: 'sparse', original, file,
     command: `@gltf-transform/core NodeIO: every vertex attribute setSparse(true) (${accessors} accessors)`,
   });
+}
+// EXT_mesh_gpu_instancing: Box's mesh on 12 nodes of a grid, each turned and scaled its own way
+// (BoxGrid.glb, the original), and what glTF Transform's instance() makes of it: one node whose
+// extension holds the 12 transforms (BoxGrid_instance.glb).
+{
+  const io = new NodeIO().registerExtensions(ALL_EXTENSIONS);
+  const doc = await io.read(path.join(args.assets, 'Box', 'glTF', 'Box.gltf'));
+  const root = doc.getRoot();
+  const mesh = root.listMeshes()[0];
+  const scene = root.listScenes()[0];
+  for (const node of root.listNodes()) node.dispose();
+  for (let i = 0; i < 12; i++) {
+    const angle = 0.4 * i;
+    scene.addChild(doc.createNode(`box${i}`).setMesh(mesh)
+      .setTranslation([(i % 4) * 1.6, Math.floor(i / 4) * 1.6, 0])
+      .setRotation([0, Math.sin(angle / 2), 0, Math.cos(angle / 2)])
+      .setScale(Array(3).fill(0.5 + 0.05 * i)));
+  }
+  const original = path.join(args.out, 'BoxGrid.glb');
+  await io.write(original, doc);
+  await doc.transform(instance({ min: 5 }));
+  const file = path.join(args.out, 'BoxGrid_instance.glb');
+  await io.write(file, doc);
+  manifest.push({ asset: 'BoxGrid', variant: 'instance', original, file,
+    command: '@gltf-transform/functions instance({min: 5}) of Box on 12 nodes' });
 }
 const version = JSON.parse(fs.readFileSync(path.join(here, 'node_modules', '@gltf-transform', 'cli',
                                                      'package.json'), 'utf8')).version;

@@ -23,6 +23,8 @@
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "renderer/image_io.h"
+#include "renderer/scene/animation.h"
+#include "renderer/scene/scene_animator.h"
 #include "tests/unit/compressed_sources.h"
 
 namespace tessera {
@@ -1010,6 +1012,169 @@ TEST(GltfImportWebp, MalformedSourcesAreRefusedNamingThem) {
   ImportLimits small;
   small.max_image_dimension = 128;
   ExpectOverLimit(ImportGltf(WebpBox([](json&) {}), small), {"images[1]", "max_image_dimension"});
+}
+
+// ----- EXT_mesh_gpu_instancing ------------------------------------------------------------------
+
+// Box (its mesh on nodes[1], under nodes[0]'s matrix) drawn as three instances: TRANSLATION,
+// ROTATION and SCALE accessors (accessors[3..5]) appended to its buffer, and with `animated` a
+// translation of nodes[1] from 0 to (5, 0, 0) over a second (accessors[6..7]); then `edit`.
+constexpr float kInstanceT[9] = {0, 0, 0, 2, 0, 0, 0, 3, 0};
+constexpr float kInstanceR[12] = {0, 0, 0, 1, 0, 0, 0.70710678f, 0.70710678f, 1, 0, 0, 0};
+constexpr float kInstanceS[9] = {1, 1, 1, 2, 2, 2, 1, 0.5f, 1};
+GltfSource InstancedBox(const std::function<void(json&)>& edit, bool animated = false,
+                        float first_x = 0.0f) {
+  GltfSource src = Source("Box/glTF/Box.gltf");
+  std::vector<uint8_t>& bin = src.files.at("Box0.bin");
+  json views = json::array(), accessors = json::array();
+  auto append = [&](const float* v, size_t n, const char* type, size_t count) {
+    bin.resize((bin.size() + 3) / 4 * 4);
+    views.push_back({{"buffer", 0}, {"byteOffset", bin.size()}, {"byteLength", n * 4}});
+    const auto* bytes = reinterpret_cast<const uint8_t*>(v);
+    bin.insert(bin.end(), bytes, bytes + n * 4);
+    accessors.push_back({{"componentType", 5126}, {"count", count}, {"type", type}});
+  };
+  float t[9];
+  std::copy(std::begin(kInstanceT), std::end(kInstanceT), t);
+  t[0] = first_x;
+  append(t, 9, "VEC3", 3);
+  append(kInstanceR, 12, "VEC4", 3);
+  append(kInstanceS, 9, "VEC3", 3);
+  const float times[2] = {0, 1}, moves[6] = {0, 0, 0, 5, 0, 0};
+  if (animated) {
+    append(times, 2, "SCALAR", 2);
+    accessors.back()["min"] = {0};
+    accessors.back()["max"] = {1};
+    append(moves, 6, "VEC3", 2);
+  }
+  return Edited(std::move(src), [&](json& j) {
+    const size_t view0 = j["bufferViews"].size(), accessor0 = j["accessors"].size();
+    for (size_t i = 0; i < views.size(); ++i) {
+      j["bufferViews"].push_back(views[i]);
+      accessors[i]["bufferView"] = view0 + i;
+      j["accessors"].push_back(accessors[i]);
+    }
+    j["buffers"][0]["byteLength"] = bin.size();
+    j["extensionsUsed"] = {"EXT_mesh_gpu_instancing"};
+    j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {
+        {"TRANSLATION", accessor0}, {"ROTATION", accessor0 + 1}, {"SCALE", accessor0 + 2}};
+    if (animated) {
+      json sampler = {{"input", accessor0 + 3}, {"output", accessor0 + 4}};
+      json channel = {{"sampler", 0}, {"target", {{"node", 1}, {"path", "translation"}}}};
+      j["animations"] = json::array(
+          {{{"samplers", json::array({sampler})}, {"channels", json::array({channel})}}});
+    }
+    edit(j);
+  });
+}
+
+glm::mat4 InstanceMatrix(int i) {
+  NodeTransform trs;
+  trs.translation = glm::vec3(kInstanceT[3 * i], kInstanceT[3 * i + 1], kInstanceT[3 * i + 2]);
+  trs.rotation = glm::quat(kInstanceR[4 * i + 3], kInstanceR[4 * i], kInstanceR[4 * i + 1],
+                           kInstanceR[4 * i + 2]);
+  trs.scale = glm::vec3(kInstanceS[3 * i], kInstanceS[3 * i + 1], kInstanceS[3 * i + 2]);
+  return trs.Matrix();
+}
+
+void ExpectNear(const glm::mat4& a, const glm::mat4& b, const std::string& what) {
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r)
+      EXPECT_NEAR(a[c][r], b[c][r], 1e-5f) << what << " [" << c << "][" << r << "]";
+}
+
+// The node's mesh is drawn once per instance (not once more for the node), each at the node's
+// world transform times the instance's T * R * S.
+TEST(GltfImportInstancing, EachInstanceIsADrawableUnderItsNode) {
+  REQUIRE_ASSETS();
+  absl::StatusOr<CpuScene> plain = ImportGltf(Source("Box/glTF/Box.gltf"));
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  ASSERT_EQ(plain->drawables.size(), 1u);
+  const glm::mat4 node_world = plain->drawables[0].world;
+  absl::StatusOr<CpuScene> s = ImportGltf(InstancedBox([](json&) {}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  ASSERT_EQ(s->drawables.size(), 3u);
+  EXPECT_EQ(s->counts.triangles, 3 * plain->counts.triangles);
+  Aabb all;
+  for (int i = 0; i < 3; ++i) {
+    const Drawable& d = s->drawables[size_t(i)];
+    SCOPED_TRACE(i);
+    ExpectNear(d.instance, InstanceMatrix(i), "instance");
+    ExpectNear(d.world, node_world * InstanceMatrix(i), "world");
+    EXPECT_EQ(d.node, 1u);
+    const Aabb expected = s->primitives[d.primitive].bounds.transformed(d.world);
+    EXPECT_NEAR(glm::distance(d.world_bounds.min, expected.min), 0.0f, 1e-5f);
+    EXPECT_NEAR(glm::distance(d.world_bounds.max, expected.max), 0.0f, 1e-5f);
+    all.extend(d.world_bounds);
+  }
+  EXPECT_NEAR(glm::distance(s->bounds.min, all.min), 0.0f, 1e-5f);
+  EXPECT_NEAR(glm::distance(s->bounds.max, all.max), 0.0f, 1e-5f);
+  // Required, it loads the same; without extensionsUsed its object is refused.
+  EXPECT_TRUE(ImportGltf(InstancedBox([](json& j) {
+                j["extensionsRequired"] = {"EXT_mesh_gpu_instancing"};
+              })).ok());
+  ExpectInvalid(ImportGltf(InstancedBox([](json& j) { j.erase("extensionsUsed"); })),
+                {"nodes[1].extensions.EXT_mesh_gpu_instancing", "not declared in extensionsUsed"});
+}
+
+// An animated node moves its instances with it: each is posed at the node's posed world
+// transform times its own.
+TEST(GltfImportInstancing, AnAnimatedNodeCarriesItsInstances) {
+  REQUIRE_ASSETS();
+  absl::StatusOr<CpuScene> s = ImportGltf(InstancedBox([](json&) {}, /*animated=*/true));
+  ASSERT_TRUE(s.ok()) << s.status();
+  const std::unique_ptr<SceneAnimator> a = SceneAnimator::Create(*s);
+  ASSERT_NE(a, nullptr);
+  ASSERT_EQ(a->drawables().size(), 3u);
+  EXPECT_TRUE(a->Pose(0, 1.0, false));
+  const ScenePose pose = EvaluatePose(s->nodes, s->animations, 0, 1.0, false);
+  for (size_t i = 0; i < 3; ++i) {
+    const AnimatedDrawable& d = a->drawables()[i];
+    const glm::mat4 expected = pose.world[1] * InstanceMatrix(int(d.drawable));
+    ExpectNear(a->world()[i], expected, absl::StrCat("drawable ", d.drawable));
+    // Moved by (5, 0, 0) in the node's frame, which nodes[0]'s matrix keeps along x.
+    EXPECT_NEAR(a->world()[i][3].x - s->drawables[d.drawable].world[3].x, 5.0f, 1e-4f);
+  }
+}
+
+// What a client may get wrong, each refused naming the node's extension and attribute.
+TEST(GltfImportInstancing, MalformedInstancesAreRefusedNamingThem) {
+  REQUIRE_ASSETS();
+  const std::string at = "nodes[1].extensions.EXT_mesh_gpu_instancing";
+  ExpectInvalid(ImportGltf(InstancedBox([](json& j) { j["accessors"][5]["count"] = 2; })),
+                {at + ".attributes.SCALE", "count 2 differs from TRANSLATION's 3"});
+  ExpectInvalid(ImportGltf(InstancedBox([](json& j) { j["accessors"][4]["type"] = "VEC3"; })),
+                {at + ".attributes.ROTATION", "unsupported type/componentType"});
+  ExpectInvalid(
+      ImportGltf(InstancedBox([](json& j) {
+        j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"] = 99;
+      })),
+      {at + ".attributes.TRANSLATION"});
+  ExpectInvalid(ImportGltf(InstancedBox([](json& j) {
+                  j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] =
+                      json::object();
+                })),
+                {at + ".attributes", "missing or empty"});
+  // Application-specific attributes (_ID ...) are allowed, but draw nothing by themselves.
+  ExpectInvalid(
+      ImportGltf(InstancedBox([](json& j) {
+        j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"_ID", 3}};
+      })),
+      {at + ".attributes", "names none of TRANSLATION, ROTATION and SCALE"});
+  ExpectInvalid(ImportGltf(InstancedBox([](json& j) {
+                  j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"].erase("attributes");
+                })),
+                {at + ".attributes", "missing or empty"});
+  ExpectInvalid(ImportGltf(InstancedBox([](json& j) {
+                  j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = 3;
+                })),
+                {at + ".attributes", "not an object"});
+  ExpectInvalid(
+      ImportGltf(InstancedBox([](json&) {}, false, std::numeric_limits<float>::infinity())),
+      {at, "instance 0's transform is not finite"});
+  ImportLimits limits;
+  limits.max_drawables = 2;
+  ExpectOverLimit(ImportGltf(InstancedBox([](json&) {}), limits), {at, "max_drawables"});
 }
 
 TEST(GltfImportMalformed, AssetVersion) {
