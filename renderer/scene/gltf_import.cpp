@@ -1490,7 +1490,9 @@ class Converter {
     int32_t& result = texture_cache_[{texture, srgb}] = -1;
     Texture t{.image = source >= 0 ? ImageFor(source) : nullptr, .srgb = srgb};
     if (t.image == nullptr) {
-      Warn(field + ": no decoded image source (extension-only sources are not supported)");
+      Warn(field +
+           ": no decoded image source (an extension's source other than "
+           "EXT_texture_webp's, e.g. KHR_texture_basisu's, is not supported)");
       return result;
     }
     auto wrap = [this](int w) {
@@ -1675,24 +1677,28 @@ class Converter {
     }
     const std::string path = absl::StrCat("nodes[", index, "].extensions.EXT_mesh_gpu_instancing");
     if (n.skin >= 0) return Err(path, "instances of a skinned mesh are not supported");
-    // (tinygltf drops an empty object.)
-    if (!ext->second.Has("attributes")) {
-      return Err(path + ".attributes",
-                 "missing or empty (an object naming TRANSLATION, ROTATION or SCALE accessors)");
-    }
+    // The pre-scan checked the object: `attributes` names accessors that exist, at least one.
     const tinygltf::Value& attributes = ext->second.Get("attributes");
-    if (!attributes.IsObject()) return Err(path + ".attributes", "not an object");
     static constexpr const char* kNames[3] = {"TRANSLATION", "ROTATION", "SCALE"};
     AccessorView views[3];
     uint64_t count = UINT64_MAX;
-    std::string first;  // the attribute that set `count`
-    for (int k = 0; k < 3; ++k) {
-      if (!attributes.Has(kNames[k])) continue;
-      const std::string field = absl::StrCat(path, ".attributes.", kNames[k]);
-      const tinygltf::Value& a = attributes.Get(kNames[k]);
-      if (!a.IsInt()) return Err(field, "not an accessor index");
-      ASSIGN_OR_RETURN(views[k], View(a.GetNumberAsInt(), field));
-      const AccessorView& v = views[k];
+    std::string first;       // the attribute that set `count`
+    bool generated = false;  // an accessor of zeros or sparse blocks (costs nothing to upload)
+    // Every attribute, the application's own (_ID, ...) too: all of one count, which an
+    // instance has even where none of the three transform attributes is given.
+    for (const std::string& name : attributes.Keys()) {
+      const std::string field = absl::StrCat(path, ".attributes.", name);
+      const int accessor = attributes.Get(name).GetNumberAsInt();
+      ASSIGN_OR_RETURN(const AccessorView v, View(accessor, field));
+      generated = generated || m_.accessors[accessor].bufferView < 0 ||
+                  m_.accessors[accessor].sparse.isSparse;
+      if (count != UINT64_MAX && v.count != count) {
+        return Err(field, "count ", v.count, " differs from ", first, "'s ", count);
+      }
+      if (count == UINT64_MAX) first = name;
+      count = v.count;
+      const int k = int(std::find(std::begin(kNames), std::end(kNames), name) - std::begin(kNames));
+      if (k == 3) continue;
       const int t = v.component_type;
       const bool is_float = t == TINYGLTF_COMPONENT_TYPE_FLOAT;
       const bool small = t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT ||
@@ -1701,30 +1707,36 @@ class Converter {
       const bool is_signed =
           t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT;
       // The extension's table: ROTATION as FLOAT or normalized signed BYTE/SHORT (as animation
-      // rotations); TRANSLATION and SCALE as FLOAT, or quantized with KHR_mesh_quantization.
+      // rotations); TRANSLATION and SCALE as FLOAT, or (leniently, as for positions) any 8- or
+      // 16-bit integer type with KHR_mesh_quantization.
       const bool rotation = k == 1;
       const bool allowed = rotation ? is_float || (small && is_signed && v.normalized)
                                     : is_float || (small && quantization_);
       const std::string what =
           absl::StrCat(v.normalized ? "normalized " : "", ComponentTypeName(t));
       if (v.type != (rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3) || !allowed) {
-        return Err(field, "unsupported type/componentType for ", kNames[k], " (",
+        return Err(field, "unsupported type/componentType for ", name, " (",
                    tinygltf::GetNumComponentsInType(uint32_t(v.type)), " x ", what, ")");
       }
-      if (count != UINT64_MAX && v.count != count) {
-        return Err(field, "count ", v.count, " differs from ", first, "'s ", count);
-      }
-      if (count == UINT64_MAX) first = kNames[k];
-      count = v.count;
-    }
-    if (count == UINT64_MAX) {
-      return Err(path + ".attributes", "names none of TRANSLATION, ROTATION and SCALE");
+      views[k] = v;
     }
     if (count * std::max<size_t>(primitives, 1) >
         uint64_t(limits_.max_drawables) -
             std::min<uint64_t>(s_.drawables.size(), limits_.max_drawables)) {
       return OverMax(path, "drawable count", s_.drawables.size() + count * primitives,
                      "max_drawables", limits_.max_drawables);
+    }
+    // Instances placed by zeros or sparse blocks would let a few bytes of JSON ask for a million
+    // drawables: they count against those accessors' budget, at what a drawable costs.
+    if (generated) {
+      const uint64_t bytes = count * std::max<size_t>(primitives, 1) * kInstanceBytes;
+      if (bytes > generated_budget_ - generated_bytes_) {
+        return OverLimit(file_, path, count, " instances placed by zeros or sparse data stand for ",
+                         bytes, " bytes of drawables (", kInstanceBytes, " each); all such data ",
+                         "may hold ", generated_budget_, " bytes (", kGeneratedPerSourceByte,
+                         "x the uploaded files, at least ", kMinGeneratedBytes, ")");
+      }
+      generated_bytes_ += bytes;
     }
     std::vector<glm::mat4> out;
     out.reserve(count);
@@ -1735,7 +1747,8 @@ class Converter {
         const glm::vec4 q = ReadVec(views[1], i);
         const glm::quat r(q.w, q.x, q.y, q.z);
         const float len = glm::length(r);
-        if (len > 1e-12f && std::isfinite(len)) trs.rotation = r / len;
+        if (!std::isfinite(len)) return Err(path, "instance ", i, "'s rotation is not finite");
+        if (len > 1e-12f) trs.rotation = r / len;
       }
       if (views[2].data) trs.scale = glm::vec3(ReadVec(views[2], i));
       const glm::mat4 m = trs.Matrix();
@@ -1858,6 +1871,9 @@ class Converter {
   // bounded by the upload's size.
   static constexpr uint64_t kGeneratedPerSourceByte = 16;
   static constexpr uint64_t kMinGeneratedBytes = 16ull << 20;
+  // What an EXT_mesh_gpu_instancing drawable costs, as Instances() charges it to that budget:
+  // its CpuScene record, its GPU record and its draw.
+  static constexpr uint64_t kInstanceBytes = 256;
   const uint64_t generated_budget_;
   uint64_t generated_bytes_ = 0;
   std::map<int, AccessorView> views_;

@@ -200,6 +200,7 @@ class PreScan {
       }
     }
     RETURN_IF_ERROR(DeclaredExtensions(j, j, ""));
+    RETURN_IF_ERROR(Instancing(j));
     RETURN_IF_ERROR(Structure(j));
     meshopt_ = Lists(j, "extensionsUsed", "EXT_meshopt_compression");
     if (Lists(j, "extensionsUsed", "KHR_draco_mesh_compression")) DracoIndices(j);
@@ -854,6 +855,35 @@ class PreScan {
     return absl::OkStatus();
   }
 
+  // EXT_mesh_gpu_instancing's objects, where extensionsUsed lists it: `attributes`, an object of
+  // at least one accessor index each in range (tinygltf would read an empty object as none, and
+  // an index past an int's range as another accessor). Types and counts: the importer.
+  absl::Status Instancing(const json& j) {
+    if (!Lists(j, "extensionsUsed", "EXT_mesh_gpu_instancing")) return absl::OkStatus();
+    const size_t accessors = ArraySize(j, "accessors");
+    for (size_t n = 0; n < ArraySize(j, "nodes"); ++n) {
+      const json* ext = Member(Member(j["nodes"][n], "extensions"), "EXT_mesh_gpu_instancing");
+      if (ext == nullptr) continue;
+      const std::string field = absl::StrCat("nodes[", n, "].extensions.EXT_mesh_gpu_instancing");
+      if (!ext->is_object()) return Invalid(file_, field, "not an object");
+      const json* attributes = Member(*ext, "attributes");
+      if (attributes == nullptr) return Invalid(file_, field + ".attributes", "missing");
+      if (!attributes->is_object() || attributes->empty()) {
+        return Invalid(file_, field + ".attributes",
+                       "not an object naming at least one accessor (TRANSLATION, ROTATION, "
+                       "SCALE, or the application's own)");
+      }
+      for (const auto& [name, index] : attributes->items()) {
+        uint64_t a = 0;
+        if (!JsonUint(&index, &a) || a >= accessors) {
+          return Invalid(file_, absl::StrCat(field, ".attributes.", name), "out of range (",
+                         accessors, " accessors)");
+        }
+      }
+    }
+    return absl::OkStatus();
+  }
+
   // Whether `name` is in the top-level array `list`.
   static bool Lists(const json& j, const char* list, const char* name) {
     const json* a = Member(j, list);
@@ -965,13 +995,15 @@ class PreScan {
       const json& texture = j["textures"][t];
       // EXT_texture_webp: the texture samples its WebP source; its core source (optional) is a
       // PNG or JPEG fallback for viewers without the extension, not decoded here.
-      if (const json* ext =
-              webp ? Member(Member(texture, "extensions"), "EXT_texture_webp") : nullptr) {
+      // Without a source the extension names no image: the core source is the texture's.
+      const json* ext = webp ? Member(Member(texture, "extensions"), "EXT_texture_webp") : nullptr;
+      if (ext && !ext->is_object()) {
+        return Invalid(file_, absl::StrCat("textures[", t, "].extensions.EXT_texture_webp"),
+                       "not an object");
+      }
+      if (const json* s = ext ? Member(*ext, "source") : nullptr) {
         const std::string field = absl::StrCat("textures[", t, "].extensions.EXT_texture_webp");
-        if (!ext->is_object()) return Invalid(file_, field, "not an object");
         uint64_t source = 0;
-        const json* s = Member(*ext, "source");
-        if (s == nullptr) return Invalid(file_, field + ".source", "missing (an image index)");
         if (!JsonUint(s, &source) || source >= count) {
           return Invalid(file_, field + ".source", "out of range (", count, " images)");
         }

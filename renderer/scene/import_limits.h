@@ -30,7 +30,7 @@ struct ImportLimits {
   uint32_t max_textures = 4096;
   uint32_t max_materials = 16384;
   uint32_t max_lights = 4096;                      // KHR_lights_punctual lights
-  uint32_t max_drawables = 1u << 20;               // mesh primitives placed by nodes
+  uint32_t max_drawables = 1u << 20;  // mesh primitives placed by nodes (x their instances)
   uint64_t max_decoded_bytes = 1ull << 30;         // what Draco and meshopt data decode to,
                                                    // all together (compressed meshes)
   uint64_t max_animation_keys = 1ull << 24;        // key times over all animation samplers

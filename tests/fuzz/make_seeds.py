@@ -78,6 +78,23 @@ def gltf_seeds(assets):
     doc["textures"][0]["extensions"] = {"EXT_texture_webp": {"source": len(doc["images"]) - 1}}
     files[0] = (files[0][0], json.dumps(doc).encode())
     write("gltf", "BoxTextured_webp.tsfs", pack(files + [("lossless.webp", WEBP["lossless.webp"])]))
+    # Box drawn as three instances (EXT_mesh_gpu_instancing): TRANSLATION and SCALE after its
+    # data.
+    (name, main), (bin_name, data) = gltf_file_set(os.path.join(assets, "Box/glTF/Box.gltf"))
+    doc = json.loads(main)
+    data += b"\0" * ((-len(data)) % 4)
+    offset = len(data)
+    data += struct.pack("<9f", 0, 0, 0, 2, 0, 0, 0, 3, 0) + struct.pack("<9f", 1, 1, 1, 2, 2, 2, 1, .5, 1)
+    doc["buffers"][0]["byteLength"] = len(data)
+    views, accessors = len(doc["bufferViews"]), len(doc["accessors"])
+    for k in range(2):
+        doc["bufferViews"].append({"buffer": 0, "byteOffset": offset + 36 * k, "byteLength": 36})
+        doc["accessors"].append({"bufferView": views + k, "componentType": 5126, "count": 3,
+                                 "type": "VEC3"})
+    doc["extensionsUsed"] = ["EXT_mesh_gpu_instancing"]
+    doc["nodes"][1]["extensions"] = {"EXT_mesh_gpu_instancing": {
+        "attributes": {"TRANSLATION": accessors, "SCALE": accessors + 1}}}
+    write("gltf", "Box_instanced.tsfs", pack([(name, json.dumps(doc).encode()), (bin_name, data)]))
     for rel in ["Box/glTF-Binary/Box.glb", "BoxTextured/glTF-Binary/BoxTextured.glb",
                 "OrientationTest/glTF-Binary/OrientationTest.glb", "Box/glTF-Embedded/Box.gltf"]:
         with open(os.path.join(assets, rel), "rb") as f:

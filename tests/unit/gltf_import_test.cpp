@@ -966,10 +966,13 @@ TEST(GltfImportWebp, MalformedSourcesAreRefusedNamingThem) {
                   j["textures"][0]["extensions"]["EXT_texture_webp"]["source"] = 7;
                 })),
                 {"textures[0].extensions.EXT_texture_webp.source", "out of range (2 images)"});
-  ExpectInvalid(ImportGltf(WebpBox([](json& j) {
-                  j["textures"][0]["extensions"]["EXT_texture_webp"].erase("source");
-                })),
-                {"textures[0].extensions.EXT_texture_webp.source", "missing"});
+  // Without a source (the schema does not require one) the extension names no image: the core
+  // source, the PNG, is sampled.
+  absl::StatusOr<CpuScene> no_source = ImportGltf(
+      WebpBox([](json& j) { j["textures"][0]["extensions"]["EXT_texture_webp"].erase("source"); }));
+  ASSERT_TRUE(no_source.ok()) << no_source.status();
+  ASSERT_NE(no_source->textures[0].image, nullptr);
+  EXPECT_EQ(no_source->textures[0].image->name, "CesiumLogoFlat.png");
   ExpectInvalid(
       ImportGltf(WebpBox([](json& j) { j["textures"][0]["extensions"]["EXT_texture_webp"] = 1; })),
       {"textures[0].extensions.EXT_texture_webp", "not an object"});
@@ -1023,7 +1026,7 @@ constexpr float kInstanceT[9] = {0, 0, 0, 2, 0, 0, 0, 3, 0};
 constexpr float kInstanceR[12] = {0, 0, 0, 1, 0, 0, 0.70710678f, 0.70710678f, 1, 0, 0, 0};
 constexpr float kInstanceS[9] = {1, 1, 1, 2, 2, 2, 1, 0.5f, 1};
 GltfSource InstancedBox(const std::function<void(json&)>& edit, bool animated = false,
-                        float first_x = 0.0f) {
+                        float first_x = 0.0f, float first_rotation_x = 0.0f) {
   GltfSource src = Source("Box/glTF/Box.gltf");
   std::vector<uint8_t>& bin = src.files.at("Box0.bin");
   json views = json::array(), accessors = json::array();
@@ -1038,7 +1041,10 @@ GltfSource InstancedBox(const std::function<void(json&)>& edit, bool animated = 
   std::copy(std::begin(kInstanceT), std::end(kInstanceT), t);
   t[0] = first_x;
   append(t, 9, "VEC3", 3);
-  append(kInstanceR, 12, "VEC4", 3);
+  float r[12];
+  std::copy(std::begin(kInstanceR), std::end(kInstanceR), r);
+  r[0] = first_rotation_x;
+  append(r, 12, "VEC4", 3);
   append(kInstanceS, 9, "VEC3", 3);
   const float times[2] = {0, 1}, moves[6] = {0, 0, 0, 5, 0, 0};
   if (animated) {
@@ -1115,6 +1121,13 @@ TEST(GltfImportInstancing, EachInstanceIsADrawableUnderItsNode) {
               })).ok());
   ExpectInvalid(ImportGltf(InstancedBox([](json& j) { j.erase("extensionsUsed"); })),
                 {"nodes[1].extensions.EXT_mesh_gpu_instancing", "not declared in extensionsUsed"});
+  // Only the application's own attributes (_ID, ...): as many instances, each at the node.
+  absl::StatusOr<CpuScene> ids = ImportGltf(InstancedBox([](json& j) {
+    j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"_ID", 3}};
+  }));
+  ASSERT_TRUE(ids.ok()) << ids.status();
+  ASSERT_EQ(ids->drawables.size(), 3u);
+  for (const Drawable& d : ids->drawables) ExpectNear(d.world, node_world, "_ID-only instance");
 }
 
 // An animated node moves its instances with it: each is posed at the node's posed world
@@ -1141,40 +1154,65 @@ TEST(GltfImportInstancing, AnAnimatedNodeCarriesItsInstances) {
 TEST(GltfImportInstancing, MalformedInstancesAreRefusedNamingThem) {
   REQUIRE_ASSETS();
   const std::string at = "nodes[1].extensions.EXT_mesh_gpu_instancing";
+  auto attributes = [](json& j) -> json& {
+    return j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
+  };
   ExpectInvalid(ImportGltf(InstancedBox([](json& j) { j["accessors"][5]["count"] = 2; })),
-                {at + ".attributes.SCALE", "count 2 differs from TRANSLATION's 3"});
+                {at + ".attributes.SCALE", "count 2 differs from"});
   ExpectInvalid(ImportGltf(InstancedBox([](json& j) { j["accessors"][4]["type"] = "VEC3"; })),
                 {at + ".attributes.ROTATION", "unsupported type/componentType"});
-  ExpectInvalid(
-      ImportGltf(InstancedBox([](json& j) {
-        j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"]["TRANSLATION"] = 99;
-      })),
-      {at + ".attributes.TRANSLATION"});
-  ExpectInvalid(ImportGltf(InstancedBox([](json& j) {
-                  j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] =
-                      json::object();
-                })),
-                {at + ".attributes", "missing or empty"});
-  // Application-specific attributes (_ID ...) are allowed, but draw nothing by themselves.
-  ExpectInvalid(
-      ImportGltf(InstancedBox([](json& j) {
-        j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"_ID", 3}};
-      })),
-      {at + ".attributes", "names none of TRANSLATION, ROTATION and SCALE"});
+  // Indices in range, as numbers an int holds (tinygltf would wrap 2^32 + 1 to accessor 1).
+  for (const int64_t bad : {int64_t{99}, int64_t{4294967297}, int64_t{-1}}) {
+    ExpectInvalid(ImportGltf(InstancedBox([&](json& j) { attributes(j)["TRANSLATION"] = bad; })),
+                  {at + ".attributes.TRANSLATION", "out of range"});
+  }
+  ExpectInvalid(ImportGltf(InstancedBox([&](json& j) { attributes(j) = json::object(); })),
+                {at + ".attributes", "not an object naming at least one accessor"});
+  ExpectInvalid(ImportGltf(InstancedBox([&](json& j) { attributes(j) = 3; })),
+                {at + ".attributes", "not an object naming at least one accessor"});
   ExpectInvalid(ImportGltf(InstancedBox([](json& j) {
                   j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"].erase("attributes");
                 })),
-                {at + ".attributes", "missing or empty"});
-  ExpectInvalid(ImportGltf(InstancedBox([](json& j) {
-                  j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = 3;
-                })),
-                {at + ".attributes", "not an object"});
+                {at + ".attributes", "missing"});
+  ExpectInvalid(ImportGltf(InstancedBox(
+                    [](json& j) { j["nodes"][1]["extensions"]["EXT_mesh_gpu_instancing"] = 1; })),
+                {at, "not an object"});
   ExpectInvalid(
       ImportGltf(InstancedBox([](json&) {}, false, std::numeric_limits<float>::infinity())),
       {at, "instance 0's transform is not finite"});
+  ExpectInvalid(
+      ImportGltf(InstancedBox([](json&) {}, false, 0.0f, std::numeric_limits<float>::quiet_NaN())),
+      {at, "instance 0's rotation is not finite"});
   ImportLimits limits;
   limits.max_drawables = 2;
   ExpectOverLimit(ImportGltf(InstancedBox([](json&) {}), limits), {at, "max_drawables"});
+  // Instances placed by zeros (an accessor without a bufferView) cost nothing to upload: a
+  // million of them from a few bytes of JSON is refused, naming the budget.
+  ExpectOverLimit(
+      ImportGltf(InstancedBox([&](json& j) {
+        j["accessors"].push_back({{"componentType", 5126}, {"count", 1 << 20}, {"type", "VEC3"}});
+        attributes(j) = {{"TRANSLATION", j["accessors"].size() - 1}};
+      })),
+      {at, "instances placed by zeros or sparse data"});
+  // Instancing a skinned mesh (the crowd's first body) is refused, as not supported.
+  absl::StatusOr<GltfSource> crowd =
+      LoadGltfSourceFromDisk(std::string(TESSERA_ANIMATED_DIR) + "/crowd.gltf");
+  ASSERT_TRUE(crowd.ok()) << crowd.status();
+  std::string skinned;
+  absl::StatusOr<CpuScene> instanced_crowd = ImportGltf(Edited(*crowd, [&](json& j) {
+    j["extensionsUsed"].push_back("EXT_mesh_gpu_instancing");
+    for (size_t n = 0; n < j["nodes"].size(); ++n) {
+      json& node = j["nodes"][n];
+      if (!node.contains("skin")) continue;
+      const int position =
+          j["meshes"][node["mesh"].get<int>()]["primitives"][0]["attributes"]["POSITION"];
+      node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"] = {{"TRANSLATION", position}};
+      skinned = absl::StrCat("nodes[", n, "].extensions.EXT_mesh_gpu_instancing");
+      break;
+    }
+  }));
+  ASSERT_FALSE(skinned.empty());
+  ExpectInvalid(instanced_crowd, {skinned, "instances of a skinned mesh are not supported"});
 }
 
 TEST(GltfImportMalformed, AssetVersion) {

@@ -354,6 +354,16 @@ TEST(ImageIo, WebpDecodeRejectsBadInput) {
     std::span<const uint8_t> truncated(webp->data(), keep);
     EXPECT_FALSE(DecodeWebp(truncated).ok()) << "kept " << keep << " of " << webp->size();
   }
+  // An animated WebP (a VP8X header with the animation flag, then its ANIM chunk): refused by
+  // name, not decoded as its first frame.
+  const std::vector<uint8_t> animated = {
+      'R', 'I', 'F', 'F', 30, 0, 0, 0, 'W',  'E', 'B', 'P',  // RIFF, the size after this word
+      'V', 'P', '8', 'X', 10, 0, 0, 0, 0x02, 0,   0,   0,    // VP8X: flags (animation), reserved
+      7,   0,   0,   3,   0,  0,                             // canvas 8x4 (each less one)
+      'A', 'N', 'I', 'M', 6,  0, 0, 0, 0,    0,   0,   0,   0, 0};  // background colour, loop count
+  absl::StatusOr<RgbaImage> anim = DecodeWebp(animated);
+  ASSERT_FALSE(anim.ok());
+  EXPECT_NE(anim.status().message().find("animated"), std::string::npos) << anim.status();
   // The size is checked against max_pixels before anything is decoded.
   absl::StatusOr<RgbaImage> over = DecodeWebp(*webp, 64 * 64 - 1);
   ASSERT_FALSE(over.ok());
