@@ -163,6 +163,13 @@ bool ReadImageHeader(const uint8_t* d, size_t n, uint32_t* w, uint32_t* h) {
 
 bool IsPng(const uint8_t* d, size_t n) { return n >= 8 && std::memcmp(d, "\x89PNG\r\n\x1a\n", 8) == 0; }
 bool IsJpeg(const uint8_t* d, size_t n) { return n >= 3 && d[0] == 0xFF && d[1] == 0xD8 && d[2] == 0xFF; }
+// The media type the data's signature says, or null for none of the three.
+const char* MimeTypeOf(const uint8_t* d, size_t n) {
+  return IsPng(d, n)                              ? "image/png"
+         : IsJpeg(d, n)                           ? "image/jpeg"
+         : IsWebp(std::span<const uint8_t>(d, n)) ? "image/webp"
+                                                  : nullptr;
+}
 
 // PNG or JPEG, or with `webp` (an EXT_texture_webp source) WebP too.
 absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
@@ -170,13 +177,14 @@ absl::StatusOr<DecodedImage> DecodeImage(const uint8_t* bytes, size_t size,
                                          bool webp) {
   if (bytes == nullptr || size == 0) return absl::InvalidArgumentError("no image data");
   const std::span<const uint8_t> file(bytes, size);
-  const bool png = IsPng(bytes, size);
-  const bool is_webp = !png && IsWebp(file);
+  const char* mime_type = MimeTypeOf(bytes, size);
+  const bool png = mime_type && std::strcmp(mime_type, "image/png") == 0;
+  const bool is_webp = mime_type && std::strcmp(mime_type, "image/webp") == 0;
   if (is_webp && !webp) {
     return absl::InvalidArgumentError(
         "a WebP image, which glTF allows only as a texture's EXT_texture_webp source");
   }
-  if (!png && !is_webp && !IsJpeg(bytes, size)) {
+  if (mime_type == nullptr) {
     return absl::InvalidArgumentError(
         webp ? "not a PNG, JPEG or WebP image"
              : "not a PNG or JPEG image (the image types glTF 2.0 allows)");
@@ -209,10 +217,7 @@ bool LoadImage(tinygltf::Image* image, const int index, std::string* err, std::s
   auto* ctx = static_cast<LoadContext*>(user);
   // The declared type (a bufferView image's mimeType, a data: URI's media type) is the data's.
   const size_t n = size_t(std::max(size, 0));
-  const char* actual = IsPng(bytes, n)                              ? "image/png"
-                       : IsJpeg(bytes, n)                           ? "image/jpeg"
-                       : IsWebp(std::span<const uint8_t>(bytes, n)) ? "image/webp"
-                                                                    : nullptr;
+  const char* actual = MimeTypeOf(bytes, n);
   if (actual != nullptr && !image->mimeType.empty() && image->mimeType != actual) {
     if (ctx->error.ok()) {
       ctx->error = Invalid(ctx->source->main_file, absl::StrCat("images[", index, "].mimeType"),
@@ -1473,14 +1478,12 @@ class Converter {
     }
     const tinygltf::Texture& gt = m_.textures[texture];
     const std::string field = absl::StrCat("textures[", texture, "]");
-    // EXT_texture_webp's source where the texture has one (the pre-scan checked it); its core
-    // source is then a fallback for other viewers.
+    // EXT_texture_webp's source where the texture has one (the pre-scan checked it is an
+    // image); its core source is then a fallback for other viewers.
     int source = gt.source;
-    if (const auto ext = gt.extensions.find("EXT_texture_webp");
-        ext != gt.extensions.end() && Uses("EXT_texture_webp") && ext->second.Has("source")) {
-      source = ext->second.Get("source").GetNumberAsInt();
-      RETURN_IF_ERROR(CheckIndex(field + ".extensions.EXT_texture_webp.source", source,
-                                 m_.images.size(), "image"));
+    if (const auto webp = pre_.webp_sources.find(uint32_t(texture));
+        webp != pre_.webp_sources.end()) {
+      source = int(webp->second);
     } else if (source >= 0) {
       RETURN_IF_ERROR(CheckIndex(field + ".source", source, m_.images.size(), "image"));
     }
@@ -1670,15 +1673,13 @@ class Converter {
   // identity without the extension. Each instance of its mesh's `primitives` is a drawable, so
   // the count is held to max_drawables before anything is read.
   absl::StatusOr<std::vector<glm::mat4>> Instances(int index, size_t primitives) {
-    const tinygltf::Node& n = m_.nodes[index];
-    const auto ext = n.extensions.find("EXT_mesh_gpu_instancing");
-    if (ext == n.extensions.end() || !Uses("EXT_mesh_gpu_instancing")) {
-      return std::vector<glm::mat4>{glm::mat4(1.0f)};
-    }
+    // The pre-scan read the extension: at least one attribute, each an accessor that exists.
+    const auto instancing = pre_.instancing.find(uint32_t(index));
+    if (instancing == pre_.instancing.end()) return std::vector<glm::mat4>{glm::mat4(1.0f)};
     const std::string path = absl::StrCat("nodes[", index, "].extensions.EXT_mesh_gpu_instancing");
-    if (n.skin >= 0) return Err(path, "instances of a skinned mesh are not supported");
-    // The pre-scan checked the object: `attributes` names accessors that exist, at least one.
-    const tinygltf::Value& attributes = ext->second.Get("attributes");
+    if (m_.nodes[index].skin >= 0) {
+      return Err(path, "instances of a skinned mesh are not supported");
+    }
     static constexpr const char* kNames[3] = {"TRANSLATION", "ROTATION", "SCALE"};
     AccessorView views[3];
     uint64_t count = UINT64_MAX;
@@ -1686,10 +1687,9 @@ class Converter {
     bool generated = false;  // an accessor of zeros or sparse blocks (costs nothing to upload)
     // Every attribute, the application's own (_ID, ...) too: all of one count, which an
     // instance has even where none of the three transform attributes is given.
-    for (const std::string& name : attributes.Keys()) {
+    for (const auto& [name, accessor] : instancing->second) {
       const std::string field = absl::StrCat(path, ".attributes.", name);
-      const int accessor = attributes.Get(name).GetNumberAsInt();
-      ASSIGN_OR_RETURN(const AccessorView v, View(accessor, field));
+      ASSIGN_OR_RETURN(const AccessorView v, View(int(accessor), field));
       generated = generated || m_.accessors[accessor].bufferView < 0 ||
                   m_.accessors[accessor].sparse.isSparse;
       if (count != UINT64_MAX && v.count != count) {
@@ -1699,21 +1699,15 @@ class Converter {
       count = v.count;
       const int k = int(std::find(std::begin(kNames), std::end(kNames), name) - std::begin(kNames));
       if (k == 3) continue;
-      const int t = v.component_type;
-      const bool is_float = t == TINYGLTF_COMPONENT_TYPE_FLOAT;
-      const bool small = t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT ||
-                         t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE ||
-                         t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
-      const bool is_signed =
-          t == TINYGLTF_COMPONENT_TYPE_BYTE || t == TINYGLTF_COMPONENT_TYPE_SHORT;
-      // The extension's table: ROTATION as FLOAT or normalized signed BYTE/SHORT (as animation
-      // rotations); TRANSLATION and SCALE as FLOAT, or (leniently, as for positions) any 8- or
-      // 16-bit integer type with KHR_mesh_quantization.
+      // The extension's table: ROTATION as FLOAT or normalized signed BYTE/SHORT (a NORMAL's
+      // types, without needing KHR_mesh_quantization); TRANSLATION and SCALE as FLOAT, or
+      // (leniently, as positions) any 8- or 16-bit integer type with KHR_mesh_quantization.
       const bool rotation = k == 1;
-      const bool allowed = rotation ? is_float || (small && is_signed && v.normalized)
-                                    : is_float || (small && quantization_);
+      bool needs_ext = false;
+      const bool allowed = AllowedComponents(v, rotation ? "NORMAL" : "POSITION", &needs_ext) &&
+                           (rotation || !needs_ext || quantization_);
       const std::string what =
-          absl::StrCat(v.normalized ? "normalized " : "", ComponentTypeName(t));
+          absl::StrCat(v.normalized ? "normalized " : "", ComponentTypeName(v.component_type));
       if (v.type != (rotation ? TINYGLTF_TYPE_VEC4 : TINYGLTF_TYPE_VEC3) || !allowed) {
         return Err(field, "unsupported type/componentType for ", name, " (",
                    tinygltf::GetNumComponentsInType(uint32_t(v.type)), " x ", what, ")");

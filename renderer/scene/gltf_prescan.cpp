@@ -873,12 +873,14 @@ class PreScan {
                        "not an object naming at least one accessor (TRANSLATION, ROTATION, "
                        "SCALE, or the application's own)");
       }
+      auto& named = result_->instancing[uint32_t(n)];
       for (const auto& [name, index] : attributes->items()) {
         uint64_t a = 0;
         if (!JsonUint(&index, &a) || a >= accessors) {
           return Invalid(file_, absl::StrCat(field, ".attributes.", name), "out of range (",
                          accessors, " accessors)");
         }
+        named.emplace_back(name, uint32_t(a));
       }
     }
     return absl::OkStatus();
@@ -1009,6 +1011,7 @@ class PreScan {
         }
         result_->image_needed[source] = true;
         result_->image_webp[source] = true;
+        result_->webp_sources[uint32_t(t)] = uint32_t(source);
         continue;
       }
       uint64_t source = 0;

@@ -51,6 +51,11 @@ struct PreScanResult {
   std::map<std::string, std::string> alias;     // tinygltf-decoded URI -> key in source.files
   std::vector<bool> image_needed;  // per image: a texture samples it (its WebP source, if any)
   std::vector<bool> image_webp;    // per image: an EXT_texture_webp source (may be WebP data)
+  // Per texture with an EXT_texture_webp source (where extensionsUsed lists it): that image.
+  std::map<uint32_t, uint32_t> webp_sources;
+  // Per node with EXT_mesh_gpu_instancing (where extensionsUsed lists it): its attributes, each
+  // name and accessor index (checked in range; at least one).
+  std::map<uint32_t, std::vector<std::pair<std::string, uint32_t>>> instancing;
   std::vector<std::string> warnings;            // unsupported extensionsUsed, in order
 };
 
