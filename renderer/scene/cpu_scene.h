@@ -100,6 +100,9 @@ struct Material {
   AlphaMode alpha_mode = AlphaMode::kOpaque;
   float alpha_cutoff = 0.5f;
   bool double_sided = false;
+  // KHR_materials_unlit: the surface's colour is its base colour (factor x texture), not lit;
+  // alpha mode and double-sidedness still apply, every other property is ignored.
+  bool unlit = false;
   TextureRef base_color;
   TextureRef metallic_roughness;
   TextureRef normal;

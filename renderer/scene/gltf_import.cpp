@@ -1569,15 +1569,27 @@ class Converter {
     }
     m.alpha_cutoff = std::clamp(ToFloat(gm.alphaCutoff), 0.0f, 1.0f);
     m.double_sided = gm.doubleSided;
+    // The pre-scan refused an extension value that is not an object.
+    m.unlit = gm.extensions.count("KHR_materials_unlit") != 0;
     const std::string pbr_path = path + ".pbrMetallicRoughness";
     RETURN_IF_ERROR(
         TextureSlot(pbr.baseColorTexture, true, pbr_path + ".baseColorTexture", &m.base_color));
-    RETURN_IF_ERROR(TextureSlot(pbr.metallicRoughnessTexture, false,
-                                pbr_path + ".metallicRoughnessTexture", &m.metallic_roughness));
-    RETURN_IF_ERROR(TextureSlot(gm.normalTexture, false, path + ".normalTexture", &m.normal));
-    RETURN_IF_ERROR(
-        TextureSlot(gm.occlusionTexture, false, path + ".occlusionTexture", &m.occlusion));
-    RETURN_IF_ERROR(TextureSlot(gm.emissiveTexture, true, path + ".emissiveTexture", &m.emissive));
+    // An unlit material reads nothing but its base colour: the other textures are checked, not
+    // decoded (their colour spaces and transforms no shader would use).
+    auto lit_slot = [&](const auto& info, bool srgb, const std::string& field, TextureRef* out) {
+      if (!m.unlit) return TextureSlot(info, srgb, field, out);
+      if (info.index < 0) return absl::OkStatus();
+      return CheckIndex(field + ".index", info.index, m_.textures.size(), "texture");
+    };
+    RETURN_IF_ERROR(lit_slot(pbr.metallicRoughnessTexture, false,
+                             pbr_path + ".metallicRoughnessTexture", &m.metallic_roughness));
+    RETURN_IF_ERROR(lit_slot(gm.normalTexture, false, path + ".normalTexture", &m.normal));
+    RETURN_IF_ERROR(lit_slot(gm.occlusionTexture, false, path + ".occlusionTexture", &m.occlusion));
+    RETURN_IF_ERROR(lit_slot(gm.emissiveTexture, true, path + ".emissiveTexture", &m.emissive));
+    if (m.unlit) {
+      m.emissive_factor = glm::vec3(0.0f);
+      m.emissive_strength = 1.0f;
+    }
     s_.materials.push_back(std::move(m));
     return absl::OkStatus();
   }
@@ -1899,7 +1911,7 @@ const std::vector<std::string_view>& SupportedGltfExtensions() {
   static const std::vector<std::string_view> names{
       "EXT_mesh_gpu_instancing",    "EXT_meshopt_compression", "EXT_texture_webp",
       "KHR_draco_mesh_compression", "KHR_lights_punctual",     "KHR_materials_emissive_strength",
-      "KHR_mesh_quantization",      "KHR_texture_transform"};
+      "KHR_materials_unlit",        "KHR_mesh_quantization",   "KHR_texture_transform"};
   return names;
 }
 

@@ -313,6 +313,11 @@ class PreScan {
       for (const char* slot : {"normalTexture", "occlusionTexture", "emissiveTexture"})
         RETURN_IF_ERROR(TextureInfo(Member(m, slot), f + "." + slot));
       const json* exts = Member(m, "extensions");
+      // The extension's presence makes the material unlit; its value must be an object.
+      if (const json* unlit = exts ? Member(*exts, "KHR_materials_unlit") : nullptr;
+          unlit != nullptr && !unlit->is_object()) {
+        return Invalid(file_, f + ".extensions.KHR_materials_unlit", "not an object");
+      }
       if (const json* es = exts ? Member(*exts, "KHR_materials_emissive_strength") : nullptr) {
         RETURN_IF_ERROR(Number(Member(*es, "emissiveStrength"),
                                f + ".extensions.KHR_materials_emissive_strength.emissiveStrength",

@@ -185,12 +185,20 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
   g.emissive = glm::vec4(m.emissive_factor * m.emissive_strength, 0.0f);
   g.params = glm::vec4(m.metallic_factor, m.roughness_factor, m.normal_scale, m.occlusion_strength);
   g.params2 = glm::vec4(m.alpha_cutoff, 0.0f, 0.0f, 0.0f);
-  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u, 0u, 0u);
+  g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u,
+                       m.unlit ? 1u : 0u, 0u);
   g.base_color_tex = MakeTextureRef(m.base_color, textures, plan);
-  g.metallic_roughness_tex = MakeTextureRef(m.metallic_roughness, textures, plan);
-  g.normal_tex = MakeTextureRef(m.normal, textures, plan);
-  g.occlusion_tex = MakeTextureRef(m.occlusion, textures, plan);
-  g.emissive_tex = MakeTextureRef(m.emissive, textures, plan);
+  // An unlit surface reads its base colour only: no other slot is sampled (nor, on devices with
+  // a pipeline per set of slots, compiled in).
+  const TextureRef none;
+  auto lit_only = [&](const TextureRef& ref) {
+    return MakeTextureRef(m.unlit ? none : ref, textures, plan);
+  };
+  g.metallic_roughness_tex = lit_only(m.metallic_roughness);
+  g.normal_tex = lit_only(m.normal);
+  g.occlusion_tex = lit_only(m.occlusion);
+  g.emissive_tex = lit_only(m.emissive);
+  if (m.unlit) g.emissive = glm::vec4(0.0f);
   return g;
 }
 

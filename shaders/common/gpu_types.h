@@ -336,7 +336,7 @@ struct GpuMaterial {
   vec4 emissive;           // rgb: emissive factor * KHR_materials_emissive_strength
   vec4 params;             // x metallic, y roughness, z normal scale, w occlusion strength
   vec4 params2;            // x alpha cutoff (MASK), yzw unused
-  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, zw unused
+  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, z unlit, w unused
   GpuTextureRef base_color_tex;
   GpuTextureRef metallic_roughness_tex;
   GpuTextureRef normal_tex;

@@ -292,6 +292,9 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   if (debug_view == kDebugLightHeatmap) {
     return vec4(Heat(tiled ? tile_count : frame.lighting.x), 1.0);
   }
+  // KHR_materials_unlit: the base colour as it is, whatever the lights (the frame's exposure and
+  // tonemapper still apply, as to everything else).
+  if (m.flags.z != 0u) return vec4(base.rgb, m.flags.x == kAlphaBlend ? base.a : 1.0);
 
   // The pipeline's kShadowCode alone says whether DirectLight looks shadows up: a choice at run
   // time between two calls (on shadow.counts.w, which PrepareShadows sets whenever kShadowCode

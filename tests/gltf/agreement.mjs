@@ -198,6 +198,15 @@ const cases = [
     j.materials[0].emissiveFactor = [1, 1, 1];
     j.materials[0].extensions = { KHR_materials_emissive_strength: { emissiveStrength: -1 } };
   }),
+  // KHR_materials_unlit: an empty object makes the material unlit; anything else is refused.
+  generated('unlit_material', (j) => {
+    j.extensionsUsed = ['KHR_materials_unlit'];
+    j.materials[0].extensions = { KHR_materials_unlit: {} };
+  }),
+  generated('unlit_not_object', (j) => {
+    j.extensionsUsed = ['KHR_materials_unlit'];
+    j.materials[0].extensions = { KHR_materials_unlit: true };
+  }),
   generated('texture_transform_scale_length', (j, bin) => {
     j.extensionsUsed = ['KHR_texture_transform'];
     j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });

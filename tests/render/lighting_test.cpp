@@ -852,5 +852,100 @@ TEST(PostStageTest, TonemapInComputeGivesTheSamePicture) {
   ExpectNoValidationMessages(SharedRenderer());
 }
 
+// KHR_materials_unlit (Material::unlit): an unlit surface's HDR colour is its base colour, the
+// same under no effect and under every one (shadows, SSAO, IBL, local lights), in the forward
+// pass, the visibility pipeline's shading and vis_mlaa's. The demo scene with its red plastic
+// (a constant base colour: the CPU's value) and its textured metal (the base-colour debug view's
+// value in the same frame, which samples the same texture) made unlit; only pixels whose 3x3
+// neighbourhood shows one drawable are compared, so no edge between surfaces enters.
+TEST(UnlitTest, ShowsItsBaseColourWhateverTheLight) {
+  CpuScene cpu = BuildDemoScene();
+  glm::vec3 red{0.0f};
+  std::vector<bool> unlit(cpu.materials.size(), false);
+  for (size_t m = 0; m < cpu.materials.size(); ++m) {
+    Material& mat = cpu.materials[m];
+    if (mat.name != "Red plastic" && mat.name != "Checker metal-roughness") continue;
+    mat.unlit = true;
+    unlit[m] = true;
+    if (mat.name == "Red plastic") red = glm::vec3(mat.base_color_factor);
+  }
+  ASSERT_NE(red, glm::vec3(0.0f));
+  absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(cpu);
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  auto material_at = [&](const FrameCapture& c, uint32_t x, uint32_t y) -> int {
+    const uint32_t id = c.ids[size_t(y) * kWidth + x];
+    if (id == 0) return -1;
+    for (int dy = -1; dy <= 1; ++dy)
+      for (int dx = -1; dx <= 1; ++dx)
+        if (c.ids[size_t(int(y) + dy) * kWidth + (int(x) + dx)] != id) return -1;
+    return int(cpu.primitives[cpu.drawables[id - 1].primitive].material);
+  };
+  auto hdr_at = [](const FrameCapture& c, uint32_t x, uint32_t y) {
+    const float* p = &c.hdr[(size_t(y) * kWidth + x) * 4];
+    return glm::vec3(p[0], p[1], p[2]);
+  };
+  std::vector<std::pair<std::string, Settings>> cases;
+  Settings plain = Lit(false, false);
+  plain.pipeline = Pipeline::kForward;
+  cases.push_back({"forward, no effects", plain});
+  Settings every = Lit(true, true);
+  every.ibl = true;
+  every.synthetic_lights = 64;
+  every.pipeline = Pipeline::kForward;
+  cases.push_back({"forward, every effect", every});
+  if (SharedRenderer().device_info().visibility_buffer) {
+    every.pipeline = Pipeline::kVisibility;
+    cases.push_back({"visibility, every effect", every});
+    every.pipeline = Pipeline::kAuto;
+    every.aa = AaMode::kVisMlaa;
+    cases.push_back({"vis_mlaa, every effect", every});
+  }
+  for (const auto& [name, settings] : cases) {
+    SCOPED_TRACE(name);
+    FrameCapture c;
+    c.want_ids = true;
+    absl::StatusOr<Frame> f = SharedRenderer().Render(**scene, BackCamera(), settings, 0, &c);
+    ASSERT_TRUE(f.ok()) << f.status();
+    // The base colour at each pixel, as the same frame's debug view shows it (vis_mlaa's
+    // shading smooths the checker's edges as it does any texture's).
+    Settings base = settings;
+    base.debug_view = DebugView::kBaseColor;
+    FrameCapture reference;
+    reference.want_ids = true;
+    ASSERT_TRUE(SharedRenderer().Render(**scene, BackCamera(), base, 0, &reference).ok());
+    ASSERT_EQ(c.hdr.size(), size_t(kWidth) * kHeight * 4);
+    size_t red_pixels = 0, textured_pixels = 0, textured_far = 0, lit_pixels = 0, lit_far = 0;
+    for (uint32_t y = 1; y + 1 < kHeight; ++y) {
+      for (uint32_t x = 1; x + 1 < kWidth; ++x) {
+        const int m = material_at(c, x, y);
+        if (m < 0 || m != material_at(reference, x, y)) continue;
+        const glm::vec3 got = hdr_at(c, x, y);
+        const glm::vec3 want = hdr_at(reference, x, y);
+        const float diff = glm::length(got - want);
+        if (!unlit[m]) {  // a lit surface: lighting makes it differ from its base colour
+          ++lit_pixels;
+          lit_far += diff > 0.05f;
+        } else if (cpu.materials[m].base_color.texture < 0) {
+          ++red_pixels;
+          ASSERT_LT(glm::length(got - red), 2e-3f)
+              << "pixel " << x << "," << y << ": " << got.r << " " << got.g << " " << got.b;
+        } else {
+          ++textured_pixels;
+          textured_far += diff > 1.0f / 64.0f;
+        }
+      }
+    }
+    std::printf(
+        "unlit, %s: %zu red and %zu textured pixels (%zu differ from the base colour); "
+        "%zu of %zu lit pixels differ\n",
+        name.c_str(), red_pixels, textured_pixels, textured_far, lit_far, lit_pixels);
+    EXPECT_GT(red_pixels, 100u);
+    EXPECT_GT(textured_pixels, 100u);
+    EXPECT_LE(textured_far, textured_pixels / 100);
+    EXPECT_GT(lit_far, lit_pixels / 2);  // the comparison can tell lit from unlit
+  }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
 }  // namespace
 }  // namespace tessera

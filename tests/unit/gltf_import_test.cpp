@@ -1539,5 +1539,52 @@ TEST(GltfImportQuantization, QuantizedAttributesAreDequantized) {
   EXPECT_TRUE(ImportGltf(required).ok());
 }
 
+// KHR_materials_unlit: the material is unlit and keeps its base colour (factor, texture, alpha
+// mode); the textures only lighting reads are checked, not decoded, and emission is dropped.
+TEST(GltfImportUnlit, TheMaterialKeepsOnlyItsBaseColour) {
+  REQUIRE_ASSETS();
+  auto unlit = [](const std::function<void(json&)>& more) {
+    return Edited(Source("BoxTextured/glTF/BoxTextured.gltf"), [&](json& j) {
+      j["extensionsUsed"] = {"KHR_materials_unlit"};
+      json& m = j["materials"][0];
+      m["extensions"]["KHR_materials_unlit"] = json::object();
+      m["alphaMode"] = "MASK";
+      m["normalTexture"] = {{"index", 0}};
+      m["emissiveTexture"] = {{"index", 0}};
+      m["emissiveFactor"] = {1, 0.5, 0};
+      more(j);
+    });
+  };
+  absl::StatusOr<CpuScene> s = ImportGltf(unlit([](json&) {}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  ASSERT_EQ(s->materials.size(), 1u);
+  const Material& m = s->materials[0];
+  EXPECT_TRUE(m.unlit);
+  EXPECT_EQ(m.alpha_mode, AlphaMode::kMask);
+  EXPECT_EQ(m.base_color.texture, 0);
+  EXPECT_EQ(m.normal.texture, -1);
+  EXPECT_EQ(m.emissive.texture, -1);
+  EXPECT_EQ(m.emissive_factor, glm::vec3(0.0f));
+  EXPECT_EQ(s->textures.size(), 1u);
+  EXPECT_EQ(s->warnings, std::vector<std::string>{});
+  // Required, it loads as well; without the extension the same material is lit.
+  EXPECT_TRUE(
+      ImportGltf(unlit([](json& j) { j["extensionsRequired"] = {"KHR_materials_unlit"}; })).ok());
+  absl::StatusOr<CpuScene> lit = ImportGltf(Source("BoxTextured/glTF/BoxTextured.gltf"));
+  ASSERT_TRUE(lit.ok()) << lit.status();
+  EXPECT_FALSE(lit->materials[0].unlit);
+  // A texture it ignores still has to exist; the extension's value has to be an object.
+  ExpectInvalid(ImportGltf(unlit([](json& j) {
+                  j["materials"][0]["occlusionTexture"] = {{"index", 4}};
+                })),
+                {"materials[0].occlusionTexture.index", "out of range"});
+  ExpectInvalid(ImportGltf(unlit([](json& j) {
+                  j["materials"][0]["extensions"]["KHR_materials_unlit"] = true;
+                })),
+                {"materials[0].extensions.KHR_materials_unlit", "not an object"});
+  ExpectInvalid(ImportGltf(unlit([](json& j) { j.erase("extensionsUsed"); })),
+                {"materials[0].extensions.KHR_materials_unlit", "not declared in extensionsUsed"});
+}
+
 }  // namespace
 }  // namespace tessera
