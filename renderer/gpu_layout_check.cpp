@@ -98,9 +98,11 @@ static_assert(sizeof(GpuShadeEntry) == 32);
 }  // namespace tessera::gpu
 
 namespace tessera {
-static_assert(sizeof(Vertex) == 56);
+static_assert(sizeof(Vertex) == 64);
+static_assert(sizeof(Vertex) == gpu::kVertexFloats * 4);
 static_assert(offsetof(Vertex, normal) == 12);
 static_assert(offsetof(Vertex, tangent) == 24);
 static_assert(offsetof(Vertex, uv0) == 40);
 static_assert(offsetof(Vertex, uv1) == 48);
+static_assert(offsetof(Vertex, color) == 56);
 }  // namespace tessera

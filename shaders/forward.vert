@@ -9,12 +9,14 @@ layout(location = kAttrNormal) in vec3 in_normal;
 layout(location = kAttrTangent) in vec4 in_tangent;
 layout(location = kAttrUv0) in vec2 in_uv0;
 layout(location = kAttrUv1) in vec2 in_uv1;
+layout(location = kAttrColor) in uvec2 in_color;  // COLOR_0 as four halves
 
 layout(location = 0) out vec3 v_world;
 layout(location = 1) out vec3 v_normal;
 layout(location = 2) out vec4 v_tangent;
 layout(location = 3) out vec2 v_uv0;
 layout(location = 4) out vec2 v_uv1;
+layout(location = 5) out vec4 v_color;
 
 void main() {
   mat4 world = drawables[gl_InstanceIndex].world;
@@ -26,4 +28,5 @@ void main() {
                    in_tangent.w * drawables[gl_InstanceIndex].normal_matrix[3][3]);
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
+  v_color = vec4(unpackHalf2x16(in_color.x), unpackHalf2x16(in_color.y));
 }

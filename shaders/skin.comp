@@ -114,5 +114,5 @@ void main() {
   vertices[dst + 7u] = tangent.y;
   vertices[dst + 8u] = tangent.z;
   vertices[dst + 9u] = vertices[src + 9u];  // the bitangent sign
-  for (uint k = 10u; k < kVertexFloats; ++k) vertices[dst + k] = vertices[src + k];  // uvs
+  for (uint k = 10u; k < kVertexFloats; ++k) vertices[dst + k] = vertices[src + k];  // uvs, colour
 }

@@ -1,6 +1,7 @@
 #include "renderer/scene/cpu_scene.h"
 
 #include <cmath>
+#include <glm/gtc/packing.hpp>
 
 namespace tessera {
 
@@ -15,6 +16,17 @@ Aabb Aabb::transformed(const glm::mat4& m) const {
   out.min = c - r;
   out.max = c + r;
   return out;
+}
+
+glm::uvec2 PackVertexColor(glm::vec4 rgba) {
+  for (int c = 0; c < 4; ++c)
+    rgba[c] = std::isfinite(rgba[c]) ? std::clamp(rgba[c], 0.0f, 1.0f) : 1.0f;
+  return glm::uvec2(glm::packHalf2x16(glm::vec2(rgba.r, rgba.g)),
+                    glm::packHalf2x16(glm::vec2(rgba.b, rgba.a)));
+}
+
+glm::vec4 UnpackVertexColor(glm::uvec2 packed) {
+  return glm::vec4(glm::unpackHalf2x16(packed.x), glm::unpackHalf2x16(packed.y));
 }
 
 glm::mat3 TextureRef::uv_transform() const {

@@ -56,7 +56,15 @@ struct Vertex {
   glm::vec4 tangent{1.0f, 0.0f, 0.0f, 1.0f};  // xyz tangent, w bitangent sign
   glm::vec2 uv0{0.0f};
   glm::vec2 uv1{0.0f};
+  // COLOR_0, linear RGBA in [0, 1], as IEEE halves: (r, g) and (b, a) each packed as GLSL's
+  // packHalf2x16 (PackVertexColor). White where the file gives none.
+  glm::uvec2 color{kWhiteHalves, kWhiteHalves};
+  static constexpr uint32_t kWhiteHalves = 0x3C003C00u;  // two halves of 1.0
 };
+
+// `rgba` clamped to [0, 1] (a non-finite channel is 1) as Vertex::color holds it.
+glm::uvec2 PackVertexColor(glm::vec4 rgba);
+glm::vec4 UnpackVertexColor(glm::uvec2 packed);
 
 enum class AlphaMode : uint32_t { kOpaque = 0, kMask = 1, kBlend = 2 };
 enum class WrapMode : uint32_t { kRepeat = 0, kClampToEdge = 1, kMirroredRepeat = 2 };
@@ -123,6 +131,8 @@ struct Primitive {
   // The file gave no normals: face normals, each triangle with its own three vertices in order
   // (vertex 3t + k is corner k of triangle t), so a deformed pose recomputes them.
   bool flat_normals = false;
+  // The file gave COLOR_0 (Vertex::color multiplies the base colour; else every vertex is white).
+  bool vertex_colors = false;
   // Morph targets: target t's delta for the primitive's vertex v is
   // CpuScene::morph_deltas[first_morph_delta + t * vertex_count + v].
   uint32_t morph_targets = 0;

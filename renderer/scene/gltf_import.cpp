@@ -1087,7 +1087,8 @@ class Converter {
         t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE || t == TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT;
     // glTF 2.0 3.7.2.1: joint indices are unsigned integers; weights float or normalized.
     if (name == "JOINTS_0") return unsigned_small && !a.normalized;
-    if (name == "WEIGHTS_0")
+    // glTF 2.0 3.7.2.1: weights and colours are float or normalized unsigned byte/short.
+    if (name == "WEIGHTS_0" || name == "COLOR_0")
       return t == TINYGLTF_COMPONENT_TYPE_FLOAT || (unsigned_small && a.normalized);
     if (t == TINYGLTF_COMPONENT_TYPE_FLOAT) return true;
     const bool small = t == TINYGLTF_COMPONENT_TYPE_BYTE ||
@@ -1103,10 +1104,11 @@ class Converter {
     return a.normalized && is_signed;  // NORMAL, TANGENT
   }
 
-  // An optional vertex attribute: VEC`n` of an allowed component type (AllowedComponents) and,
-  // unless it is POSITION, as many elements as POSITION.
+  // An optional vertex attribute: of `type` (or `other_type`, if given) with an allowed component
+  // type (AllowedComponents) and, unless it is POSITION, as many elements as POSITION.
   absl::StatusOr<AccessorView> Attribute(const tinygltf::Primitive& p, const std::string& path,
-                                         const char* name, int type, uint64_t count) {
+                                         const char* name, int type, uint64_t count,
+                                         int other_type = -1) {
     const auto it = p.attributes.find(name);
     if (it == p.attributes.end()) return AccessorView{};
     absl::StatusOr<AccessorView> v = View(it->second, absl::StrCat(path, ".attributes.", name));
@@ -1118,7 +1120,7 @@ class Converter {
     const bool allowed = AllowedComponents(*v, name, &needs_ext);
     const std::string what =
         absl::StrCat(v->normalized ? "normalized " : "", ComponentTypeName(v->component_type));
-    if (v->type != type || !allowed) {
+    if ((v->type != type && v->type != other_type) || !allowed) {
       return Err(field, "unsupported type/componentType for ", name, " (",
                  tinygltf::GetNumComponentsInType(uint32_t(v->type)), " x ", what, ")");
     }
@@ -1208,6 +1210,12 @@ class Converter {
         Attribute(p, path, "TEXCOORD_1", TINYGLTF_TYPE_VEC2, n)};
     for (const auto& a : attrs) RETURN_IF_ERROR(a.status());
     const AccessorView &nrm = *attrs[0], &tng = *attrs[1], &uv0 = *attrs[2], &uv1 = *attrs[3];
+    // glTF 2.0 3.7.2.1: COLOR_0 is RGB or RGBA (alpha 1). Other colour sets are not read.
+    absl::StatusOr<AccessorView> color_view =
+        Attribute(p, path, "COLOR_0", TINYGLTF_TYPE_VEC4, n, TINYGLTF_TYPE_VEC3);
+    RETURN_IF_ERROR(color_view.status());
+    const AccessorView& col = *color_view;
+    bool translucent_vertices = false;  // some COLOR_0 alpha below 1
     absl::StatusOr<AccessorView> joints_view = Attribute(p, path, "JOINTS_0", TINYGLTF_TYPE_VEC4, n);
     absl::StatusOr<AccessorView> weights_view = Attribute(p, path, "WEIGHTS_0", TINYGLTF_TYPE_VEC4, n);
     RETURN_IF_ERROR(joints_view.status());
@@ -1259,6 +1267,12 @@ class Converter {
       }
       if (uv0.data) v.uv0 = finite_uv(ReadVec(uv0, i));
       if (uv1.data) v.uv1 = finite_uv(ReadVec(uv1, i));
+      if (col.data) {
+        glm::vec4 c = ReadVec(col, i);
+        if (col.type == TINYGLTF_TYPE_VEC3) c.a = 1.0f;
+        v.color = PackVertexColor(c);
+        translucent_vertices |= UnpackVertexColor(v.color).a < 1.0f;
+      }
     }
     // The file's vertex each output vertex comes from (flat shading duplicates them).
     std::vector<uint32_t> source(n);
@@ -1304,6 +1318,11 @@ class Converter {
       s_.materials.push_back(Material{.name = "default"});  // glTF defaults: white, 1, 1
     }
     prim.material = uint32_t(p.material >= 0 ? p.material : default_material_);
+    prim.vertex_colors = col.data != nullptr;
+    if (translucent_vertices && p.material >= 0 && m_.materials[p.material].alphaMode == "MASK") {
+      Warn(absl::StrCat(path, ".attributes.COLOR_0: its alpha is not applied to materials[",
+                        p.material, "]'s alphaCutoff (the texture's and factor's are)"));
+    }
     if (skinned) RETURN_IF_ERROR(ReadSkinning(path, *joints_view, *weights_view, source, &prim));
     RETURN_IF_ERROR(ReadMorphTargets(mesh, path, p, source, has_normals, &prim));
     s_.vertices.insert(s_.vertices.end(), verts.begin(), verts.end());

@@ -586,6 +586,10 @@ absl::StatusOr<std::unique_ptr<GpuScene>> GpuScene::Upload(vk::Context& ctx, con
   for (const Material& m : scene.materials)
     materials.push_back(MakeMaterial(m, scene.textures, plan));
   if (materials.empty()) materials.push_back(MakeMaterial(Material{}, scene.textures, plan));
+  // Where a primitive has COLOR_0, its material's shading reads the vertices' colours (the
+  // visibility shading fetches them only then; every other vertex is white).
+  for (const Primitive& p : scene.primitives)
+    if (p.vertex_colors && p.material < materials.size()) materials[p.material].flags.w = 1u;
 
   std::vector<gpu::GpuDrawable> drawables;
   std::vector<gpu::GpuCullItem> items;

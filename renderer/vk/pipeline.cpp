@@ -87,6 +87,7 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
       {gpu::kAttrTangent, 0, VK_FORMAT_R32G32B32A32_SFLOAT, offsetof(Vertex, tangent)},
       {gpu::kAttrUv0, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv0)},
       {gpu::kAttrUv1, 0, VK_FORMAT_R32G32_SFLOAT, offsetof(Vertex, uv1)},
+      {gpu::kAttrColor, 0, VK_FORMAT_R32G32_UINT, offsetof(Vertex, color)},
   };
   std::vector<VkVertexInputAttributeDescription> used_attributes;
   VkPipelineVertexInputStateCreateInfo vertex_input{
@@ -111,7 +112,7 @@ absl::StatusOr<Pipeline> CreateGraphicsPipeline(const Context& ctx,
     vertex_input.pVertexBindingDescriptions = &binding;
     // A depth-only pipeline reads positions alone: fewer attributes fetched per vertex.
     const uint32_t mask =
-        desc.attribute_mask ? desc.attribute_mask : (desc.fragment_shader.empty() ? 1u : 0x1fu);
+        desc.attribute_mask ? desc.attribute_mask : (desc.fragment_shader.empty() ? 1u : 0x3fu);
     for (const VkVertexInputAttributeDescription& a : attributes)
       if (mask & (1u << a.location)) used_attributes.push_back(a);
     vertex_input.vertexAttributeDescriptionCount = uint32_t(used_attributes.size());

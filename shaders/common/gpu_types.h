@@ -172,7 +172,7 @@ TS_CONST uint kVisBindingIndexTexels = 10;
 TS_CONST uint kVisBindingVertexTexels = 11;
 TS_CONST uint kVisBindingDrawableTexels = 12;
 TS_CONST uint kVisTexelsConstant = 3;
-TS_CONST uint kVertexTexels = 7;     // kVertexFloats / 2
+TS_CONST uint kVertexTexels = 8;     // kVertexFloats / 2
 TS_CONST uint kDrawableTexels = 12;  // sizeof(GpuDrawable) / 16 (gpu_layout_check.cpp)
 // skin.comp: the scene's vertex buffer (read the rest vertices, write the deformed copies),
 // per vertex its joints and weights (two uvec4: joints, then the weights' float bits), the morph
@@ -187,7 +187,8 @@ TS_CONST uint kSkinJobSkinned = 1u;  // the drawable's vertices are skinned
 TS_CONST uint kSkinJobFlat = 2u;     // flat normals (Primitive::flat_normals): recomputed per face
 TS_CONST uint kMorphDeltaFloats = 9;
 TS_CONST uint kSkinGroupSize = 64;
-TS_CONST uint kVertexFloats = 14;       // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2
+TS_CONST uint kVertexFloats = 16;  // scene::Vertex: position 3, normal 3, tangent 4, uv 2+2,
+                                   // colour 2 (four halves)
 // motion.frag: the motion of a point that was behind last frame's camera (a uv offset that
 // puts TAA's history lookup off screen; a finite RG16F value).
 TS_CONST float kMotionOffScreen = 4096.0;
@@ -315,6 +316,7 @@ TS_CONST uint kAttrNormal = 1;
 TS_CONST uint kAttrTangent = 2;
 TS_CONST uint kAttrUv0 = 3;
 TS_CONST uint kAttrUv1 = 4;
+TS_CONST uint kAttrColor = 5;  // R32G32_UINT: COLOR_0 as four halves (unpackHalf2x16)
 // Pulled vertices (common/vis_pull.glsl): the drawables buffer as a vertex buffer at this
 // binding, per instance (firstInstance = the drawable), its world matrix's columns at locations
 // kAttrDrawableWorld + 0..3 and its ids at kAttrDrawableIds.
@@ -336,7 +338,7 @@ struct GpuMaterial {
   vec4 emissive;           // rgb: emissive factor * KHR_materials_emissive_strength
   vec4 params;             // x metallic, y roughness, z normal scale, w occlusion strength
   vec4 params2;            // x alpha cutoff (MASK), yzw unused
-  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, z unlit, w unused
+  uvec4 flags;             // x alpha mode (kAlpha*), y double sided, z unlit, w vertex colours
   GpuTextureRef base_color_tex;
   GpuTextureRef metallic_roughness_tex;
   GpuTextureRef normal_tex;

@@ -51,7 +51,7 @@ uint CoverageMask(uint word) { return word & 0xffu; }
 vec2 CoverageMean(uint word) { return vec2((word >> 8) & 0xfffu, word >> 20) / 4095.0; }
 
 // One vertex of the scene's vertex buffer (scene::Vertex, kVertexFloats floats; as texels: xy
-// position.xy, then position.z normal.x, normal.yz, tangent.xy, tangent.zw, uv0, uv1).
+// position.xy, then position.z normal.x, normal.yz, tangent.xy, tangent.zw, uv0, uv1, colour).
 vec2 VertexTexel(uint v, uint t) {
   return uintBitsToFloat(texelFetch(vis_vertex_texels, int(v * kVertexTexels + t)).xy);
 }
@@ -74,6 +74,16 @@ vec4 VertexUvs(uint v) {  // xy TEXCOORD_0, zw TEXCOORD_1
   if (kVisTexels) return vec4(VertexTexel(v, 5u), VertexTexel(v, 6u));
   uint b = v * kVertexFloats + 10u;
   return vec4(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u], vis_vertices[b + 3u]);
+}
+vec4 VertexColor(uint v) {  // COLOR_0 (four halves)
+  uvec2 h;
+  if (kVisTexels) {
+    h = texelFetch(vis_vertex_texels, int(v * kVertexTexels + 7u)).xy;
+  } else {
+    uint b = v * kVertexFloats + 14u;
+    h = uvec2(floatBitsToUint(vis_vertices[b]), floatBitsToUint(vis_vertices[b + 1u]));
+  }
+  return vec4(unpackHalf2x16(h.x), unpackHalf2x16(h.y));
 }
 
 // The vertex at place k of the index buffer, for a drawable (GpuDrawable.ids: w its vertex

@@ -31,6 +31,10 @@ SurfaceInput VisSurface(Triangle tri, vec3 b, vec2 pixel) {
   s.tangent = vec4(mat3(world) * t.xyz, VertexTangent(v.x).w * DrawableHandedness(tri.drawable));
   s.uv0 = uv.xy;
   s.uv1 = uv.zw;
+  // Fetched only for the materials of primitives with COLOR_0 (GpuMaterial::flags.w).
+  s.color = material.flags.w != 0u
+                ? b.x * VertexColor(v.x) + b.y * VertexColor(v.y) + b.z * VertexColor(v.z)
+                : vec4(1.0);
   s.grads = UvGradients(uv_dx, uv_dy);
   // glTF front faces wind counter-clockwise as seen from the camera.
   s.front_facing = dot(cross(tri.e1, tri.e2), frame.camera_position.xyz - tri.p0) > 0.0;

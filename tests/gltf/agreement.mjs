@@ -99,6 +99,21 @@ function sparse(indices) {
 }
 
 // POSITION as SHORT (KHR_mesh_quantization): positions x 1000, with exact min/max.
+// COLOR_0 on Box's primitive: 24 RGBA colours as normalized unsigned bytes, then `edit` of the
+// accessor (a type or componentType the spec does not allow for colours).
+function colored(edit = () => {}) {
+  return (j, bin) => {
+    const data = Buffer.alloc(24 * 4);
+    for (let i = 0; i < 24 * 4; i++) data[i] = (i * 37) % 256;
+    const a = appendView(j, bin, data);
+    j.bufferViews[a.view].target = 34962;
+    j.accessors.push({ bufferView: a.view, componentType: 5121, normalized: true, count: 24, type: 'VEC4' });
+    edit(j.accessors[j.accessors.length - 1]);
+    j.meshes[0].primitives[0].attributes.COLOR_0 = j.accessors.length - 1;
+    return a.bin;
+  };
+}
+
 function quantized(declare) {
   return (j, bin) => {
     const q = Int16Array.from(boxPositions, (v) => Math.round(v * 1000));
@@ -198,6 +213,9 @@ const cases = [
     j.materials[0].emissiveFactor = [1, 1, 1];
     j.materials[0].extensions = { KHR_materials_emissive_strength: { emissiveStrength: -1 } };
   }),
+  generated('vertex_colors', colored()),
+  generated('vertex_colors_unnormalized', colored((a) => { delete a.normalized; })),
+  generated('vertex_colors_vec2', colored((a) => { a.type = 'VEC2'; a.count = 48; })),
   // KHR_materials_unlit: an empty object makes the material unlit; anything else is refused.
   generated('unlit_material', (j) => {
     j.extensionsUsed = ['KHR_materials_unlit'];

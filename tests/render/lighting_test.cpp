@@ -852,6 +852,22 @@ TEST(PostStageTest, TonemapInComputeGivesTheSamePicture) {
   ExpectNoValidationMessages(SharedRenderer());
 }
 
+// The material at pixel (x, y) of a kWidth-wide capture with ids, where its 3x3 neighbourhood
+// shows one drawable (else -1: an edge or the sky).
+int InteriorMaterial(const CpuScene& cpu, const FrameCapture& c, uint32_t x, uint32_t y) {
+  const uint32_t id = c.ids[size_t(y) * kWidth + x];
+  if (id == 0) return -1;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx)
+      if (c.ids[size_t(int(y) + dy) * kWidth + (int(x) + dx)] != id) return -1;
+  return int(cpu.primitives[cpu.drawables[id - 1].primitive].material);
+}
+
+glm::vec3 HdrAt(const FrameCapture& c, uint32_t x, uint32_t y) {
+  const float* p = &c.hdr[(size_t(y) * kWidth + x) * 4];
+  return glm::vec3(p[0], p[1], p[2]);
+}
+
 // KHR_materials_unlit (Material::unlit): an unlit surface's HDR colour is its base colour, the
 // same under no effect and under every one (shadows, SSAO, IBL, local lights), in the forward
 // pass, the visibility pipeline's shading and vis_mlaa's. The demo scene with its red plastic
@@ -872,17 +888,8 @@ TEST(UnlitTest, ShowsItsBaseColourWhateverTheLight) {
   ASSERT_NE(red, glm::vec3(0.0f));
   absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(cpu);
   ASSERT_TRUE(scene.ok()) << scene.status();
-  auto material_at = [&](const FrameCapture& c, uint32_t x, uint32_t y) -> int {
-    const uint32_t id = c.ids[size_t(y) * kWidth + x];
-    if (id == 0) return -1;
-    for (int dy = -1; dy <= 1; ++dy)
-      for (int dx = -1; dx <= 1; ++dx)
-        if (c.ids[size_t(int(y) + dy) * kWidth + (int(x) + dx)] != id) return -1;
-    return int(cpu.primitives[cpu.drawables[id - 1].primitive].material);
-  };
-  auto hdr_at = [](const FrameCapture& c, uint32_t x, uint32_t y) {
-    const float* p = &c.hdr[(size_t(y) * kWidth + x) * 4];
-    return glm::vec3(p[0], p[1], p[2]);
+  auto material_at = [&](const FrameCapture& c, uint32_t x, uint32_t y) {
+    return InteriorMaterial(cpu, c, x, y);
   };
   std::vector<std::pair<std::string, Settings>> cases;
   Settings plain = Lit(false, false);
@@ -919,8 +926,8 @@ TEST(UnlitTest, ShowsItsBaseColourWhateverTheLight) {
       for (uint32_t x = 1; x + 1 < kWidth; ++x) {
         const int m = material_at(c, x, y);
         if (m < 0 || m != material_at(reference, x, y)) continue;
-        const glm::vec3 got = hdr_at(c, x, y);
-        const glm::vec3 want = hdr_at(reference, x, y);
+        const glm::vec3 got = HdrAt(c, x, y);
+        const glm::vec3 want = HdrAt(reference, x, y);
         const float diff = glm::length(got - want);
         if (!unlit[m]) {  // a lit surface: lighting makes it differ from its base colour
           ++lit_pixels;
@@ -944,6 +951,120 @@ TEST(UnlitTest, ShowsItsBaseColourWhateverTheLight) {
     EXPECT_LE(textured_far, textured_pixels / 100);
     EXPECT_GT(lit_far, lit_pixels / 2);  // the comparison can tell lit from unlit
   }
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// COLOR_0 (Vertex::color, Primitive::vertex_colors) multiplies the base colour, interpolated
+// across each triangle, in the forward pass, the visibility pipeline's shading and vis_mlaa's. The
+// demo scene with its floor's vertices one colour `k` and its torus's a gradient: in the
+// base-colour view each floor pixel is `k` times the plain scene's (the checker texture's), and
+// the visibility shading's torus matches the forward pass's; a lit frame changes there too.
+TEST(VertexColorTest, MultipliesTheBaseColourInEveryPath) {
+  const CpuScene plain_cpu = BuildDemoScene();
+  CpuScene cpu = plain_cpu;
+  const glm::vec4 k(0.25f, 0.5f, 1.0f, 1.0f);
+  int floor_material = -1, torus_material = -1;
+  for (const Drawable& d : cpu.drawables) {
+    const std::string& name = cpu.meshes[d.mesh].name;
+    if (name != "Floor" && name != "Copper torus") continue;
+    Primitive& p = cpu.primitives[d.primitive];
+    p.vertex_colors = true;
+    for (uint32_t v = p.first_vertex; v < p.first_vertex + p.vertex_count; ++v) {
+      const glm::vec3 q = cpu.vertices[v].position;
+      cpu.vertices[v].color =
+          name == "Floor" ? PackVertexColor(k)
+                          : PackVertexColor(glm::vec4(0.5f + 0.5f * glm::sin(q * 7.0f), 1.0f));
+    }
+    (name == "Floor" ? floor_material : torus_material) = int(p.material);
+  }
+  ASSERT_GE(floor_material, 0);
+  ASSERT_GE(torus_material, 0);
+  absl::StatusOr<SceneHandle> plain = SharedRenderer().LoadScene(plain_cpu);
+  absl::StatusOr<SceneHandle> colored = SharedRenderer().LoadScene(cpu);
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  ASSERT_TRUE(colored.ok()) << colored.status();
+  auto material_at = [&](const FrameCapture& c, uint32_t x, uint32_t y) {
+    return InteriorMaterial(cpu, c, x, y);
+  };
+  auto render = [&](const SceneHandle& scene, const Settings& s, FrameCapture* c) {
+    c->want_ids = true;
+    absl::StatusOr<Frame> f = SharedRenderer().Render(*scene, BackCamera(), s, 0, c);
+    ASSERT_TRUE(f.ok()) << f.status();
+    ASSERT_EQ(c->hdr.size(), size_t(kWidth) * kHeight * 4);
+  };
+
+  std::vector<std::pair<std::string, Settings>> cases;
+  Settings base = Lit(false, false);
+  base.debug_view = DebugView::kBaseColor;
+  base.pipeline = Pipeline::kForward;
+  cases.push_back({"forward", base});
+  if (SharedRenderer().device_info().visibility_buffer) {
+    base.pipeline = Pipeline::kVisibility;
+    cases.push_back({"visibility", base});
+    base.pipeline = Pipeline::kAuto;
+    base.aa = AaMode::kVisMlaa;
+    cases.push_back({"vis_mlaa", base});
+  }
+  FrameCapture forward_torus;
+  for (const auto& [name, settings] : cases) {
+    SCOPED_TRACE(name);
+    FrameCapture with, without;
+    render(*colored, settings, &with);
+    render(*plain, settings, &without);
+    if (HasFatalFailure()) return;
+    if (name == "forward") forward_torus = with;
+    size_t floor_pixels = 0, torus_pixels = 0, torus_far = 0;
+    for (uint32_t y = 1; y + 1 < kHeight; ++y) {
+      for (uint32_t x = 1; x + 1 < kWidth; ++x) {
+        const int m = material_at(with, x, y);
+        if (m < 0 || m != material_at(without, x, y)) continue;
+        if (m == floor_material) {
+          ++floor_pixels;
+          const glm::vec3 want = glm::vec3(k) * HdrAt(without, x, y);
+          ASSERT_LT(glm::length(HdrAt(with, x, y) - want), 2e-3f + 2e-3f * glm::length(want))
+              << "floor pixel " << x << "," << y;
+        } else if (m == torus_material && name == "visibility" &&
+                   material_at(forward_torus, x, y) == m) {
+          ++torus_pixels;
+          torus_far += glm::length(HdrAt(with, x, y) - HdrAt(forward_torus, x, y)) > 1.0f / 64;
+        }
+      }
+    }
+    std::printf(
+        "vertex colours, %s: %zu floor pixels; torus %zu pixels, %zu differ from "
+        "forward's\n",
+        name.c_str(), floor_pixels, torus_pixels, torus_far);
+    EXPECT_GT(floor_pixels, 1000u);
+    if (name == "visibility") {
+      EXPECT_GT(torus_pixels, 300u);
+      EXPECT_LE(torus_far, torus_pixels / 100);
+    }
+  }
+  // Shaded in one dispatch (GPUs' default; where the device indexes sampler arrays), the same
+  // picture as per material.
+  const DeviceInfo& device = SharedRenderer().device_info();
+  if (device.visibility_buffer && device.sampler_indexing && device.subgroup_ballot) {
+    absl::StatusOr<std::unique_ptr<Renderer>> all =
+        Renderer::Create({.validation = true, .shading = ShadeDispatch::kAllMaterials});
+    ASSERT_TRUE(all.ok()) << all.status();
+    absl::StatusOr<SceneHandle> all_scene = (*all)->LoadScene(cpu);
+    ASSERT_TRUE(all_scene.ok()) << all_scene.status();
+    Settings s = Lit(true, true);
+    s.pipeline = Pipeline::kVisibility;
+    absl::StatusOr<Frame> one = (*all)->Render(**all_scene, BackCamera(), s);
+    absl::StatusOr<Frame> per = SharedRenderer().Render(**colored, BackCamera(), s);
+    ASSERT_TRUE(one.ok()) << one.status();
+    ASSERT_TRUE(per.ok()) << per.status();
+    EXPECT_EQ(one->stats.shading_dispatches, 1u);
+    EXPECT_TRUE(one->image.pixels == per->image.pixels) << "one dispatch shades otherwise";
+    ExpectNoValidationMessages(**all);
+  }
+  // Lit, the torus's gradient and the floor's tint change what they colour.
+  const Frame lit_plain = RenderOrDie(**plain, BackCamera(), Lit(true, true));
+  const Frame lit_colored = RenderOrDie(**colored, BackCamera(), Lit(true, true));
+  absl::StatusOr<double> psnr = Psnr(lit_plain.image, lit_colored.image);
+  ASSERT_TRUE(psnr.ok()) << psnr.status();
+  EXPECT_LT(*psnr, 25.0);
   ExpectNoValidationMessages(SharedRenderer());
 }
 

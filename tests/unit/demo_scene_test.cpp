@@ -108,7 +108,7 @@ TEST_F(DemoScene, PrimitivesAndIndicesInRange) {
 
 TEST_F(DemoScene, VertexFramesAreOrthonormal) {
   const CpuScene& s = scene();
-  static_assert(sizeof(Vertex) == 56);
+  static_assert(sizeof(Vertex) == 64);
   for (size_t i = 0; i < s.vertices.size(); ++i) {
     const Vertex& v = s.vertices[i];
     SCOPED_TRACE(testing::Message() << "vertex " << i);
@@ -120,6 +120,7 @@ TEST_F(DemoScene, VertexFramesAreOrthonormal) {
     ASSERT_TRUE(v.tangent.w == 1.0f || v.tangent.w == -1.0f);
     ASSERT_TRUE(Finite(v.uv0));
     ASSERT_TRUE(Finite(v.uv1));
+    ASSERT_EQ(UnpackVertexColor(v.color), glm::vec4(1.0f));  // the demo has no vertex colours
   }
 }
 

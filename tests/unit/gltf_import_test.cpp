@@ -1586,5 +1586,128 @@ TEST(GltfImportUnlit, TheMaterialKeepsOnlyItsBaseColour) {
                 {"materials[0].extensions.KHR_materials_unlit", "not declared in extensionsUsed"});
 }
 
+// ----- COLOR_0 ------------------------------------------------------------------------------
+
+// Box (24 vertices) with COLOR_0: `count` elements of `type` ("VEC3"/"VEC4") in `component_type`,
+// vertex i's channel c being `value(i, c)` in [0, 1] (stored as the type holds it), then `edit`.
+GltfSource ColoredBox(const char* type, int component_type, bool normalized,
+                      const std::function<float(int, int)>& value,
+                      const std::function<void(json&)>& edit, int count = 24) {
+  GltfSource src = Source("Box/glTF/Box.gltf");
+  std::vector<uint8_t>& bin = src.files.at("Box0.bin");
+  const int channels = std::string(type) == "VEC3" ? 3 : 4;
+  const size_t size = component_type == 5126 ? 4 : component_type == 5123 ? 2 : 1;
+  bin.resize((bin.size() + 3) / 4 * 4);
+  const size_t offset = bin.size();
+  for (int i = 0; i < count; ++i) {
+    for (int c = 0; c < channels; ++c) {
+      const float v = value(i, c);
+      uint8_t bytes[4];
+      if (size == 4) {
+        std::memcpy(bytes, &v, 4);
+      } else if (size == 2) {
+        const uint16_t u = uint16_t(std::lround(v * 65535.0f));
+        std::memcpy(bytes, &u, 2);
+      } else {
+        bytes[0] = uint8_t(std::lround(v * 255.0f));
+      }
+      bin.insert(bin.end(), bytes, bytes + size);
+    }
+    bin.resize((bin.size() + 3) / 4 * 4);  // each element 4-byte aligned (glTF 3.6.2.4)
+  }
+  const size_t stride = (channels * size + 3) / 4 * 4;
+  return Edited(std::move(src), [&](json& j) {
+    json view = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bin.size() - offset}};
+    if (stride != channels * size) view["byteStride"] = stride;
+    j["bufferViews"].push_back(view);
+    json accessor = {{"bufferView", j["bufferViews"].size() - 1},
+                     {"componentType", component_type},
+                     {"count", count},
+                     {"type", type}};
+    if (normalized) accessor["normalized"] = true;
+    j["accessors"].push_back(accessor);
+    j["buffers"][0]["byteLength"] = bin.size();
+    j["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = j["accessors"].size() - 1;
+    edit(j);
+  });
+}
+
+float Channel(int i, int c) { return float((i * 7 + c * 3) % 11) / 10.0f; }
+
+// RGB and RGBA, as floats and as normalized unsigned bytes and shorts: each vertex's colour as
+// the file gives it (RGB with alpha 1), and the primitive marked; without COLOR_0, white.
+TEST(GltfImportVertexColors, EachVertexKeepsItsColour) {
+  REQUIRE_ASSETS();
+  struct Case {
+    const char* type;
+    int component_type;
+    float tolerance;
+  } cases[] = {{"VEC3", 5126, 1e-3f},
+               {"VEC4", 5126, 1e-3f},
+               {"VEC4", 5121, 1.0f / 255},
+               {"VEC3", 5123, 1e-3f}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(std::string(c.type) + " " + std::to_string(c.component_type));
+    absl::StatusOr<CpuScene> s = ImportGltf(
+        ColoredBox(c.type, c.component_type, c.component_type != 5126, Channel, [](json&) {}));
+    ASSERT_TRUE(s.ok()) << s.status();
+    ASSERT_EQ(s->primitives.size(), 1u);
+    EXPECT_TRUE(s->primitives[0].vertex_colors);
+    ASSERT_EQ(s->vertices.size(), 24u);
+    for (int i = 0; i < 24; ++i) {
+      const glm::vec4 got = UnpackVertexColor(s->vertices[i].color);
+      for (int ch = 0; ch < 4; ++ch) {
+        const float want = ch == 3 && std::string(c.type) == "VEC3" ? 1.0f : Channel(i, ch);
+        // Halves: 11 significant bits.
+        EXPECT_NEAR(got[ch], want, c.tolerance + want / 1024.0f) << "vertex " << i << " ch " << ch;
+      }
+    }
+    EXPECT_EQ(s->warnings, std::vector<std::string>{});
+  }
+  absl::StatusOr<CpuScene> plain = ImportGltf(Source("Box/glTF/Box.gltf"));
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_FALSE(plain->primitives[0].vertex_colors);
+  EXPECT_EQ(UnpackVertexColor(plain->vertices[0].color), glm::vec4(1.0f));
+  // Values past [0, 1] in a float accessor are clamped (the validator warns of them).
+  absl::StatusOr<CpuScene> bright = ImportGltf(ColoredBox(
+      "VEC4", 5126, false, [](int, int c) { return c == 0 ? 4.0f : -1.0f; }, [](json&) {}));
+  ASSERT_TRUE(bright.ok()) << bright.status();
+  EXPECT_EQ(UnpackVertexColor(bright->vertices[0].color), glm::vec4(1, 0, 0, 0));
+}
+
+// An alpha-mask material's cutoff does not see the vertices' alpha: said in a warning.
+TEST(GltfImportVertexColors, MaskedMaterialsWarnThatVertexAlphaIsNotCut) {
+  REQUIRE_ASSETS();
+  absl::StatusOr<CpuScene> s = ImportGltf(ColoredBox(
+      "VEC4", 5126, false, Channel, [](json& j) { j["materials"][0]["alphaMode"] = "MASK"; }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  ASSERT_EQ(s->warnings.size(), 1u);
+  EXPECT_NE(s->warnings[0].find("meshes[0].primitives[0].attributes.COLOR_0"), std::string::npos)
+      << s->warnings[0];
+  EXPECT_NE(s->warnings[0].find("alphaCutoff"), std::string::npos) << s->warnings[0];
+  // RGB only: nothing to say.
+  s = ImportGltf(ColoredBox("VEC3", 5126, false, Channel,
+                            [](json& j) { j["materials"][0]["alphaMode"] = "MASK"; }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->warnings, std::vector<std::string>{});
+}
+
+TEST(GltfImportVertexColors, MalformedColoursAreRefusedNamingThem) {
+  REQUIRE_ASSETS();
+  const std::string field = "meshes[0].primitives[0].attributes.COLOR_0";
+  ExpectInvalid(ImportGltf(ColoredBox("VEC2", 5126, false, Channel, [](json&) {})),
+                {field, "unsupported type/componentType for COLOR_0"});
+  // Unnormalized bytes, signed shorts: not colours.
+  ExpectInvalid(ImportGltf(ColoredBox("VEC4", 5121, false, Channel, [](json&) {})),
+                {field, "unsupported type/componentType for COLOR_0"});
+  ExpectInvalid(
+      ImportGltf(ColoredBox("VEC4", 5123, true, Channel,
+                            [](json& j) { j["accessors"].back()["componentType"] = 5122; })),
+      {field, "unsupported type/componentType for COLOR_0"});
+  ExpectInvalid(ImportGltf(ColoredBox(
+                    "VEC4", 5126, false, Channel, [](json&) {}, 23)),
+                {field, "COLOR_0 count 23 differs from POSITION count 24"});
+}
+
 }  // namespace
 }  // namespace tessera
