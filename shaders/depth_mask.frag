@@ -6,7 +6,8 @@
 
 layout(location = 3) in vec2 v_uv0;
 layout(location = 4) in vec2 v_uv1;
+layout(location = 6) in vec4 v_color;  // COLOR_0: its alpha is cut out too
 
 void main() {
-  if (CutOut(v_uv0, v_uv1)) discard;
+  if (CutOut(v_uv0, v_uv1, v_color.a)) discard;
 }

@@ -12,7 +12,7 @@ layout(location = 1) in vec3 v_normal;
 layout(location = 2) in vec4 v_tangent;
 layout(location = 3) in vec2 v_uv0;
 layout(location = 4) in vec2 v_uv1;
-layout(location = 5) in vec4 v_color;
+layout(location = 6) in vec4 v_color;
 
 layout(location = 0) out vec4 out_color;
 

@@ -16,7 +16,7 @@ layout(location = 1) out vec3 v_normal;
 layout(location = 2) out vec4 v_tangent;
 layout(location = 3) out vec2 v_uv0;
 layout(location = 4) out vec2 v_uv1;
-layout(location = 5) out vec4 v_color;
+layout(location = 6) out vec4 v_color;  // the mask passes' too
 
 void main() {
   mat4 world = drawables[gl_InstanceIndex].world;

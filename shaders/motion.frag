@@ -11,13 +11,14 @@ layout(location = 0) in vec4 v_prev_clip;
 layout(location = 1) in vec4 v_still_clip;
 layout(location = 3) in vec2 v_uv0;
 layout(location = 4) in vec2 v_uv1;
+layout(location = 6) in vec4 v_color;  // COLOR_0: its alpha is cut out too
 layout(location = 0) out vec2 out_motion;
 // The alpha-mask pipeline's alpha test. The opaque pipeline has none: a shader that may discard
 // loses the early depth test on CPU rasterizers, and the hidden fragments cost.
 layout(constant_id = 0) const bool kAlphaTest = false;
 
 void main() {
-  if (kAlphaTest && CutOut(v_uv0, v_uv1)) discard;
+  if (kAlphaTest && CutOut(v_uv0, v_uv1, v_color.a)) discard;
   if (!(v_prev_clip.w > 0.0 && v_still_clip.w > 0.0)) {
     out_motion = vec2(kMotionOffScreen);
     return;

@@ -9,6 +9,7 @@
 layout(location = kAttrPosition) in vec3 in_position;
 layout(location = kAttrUv0) in vec2 in_uv0;
 layout(location = kAttrUv1) in vec2 in_uv1;
+layout(location = kAttrColor) in uvec2 in_color;  // COLOR_0 as four halves
 
 // The view's kept copy of the deformed vertices as its last frame saw them (Vertex layout).
 layout(set = 2, binding = 0, std430) readonly buffer KeptBlock { float kept[]; };
@@ -18,6 +19,7 @@ layout(location = 0) out vec4 v_prev_clip;    // last frame's clip position of t
 layout(location = 1) out vec4 v_still_clip;   // the same, had the point not moved
 layout(location = 3) out vec2 v_uv0;
 layout(location = 4) out vec2 v_uv1;
+layout(location = 6) out vec4 v_color;
 
 void main() {
   mat4 world = drawables[gl_InstanceIndex].world;
@@ -31,4 +33,5 @@ void main() {
   v_still_clip = frame.prev_view_proj * (world * vec4(in_position, 1.0));
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
+  v_color = vec4(unpackHalf2x16(in_color.x), unpackHalf2x16(in_color.y));
 }

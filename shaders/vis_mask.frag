@@ -7,10 +7,11 @@
 
 layout(location = 3) in vec2 v_uv0;
 layout(location = 4) in vec2 v_uv1;
+layout(location = 6) in vec4 v_color;  // COLOR_0: its alpha is cut out too
 layout(location = 5) flat in uint v_drawable;
 layout(location = 0) out uint out_id;
 
 void main() {
-  if (CutOut(v_uv0, v_uv1)) discard;
+  if (CutOut(v_uv0, v_uv1, v_color.a)) discard;
   out_id = ((v_drawable + 1u) << frame.aa.x) | uint(gl_PrimitiveID);
 }

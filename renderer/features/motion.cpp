@@ -126,7 +126,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateMotionPass(const vk::Context& ctx,
   d.vertex_shader = "motion.vert";
   d.fragment_shader = "motion.frag";
   d.layout = layout.pipeline_layout();
-  d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1);
+  d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1) |
+                     (1u << gpu::kAttrColor);
   d.color_formats = {kMotionFormat};
   d.depth_format = kDepthFormat;
   d.depth_test = true;

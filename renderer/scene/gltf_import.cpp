@@ -1215,7 +1215,6 @@ class Converter {
         Attribute(p, path, "COLOR_0", TINYGLTF_TYPE_VEC4, n, TINYGLTF_TYPE_VEC3);
     RETURN_IF_ERROR(color_view.status());
     const AccessorView& col = *color_view;
-    bool translucent_vertices = false;  // some COLOR_0 alpha below 1
     absl::StatusOr<AccessorView> joints_view = Attribute(p, path, "JOINTS_0", TINYGLTF_TYPE_VEC4, n);
     absl::StatusOr<AccessorView> weights_view = Attribute(p, path, "WEIGHTS_0", TINYGLTF_TYPE_VEC4, n);
     RETURN_IF_ERROR(joints_view.status());
@@ -1271,7 +1270,6 @@ class Converter {
         glm::vec4 c = ReadVec(col, i);
         if (col.type == TINYGLTF_TYPE_VEC3) c.a = 1.0f;
         v.color = PackVertexColor(c);
-        translucent_vertices |= UnpackVertexColor(v.color).a < 1.0f;
       }
     }
     // The file's vertex each output vertex comes from (flat shading duplicates them).
@@ -1319,10 +1317,6 @@ class Converter {
     }
     prim.material = uint32_t(p.material >= 0 ? p.material : default_material_);
     prim.vertex_colors = col.data != nullptr;
-    if (translucent_vertices && p.material >= 0 && m_.materials[p.material].alphaMode == "MASK") {
-      Warn(absl::StrCat(path, ".attributes.COLOR_0: its alpha is not applied to materials[",
-                        p.material, "]'s alphaCutoff (the texture's and factor's are)"));
-    }
     if (skinned) RETURN_IF_ERROR(ReadSkinning(path, *joints_view, *weights_view, source, &prim));
     RETURN_IF_ERROR(ReadMorphTargets(mesh, path, p, source, has_normals, &prim));
     s_.vertices.insert(s_.vertices.end(), verts.begin(), verts.end());

@@ -22,7 +22,7 @@ struct SurfaceInput {
   vec4 tangent;  // xyz world tangent, w bitangent sign
   vec2 uv0;
   vec2 uv1;
-  vec4 color;  // COLOR_0 (white without): multiplies the base colour, its alpha blended surfaces'
+  vec4 color;  // COLOR_0 (white without): multiplies the base colour and its alpha
   UvGradients grads;
   bool front_facing;
 };
@@ -233,9 +233,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   GpuMaterial m = material;
   vec4 base = m.base_color_factor;
   if (MaterialHas(0u, m.base_color_tex)) base *= SAMPLE_TEXTURE(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
-  // The vertex colour's alpha is not the alpha-mask passes' (they read no vertex colour), so it
-  // counts for blending only: every pass cuts a masked surface out at the same pixels.
-  base *= vec4(s.color.rgb, m.flags.x == kAlphaBlend ? s.color.a : 1.0);
+  base *= s.color;  // the mask passes' CutOut multiplies the same alpha
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).
 #ifndef TESSERA_COMPUTE

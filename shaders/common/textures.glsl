@@ -89,9 +89,9 @@ vec4 SampleTexture(sampler2DArray bucket, GpuTextureRef t, vec2 uv0, vec2 uv1, U
 // The alpha test of alpha-mask materials (glTF alphaCutoff): whether the fragment at these uvs is
 // cut out (base colour alpha below the cutoff). The passes that draw depth or ids of alpha-mask
 // geometry discard such fragments, so every pass sees the same holes.
-bool CutOut(vec2 uv0, vec2 uv1) {
+bool CutOut(vec2 uv0, vec2 uv1, float vertex_alpha) {
   UvGradients grads = ComputeUvGradients(uv0, uv1);
-  float alpha = material.base_color_factor.a;
+  float alpha = material.base_color_factor.a * vertex_alpha;
   GpuTextureRef t = material.base_color_tex;
   if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, uv0, uv1, grads).a;
   return alpha < material.params2.x;

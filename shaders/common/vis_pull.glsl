@@ -24,6 +24,7 @@ layout(location = 5) flat out uint v_id;
 #ifdef VIS_PULL_UVS
 layout(location = 3) out vec2 v_uv0;
 layout(location = 4) out vec2 v_uv1;
+layout(location = 6) out vec4 v_color;  // COLOR_0, whose alpha the mask cuts out too
 #endif
 
 void main() {
@@ -38,5 +39,6 @@ void main() {
   vec4 uv = VertexUvs(v);
   v_uv0 = uv.xy;
   v_uv1 = uv.zw;
+  v_color = VertexColor(v);
 #endif
 }

@@ -435,9 +435,9 @@ const cases = [
   generated('skin_unused_valid', (j) => { j.skins = [{ joints: [0, 1] }]; }),
   // Valid, refused for a documented reason: a required extension Tessera does not read.
   generated('required_extension_unsupported', (j) => {
-    j.extensionsUsed = ['KHR_materials_unlit'];
-    j.extensionsRequired = ['KHR_materials_unlit'];
-    j.materials[0].extensions = { KHR_materials_unlit: {} };
+    j.extensionsUsed = ['KHR_materials_clearcoat'];
+    j.extensionsRequired = ['KHR_materials_clearcoat'];
+    j.materials[0].extensions = { KHR_materials_clearcoat: { clearcoatFactor: 0.5 } };
   }),
 ];
 

@@ -1041,23 +1041,31 @@ TEST(VertexColorTest, MultipliesTheBaseColourInEveryPath) {
     }
   }
   // Shaded in one dispatch (GPUs' default; where the device indexes sampler arrays), the same
-  // picture as per material.
+  // picture as per material: two renderers of their own, each at its first frame (SSAO's noise
+  // follows the frame count).
   const DeviceInfo& device = SharedRenderer().device_info();
   if (device.visibility_buffer && device.sampler_indexing && device.subgroup_ballot) {
-    absl::StatusOr<std::unique_ptr<Renderer>> all =
-        Renderer::Create({.validation = true, .shading = ShadeDispatch::kAllMaterials});
-    ASSERT_TRUE(all.ok()) << all.status();
-    absl::StatusOr<SceneHandle> all_scene = (*all)->LoadScene(cpu);
-    ASSERT_TRUE(all_scene.ok()) << all_scene.status();
-    Settings s = Lit(true, true);
-    s.pipeline = Pipeline::kVisibility;
-    absl::StatusOr<Frame> one = (*all)->Render(**all_scene, BackCamera(), s);
-    absl::StatusOr<Frame> per = SharedRenderer().Render(**colored, BackCamera(), s);
-    ASSERT_TRUE(one.ok()) << one.status();
-    ASSERT_TRUE(per.ok()) << per.status();
-    EXPECT_EQ(one->stats.shading_dispatches, 1u);
-    EXPECT_TRUE(one->image.pixels == per->image.pixels) << "one dispatch shades otherwise";
-    ExpectNoValidationMessages(**all);
+    std::unique_ptr<Renderer> renderers[2];
+    Frame frames[2];
+    for (int i = 0; i < 2; ++i) {
+      absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create(
+          {.validation = true,
+           .shading = i == 0 ? ShadeDispatch::kAllMaterials : ShadeDispatch::kPerMaterial});
+      ASSERT_TRUE(r.ok()) << r.status();
+      renderers[i] = std::move(*r);
+      absl::StatusOr<SceneHandle> scene = renderers[i]->LoadScene(cpu);
+      ASSERT_TRUE(scene.ok()) << scene.status();
+      Settings s = Lit(true, true);
+      s.pipeline = Pipeline::kVisibility;
+      absl::StatusOr<Frame> f = renderers[i]->Render(**scene, BackCamera(), s);
+      ASSERT_TRUE(f.ok()) << f.status();
+      frames[i] = std::move(*f);
+      ExpectNoValidationMessages(*renderers[i]);
+    }
+    EXPECT_EQ(frames[0].stats.shading_dispatches, 1u);
+    EXPECT_GT(frames[1].stats.shading_dispatches, 1u);
+    EXPECT_TRUE(frames[0].image.pixels == frames[1].image.pixels)
+        << "one dispatch shades otherwise";
   }
   // Lit, the torus's gradient and the floor's tint change what they colour.
   const Frame lit_plain = RenderOrDie(**plain, BackCamera(), Lit(true, true));
@@ -1065,6 +1073,68 @@ TEST(VertexColorTest, MultipliesTheBaseColourInEveryPath) {
   absl::StatusOr<double> psnr = Psnr(lit_plain.image, lit_colored.image);
   ASSERT_TRUE(psnr.ok()) << psnr.status();
   EXPECT_LT(*psnr, 25.0);
+  ExpectNoValidationMessages(SharedRenderer());
+}
+
+// COLOR_0's alpha is cut out as the texture's is, in every pass that tests an alpha mask: the
+// demo's perforated tube (an alpha-mask material) with every vertex's alpha 0 vanishes, its
+// shadow too, and leaves the picture of the scene without it, in the forward path (depth
+// prepass, shadow maps, drawable ids), the visibility pipeline and vis_mlaa (the visibility
+// pass, indexed or pulled as the device draws it).
+TEST(VertexColorTest, ItsAlphaCutsOutMaskedSurfaces) {
+  const CpuScene demo = BuildDemoScene();
+  CpuScene cut = demo, without = demo;
+  const auto tube = std::find_if(
+      demo.drawables.begin(), demo.drawables.end(),
+      [&](const Drawable& d) { return demo.meshes[d.mesh].name == "Perforated tube"; });
+  ASSERT_NE(tube, demo.drawables.end());
+  const size_t tube_index = size_t(tube - demo.drawables.begin());
+  Primitive& p = cut.primitives[tube->primitive];
+  ASSERT_EQ(cut.materials[p.material].alpha_mode, AlphaMode::kMask);
+  p.vertex_colors = true;
+  for (uint32_t v = p.first_vertex; v < p.first_vertex + p.vertex_count; ++v)
+    cut.vertices[v].color = PackVertexColor(glm::vec4(1.0f, 1.0f, 1.0f, 0.0f));
+  // The tube stays, drawn nowhere: far below the floor, out of every view and shadow.
+  without.drawables[tube_index].world =
+      glm::translate(glm::mat4(1.0f), glm::vec3(0.0f, -1000.0f, 0.0f)) * tube->world;
+  without.drawables[tube_index].world_bounds =
+      demo.primitives[tube->primitive].bounds.transformed(without.drawables[tube_index].world);
+  absl::StatusOr<SceneHandle> cut_scene = SharedRenderer().LoadScene(cut);
+  absl::StatusOr<SceneHandle> without_scene = SharedRenderer().LoadScene(without);
+  absl::StatusOr<SceneHandle> demo_scene = SharedRenderer().LoadScene(demo);
+  ASSERT_TRUE(cut_scene.ok()) << cut_scene.status();
+  ASSERT_TRUE(without_scene.ok()) << without_scene.status();
+  ASSERT_TRUE(demo_scene.ok()) << demo_scene.status();
+  Camera c = BackCamera();
+  c.target = glm::vec3(1.0f, 0.6f, -0.8f);  // the tube and its shadow in the middle
+  std::vector<std::pair<std::string, Settings>> cases;
+  Settings s = Lit(true, false);
+  s.pipeline = Pipeline::kForward;
+  cases.push_back({"forward", s});
+  if (SharedRenderer().device_info().visibility_buffer) {
+    s.pipeline = Pipeline::kVisibility;
+    cases.push_back({"visibility", s});
+    s.pipeline = Pipeline::kAuto;
+    s.aa = AaMode::kVisMlaa;
+    cases.push_back({"vis_mlaa", s});
+  }
+  for (const auto& [name, settings] : cases) {
+    SCOPED_TRACE(name);
+    FrameCapture capture;
+    capture.want_ids = true;
+    absl::StatusOr<Frame> a = SharedRenderer().Render(**cut_scene, c, settings, 0, &capture);
+    ASSERT_TRUE(a.ok()) << a.status();
+    const Frame b = RenderOrDie(**without_scene, c, settings);
+    const Frame shown = RenderOrDie(**demo_scene, c, settings);
+    EXPECT_EQ(std::count(capture.ids.begin(), capture.ids.end(), uint32_t(tube_index + 1)), 0);
+    absl::StatusOr<double> same = Psnr(a->image, b.image);
+    absl::StatusOr<double> differs = Psnr(shown.image, b.image);
+    ASSERT_TRUE(same.ok() && differs.ok());
+    std::printf("vertex alpha 0, %s: %.2f dB against the scene without the tube; with it %.2f\n",
+                name.c_str(), *same, *differs);
+    EXPECT_GE(*same, 60.0);
+    EXPECT_LT(*differs, 35.0);  // the tube and its shadow are in view
+  }
   ExpectNoValidationMessages(SharedRenderer());
 }
 

@@ -883,7 +883,7 @@ TEST(GltfImportMalformed, CopiesBoundedByTheFileSet) {
 TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("Box/glTF/Box.gltf");
-  for (const char* ext : {"KHR_texture_basisu", "KHR_materials_unlit"}) {
+  for (const char* ext : {"KHR_texture_basisu", "KHR_materials_clearcoat"}) {
     ExpectInvalid(ImportGltf(Edited(box, [&](json& j) { j["extensionsRequired"] = {ext}; })),
                   {"extensionsRequired", std::string("unsupported required extension ") + ext});
   }
@@ -903,11 +903,12 @@ TEST(GltfImportMalformed, UnsupportedRequiredExtension) {
                 })).ok())
         << ext;
   }
-  absl::StatusOr<CpuScene> used = ImportGltf(
-      Edited(box, [](json& j) { j["extensionsUsed"] = {"KHR_materials_unlit"}; }));
+  absl::StatusOr<CpuScene> used =
+      ImportGltf(Edited(box, [](json& j) { j["extensionsUsed"] = {"KHR_materials_clearcoat"}; }));
   ASSERT_TRUE(used.ok()) << used.status();
   ASSERT_EQ(used->warnings.size(), 1u);
-  EXPECT_NE(used->warnings[0].find("KHR_materials_unlit"), std::string::npos) << used->warnings[0];
+  EXPECT_NE(used->warnings[0].find("KHR_materials_clearcoat"), std::string::npos)
+      << used->warnings[0];
 }
 
 // ----- EXT_texture_webp -------------------------------------------------------------------------
@@ -1673,23 +1674,6 @@ TEST(GltfImportVertexColors, EachVertexKeepsItsColour) {
       "VEC4", 5126, false, [](int, int c) { return c == 0 ? 4.0f : -1.0f; }, [](json&) {}));
   ASSERT_TRUE(bright.ok()) << bright.status();
   EXPECT_EQ(UnpackVertexColor(bright->vertices[0].color), glm::vec4(1, 0, 0, 0));
-}
-
-// An alpha-mask material's cutoff does not see the vertices' alpha: said in a warning.
-TEST(GltfImportVertexColors, MaskedMaterialsWarnThatVertexAlphaIsNotCut) {
-  REQUIRE_ASSETS();
-  absl::StatusOr<CpuScene> s = ImportGltf(ColoredBox(
-      "VEC4", 5126, false, Channel, [](json& j) { j["materials"][0]["alphaMode"] = "MASK"; }));
-  ASSERT_TRUE(s.ok()) << s.status();
-  ASSERT_EQ(s->warnings.size(), 1u);
-  EXPECT_NE(s->warnings[0].find("meshes[0].primitives[0].attributes.COLOR_0"), std::string::npos)
-      << s->warnings[0];
-  EXPECT_NE(s->warnings[0].find("alphaCutoff"), std::string::npos) << s->warnings[0];
-  // RGB only: nothing to say.
-  s = ImportGltf(ColoredBox("VEC3", 5126, false, Channel,
-                            [](json& j) { j["materials"][0]["alphaMode"] = "MASK"; }));
-  ASSERT_TRUE(s.ok()) << s.status();
-  EXPECT_EQ(s->warnings, std::vector<std::string>{});
 }
 
 TEST(GltfImportVertexColors, MalformedColoursAreRefusedNamingThem) {
