@@ -167,7 +167,7 @@ std::vector<uint32_t> SurfaceIndices(const CpuScene& scene) {
             const Vertex& b = vertex(r);
             const glm::dvec3 d = glm::abs(cell_of(b.position) - q);
             if (std::max(d.x, std::max(d.y, d.z)) <= 0.5 &&
-                glm::dot(n, glm::normalize(b.normal)) > 0.99f &&
+                glm::dot(n, glm::normalize(b.normal)) > 0.99f && a.color == b.color &&
                 UvSeamSame(uv, glm::vec4(b.uv0, b.uv1), sets)) {
               stands[v] = r;
               break;

@@ -34,9 +34,10 @@ uint32_t UvSeamSets(const Material& m, const std::vector<Texture>& textures);
 // the primitive's vertex (numbered as its indices are) that stands for that index's vertex: the
 // first of the primitive's vertices met in index order that stands for itself, is at the same
 // position (within half a cell of TriangleAdjacency's grid, 2^-20 of the primitive's size, on
-// each axis), has a normal within 8.1 degrees (dot > 0.99) and texture coordinates that agree,
-// within 1e-4 (relative past 1 uv unit), in the sets UvSeamSets names (up to whole units where
-// they repeat). So vertices split for a hard edge or a texture seam stand apart, and those split
+// each axis), has a normal within 8.1 degrees (dot > 0.99), the same vertex colour, and texture
+// coordinates that agree, within 1e-4 (relative past 1 uv unit), in the sets UvSeamSets names (up
+// to whole units where they repeat). So vertices split for a hard edge, a colour edge or a
+// texture seam stand apart, and those split
 // for nothing (or for a set no texture reads) stand for one another. Index ranges as
 // TriangleAdjacency's; primitives sharing one (the same mesh with other materials) compare the
 // sets any of their materials reads (periodic where periodic for all). Posed (skinned or

@@ -49,7 +49,7 @@ struct Aabb {
 };
 
 // The single vertex layout of the scene vertex buffer (attribute locations in
-// shaders/common/gpu_types.h). 56 bytes.
+// shaders/common/gpu_types.h). 64 bytes.
 struct Vertex {
   glm::vec3 position{0.0f};
   glm::vec3 normal{0.0f, 0.0f, 1.0f};
@@ -57,7 +57,8 @@ struct Vertex {
   glm::vec2 uv0{0.0f};
   glm::vec2 uv1{0.0f};
   // COLOR_0, linear RGBA in [0, 1], as IEEE halves: (r, g) and (b, a) each packed as GLSL's
-  // packHalf2x16 (PackVertexColor). White where the file gives none.
+  // packHalf2x16 (PackVertexColor). White where the file gives none. A scene built in code sets
+  // its primitive's vertex_colors too: the visibility shading reads colours only then.
   glm::uvec2 color{kWhiteHalves, kWhiteHalves};
   static constexpr uint32_t kWhiteHalves = 0x3C003C00u;  // two halves of 1.0
 };

@@ -1137,6 +1137,17 @@ class Converter {
       return Err(field, "bufferViews[", view, "] holds ", AccessorsOfView(view),
                  " accessors but has no byteStride");
     }
+    // glTF 2.0 3.6.2.4: vertex attribute data is 4-byte aligned (the validator's
+    // MESH_PRIMITIVE_ACCESSOR_UNALIGNED): its offset, and a tightly packed element's size.
+    if (const int view = m_.accessors[v->index].bufferView; view >= 0) {
+      const uint64_t element = uint64_t(v->components) * uint64_t(v->component_size);
+      if (m_.accessors[v->index].byteOffset % 4 != 0 ||
+          (m_.bufferViews[view].byteStride == 0 && element % 4 != 0)) {
+        return Err(field, name, " data is not aligned to 4 bytes (byteOffset ",
+                   m_.accessors[v->index].byteOffset, ", ", element, "-byte elements",
+                   m_.bufferViews[view].byteStride == 0 ? " without a byteStride" : "", ")");
+      }
+    }
     return v;
   }
 
@@ -1269,6 +1280,13 @@ class Converter {
       if (col.data) {
         glm::vec4 c = ReadVec(col, i);
         if (col.type == TINYGLTF_TYPE_VEC3) c.a = 1.0f;
+        // glTF 2.0 3.7.2.1: colours are in [0, 1] (the validator's ACCESSOR_NON_CLAMPED).
+        for (int ch = 0; ch < 4; ++ch) {
+          if (!(c[ch] >= 0.0f && c[ch] <= 1.0f)) {
+            return Err(absl::StrCat(path, ".attributes.COLOR_0 (accessors[", col.index, "])"),
+                       "element ", i, " has ", c[ch], " outside [0, 1]");
+          }
+        }
         v.color = PackVertexColor(c);
       }
     }

@@ -877,6 +877,8 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
         &g.base_color_tex, &g.metallic_roughness_tex, &g.normal_tex, &g.occlusion_tex,
         &g.emissive_tex};
     VkDescriptorImageInfo* info = &infos[size_t(m) * gpu::kMaterialTextureSlots];
+    if (g.flags.w != 0u || !ctx.info().material_variants)
+      material_textures_[m] |= gpu::kMaterialVertexColors;
     for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k) {
       if (slots[k]->info.x >= 0 || !ctx.info().material_variants)
         material_textures_[m] |= 1u << k;

@@ -148,8 +148,12 @@ TS_CONST uint kBindingBuckets = 0;  // sampler2DArray[kMaxTextureBuckets]
 // The slots a material has a texture in, bit k for slot k (binding 1 + k): the shading's
 // specialization constant 1 (common/shading.glsl), a pipeline per set of slots the scene's
 // materials use, so each holds no code for the slots its materials lack (lavapipe samples a
-// texture under a lane mask even where the branch to it is untaken). All: the general pipeline.
-TS_CONST uint kMaterialTexturesAll = (1u << kMaterialTextureSlots) - 1u;
+// texture under a lane mask even where the branch to it is untaken). Above the slots, one more
+// bit: the material's primitives have vertex colours (GpuMaterial::flags.w), so a material without
+// has no colour attribute, varying or multiply (lavapipe interpolates every varying the shader
+// reads). All: the general pipeline.
+TS_CONST uint kMaterialVertexColors = 1u << kMaterialTextureSlots;
+TS_CONST uint kMaterialTexturesAll = (kMaterialVertexColors << 1) - 1u;
 // The tonemap pass has its own set: binding 0 is the HDR colour as a sampler2D.
 // ---- vis_mlaa (shaders/common/vis.glsl) ------------------------------------------------------
 // A visibility id: (drawable + 1) << triangle_bits | triangle; 0 = no surface (the sky).

@@ -54,7 +54,8 @@ const bool kSsaoCode = (kLightingEffects & kSsaoOn) != 0u;
 const bool kIblCode = (kLightingEffects & kIblOn) != 0u;
 const bool kLocalLightCode = (kLightingEffects & kLocalLightsOn) != 0u;
 const bool kGlobalLoopCode = (kLightingEffects & kGlobalLightsOn) != 0u;
-// The texture slots the shaded materials have (gpu::kMaterialTexturesAll: any): a pipeline per set
+// The texture slots the shaded materials have, and whether they have vertex colours
+// (gpu::kMaterialTexturesAll: any): a pipeline per set
 // of slots a scene's materials use, so the sampling code of the slots they lack is not there at
 // all (lavapipe ran it under a lane mask: Sponza, whose materials have no occlusion or emissive
 // textures, shaded 20-27% slower with it).
@@ -233,7 +234,9 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   GpuMaterial m = material;
   vec4 base = m.base_color_factor;
   if (MaterialHas(0u, m.base_color_tex)) base *= SAMPLE_TEXTURE(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
-  base *= s.color;  // the mask passes' CutOut multiplies the same alpha
+  // The mask passes' CutOut multiplies the same alpha. Only where the material's primitives have
+  // colours (else the varying is not read, and lavapipe does not interpolate it).
+  if ((kMaterialTextures & kMaterialVertexColors) != 0u) base *= s.color;
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).
 #ifndef TESSERA_COMPUTE

@@ -91,9 +91,11 @@ vec4 SampleTexture(sampler2DArray bucket, GpuTextureRef t, vec2 uv0, vec2 uv1, U
 // geometry discard such fragments, so every pass sees the same holes.
 bool CutOut(vec2 uv0, vec2 uv1, float vertex_alpha) {
   UvGradients grads = ComputeUvGradients(uv0, uv1);
-  float alpha = material.base_color_factor.a * vertex_alpha;
+  // In ShadeSurface's order (factor, texture, vertex), so both cut at the same pixels.
+  float alpha = material.base_color_factor.a;
   GpuTextureRef t = material.base_color_tex;
   if (HasTexture(t)) alpha *= SampleTexture(u_base_color_tex, t, uv0, uv1, grads).a;
+  alpha *= vertex_alpha;
   return alpha < material.params2.x;
 }
 #endif

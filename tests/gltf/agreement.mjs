@@ -98,7 +98,6 @@ function sparse(indices) {
   };
 }
 
-// POSITION as SHORT (KHR_mesh_quantization): positions x 1000, with exact min/max.
 // COLOR_0 on Box's primitive: 24 RGBA colours as normalized unsigned bytes, then `edit` of the
 // accessor (a type or componentType the spec does not allow for colours).
 function colored(edit = () => {}) {
@@ -114,6 +113,7 @@ function colored(edit = () => {}) {
   };
 }
 
+// POSITION as SHORT (KHR_mesh_quantization): positions x 1000, with exact min/max.
 function quantized(declare) {
   return (j, bin) => {
     const q = Int16Array.from(boxPositions, (v) => Math.round(v * 1000));
@@ -216,6 +216,18 @@ const cases = [
   generated('vertex_colors', colored()),
   generated('vertex_colors_unnormalized', colored((a) => { delete a.normalized; })),
   generated('vertex_colors_vec2', colored((a) => { a.type = 'VEC2'; a.count = 48; })),
+  generated('vertex_colors_not_clamped', (j, bin) => {
+    const a = appendView(j, bin, f32(Array.from({ length: 24 * 3 }, (_, i) => (i === 7 ? 2 : 0.5))));
+    j.accessors.push({ bufferView: a.view, componentType: 5126, count: 24, type: 'VEC3' });
+    j.meshes[0].primitives[0].attributes.COLOR_0 = j.accessors.length - 1;
+    return a.bin;
+  }),
+  generated('vertex_colors_unaligned', (j, bin) => {
+    const a = appendView(j, bin, Buffer.alloc(24 * 3, 200));
+    j.accessors.push({ bufferView: a.view, componentType: 5121, normalized: true, count: 24, type: 'VEC3' });
+    j.meshes[0].primitives[0].attributes.COLOR_0 = j.accessors.length - 1;
+    return a.bin;
+  }),
   // KHR_materials_unlit: an empty object makes the material unlit; anything else is refused.
   generated('unlit_material', (j) => {
     j.extensionsUsed = ['KHR_materials_unlit'];

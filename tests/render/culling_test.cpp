@@ -17,6 +17,7 @@
 #include "renderer/renderer.h"
 #include "renderer/scene/city_scene.h"
 #include "renderer/scene/gltf_import.h"
+#include "shaders/common/gpu_types.h"
 #include "shared_renderer.h"
 
 namespace tessera {
@@ -479,7 +480,7 @@ TEST(FallbackTest, SceneLargerThanTheStorageBufferRange) {
   const uint64_t vertex_bytes = cpu->vertices.size() * sizeof(Vertex);
   const uint64_t index_bytes = cpu->indices.size() * sizeof(uint32_t);  // and the adjacency's
   ASSERT_GT(vertex_bytes, index_bytes + 4096);
-  if (cpu->vertices.size() * 7 > r.device_info().max_texel_buffer_elements)  // R32G32 texels
+  if (cpu->vertices.size() * gpu::kVertexTexels > r.device_info().max_texel_buffer_elements)
     GTEST_SKIP() << "the device's texel buffers do not cover DamagedHelmet's vertices";
   absl::StatusOr<SceneHandle> full_scene = r.LoadScene(*src);
   ASSERT_TRUE(full_scene.ok()) << full_scene.status();

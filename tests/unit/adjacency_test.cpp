@@ -151,6 +151,11 @@ TEST(SurfaceIndicesTest, SplitVerticesStandForOneAnotherUnlessTheyDiffer) {
   hard.vertices[3].normal = glm::normalize(glm::vec3(0.1f, 0, 1));  // 5.7 degrees: one surface
   EXPECT_EQ(SurfaceIndices(hard)[3], 0u);
 
+  // A colour edge: vertex 3's COLOR_0 differs.
+  CpuScene colored = Square();
+  colored.vertices[3].color = PackVertexColor(glm::vec4(1.0f, 0.0f, 0.0f, 1.0f));
+  EXPECT_EQ(SurfaceIndices(colored), (std::vector<uint32_t>{0, 1, 2, 3, 2, 5, 0, 1, 2}));
+
   // A texture seam: vertex 4's coordinates differ, where a texture reads them.
   auto image = std::make_shared<Image>();
   image->width = image->height = 1;

@@ -1506,10 +1506,11 @@ TEST(GltfImportQuantization, QuantizedAttributesAreDequantized) {
   // Normalized BYTE texture coordinates (not renormalized afterwards, so the clamp of -128 to -1
   // shows) and normalized SHORT tangents.
   Bin more = bin;
-  const size_t uv8 = more.Add<int8_t>({0, 64, -128, 127, 127, -127});
+  // Two bytes a coordinate pair, in a 4-byte stride (vertex data is 4-byte aligned).
+  const size_t uv8 = more.Add<int8_t>({0, 64, 0, 0, -128, 127, 0, 0, 127, -127, 0, 0});
   const size_t tng = more.Add<int16_t>({32767, 0, 0, 32767, 0, 32767, 0, -32767, 0, 0, 32767, 32767});
   json more_views = views;
-  more_views.push_back({{"byteOffset", uv8}, {"byteLength", 6}});
+  more_views.push_back({{"byteOffset", uv8}, {"byteLength", 12}, {"byteStride", 4}});
   more_views.push_back({{"byteOffset", tng}, {"byteLength", 24}});
   json more_accessors = accessors;
   more_accessors.push_back({{"bufferView", 3}, {"componentType", 5120}, {"normalized", true},
@@ -1669,11 +1670,6 @@ TEST(GltfImportVertexColors, EachVertexKeepsItsColour) {
   ASSERT_TRUE(plain.ok()) << plain.status();
   EXPECT_FALSE(plain->primitives[0].vertex_colors);
   EXPECT_EQ(UnpackVertexColor(plain->vertices[0].color), glm::vec4(1.0f));
-  // Values past [0, 1] in a float accessor are clamped (the validator warns of them).
-  absl::StatusOr<CpuScene> bright = ImportGltf(ColoredBox(
-      "VEC4", 5126, false, [](int, int c) { return c == 0 ? 4.0f : -1.0f; }, [](json&) {}));
-  ASSERT_TRUE(bright.ok()) << bright.status();
-  EXPECT_EQ(UnpackVertexColor(bright->vertices[0].color), glm::vec4(1, 0, 0, 0));
 }
 
 TEST(GltfImportVertexColors, MalformedColoursAreRefusedNamingThem) {
@@ -1691,6 +1687,20 @@ TEST(GltfImportVertexColors, MalformedColoursAreRefusedNamingThem) {
   ExpectInvalid(ImportGltf(ColoredBox(
                     "VEC4", 5126, false, Channel, [](json&) {}, 23)),
                 {field, "COLOR_0 count 23 differs from POSITION count 24"});
+  // Float values outside [0, 1] (the validator's ACCESSOR_NON_CLAMPED), NaN too.
+  ExpectInvalid(ImportGltf(ColoredBox(
+                    "VEC4", 5126, false,
+                    [](int i, int c) { return i == 5 && c == 2 ? 4.0f : 0.5f; }, [](json&) {})),
+                {field, "element 5 has 4 outside [0, 1]"});
+  ExpectInvalid(ImportGltf(ColoredBox(
+                    "VEC3", 5126, false, [](int i, int) { return i == 0 ? std::nanf("") : 0.5f; },
+                    [](json&) {})),
+                {field, "element 0 has nan outside [0, 1]"});
+  // Three bytes a colour, tightly packed: not 4-byte aligned (MESH_PRIMITIVE_ACCESSOR_UNALIGNED).
+  ExpectInvalid(
+      ImportGltf(ColoredBox("VEC3", 5121, true, Channel,
+                            [](json& j) { j["bufferViews"].back().erase("byteStride"); })),
+      {field, "COLOR_0 data is not aligned to 4 bytes", "3-byte elements without a byteStride"});
 }
 
 }  // namespace
