@@ -856,6 +856,7 @@ class Converter {
       AccessorView v = PackedView(t.accessor);
       v.data = t.data->data();
       views_[t.accessor] = v;
+      draco_accessors_.insert(t.accessor);
     }
     // The indices as decoded: UNSIGNED_INT, whatever the accessor declares.
     AccessorView iv = PackedView(p.indices);
@@ -1280,9 +1281,11 @@ class Converter {
       if (col.data) {
         glm::vec4 c = ReadVec(col, i);
         if (col.type == TINYGLTF_TYPE_VEC3) c.a = 1.0f;
-        // glTF 2.0 3.7.2.1: colours are in [0, 1] (the validator's ACCESSOR_NON_CLAMPED).
+        // glTF 2.0 3.7.2.1: colours are in [0, 1] (the validator's ACCESSOR_NON_CLAMPED);
+        // Draco-decoded ones are clamped (PackVertexColor): its dequantization rounds past 1.
         for (int ch = 0; ch < 4; ++ch) {
-          if (!(c[ch] >= 0.0f && c[ch] <= 1.0f)) {
+          if (!(c[ch] >= 0.0f && c[ch] <= 1.0f) &&
+              !(draco_accessors_.count(col.index) != 0 && std::isfinite(c[ch]))) {
             return Err(absl::StrCat(path, ".attributes.COLOR_0 (accessors[", col.index, "])"),
                        "element ", i, " has ", c[ch], " outside [0, 1]");
           }
@@ -1919,6 +1922,9 @@ class Converter {
   // max_decoded_bytes together with the meshopt fallback buffers the pre-scan counted).
   const gltf_internal::PreScanResult& pre_;
   std::set<int> decoded_views_;
+  // Accessors whose data DecodeDracoPrimitive decoded: lossy, so a colour may overshoot [0, 1]
+  // by the dequantization's rounding (the validator does not read them).
+  std::set<int> draco_accessors_;
   std::vector<size_t> accessors_of_view_;  // AccessorsOfView, counted on first use
   uint64_t decoded_bytes_ = [this] {
     uint64_t fallback = 0;

@@ -103,6 +103,36 @@ for (const asset of args.assetsList.split(',')) {
   manifest.push({ asset: 'BoxGrid', variant: 'instance', original, file,
     command: '@gltf-transform/functions instance({min: 5}) of Box on 12 nodes' });
 }
+// COLOR_0: DamagedHelmet with a vertex colour made from each vertex's position (float RGBA in
+// [0, 1]; HelmetColors.glb, the original), and what the CLI's draco, meshopt and quantize make of
+// it (their colour quantization and compression of a generic attribute).
+{
+  const io = new NodeIO().registerExtensions(ALL_EXTENSIONS);
+  const doc = await io.read(path.join(args.assets, ORIGINALS.DamagedHelmet));
+  for (const mesh of doc.getRoot().listMeshes()) {
+    for (const prim of mesh.listPrimitives()) {
+      const position = prim.getAttribute('POSITION');
+      const colors = new Float32Array(position.getCount() * 4);
+      const p = [0, 0, 0];
+      for (let i = 0; i < position.getCount(); i++) {
+        position.getElement(i, p);
+        colors.set([0.5 + 0.5 * Math.sin(3 * p[0]), 0.5 + 0.5 * Math.sin(3 * p[1] + 1),
+          0.5 + 0.5 * Math.sin(3 * p[2] + 2), 1], 4 * i);
+      }
+      prim.setAttribute('COLOR_0', doc.createAccessor().setType('VEC4').setArray(colors)
+        .setBuffer(position.getBuffer()));
+    }
+  }
+  const original = path.join(args.out, 'HelmetColors.glb');
+  await io.write(original, doc);
+  for (const variant of CLI_VARIANTS) {
+    const file = path.join(args.out, `HelmetColors_${variant}.glb`);
+    const argv = [variant, original, file];
+    execFileSync(process.execPath, [cli, ...argv], { stdio: ['ignore', 'ignore', 'inherit'] });
+    manifest.push({ asset: 'HelmetColors', variant, original, file,
+      command: `gltf-transform ${argv.join(' ')} (DamagedHelmet with COLOR_0 added)` });
+  }
+}
 const version = JSON.parse(fs.readFileSync(path.join(here, 'node_modules', '@gltf-transform', 'cli',
                                                      'package.json'), 'utf8')).version;
 fs.writeFileSync(path.join(args.out, 'manifest.json'),

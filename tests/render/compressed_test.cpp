@@ -175,6 +175,8 @@ std::vector<Case> AllCases() {
     for (const char* variant : {"draco", "meshopt", "quantize", "sparse"})
       cases.push_back({asset, variant});
   cases.push_back({"BoxGrid", "instance"});  // EXT_mesh_gpu_instancing
+  for (const char* variant : {"draco", "meshopt", "quantize"})
+    cases.push_back({"HelmetColors", variant});  // COLOR_0, quantized and compressed
   return cases;
 }
 
