@@ -95,6 +95,22 @@ def gltf_seeds(assets):
     doc["nodes"][1]["extensions"] = {"EXT_mesh_gpu_instancing": {
         "attributes": {"TRANSLATION": accessors, "SCALE": accessors + 1}}}
     write("gltf", "Box_instanced.tsfs", pack([(name, json.dumps(doc).encode()), (bin_name, data)]))
+    # Box with vertex colours (COLOR_0, normalized unsigned bytes) on an unlit, alpha-mask
+    # material (KHR_materials_unlit).
+    (name, main), (bin_name, data) = gltf_file_set(os.path.join(assets, "Box/glTF/Box.gltf"))
+    doc = json.loads(main)
+    data += b"\0" * ((-len(data)) % 4)
+    offset = len(data)
+    data += bytes((i * 37) % 256 for i in range(24 * 4))
+    doc["buffers"][0]["byteLength"] = len(data)
+    doc["bufferViews"].append({"buffer": 0, "byteOffset": offset, "byteLength": 96})
+    doc["accessors"].append({"bufferView": len(doc["bufferViews"]) - 1, "componentType": 5121,
+                             "normalized": True, "count": 24, "type": "VEC4"})
+    doc["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = len(doc["accessors"]) - 1
+    doc["extensionsUsed"] = ["KHR_materials_unlit"]
+    doc["materials"][0]["extensions"] = {"KHR_materials_unlit": {}}
+    doc["materials"][0]["alphaMode"] = "MASK"
+    write("gltf", "Box_colors_unlit.tsfs", pack([(name, json.dumps(doc).encode()), (bin_name, data)]))
     for rel in ["Box/glTF-Binary/Box.glb", "BoxTextured/glTF-Binary/BoxTextured.glb",
                 "OrientationTest/glTF-Binary/OrientationTest.glb", "Box/glTF-Embedded/Box.gltf"]:
         with open(os.path.join(assets, rel), "rb") as f:
