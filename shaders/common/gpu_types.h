@@ -150,8 +150,8 @@ TS_CONST uint kBindingBuckets = 0;  // sampler2DArray[kMaxTextureBuckets]
 // materials use, so each holds no code for the slots its materials lack (lavapipe samples a
 // texture under a lane mask even where the branch to it is untaken). Above the slots, one more
 // bit: the material's primitives have vertex colours (GpuMaterial::flags.w), so a material without
-// has no colour attribute, varying or multiply (lavapipe interpolates every varying the shader
-// reads). All: the general pipeline.
+// has no colour multiply, and its varying is read by nothing (the attribute stays bound). All:
+// the general pipeline.
 TS_CONST uint kMaterialVertexColors = 1u << kMaterialTextureSlots;
 TS_CONST uint kMaterialTexturesAll = (kMaterialVertexColors << 1) - 1u;
 // The tonemap pass has its own set: binding 0 is the HDR colour as a sampler2D.
