@@ -28,5 +28,5 @@ void main() {
                    in_tangent.w * drawables[gl_InstanceIndex].normal_matrix[3][3]);
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
-  v_color = vec4(unpackHalf2x16(in_color.x), unpackHalf2x16(in_color.y));
+  v_color = VertexColorOf(in_color);
 }

@@ -18,6 +18,6 @@ void main() {
   gl_Position = ClipPosition(drawables[gl_InstanceIndex].world, in_position);
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
-  v_color = vec4(unpackHalf2x16(in_color.x), unpackHalf2x16(in_color.y));
+  v_color = VertexColorOf(in_color);
   v_drawable = gl_InstanceIndex;
 }

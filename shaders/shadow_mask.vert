@@ -18,5 +18,5 @@ void main() {
   gl_Position = push.view_proj * (drawables[gl_InstanceIndex].world * vec4(in_position, 1.0));
   v_uv0 = in_uv0;
   v_uv1 = in_uv1;
-  v_color = vec4(unpackHalf2x16(in_color.x), unpackHalf2x16(in_color.y));
+  v_color = VertexColorOf(in_color);
 }

@@ -88,8 +88,7 @@ absl::StatusOr<vk::Pipeline> CreateIdPipeline(const vk::Context& ctx, const Scen
   d.fragment_shader = "id.frag";
   d.layout = layout.pipeline_layout;
   d.color_formats = {kIdFormat};
-  d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1) |
-                     (1u << gpu::kAttrColor);
+  d.attribute_mask = gpu::kAlphaMaskAttributes;
   d.depth_format = kDepthFormat;
   d.depth_test = true;
   d.depth_write = false;

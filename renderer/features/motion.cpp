@@ -126,8 +126,7 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateMotionPass(const vk::Context& ctx,
   d.vertex_shader = "motion.vert";
   d.fragment_shader = "motion.frag";
   d.layout = layout.pipeline_layout();
-  d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1) |
-                     (1u << gpu::kAttrColor);
+  d.attribute_mask = gpu::kAlphaMaskAttributes;
   d.color_formats = {kMotionFormat};
   d.depth_format = kDepthFormat;
   d.depth_test = true;

@@ -56,8 +56,7 @@ class ShadowPass final : public Pass {
     d.name = "shadows.mask";
     d.vertex_shader = "shadow_mask.vert";
     d.fragment_shader = "depth_mask.frag";
-    d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1) |
-                       (1u << gpu::kAttrColor);
+    d.attribute_mask = gpu::kAlphaMaskAttributes;
     ASSIGN_OR_RETURN(pass->mask_, vk::CreateGraphicsPipeline(ctx, d));
     return std::unique_ptr<Pass>(std::move(pass));
   }

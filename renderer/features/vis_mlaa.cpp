@@ -120,8 +120,7 @@ class VisibilityPass final : public Pass {
     d.name = "visibility.mask";
     d.vertex_shader = pulled ? "vis_pull_mask.vert" : "id.vert";
     d.fragment_shader = pulled ? "vis_pull_mask.frag" : "vis_mask.frag";
-    d.attribute_mask = (1u << gpu::kAttrPosition) | (1u << gpu::kAttrUv0) | (1u << gpu::kAttrUv1) |
-                       (1u << gpu::kAttrColor);
+    d.attribute_mask = gpu::kAlphaMaskAttributes;
     absl::StatusOr<vk::Pipeline> mask = vk::CreateGraphicsPipeline(ctx, d);
     if (!mask.ok()) return mask.status();
     return Pipelines{std::move(opaque), std::move(*mask)};

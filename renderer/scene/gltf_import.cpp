@@ -1132,22 +1132,20 @@ class Converter {
     if (count != UINT64_MAX && v->count != count) {
       return Err(field, name, " count ", v->count, " differs from POSITION count ", count);
     }
-    // glTF 2.0 3.6.2.4: a bufferView that several vertex attributes share states its stride.
-    if (const int view = m_.accessors[v->index].bufferView;
-        view >= 0 && m_.bufferViews[view].byteStride == 0 && AccessorsOfView(view) > 1) {
-      return Err(field, "bufferViews[", view, "] holds ", AccessorsOfView(view),
+    const tinygltf::Accessor& a = m_.accessors[v->index];
+    if (a.bufferView < 0) return v;
+    // glTF 2.0 3.6.2.4: a bufferView that several vertex attributes share states its stride, and
+    // vertex attribute data is 4-byte aligned (the validator's MESH_PRIMITIVE_ACCESSOR_UNALIGNED):
+    // its offset, and a tightly packed element's size.
+    const bool packed = m_.bufferViews[a.bufferView].byteStride == 0;
+    if (packed && AccessorsOfView(a.bufferView) > 1) {
+      return Err(field, "bufferViews[", a.bufferView, "] holds ", AccessorsOfView(a.bufferView),
                  " accessors but has no byteStride");
     }
-    // glTF 2.0 3.6.2.4: vertex attribute data is 4-byte aligned (the validator's
-    // MESH_PRIMITIVE_ACCESSOR_UNALIGNED): its offset, and a tightly packed element's size.
-    if (const int view = m_.accessors[v->index].bufferView; view >= 0) {
-      const uint64_t element = uint64_t(v->components) * uint64_t(v->component_size);
-      if (m_.accessors[v->index].byteOffset % 4 != 0 ||
-          (m_.bufferViews[view].byteStride == 0 && element % 4 != 0)) {
-        return Err(field, name, " data is not aligned to 4 bytes (byteOffset ",
-                   m_.accessors[v->index].byteOffset, ", ", element, "-byte elements",
-                   m_.bufferViews[view].byteStride == 0 ? " without a byteStride" : "", ")");
-      }
+    const uint64_t element = uint64_t(v->components) * uint64_t(v->component_size);
+    if (a.byteOffset % 4 != 0 || (packed && element % 4 != 0)) {
+      return Err(field, name, " data is not aligned to 4 bytes (byteOffset ", a.byteOffset, ", ",
+                 element, "-byte elements", packed ? " without a byteStride" : "", ")");
     }
     return v;
   }
@@ -1227,6 +1225,8 @@ class Converter {
         Attribute(p, path, "COLOR_0", TINYGLTF_TYPE_VEC4, n, TINYGLTF_TYPE_VEC3);
     RETURN_IF_ERROR(color_view.status());
     const AccessorView& col = *color_view;
+    // Draco-decoded colours are clamped (PackVertexColor): its dequantization rounds past 1.
+    const bool col_lossy = draco_accessors_.count(col.index) != 0;
     absl::StatusOr<AccessorView> joints_view = Attribute(p, path, "JOINTS_0", TINYGLTF_TYPE_VEC4, n);
     absl::StatusOr<AccessorView> weights_view = Attribute(p, path, "WEIGHTS_0", TINYGLTF_TYPE_VEC4, n);
     RETURN_IF_ERROR(joints_view.status());
@@ -1281,11 +1281,9 @@ class Converter {
       if (col.data) {
         glm::vec4 c = ReadVec(col, i);
         if (col.type == TINYGLTF_TYPE_VEC3) c.a = 1.0f;
-        // glTF 2.0 3.7.2.1: colours are in [0, 1] (the validator's ACCESSOR_NON_CLAMPED);
-        // Draco-decoded ones are clamped (PackVertexColor): its dequantization rounds past 1.
+        // glTF 2.0 3.7.2.1: colours are in [0, 1] (the validator's ACCESSOR_NON_CLAMPED).
         for (int ch = 0; ch < 4; ++ch) {
-          if (!(c[ch] >= 0.0f && c[ch] <= 1.0f) &&
-              !(draco_accessors_.count(col.index) != 0 && std::isfinite(c[ch]))) {
+          if (!(c[ch] >= 0.0f && c[ch] <= 1.0f) && !(col_lossy && std::isfinite(c[ch]))) {
             return Err(absl::StrCat(path, ".attributes.COLOR_0 (accessors[", col.index, "])"),
                        "element ", i, " has ", c[ch], " outside [0, 1]");
           }

@@ -320,7 +320,11 @@ TS_CONST uint kAttrNormal = 1;
 TS_CONST uint kAttrTangent = 2;
 TS_CONST uint kAttrUv0 = 3;
 TS_CONST uint kAttrUv1 = 4;
-TS_CONST uint kAttrColor = 5;  // R32G32_UINT: COLOR_0 as four halves (unpackHalf2x16)
+TS_CONST uint kAttrColor = 5;  // R32G32_UINT: COLOR_0 as four halves (scene.glsl's VertexColorOf)
+// What the alpha-mask passes' vertex shaders read (depth prepass, shadows, visibility, motion,
+// drawable ids): the position, the uvs and the colour whose alphas CutOut multiplies.
+TS_CONST uint kAlphaMaskAttributes =
+    (1u << kAttrPosition) | (1u << kAttrUv0) | (1u << kAttrUv1) | (1u << kAttrColor);
 // Pulled vertices (common/vis_pull.glsl): the drawables buffer as a vertex buffer at this
 // binding, per instance (firstInstance = the drawable), its world matrix's columns at locations
 // kAttrDrawableWorld + 0..3 and its ids at kAttrDrawableIds.

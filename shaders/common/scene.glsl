@@ -29,6 +29,11 @@ layout(set = 0, binding = kBindingTileLights, std430) readonly buffer TileLightB
 layout(set = 0, binding = kBindingLocalLightTexels) uniform usamplerBuffer local_light_texels;
 layout(set = 0, binding = kBindingTileLightTexels) uniform usamplerBuffer tile_light_texels;
 
+// COLOR_0 as the vertex holds it, four halves (scene::Vertex::color), as RGBA.
+vec4 VertexColorOf(uvec2 halves) {
+  return vec4(unpackHalf2x16(halves.x), unpackHalf2x16(halves.y));
+}
+
 vec4 ClipPosition(mat4 world, vec3 position) {
   precise vec4 world_position = world * vec4(position, 1.0);
   precise vec4 clip = frame.view_proj * world_position;

@@ -235,7 +235,7 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   vec4 base = m.base_color_factor;
   if (MaterialHas(0u, m.base_color_tex)) base *= SAMPLE_TEXTURE(u_base_color_tex, m.base_color_tex, s.uv0, s.uv1, s.grads);
   // The mask passes' CutOut multiplies the same alpha. Only where the material's primitives have
-  // colours (else the varying is not read, and lavapipe does not interpolate it).
+  // colours (else every vertex is white, and nothing reads the varying).
   if ((kMaterialTextures & kMaterialVertexColors) != 0u) base *= s.color;
   // The prepass discarded these too; without the same test here the shading pass would draw
   // the cut-out surface over whatever is behind it (its depth is nearer).

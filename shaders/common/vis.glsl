@@ -75,15 +75,10 @@ vec4 VertexUvs(uint v) {  // xy TEXCOORD_0, zw TEXCOORD_1
   uint b = v * kVertexFloats + 10u;
   return vec4(vis_vertices[b], vis_vertices[b + 1u], vis_vertices[b + 2u], vis_vertices[b + 3u]);
 }
-vec4 VertexColor(uint v) {  // COLOR_0 (four halves)
-  uvec2 h;
-  if (kVisTexels) {
-    h = texelFetch(vis_vertex_texels, int(v * kVertexTexels + 7u)).xy;
-  } else {
-    uint b = v * kVertexFloats + 14u;
-    h = uvec2(floatBitsToUint(vis_vertices[b]), floatBitsToUint(vis_vertices[b + 1u]));
-  }
-  return vec4(unpackHalf2x16(h.x), unpackHalf2x16(h.y));
+vec4 VertexColor(uint v) {  // COLOR_0
+  if (kVisTexels) return VertexColorOf(texelFetch(vis_vertex_texels, int(v * kVertexTexels + 7u)).xy);
+  uint b = v * kVertexFloats + 14u;
+  return VertexColorOf(uvec2(floatBitsToUint(vis_vertices[b]), floatBitsToUint(vis_vertices[b + 1u])));
 }
 
 // The vertex at place k of the index buffer, for a drawable (GpuDrawable.ids: w its vertex

@@ -82,6 +82,24 @@ std::vector<std::pair<std::string, Settings>> ShadowedPaths() {
   return out;
 }
 
+// `base` in each way of shading the device has, named "forward", "visibility" and "vis_mlaa"
+// (then `suffix`): the forward pass, and where the device draws the visibility buffer the
+// visibility pipeline's shading and vis_mlaa's.
+std::vector<std::pair<std::string, Settings>> ShadingPaths(Settings base,
+                                                           const std::string& suffix = "") {
+  std::vector<std::pair<std::string, Settings>> out;
+  base.pipeline = Pipeline::kForward;
+  out.push_back({"forward" + suffix, base});
+  if (SharedRenderer().device_info().visibility_buffer) {
+    base.pipeline = Pipeline::kVisibility;
+    out.push_back({"visibility" + suffix, base});
+    base.pipeline = Pipeline::kAuto;
+    base.aa = AaMode::kVisMlaa;
+    out.push_back({"vis_mlaa" + suffix, base});
+  }
+  return out;
+}
+
 double MeanLuma(const RgbaImage& image) {
   double sum = 0.0;
   for (uint32_t y = 0; y < image.height; ++y)
@@ -891,22 +909,13 @@ TEST(UnlitTest, ShowsItsBaseColourWhateverTheLight) {
   auto material_at = [&](const FrameCapture& c, uint32_t x, uint32_t y) {
     return InteriorMaterial(cpu, c, x, y);
   };
-  std::vector<std::pair<std::string, Settings>> cases;
   Settings plain = Lit(false, false);
   plain.pipeline = Pipeline::kForward;
-  cases.push_back({"forward, no effects", plain});
   Settings every = Lit(true, true);
   every.ibl = true;
   every.synthetic_lights = 64;
-  every.pipeline = Pipeline::kForward;
-  cases.push_back({"forward, every effect", every});
-  if (SharedRenderer().device_info().visibility_buffer) {
-    every.pipeline = Pipeline::kVisibility;
-    cases.push_back({"visibility, every effect", every});
-    every.pipeline = Pipeline::kAuto;
-    every.aa = AaMode::kVisMlaa;
-    cases.push_back({"vis_mlaa, every effect", every});
-  }
+  std::vector<std::pair<std::string, Settings>> cases = {{"forward, no effects", plain}};
+  for (const auto& path : ShadingPaths(every, ", every effect")) cases.push_back(path);
   for (const auto& [name, settings] : cases) {
     SCOPED_TRACE(name);
     FrameCapture c;
@@ -993,20 +1002,10 @@ TEST(VertexColorTest, MultipliesTheBaseColourInEveryPath) {
     ASSERT_EQ(c->hdr.size(), size_t(kWidth) * kHeight * 4);
   };
 
-  std::vector<std::pair<std::string, Settings>> cases;
   Settings base = Lit(false, false);
   base.debug_view = DebugView::kBaseColor;
-  base.pipeline = Pipeline::kForward;
-  cases.push_back({"forward", base});
-  if (SharedRenderer().device_info().visibility_buffer) {
-    base.pipeline = Pipeline::kVisibility;
-    cases.push_back({"visibility", base});
-    base.pipeline = Pipeline::kAuto;
-    base.aa = AaMode::kVisMlaa;
-    cases.push_back({"vis_mlaa", base});
-  }
   FrameCapture forward_torus;
-  for (const auto& [name, settings] : cases) {
+  for (const auto& [name, settings] : ShadingPaths(base)) {
     SCOPED_TRACE(name);
     FrameCapture with, without;
     render(*colored, settings, &with);
@@ -1107,18 +1106,7 @@ TEST(VertexColorTest, ItsAlphaCutsOutMaskedSurfaces) {
   ASSERT_TRUE(demo_scene.ok()) << demo_scene.status();
   Camera c = BackCamera();
   c.target = glm::vec3(1.0f, 0.6f, -0.8f);  // the tube and its shadow in the middle
-  std::vector<std::pair<std::string, Settings>> cases;
-  Settings s = Lit(true, false);
-  s.pipeline = Pipeline::kForward;
-  cases.push_back({"forward", s});
-  if (SharedRenderer().device_info().visibility_buffer) {
-    s.pipeline = Pipeline::kVisibility;
-    cases.push_back({"visibility", s});
-    s.pipeline = Pipeline::kAuto;
-    s.aa = AaMode::kVisMlaa;
-    cases.push_back({"vis_mlaa", s});
-  }
-  for (const auto& [name, settings] : cases) {
+  for (const auto& [name, settings] : ShadingPaths(Lit(true, false))) {
     SCOPED_TRACE(name);
     FrameCapture capture;
     capture.want_ids = true;
