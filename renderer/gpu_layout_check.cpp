@@ -12,13 +12,16 @@ static_assert(sizeof(GpuTextureRef) == 48);
 static_assert(offsetof(GpuTextureRef, row1) == 16);
 static_assert(offsetof(GpuTextureRef, info) == 32);
 
-static_assert(sizeof(GpuMaterial) == 80 + 5 * 48);
+static_assert(sizeof(GpuMaterial) == 96 + 7 * 48);
 static_assert(offsetof(GpuMaterial, emissive) == 16);
 static_assert(offsetof(GpuMaterial, params) == 32);
 static_assert(offsetof(GpuMaterial, params2) == 48);
 static_assert(offsetof(GpuMaterial, flags) == 64);
-static_assert(offsetof(GpuMaterial, base_color_tex) == 80);
-static_assert(offsetof(GpuMaterial, emissive_tex) == 80 + 4 * 48);
+static_assert(offsetof(GpuMaterial, specular) == 80);
+static_assert(offsetof(GpuMaterial, base_color_tex) == 96);
+static_assert(offsetof(GpuMaterial, emissive_tex) == 96 + 4 * 48);
+static_assert(offsetof(GpuMaterial, specular_color_tex) == 96 + 5 * 48);
+static_assert(offsetof(GpuMaterial, specular_tex) == 96 + 6 * 48);
 static_assert(sizeof(GpuMaterial) % 16 == 0, "std430 array stride");
 
 static_assert(sizeof(GpuDrawable) == 192);

@@ -112,11 +112,19 @@ struct Material {
   // KHR_materials_unlit: the surface's colour is its base colour (factor x texture), not lit;
   // alpha mode and double-sidedness still apply, every other property is ignored.
   bool unlit = false;
+  // KHR_materials_ior and KHR_materials_specular: the dielectric's reflectance. Its F0 is
+  // ((ior - 1) / (ior + 1))^2 (0.04 at the default 1.5; ior 0 gives 1) times the specular colour,
+  // clamped to 1, times the specular factor, which is also its F90. Metals are unaffected.
+  float ior = 1.5f;
+  float specular_factor = 1.0f;
+  glm::vec3 specular_color_factor{1.0f};
   TextureRef base_color;
   TextureRef metallic_roughness;
   TextureRef normal;
   TextureRef occlusion;
   TextureRef emissive;
+  TextureRef specular_color;  // rgb, sRGB: multiplies specular_color_factor
+  TextureRef specular;        // alpha: multiplies specular_factor
 };
 
 // One glTF primitive as an indexed triangle list inside the scene's single vertex and index

@@ -412,6 +412,19 @@ void ReadNumbers(const tinygltf::Value& obj, const char* key, int n, float* out)
   for (int i = 0; i < n; ++i) out[i] = ToFloat(a.Get(i).GetNumberAsDouble());
 }
 
+// A textureInfo inside an extension (tinygltf keeps extension objects as plain values; the
+// pre-scan checked its index and texCoord are non-negative integers), or none (index -1).
+tinygltf::TextureInfo ExtensionTextureInfo(const tinygltf::Value& ext, const char* key) {
+  tinygltf::TextureInfo info;
+  if (!ext.IsObject() || !ext.Has(key)) return info;
+  const tinygltf::Value& v = ext.Get(key);
+  info.index = int(std::clamp(NumberOr(v, "index", -1), -1.0, double(INT32_MAX)));
+  info.texCoord = int(std::clamp(NumberOr(v, "texCoord", 0), 0.0, double(INT32_MAX)));
+  if (v.Has("extensions") && v.Get("extensions").Has("KHR_texture_transform"))
+    info.extensions["KHR_texture_transform"] = v.Get("extensions").Get("KHR_texture_transform");
+  return info;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Conversion of the parsed (and now range-checked) model into the CpuScene.
 
@@ -1618,9 +1631,28 @@ class Converter {
     RETURN_IF_ERROR(lit_slot(gm.normalTexture, false, path + ".normalTexture", &m.normal));
     RETURN_IF_ERROR(lit_slot(gm.occlusionTexture, false, path + ".occlusionTexture", &m.occlusion));
     RETURN_IF_ERROR(lit_slot(gm.emissiveTexture, true, path + ".emissiveTexture", &m.emissive));
+    // KHR_materials_ior and KHR_materials_specular (the pre-scan checked their ranges: ior 0 or
+    // at least 1, specularFactor in [0, 1], specularColorFactor non-negative).
+    if (const auto it = gm.extensions.find("KHR_materials_ior"); it != gm.extensions.end())
+      m.ior = std::min(ToFloat(NumberOr(it->second, "ior", 1.5)), kMaxFactor);
+    if (const auto it = gm.extensions.find("KHR_materials_specular"); it != gm.extensions.end()) {
+      const tinygltf::Value& x = it->second;
+      const std::string field = path + ".extensions.KHR_materials_specular";
+      m.specular_factor = ToFloat(NumberOr(x, "specularFactor", 1.0));
+      ReadNumbers(x, "specularColorFactor", 3, &m.specular_color_factor.x);
+      m.specular_color_factor = glm::min(m.specular_color_factor, glm::vec3(kMaxFactor));
+      RETURN_IF_ERROR(lit_slot(ExtensionTextureInfo(x, "specularTexture"), false,
+                               field + ".specularTexture", &m.specular));
+      RETURN_IF_ERROR(lit_slot(ExtensionTextureInfo(x, "specularColorTexture"), true,
+                               field + ".specularColorTexture", &m.specular_color));
+    }
     if (m.unlit) {
       m.emissive_factor = glm::vec3(0.0f);
       m.emissive_strength = 1.0f;
+      // (Either extension with KHR_materials_unlit is against their specs; unlit wins.)
+      m.ior = 1.5f;
+      m.specular_factor = 1.0f;
+      m.specular_color_factor = glm::vec3(1.0f);
     }
     s_.materials.push_back(std::move(m));
     return absl::OkStatus();
@@ -1946,7 +1978,8 @@ const std::vector<std::string_view>& SupportedGltfExtensions() {
   static const std::vector<std::string_view> names{
       "EXT_mesh_gpu_instancing",    "EXT_meshopt_compression", "EXT_texture_webp",
       "KHR_draco_mesh_compression", "KHR_lights_punctual",     "KHR_materials_emissive_strength",
-      "KHR_materials_unlit",        "KHR_mesh_quantization",   "KHR_texture_transform"};
+      "KHR_materials_ior",          "KHR_materials_specular",  "KHR_materials_unlit",
+      "KHR_mesh_quantization",      "KHR_texture_transform"};
   return names;
 }
 

@@ -293,6 +293,44 @@ class PreScan {
     return Number(Member(*tt, "rotation"), f + ".rotation", -kUnbounded, kUnbounded);
   }
 
+  // A textureInfo inside an extension, which tinygltf keeps as plain values without checking:
+  // an object whose index is a non-negative integer (the importer checks it names a texture)
+  // and whose texCoord, if given, is one too.
+  absl::Status ExtensionTextureInfo(const json* info, const std::string& field) {
+    if (info == nullptr) return absl::OkStatus();
+    if (!info->is_object()) return Invalid(file_, field, "not an object");
+    uint64_t n = 0;
+    if (!JsonUint(Member(*info, "index"), &n))
+      return Invalid(file_, field + ".index", "wants a non-negative integer");
+    if (const json* tc = Member(*info, "texCoord"); tc != nullptr && !JsonUint(tc, &n))
+      return Invalid(file_, field + ".texCoord", "wants a non-negative integer");
+    return TextureInfo(info, field);
+  }
+
+  // KHR_materials_ior's and KHR_materials_specular's values (their schemas' ranges).
+  absl::Status Reflectance(const json* exts, const std::string& f) {
+    if (const json* ior = exts ? Member(*exts, "KHR_materials_ior") : nullptr) {
+      const std::string field = f + ".extensions.KHR_materials_ior";
+      if (!ior->is_object()) return Invalid(file_, field, "not an object");
+      // 0 or at least 1 (0: F0 of 1, the specular colour alone sets the reflectance).
+      const json* v = Member(*ior, "ior");
+      if (v != nullptr && v->is_number() && v->get<double>() == 0.0) v = nullptr;
+      RETURN_IF_ERROR(Number(v, field + ".ior", 1, kUnbounded));
+    }
+    if (const json* sp = exts ? Member(*exts, "KHR_materials_specular") : nullptr) {
+      const std::string field = f + ".extensions.KHR_materials_specular";
+      if (!sp->is_object()) return Invalid(file_, field, "not an object");
+      RETURN_IF_ERROR(Number(Member(*sp, "specularFactor"), field + ".specularFactor", 0, 1));
+      RETURN_IF_ERROR(Numbers(Member(*sp, "specularColorFactor"), field + ".specularColorFactor", 3,
+                              0, kUnbounded));
+      RETURN_IF_ERROR(
+          ExtensionTextureInfo(Member(*sp, "specularTexture"), field + ".specularTexture"));
+      RETURN_IF_ERROR(ExtensionTextureInfo(Member(*sp, "specularColorTexture"),
+                                           field + ".specularColorTexture"));
+    }
+    return absl::OkStatus();
+  }
+
   absl::Status ValueRanges(const json& j) {
     for (size_t i = 0; i < ArraySize(j, "materials"); ++i) {
       const json& m = j["materials"][i];
@@ -323,6 +361,7 @@ class PreScan {
                                f + ".extensions.KHR_materials_emissive_strength.emissiveStrength",
                                0, kUnbounded));
       }
+      RETURN_IF_ERROR(Reflectance(exts, f));
     }
     const json* exts = Member(j, "extensions");
     const json* lights = exts ? Member(*exts, "KHR_lights_punctual") : nullptr;
@@ -804,6 +843,9 @@ class PreScan {
     info(Member(pbr, "metallicRoughnessTexture"));
     for (const char* key : {"normalTexture", "occlusionTexture", "emissiveTexture"})
       info(Member(material, key));
+    const json* specular = Member(Member(material, "extensions"), "KHR_materials_specular");
+    info(Member(specular, "specularTexture"));
+    info(Member(specular, "specularColorTexture"));
     return sets;
   }
 

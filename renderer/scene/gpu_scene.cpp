@@ -178,6 +178,11 @@ gpu::GpuTextureRef MakeTextureRef(const TextureRef& ref, const std::vector<Textu
   return out;
 }
 
+float DielectricF0(float ior) {
+  const float r = (ior - 1.0f) / (ior + 1.0f);
+  return r * r;
+}
+
 gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& textures,
                               const TextureBucketPlan& plan) {
   gpu::GpuMaterial g{};
@@ -187,6 +192,7 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
   g.params2 = glm::vec4(m.alpha_cutoff, 0.0f, 0.0f, 0.0f);
   g.flags = glm::uvec4(static_cast<uint32_t>(m.alpha_mode), m.double_sided ? 1u : 0u,
                        m.unlit ? 1u : 0u, 0u);
+  g.specular = glm::vec4(DielectricF0(m.ior) * m.specular_color_factor, m.specular_factor);
   g.base_color_tex = MakeTextureRef(m.base_color, textures, plan);
   // An unlit surface reads its base colour only: no other slot is sampled (nor, on devices with
   // a pipeline per set of slots, compiled in).
@@ -198,6 +204,8 @@ gpu::GpuMaterial MakeMaterial(const Material& m, const std::vector<Texture>& tex
   g.normal_tex = lit_only(m.normal);
   g.occlusion_tex = lit_only(m.occlusion);
   g.emissive_tex = lit_only(m.emissive);
+  g.specular_color_tex = lit_only(m.specular_color);
+  g.specular_tex = lit_only(m.specular);
   if (m.unlit) g.emissive = glm::vec4(0.0f);
   return g;
 }
@@ -874,8 +882,8 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
   for (uint32_t m = 0; m < material_count; ++m) {
     const gpu::GpuMaterial& g = materials[m];
     const gpu::GpuTextureRef* slots[gpu::kMaterialTextureSlots] = {
-        &g.base_color_tex, &g.metallic_roughness_tex, &g.normal_tex, &g.occlusion_tex,
-        &g.emissive_tex};
+        &g.base_color_tex, &g.metallic_roughness_tex, &g.normal_tex,  &g.occlusion_tex,
+        &g.emissive_tex,   &g.specular_color_tex,     &g.specular_tex};
     VkDescriptorImageInfo* info = &infos[size_t(m) * gpu::kMaterialTextureSlots];
     if (g.flags.w != 0u || !ctx.info().material_variants)
       material_textures_[m] |= gpu::kMaterialVertexColors;

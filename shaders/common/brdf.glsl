@@ -22,11 +22,12 @@ float VisibilitySmithGgxCorrelated(float n_dot_v, float n_dot_l, float alpha) {
   return s > 0.0 ? 0.5 / s : 0.0;
 }
 
-// (1 - v.h)^5 by multiplication: lavapipe builds pow as exp2(log2) with their polynomials and
-// special cases, which in the lights' loop cost once per light and pixel.
-vec3 FresnelSchlick(vec3 f0, float v_dot_h) {
+// Schlick's weight (1 - v.h)^5 by multiplication: lavapipe builds pow as exp2(log2) with their
+// polynomials and special cases, which in the lights' loop cost once per light and pixel.
+float SchlickWeight(float v_dot_h) {
   float x = clamp(1.0 - v_dot_h, 0.0, 1.0);
   float x2 = x * x;
-  return f0 + (1.0 - f0) * (x2 * x2 * x);
+  return x2 * x2 * x;
 }
+
 #endif

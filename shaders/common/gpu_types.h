@@ -139,7 +139,9 @@ TS_CONST uint kBindingMetallicRoughnessTex = 2;
 TS_CONST uint kBindingNormalTex = 3;
 TS_CONST uint kBindingOcclusionTex = 4;
 TS_CONST uint kBindingEmissiveTex = 5;
-TS_CONST uint kMaterialTextureSlots = 5;
+TS_CONST uint kBindingSpecularColorTex = 6;  // KHR_materials_specular's specularColorTexture
+TS_CONST uint kBindingSpecularTex = 7;       // and its specularTexture
+TS_CONST uint kMaterialTextureSlots = 7;
 // Or, in the visibility shading of a device that indexes sampler arrays (DeviceInfo::
 // shade_all_materials, common/textures.glsl's SHADE_ALL_MATERIALS), set 1 is the scene's bucket
 // set: every bucket, indexed by a texture's bucket (GpuTextureRef::info.x), the materials read from
@@ -347,11 +349,18 @@ struct GpuMaterial {
   vec4 params;             // x metallic, y roughness, z normal scale, w occlusion strength
   vec4 params2;            // x alpha cutoff (MASK), yzw unused
   uvec4 flags;             // x alpha mode (kAlpha*), y double sided, z unlit, w vertex colours
+  // The dielectric's reflectance (KHR_materials_ior, KHR_materials_specular). rgb: its F0 before
+  // the specular colour texture and the clamp to 1, i.e. ((ior - 1) / (ior + 1))^2 x
+  // specularColorFactor (0.04 without either extension); a: specularFactor, the dielectric's F90
+  // and the weight of its F0.
+  vec4 specular;
   GpuTextureRef base_color_tex;
   GpuTextureRef metallic_roughness_tex;
   GpuTextureRef normal_tex;
   GpuTextureRef occlusion_tex;
   GpuTextureRef emissive_tex;
+  GpuTextureRef specular_color_tex;  // rgb, sRGB: multiplies specular.rgb
+  GpuTextureRef specular_tex;        // a: multiplies specular.a
 };
 
 // One node x primitive instance. Drawn with firstInstance = drawable index, so shaders find

@@ -27,14 +27,28 @@ struct SurfaceInput {
   bool front_facing;
 };
 
-// Karis' analytic fit of the split-sum environment BRDF.
-vec3 EnvBrdfApprox(vec3 f0, float roughness, float n_dot_v) {
+// What a surface point reflects, from its material (ShadeSurface): the diffuse colour; the
+// specular reflectance at normal (f0) and grazing (f90) incidence, the dielectric's
+// (KHR_materials_ior, KHR_materials_specular) mixed with the metal's by metallic; GGX's alpha.
+// The diffuse light is what the Fresnel term leaves, from f0_diffuse: f0 with the dielectric's
+// colour as one value, the largest of its channels (KHR_materials_specular's max_value, so a
+// coloured specular does not tint the diffuse light with its complement). Without a coloured
+// specular, f0_diffuse is f0.
+struct Reflectance {
+  vec3 c_diff;
+  vec3 f0;
+  vec3 f0_diffuse;
+  float f90;
+  float alpha;
+};
+
+// Karis' analytic fit of the split-sum environment BRDF: its (scale, bias) of F0 and F90.
+vec2 EnvBrdfApprox(float roughness, float n_dot_v) {
   const vec4 c0 = vec4(-1.0, -0.0275, -0.572, 0.022);
   const vec4 c1 = vec4(1.0, 0.0425, 1.04, -0.04);
   vec4 r = roughness * c0 + c1;
   float a004 = min(r.x * r.x, exp2(-9.28 * n_dot_v)) * r.x + r.y;
-  vec2 ab = vec2(-1.04, 1.04) * a004 + r.zw;
-  return f0 * ab.x + ab.y;
+  return vec2(-1.04, 1.04) * a004 + r.zw;
 }
 
 
@@ -92,8 +106,8 @@ bool MaterialHas(uint slot, GpuTextureRef t) {
 // `shadowed` is a constant at every call: the shader compiler keeps the lookup's code only where
 // it is true (on lavapipe, an untaken branch to a lookup inside the light loop still doubled the
 // shading pass); `sun`: the light is the sun, looked up through its cascades (LightShadow).
-vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff,
-                vec3 f0, float alpha, bool shadowed, bool sun) {
+vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, Reflectance r,
+                bool shadowed, bool sun) {
   uint type = uint(light.direction_type.w);
   vec3 l;
   float attenuation = 1.0;
@@ -106,8 +120,8 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
     float range = light.position_range.w;
     attenuation = 1.0 / d2;
     if (range > 0.0) {
-      float r = d2 / (range * range);
-      attenuation *= clamp(1.0 - r * r, 0.0, 1.0);  // glTF: 1 - (d/range)^4
+      float q = d2 / (range * range);
+      attenuation *= clamp(1.0 - q * q, 0.0, 1.0);  // glTF: 1 - (d/range)^4
     }
     if (type == kLightSpot) {
       float cd = dot(light.direction_type.xyz, -l);
@@ -124,10 +138,13 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
   vec3 h = normalize(l + v);
   float n_dot_h = max(dot(n, h), 0.0);
   float v_dot_h = max(dot(v, h), 0.0);
-  vec3 f = FresnelSchlick(f0, v_dot_h);
-  vec3 diffuse = (1.0 - f) * c_diff / kPi;
-  vec3 specular = f * DistributionGgx(n_dot_h, alpha) *
-                  VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, alpha);
+  // Schlick's Fresnel from f0 to f90: f0 (1 - w) + f90 w.
+  float w = SchlickWeight(v_dot_h);
+  float f90_w = r.f90 * w;
+  vec3 f = r.f0 * (1.0 - w) + f90_w;
+  vec3 diffuse = (1.0 - (r.f0_diffuse * (1.0 - w) + f90_w)) * r.c_diff / kPi;
+  vec3 specular = f * DistributionGgx(n_dot_h, r.alpha) *
+                  VisibilitySmithGgxCorrelated(n_dot_v, n_dot_l, r.alpha);
   vec3 radiance = light.color_intensity.rgb * light.color_intensity.a * attenuation;
   return (diffuse + specular) * radiance * n_dot_l;
 }
@@ -150,8 +167,8 @@ vec3 ShadeLight(GpuLight light, vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, 
 // is left, so after the last lane left at the top the body ran once more with every lane masked
 // off; the shadowed loop (one to a few iterations) paid that on every pixel. So each loop runs
 // its body at least once, and drops what a lane computes past its own end.
-vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, vec3 f0,
-                 float alpha, bool tiled, uint tile, uint tile_count) {
+vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, Reflectance r, bool tiled,
+                 uint tile, uint tile_count) {
   vec3 color = vec3(0.0);
   // A shadowed sun is global light 0 (PrepareLights puts the directional lights first, PlaceSun
   // shadows the first and counts its cascades in shadow.counts.y), shaded below with its shadow.
@@ -163,7 +180,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   if (kGlobalLoopCode) {
     // (A later iteration's i is below the count; the first's is 0 or 1, in lights[]'s range.)
     for (uint i = sun ? 1u : 0u;;) {
-      vec3 c = ShadeLight(lights[i], p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
+      vec3 c = ShadeLight(lights[i], p, n, ng, v, n_dot_v, r, false, false);
       color += i < frame.counts.x ? c : vec3(0.0);
       if (++i >= frame.counts.x) break;
     }
@@ -179,7 +196,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       // is replaced by light 0, and the light dropped.
       bool live = k < count;
       GpuLight light = LocalLight(live ? (tiled ? TileLight(base + k) : k) : 0u);
-      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, false, false);
+      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, r, false, false);
       bool mapped = kShadowCode && light.spot.z > 0.0;
       if (live && mapped) shadowed |= 1u << uint(light.spot.w);
       color += live && !mapped ? c : vec3(0.0);
@@ -190,7 +207,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
   // or without the global loop the frame's one global light, if any.
   bool sun_first = kGlobalLoopCode ? sun : frame.counts.x > 0u;
   if (kShadowCode && !kLocalLightCode) {
-    vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, true);
+    vec3 c = ShadeLight(lights[0], p, n, ng, v, n_dot_v, r, true, true);
     color += sun_first ? c : vec3(0.0);
   } else if (kShadowCode) {
     // Counted, at least once: as a do-while on `shadowed` lavapipe shaded a few hundred of
@@ -211,7 +228,7 @@ vec3 DirectLight(vec3 p, vec3 n, vec3 ng, vec3 v, float n_dot_v, vec3 c_diff, ve
       } else {
         light = LocalLight(any ? shadow.shadowed[i / 4u][i % 4u] : 0u);
       }
-      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, c_diff, f0, alpha, true, is_sun);
+      vec3 c = ShadeLight(light, p, n, ng, v, n_dot_v, r, true, is_sun);
       color += any ? c : vec3(0.0);
       if (++it >= iterations) break;
     }
@@ -284,9 +301,21 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
 
   vec3 v = normalize(frame.camera_position.xyz - s.world);
   float n_dot_v = max(dot(n, v), 1e-4);
-  vec3 c_diff = mix(base.rgb, vec3(0.0), metallic);
-  vec3 f0 = mix(vec3(0.04), base.rgb, metallic);
-  float alpha = roughness * roughness;
+  // The dielectric's F0 and F90 (KHR_materials_specular's dielectric_f0 and _f90: the F0 from
+  // the IOR times the specular colour, clamped to 1, times the specular weight; F90 the weight).
+  // 0.04 and 1 without the extensions.
+  vec3 specular_color = m.specular.rgb;
+  if (MaterialHas(5u, m.specular_color_tex)) specular_color *= SAMPLE_TEXTURE(u_specular_color_tex, m.specular_color_tex, s.uv0, s.uv1, s.grads).rgb;
+  float specular_weight = m.specular.a;
+  if (MaterialHas(6u, m.specular_tex)) specular_weight *= SAMPLE_TEXTURE(u_specular_tex, m.specular_tex, s.uv0, s.uv1, s.grads).a;
+  vec3 dielectric_f0 = min(specular_color, vec3(1.0)) * specular_weight;
+  float dielectric_f0_max = max(max(dielectric_f0.r, dielectric_f0.g), dielectric_f0.b);
+  Reflectance r;
+  r.c_diff = mix(base.rgb, vec3(0.0), metallic);
+  r.f0 = mix(dielectric_f0, base.rgb, metallic);
+  r.f0_diffuse = mix(vec3(dielectric_f0_max), base.rgb, metallic);
+  r.f90 = mix(specular_weight, 1.0, metallic);
+  r.alpha = roughness * roughness;
 
   // The tile this pixel belongs to, and its light list (built by the light-culling pass).
   uint tile_size = frame.lighting.y;
@@ -304,24 +333,26 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   // The pipeline's kShadowCode alone says whether DirectLight looks shadows up: a choice at run
   // time between two calls (on shadow.counts.w, which PrepareShadows sets whenever kShadowCode
   // is on) ran both on lavapipe (Sponza's full stack: shading 179-182 -> 169-171 ms).
-  vec3 color = DirectLight(s.world, n, ng, v, n_dot_v, c_diff, f0, alpha, tiled, tile, tile_count);
+  vec3 color = DirectLight(s.world, n, ng, v, n_dot_v, r, tiled, tile, tile_count);
 
   // Ambient. With IBL: the split sum, the irradiance cube times the diffuse colour plus the
   // prefiltered environment along the reflection times the BRDF table's F0 scale and bias.
   // Without: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
   // reflection vector, blurred towards the average as roughness grows, with Karis' analytic fit
   // of the BRDF table.
-  vec3 r = reflect(-v, n);
+  vec3 reflected = reflect(-v, n);
   vec3 ambient;
   if (kIblCode && IblOn()) {
     float mips = float(textureQueryLevels(u_specular));
-    vec3 prefiltered = textureLod(u_specular, r, roughness * (mips - 1.0)).rgb;
+    vec3 prefiltered = textureLod(u_specular, reflected, roughness * (mips - 1.0)).rgb;
     vec2 ab = textureLod(u_brdf_lut, vec2(n_dot_v, roughness), 0.0).rg;
-    ambient = textureLod(u_irradiance, n, 0.0).rgb * c_diff + prefiltered * (f0 * ab.x + ab.y);
+    ambient = textureLod(u_irradiance, n, 0.0).rgb * r.c_diff +
+              prefiltered * (r.f0 * ab.x + r.f90 * ab.y);
   } else {
-    vec3 env = mix(Hemisphere(r), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb),
-                   roughness);
-    ambient = Hemisphere(n) * c_diff + env * EnvBrdfApprox(f0, roughness, n_dot_v);
+    vec3 env = mix(Hemisphere(reflected),
+                   0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb), roughness);
+    vec2 ab = EnvBrdfApprox(roughness, n_dot_v);
+    ambient = Hemisphere(n) * r.c_diff + env * (r.f0 * ab.x + r.f90 * ab.y);
   }
   // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
   // not in the depth it was computed from.

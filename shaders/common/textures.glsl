@@ -25,6 +25,8 @@ layout(set = kMaterialSet, binding = kBindingMetallicRoughnessTex) uniform sampl
 layout(set = kMaterialSet, binding = kBindingNormalTex) uniform sampler2DArray u_normal_tex;
 layout(set = kMaterialSet, binding = kBindingOcclusionTex) uniform sampler2DArray u_occlusion_tex;
 layout(set = kMaterialSet, binding = kBindingEmissiveTex) uniform sampler2DArray u_emissive_tex;
+layout(set = kMaterialSet, binding = kBindingSpecularColorTex) uniform sampler2DArray u_specular_color_tex;
+layout(set = kMaterialSet, binding = kBindingSpecularTex) uniform sampler2DArray u_specular_tex;
 #endif
 
 // glTF wrap modes: 0 repeat (the sampler does it), 1 clamp to edge, 2 mirrored repeat.

@@ -111,6 +111,20 @@ def gltf_seeds(assets):
     doc["materials"][0]["extensions"] = {"KHR_materials_unlit": {}}
     doc["materials"][0]["alphaMode"] = "MASK"
     write("gltf", "Box_colors_unlit.tsfs", pack([(name, json.dumps(doc).encode()), (bin_name, data)]))
+    # BoxTextured with an IOR and a specular factor, colour and both textures
+    # (KHR_materials_ior, KHR_materials_specular), one of them transformed.
+    files = gltf_file_set(os.path.join(assets, "BoxTextured/glTF/BoxTextured.gltf"))
+    doc = json.loads(files[0][1])
+    doc["extensionsUsed"] = ["KHR_materials_ior", "KHR_materials_specular", "KHR_texture_transform"]
+    doc["materials"][0]["extensions"] = {
+        "KHR_materials_ior": {"ior": 1.33},
+        "KHR_materials_specular": {
+            "specularFactor": 0.5, "specularColorFactor": [2, 1, 0.5],
+            "specularTexture": {"index": 0},
+            "specularColorTexture": {"index": 0, "extensions": {
+                "KHR_texture_transform": {"scale": [2, 2]}}}}}
+    files[0] = (files[0][0], json.dumps(doc).encode())
+    write("gltf", "BoxTextured_specular.tsfs", pack(files))
     for rel in ["Box/glTF-Binary/Box.glb", "BoxTextured/glTF-Binary/BoxTextured.glb",
                 "OrientationTest/glTF-Binary/OrientationTest.glb", "Box/glTF-Embedded/Box.gltf"]:
         with open(os.path.join(assets, rel), "rb") as f:

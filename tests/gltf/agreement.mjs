@@ -237,6 +237,27 @@ const cases = [
     j.extensionsUsed = ['KHR_materials_unlit'];
     j.materials[0].extensions = { KHR_materials_unlit: true };
   }),
+  // KHR_materials_ior and KHR_materials_specular: their values in range (ior 0 included), out of
+  // range, and the specular textures (a PNG on zero-filled texture coordinates).
+  ...['valid', 'ior_zero', 'ior_below_one', 'specular_factor_over_one',
+    'specular_color_negative', 'specular_textures', 'specular_texture_missing'].map((name) =>
+    generated(`reflectance_${name}`, (j) => {
+      j.extensionsUsed = ['KHR_materials_ior', 'KHR_materials_specular'];
+      const ior = { ior: name === 'ior_zero' ? 0 : name === 'ior_below_one' ? 0.5 : 1.33 };
+      const specular = {
+        specularFactor: name === 'specular_factor_over_one' ? 1.5 : 0.5,
+        specularColorFactor: name === 'specular_color_negative' ? [-1, 1, 1] : [2, 1, 0.5],
+      };
+      if (name.startsWith('specular_texture')) {
+        j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });
+        j.meshes[0].primitives[0].attributes.TEXCOORD_0 = j.accessors.length - 1;
+        j.images = [{ uri: 'data:image/png;base64,iVBORw0KGgoAAAANSUhEUgAAAAEAAAABCAYAAAAfFcSJAAAADUlEQVR42mP8z8DwHwAFBQIAX8jx0gAAAABJRU5ErkJggg==' }];
+        j.textures = [{ source: 0 }];
+        specular.specularTexture = { index: name === 'specular_texture_missing' ? 3 : 0 };
+        specular.specularColorTexture = { index: 0 };
+      }
+      j.materials[0].extensions = { KHR_materials_ior: ior, KHR_materials_specular: specular };
+    })),
   generated('texture_transform_scale_length', (j, bin) => {
     j.extensionsUsed = ['KHR_texture_transform'];
     j.accessors.push({ componentType: 5126, count: 24, type: 'VEC2' });

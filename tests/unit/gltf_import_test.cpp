@@ -1588,6 +1588,109 @@ TEST(GltfImportUnlit, TheMaterialKeepsOnlyItsBaseColour) {
                 {"materials[0].extensions.KHR_materials_unlit", "not declared in extensionsUsed"});
 }
 
+// KHR_materials_ior and KHR_materials_specular: the material keeps the IOR, the specular factor
+// and colour, and their textures (the colour's in sRGB, the factor's linear); values their
+// schemas forbid and malformed textureInfos are refused, naming them; unlit drops them.
+TEST(GltfImportSpecular, TheMaterialKeepsItsReflectance) {
+  REQUIRE_ASSETS();
+  auto specular = [](const std::function<void(json&)>& more) {
+    return Edited(Source("BoxTextured/glTF/BoxTextured.gltf"), [&](json& j) {
+      j["extensionsUsed"] = {"KHR_materials_ior", "KHR_materials_specular",
+                             "KHR_texture_transform"};
+      json& e = j["materials"][0]["extensions"];
+      e["KHR_materials_ior"] = {{"ior", 1.33}};
+      e["KHR_materials_specular"] = {
+          {"specularFactor", 0.25},
+          {"specularColorFactor", {2, 1, 0.5}},
+          {"specularTexture", {{"index", 0}}},
+          {"specularColorTexture",
+           {{"index", 0}, {"extensions", {{"KHR_texture_transform", {{"scale", {2, 3}}}}}}}}};
+      more(j);
+    });
+  };
+  absl::StatusOr<CpuScene> s = ImportGltf(specular([](json&) {}));
+  ASSERT_TRUE(s.ok()) << s.status();
+  const Material& m = s->materials[0];
+  EXPECT_FLOAT_EQ(m.ior, 1.33f);
+  EXPECT_FLOAT_EQ(m.specular_factor, 0.25f);
+  EXPECT_EQ(m.specular_color_factor, glm::vec3(2.0f, 1.0f, 0.5f));
+  ASSERT_GE(m.specular.texture, 0);
+  ASSERT_GE(m.specular_color.texture, 0);
+  EXPECT_FALSE(s->textures[m.specular.texture].srgb);
+  EXPECT_TRUE(s->textures[m.specular_color.texture].srgb);
+  EXPECT_EQ(m.specular_color.scale, glm::vec2(2.0f, 3.0f));  // KHR_texture_transform
+  EXPECT_EQ(m.specular.scale, glm::vec2(1.0f));
+  EXPECT_EQ(s->warnings, std::vector<std::string>{});
+  // Without the extensions: IOR 1.5, specular 1, white.
+  absl::StatusOr<CpuScene> plain = ImportGltf(Source("BoxTextured/glTF/BoxTextured.gltf"));
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_EQ(plain->materials[0].ior, 1.5f);
+  EXPECT_EQ(plain->materials[0].specular_factor, 1.0f);
+  EXPECT_EQ(plain->materials[0].specular_color_factor, glm::vec3(1.0f));
+  EXPECT_EQ(plain->materials[0].specular.texture, -1);
+  // Required, they load; ior 0 (F0 1: the specular-glossiness conversion) is allowed.
+  s = ImportGltf(specular([](json& j) {
+    j["extensionsRequired"] = {"KHR_materials_ior", "KHR_materials_specular"};
+    j["materials"][0]["extensions"]["KHR_materials_ior"]["ior"] = 0;
+  }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_EQ(s->materials[0].ior, 0.0f);
+  // What the schemas forbid.
+  auto refused = [&](const std::function<void(json&)>& edit,
+                     const std::vector<std::string>& words) {
+    ExpectInvalid(ImportGltf(specular(edit)), words);
+  };
+  const std::string ior = "materials[0].extensions.KHR_materials_ior";
+  const std::string sp = "materials[0].extensions.KHR_materials_specular";
+  refused([](json& j) { j["materials"][0]["extensions"]["KHR_materials_ior"]["ior"] = 0.5; },
+          {ior + ".ior", "out of range"});
+  refused([](json& j) { j["materials"][0]["extensions"]["KHR_materials_ior"] = 1.5; },
+          {ior, "not an object"});
+  refused(
+      [](json& j) {
+        j["materials"][0]["extensions"]["KHR_materials_specular"]["specularFactor"] = 1.5;
+      },
+      {sp + ".specularFactor", "out of range"});
+  refused(
+      [](json& j) {
+        j["materials"][0]["extensions"]["KHR_materials_specular"]["specularColorFactor"] = {1, -1,
+                                                                                            1};
+      },
+      {sp + ".specularColorFactor[1]", "out of range"});
+  refused(
+      [](json& j) {
+        j["materials"][0]["extensions"]["KHR_materials_specular"]["specularTexture"] = {
+            {"index", 7}};
+      },
+      {sp + ".specularTexture.index", "out of range"});
+  refused(
+      [](json& j) {
+        j["materials"][0]["extensions"]["KHR_materials_specular"]["specularColorTexture"] = {
+            {"index", -1}};
+      },
+      {sp + ".specularColorTexture.index", "non-negative integer"});
+  refused(
+      [](json& j) {
+        j["materials"][0]["extensions"]["KHR_materials_specular"]["specularTexture"] = {
+            {"index", 0}, {"texCoord", 1}};
+      },
+      {"reads TEXCOORD_1"});
+  refused([](json& j) { j.erase("extensionsUsed"); }, {"not declared in extensionsUsed"});
+  // With KHR_materials_unlit (which both extensions' specs exclude) the material is unlit: the
+  // reflectance is dropped and its textures are checked, not decoded.
+  s = ImportGltf(specular([](json& j) {
+    j["extensionsUsed"].push_back("KHR_materials_unlit");
+    j["materials"][0]["extensions"]["KHR_materials_unlit"] = json::object();
+  }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_TRUE(s->materials[0].unlit);
+  EXPECT_EQ(s->materials[0].ior, 1.5f);
+  EXPECT_EQ(s->materials[0].specular_factor, 1.0f);
+  EXPECT_EQ(s->materials[0].specular.texture, -1);
+  EXPECT_EQ(s->materials[0].specular_color.texture, -1);
+  EXPECT_EQ(s->textures.size(), 1u);
+}
+
 // ----- COLOR_0 ------------------------------------------------------------------------------
 
 // Box (24 vertices) with COLOR_0: `count` elements of `type` ("VEC3"/"VEC4") in `component_type`,
