@@ -104,6 +104,15 @@ grpc::Status Upload(v1::RenderService::Stub* stub, const LocalScene& scene,
   return writer->Finish();
 }
 
+// The server's message about the file at `path`, named by that path once: the server names the
+// main file in its import errors ("Box.gltf: meshes[0]..."), which becomes "dir/Box.gltf:
+// meshes[0]...".
+std::string NamedByPath(const std::string& path, const std::string& message) {
+  const std::string name = std::filesystem::path(path).filename().string() + ": ";
+  const bool named = message.compare(0, name.size(), name) == 0;
+  return absl::StrCat(path, ": ", named ? message.substr(name.size()) : message);
+}
+
 // The server's limits as they apply to this upload: the chunk size, or an error naming the
 // limit before any byte is sent.
 grpc::Status CheckLimits(const v1::Limits& limits, const LocalScene& scene, uint32_t* chunk_bytes) {
@@ -153,8 +162,7 @@ class Uploader {
       result->uploaded = true;
     }
     if (!status.ok()) {
-      const grpc::Status named(status.error_code(),
-                               absl::StrCat(path, ": ", status.error_message()));
+      const grpc::Status named(status.error_code(), NamedByPath(path, status.error_message()));
       *error = ErrorJson(named);
       ReportRpcError(inv_, named);
       return false;

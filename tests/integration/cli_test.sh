@@ -44,6 +44,19 @@ grep -q "already on the server" "$work/again.err" || fail "re-upload was not ski
 
 "$tessera" scenes | grep -q "${id:0:12}" || fail "scenes does not list the upload"
 
+# A file the server refuses: the error names the path given and the field, the file once.
+python3 - "$assets/Box/glTF/Box.gltf" "$work/bad.gltf" <<'PY'
+import json, shutil, sys, os
+d = json.load(open(sys.argv[1]))
+d["materials"][0]["pbrMetallicRoughness"]["metallicFactor"] = 2
+json.dump(d, open(sys.argv[2], "w"))
+shutil.copy(os.path.join(os.path.dirname(sys.argv[1]), "Box0.bin"), os.path.dirname(sys.argv[2]))
+PY
+run upload "$work/bad.gltf"
+[[ $rc -ne 0 ]] || fail "a bad upload succeeded"
+grep -q "INVALID_ARGUMENT: $work/bad.gltf: materials\[0\].pbrMetallicRoughness.metallicFactor: 2 is out of range" \
+  "$work/err" || fail "bad upload: $(cat "$work/err")"
+
 "$tessera" render --scene "${id:0:12}" --width 96 --height 64 -o "$work/box.png" > /dev/null
 python3 - "$work/box.png" <<'PY' || fail "render did not write a 96x64 PNG"
 import struct, sys
