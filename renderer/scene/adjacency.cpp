@@ -91,8 +91,7 @@ bool UvSeamSame(const glm::vec4& u, const glm::vec4& w, uint32_t sets) {
 struct UvUse {
   uint32_t read = 0, aperiodic = 0;
   void Add(const Material& m, const std::vector<Texture>& textures) {
-    for (const TextureRef* ref :
-         {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
+    for (const TextureRef* ref : m.TextureSlots()) {
       if (ref->texture < 0 || static_cast<size_t>(ref->texture) >= textures.size()) continue;
       const uint32_t set = 1u << std::min(ref->texcoord, 1u);
       read |= set;

@@ -2,6 +2,7 @@
 // The CPU-side scene: what the glTF importer and the demo-scene generator produce, and what
 // GpuScene uploads. Plain data; no Vulkan, no tinygltf.
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <glm/glm.hpp>
 #include <limits>
@@ -125,6 +126,12 @@ struct Material {
   TextureRef emissive;
   TextureRef specular_color;  // rgb, sRGB: multiplies specular_color_factor
   TextureRef specular;        // alpha: multiplies specular_factor
+
+  // Every texture slot, in the order of gpu::GpuMaterial's (bindings kBindingBaseColorTex on).
+  std::array<const TextureRef*, 7> TextureSlots() const {
+    return {&base_color, &metallic_roughness, &normal,  &occlusion,
+            &emissive,   &specular_color,     &specular};
+  }
 };
 
 // One glTF primitive as an indexed triangle list inside the scene's single vertex and index

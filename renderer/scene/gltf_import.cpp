@@ -412,14 +412,16 @@ void ReadNumbers(const tinygltf::Value& obj, const char* key, int n, float* out)
   for (int i = 0; i < n; ++i) out[i] = ToFloat(a.Get(i).GetNumberAsDouble());
 }
 
-// A textureInfo inside an extension (tinygltf keeps extension objects as plain values; the
-// pre-scan checked its index and texCoord are non-negative integers), or none (index -1).
-tinygltf::TextureInfo ExtensionTextureInfo(const tinygltf::Value& ext, const char* key) {
+// A textureInfo inside an extension with the index and texCoord the pre-scan read (tinygltf
+// keeps extension values as plain values, integers as 32-bit ints) and its KHR_texture_transform;
+// index -1: none.
+tinygltf::TextureInfo ExtensionTextureInfo(const tinygltf::Value& ext, const char* key,
+                                           int32_t index, uint32_t texcoord) {
   tinygltf::TextureInfo info;
-  if (!ext.IsObject() || !ext.Has(key)) return info;
+  if (index < 0 || !ext.IsObject() || !ext.Has(key)) return info;
   const tinygltf::Value& v = ext.Get(key);
-  info.index = int(std::clamp(NumberOr(v, "index", -1), -1.0, double(INT32_MAX)));
-  info.texCoord = int(std::clamp(NumberOr(v, "texCoord", 0), 0.0, double(INT32_MAX)));
+  info.index = index;
+  info.texCoord = int(texcoord);
   if (v.Has("extensions") && v.Get("extensions").Has("KHR_texture_transform"))
     info.extensions["KHR_texture_transform"] = v.Get("extensions").Get("KHR_texture_transform");
   return info;
@@ -1631,20 +1633,25 @@ class Converter {
     RETURN_IF_ERROR(lit_slot(gm.normalTexture, false, path + ".normalTexture", &m.normal));
     RETURN_IF_ERROR(lit_slot(gm.occlusionTexture, false, path + ".occlusionTexture", &m.occlusion));
     RETURN_IF_ERROR(lit_slot(gm.emissiveTexture, true, path + ".emissiveTexture", &m.emissive));
-    // KHR_materials_ior and KHR_materials_specular (the pre-scan checked their ranges: ior 0 or
-    // at least 1, specularFactor in [0, 1], specularColorFactor non-negative).
-    if (const auto it = gm.extensions.find("KHR_materials_ior"); it != gm.extensions.end())
-      m.ior = std::min(ToFloat(NumberOr(it->second, "ior", 1.5)), kMaxFactor);
-    if (const auto it = gm.extensions.find("KHR_materials_specular"); it != gm.extensions.end()) {
-      const tinygltf::Value& x = it->second;
+    // KHR_materials_ior and KHR_materials_specular, as the pre-scan read and checked them (ior 0
+    // or at least 1, specularFactor in [0, 1], specularColorFactor non-negative).
+    if (const auto it = pre_.reflectance.find(uint32_t(index)); it != pre_.reflectance.end()) {
+      const gltf_internal::PreScanResult::Reflectance& r = it->second;
+      m.ior = std::min(ToFloat(r.ior), kMaxFactor);
+      m.specular_factor = ToFloat(r.specular_factor);
+      for (int c = 0; c < 3; ++c)
+        m.specular_color_factor[c] = std::min(ToFloat(r.specular_color[c]), kMaxFactor);
+      const auto ext = gm.extensions.find("KHR_materials_specular");
+      const tinygltf::Value none;
+      const tinygltf::Value& x = ext != gm.extensions.end() ? ext->second : none;
       const std::string field = path + ".extensions.KHR_materials_specular";
-      m.specular_factor = ToFloat(NumberOr(x, "specularFactor", 1.0));
-      ReadNumbers(x, "specularColorFactor", 3, &m.specular_color_factor.x);
-      m.specular_color_factor = glm::min(m.specular_color_factor, glm::vec3(kMaxFactor));
-      RETURN_IF_ERROR(lit_slot(ExtensionTextureInfo(x, "specularTexture"), false,
-                               field + ".specularTexture", &m.specular));
-      RETURN_IF_ERROR(lit_slot(ExtensionTextureInfo(x, "specularColorTexture"), true,
-                               field + ".specularColorTexture", &m.specular_color));
+      RETURN_IF_ERROR(lit_slot(
+          ExtensionTextureInfo(x, "specularTexture", r.specular_texture, r.specular_texcoord),
+          false, field + ".specularTexture", &m.specular));
+      RETURN_IF_ERROR(
+          lit_slot(ExtensionTextureInfo(x, "specularColorTexture", r.specular_color_texture,
+                                        r.specular_color_texcoord),
+                   true, field + ".specularColorTexture", &m.specular_color));
     }
     if (m.unlit) {
       m.emissive_factor = glm::vec3(0.0f);

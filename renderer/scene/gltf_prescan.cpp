@@ -256,15 +256,16 @@ class PreScan {
   // a file the spec forbids is refused, naming the value, rather than clamped into shape.
 
   // `v` (when present) is a number in [lo, hi]; `open_lo`/`open_hi` exclude that end.
+  // `also` names what else the field allows, before the range ("0 or ").
   absl::Status Number(const json* v, const std::string& field, double lo, double hi,
-                      bool open_lo = false, bool open_hi = false) {
+                      bool open_lo = false, bool open_hi = false, absl::string_view also = "") {
     if (v == nullptr) return absl::OkStatus();
     if (!v->is_number()) return Invalid(file_, field, "not a number");
     const double x = v->get<double>();
     const bool below = open_lo ? x <= lo : x < lo;
     const bool above = open_hi ? x >= hi : x > hi;
     if (below || above) {
-      return Invalid(file_, field, x, " is out of range ", open_lo ? "(" : "[", lo, ", ",
+      return Invalid(file_, field, x, " is out of range ", also, open_lo ? "(" : "[", lo, ", ",
                      hi == kUnbounded ? std::string("inf") : absl::StrCat(hi),
                      open_hi || hi == kUnbounded ? ")" : "]");
     }
@@ -294,39 +295,59 @@ class PreScan {
   }
 
   // A textureInfo inside an extension, which tinygltf keeps as plain values without checking:
-  // an object whose index is a non-negative integer (the importer checks it names a texture)
-  // and whose texCoord, if given, is one too.
-  absl::Status ExtensionTextureInfo(const json* info, const std::string& field) {
+  // an object whose index names a texture and whose texCoord, if given, is a non-negative
+  // integer; `index` and `texcoord` get them (the texCoord at most 2^20: more is no set).
+  absl::Status ExtensionTextureInfo(const json& j, const json* info, const std::string& field,
+                                    int32_t* index, uint32_t* texcoord) {
     if (info == nullptr) return absl::OkStatus();
     if (!info->is_object()) return Invalid(file_, field, "not an object");
     uint64_t n = 0;
     if (!JsonUint(Member(*info, "index"), &n))
       return Invalid(file_, field + ".index", "wants a non-negative integer");
-    if (const json* tc = Member(*info, "texCoord"); tc != nullptr && !JsonUint(tc, &n))
-      return Invalid(file_, field + ".texCoord", "wants a non-negative integer");
+    const size_t textures = ArraySize(j, "textures");
+    if (n >= textures)
+      return Invalid(file_, field + ".index", "texture index ", n, " out of range (", textures,
+                     " textures)");
+    *index = int32_t(n);
+    if (const json* tc = Member(*info, "texCoord"); tc != nullptr) {
+      if (!JsonUint(tc, &n))
+        return Invalid(file_, field + ".texCoord", "wants a non-negative integer");
+      *texcoord = uint32_t(std::min<uint64_t>(n, 1u << 20));
+    }
     return TextureInfo(info, field);
   }
 
-  // KHR_materials_ior's and KHR_materials_specular's values (their schemas' ranges).
-  absl::Status Reflectance(const json* exts, const std::string& f) {
-    if (const json* ior = exts ? Member(*exts, "KHR_materials_ior") : nullptr) {
+  // KHR_materials_ior's and KHR_materials_specular's values (their schemas' ranges), kept for
+  // the importer in result_->reflectance.
+  absl::Status Reflectance(const json& j, size_t material, const json* exts, const std::string& f) {
+    const json* ior = exts ? Member(*exts, "KHR_materials_ior") : nullptr;
+    const json* sp = exts ? Member(*exts, "KHR_materials_specular") : nullptr;
+    if (ior == nullptr && sp == nullptr) return absl::OkStatus();
+    PreScanResult::Reflectance& r = result_->reflectance[uint32_t(material)];
+    if (ior != nullptr) {
       const std::string field = f + ".extensions.KHR_materials_ior";
       if (!ior->is_object()) return Invalid(file_, field, "not an object");
-      // 0 or at least 1 (0: F0 of 1, the specular colour alone sets the reflectance).
+      // 0 (F0 1: the specular colour alone sets the reflectance), or at least 1.
       const json* v = Member(*ior, "ior");
-      if (v != nullptr && v->is_number() && v->get<double>() == 0.0) v = nullptr;
-      RETURN_IF_ERROR(Number(v, field + ".ior", 1, kUnbounded));
+      if (v != nullptr && (!v->is_number() || v->get<double>() != 0.0))
+        RETURN_IF_ERROR(Number(v, field + ".ior", 1, kUnbounded, false, false, "0 or "));
+      if (v != nullptr) r.ior = v->get<double>();
     }
-    if (const json* sp = exts ? Member(*exts, "KHR_materials_specular") : nullptr) {
+    if (sp != nullptr) {
       const std::string field = f + ".extensions.KHR_materials_specular";
       if (!sp->is_object()) return Invalid(file_, field, "not an object");
-      RETURN_IF_ERROR(Number(Member(*sp, "specularFactor"), field + ".specularFactor", 0, 1));
-      RETURN_IF_ERROR(Numbers(Member(*sp, "specularColorFactor"), field + ".specularColorFactor", 3,
-                              0, kUnbounded));
-      RETURN_IF_ERROR(
-          ExtensionTextureInfo(Member(*sp, "specularTexture"), field + ".specularTexture"));
-      RETURN_IF_ERROR(ExtensionTextureInfo(Member(*sp, "specularColorTexture"),
-                                           field + ".specularColorTexture"));
+      const json* factor = Member(*sp, "specularFactor");
+      RETURN_IF_ERROR(Number(factor, field + ".specularFactor", 0, 1));
+      if (factor != nullptr) r.specular_factor = factor->get<double>();
+      const json* color = Member(*sp, "specularColorFactor");
+      RETURN_IF_ERROR(Numbers(color, field + ".specularColorFactor", 3, 0, kUnbounded));
+      for (size_t c = 0; color != nullptr && c < 3; ++c) r.specular_color[c] = (*color)[c];
+      RETURN_IF_ERROR(ExtensionTextureInfo(j, Member(*sp, "specularTexture"),
+                                           field + ".specularTexture", &r.specular_texture,
+                                           &r.specular_texcoord));
+      RETURN_IF_ERROR(ExtensionTextureInfo(j, Member(*sp, "specularColorTexture"),
+                                           field + ".specularColorTexture",
+                                           &r.specular_color_texture, &r.specular_color_texcoord));
     }
     return absl::OkStatus();
   }
@@ -361,7 +382,7 @@ class PreScan {
                                f + ".extensions.KHR_materials_emissive_strength.emissiveStrength",
                                0, kUnbounded));
       }
-      RETURN_IF_ERROR(Reflectance(exts, f));
+      RETURN_IF_ERROR(Reflectance(j, i, exts, f));
     }
     const json* exts = Member(j, "extensions");
     const json* lights = exts ? Member(*exts, "KHR_lights_punctual") : nullptr;

@@ -56,6 +56,18 @@ struct PreScanResult {
   // Per node with EXT_mesh_gpu_instancing (where extensionsUsed lists it): its attributes, each
   // name and accessor index (checked in range; at least one).
   std::map<uint32_t, std::vector<std::pair<std::string, uint32_t>>> instancing;
+  // Per material with KHR_materials_ior or KHR_materials_specular: their values as the pre-scan
+  // read and checked them (tinygltf keeps an extension's integers as 32-bit ints, so an index or
+  // a factor written as 4294967296 would reach the importer as 0).
+  struct Reflectance {
+    double ior = 1.5;                            // 0, or at least 1
+    double specular_factor = 1.0;                // [0, 1]
+    double specular_color[3] = {1.0, 1.0, 1.0};  // non-negative
+    // The textureInfos' texture indices (checked in range; -1: none) and texCoords.
+    int32_t specular_texture = -1, specular_color_texture = -1;
+    uint32_t specular_texcoord = 0, specular_color_texcoord = 0;
+  };
+  std::map<uint32_t, Reflectance> reflectance;
   std::vector<std::string> warnings;            // unsupported extensionsUsed, in order
 };
 

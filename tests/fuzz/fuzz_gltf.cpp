@@ -35,8 +35,13 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
       if (!finite(l.color * l.intensity) || !finite(l.position) || !std::isfinite(l.range))
         __builtin_trap();
     for (const tessera::Material& m : s.materials) {
-      for (const tessera::TextureRef* r :
-           {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
+      // The reflectance is finite and in range (MakeMaterial's F0 from the IOR, times the colour).
+      if (!(m.ior == 0.0f || (m.ior >= 1.0f && std::isfinite(m.ior))) ||
+          !(m.specular_factor >= 0.0f && m.specular_factor <= 1.0f) ||
+          !finite(m.specular_color_factor) ||
+          glm::any(glm::lessThan(m.specular_color_factor, glm::vec3(0.0f))))
+        __builtin_trap();
+      for (const tessera::TextureRef* r : m.TextureSlots()) {
         if (r->texture < -1 || r->texture >= int32_t(s.textures.size())) __builtin_trap();
       }
     }

@@ -1194,13 +1194,39 @@ TEST(SpecularTest, ScalesTheDielectricsReflection) {
   variants.push_back({"colour factor", variant([&](CpuScene&, Material& m) {
                         m.specular_color_factor = glm::vec3(2.0f, 2.0f * srgb_188, 0.0f);
                       })});
+  variants.push_back({"ior 0", variant([](CpuScene&, Material& m) { m.ior = 0.0f; })});
+  variants.push_back({"colour 50", variant([](CpuScene&, Material& m) {
+                        m.specular_color_factor = glm::vec3(50.0f);
+                      })});
+  const glm::vec4 grey(0.8f, 0.8f, 0.8f, 1.0f);
+  variants.push_back({"grey, colour (2, 1, 1)", variant([&](CpuScene&, Material& m) {
+                        m.base_color_factor = grey;
+                        m.specular_color_factor = glm::vec3(2.0f, 1.0f, 1.0f);
+                      })});
+  variants.push_back({"grey, colour 2", variant([&](CpuScene&, Material& m) {
+                        m.base_color_factor = grey;
+                        m.specular_color_factor = glm::vec3(2.0f);
+                      })});
   std::vector<SceneHandle> scenes;
   for (const Case& c : variants) {
     absl::StatusOr<SceneHandle> scene = SharedRenderer().LoadScene(c.cpu);
     ASSERT_TRUE(scene.ok()) << c.name << ": " << scene.status();
     scenes.push_back(std::move(*scene));
   }
-  enum { kDefault, kZero, kHalf, kHalfTexture, kIor, kColour2, kColourTexture, kColourFactor };
+  enum {
+    kDefault,
+    kZero,
+    kHalf,
+    kHalfTexture,
+    kIor,
+    kColour2,
+    kColourTexture,
+    kColourFactor,
+    kIor0,
+    kColour50,
+    kGreyRedSpecular,
+    kGreySpecular
+  };
 
   Settings every = Lit(true, true);
   every.ibl = true;
@@ -1221,10 +1247,11 @@ TEST(SpecularTest, ScalesTheDielectricsReflection) {
         if (InteriorMaterial(variants[0].cpu, c, x, y) != m) return false;
       return true;
     };
-    // got == k x want, to the HDR target's half-float rounding.
-    auto expect_scaled = [&](size_t got, size_t want, glm::vec3 k, uint32_t x, uint32_t y) {
-      const glm::vec3 a = HdrAt(captures[got], x, y), b = k * HdrAt(captures[want], x, y);
-      const glm::vec3 tolerance = 2e-3f * glm::abs(b) + 1e-4f;
+    // got == k x want + add, to the HDR target's half-float rounding.
+    auto expect_scaled = [&](size_t got, size_t want, glm::vec3 k, uint32_t x, uint32_t y,
+                             glm::vec3 add = glm::vec3(0.0f)) {
+      const glm::vec3 a = HdrAt(captures[got], x, y), b = k * HdrAt(captures[want], x, y) + add;
+      const glm::vec3 tolerance = 2e-3f * (glm::abs(b) + glm::abs(add)) + 1e-4f;
       const bool ok = glm::all(glm::lessThanEqual(glm::abs(a - b), tolerance));
       EXPECT_TRUE(ok) << variants[got].name << " at " << x << "," << y << ": " << a.r << " " << a.g
                       << " " << a.b << ", want " << b.r << " " << b.g << " " << b.b;
@@ -1246,6 +1273,13 @@ TEST(SpecularTest, ScalesTheDielectricsReflection) {
         failures += !expect_scaled(kHalfTexture, kDefault, glm::vec3(half_texel), x, y);
         failures += !expect_scaled(kIor, kColour2, glm::vec3(1.0f), x, y);
         failures += !expect_scaled(kColourTexture, kColourFactor, glm::vec3(1.0f), x, y);
+        failures += !expect_scaled(kIor0, kColour50, glm::vec3(1.0f), x, y);
+        // A grey plastic with a red-tinted specular: its diffuse light is what the F0 of 0.08
+        // leaves (the largest channel), as with a grey specular of 0.08; green and blue reflect
+        // F0 0.04 as the black plastic's default does.
+        const glm::vec3 s1 = HdrAt(captures[kDefault], x, y), s2 = HdrAt(captures[kColour2], x, y);
+        failures += !expect_scaled(kGreyRedSpecular, kGreySpecular, glm::vec3(1.0f), x, y,
+                                   glm::vec3(0.0f, s1.g - s2.g, s1.b - s2.b));
         reflected += glm::dot(HdrAt(captures[kDefault], x, y), glm::vec3(1.0f));
         reflected_ior += glm::dot(HdrAt(captures[kIor], x, y), glm::vec3(1.0f));
       }

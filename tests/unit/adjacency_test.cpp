@@ -264,6 +264,14 @@ TEST(UvSeamSetsTest, TheSetsTheTexturesReadAndTheirPeriods) {
             kUvSeamSet0 | kUvSeamPeriodic0 | kUvSeamSet1);
   both.normal.texture = 2;
   EXPECT_EQ(UvSeamSets(both, textures), kUvSeamSet0 | kUvSeamSet1);
+  // KHR_materials_specular's textures are read like the others: set 1 by the specular colour,
+  // aperiodic (it clamps), set 0 by the strength.
+  Material specular;
+  specular.specular_color.texture = 1;
+  specular.specular_color.texcoord = 1;
+  EXPECT_EQ(UvSeamSets(specular, textures), kUvSeamSet1);
+  specular.specular.texture = 0;
+  EXPECT_EQ(UvSeamSets(specular, textures), kUvSeamSet0 | kUvSeamPeriodic0 | kUvSeamSet1);
   // A texture index out of range reads nothing.
   Material dangling;
   dangling.emissive.texture = 7;

@@ -29,10 +29,6 @@ bool Finite(const glm::vec<N, float>& v) {
   return !glm::any(glm::isnan(v)) && !glm::any(glm::isinf(v));
 }
 
-std::vector<const TextureRef*> TextureRefs(const Material& m) {
-  return {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive};
-}
-
 class DemoScene : public ::testing::Test {
  protected:
   static void SetUpTestSuite() { scene_ = new CpuScene(BuildDemoScene()); }
@@ -215,7 +211,7 @@ TEST_F(DemoScene, TexturesAreValid) {
   // Every texture is used, with the colour space its slot needs.
   std::set<int32_t> used;
   for (const Material& m : s.materials) {
-    for (const TextureRef* ref : TextureRefs(m)) {
+    for (const TextureRef* ref : m.TextureSlots()) {
       ASSERT_GE(ref->texture, -1) << m.name;
       ASSERT_LT(ref->texture, static_cast<int32_t>(s.textures.size())) << m.name;
       ASSERT_LE(ref->texcoord, 1u) << m.name;

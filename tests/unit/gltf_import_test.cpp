@@ -157,8 +157,7 @@ void ExpectValidScene(const CpuScene& s) {
     EXPECT_EQ(t.image->rgba8.size(), size_t(t.image->width) * t.image->height * 4);
   }
   for (const Material& m : s.materials) {
-    for (const TextureRef* r :
-         {&m.base_color, &m.metallic_roughness, &m.normal, &m.occlusion, &m.emissive}) {
+    for (const TextureRef* r : m.TextureSlots()) {
       EXPECT_GE(r->texture, -1);
       EXPECT_LT(r->texture, int32_t(s.textures.size()));
       EXPECT_LE(r->texcoord, 1u);
@@ -1675,6 +1674,30 @@ TEST(GltfImportSpecular, TheMaterialKeepsItsReflectance) {
             {"index", 0}, {"texCoord", 1}};
       },
       {"reads TEXCOORD_1"});
+  // Malformed textureInfos, and integers past 32 bits (tinygltf would read 4294967296 as 0).
+  auto texture_info = [&](json info, const std::vector<std::string>& words) {
+    refused(
+        [&](json& j) {
+          j["materials"][0]["extensions"]["KHR_materials_specular"]["specularTexture"] = info;
+        },
+        words);
+  };
+  texture_info(0, {sp + ".specularTexture", "not an object"});
+  texture_info({{"index", 0.5}}, {sp + ".specularTexture.index", "non-negative integer"});
+  texture_info({{"index", "0"}}, {sp + ".specularTexture.index", "non-negative integer"});
+  texture_info(json::object(), {sp + ".specularTexture.index", "non-negative integer"});
+  texture_info({{"index", 0}, {"texCoord", 0.5}},
+               {sp + ".specularTexture.texCoord", "non-negative integer"});
+  texture_info({{"index", 4294967296u}},
+               {sp + ".specularTexture.index", "4294967296 out of range"});
+  s = ImportGltf(specular([](json& j) {
+    json& e = j["materials"][0]["extensions"];
+    e["KHR_materials_ior"]["ior"] = 4294967296u;
+    e["KHR_materials_specular"]["specularColorFactor"] = {2147483648u, 0, 1};
+  }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  EXPECT_GT(s->materials[0].ior, 1e6f * 0.99f);
+  EXPECT_GT(s->materials[0].specular_color_factor.r, 1e6f * 0.99f);
   refused([](json& j) { j.erase("extensionsUsed"); }, {"not declared in extensionsUsed"});
   // With KHR_materials_unlit (which both extensions' specs exclude) the material is unlit: the
   // reflectance is dropped and its textures are checked, not decoded.
