@@ -564,22 +564,23 @@ uint32_t ShadingEffects(const Settings& s);
 // The specialization constants a shading pipeline (forward, transparent, visibility shade) is
 // built with: shading.glsl's 0 (ShadingEffects), 1 (the material's texture slots), 2
 // (ShadingDebugView) and 4 (the lights through texel buffers: FrameFeatures::light_texels), and
-// vis.glsl's 3 (VisTexels; the visibility shading only). Key() packs them into 23 bits for a
+// vis.glsl's 3 (VisTexels; the visibility shading only). Key() packs them into 24 bits for a
 // pass's map of pipelines, which may add bits of its own above kShadingKeyBits.
 struct ShadingConstants {
   uint32_t effects = 0, textures = 0, debug = 0, vis_texels = 0, light_texels = 0;
   uint32_t Key() const {
-    return effects | textures << 5 | debug << 13 | vis_texels << 21 | light_texels << 22;
+    return effects | textures << 5 | debug << 14 | vis_texels << 22 | light_texels << 23;
   }
   static ShadingConstants FromKey(uint32_t key) {
-    return {key & 31u, (key >> 5) & 0xffu, (key >> 13) & 0xffu, (key >> 21) & 1u, (key >> 22) & 1u};
+    return {key & 31u, (key >> 5) & 0x1ffu, (key >> 14) & 0xffu, (key >> 22) & 1u,
+            (key >> 23) & 1u};
   }
   // In constant_id order.
   std::vector<uint32_t> Values() const {
     return {effects, textures, debug, vis_texels, light_texels};
   }
 };
-inline constexpr uint32_t kShadingKeyBits = 23;
+inline constexpr uint32_t kShadingKeyBits = 24;
 ShadingConstants ShadingConstantsFor(const Settings& s, const FrameFeatures& features,
                                      uint32_t textures);
 // RecordSegments' default: every segment with the pipeline already bound.

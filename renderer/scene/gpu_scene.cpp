@@ -887,6 +887,10 @@ absl::Status GpuScene::WriteMaterialSets(vk::Context& ctx,
     VkDescriptorImageInfo* info = &infos[size_t(m) * gpu::kMaterialTextureSlots];
     if (g.flags.w != 0u || !ctx.info().material_variants)
       material_textures_[m] |= gpu::kMaterialVertexColors;
+    const bool tinted = g.specular_color_tex.info.x >= 0 || g.specular.r != g.specular.g ||
+                        g.specular.g != g.specular.b;
+    if (tinted || !ctx.info().material_variants)
+      material_textures_[m] |= gpu::kMaterialTintedSpecular;
     for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k) {
       if (slots[k]->info.x >= 0 || !ctx.info().material_variants)
         material_textures_[m] |= 1u << k;

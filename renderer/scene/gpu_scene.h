@@ -147,7 +147,8 @@ class GpuScene {
   VkDescriptorSet bucket_set() const { return bucket_set_; }
   uint32_t material_count() const { return uint32_t(material_sets_.size()); }
   // The texture slots material `m` has a texture in (bit k: slot k, gpu::kMaterialTexturesAll),
-  // and gpu::kMaterialVertexColors where its primitives have vertex colours; the distinct sets of
+  // gpu::kMaterialVertexColors where its primitives have vertex colours, and
+  // gpu::kMaterialTintedSpecular where its specular colour may be tinted; the distinct sets of
   // them the scene's materials have, ascending: the shading passes build a pipeline per set
   // (shading.glsl's specialization constant 1).
   uint32_t material_textures(uint32_t m) const { return material_textures_[m]; }

@@ -155,7 +155,11 @@ TS_CONST uint kBindingBuckets = 0;  // sampler2DArray[kMaxTextureBuckets]
 // has no colour multiply, and its varying is read by nothing (the attribute stays bound). All:
 // the general pipeline.
 TS_CONST uint kMaterialVertexColors = 1u << kMaterialTextureSlots;
-TS_CONST uint kMaterialTexturesAll = (kMaterialVertexColors << 1) - 1u;
+// And one more: the material's specular colour may be tinted (KHR_materials_specular: a colour
+// texture, or a factor whose channels differ), so its diffuse light needs the largest channel's
+// Fresnel term of its own (shading.glsl's Reflectance::f0_diffuse); else that is the specular's.
+TS_CONST uint kMaterialTintedSpecular = kMaterialVertexColors << 1;
+TS_CONST uint kMaterialTexturesAll = (kMaterialTintedSpecular << 1) - 1u;
 // The tonemap pass has its own set: binding 0 is the HDR colour as a sampler2D.
 // ---- vis_mlaa (shaders/common/vis.glsl) ------------------------------------------------------
 // A visibility id: (drawable + 1) << triangle_bits | triangle; 0 = no surface (the sky).

@@ -68,8 +68,8 @@ const bool kSsaoCode = (kLightingEffects & kSsaoOn) != 0u;
 const bool kIblCode = (kLightingEffects & kIblOn) != 0u;
 const bool kLocalLightCode = (kLightingEffects & kLocalLightsOn) != 0u;
 const bool kGlobalLoopCode = (kLightingEffects & kGlobalLightsOn) != 0u;
-// The texture slots the shaded materials have, and whether they have vertex colours
-// (gpu::kMaterialTexturesAll: any): a pipeline per set
+// The texture slots the shaded materials have, whether they have vertex colours and whether
+// their specular colour may be tinted (gpu::kMaterialTexturesAll: any): a pipeline per set
 // of slots a scene's materials use, so the sampling code of the slots they lack is not there at
 // all (lavapipe ran it under a lane mask: Sponza, whose materials have no occlusion or emissive
 // textures, shaded 20-27% slower with it).
@@ -313,7 +313,11 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   Reflectance r;
   r.c_diff = mix(base.rgb, vec3(0.0), metallic);
   r.f0 = mix(dielectric_f0, base.rgb, metallic);
-  r.f0_diffuse = mix(vec3(dielectric_f0_max), base.rgb, metallic);
+  // Only pipelines for tinted specular colours have the diffuse term's own Fresnel: untinted,
+  // f0_diffuse is f0, and the shader compiler shares the two terms.
+  r.f0_diffuse = (kMaterialTextures & kMaterialTintedSpecular) != 0u
+                     ? mix(vec3(dielectric_f0_max), base.rgb, metallic)
+                     : r.f0;
   r.f90 = mix(specular_weight, 1.0, metallic);
   r.alpha = roughness * roughness;
 
