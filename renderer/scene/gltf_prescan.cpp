@@ -1103,12 +1103,38 @@ class PreScan {
   uint64_t copied_bytes_ = 0;  // what tinygltf will copy out of the file set
 };
 
+// Makes each integer beyond 32 bits inside an "extensions" object a floating-point number, and
+// says whether there was one: tinygltf keeps an extension's values as plain values, with an
+// integer cast to int, so 4294967296 would read as 0 (a light index as light 0, an emissive
+// strength as 0); as a double it reads as itself, and an index that large is refused where it is
+// checked. (The pre-scan's limit on the JSON's depth bounds the recursion.)
+bool WidenExtensionIntegers(json& v, bool in_extensions = false) {
+  bool changed = false;
+  if (v.is_object()) {
+    for (auto& [key, value] : v.items())
+      changed |= WidenExtensionIntegers(value, in_extensions || key == "extensions");
+  } else if (v.is_array()) {
+    for (json& e : v) changed |= WidenExtensionIntegers(e, in_extensions);
+  } else if (in_extensions && v.is_number_integer()) {
+    constexpr int64_t kMax = std::numeric_limits<int32_t>::max();
+    constexpr int64_t kMin = std::numeric_limits<int32_t>::min();
+    const bool wide = v.is_number_unsigned() ? v.get<uint64_t>() > uint64_t(kMax)
+                                             : v.get<int64_t>() > kMax || v.get<int64_t>() < kMin;
+    if (wide) {
+      v = v.get<double>();
+      changed = true;
+    }
+  }
+  return changed;
+}
+
 // What tinygltf 2.7 cannot read of the compression extensions, taken out of the JSON it reads:
 //  - a buffer without a uri it refuses in a .gltf and hands the BIN chunk in a .glb; neither
 //    fits a meshopt fallback buffer, which has no data. Each gets a 1-byte data: URI instead; the
 //    importer sizes them (PreScanResult::fallback_buffers) and decodes into them.
 //  - a Draco primitive's indices (an accessor without a bufferView) it refuses; they are removed
 //    and the importer puts them back (PreScanResult::draco_indices).
+// And integers beyond 32 bits in extensions become doubles (WidenExtensionIntegers).
 // A .glb is rebuilt around the new JSON chunk with its BIN chunk as it was.
 absl::Status RewriteForTinygltf(const std::string& file, const std::vector<uint8_t>& bytes,
                                 const GlbChunks& glb, const ImportLimits& limits, json* j,
@@ -1124,7 +1150,7 @@ absl::Status RewriteForTinygltf(const std::string& file, const std::vector<uint8
   std::string text = j->dump();
   // Re-written numbers may take more room than the file's: the limits hold for this text too.
   if (text.size() > limits.max_json_bytes) {
-    return OverLimit(file, "JSON", "re-written for the compression extensions, ", text.size(),
+    return OverLimit(file, "JSON", "re-written for tinygltf, ", text.size(),
                      " bytes exceed the max_json_bytes limit (", limits.max_json_bytes, ")");
   }
   std::vector<uint8_t>& out = result->rewritten;
@@ -1138,7 +1164,7 @@ absl::Status RewriteForTinygltf(const std::string& file, const std::vector<uint8
   const size_t rest_at = 20 + glb.json.size();  // the BIN chunk's header, if any
   const size_t rest = length > rest_at ? length - rest_at : 0;
   if (20 + text.size() + rest > std::numeric_limits<uint32_t>::max()) {
-    return Invalid(file, "GLB", "re-written for the compression extensions, 4 GiB or larger");
+    return Invalid(file, "GLB", "re-written for tinygltf, 4 GiB or larger");
   }
   out.resize(20 + text.size() + rest);
   auto put32 = [&](size_t at, uint32_t v) {
@@ -1204,7 +1230,8 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
   try {
     json j = json::parse(text.begin(), text.end());
     RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, limits, &result).Run(j));
-    if (!result.fallback_buffers.empty() || !result.draco_indices.empty()) {
+    const bool widened = WidenExtensionIntegers(j);
+    if (widened || !result.fallback_buffers.empty() || !result.draco_indices.empty()) {
       RETURN_IF_ERROR(RewriteForTinygltf(file, bytes, glb, limits, &j, &result));
     }
   } catch (const std::exception& e) {  // nlohmann reports parse and type errors by throwing

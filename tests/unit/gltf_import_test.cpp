@@ -1714,6 +1714,37 @@ TEST(GltfImportSpecular, TheMaterialKeepsItsReflectance) {
   EXPECT_EQ(s->textures.size(), 1u);
 }
 
+// tinygltf keeps an extension's values as plain values with an integer cast to int, so an
+// integer beyond 32 bits wrapped (4294967296 read as 0). The pre-scan makes such integers doubles:
+// they read as themselves, clamped where the importer clamps, refused where an index is checked.
+TEST(GltfImportExtensions, IntegersBeyond32BitsReadAsThemselves) {
+  REQUIRE_ASSETS();
+  const uint64_t wide = 4294967296u;  // 2^32: the int cast gives 0
+  absl::StatusOr<CpuScene> s =
+      ImportGltf(Edited(Source("BoxTextured/glTF/BoxTextured.gltf"), [&](json& j) {
+        j["extensionsUsed"] = {"KHR_materials_emissive_strength", "KHR_texture_transform"};
+        json& m = j["materials"][0];
+        m["emissiveFactor"] = {1, 1, 1};
+        m["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = wide;
+        m["pbrMetallicRoughness"]["baseColorTexture"]["extensions"]["KHR_texture_transform"] = {
+            {"scale", {wide, 1}}, {"offset", {-int64_t(wide) - 1, 0}}};
+      }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  const Material& m = s->materials[0];
+  EXPECT_EQ(m.emissive_strength, 1e6f);  // clamped, not 0
+  EXPECT_EQ(m.base_color.scale, glm::vec2(1e6f, 1.0f));
+  EXPECT_EQ(m.base_color.offset, glm::vec2(-1e6f, 0.0f));
+  // A light index of 2^32 is out of range, not light 0.
+  ExpectInvalid(
+      ImportGltf(Edited(Source("Box/glTF/Box.gltf"),
+                        [&](json& j) {
+                          j["extensionsUsed"] = {"KHR_lights_punctual"};
+                          j["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}}};
+                          j["nodes"][0]["extensions"]["KHR_lights_punctual"]["light"] = wide;
+                        })),
+      {"nodes[0].extensions.KHR_lights_punctual.light", "light index out of range"});
+}
+
 // ----- COLOR_0 ------------------------------------------------------------------------------
 
 // Box (24 vertices) with COLOR_0: `count` elements of `type` ("VEC3"/"VEC4") in `component_type`,
