@@ -1111,8 +1111,10 @@ class PreScan {
 bool WidenExtensionIntegers(json& v, bool in_extensions = false) {
   bool changed = false;
   if (v.is_object()) {
-    for (auto& [key, value] : v.items())
+    for (auto& [key, value] : v.items()) {
+      if (key == "extras") continue;  // an application's; the importer reads none
       changed |= WidenExtensionIntegers(value, in_extensions || key == "extensions");
+    }
   } else if (v.is_array()) {
     for (json& e : v) changed |= WidenExtensionIntegers(e, in_extensions);
   } else if (in_extensions && v.is_number_integer()) {
