@@ -340,24 +340,25 @@ vec4 ShadeSurface(SurfaceInput s, bool alpha_test) {
   vec3 color = DirectLight(s.world, n, ng, v, n_dot_v, r, tiled, tile, tile_count);
 
   // Ambient. With IBL: the split sum, the irradiance cube times the diffuse colour plus the
-  // prefiltered environment along the reflection times the BRDF table's F0 scale and bias.
+  // prefiltered environment along the reflection times the BRDF table's scales of F0 and F90.
   // Without: hemisphere irradiance for diffuse; for specular the hemisphere seen along the
   // reflection vector, blurred towards the average as roughness grows, with Karis' analytic fit
   // of the BRDF table.
   vec3 reflected = reflect(-v, n);
-  vec3 ambient;
+  vec3 irradiance, env;
+  vec2 ab;
   if (kIblCode && IblOn()) {
     float mips = float(textureQueryLevels(u_specular));
-    vec3 prefiltered = textureLod(u_specular, reflected, roughness * (mips - 1.0)).rgb;
-    vec2 ab = textureLod(u_brdf_lut, vec2(n_dot_v, roughness), 0.0).rg;
-    ambient = textureLod(u_irradiance, n, 0.0).rgb * r.c_diff +
-              prefiltered * (r.f0 * ab.x + r.f90 * ab.y);
+    irradiance = textureLod(u_irradiance, n, 0.0).rgb;
+    env = textureLod(u_specular, reflected, roughness * (mips - 1.0)).rgb;
+    ab = textureLod(u_brdf_lut, vec2(n_dot_v, roughness), 0.0).rg;
   } else {
-    vec3 env = mix(Hemisphere(reflected),
-                   0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb), roughness);
-    vec2 ab = EnvBrdfApprox(roughness, n_dot_v);
-    ambient = Hemisphere(n) * r.c_diff + env * (r.f0 * ab.x + r.f90 * ab.y);
+    irradiance = Hemisphere(n);
+    env = mix(Hemisphere(reflected), 0.5 * (frame.ambient_sky.rgb + frame.ambient_ground.rgb),
+              roughness);
+    ab = EnvBrdfApprox(roughness, n_dot_v);
   }
+  vec3 ambient = irradiance * r.c_diff + env * (r.f0 * ab.x + r.f90 * ab.y);
   // SSAO darkens the ambient light only (direct light has its shadows). Blended surfaces are
   // not in the depth it was computed from.
   if (kSsaoCode && (shadow.counts.w & kSsaoOn) != 0u && m.flags.x != kAlphaBlend)

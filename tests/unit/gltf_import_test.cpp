@@ -364,30 +364,6 @@ GltfSource Edited(GltfSource src, const std::function<void(json&)>& edit) {
   return src;
 }
 
-// Edited for a .glb: its JSON chunk re-written (padded with spaces), the BIN chunk as it was.
-GltfSource EditedGlb(GltfSource src, const std::function<void(json&)>& edit) {
-  std::vector<uint8_t>& glb = src.files[src.main_file];
-  auto u32 = [&](size_t at) {
-    return uint32_t(glb[at]) | uint32_t(glb[at + 1]) << 8 | uint32_t(glb[at + 2]) << 16 |
-           uint32_t(glb[at + 3]) << 24;
-  };
-  const size_t json_length = u32(12);
-  json j = json::parse(glb.begin() + 20, glb.begin() + 20 + json_length);
-  edit(j);
-  std::string text = j.dump();
-  text.resize((text.size() + 3) / 4 * 4, ' ');
-  std::vector<uint8_t> out(glb.begin(), glb.begin() + 20);
-  out.insert(out.end(), text.begin(), text.end());
-  out.insert(out.end(), glb.begin() + 20 + json_length, glb.end());
-  auto put32 = [&](size_t at, uint32_t v) {
-    for (int k = 0; k < 4; ++k) out[at + k] = uint8_t(v >> (8 * k));
-  };
-  put32(8, uint32_t(out.size()));
-  put32(12, uint32_t(text.size()));
-  glb = std::move(out);
-  return src;
-}
-
 void ExpectError(const absl::StatusOr<CpuScene>& r, absl::StatusCode code,
                  const std::vector<std::string>& needles) {
   ASSERT_FALSE(r.ok());
@@ -1778,13 +1754,15 @@ TEST(GltfImportExtensions, IntegersBeyond32BitsReadAsThemselves) {
                                   })),
                 {"nodes[0].extensions.KHR_lights_punctual.light", "light index out of range"});
   // In a .glb, whose JSON chunk the pre-scan re-writes around its BIN chunk.
+  const GltfSource box = Source("Box/glTF/Box.gltf");
+  const std::vector<uint8_t>& main = box.files.at(box.main_file);
+  json j = json::parse(main.begin(), main.end());
+  j["buffers"][0].erase("uri");  // the BIN chunk
+  j["extensionsUsed"] = {"KHR_materials_emissive_strength"};
+  j["materials"][0]["emissiveFactor"] = {1, 1, 1};
+  j["materials"][0]["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = wide;
   absl::StatusOr<CpuScene> glb =
-      ImportGltf(EditedGlb(Source("Box/glTF-Binary/Box.glb"), [&](json& j) {
-        j["extensionsUsed"] = {"KHR_materials_emissive_strength"};
-        j["materials"][0]["emissiveFactor"] = {1, 1, 1};
-        j["materials"][0]["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] =
-            wide;
-      }));
+      ImportGltf(testing::GlbSource(j, box.files.at("Box0.bin"), "Box.glb"));
   ASSERT_TRUE(glb.ok()) << glb.status();
   EXPECT_EQ(glb->materials[0].emissive_strength, 1e6f);
   EXPECT_EQ(glb->vertices.size(), 24u);  // the BIN chunk still read
