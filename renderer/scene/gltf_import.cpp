@@ -18,12 +18,13 @@
 #include <memory>
 #include <optional>
 #include <set>
-#include <tuple>
 #include <span>
+#include <tuple>
 #include <utility>
 
 #include "absl/status/status.h"
 #include "absl/strings/escaping.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "common/status_macros.h"
@@ -744,7 +745,9 @@ class Converter {
   absl::Status CheckIndex(absl::string_view field, int64_t index, size_t count,
                           const char* what) const {
     if (index >= 0 && uint64_t(index) < count) return absl::OkStatus();
-    return Err(field, what, " index ", index, " out of range (", count, " ", what, "s)");
+    const bool es = absl::EndsWith(what, "h") || absl::EndsWith(what, "s");  // meshes
+    return Err(field, what, " index ", index, " out of range (", count, " ", what,
+               es ? "es)" : "s)");
   }
 
   void Warn(std::string msg) {

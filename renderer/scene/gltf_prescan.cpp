@@ -7,14 +7,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
+#include <initializer_list>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
-#include "absl/strings/numbers.h"
 #include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
@@ -186,6 +188,7 @@ class PreScan {
     if (!j.is_object()) return Invalid(file_, "JSON", "the top level is not an object");
     RETURN_IF_ERROR(Asset(j));
     RETURN_IF_ERROR(Counts(j));
+    RETURN_IF_ERROR(IntegerFields(j));
     RETURN_IF_ERROR(Accessors(j));
     RETURN_IF_ERROR(ValueRanges(j));
     for (const char* list : {"extensionsRequired", "extensionsUsed"}) {
@@ -282,6 +285,138 @@ class PreScan {
   }
   static constexpr double kUnbounded = std::numeric_limits<double>::infinity();
   static constexpr double kHalfPi = 1.5707963267948966;
+
+  // ---- the integers tinygltf reads into a C int: it casts any JSON integer (4294967296 reads as
+  // 0, 4294967297 as 1), and takes a reference that is no integer (0.5, "0") or is -1 as absent.
+  // Either would load a file other than the one sent, so each is refused here, naming it. (The
+  // references' ranges are checked where they are used; an extension's integers are widened.)
+
+  // `v` (when present) is an integer an int holds; an `index` (a glTF id) is also >= 0.
+  absl::Status Int32(const json* v, const std::string& field, bool index) {
+    if (v == nullptr) return absl::OkStatus();
+    constexpr int64_t kMax = std::numeric_limits<int32_t>::max();
+    const int64_t lo = index ? 0 : std::numeric_limits<int32_t>::min();
+    if (v->is_number_unsigned()
+            ? v->get<uint64_t>() <= uint64_t(kMax)
+            : v->is_number_integer() && v->get<int64_t>() >= lo && v->get<int64_t>() <= kMax) {
+      return absl::OkStatus();
+    }
+    return Invalid(file_, field, Quote(v->dump()),
+                   index ? " is not an index (an integer in [0, 2147483647])"
+                         : " is not an integer in [-2147483648, 2147483647]");
+  }
+  // The members `ids` (indices) and `enums` of `o`, when it is an object.
+  absl::Status Int32s(const json* o, const std::string& path,
+                      std::initializer_list<const char*> ids,
+                      std::initializer_list<const char*> enums = {}) {
+    if (o == nullptr || !o->is_object()) return absl::OkStatus();
+    for (const char* key : ids) RETURN_IF_ERROR(Int32(Member(*o, key), path + "." + key, true));
+    for (const char* key : enums) RETURN_IF_ERROR(Int32(Member(*o, key), path + "." + key, false));
+    return absl::OkStatus();
+  }
+  // `v` (when present) is an array of indices.
+  absl::Status IndexArray(const json* v, const std::string& field) {
+    if (v == nullptr) return absl::OkStatus();
+    if (!v->is_array()) return Invalid(file_, field, "not an array of indices");
+    for (size_t i = 0; i < v->size(); ++i)
+      RETURN_IF_ERROR(Int32(&(*v)[i], absl::StrCat(field, "[", i, "]"), true));
+    return absl::OkStatus();
+  }
+  // `v` (when present) is an object of attribute names to accessor indices.
+  absl::Status IndexMap(const json* v, const std::string& field) {
+    if (v == nullptr) return absl::OkStatus();
+    if (!v->is_object()) return Invalid(file_, field, "not an object of accessor indices");
+    for (const auto& [name, index] : v->items())
+      RETURN_IF_ERROR(Int32(&index, absl::StrCat(field, ".", name), true));
+    return absl::OkStatus();
+  }
+
+  // Every integer of the core schema that tinygltf reads as an int.
+  absl::Status IntegerFields(const json& j) {
+    auto each = [&](const json* o, const char* key, const std::string& path,
+                    const std::function<absl::Status(const json&, const std::string&)>& check)
+        -> absl::Status {
+      const json* a = Member(o, key);
+      for (size_t i = 0; a && a->is_array() && i < a->size(); ++i)
+        RETURN_IF_ERROR(check((*a)[i], absl::StrCat(path, key, "[", i, "]")));
+      return absl::OkStatus();
+    };
+    RETURN_IF_ERROR(Int32(Member(j, "scene"), "scene", true));
+    RETURN_IF_ERROR(
+        each(&j, "scenes", "", [&](const json& s, const std::string& f) -> absl::Status {
+          return IndexArray(Member(s, "nodes"), f + ".nodes");
+        }));
+    RETURN_IF_ERROR(each(&j, "nodes", "", [&](const json& n, const std::string& f) -> absl::Status {
+      RETURN_IF_ERROR(Int32s(&n, f, {"camera", "skin", "mesh"}));
+      return IndexArray(Member(n, "children"), f + ".children");
+    }));
+    RETURN_IF_ERROR(
+        each(&j, "meshes", "", [&](const json& m, const std::string& f) -> absl::Status {
+          return each(&m, "primitives", f + ".",
+                      [&](const json& p, const std::string& pf) -> absl::Status {
+                        RETURN_IF_ERROR(Int32s(&p, pf, {"indices", "material"}, {"mode"}));
+                        RETURN_IF_ERROR(IndexMap(Member(p, "attributes"), pf + ".attributes"));
+                        return each(&p, "targets", pf + ".",
+                                    [&](const json& t, const std::string& tf) -> absl::Status {
+                                      return IndexMap(&t, tf);
+                                    });
+                      });
+        }));
+    RETURN_IF_ERROR(
+        each(&j, "materials", "", [&](const json& m, const std::string& f) -> absl::Status {
+          const json* pbr = Member(m, "pbrMetallicRoughness");
+          for (const char* slot : {"baseColorTexture", "metallicRoughnessTexture"}) {
+            RETURN_IF_ERROR(Int32s(Member(pbr, slot),
+                                   absl::StrCat(f, ".pbrMetallicRoughness.", slot),
+                                   {"index", "texCoord"}));
+          }
+          for (const char* slot : {"normalTexture", "occlusionTexture", "emissiveTexture"})
+            RETURN_IF_ERROR(
+                Int32s(Member(m, slot), absl::StrCat(f, ".", slot), {"index", "texCoord"}));
+          return absl::OkStatus();
+        }));
+    RETURN_IF_ERROR(
+        each(&j, "textures", "", [&](const json& t, const std::string& f) -> absl::Status {
+          return Int32s(&t, f, {"sampler", "source"});
+        }));
+    RETURN_IF_ERROR(
+        each(&j, "images", "", [&](const json& i, const std::string& f) -> absl::Status {
+          return Int32s(&i, f, {"bufferView"});
+        }));
+    RETURN_IF_ERROR(
+        each(&j, "samplers", "", [&](const json& s, const std::string& f) -> absl::Status {
+          return Int32s(&s, f, {}, {"magFilter", "minFilter", "wrapS", "wrapT"});
+        }));
+    RETURN_IF_ERROR(
+        each(&j, "accessors", "", [&](const json& a, const std::string& f) -> absl::Status {
+          RETURN_IF_ERROR(Int32s(&a, f, {"bufferView"}, {"componentType"}));
+          const json* sparse = Member(a, "sparse");
+          const std::string sf = f + ".sparse";
+          RETURN_IF_ERROR(Int32s(sparse, sf, {"count"}));  // tinygltf's sparse fields are ints
+          RETURN_IF_ERROR(Int32s(Member(sparse, "indices"), sf + ".indices",
+                                 {"bufferView", "byteOffset"}, {"componentType"}));
+          return Int32s(Member(sparse, "values"), sf + ".values", {"bufferView", "byteOffset"});
+        }));
+    RETURN_IF_ERROR(
+        each(&j, "bufferViews", "", [&](const json& b, const std::string& f) -> absl::Status {
+          return Int32s(&b, f, {"buffer"}, {"target"});
+        }));
+    RETURN_IF_ERROR(each(&j, "skins", "", [&](const json& s, const std::string& f) -> absl::Status {
+      RETURN_IF_ERROR(Int32s(&s, f, {"inverseBindMatrices", "skeleton"}));
+      return IndexArray(Member(s, "joints"), f + ".joints");
+    }));
+    return each(&j, "animations", "", [&](const json& a, const std::string& f) -> absl::Status {
+      RETURN_IF_ERROR(
+          each(&a, "channels", f + ".", [&](const json& c, const std::string& cf) -> absl::Status {
+            RETURN_IF_ERROR(Int32s(&c, cf, {"sampler"}));
+            return Int32s(Member(c, "target"), cf + ".target", {"node"});
+          }));
+      return each(&a, "samplers", f + ".",
+                  [&](const json& s, const std::string& sf) -> absl::Status {
+                    return Int32s(&s, sf, {"input", "output"});
+                  });
+    });
+  }
 
   absl::Status TextureInfo(const json* info, const std::string& field) {
     if (info == nullptr) return absl::OkStatus();

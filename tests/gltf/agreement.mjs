@@ -307,6 +307,12 @@ const cases = [
   generated('node_matrix_and_trs', (j) => { j.nodes[0].translation = [1, 0, 0]; }),
   generated('node_rotation_not_unit', (j) => { j.nodes[1].rotation = [0, 0, 0, 2]; }),
   generated('scene_reference_missing', (j) => { j.scene = 3; }),
+  // Integers tinygltf's int cast wrapped (2^32 read as 0) or took as absent (-1, 0.5, "0").
+  generated('node_mesh_beyond_32_bits', (j) => { j.nodes[1].mesh = 4294967296; }),
+  generated('node_mesh_string', (j) => { j.nodes[1].mesh = '0'; }),
+  generated('primitive_material_negative', (j) => { j.meshes[0].primitives[0].material = -1; }),
+  generated('primitive_mode_fraction', (j) => { j.meshes[0].primitives[0].mode = 4.5; }),
+  generated('node_children_beyond_32_bits', (j) => { j.nodes[0].children = [4294967297]; }),
   glbWith('glb_json_chunk_too_long', (b) => { b.writeUInt32LE(b.readUInt32LE(12) + 400, 12); }),
   glbWith('glb_bad_magic', (b) => { b.write('gLTF', 0); }),
   generated('position_max_mismatch', (j) => { j.accessors[2].max = [0.6, 0.5, 0.5]; }),

@@ -1258,6 +1258,79 @@ TEST(GltfImportMalformed, NodeHierarchy) {
                 {"nodes[0].children", "node index 7"});
 }
 
+// tinygltf reads the core schema's integers into an int: it cast 2^32 to 0 and 2^32 + 1 to 1,
+// and took a reference of -1, 0.5 or "0" as absent, so each of these loaded another file than
+// the one sent (BoxTextured without its texture or material, a node without its mesh). The
+// pre-scan refuses each, naming it.
+TEST(GltfImportMalformed, IntegersAnIntDoesNotHoldAreRefused) {
+  REQUIRE_ASSETS();
+  const GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");
+  const std::string index = " is not an index (an integer in [0, 2147483647])";
+  struct Case {
+    const char* field;
+    std::function<json&(json&)> at;  // the object holding the field
+    const char* key;
+  };
+  const Case cases[] = {
+      {"scene", [](json& j) -> json& { return j; }, "scene"},
+      {"nodes[1].mesh", [](json& j) -> json& { return j["nodes"][1]; }, "mesh"},
+      {"nodes[1].camera", [](json& j) -> json& { return j["nodes"][1]; }, "camera"},
+      {"nodes[1].skin", [](json& j) -> json& { return j["nodes"][1]; }, "skin"},
+      {"meshes[0].primitives[0].material",
+       [](json& j) -> json& { return j["meshes"][0]["primitives"][0]; }, "material"},
+      {"meshes[0].primitives[0].indices",
+       [](json& j) -> json& { return j["meshes"][0]["primitives"][0]; }, "indices"},
+      {"meshes[0].primitives[0].attributes.POSITION",
+       [](json& j) -> json& { return j["meshes"][0]["primitives"][0]["attributes"]; }, "POSITION"},
+      {"materials[0].pbrMetallicRoughness.baseColorTexture.index",
+       [](json& j) -> json& {
+         return j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"];
+       },
+       "index"},
+      {"materials[0].pbrMetallicRoughness.baseColorTexture.texCoord",
+       [](json& j) -> json& {
+         return j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"];
+       },
+       "texCoord"},
+      {"textures[0].sampler", [](json& j) -> json& { return j["textures"][0]; }, "sampler"},
+      {"textures[0].source", [](json& j) -> json& { return j["textures"][0]; }, "source"},
+      {"accessors[1].bufferView", [](json& j) -> json& { return j["accessors"][1]; }, "bufferView"},
+      {"bufferViews[0].buffer", [](json& j) -> json& { return j["bufferViews"][0]; }, "buffer"},
+  };
+  const json wide = uint64_t{4294967296};  // 2^32: the int cast gave 0, a valid index here
+  for (const Case& c : cases) {
+    for (const json& bad : {wide, json(int64_t{-1}), json(0.5), json("0")}) {
+      SCOPED_TRACE(std::string(c.field) + " = " + bad.dump());
+      ExpectInvalid(ImportGltf(Edited(textured, [&](json& j) { c.at(j)[c.key] = bad; })),
+                    {"BoxTextured.gltf: ", c.field, ": " + bad.dump() + index});
+    }
+  }
+  // In arrays of indices.
+  ExpectInvalid(
+      ImportGltf(Edited(textured, [](json& j) { j["nodes"][0]["children"] = {4294967297u}; })),
+      {"nodes[0].children[0]: 4294967297" + index});
+  ExpectInvalid(ImportGltf(Edited(textured, [](json& j) { j["scenes"][0]["nodes"] = {-1}; })),
+                {"scenes[0].nodes[0]: -1" + index});
+  ExpectInvalid(ImportGltf(Edited(textured, [](json& j) { j["nodes"][0]["children"] = 1; })),
+                {"nodes[0].children", "not an array of indices"});
+  // Enumerations: the int cast gave TRIANGLES for 2^32 + 4 and REPEAT for 2^32 + 10497.
+  ExpectInvalid(
+      ImportGltf(
+          Edited(textured, [](json& j) { j["meshes"][0]["primitives"][0]["mode"] = 4294967300u; })),
+      {"meshes[0].primitives[0].mode: 4294967300 is not an integer in [-2147483648, "
+       "2147483647]"});
+  ExpectInvalid(
+      ImportGltf(Edited(textured, [](json& j) { j["samplers"][0]["wrapS"] = 4294977793u; })),
+      {"samplers[0].wrapS: 4294977793 is not an integer"});
+  ExpectInvalid(ImportGltf(Edited(textured, [](json& j) { j["samplers"][0]["wrapS"] = "REPEAT"; })),
+                {"samplers[0].wrapS: \"REPEAT\" is not an integer"});
+  // Numbers are not ints: an integer beyond 32 bits where the schema has a number still loads.
+  const absl::StatusOr<CpuScene> far = ImportGltf(Edited(textured, [](json& j) {
+    j["nodes"][1]["translation"] = {4294967296u, 0, 0};
+  }));
+  EXPECT_TRUE(far.ok()) << far.status();
+}
+
 TEST(GltfImportMalformed, IndicesOutOfRange) {
   REQUIRE_ASSETS();
   const GltfSource box = Source("BoxTextured/glTF/BoxTextured.gltf");
