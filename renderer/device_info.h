@@ -101,6 +101,9 @@ struct DeviceInfo {
   // SwiftShader, which indexes samplers one lane at a time, shaded Sponza's atrium (480x270,
   // visibility pipeline) in 291 ms this way against 133 ms classified per material.
   bool shade_all_materials = false;
+  // Not empty: a layout of the visibility pipeline's passes exceeds the device's descriptor
+  // limits (this names it, the stage and the limit), so visibility_buffer is false.
+  std::string visibility_limit;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.
   bool subgroup_ballot = false;

@@ -114,19 +114,10 @@ absl::StatusOr<std::unique_ptr<IblMaps>> IblMaps::Create(const vk::Context& ctx)
                    nullptr});
     b.push_back({reads_env ? 1u : 0u, VK_DESCRIPTOR_TYPE_STORAGE_IMAGE, 1,
                  VK_SHADER_STAGE_COMPUTE_BIT, nullptr});
-    VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-    li.bindingCount = uint32_t(b.size());
-    li.pBindings = b.data();
-    VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, p->set_layout.Replace(d)),
-                       shader);
-    const VkDescriptorSetLayout set_layout = p->set_layout.get();
-    VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push};
-    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    pli.setLayoutCount = 1;
-    pli.pSetLayouts = &set_layout;
-    pli.pushConstantRangeCount = push > 0 ? 1 : 0;
-    pli.pPushConstantRanges = &range;
-    VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, p->layout.Replace(d)), shader);
+    RETURN_IF_ERROR(ctx.CreateSetLayout(b, shader, &p->set_layout));
+    std::vector<VkPushConstantRange> ranges;
+    if (push > 0) ranges.push_back({VK_SHADER_STAGE_COMPUTE_BIT, 0, push});
+    RETURN_IF_ERROR(ctx.CreatePipelineLayout({p->set_layout.get()}, ranges, shader, &p->layout));
     ASSIGN_OR_RETURN(p->pipeline, vk::CreateComputePipeline(ctx, shader, shader, p->layout.get()));
     return absl::OkStatus();
   };

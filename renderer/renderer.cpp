@@ -41,9 +41,13 @@ Renderer::~Renderer() = default;
 absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions& options) {
   auto impl = std::make_unique<Impl>();
   ASSIGN_OR_RETURN(
-      impl->ctx,
-      vk::Context::Create({options.device_name, options.validation, options.disable_features,
-                           options.max_storage_buffer_range, options.appends, options.shading}));
+      impl->ctx, vk::Context::Create({.device_name = options.device_name,
+                                      .validation = options.validation,
+                                      .disable_features = options.disable_features,
+                                      .max_storage_buffer_range = options.max_storage_buffer_range,
+                                      .descriptor_limit_caps = options.descriptor_limit_caps,
+                                      .appends = options.appends,
+                                      .shading = options.shading}));
   impl->readback_ring = ReadbackRing(options.lent_buffers);
   RETURN_IF_ERROR(impl->Init());
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {

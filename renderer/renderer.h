@@ -9,6 +9,7 @@
 #include <memory>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -16,9 +17,9 @@
 #include "renderer/device_info.h"
 #include "renderer/image_io.h"
 #include "renderer/scene/cpu_scene.h"
-#include "shaders/common/gpu_types.h"  // GpuLightBounds (glm only, no Vulkan)
 #include "renderer/scene/gltf_import.h"
 #include "renderer/settings.h"
+#include "shaders/common/gpu_types.h"  // GpuLightBounds (glm only, no Vulkan)
 
 namespace tessera {
 
@@ -31,6 +32,10 @@ struct RendererOptions {
   // Treat the device's storage buffer range as at most this many bytes (0: the device's), to
   // test what a scene larger than a device's storage buffers does (vk::ContextOptions).
   uint64_t max_storage_buffer_range = 0;
+  // Treat these descriptor limits of the device (named as the spec spells them, e.g.
+  // "maxPerStageDescriptorStorageBuffers") as at most these values, to test what a device with
+  // smaller limits gets (vk::ContextOptions; also $TESSERA_DESCRIPTOR_LIMITS).
+  std::vector<std::pair<std::string, uint32_t>> descriptor_limit_caps;
   // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends): kAuto, by
   // the kind of device; forced, to test both ways on one device.
   AppendMode appends = AppendMode::kAuto;

@@ -5,12 +5,12 @@
 #include "common/status_macros.h"
 #include "renderer/log.h"
 #include "renderer/renderer_impl.h"
+#include "renderer/vk/descriptor_limits.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera {
 
 absl::Status Renderer::Impl::InitLayouts() {
-  VkDevice d = ctx->device();
   // The scene's sets are read by fragment shaders and by the visibility pipeline's compute
   // shading (features/vis_shade.cpp).
   constexpr VkShaderStageFlags kPixel = VK_SHADER_STAGE_FRAGMENT_BIT | VK_SHADER_STAGE_COMPUTE_BIT;
@@ -37,34 +37,21 @@ absl::Status Renderer::Impl::InitLayouts() {
       LayoutBinding(gpu::kBindingLocalLightTexels, kTexels, kPixel),
       LayoutBinding(gpu::kBindingTileLightTexels, kTexels, kPixel),
   };
-  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  li.bindingCount = static_cast<uint32_t>(bindings.size());
-  li.pBindings = bindings.data();
-  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, scene_set_layout.Replace(d)),
-                     "scene set layout");
+  RETURN_IF_ERROR(ctx->CreateSetLayout(bindings, "scene set layout", &scene_set_layout));
   std::vector<VkDescriptorSetLayoutBinding> texture_bindings = {
       LayoutBinding(gpu::kBindingMaterialUniform, kUniform, kPixel)};
   for (uint32_t k = 0; k < gpu::kMaterialTextureSlots; ++k)
     texture_bindings.push_back(LayoutBinding(gpu::kBindingBaseColorTex + k, kSampled, kPixel));
-  li.bindingCount = static_cast<uint32_t>(texture_bindings.size());
-  li.pBindings = texture_bindings.data();
-  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, material_set_layout.Replace(d)),
-                     "material set layout");
+  RETURN_IF_ERROR(
+      ctx->CreateSetLayout(texture_bindings, "material set layout", &material_set_layout));
   // The bucket set (gpu::kBindingBuckets): every texture bucket, for the visibility shading of
   // devices that index sampler arrays.
   VkDescriptorSetLayoutBinding buckets =
       LayoutBinding(gpu::kBindingBuckets, kSampled, VK_SHADER_STAGE_COMPUTE_BIT);
   buckets.descriptorCount = gpu::kMaxTextureBuckets;
-  li.bindingCount = 1;
-  li.pBindings = &buckets;
-  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(d, &li, nullptr, bucket_set_layout.Replace(d)),
-                     "bucket set layout");
-  const VkDescriptorSetLayout set_layouts[] = {scene_set_layout.get(), material_set_layout.get()};
-  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  pli.setLayoutCount = 2;
-  pli.pSetLayouts = set_layouts;
-  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(d, &pli, nullptr, scene_pipeline_layout.Replace(d)),
-                     "scene pipeline layout");
+  RETURN_IF_ERROR(ctx->CreateSetLayout({buckets}, "bucket set layout", &bucket_set_layout));
+  RETURN_IF_ERROR(ctx->CreatePipelineLayout({scene_set_layout.get(), material_set_layout.get()}, {},
+                                            "scene pipeline layout", &scene_pipeline_layout));
   scene_layout = {scene_set_layout.get(), material_set_layout.get(), scene_pipeline_layout.get(),
                   bucket_set_layout.get()};
   return absl::OkStatus();
@@ -87,12 +74,27 @@ absl::Status Renderer::Impl::InitPasses() {
   RETURN_IF_ERROR(add(CreateTonemapPass(*ctx)));
   RETURN_IF_ERROR(add(CreateLightCullPass(*ctx)));
   RETURN_IF_ERROR(add(CreateReadbackPass()));
-  RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibility)));
-  RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate)));
-  RETURN_IF_ERROR(add(CreateVisResolvePass(*ctx, scene_layout)));
-  RETURN_IF_ERROR(add(CreateVisClassifyPass(*ctx, scene_layout)));
-  RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout)));
-  RETURN_IF_ERROR(add(CreateGeometricAaPass(*ctx)));
+  // The visibility pipeline's passes. Where a layout of theirs exceeds the device's descriptor
+  // limits (the forward passes' fit: they were made above), the device renders without them,
+  // as one that lacks the visibility buffer's features: pipeline visibility renders forward and
+  // vis_mlaa msaa, and DeviceInfo::fallbacks says why.
+  const absl::Status visibility = [&]() -> absl::Status {
+    RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibility)));
+    RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate)));
+    RETURN_IF_ERROR(add(CreateVisResolvePass(*ctx, scene_layout)));
+    RETURN_IF_ERROR(add(CreateVisClassifyPass(*ctx, scene_layout)));
+    RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout)));
+    return add(CreateGeometricAaPass(*ctx));
+  }();
+  if (vk::IsDescriptorLimitError(visibility)) {
+    for (PassId id : {PassId::kVisibility, PassId::kVisibilityLate, PassId::kVisResolve,
+                      PassId::kVisClassify, PassId::kShade, PassId::kGeometricAa}) {
+      passes[static_cast<size_t>(id)].reset();
+    }
+    ctx->DisableVisibilityBuffer(std::string(visibility.message()));
+  } else {
+    RETURN_IF_ERROR(visibility);
+  }
   RETURN_IF_ERROR(add(CreateTaaPass(*ctx)));
   RETURN_IF_ERROR(add(CreateMotionPass(*ctx, scene_layout)));
   RETURN_IF_ERROR(add(CreateFxaaPass(*ctx)));

@@ -5,6 +5,7 @@
 #include <cstddef>
 #include <utility>
 
+#include "common/status_macros.h"
 #include "renderer/vk/context.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
@@ -92,20 +93,10 @@ absl::StatusOr<PassLayout> PassLayout::Create(
     const std::vector<VkDescriptorSetLayout>& before) {
   PassLayout l;
   l.device_ = ctx.device();
-  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
-  li.bindingCount = static_cast<uint32_t>(bindings.size());
-  li.pBindings = bindings.data();
-  VK_RETURN_IF_ERROR(
-      vkCreateDescriptorSetLayout(l.device_, &li, nullptr, l.set_layout_.Replace(l.device_)), name);
+  RETURN_IF_ERROR(ctx.CreateSetLayout(bindings, name, &l.set_layout_));
   std::vector<VkDescriptorSetLayout> sets = before;
   sets.push_back(l.set_layout_.get());
-  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-  pli.setLayoutCount = static_cast<uint32_t>(sets.size());
-  pli.pSetLayouts = sets.data();
-  pli.pushConstantRangeCount = static_cast<uint32_t>(push.size());
-  pli.pPushConstantRanges = push.data();
-  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(l.device_, &pli, nullptr, l.layout_.Replace(l.device_)),
-                     name);
+  RETURN_IF_ERROR(ctx.CreatePipelineLayout(sets, push, name, &l.layout_));
   return l;
 }
 

@@ -32,16 +32,10 @@ class ShadowPass final : public Pass {
                                                       const SceneLayout& scene) {
     auto pass = std::make_unique<ShadowPass>();
     pass->device_ = ctx.device();
-    const VkDescriptorSetLayout sets[] = {scene.set_layout, scene.material_set_layout};
-    const VkPushConstantRange push{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(gpu::ShadowPush)};
-    VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
-    pli.setLayoutCount = 2;
-    pli.pSetLayouts = sets;
-    pli.pushConstantRangeCount = 1;
-    pli.pPushConstantRanges = &push;
-    VK_RETURN_IF_ERROR(
-        vkCreatePipelineLayout(ctx.device(), &pli, nullptr, pass->layout_.Replace(ctx.device())),
-        "shadow pipeline layout");
+    RETURN_IF_ERROR(
+        ctx.CreatePipelineLayout({scene.set_layout, scene.material_set_layout},
+                                 {{VK_SHADER_STAGE_VERTEX_BIT, 0, sizeof(gpu::ShadowPush)}},
+                                 "shadow pipeline layout", &pass->layout_));
     vk::GraphicsPipelineDesc d;
     d.name = "shadows.opaque";
     d.vertex_shader = "shadow.vert";

@@ -9,13 +9,15 @@
 #include <cstring>
 #include <utility>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
-#include "absl/strings/ascii.h"
 #include "common/status_macros.h"
 #include "renderer/log.h"
 #include "renderer/settings.h"
+#include "renderer/vk/descriptor_limits.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
@@ -194,6 +196,22 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   }
   RETURN_IF_ERROR(ctx->InitInstance(validation));
   RETURN_IF_ERROR(ctx->PickDevice(wanted));
+  ctx->limit_caps_ = options.descriptor_limit_caps;
+  if (const char* env = std::getenv("TESSERA_DESCRIPTOR_LIMITS")) {
+    for (absl::string_view item : absl::StrSplit(env, ',', absl::SkipWhitespace())) {
+      const std::pair<absl::string_view, absl::string_view> kv = absl::StrSplit(item, '=');
+      uint32_t cap = 0;
+      if (!absl::SimpleAtoi(kv.second, &cap)) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "TESSERA_DESCRIPTOR_LIMITS: \"", item, "\" is not name=value (a limit and a count)"));
+      }
+      ctx->limit_caps_.emplace_back(std::string(absl::StripAsciiWhitespace(kv.first)), cap);
+    }
+  }
+  for (const auto& [name, cap] : ctx->limit_caps_) {
+    VkPhysicalDeviceLimits probe{};
+    RETURN_IF_ERROR(CapDescriptorLimit(probe, name, cap));
+  }
   RETURN_IF_ERROR(ctx->InitDevice(validation, disabled, options.appends, shading));
   if (options.max_storage_buffer_range != 0) {
     uint32_t& range = ctx->limits_.maxStorageBufferRange;
@@ -417,7 +435,10 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                    "the visibility pass pulls its vertices and passes each triangle's id on "
                    "from the vertex shader"});
   if (!info.visibility_buffer)
-    out.push_back({!info.standard_sample_locations ? "standard sample locations"
+    out.push_back({!info.visibility_limit.empty()
+                       ? absl::StrCat("room in the descriptor limits for the visibility passes (",
+                                      info.visibility_limit, ")")
+                   : !info.standard_sample_locations ? "standard sample locations"
                    : !info.primitive_id && !info.vertex_pulling
                        ? "gl_PrimitiveID in fragment shaders (geometryShader), with "
                          "vertex_pulling disabled"
@@ -458,6 +479,10 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   vkGetPhysicalDeviceProperties2(physical_, &props2);
   const VkPhysicalDeviceProperties& p = props2.properties;
   limits_ = p.limits;
+  for (const auto& [name, cap] : limit_caps_) {
+    (void)CapDescriptorLimit(limits_, name, cap);  // the names were checked in Create
+    Log().info("descriptor limit {} taken as at most {}", name, cap);
+  }
   vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
 
   VkPhysicalDeviceFeatures supported{};
@@ -549,8 +574,8 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   f12.shaderSampledImageArrayNonUniformIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
   // Its vis_mlaa layout holds 16 samplers (set 0's six, the eight buckets, the ids and the
   // coverage) and 21 sampled images (those and five uniform texel buffers) for one stage.
-  const bool shade_all_limits = p.limits.maxPerStageDescriptorSamplers >= 16 &&
-                                p.limits.maxPerStageDescriptorSampledImages >= 21;
+  const bool shade_all_limits = limits_.maxPerStageDescriptorSamplers >= 16 &&
+                                limits_.maxPerStageDescriptorSampledImages >= 21;
   info.shade_all_materials = info.sampler_indexing && info.subgroup_ballot &&
                              info.visibility_buffer && shade_all_limits &&
                              (shading == ShadeDispatch::kAllMaterials ||
@@ -596,6 +621,62 @@ Context::~Context() {
     if (destroy) destroy(instance_, messenger_, nullptr);
   }
   if (instance_) vkDestroyInstance(instance_, nullptr);
+}
+
+void Context::DisableVisibilityBuffer(const std::string& why) {
+  info_.visibility_buffer = false;
+  info_.shade_all_materials = false;
+  info_.visibility_limit = why;
+  info_.fallbacks = ListFallbacks(info_);
+  Log().warn(
+      "{}: the visibility pipeline is off (pipeline visibility renders forward, aa "
+      "vis_mlaa renders msaa)",
+      why);
+}
+
+absl::Status Context::CreateSetLayout(const std::vector<VkDescriptorSetLayoutBinding>& bindings,
+                                      const std::string& name,
+                                      UniqueDescriptorSetLayout* out) const {
+  VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
+  li.bindingCount = static_cast<uint32_t>(bindings.size());
+  li.pBindings = bindings.data();
+  VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(device_, &li, nullptr, out->Replace(device_)),
+                     name.c_str());
+  std::vector<VkDescriptorSetLayoutBinding> kept = bindings;
+  for (VkDescriptorSetLayoutBinding& b : kept) b.pImmutableSamplers = nullptr;  // not kept alive
+  std::lock_guard<std::mutex> lock(set_layouts_mutex_);
+  set_layouts_[out->get()] = std::move(kept);
+  return absl::OkStatus();
+}
+
+absl::Status Context::CreatePipelineLayout(const std::vector<VkDescriptorSetLayout>& sets,
+                                           const std::vector<VkPushConstantRange>& push,
+                                           const std::string& name,
+                                           UniquePipelineLayout* out) const {
+  std::vector<std::vector<VkDescriptorSetLayoutBinding>> bindings;
+  {
+    std::lock_guard<std::mutex> lock(set_layouts_mutex_);
+    for (VkDescriptorSetLayout set : sets) {
+      const auto it = set_layouts_.find(set);
+      if (it == set_layouts_.end()) {
+        return absl::InternalError(
+            absl::StrCat(name, ": a set layout not made by Context::CreateSetLayout"));
+      }
+      bindings.push_back(it->second);
+    }
+  }
+  uint32_t push_bytes = 0;
+  for (const VkPushConstantRange& r : push) push_bytes = std::max(push_bytes, r.offset + r.size);
+  RETURN_IF_ERROR(
+      CheckDescriptorLimits(limits_, bindings, push_bytes, absl::StrCat(name, " on ", info_.name)));
+  VkPipelineLayoutCreateInfo pli{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
+  pli.setLayoutCount = static_cast<uint32_t>(sets.size());
+  pli.pSetLayouts = sets.data();
+  pli.pushConstantRangeCount = static_cast<uint32_t>(push.size());
+  pli.pPushConstantRanges = push.data();
+  VK_RETURN_IF_ERROR(vkCreatePipelineLayout(device_, &pli, nullptr, out->Replace(device_)),
+                     name.c_str());
+  return absl::OkStatus();
 }
 
 uint32_t Context::FindMemoryType(uint32_t type_bits, VkMemoryPropertyFlags required,

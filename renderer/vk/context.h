@@ -8,10 +8,13 @@
 #include <memory>
 #include <mutex>
 #include <string>
+#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
 #include "renderer/device_info.h"
+#include "renderer/vk/handle.h"
 
 namespace tessera::vk {
 
@@ -33,6 +36,12 @@ struct ContextOptions {
   // device's own range, and buffers sized below Vulkan's minimum range (128 MiB) are not checked
   // against it.
   uint64_t max_storage_buffer_range = 0;
+  // Treat these descriptor limits of the device, named as the spec spells them
+  // ("maxPerStageDescriptorStorageBuffers"; CapDescriptorLimit), as at most these values (also
+  // $TESSERA_DESCRIPTOR_LIMITS, "name=value,..."), so that what a device with smaller limits
+  // gets can be tested on any device. Only CreatePipelineLayout's check and the choices that
+  // read limits() see them; an unknown name is INVALID_ARGUMENT.
+  std::vector<std::pair<std::string, uint32_t>> descriptor_limit_caps;
   // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends); kAuto: by
   // the kind of device.
   AppendMode appends = AppendMode::kAuto;
@@ -73,6 +82,22 @@ class Context {
     SetName(type, reinterpret_cast<uint64_t>(handle), name);
   }
 
+  // Creates a descriptor set layout of `bindings` and keeps them, so that a pipeline layout
+  // made of it can be checked against the device's descriptor limits. `name` names it in errors.
+  absl::Status CreateSetLayout(const std::vector<VkDescriptorSetLayoutBinding>& bindings,
+                               const std::string& name, UniqueDescriptorSetLayout* out) const;
+  // Creates a pipeline layout of `sets` (each made by CreateSetLayout) and `push`, once it is
+  // checked to fit the device's descriptor limits (CheckDescriptorLimits): FAILED_PRECONDITION
+  // naming `name`, the stage, the count and the limit when it does not.
+  absl::Status CreatePipelineLayout(const std::vector<VkDescriptorSetLayout>& sets,
+                                    const std::vector<VkPushConstantRange>& push,
+                                    const std::string& name, UniquePipelineLayout* out) const;
+
+  // Where a layout of the visibility pipeline's passes exceeds the device's descriptor limits
+  // (`why`, CheckDescriptorLimits' message): the device renders without the visibility buffer,
+  // as one that lacks its features (DeviceInfo::visibility_buffer, visibility_limit, fallbacks).
+  void DisableVisibilityBuffer(const std::string& why);
+
   // Records `record` into a one-time command buffer, submits it and waits. For uploads.
   absl::Status SubmitOnce(const std::function<void(VkCommandBuffer)>& record);
 
@@ -108,6 +133,12 @@ class Context {
   DeviceInfo info_;
   PFN_vkSetDebugUtilsObjectNameEXT set_name_ = nullptr;
   std::atomic<uint64_t> validation_count_{0};
+  std::vector<std::pair<std::string, uint32_t>> limit_caps_;  // ContextOptions's, and the env's
+  // The bindings of each set layout CreateSetLayout made (a destroyed layout's entry stays
+  // until its handle is reused: it is never looked up).
+  mutable std::mutex set_layouts_mutex_;
+  mutable std::unordered_map<VkDescriptorSetLayout, std::vector<VkDescriptorSetLayoutBinding>>
+      set_layouts_;
   mutable std::mutex messages_mutex_;
   std::vector<std::string> messages_;  // the first few, for test failure output
 };

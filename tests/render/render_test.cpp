@@ -499,6 +499,77 @@ TEST(RenderTest, InvalidSettingsNameTheField) {
   EXPECT_NE(std::string(f.status().message()).find("camera.yfov"), std::string::npos);
 }
 
+// Every pipeline layout is checked against the device's descriptor limits before it is made.
+// On a device at Vulkan's minimum of 4 storage buffers per stage (the scene's set has 5 for its
+// shading) the renderer is refused at creation, naming the layout, the stage and the limit,
+// rather than created past them.
+TEST(RenderTest, LayoutsBeyondTheDevicesDescriptorLimitsAreRefused) {
+  const absl::StatusOr<std::unique_ptr<Renderer>> r = Renderer::Create(
+      {.validation = true, .descriptor_limit_caps = {{"maxPerStageDescriptorStorageBuffers", 4}}});
+  ASSERT_FALSE(r.ok());
+  EXPECT_EQ(r.status().code(), absl::StatusCode::kFailedPrecondition);
+  const std::string m(r.status().message());
+  EXPECT_NE(m.find("scene pipeline layout on "), std::string::npos) << m;
+  EXPECT_NE(m.find(": 5 storage buffers in the fragment stage exceed the device's "
+                   "maxPerStageDescriptorStorageBuffers (4)"),
+            std::string::npos)
+      << m;
+  const absl::StatusOr<std::unique_ptr<Renderer>> unknown =
+      Renderer::Create({.descriptor_limit_caps = {{"maxStorageBuffers", 4}}});
+  ASSERT_FALSE(unknown.ok());
+  EXPECT_EQ(unknown.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(unknown.status().message())
+                .find("unknown descriptor limit \"maxStorageBuffers\" (known: "),
+            std::string::npos)
+      << unknown.status();
+}
+
+// A device whose limits hold the forward passes' layouts but not the visibility pipeline's (a
+// Raspberry Pi's V3DV: 8 storage buffers and 16 sampled images per stage; the visibility
+// resolve reads 12 storage buffers, the shading 19 sampled images) renders without the
+// visibility buffer, saying why: vis_mlaa renders msaa and pipeline visibility forward, the
+// same pictures as asking for those.
+TEST(RenderTest, WithoutRoomForTheVisibilityPassesTheFrameIsForward) {
+  absl::StatusOr<std::unique_ptr<Renderer>> r =
+      Renderer::Create({.validation = true,
+                        .descriptor_limit_caps = {{"maxPerStageDescriptorStorageBuffers", 8},
+                                                  {"maxPerStageDescriptorSampledImages", 16}}});
+  ASSERT_TRUE(r.ok()) << r.status();
+  const DeviceInfo& info = (*r)->device_info();
+  EXPECT_FALSE(info.visibility_buffer);
+  EXPECT_NE(info.visibility_limit.find("exceed the device's maxPerStageDescriptor"),
+            std::string::npos)
+      << info.visibility_limit;
+  ASSERT_FALSE(info.fallbacks.empty());
+  bool said = false;
+  for (const DeviceFallback& f : info.fallbacks)
+    said |= f.missing.find("room in the descriptor limits for the visibility passes (") == 0 &&
+            f.missing.find(info.visibility_limit) != std::string::npos;
+  EXPECT_TRUE(said);
+  absl::StatusOr<SceneHandle> scene = (*r)->LoadScene(BuildDemoScene());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  Settings asked = SmallSettings(96, 64);
+  asked.shadows = asked.ssao = true;
+  for (const auto& [aa, pipeline, as] :
+       {std::tuple{AaMode::kVisMlaa, Pipeline::kAuto, AaMode::kMsaa},
+        std::tuple{AaMode::kNone, Pipeline::kVisibility, AaMode::kNone}}) {
+    Settings s = asked;
+    s.aa = aa;
+    s.pipeline = pipeline;
+    absl::StatusOr<Frame> f = (*r)->Render(**scene, Camera{}, s);
+    ASSERT_TRUE(f.ok()) << f.status();
+    EXPECT_TRUE(HasNote(*f, aa == AaMode::kVisMlaa ? "aa" : "pipeline"));
+    EXPECT_EQ(f->settings.effective.pipeline, Pipeline::kForward);
+    Settings forward = asked;
+    forward.aa = as;
+    forward.pipeline = Pipeline::kForward;
+    absl::StatusOr<Frame> g = (*r)->Render(**scene, Camera{}, forward);
+    ASSERT_TRUE(g.ok()) << g.status();
+    EXPECT_EQ(f->image.pixels, g->image.pixels);
+  }
+  EXPECT_EQ((*r)->validation_message_count(), 0u);
+}
+
 // Requested features that do not exist yet come back as notes, never silently dropped.
 TEST(RenderTest, UnimplementedSettingsAreReported) {
   Renderer& r = SharedRenderer();
