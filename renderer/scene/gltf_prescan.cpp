@@ -184,7 +184,7 @@ class PreScan {
         result_(result),
         file_set_bytes_(FileSetBytes(src)) {}
 
-  absl::Status Run(const json& j) {
+  absl::Status Run(json& j) {
     if (!j.is_object()) return Invalid(file_, "JSON", "the top level is not an object");
     RETURN_IF_ERROR(Asset(j));
     RETURN_IF_ERROR(Counts(j));
@@ -288,133 +288,159 @@ class PreScan {
 
   // ---- the integers tinygltf reads into a C int: it casts any JSON integer (4294967296 reads as
   // 0, 4294967297 as 1), and takes a reference that is no integer (0.5, "0") or is -1 as absent.
-  // Either would load a file other than the one sent, so each is refused here, naming it. (The
-  // references' ranges are checked where they are used; an extension's integers are widened.)
+  // Either would load a file other than the one sent, so each is refused here, naming it. A
+  // float that is an integer (1.0, 5126.0) is that integer, as the validator reads it: it is
+  // written as one for tinygltf, which would take it as no value (result_->integers_rewritten).
+  // (The references' ranges are checked where they are used; an extension's integers are
+  // widened.)
+  enum class IntKind { kIndex, kEnum, kCount, kOffset };
 
-  // `v` (when present) is an integer an int holds; an `index` (a glTF id) is also >= 0.
-  absl::Status Int32(const json* v, const std::string& field, bool index) {
+  // `v` (when present) is an integer an int holds, and at least 1 (a count) or 0 (the rest:
+  // every glTF enumeration is positive, and tinygltf takes a negative mode or filter as none).
+  absl::Status Int32(json* v, const std::string& field, IntKind kind) {
     if (v == nullptr) return absl::OkStatus();
     constexpr int64_t kMax = std::numeric_limits<int32_t>::max();
-    const int64_t lo = index ? 0 : std::numeric_limits<int32_t>::min();
-    if (v->is_number_unsigned()
-            ? v->get<uint64_t>() <= uint64_t(kMax)
-            : v->is_number_integer() && v->get<int64_t>() >= lo && v->get<int64_t>() <= kMax) {
+    constexpr int64_t kMin = std::numeric_limits<int32_t>::min();
+    const int64_t lo = kind == IntKind::kCount ? 1 : 0;
+    int64_t n = 0;
+    bool integer = false;
+    if (v->is_number_unsigned()) {
+      integer = v->get<uint64_t>() <= uint64_t(kMax);
+      n = integer ? int64_t(v->get<uint64_t>()) : 0;
+    } else if (v->is_number_integer()) {
+      n = v->get<int64_t>();
+      integer = true;
+    } else if (v->is_number_float()) {
+      const double x = v->get<double>();
+      integer = std::floor(x) == x && x >= double(kMin) && x <= double(kMax);
+      n = integer ? int64_t(x) : 0;
+    }
+    if (integer && n >= lo && n <= kMax) {
+      if (v->is_number_float()) {
+        *v = n;
+        result_->integers_rewritten = true;
+      }
       return absl::OkStatus();
     }
-    return Invalid(file_, field, Quote(v->dump()),
-                   index ? " is not an index (an integer in [0, 2147483647])"
-                         : " is not an integer in [-2147483648, 2147483647]");
+    const char* what = kind == IntKind::kIndex ? " is not an index (an integer in [0, 2147483647])"
+                       : kind == IntKind::kCount ? " is not a count (an integer in [1, 2147483647])"
+                       : kind == IntKind::kOffset
+                           ? " is not a byte offset (an integer in [0, 2147483647])"
+                           : " is not an enumerated value (an integer in [0, 2147483647])";
+    return Invalid(file_, field, Quote(v->dump()), what);
   }
-  // The members `ids` (indices) and `enums` of `o`, when it is an object.
-  absl::Status Int32s(const json* o, const std::string& path,
-                      std::initializer_list<const char*> ids,
-                      std::initializer_list<const char*> enums = {}) {
+  // The members `keys` of `o`, when it is an object, each of `kind`.
+  absl::Status Int32s(json* o, const std::string& path, std::initializer_list<const char*> keys,
+                      IntKind kind = IntKind::kIndex) {
     if (o == nullptr || !o->is_object()) return absl::OkStatus();
-    for (const char* key : ids) RETURN_IF_ERROR(Int32(Member(*o, key), path + "." + key, true));
-    for (const char* key : enums) RETURN_IF_ERROR(Int32(Member(*o, key), path + "." + key, false));
+    for (const char* key : keys) {
+      const auto it = o->find(key);
+      if (it != o->end()) RETURN_IF_ERROR(Int32(&*it, path + "." + key, kind));
+    }
     return absl::OkStatus();
   }
+  static json* At(json* o, const char* key) {
+    if (o == nullptr || !o->is_object()) return nullptr;
+    const auto it = o->find(key);
+    return it == o->end() ? nullptr : &*it;
+  }
   // `v` (when present) is an array of indices.
-  absl::Status IndexArray(const json* v, const std::string& field) {
+  absl::Status IndexArray(json* v, const std::string& field) {
     if (v == nullptr) return absl::OkStatus();
     if (!v->is_array()) return Invalid(file_, field, "not an array of indices");
     for (size_t i = 0; i < v->size(); ++i)
-      RETURN_IF_ERROR(Int32(&(*v)[i], absl::StrCat(field, "[", i, "]"), true));
+      RETURN_IF_ERROR(Int32(&(*v)[i], absl::StrCat(field, "[", i, "]"), IntKind::kIndex));
     return absl::OkStatus();
   }
   // `v` (when present) is an object of attribute names to accessor indices.
-  absl::Status IndexMap(const json* v, const std::string& field) {
+  absl::Status IndexMap(json* v, const std::string& field) {
     if (v == nullptr) return absl::OkStatus();
     if (!v->is_object()) return Invalid(file_, field, "not an object of accessor indices");
-    for (const auto& [name, index] : v->items())
-      RETURN_IF_ERROR(Int32(&index, absl::StrCat(field, ".", name), true));
+    for (auto it = v->begin(); it != v->end(); ++it)
+      RETURN_IF_ERROR(Int32(&it.value(), absl::StrCat(field, ".", it.key()), IntKind::kIndex));
     return absl::OkStatus();
   }
 
   // Every integer of the core schema that tinygltf reads as an int.
-  absl::Status IntegerFields(const json& j) {
-    auto each = [&](const json* o, const char* key, const std::string& path,
-                    const std::function<absl::Status(const json&, const std::string&)>& check)
-        -> absl::Status {
-      const json* a = Member(o, key);
+  absl::Status IntegerFields(json& j) {
+    auto each =
+        [&](json* o, const char* key, const std::string& path,
+            const std::function<absl::Status(json&, const std::string&)>& check) -> absl::Status {
+      json* a = At(o, key);
       for (size_t i = 0; a && a->is_array() && i < a->size(); ++i)
         RETURN_IF_ERROR(check((*a)[i], absl::StrCat(path, key, "[", i, "]")));
       return absl::OkStatus();
     };
-    RETURN_IF_ERROR(Int32(Member(j, "scene"), "scene", true));
-    RETURN_IF_ERROR(
-        each(&j, "scenes", "", [&](const json& s, const std::string& f) -> absl::Status {
-          return IndexArray(Member(s, "nodes"), f + ".nodes");
-        }));
-    RETURN_IF_ERROR(each(&j, "nodes", "", [&](const json& n, const std::string& f) -> absl::Status {
+    constexpr IntKind kEnum = IntKind::kEnum;
+    RETURN_IF_ERROR(Int32s(&j, "", {"scene"}));
+    RETURN_IF_ERROR(each(&j, "scenes", "", [&](json& s, const std::string& f) -> absl::Status {
+      return IndexArray(At(&s, "nodes"), f + ".nodes");
+    }));
+    RETURN_IF_ERROR(each(&j, "nodes", "", [&](json& n, const std::string& f) -> absl::Status {
       RETURN_IF_ERROR(Int32s(&n, f, {"camera", "skin", "mesh"}));
-      return IndexArray(Member(n, "children"), f + ".children");
+      return IndexArray(At(&n, "children"), f + ".children");
     }));
-    RETURN_IF_ERROR(
-        each(&j, "meshes", "", [&](const json& m, const std::string& f) -> absl::Status {
-          return each(&m, "primitives", f + ".",
-                      [&](const json& p, const std::string& pf) -> absl::Status {
-                        RETURN_IF_ERROR(Int32s(&p, pf, {"indices", "material"}, {"mode"}));
-                        RETURN_IF_ERROR(IndexMap(Member(p, "attributes"), pf + ".attributes"));
-                        return each(&p, "targets", pf + ".",
-                                    [&](const json& t, const std::string& tf) -> absl::Status {
-                                      return IndexMap(&t, tf);
-                                    });
-                      });
-        }));
-    RETURN_IF_ERROR(
-        each(&j, "materials", "", [&](const json& m, const std::string& f) -> absl::Status {
-          const json* pbr = Member(m, "pbrMetallicRoughness");
-          for (const char* slot : {"baseColorTexture", "metallicRoughnessTexture"}) {
-            RETURN_IF_ERROR(Int32s(Member(pbr, slot),
-                                   absl::StrCat(f, ".pbrMetallicRoughness.", slot),
-                                   {"index", "texCoord"}));
-          }
-          for (const char* slot : {"normalTexture", "occlusionTexture", "emissiveTexture"})
-            RETURN_IF_ERROR(
-                Int32s(Member(m, slot), absl::StrCat(f, ".", slot), {"index", "texCoord"}));
-          return absl::OkStatus();
-        }));
-    RETURN_IF_ERROR(
-        each(&j, "textures", "", [&](const json& t, const std::string& f) -> absl::Status {
-          return Int32s(&t, f, {"sampler", "source"});
-        }));
-    RETURN_IF_ERROR(
-        each(&j, "images", "", [&](const json& i, const std::string& f) -> absl::Status {
-          return Int32s(&i, f, {"bufferView"});
-        }));
-    RETURN_IF_ERROR(
-        each(&j, "samplers", "", [&](const json& s, const std::string& f) -> absl::Status {
-          return Int32s(&s, f, {}, {"magFilter", "minFilter", "wrapS", "wrapT"});
-        }));
-    RETURN_IF_ERROR(
-        each(&j, "accessors", "", [&](const json& a, const std::string& f) -> absl::Status {
-          RETURN_IF_ERROR(Int32s(&a, f, {"bufferView"}, {"componentType"}));
-          const json* sparse = Member(a, "sparse");
-          const std::string sf = f + ".sparse";
-          RETURN_IF_ERROR(Int32s(sparse, sf, {"count"}));  // tinygltf's sparse fields are ints
-          RETURN_IF_ERROR(Int32s(Member(sparse, "indices"), sf + ".indices",
-                                 {"bufferView", "byteOffset"}, {"componentType"}));
-          return Int32s(Member(sparse, "values"), sf + ".values", {"bufferView", "byteOffset"});
-        }));
-    RETURN_IF_ERROR(
-        each(&j, "bufferViews", "", [&](const json& b, const std::string& f) -> absl::Status {
-          return Int32s(&b, f, {"buffer"}, {"target"});
-        }));
-    RETURN_IF_ERROR(each(&j, "skins", "", [&](const json& s, const std::string& f) -> absl::Status {
+    RETURN_IF_ERROR(each(&j, "meshes", "", [&](json& m, const std::string& f) -> absl::Status {
+      return each(&m, "primitives", f + ".", [&](json& p, const std::string& pf) -> absl::Status {
+        RETURN_IF_ERROR(Int32s(&p, pf, {"indices", "material"}));
+        RETURN_IF_ERROR(Int32s(&p, pf, {"mode"}, kEnum));
+        RETURN_IF_ERROR(IndexMap(At(&p, "attributes"), pf + ".attributes"));
+        return each(&p, "targets", pf + ".", [&](json& t, const std::string& tf) -> absl::Status {
+          return IndexMap(&t, tf);
+        });
+      });
+    }));
+    RETURN_IF_ERROR(each(&j, "materials", "", [&](json& m, const std::string& f) -> absl::Status {
+      json* pbr = At(&m, "pbrMetallicRoughness");
+      for (const char* slot : {"baseColorTexture", "metallicRoughnessTexture"}) {
+        RETURN_IF_ERROR(Int32s(At(pbr, slot), absl::StrCat(f, ".pbrMetallicRoughness.", slot),
+                               {"index", "texCoord"}));
+      }
+      for (const char* slot : {"normalTexture", "occlusionTexture", "emissiveTexture"})
+        RETURN_IF_ERROR(Int32s(At(&m, slot), absl::StrCat(f, ".", slot), {"index", "texCoord"}));
+      return absl::OkStatus();
+    }));
+    RETURN_IF_ERROR(each(&j, "textures", "", [&](json& t, const std::string& f) -> absl::Status {
+      return Int32s(&t, f, {"sampler", "source"});
+    }));
+    RETURN_IF_ERROR(each(&j, "images", "", [&](json& i, const std::string& f) -> absl::Status {
+      return Int32s(&i, f, {"bufferView"});
+    }));
+    RETURN_IF_ERROR(each(&j, "samplers", "", [&](json& s, const std::string& f) -> absl::Status {
+      return Int32s(&s, f, {"magFilter", "minFilter", "wrapS", "wrapT"}, kEnum);
+    }));
+    RETURN_IF_ERROR(each(&j, "accessors", "", [&](json& a, const std::string& f) -> absl::Status {
+      RETURN_IF_ERROR(Int32s(&a, f, {"bufferView"}));
+      RETURN_IF_ERROR(Int32s(&a, f, {"componentType"}, kEnum));
+      // tinygltf reads a sparse block's count and offsets as ints too.
+      json* sparse = At(&a, "sparse");
+      const std::string sf = f + ".sparse";
+      RETURN_IF_ERROR(Int32s(sparse, sf, {"count"}, IntKind::kCount));
+      for (const char* part : {"indices", "values"}) {
+        const std::string pf = absl::StrCat(sf, ".", part);
+        RETURN_IF_ERROR(Int32s(At(sparse, part), pf, {"bufferView"}));
+        RETURN_IF_ERROR(Int32s(At(sparse, part), pf, {"byteOffset"}, IntKind::kOffset));
+        RETURN_IF_ERROR(Int32s(At(sparse, part), pf, {"componentType"}, kEnum));
+      }
+      return absl::OkStatus();
+    }));
+    RETURN_IF_ERROR(each(&j, "bufferViews", "", [&](json& b, const std::string& f) -> absl::Status {
+      RETURN_IF_ERROR(Int32s(&b, f, {"buffer"}));
+      return Int32s(&b, f, {"target"}, kEnum);
+    }));
+    RETURN_IF_ERROR(each(&j, "skins", "", [&](json& s, const std::string& f) -> absl::Status {
       RETURN_IF_ERROR(Int32s(&s, f, {"inverseBindMatrices", "skeleton"}));
-      return IndexArray(Member(s, "joints"), f + ".joints");
+      return IndexArray(At(&s, "joints"), f + ".joints");
     }));
-    return each(&j, "animations", "", [&](const json& a, const std::string& f) -> absl::Status {
+    return each(&j, "animations", "", [&](json& a, const std::string& f) -> absl::Status {
       RETURN_IF_ERROR(
-          each(&a, "channels", f + ".", [&](const json& c, const std::string& cf) -> absl::Status {
+          each(&a, "channels", f + ".", [&](json& c, const std::string& cf) -> absl::Status {
             RETURN_IF_ERROR(Int32s(&c, cf, {"sampler"}));
-            return Int32s(Member(c, "target"), cf + ".target", {"node"});
+            return Int32s(At(&c, "target"), cf + ".target", {"node"});
           }));
-      return each(&a, "samplers", f + ".",
-                  [&](const json& s, const std::string& sf) -> absl::Status {
-                    return Int32s(&s, sf, {"input", "output"});
-                  });
+      return each(&a, "samplers", f + ".", [&](json& s, const std::string& sf) -> absl::Status {
+        return Int32s(&s, sf, {"input", "output"});
+      });
     });
   }
 
@@ -1271,7 +1297,8 @@ bool WidenExtensionIntegers(json& v, bool in_extensions = false) {
 //    importer sizes them (PreScanResult::fallback_buffers) and decodes into them.
 //  - a Draco primitive's indices (an accessor without a bufferView) it refuses; they are removed
 //    and the importer puts them back (PreScanResult::draco_indices).
-// And integers beyond 32 bits in extensions become doubles (WidenExtensionIntegers).
+// And integers beyond 32 bits in extensions become doubles (WidenExtensionIntegers), and core
+// integer fields written as floats (1.0) are integers already (PreScan::Int32).
 // A .glb is rebuilt around the new JSON chunk with its BIN chunk as it was.
 absl::Status RewriteForTinygltf(const std::string& file, const std::vector<uint8_t>& bytes,
                                 const GlbChunks& glb, const ImportLimits& limits, json* j,
@@ -1368,7 +1395,8 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
     json j = json::parse(text.begin(), text.end());
     RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, limits, &result).Run(j));
     const bool widened = WidenExtensionIntegers(j);
-    if (widened || !result.fallback_buffers.empty() || !result.draco_indices.empty()) {
+    if (widened || result.integers_rewritten || !result.fallback_buffers.empty() ||
+        !result.draco_indices.empty()) {
       RETURN_IF_ERROR(RewriteForTinygltf(file, bytes, glb, limits, &j, &result));
     }
   } catch (const std::exception& e) {  // nlohmann reports parse and type errors by throwing

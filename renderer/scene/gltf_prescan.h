@@ -43,6 +43,8 @@ struct PreScanResult {
   // The main file as tinygltf is to read it, when the JSON had to change for it (meshopt
   // fallback buffers); `text` then points into it (its heap buffer survives moves).
   std::vector<uint8_t> rewritten;
+  // A core integer field was written as a float (1.0): the JSON is re-written with the integer.
+  bool integers_rewritten = false;
   const std::vector<uint8_t>& main_bytes() const { return rewritten.empty() ? *bytes : rewritten; }
   std::map<uint32_t, uint64_t> fallback_buffers;  // buffer index -> byteLength (no data)
   std::map<uint32_t, MeshoptView> meshopt_views;  // bufferView index -> what it decodes

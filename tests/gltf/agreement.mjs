@@ -60,7 +60,7 @@ const boxDir = path.join(args.assets, 'Box', 'glTF');
 const boxJson = JSON.parse(fs.readFileSync(path.join(boxDir, 'Box.gltf'), 'utf8'));
 const boxBin = fs.readFileSync(path.join(boxDir, 'Box0.bin'));
 
-function generated(name, edit) {
+function generated(name, edit, rewrite = (text) => text) {
   const dir = path.join(args.out, 'cases', name);
   fs.mkdirSync(dir, { recursive: true });
   const j = structuredClone(boxJson);
@@ -69,7 +69,7 @@ function generated(name, edit) {
   if (newBin) bin = newBin;
   j.buffers[0].byteLength = bin.length;
   fs.writeFileSync(path.join(dir, 'Box0.bin'), bin);
-  fs.writeFileSync(path.join(dir, 'Box.gltf'), JSON.stringify(j));
+  fs.writeFileSync(path.join(dir, 'Box.gltf'), rewrite(JSON.stringify(j)));
   return { name: `generated/${name}`, file: path.join(dir, 'Box.gltf') };
 }
 
@@ -313,6 +313,14 @@ const cases = [
   generated('primitive_material_negative', (j) => { j.meshes[0].primitives[0].material = -1; }),
   generated('primitive_mode_fraction', (j) => { j.meshes[0].primitives[0].mode = 4.5; }),
   generated('node_children_beyond_32_bits', (j) => { j.nodes[0].children = [4294967297]; }),
+  // Valid: integers written as floats (JSON.stringify would write 0 and 5126).
+  generated('integers_written_as_floats', () => {}, (text) => text.replace('"mesh":0', '"mesh":0.0')
+    .replace('"componentType":5126', '"componentType":5126.0')),
+  generated('sparse_count_zero', (j, bin) => {
+    const b = sparse([1, 3])(j, bin);
+    j.accessors[2].sparse.count = 0;
+    return b;
+  }),
   glbWith('glb_json_chunk_too_long', (b) => { b.writeUInt32LE(b.readUInt32LE(12) + 400, 12); }),
   glbWith('glb_bad_magic', (b) => { b.write('gLTF', 0); }),
   generated('position_max_mismatch', (j) => { j.accessors[2].max = [0.6, 0.5, 0.5]; }),

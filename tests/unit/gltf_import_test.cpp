@@ -1317,13 +1317,105 @@ TEST(GltfImportMalformed, IntegersAnIntDoesNotHoldAreRefused) {
   ExpectInvalid(
       ImportGltf(
           Edited(textured, [](json& j) { j["meshes"][0]["primitives"][0]["mode"] = 4294967300u; })),
-      {"meshes[0].primitives[0].mode: 4294967300 is not an integer in [-2147483648, "
-       "2147483647]"});
+      {"meshes[0].primitives[0].mode: 4294967300 is not an enumerated value (an integer in [0, "
+       "2147483647])"});
   ExpectInvalid(
       ImportGltf(Edited(textured, [](json& j) { j["samplers"][0]["wrapS"] = 4294977793u; })),
-      {"samplers[0].wrapS: 4294977793 is not an integer"});
+      {"samplers[0].wrapS: 4294977793 is not an enumerated value"});
   ExpectInvalid(ImportGltf(Edited(textured, [](json& j) { j["samplers"][0]["wrapS"] = "REPEAT"; })),
-                {"samplers[0].wrapS: \"REPEAT\" is not an integer"});
+                {"samplers[0].wrapS: \"REPEAT\" is not an enumerated value"});
+  // Elsewhere in the schema: skins, animations, images, morph targets, other texture slots and
+  // enumerations.
+  auto refused = [&](const std::function<void(json&)>& edit, const std::string& message) {
+    ExpectInvalid(ImportGltf(Edited(textured, edit)), {message});
+  };
+  refused([](json& j) { j["skins"] = {{{"joints", {0, -1}}}}; }, "skins[0].joints[1]: -1" + index);
+  refused(
+      [](json& j) {
+        j["skins"] = {{{"joints", {0}}, {"skeleton", 0.5}}};
+      },
+      "skins[0].skeleton: 0.5" + index);
+  refused(
+      [](json& j) {
+        j["animations"] = {{{"channels", {{{"sampler", 4294967296u}, {"target", {{"node", 1}}}}}},
+                            {"samplers", {{{"input", 0}, {"output", 1}}}}}};
+      },
+      "animations[0].channels[0].sampler: 4294967296" + index);
+  refused(
+      [](json& j) {
+        j["animations"] = {{{"channels", {{{"sampler", 0}, {"target", {{"node", "1"}}}}}},
+                            {"samplers", {{{"input", 0}, {"output", 1}}}}}};
+      },
+      "animations[0].channels[0].target.node: \"1\"" + index);
+  refused([](json& j) { j["images"][0]["bufferView"] = -2; }, "images[0].bufferView: -2" + index);
+  refused(
+      [](json& j) {
+        j["meshes"][0]["primitives"][0]["targets"] = {{{"POSITION", -1}}};
+      },
+      "meshes[0].primitives[0].targets[0].POSITION: -1" + index);
+  refused(
+      [](json& j) {
+        j["materials"][0]["occlusionTexture"] = {{"index", 4294967296u}};
+      },
+      "materials[0].occlusionTexture.index: 4294967296" + index);
+  refused([](json& j) { j["samplers"][0]["wrapT"] = 0.5; },
+          "samplers[0].wrapT: 0.5 is not an enumerated value (an integer in [0, 2147483647])");
+  refused([](json& j) { j["accessors"][0]["componentType"] = -4294967296; },
+          "accessors[0].componentType: -4294967296 is not an enumerated value");
+  refused([](json& j) { j["bufferViews"][0]["target"] = "ARRAY_BUFFER"; },
+          "bufferViews[0].target: \"ARRAY_BUFFER\" is not an enumerated value");
+  // A sparse block's count is at least 1 and its offsets at least 0 (and all ints to tinygltf).
+  auto sparse = [](json count, json offset) {
+    return [=](json& j) {
+      j["accessors"][2]["sparse"] = {
+          {"count", count},
+          {"indices", {{"bufferView", 0}, {"componentType", 5123}, {"byteOffset", offset}}},
+          {"values", {{"bufferView", 1}}}};
+    };
+  };
+  refused(sparse(0, 0),
+          "accessors[2].sparse.count: 0 is not a count (an integer in [1, "
+          "2147483647])");
+  refused(sparse(1, -4),
+          "accessors[2].sparse.indices.byteOffset: -4 is not a byte offset (an "
+          "integer in [0, 2147483647])");
+  refused(sparse(4294967297u, 0), "accessors[2].sparse.count: 4294967297 is not a count");
+  // At the ends of an int: past this check, to the checks of what they name.
+  refused([](json& j) { j["textures"][0]["source"] = 2147483647; },
+          "textures[0].source: image index 2147483647 out of range (1 images)");
+  refused([](json& j) { j["meshes"][0]["primitives"][0]["mode"] = 2147483647; },
+          "meshes[0].primitives[0].mode: invalid mode 2147483647");
+  // (tinygltf took a negative mode as none: TRIANGLES.)
+  refused([](json& j) { j["meshes"][0]["primitives"][0]["mode"] = -2; },
+          "meshes[0].primitives[0].mode: -2 is not an enumerated value");
+  // A float that is an integer is that integer (as the validator reads it): tinygltf took it as
+  // no value, a node without its mesh; now the JSON it reads has the integer.
+  for (const bool glb : {false, true}) {
+    SCOPED_TRACE(glb ? "glb" : "gltf");
+    auto floats = [](json& j) {
+      j["nodes"][1]["mesh"] = 0.0;
+      j["meshes"][0]["primitives"][0]["material"] = 0.0;
+      j["accessors"][1]["componentType"] = 5126.0;
+      j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"] = 0.0;
+    };
+    absl::StatusOr<CpuScene> s;
+    if (glb) {
+      const std::vector<uint8_t>& main = textured.files.at(textured.main_file);
+      json j = json::parse(main.begin(), main.end());
+      floats(j);
+      j["buffers"][0].erase("uri");  // the BIN chunk
+      GltfSource src =
+          testing::GlbSource(j, textured.files.at("BoxTextured0.bin"), "BoxTextured.glb");
+      src.files["CesiumLogoFlat.png"] = textured.files.at("CesiumLogoFlat.png");
+      s = ImportGltf(src);
+    } else {
+      s = ImportGltf(Edited(textured, floats));
+    }
+    ASSERT_TRUE(s.ok()) << s.status();
+    EXPECT_EQ(s->indices.size(), 36u);  // the mesh is drawn
+    ASSERT_EQ(s->materials.size(), 1u);
+    EXPECT_EQ(s->materials[0].base_color.texture, 0);
+  }
   // Numbers are not ints: an integer beyond 32 bits where the schema has a number still loads.
   const absl::StatusOr<CpuScene> far = ImportGltf(Edited(textured, [](json& j) {
     j["nodes"][1]["translation"] = {4294967296u, 0, 0};
