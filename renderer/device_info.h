@@ -104,6 +104,9 @@ struct DeviceInfo {
   // Not empty: a layout of the visibility pipeline's passes exceeds the device's descriptor
   // limits (this names it, the stage and the limit), so visibility_buffer is false.
   std::string visibility_limit;
+  // Not empty: the one-dispatch shading's layouts exceed the device's descriptor limits (this
+  // names the layout, the stage and the limit), so shade_all_materials is false.
+  std::string shade_all_limit;
   uint32_t subgroup_size = 1;
   // Compute shaders have subgroup basic and ballot operations.
   bool subgroup_ballot = false;

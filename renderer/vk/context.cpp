@@ -444,6 +444,12 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
                          "vertex_pulling disabled"
                        : "visibility_buffer (disabled)",
                    "aa vis_mlaa renders msaa; pipeline visibility renders forward"});
+  if (!info.shade_all_limit.empty() && info.visibility_buffer)
+    out.push_back({absl::StrCat("room in the descriptor limits for the visibility shading in one "
+                                "dispatch (",
+                                info.shade_all_limit, ")"),
+                   "the visibility shading classifies the pixels by material and runs one "
+                   "dispatch per material over its list"});
   if (!info.sampler_indexing && info.visibility_buffer)
     out.push_back(
         {"sampler array indexing (shaderSampledImageArrayDynamicIndexing, "
@@ -481,7 +487,10 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   limits_ = p.limits;
   for (const auto& [name, cap] : limit_caps_) {
     (void)CapDescriptorLimit(limits_, name, cap);  // the names were checked in Create
-    Log().info("descriptor limit {} taken as at most {}", name, cap);
+    Log().warn(
+        "descriptor limit {} taken as at most {} (descriptor_limit_caps, "
+        "$TESSERA_DESCRIPTOR_LIMITS)",
+        name, cap);
   }
   vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
 
@@ -572,12 +581,10 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
                           !off("sampler_indexing");
   enabled.shaderSampledImageArrayDynamicIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
   f12.shaderSampledImageArrayNonUniformIndexing = info.sampler_indexing ? VK_TRUE : VK_FALSE;
-  // Its vis_mlaa layout holds 16 samplers (set 0's six, the eight buckets, the ids and the
-  // coverage) and 21 sampled images (those and five uniform texel buffers) for one stage.
-  const bool shade_all_limits = limits_.maxPerStageDescriptorSamplers >= 16 &&
-                                limits_.maxPerStageDescriptorSampledImages >= 21;
+  // (Its layouts, the largest of the visibility shading's, are checked against the device's
+  // descriptor limits when the passes are made: DisableShadeAllMaterials where they exceed them.)
   info.shade_all_materials = info.sampler_indexing && info.subgroup_ballot &&
-                             info.visibility_buffer && shade_all_limits &&
+                             info.visibility_buffer &&
                              (shading == ShadeDispatch::kAllMaterials ||
                               (shading == ShadeDispatch::kAuto && info.type != "cpu"));
   f12.hostQueryReset = f12_supported.hostQueryReset;
@@ -624,6 +631,7 @@ Context::~Context() {
 }
 
 void Context::DisableVisibilityBuffer(const std::string& why) {
+  if (!info_.visibility_buffer) return;  // off already, for the reason its fallback gives
   info_.visibility_buffer = false;
   info_.shade_all_materials = false;
   info_.visibility_limit = why;
@@ -632,6 +640,14 @@ void Context::DisableVisibilityBuffer(const std::string& why) {
       "{}: the visibility pipeline is off (pipeline visibility renders forward, aa "
       "vis_mlaa renders msaa)",
       why);
+}
+
+void Context::DisableShadeAllMaterials(const std::string& why) {
+  if (!info_.shade_all_materials) return;
+  info_.shade_all_materials = false;
+  info_.shade_all_limit = why;
+  info_.fallbacks = ListFallbacks(info_);
+  Log().warn("{}: the visibility shading runs one dispatch per material", why);
 }
 
 absl::Status Context::CreateSetLayout(const std::vector<VkDescriptorSetLayoutBinding>& bindings,

@@ -97,6 +97,9 @@ class Context {
   // (`why`, CheckDescriptorLimits' message): the device renders without the visibility buffer,
   // as one that lacks its features (DeviceInfo::visibility_buffer, visibility_limit, fallbacks).
   void DisableVisibilityBuffer(const std::string& why);
+  // Where the one-dispatch visibility shading's layouts (the largest) exceed them: the shading
+  // runs one dispatch per material (DeviceInfo::shade_all_materials, shade_all_limit).
+  void DisableShadeAllMaterials(const std::string& why);
 
   // Records `record` into a one-time command buffer, submits it and waits. For uploads.
   absl::Status SubmitOnce(const std::function<void(VkCommandBuffer)>& record);

@@ -1,6 +1,7 @@
 #include "renderer/vk/descriptor_limits.h"
 
 #include <algorithm>
+#include <utility>
 
 #include "absl/strings/cord.h"
 #include "absl/strings/str_cat.h"
@@ -19,6 +20,9 @@ DescriptorCounts& DescriptorCounts::operator+=(const DescriptorCounts& o) {
   sampled_images += o.sampled_images;
   storage_images += o.storage_images;
   input_attachments += o.input_attachments;
+  uniform_buffers_dynamic += o.uniform_buffers_dynamic;
+  storage_buffers_dynamic += o.storage_buffers_dynamic;
+  uncounted += o.uncounted;
   return *this;
 }
 
@@ -44,18 +48,23 @@ DescriptorCounts CountDescriptors(const std::vector<VkDescriptorSetLayoutBinding
       case VK_DESCRIPTOR_TYPE_STORAGE_TEXEL_BUFFER:
         c.storage_images += n;
         break;
-      case VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER:
       case VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER_DYNAMIC:
+        c.uniform_buffers_dynamic += n;
+        [[fallthrough]];
+      case VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER:
         c.uniform_buffers += n;
         break;
-      case VK_DESCRIPTOR_TYPE_STORAGE_BUFFER:
       case VK_DESCRIPTOR_TYPE_STORAGE_BUFFER_DYNAMIC:
+        c.storage_buffers_dynamic += n;
+        [[fallthrough]];
+      case VK_DESCRIPTOR_TYPE_STORAGE_BUFFER:
         c.storage_buffers += n;
         break;
       case VK_DESCRIPTOR_TYPE_INPUT_ATTACHMENT:
         c.input_attachments += n;
         break;
       default:
+        c.uncounted += n;
         break;  // none the renderer uses
     }
   }
@@ -96,9 +105,13 @@ struct Stage {
   VkShaderStageFlagBits bit;
   const char* name;
 };
-constexpr Stage kStages[] = {{VK_SHADER_STAGE_VERTEX_BIT, "vertex"},
-                             {VK_SHADER_STAGE_FRAGMENT_BIT, "fragment"},
-                             {VK_SHADER_STAGE_COMPUTE_BIT, "compute"}};
+constexpr Stage kStages[] = {
+    {VK_SHADER_STAGE_VERTEX_BIT, "vertex"},
+    {VK_SHADER_STAGE_TESSELLATION_CONTROL_BIT, "tessellation control"},
+    {VK_SHADER_STAGE_TESSELLATION_EVALUATION_BIT, "tessellation evaluation"},
+    {VK_SHADER_STAGE_GEOMETRY_BIT, "geometry"},
+    {VK_SHADER_STAGE_FRAGMENT_BIT, "fragment"},
+    {VK_SHADER_STAGE_COMPUTE_BIT, "compute"}};
 
 // Every limit the check reads, named as the spec spells it.
 struct NamedLimit {
@@ -124,6 +137,8 @@ constexpr NamedLimit kNamedLimits[] = {
     TESSERA_LIMIT(maxDescriptorSetSampledImages, 96),
     TESSERA_LIMIT(maxDescriptorSetStorageImages, 24),
     TESSERA_LIMIT(maxDescriptorSetInputAttachments, 4),
+    TESSERA_LIMIT(maxDescriptorSetUniformBuffersDynamic, 8),
+    TESSERA_LIMIT(maxDescriptorSetStorageBuffersDynamic, 4),
 };
 #undef TESSERA_LIMIT
 
@@ -146,6 +161,12 @@ absl::Status CheckDescriptorLimits(
     s.SetPayload(kLimitPayload, absl::Cord("1"));
     return s;
   };
+  DescriptorCounts all;
+  for (const auto& set : sets) all += CountDescriptors(set, VK_SHADER_STAGE_ALL);
+  if (all.uncounted > 0) {
+    return absl::InternalError(absl::StrCat(
+        name, ": a descriptor type whose limits vk::CheckDescriptorLimits does not check"));
+  }
   if (sets.size() > limits.maxBoundDescriptorSets) {
     return over(sets.size(), " descriptor sets exceed the device's maxBoundDescriptorSets (",
                 limits.maxBoundDescriptorSets, ")");
@@ -169,8 +190,16 @@ absl::Status CheckDescriptorLimits(
                   ")");
     }
   }
-  DescriptorCounts all;
-  for (const auto& set : sets) all += CountDescriptors(set, VK_SHADER_STAGE_ALL);
+  for (const auto& [count, limit] :
+       {std::pair{all.uniform_buffers_dynamic,
+                  &VkPhysicalDeviceLimits::maxDescriptorSetUniformBuffersDynamic},
+        std::pair{all.storage_buffers_dynamic,
+                  &VkPhysicalDeviceLimits::maxDescriptorSetStorageBuffersDynamic}}) {
+    if (count > limits.*limit) {
+      return over(count, " dynamic buffers in the layout exceed the device's ", LimitName(limit),
+                  " (", limits.*limit, ")");
+    }
+  }
   for (const Limit& l : kLimits) {
     if (all.*l.count > limits.*l.per_layout) {
       return over(all.*l.count, " ", l.what, " in the layout exceed the device's ",

@@ -22,6 +22,9 @@ struct DescriptorCounts {
   uint32_t sampled_images = 0;   // SAMPLED_IMAGE, COMBINED_IMAGE_SAMPLER, UNIFORM_TEXEL_BUFFER
   uint32_t storage_images = 0;   // STORAGE_IMAGE, STORAGE_TEXEL_BUFFER
   uint32_t input_attachments = 0;
+  uint32_t uniform_buffers_dynamic = 0;  // also in uniform_buffers
+  uint32_t storage_buffers_dynamic = 0;  // also in storage_buffers
+  uint32_t uncounted = 0;  // of types the limits here do not cover (refused: see the .cpp)
   // What maxPerStageResources counts (a combined image sampler once; a fragment shader's colour
   // attachments, which a pipeline layout does not know, are not included).
   uint32_t Resources() const;
@@ -36,7 +39,10 @@ DescriptorCounts CountDescriptors(const std::vector<VkDescriptorSetLayoutBinding
 // OK when a pipeline layout of the sets `sets` (each its bindings) and `push_bytes` of push
 // constants fits `limits`; else FAILED_PRECONDITION naming `name`, the stage, the count and the
 // limit, e.g. "vis_shade layout: 20 sampled images in the compute stage exceed the device's
-// maxPerStageDescriptorSampledImages (16)".
+// maxPerStageDescriptorSampledImages (16)". Layouts with flags (update-after-bind, push
+// descriptors) have other limits and are not made through it (Context::CreateSetLayout takes
+// none); a descriptor type it does not count (inline uniform blocks, acceleration structures)
+// is INTERNAL, so that a new use cannot pass unchecked.
 absl::Status CheckDescriptorLimits(
     const VkPhysicalDeviceLimits& limits,
     const std::vector<std::vector<VkDescriptorSetLayoutBinding>>& sets, uint32_t push_bytes,

@@ -526,7 +526,7 @@ TEST(RenderTest, LayoutsBeyondTheDevicesDescriptorLimitsAreRefused) {
 
 // A device whose limits hold the forward passes' layouts but not the visibility pipeline's (a
 // Raspberry Pi's V3DV: 8 storage buffers and 16 sampled images per stage; the visibility
-// resolve reads 12 storage buffers, the shading 19 sampled images) renders without the
+// resolve reads 12 storage buffers, the shading up to 20 sampled images) renders without the
 // visibility buffer, saying why: vis_mlaa renders msaa and pipeline visibility forward, the
 // same pictures as asking for those.
 TEST(RenderTest, WithoutRoomForTheVisibilityPassesTheFrameIsForward) {
@@ -567,6 +567,45 @@ TEST(RenderTest, WithoutRoomForTheVisibilityPassesTheFrameIsForward) {
     ASSERT_TRUE(g.ok()) << g.status();
     EXPECT_EQ(f->image.pixels, g->image.pixels);
   }
+  EXPECT_EQ((*r)->validation_message_count(), 0u);
+}
+
+// The one-dispatch visibility shading's layouts are the largest (the bucket set: 21 sampled
+// images in its vis_mlaa layout against the per-material shading's 20): on a device with room
+// for the per-material layouts only, the visibility pipeline stays and shades per material,
+// saying why. Only on devices that index sampler arrays (SwiftShader here).
+TEST(RenderTest, WithoutRoomForTheOneDispatchShadingItShadesPerMaterial) {
+  absl::StatusOr<std::unique_ptr<Renderer>> r =
+      Renderer::Create({.validation = true,
+                        .descriptor_limit_caps = {{"maxPerStageDescriptorSampledImages", 20}},
+                        .shading = ShadeDispatch::kAllMaterials});
+  ASSERT_TRUE(r.ok()) << r.status();
+  const DeviceInfo& info = (*r)->device_info();
+  if (!info.sampler_indexing || !info.subgroup_ballot || info.visibility_limit != "") {
+    GTEST_SKIP() << info.name << " has no one-dispatch shading to lose";
+  }
+  EXPECT_TRUE(info.visibility_buffer);
+  EXPECT_FALSE(info.shade_all_materials);
+  EXPECT_NE(info.shade_all_limit.find("sampled images in the compute stage exceed the device's "
+                                      "maxPerStageDescriptorSampledImages (20)"),
+            std::string::npos)
+      << info.shade_all_limit;
+  bool said = false;
+  for (const DeviceFallback& f : info.fallbacks)
+    said |= f.missing.find(
+                "room in the descriptor limits for the visibility shading in one "
+                "dispatch (") == 0;
+  EXPECT_TRUE(said);
+  absl::StatusOr<SceneHandle> scene = (*r)->LoadScene(BuildDemoScene());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  Settings s = SmallSettings(96, 64);
+  s.aa = AaMode::kVisMlaa;
+  absl::StatusOr<Frame> f = (*r)->Render(**scene, Camera{}, s);
+  ASSERT_TRUE(f.ok()) << f.status();
+  EXPECT_EQ(f->settings.effective.pipeline, Pipeline::kVisibility);
+  const absl::StatusOr<Frame> g = SharedRenderer().Render(*SharedDemoScene(), Camera{}, s);
+  ASSERT_TRUE(g.ok()) << g.status();
+  EXPECT_EQ(f->image.pixels, g->image.pixels);  // the shared renderer shades per material too
   EXPECT_EQ((*r)->validation_message_count(), 0u);
 }
 

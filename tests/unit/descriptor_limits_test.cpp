@@ -27,6 +27,7 @@ VkPhysicalDeviceLimits Minimums() {
   l.maxDescriptorSetSamplers = l.maxDescriptorSetUniformBuffers = 1000;
   l.maxDescriptorSetStorageBuffers = l.maxDescriptorSetSampledImages = 1000;
   l.maxDescriptorSetStorageImages = l.maxDescriptorSetInputAttachments = 1000;
+  l.maxDescriptorSetUniformBuffersDynamic = l.maxDescriptorSetStorageBuffersDynamic = 1000;
   return MinimumDescriptorLimits(l);
 }
 
@@ -128,6 +129,39 @@ TEST(DescriptorLimits, TheWholeLayoutsLimits) {
                           Binding(2, VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, kFragment, 1)};
   EXPECT_EQ(CheckDescriptorLimits(l, {mixed}, 0, "p").message(),
             "p: 21 resources in the fragment stage exceed the device's maxPerStageResources (20)");
+}
+
+TEST(DescriptorLimits, DynamicBuffersAndTypesItDoesNotCount) {
+  const VkPhysicalDeviceLimits l = Minimums();
+  // Dynamic buffers count as buffers, and against their own limit for the layout (4 storage).
+  const Bindings dynamic = {
+      Binding(0, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER_DYNAMIC, VK_SHADER_STAGE_VERTEX_BIT, 3),
+      Binding(1, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER_DYNAMIC, kFragment, 2)};
+  EXPECT_EQ(CountDescriptors(dynamic, kFragment).storage_buffers, 2u);
+  EXPECT_EQ(CountDescriptors(dynamic, VK_SHADER_STAGE_ALL).storage_buffers_dynamic, 5u);
+  EXPECT_EQ(CheckDescriptorLimits(l, {dynamic}, 0, "p").message(),
+            "p: 5 dynamic buffers in the layout exceed the device's "
+            "maxDescriptorSetStorageBuffersDynamic (4)");
+  // A type the check does not count is refused, not passed unchecked.
+  const absl::Status s = CheckDescriptorLimits(
+      l, {{Binding(0, VK_DESCRIPTOR_TYPE_INLINE_UNIFORM_BLOCK, kFragment, 16)}}, 0, "p");
+  EXPECT_EQ(s.code(), absl::StatusCode::kInternal);
+  EXPECT_FALSE(IsDescriptorLimitError(s));
+  // The refusals over a limit say so; others do not.
+  EXPECT_TRUE(IsDescriptorLimitError(CheckDescriptorLimits(l, {dynamic}, 0, "p")));
+  EXPECT_FALSE(IsDescriptorLimitError(absl::FailedPreconditionError("p")));
+}
+
+TEST(DescriptorLimits, CapsAreNamedAsTheSpecNamesThem) {
+  VkPhysicalDeviceLimits l = Minimums();
+  ASSERT_TRUE(CapDescriptorLimit(l, "maxPerStageDescriptorStorageBuffers", 2).ok());
+  EXPECT_EQ(l.maxPerStageDescriptorStorageBuffers, 2u);
+  ASSERT_TRUE(CapDescriptorLimit(l, "maxPerStageDescriptorStorageBuffers", 9).ok());
+  EXPECT_EQ(l.maxPerStageDescriptorStorageBuffers, 2u);  // at most: never raised
+  const absl::Status s = CapDescriptorLimit(l, "maxStorageBuffers", 2);
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(s.message()).find("known: maxBoundDescriptorSets, "), std::string::npos)
+      << s;
 }
 
 }  // namespace
