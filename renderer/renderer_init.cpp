@@ -78,21 +78,15 @@ absl::Status Renderer::Impl::InitPasses() {
   // limits (the forward passes' fit: they were made above), the device renders without them,
   // as one that lacks the visibility buffer's features: pipeline visibility renders forward and
   // vis_mlaa msaa, and DeviceInfo::fallbacks says why.
-  auto create_visibility = [&]() -> absl::Status {
+  absl::Status one_dispatch;  // the one-dispatch shading's layouts do not fit (CreateShadePass)
+  const absl::Status visibility = [&]() -> absl::Status {
     RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibility)));
     RETURN_IF_ERROR(add(CreateVisibilityPass(*ctx, scene_layout, PassId::kVisibilityLate)));
     RETURN_IF_ERROR(add(CreateVisResolvePass(*ctx, scene_layout)));
     RETURN_IF_ERROR(add(CreateVisClassifyPass(*ctx, scene_layout)));
-    RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout)));
+    RETURN_IF_ERROR(add(CreateShadePass(*ctx, scene_layout, &one_dispatch)));
     return add(CreateGeometricAaPass(*ctx));
-  };
-  absl::Status visibility = create_visibility();
-  // The one-dispatch shading's layouts (with the bucket set) are the largest: without room for
-  // them, the per-material shading may still fit.
-  if (vk::IsDescriptorLimitError(visibility) && ctx->info().shade_all_materials) {
-    ctx->DisableShadeAllMaterials(std::string(visibility.message()));
-    visibility = create_visibility();
-  }
+  }();
   if (vk::IsDescriptorLimitError(visibility)) {
     for (PassId id : {PassId::kVisibility, PassId::kVisibilityLate, PassId::kVisResolve,
                       PassId::kVisClassify, PassId::kShade, PassId::kGeometricAa}) {
@@ -101,6 +95,9 @@ absl::Status Renderer::Impl::InitPasses() {
     ctx->DisableVisibilityBuffer(std::string(visibility.message()));
   } else {
     RETURN_IF_ERROR(visibility);
+    // The one-dispatch shading's layouts (with the bucket set) are the largest: without room
+    // for them the shading runs per material, whose layouts were made.
+    if (!one_dispatch.ok()) ctx->DisableShadeAllMaterials(std::string(one_dispatch.message()));
   }
   RETURN_IF_ERROR(add(CreateTaaPass(*ctx)));
   RETURN_IF_ERROR(add(CreateMotionPass(*ctx, scene_layout)));

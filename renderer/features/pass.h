@@ -432,8 +432,12 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateGeometricAaPass(const vk::Context& c
 // The visibility shading: kVisClassify and kShade (features/vis_shade.cpp).
 absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& ctx,
                                                             const SceneLayout& layout);
+// Where the device shades in one dispatch (DeviceInfo::shade_all_materials) and that shading's
+// layouts exceed its descriptor limits, `one_dispatch` (when given) gets the refusal and the pass
+// shades per material only; the caller turns the one dispatch off (DisableShadeAllMaterials).
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
-                                                      const SceneLayout& layout);
+                                                      const SceneLayout& layout,
+                                                      absl::Status* one_dispatch = nullptr);
 absl::StatusOr<std::unique_ptr<Pass>> CreateTaaPass(const vk::Context& ctx);
 // taa on animated scenes: the moved geometry's motion (TaaFrame::draws), and the pose kept.
 absl::StatusOr<std::unique_ptr<Pass>> CreateMotionPass(const vk::Context& ctx,

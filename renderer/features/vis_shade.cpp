@@ -32,6 +32,7 @@
 #include "renderer/features/features.h"
 #include "renderer/features/pass.h"
 #include "renderer/renderer_impl.h"
+#include "renderer/vk/descriptor_limits.h"
 #include "renderer/vk/pipeline.h"
 #include "renderer/vk/vk_check.h"
 #include "shaders/common/gpu_types.h"
@@ -459,7 +460,8 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateVisClassifyPass(const vk::Context& c
 }
 
 absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
-                                                      const SceneLayout& scene) {
+                                                      const SceneLayout& scene,
+                                                      absl::Status* one_dispatch) {
   ASSIGN_OR_RETURN(ShadeLayout one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample));
   ASSIGN_OR_RETURN(ShadeLayout mlaa, ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa));
   ASSIGN_OR_RETURN(vk::Pipeline mlaa_sky,
@@ -467,9 +469,20 @@ absl::StatusOr<std::unique_ptr<Pass>> CreateShadePass(const vk::Context& ctx,
                                              mlaa.pipeline_layout()));
   std::optional<AllMaterials> all;
   if (ctx.info().shade_all_materials) {
-    all.emplace();
-    ASSIGN_OR_RETURN(all->one, ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample, true));
-    ASSIGN_OR_RETURN(all->mlaa, ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa, true));
+    absl::StatusOr<ShadeLayout> all_one =
+        ShadeLayout::Create(ctx, scene, ShadeSet::kOneSample, true);
+    absl::StatusOr<ShadeLayout> all_mlaa =
+        all_one.ok() ? ShadeLayout::Create(ctx, scene, ShadeSet::kVisMlaa, true) : all_one.status();
+    const absl::Status s = all_mlaa.status();
+    if (s.ok()) {
+      all.emplace();
+      all->one = std::move(*all_one);
+      all->mlaa = std::move(*all_mlaa);
+    } else if (one_dispatch != nullptr && vk::IsDescriptorLimitError(s)) {
+      *one_dispatch = s;  // shaded per material instead (the caller turns it off)
+    } else {
+      return s;
+    }
   }
   return std::make_unique<ShadePass>(std::move(one), std::move(mlaa), std::move(mlaa_sky),
                                      std::move(all));

@@ -293,40 +293,44 @@ class PreScan {
   // written as one for tinygltf, which would take it as no value (result_->integers_rewritten).
   // (The references' ranges are checked where they are used; an extension's integers are
   // widened.)
-  enum class IntKind { kIndex, kEnum, kCount, kOffset };
+  // kSize: a byte length, offset, stride or element count, which tinygltf reads as a size_t (any
+  // non-negative integer; it took a negative or fractional one as 0 where it is optional).
+  enum class IntKind { kIndex, kEnum, kCount, kOffset, kSize };
 
-  // `v` (when present) is an integer an int holds, and at least 1 (a count) or 0 (the rest:
-  // every glTF enumeration is positive, and tinygltf takes a negative mode or filter as none).
+  // `v` (when present) is a non-negative integer (every glTF enumeration is positive, and
+  // tinygltf takes a negative mode or filter as none), at least 1 for a count, and one an int
+  // holds for all but sizes.
   absl::Status Int32(json* v, const std::string& field, IntKind kind) {
     if (v == nullptr) return absl::OkStatus();
-    constexpr int64_t kMax = std::numeric_limits<int32_t>::max();
-    constexpr int64_t kMin = std::numeric_limits<int32_t>::min();
-    const int64_t lo = kind == IntKind::kCount ? 1 : 0;
-    int64_t n = 0;
+    const uint64_t hi = kind == IntKind::kSize ? std::numeric_limits<uint64_t>::max()
+                                               : uint64_t(std::numeric_limits<int32_t>::max());
+    const uint64_t lo = kind == IntKind::kCount ? 1 : 0;
+    uint64_t n = 0;
     bool integer = false;
     if (v->is_number_unsigned()) {
-      integer = v->get<uint64_t>() <= uint64_t(kMax);
-      n = integer ? int64_t(v->get<uint64_t>()) : 0;
-    } else if (v->is_number_integer()) {
-      n = v->get<int64_t>();
+      n = v->get<uint64_t>();
       integer = true;
+    } else if (v->is_number_integer()) {
+      integer = v->get<int64_t>() >= 0;
+      n = integer ? uint64_t(v->get<int64_t>()) : 0;
     } else if (v->is_number_float()) {
       const double x = v->get<double>();
-      integer = std::floor(x) == x && x >= double(kMin) && x <= double(kMax);
-      n = integer ? int64_t(x) : 0;
+      integer = std::floor(x) == x && x >= 0.0 && x <= 9007199254740992.0;  // exact up to 2^53
+      n = integer ? uint64_t(x) : 0;
     }
-    if (integer && n >= lo && n <= kMax) {
+    if (integer && n >= lo && n <= hi) {
       if (v->is_number_float()) {
         *v = n;
         result_->integers_rewritten = true;
       }
       return absl::OkStatus();
     }
-    const char* what = kind == IntKind::kIndex ? " is not an index (an integer in [0, 2147483647])"
-                       : kind == IntKind::kCount ? " is not a count (an integer in [1, 2147483647])"
-                       : kind == IntKind::kOffset
-                           ? " is not a byte offset (an integer in [0, 2147483647])"
-                           : " is not an enumerated value (an integer in [0, 2147483647])";
+    const char* what =
+        kind == IntKind::kIndex    ? " is not an index (an integer in [0, 2147483647])"
+        : kind == IntKind::kCount  ? " is not a count (an integer in [1, 2147483647])"
+        : kind == IntKind::kOffset ? " is not a byte offset (an integer in [0, 2147483647])"
+        : kind == IntKind::kSize   ? " is not a size (a non-negative integer)"
+                                   : " is not an enumerated value (an integer in [0, 2147483647])";
     return Invalid(file_, field, Quote(v->dump()), what);
   }
   // The members `keys` of `o`, when it is an object, each of `kind`.
@@ -361,7 +365,7 @@ class PreScan {
     return absl::OkStatus();
   }
 
-  // Every integer of the core schema that tinygltf reads as an int.
+  // Every integer of the core schema that tinygltf reads as an int or a size_t.
   absl::Status IntegerFields(json& j) {
     auto each =
         [&](json* o, const char* key, const std::string& path,
@@ -372,7 +376,10 @@ class PreScan {
       return absl::OkStatus();
     };
     constexpr IntKind kEnum = IntKind::kEnum;
-    RETURN_IF_ERROR(Int32s(&j, "", {"scene"}));
+    RETURN_IF_ERROR(Int32(At(&j, "scene"), "scene", IntKind::kIndex));
+    RETURN_IF_ERROR(each(&j, "buffers", "", [&](json& b, const std::string& f) -> absl::Status {
+      return Int32s(&b, f, {"byteLength"}, IntKind::kSize);
+    }));
     RETURN_IF_ERROR(each(&j, "scenes", "", [&](json& s, const std::string& f) -> absl::Status {
       return IndexArray(At(&s, "nodes"), f + ".nodes");
     }));
@@ -412,6 +419,7 @@ class PreScan {
     RETURN_IF_ERROR(each(&j, "accessors", "", [&](json& a, const std::string& f) -> absl::Status {
       RETURN_IF_ERROR(Int32s(&a, f, {"bufferView"}));
       RETURN_IF_ERROR(Int32s(&a, f, {"componentType"}, kEnum));
+      RETURN_IF_ERROR(Int32s(&a, f, {"byteOffset", "count"}, IntKind::kSize));
       // tinygltf reads a sparse block's count and offsets as ints too.
       json* sparse = At(&a, "sparse");
       const std::string sf = f + ".sparse";
@@ -426,6 +434,7 @@ class PreScan {
     }));
     RETURN_IF_ERROR(each(&j, "bufferViews", "", [&](json& b, const std::string& f) -> absl::Status {
       RETURN_IF_ERROR(Int32s(&b, f, {"buffer"}));
+      RETURN_IF_ERROR(Int32s(&b, f, {"byteOffset", "byteLength", "byteStride"}, IntKind::kSize));
       return Int32s(&b, f, {"target"}, kEnum);
     }));
     RETURN_IF_ERROR(each(&j, "skins", "", [&](json& s, const std::string& f) -> absl::Status {

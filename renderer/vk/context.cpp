@@ -656,6 +656,10 @@ absl::Status Context::CreateSetLayout(const std::vector<VkDescriptorSetLayoutBin
   VkDescriptorSetLayoutCreateInfo li{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
   li.bindingCount = static_cast<uint32_t>(bindings.size());
   li.pBindings = bindings.data();
+  if (out->get() != VK_NULL_HANDLE) {  // the layout it replaces: its entry goes with it
+    std::lock_guard<std::mutex> lock(set_layouts_mutex_);
+    set_layouts_.erase(out->get());
+  }
   VK_RETURN_IF_ERROR(vkCreateDescriptorSetLayout(device_, &li, nullptr, out->Replace(device_)),
                      name.c_str());
   std::vector<VkDescriptorSetLayoutBinding> kept = bindings;

@@ -137,8 +137,10 @@ class Context {
   PFN_vkSetDebugUtilsObjectNameEXT set_name_ = nullptr;
   std::atomic<uint64_t> validation_count_{0};
   std::vector<std::pair<std::string, uint32_t>> limit_caps_;  // ContextOptions's, and the env's
-  // The bindings of each set layout CreateSetLayout made (a destroyed layout's entry stays
-  // until its handle is reused: it is never looked up).
+  // The bindings of each set layout CreateSetLayout made. A layout replaced in its holder takes
+  // its entry with it; one destroyed with its holder leaves its entry until the handle is reused
+  // (never looked up: the renderer makes its layouts once, the IBL bake's again only after a
+  // failed bake).
   mutable std::mutex set_layouts_mutex_;
   mutable std::unordered_map<VkDescriptorSetLayout, std::vector<VkDescriptorSetLayoutBinding>>
       set_layouts_;

@@ -315,7 +315,8 @@ const cases = [
   generated('node_children_beyond_32_bits', (j) => { j.nodes[0].children = [4294967297]; }),
   // Valid: integers written as floats (JSON.stringify would write 0 and 5126).
   generated('integers_written_as_floats', () => {}, (text) => text.replace('"mesh":0', '"mesh":0.0')
-    .replace('"componentType":5126', '"componentType":5126.0')),
+    .replace('"componentType":5126', '"componentType":5126.0').replace('"byteStride":12', '"byteStride":12.0')
+    .replace('"count":24', '"count":24.0')),
   generated('sparse_count_zero', (j, bin) => {
     const b = sparse([1, 3])(j, bin);
     j.accessors[2].sparse.count = 0;

@@ -701,8 +701,9 @@ TEST(GltfImportMalformed, AbsurdDeclaredSizes) {
   ExpectInvalid(
       ImportGltf(Edited(box, [](json& j) { j["buffers"][0]["byteLength"] = 1000000000000000ull; })),
       {"buffers[0]", "byteLength (1000000000000000)"});
+  // The same written as a float: an integer to the pre-scan, as the validator reads it.
   ExpectInvalid(ImportGltf(Edited(box, [](json& j) { j["buffers"][0]["byteLength"] = 1e15; })),
-                {"buffers[0].byteLength"});
+                {"buffers[0]", "byteLength (1000000000000000)"});
   GltfSource textured = Source("BoxTextured/glTF/BoxTextured.gltf");
   // A 33-byte file that claims 10^10 pixels is refused from its header.
   textured.files["CesiumLogoFlat.png"] = PngHeader(100000, 100000);
@@ -1380,6 +1381,16 @@ TEST(GltfImportMalformed, IntegersAnIntDoesNotHoldAreRefused) {
           "accessors[2].sparse.indices.byteOffset: -4 is not a byte offset (an "
           "integer in [0, 2147483647])");
   refused(sparse(4294967297u, 0), "accessors[2].sparse.count: 4294967297 is not a count");
+  // Sizes, which tinygltf reads as size_t (and took a negative or fractional one as 0).
+  refused([](json& j) { j["accessors"][1]["byteOffset"] = -4; },
+          "accessors[1].byteOffset: -4 is not a size (a non-negative integer)");
+  refused([](json& j) { j["accessors"][1]["count"] = 24.5; },
+          "accessors[1].count: 24.5 is not a size");
+  refused([](json& j) { j["bufferViews"][0]["byteLength"] = "72"; },
+          "bufferViews[0].byteLength: \"72\" is not a size");
+  refused([](json& j) { j["buffers"][0]["byteLength"] = -1; },
+          "buffers[0].byteLength: -1 is not a size");
+  refused([](json& j) { j["scene"] = -1; }, "BoxTextured.gltf: scene: -1" + index);
   // At the ends of an int: past this check, to the checks of what they name.
   refused([](json& j) { j["textures"][0]["source"] = 2147483647; },
           "textures[0].source: image index 2147483647 out of range (1 images)");
@@ -1397,6 +1408,10 @@ TEST(GltfImportMalformed, IntegersAnIntDoesNotHoldAreRefused) {
       j["meshes"][0]["primitives"][0]["material"] = 0.0;
       j["accessors"][1]["componentType"] = 5126.0;
       j["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["index"] = 0.0;
+      j["accessors"][1]["count"] = 24.0;
+      j["accessors"][2]["byteOffset"] = 288.0;
+      j["bufferViews"][1]["byteStride"] = 12.0;
+      j["bufferViews"][0]["byteLength"] = 72.0;
     };
     absl::StatusOr<CpuScene> s;
     if (glb) {
