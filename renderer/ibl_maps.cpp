@@ -15,7 +15,9 @@ namespace tessera {
 namespace {
 
 constexpr VkFormat kCubeFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
-constexpr VkFormat kLutFormat = VK_FORMAT_R16G16_SFLOAT;
+// The split-sum table (two channels used) as RGBA16F: storage images of R16G16_SFLOAT are one of
+// Vulkan's optional formats (shaderStorageImageExtendedFormats), RGBA16F a required one. 32 KiB.
+constexpr VkFormat kLutFormat = VK_FORMAT_R16G16B16A16_SFLOAT;
 constexpr uint32_t kGroup = 8;  // the compute shaders' local size (x, y)
 constexpr float kSpecularSamples = 128.0f;
 // The environment level the irradiance integrates over: every texel of a 16x16 face.

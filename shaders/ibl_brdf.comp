@@ -19,7 +19,8 @@
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 1) in;
 
-layout(set = 0, binding = 0, rg16f) writeonly uniform image2D u_lut;
+// RGBA16F (renderer/ibl_maps.cpp, kLutFormat: a storage format every device has); .rg used.
+layout(set = 0, binding = 0, rgba16f) writeonly uniform image2D u_lut;
 
 const uint kLutSize = 64;
 const uint kSamples = 512;

@@ -18,6 +18,7 @@
 #include "renderer/log.h"
 #include "renderer/settings.h"
 #include "renderer/vk/descriptor_limits.h"
+#include "renderer/vk/format_support.h"
 #include "renderer/vk/vk_check.h"
 
 namespace tessera::vk {
@@ -506,18 +507,15 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
         p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
   }
 
-  // The visibility passes and the scene set bind buffers as texel buffers of these formats (on
-  // every device: the shaders hold both paths), which Vulkan requires of every device.
-  const std::pair<VkFormat, const char*> texel_formats[] = {
-      {VK_FORMAT_R32_UINT, "R32_UINT"},
-      {VK_FORMAT_R32G32_UINT, "R32G32_UINT"},
-      {VK_FORMAT_R32G32B32A32_UINT, "R32G32B32A32_UINT"}};
-  for (const auto& [format, name] : texel_formats) {
+  // The format features Tessera relies on (vk/format_support.h).
+  const std::vector<std::string> missing = MissingFormatFeatures([&](VkFormat format) {
     VkFormatProperties fp{};
     vkGetPhysicalDeviceFormatProperties(physical_, format, &fp);
-    if (!(fp.bufferFeatures & VK_FORMAT_FEATURE_UNIFORM_TEXEL_BUFFER_BIT))
-      return absl::FailedPreconditionError(absl::StrCat(
-          p.deviceName, " lacks uniform texel buffers of ", name, " (a format Vulkan requires)"));
+    return fp;
+  });
+  if (!missing.empty()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(p.deviceName, " lacks ", absl::StrJoin(missing, ", ")));
   }
   DescribeDevice(p, driver, supported, validation);
   DeviceInfo& info = info_;
