@@ -31,7 +31,8 @@ const std::vector<std::string>& DisableableFeatures() {
   static const std::vector<std::string> names = {
       "draw_indirect_count", "multi_draw_indirect", "subgroup_arithmetic", "subgroup_ballot",
       "sampler_minmax",      "visibility_buffer",   "pipeline_statistics", "material_variants",
-      "texel_buffers",       "vertex_pulling",      "host_specialization", "sampler_indexing"};
+      "texel_buffers",       "vertex_pulling",      "host_specialization", "sampler_indexing",
+      "storage_rg16f"};
   return names;
 }
 

@@ -62,6 +62,9 @@ struct DeviceInfo {
   bool validation = false;      // validation layers active
   bool sampler_minmax = false;  // min/max reduction samplers on R32F (the depth pyramid)
   bool pipeline_statistics = false;  // pipelineStatisticsQuery
+  // R16G16_SFLOAT storage images (one of Vulkan's optional storage formats): the IBL's
+  // split-sum table is written as RG16F; else as RGBA16F (two channels used).
+  bool storage_rg16f = false;
   // Not a device feature: the shading passes build a pipeline per set of texture slots the
   // scene's materials use (GpuScene::texture_sets). Disabled, every material is shaded by the
   // general pipeline, the reference the variants are tested against.

@@ -457,6 +457,9 @@ std::vector<DeviceFallback> ListFallbacks(const DeviceInfo& info) {
          "shaderSampledImageArrayNonUniformIndexing)",
          "the visibility shading classifies the pixels by material and runs one "
          "dispatch per material over its list"});
+  if (!info.storage_rg16f)
+    out.push_back({"R16G16_SFLOAT storage images",
+                   "the IBL's split-sum table is written as RGBA16F (two channels used)"});
   if (!info.pipeline_statistics)
     out.push_back({"pipelineStatisticsQuery", "frame stats report no fragment invocations"});
   if (!info.texel_buffers)
@@ -574,6 +577,12 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
         (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT) != 0;
   }
   f12.samplerFilterMinmax = info.sampler_minmax ? VK_TRUE : VK_FALSE;
+  {
+    VkFormatProperties fp{};
+    vkGetPhysicalDeviceFormatProperties(physical_, VK_FORMAT_R16G16_SFLOAT, &fp);
+    info.storage_rg16f = (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT) != 0 &&
+                         !off("storage_rg16f");
+  }
   info.sampler_indexing = supported.shaderSampledImageArrayDynamicIndexing &&
                           f12_supported.shaderSampledImageArrayNonUniformIndexing &&
                           !off("sampler_indexing");

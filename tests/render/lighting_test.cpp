@@ -545,6 +545,31 @@ TEST(IblTest, MatchesGoldenInBothPaths) {
   ExpectNoValidationMessages(SharedRenderer());
 }
 
+// The split-sum table is RG16F where the device has R16G16_SFLOAT storage images, else RGBA16F
+// (two channels used): the same half floats, so the same picture, pixel for pixel.
+TEST(IblTest, TheTableInEitherFormatGivesTheSamePicture) {
+  absl::StatusOr<std::unique_ptr<Renderer>> wide =
+      Renderer::Create({.validation = true, .disable_features = {"storage_rg16f"}});
+  ASSERT_TRUE(wide.ok()) << wide.status();
+  EXPECT_FALSE((*wide)->device_info().storage_rg16f);
+  bool listed = false;
+  for (const DeviceFallback& f : (*wide)->device_info().fallbacks)
+    listed |= f.missing == "R16G16_SFLOAT storage images";
+  EXPECT_TRUE(listed);
+  std::printf("default device: %s\n", SharedRenderer().device_info().storage_rg16f
+                                          ? "RG16F table"
+                                          : "RGBA16F table (no R16G16_SFLOAT storage)");
+  absl::StatusOr<SceneHandle> scene = (*wide)->LoadScene(BuildDemoScene());
+  ASSERT_TRUE(scene.ok()) << scene.status();
+  for (const AaMode aa : {AaMode::kNone, AaMode::kVisMlaa}) {
+    absl::StatusOr<Frame> f = (*wide)->Render(**scene, BackCamera(), Ibl(aa));
+    ASSERT_TRUE(f.ok()) << f.status();
+    const Frame g = RenderOrDie(*SharedDemoScene(), BackCamera(), Ibl(aa));
+    EXPECT_EQ(f->image.pixels, g.image.pixels);
+  }
+  EXPECT_EQ((*wide)->validation_message_count(), 0u);
+}
+
 // The maps are baked once per sky: a frame with the same sun bakes nothing; another sun bakes.
 TEST(IblTest, BakedOncePerSky) {
   const SceneHandle& scene = SharedDemoScene();
