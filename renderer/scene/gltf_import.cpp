@@ -1901,6 +1901,10 @@ class Converter {
     const auto ext = n.extensions.find("KHR_lights_punctual");
     if (ext == n.extensions.end()) return absl::OkStatus();
     const double li = NumberOr(ext->second, "light", -1.0);
+    if (li != std::floor(li)) {  // 0.5 read as light 0
+      return Err(path + ".extensions.KHR_lights_punctual.light", "light index ", li,
+                 " is not an integer");
+    }
     if (!(li >= 0.0 && li < double(m_.lights.size()))) {
       return Err(path + ".extensions.KHR_lights_punctual.light", "light index out of range (",
                  m_.lights.size(), " lights)");

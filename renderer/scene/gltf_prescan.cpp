@@ -1273,31 +1273,53 @@ class PreScan {
   uint64_t copied_bytes_ = 0;  // what tinygltf will copy out of the file set
 };
 
-// Makes each integer beyond 32 bits inside an "extensions" object a floating-point number, and
-// says whether there was one: tinygltf keeps an extension's values as plain values, with an
-// integer cast to int, so 4294967296 would read as 0 (a light index as light 0, an emissive
-// strength as 0); as a double it reads as itself, and an index that large is refused where it is
-// checked. (The pre-scan's limit on the JSON's depth bounds the recursion.)
-bool WidenExtensionIntegers(json& v, bool in_extensions = false) {
+// Calls `change` on every number inside an "extensions" object (outside `extras`, an
+// application's, which the importer reads none of); says whether it changed one. (The
+// pre-scan's limit on the JSON's depth bounds the recursion.)
+template <typename Change>
+bool ChangeExtensionNumbers(json& v, const Change& change, bool in_extensions = false) {
   bool changed = false;
   if (v.is_object()) {
     for (auto& [key, value] : v.items()) {
-      if (key == "extras") continue;  // an application's; the importer reads none
-      changed |= WidenExtensionIntegers(value, in_extensions || key == "extensions");
+      if (key == "extras") continue;
+      changed |= ChangeExtensionNumbers(value, change, in_extensions || key == "extensions");
     }
   } else if (v.is_array()) {
-    for (json& e : v) changed |= WidenExtensionIntegers(e, in_extensions);
-  } else if (in_extensions && v.is_number_integer()) {
+    for (json& e : v) changed |= ChangeExtensionNumbers(e, change, in_extensions);
+  } else if (in_extensions && v.is_number()) {
+    changed |= change(v);
+  }
+  return changed;
+}
+
+// Makes each float inside an "extensions" object that is an integer (0.0, 2.0; up to 2^53) an
+// integer: the validator reads them as integers, and so do the pre-scan's checks of an
+// extension's indices after this. (A number field is read the same either way: files write
+// integers there too, "emissiveStrength": 5.)
+bool ExtensionFloatsToIntegers(json& j) {
+  return ChangeExtensionNumbers(j, [](json& v) {
+    if (!v.is_number_float()) return false;
+    const double x = v.get<double>();
+    if (std::floor(x) != x || std::abs(x) > 9007199254740992.0) return false;
+    v = int64_t(x);
+    return true;
+  });
+}
+
+// Makes each integer beyond 32 bits inside an "extensions" object a floating-point number:
+// tinygltf keeps an extension's values as plain values, with an integer cast to int, so
+// 4294967296 would read as 0 (a light index as light 0, an emissive strength as 0); as a double
+// it reads as itself, and an index that large is refused where it is checked.
+bool WidenExtensionIntegers(json& j) {
+  return ChangeExtensionNumbers(j, [](json& v) {
+    if (!v.is_number_integer()) return false;
     constexpr int64_t kMax = std::numeric_limits<int32_t>::max();
     constexpr int64_t kMin = std::numeric_limits<int32_t>::min();
     const bool wide = v.is_number_unsigned() ? v.get<uint64_t>() > uint64_t(kMax)
                                              : v.get<int64_t>() > kMax || v.get<int64_t>() < kMin;
-    if (wide) {
-      v = v.get<double>();
-      changed = true;
-    }
-  }
-  return changed;
+    if (wide) v = v.get<double>();
+    return wide;
+  });
 }
 
 // What tinygltf 2.7 cannot read of the compression extensions, taken out of the JSON it reads:
@@ -1402,6 +1424,7 @@ absl::StatusOr<PreScanResult> PreScanGltf(const GltfSource& source, const Import
   PreScanResult result{.is_glb = is_glb, .bytes = &bytes, .text = text};
   try {
     json j = json::parse(text.begin(), text.end());
+    if (ExtensionFloatsToIntegers(j)) result.integers_rewritten = true;
     RETURN_IF_ERROR(PreScan(source, is_glb ? &glb : nullptr, limits, &result).Run(j));
     const bool widened = WidenExtensionIntegers(j);
     if (widened || result.integers_rewritten || !result.fallback_buffers.empty() ||

@@ -317,6 +317,11 @@ const cases = [
   generated('integers_written_as_floats', () => {}, (text) => text.replace('"mesh":0', '"mesh":0.0')
     .replace('"componentType":5126', '"componentType":5126.0').replace('"byteStride":12', '"byteStride":12.0')
     .replace('"count":24', '"count":24.0')),
+  generated('extension_index_written_as_float', (j) => {
+    j.extensionsUsed = ['KHR_lights_punctual'];
+    j.extensions = { KHR_lights_punctual: { lights: [{ type: 'point' }] } };
+    j.nodes[0].extensions = { KHR_lights_punctual: { light: 0 } };
+  }, (text) => text.replace('"light":0', '"light":0.0')),
   generated('sparse_count_zero', (j, bin) => {
     const b = sparse([1, 3])(j, bin);
     j.accessors[2].sparse.count = 0;

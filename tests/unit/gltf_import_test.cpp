@@ -1948,6 +1948,44 @@ TEST(GltfImportExtensions, IntegersBeyond32BitsReadAsThemselves) {
   EXPECT_EQ(glb->vertices.size(), 24u);  // the BIN chunk still read
 }
 
+// Inside extensions too, a float that is an integer reads as the integer (as the validator
+// reads it): a texture index 0.0 and a light index 0.0 were refused as "wants a non-negative
+// integer" / out of range; a number field reads the same either way.
+TEST(GltfImportExtensions, IntegersWrittenAsFloatsReadAsIntegers) {
+  REQUIRE_ASSETS();
+  absl::StatusOr<CpuScene> s =
+      ImportGltf(Edited(Source("BoxTextured/glTF/BoxTextured.gltf"), [](json& j) {
+        j["extensionsUsed"] = {"KHR_materials_specular", "KHR_materials_emissive_strength",
+                               "KHR_lights_punctual"};
+        json& m = j["materials"][0];
+        m["emissiveFactor"] = {1, 1, 1};
+        m["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"] = 2.0;
+        m["extensions"]["KHR_materials_specular"] = {
+            {"specularTexture", {{"index", 0.0}, {"texCoord", 0.0}}}, {"specularFactor", 1.0}};
+        j["extensions"]["KHR_lights_punctual"]["lights"] = {
+            {{"type", "point"}, {"color", {1.0, 0.5, 0.0}}, {"intensity", 3.0}}};
+        j["nodes"][0]["extensions"]["KHR_lights_punctual"]["light"] = 0.0;
+      }));
+  ASSERT_TRUE(s.ok()) << s.status();
+  const Material& m = s->materials[0];
+  EXPECT_EQ(m.emissive_strength, 2.0f);
+  EXPECT_EQ(m.specular_factor, 1.0f);
+  ASSERT_GE(m.specular.texture, 0);
+  EXPECT_EQ(m.specular.texcoord, 0u);
+  ASSERT_EQ(s->lights.size(), 1u);
+  EXPECT_EQ(s->lights[0].color, glm::vec3(1.0f, 0.5f, 0.0f));
+  EXPECT_EQ(s->lights[0].intensity, 3.0f);
+  // A fraction is still no index.
+  ExpectInvalid(
+      ImportGltf(Edited(Source("Box/glTF/Box.gltf"),
+                        [](json& j) {
+                          j["extensionsUsed"] = {"KHR_lights_punctual"};
+                          j["extensions"]["KHR_lights_punctual"]["lights"] = {{{"type", "point"}}};
+                          j["nodes"][0]["extensions"]["KHR_lights_punctual"]["light"] = 0.5;
+                        })),
+      {"nodes[0].extensions.KHR_lights_punctual.light", "light index 0.5 is not an integer"});
+}
+
 // ----- COLOR_0 ------------------------------------------------------------------------------
 
 // Box (24 vertices) with COLOR_0: `count` elements of `type` ("VEC3"/"VEC4") in `component_type`,
