@@ -50,6 +50,11 @@ absl::StatusOr<std::unique_ptr<Renderer>> Renderer::Create(const RendererOptions
                                       .shading = options.shading}));
   impl->readback_ring = ReadbackRing(options.lent_buffers);
   RETURN_IF_ERROR(impl->Init());
+  // After the passes are made: a descriptor limit may have turned this shading off
+  // (vk::Context::DisableShadeAllMaterials).
+  if (impl->ctx->info().shade_all_materials) {
+    Log().info("visibility shading: one dispatch over every pixel, textures indexed per pixel");
+  }
   if (const char* n = std::getenv("TESSERA_TEST_DEVICE_LOST_AFTER_FRAMES")) {
     int64_t frames = -1;
     if (!absl::SimpleAtoi(n, &frames) || frames < 0)

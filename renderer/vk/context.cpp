@@ -224,9 +224,6 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
              info.driver_name, info.driver_info, info.max_samples, validation ? "on" : "off");
   for (const DeviceFallback& f : info.fallbacks)
     Log().info("vulkan device lacks {}: {}", f.missing, f.path);
-  if (info.shade_all_materials) {
-    Log().info("visibility shading: one dispatch over every pixel, textures indexed per pixel");
-  }
   if (info.host_specialization) {
     Log().info("specialization constants applied on the host (the driver keeps the code they "
                "leave unreachable)");
