@@ -163,6 +163,9 @@ size_t ArraySize(const json& o, const char* key) {
   return a != nullptr && a->is_array() ? a->size() : 0;
 }
 
+// A float that is an integer a double holds exactly (|x| <= 2^53): 0.0, 5126.0, 1e15.
+bool WholeNumber(double x) { return std::floor(x) == x && std::abs(x) <= 9007199254740992.0; }
+
 bool JsonUint(const json* v, uint64_t* out) {
   if (v == nullptr || !v->is_number_integer()) return false;  // is_number_integer: any sign
   if (v->is_number_unsigned()) {
@@ -300,7 +303,7 @@ class PreScan {
   // `v` (when present) is a non-negative integer (every glTF enumeration is positive, and
   // tinygltf takes a negative mode or filter as none), at least 1 for a count, and one an int
   // holds for all but sizes.
-  absl::Status Int32(json* v, const std::string& field, IntKind kind) {
+  absl::Status Integer(json* v, const std::string& field, IntKind kind) {
     if (v == nullptr) return absl::OkStatus();
     const uint64_t hi = kind == IntKind::kSize ? std::numeric_limits<uint64_t>::max()
                                                : uint64_t(std::numeric_limits<int32_t>::max());
@@ -315,7 +318,7 @@ class PreScan {
       n = integer ? uint64_t(v->get<int64_t>()) : 0;
     } else if (v->is_number_float()) {
       const double x = v->get<double>();
-      integer = std::floor(x) == x && x >= 0.0 && x <= 9007199254740992.0;  // exact up to 2^53
+      integer = WholeNumber(x) && x >= 0.0;
       n = integer ? uint64_t(x) : 0;
     }
     if (integer && n >= lo && n <= hi) {
@@ -334,26 +337,20 @@ class PreScan {
     return Invalid(file_, field, Quote(v->dump()), what);
   }
   // The members `keys` of `o`, when it is an object, each of `kind`.
-  absl::Status Int32s(json* o, const std::string& path, std::initializer_list<const char*> keys,
-                      IntKind kind = IntKind::kIndex) {
+  absl::Status Integers(json* o, const std::string& path, std::initializer_list<const char*> keys,
+                        IntKind kind = IntKind::kIndex) {
     if (o == nullptr || !o->is_object()) return absl::OkStatus();
-    for (const char* key : keys) {
-      const auto it = o->find(key);
-      if (it != o->end()) RETURN_IF_ERROR(Int32(&*it, path + "." + key, kind));
-    }
+    for (const char* key : keys) RETURN_IF_ERROR(Integer(At(o, key), path + "." + key, kind));
     return absl::OkStatus();
   }
-  static json* At(json* o, const char* key) {
-    if (o == nullptr || !o->is_object()) return nullptr;
-    const auto it = o->find(key);
-    return it == o->end() ? nullptr : &*it;
-  }
+  // Member, of a JSON value this may change.
+  static json* At(json* o, const char* key) { return const_cast<json*>(Member(o, key)); }
   // `v` (when present) is an array of indices.
   absl::Status IndexArray(json* v, const std::string& field) {
     if (v == nullptr) return absl::OkStatus();
     if (!v->is_array()) return Invalid(file_, field, "not an array of indices");
     for (size_t i = 0; i < v->size(); ++i)
-      RETURN_IF_ERROR(Int32(&(*v)[i], absl::StrCat(field, "[", i, "]"), IntKind::kIndex));
+      RETURN_IF_ERROR(Integer(&(*v)[i], absl::StrCat(field, "[", i, "]"), IntKind::kIndex));
     return absl::OkStatus();
   }
   // `v` (when present) is an object of attribute names to accessor indices.
@@ -361,7 +358,7 @@ class PreScan {
     if (v == nullptr) return absl::OkStatus();
     if (!v->is_object()) return Invalid(file_, field, "not an object of accessor indices");
     for (auto it = v->begin(); it != v->end(); ++it)
-      RETURN_IF_ERROR(Int32(&it.value(), absl::StrCat(field, ".", it.key()), IntKind::kIndex));
+      RETURN_IF_ERROR(Integer(&it.value(), absl::StrCat(field, ".", it.key()), IntKind::kIndex));
     return absl::OkStatus();
   }
 
@@ -376,21 +373,21 @@ class PreScan {
       return absl::OkStatus();
     };
     constexpr IntKind kEnum = IntKind::kEnum;
-    RETURN_IF_ERROR(Int32(At(&j, "scene"), "scene", IntKind::kIndex));
+    RETURN_IF_ERROR(Integer(At(&j, "scene"), "scene", IntKind::kIndex));
     RETURN_IF_ERROR(each(&j, "buffers", "", [&](json& b, const std::string& f) -> absl::Status {
-      return Int32s(&b, f, {"byteLength"}, IntKind::kSize);
+      return Integers(&b, f, {"byteLength"}, IntKind::kSize);
     }));
     RETURN_IF_ERROR(each(&j, "scenes", "", [&](json& s, const std::string& f) -> absl::Status {
       return IndexArray(At(&s, "nodes"), f + ".nodes");
     }));
     RETURN_IF_ERROR(each(&j, "nodes", "", [&](json& n, const std::string& f) -> absl::Status {
-      RETURN_IF_ERROR(Int32s(&n, f, {"camera", "skin", "mesh"}));
+      RETURN_IF_ERROR(Integers(&n, f, {"camera", "skin", "mesh"}));
       return IndexArray(At(&n, "children"), f + ".children");
     }));
     RETURN_IF_ERROR(each(&j, "meshes", "", [&](json& m, const std::string& f) -> absl::Status {
       return each(&m, "primitives", f + ".", [&](json& p, const std::string& pf) -> absl::Status {
-        RETURN_IF_ERROR(Int32s(&p, pf, {"indices", "material"}));
-        RETURN_IF_ERROR(Int32s(&p, pf, {"mode"}, kEnum));
+        RETURN_IF_ERROR(Integers(&p, pf, {"indices", "material"}));
+        RETURN_IF_ERROR(Integers(&p, pf, {"mode"}, kEnum));
         RETURN_IF_ERROR(IndexMap(At(&p, "attributes"), pf + ".attributes"));
         return each(&p, "targets", pf + ".", [&](json& t, const std::string& tf) -> absl::Status {
           return IndexMap(&t, tf);
@@ -400,55 +397,55 @@ class PreScan {
     RETURN_IF_ERROR(each(&j, "materials", "", [&](json& m, const std::string& f) -> absl::Status {
       json* pbr = At(&m, "pbrMetallicRoughness");
       for (const char* slot : {"baseColorTexture", "metallicRoughnessTexture"}) {
-        RETURN_IF_ERROR(Int32s(At(pbr, slot), absl::StrCat(f, ".pbrMetallicRoughness.", slot),
-                               {"index", "texCoord"}));
+        RETURN_IF_ERROR(Integers(At(pbr, slot), absl::StrCat(f, ".pbrMetallicRoughness.", slot),
+                                 {"index", "texCoord"}));
       }
       for (const char* slot : {"normalTexture", "occlusionTexture", "emissiveTexture"})
-        RETURN_IF_ERROR(Int32s(At(&m, slot), absl::StrCat(f, ".", slot), {"index", "texCoord"}));
+        RETURN_IF_ERROR(Integers(At(&m, slot), absl::StrCat(f, ".", slot), {"index", "texCoord"}));
       return absl::OkStatus();
     }));
     RETURN_IF_ERROR(each(&j, "textures", "", [&](json& t, const std::string& f) -> absl::Status {
-      return Int32s(&t, f, {"sampler", "source"});
+      return Integers(&t, f, {"sampler", "source"});
     }));
     RETURN_IF_ERROR(each(&j, "images", "", [&](json& i, const std::string& f) -> absl::Status {
-      return Int32s(&i, f, {"bufferView"});
+      return Integers(&i, f, {"bufferView"});
     }));
     RETURN_IF_ERROR(each(&j, "samplers", "", [&](json& s, const std::string& f) -> absl::Status {
-      return Int32s(&s, f, {"magFilter", "minFilter", "wrapS", "wrapT"}, kEnum);
+      return Integers(&s, f, {"magFilter", "minFilter", "wrapS", "wrapT"}, kEnum);
     }));
     RETURN_IF_ERROR(each(&j, "accessors", "", [&](json& a, const std::string& f) -> absl::Status {
-      RETURN_IF_ERROR(Int32s(&a, f, {"bufferView"}));
-      RETURN_IF_ERROR(Int32s(&a, f, {"componentType"}, kEnum));
-      RETURN_IF_ERROR(Int32s(&a, f, {"byteOffset", "count"}, IntKind::kSize));
+      RETURN_IF_ERROR(Integers(&a, f, {"bufferView"}));
+      RETURN_IF_ERROR(Integers(&a, f, {"componentType"}, kEnum));
+      RETURN_IF_ERROR(Integers(&a, f, {"byteOffset", "count"}, IntKind::kSize));
       // tinygltf reads a sparse block's count and offsets as ints too.
       json* sparse = At(&a, "sparse");
       const std::string sf = f + ".sparse";
-      RETURN_IF_ERROR(Int32s(sparse, sf, {"count"}, IntKind::kCount));
+      RETURN_IF_ERROR(Integers(sparse, sf, {"count"}, IntKind::kCount));
       for (const char* part : {"indices", "values"}) {
         const std::string pf = absl::StrCat(sf, ".", part);
-        RETURN_IF_ERROR(Int32s(At(sparse, part), pf, {"bufferView"}));
-        RETURN_IF_ERROR(Int32s(At(sparse, part), pf, {"byteOffset"}, IntKind::kOffset));
-        RETURN_IF_ERROR(Int32s(At(sparse, part), pf, {"componentType"}, kEnum));
+        RETURN_IF_ERROR(Integers(At(sparse, part), pf, {"bufferView"}));
+        RETURN_IF_ERROR(Integers(At(sparse, part), pf, {"byteOffset"}, IntKind::kOffset));
+        RETURN_IF_ERROR(Integers(At(sparse, part), pf, {"componentType"}, kEnum));
       }
       return absl::OkStatus();
     }));
     RETURN_IF_ERROR(each(&j, "bufferViews", "", [&](json& b, const std::string& f) -> absl::Status {
-      RETURN_IF_ERROR(Int32s(&b, f, {"buffer"}));
-      RETURN_IF_ERROR(Int32s(&b, f, {"byteOffset", "byteLength", "byteStride"}, IntKind::kSize));
-      return Int32s(&b, f, {"target"}, kEnum);
+      RETURN_IF_ERROR(Integers(&b, f, {"buffer"}));
+      RETURN_IF_ERROR(Integers(&b, f, {"byteOffset", "byteLength", "byteStride"}, IntKind::kSize));
+      return Integers(&b, f, {"target"}, kEnum);
     }));
     RETURN_IF_ERROR(each(&j, "skins", "", [&](json& s, const std::string& f) -> absl::Status {
-      RETURN_IF_ERROR(Int32s(&s, f, {"inverseBindMatrices", "skeleton"}));
+      RETURN_IF_ERROR(Integers(&s, f, {"inverseBindMatrices", "skeleton"}));
       return IndexArray(At(&s, "joints"), f + ".joints");
     }));
     return each(&j, "animations", "", [&](json& a, const std::string& f) -> absl::Status {
       RETURN_IF_ERROR(
           each(&a, "channels", f + ".", [&](json& c, const std::string& cf) -> absl::Status {
-            RETURN_IF_ERROR(Int32s(&c, cf, {"sampler"}));
-            return Int32s(At(&c, "target"), cf + ".target", {"node"});
+            RETURN_IF_ERROR(Integers(&c, cf, {"sampler"}));
+            return Integers(At(&c, "target"), cf + ".target", {"node"});
           }));
       return each(&a, "samplers", f + ".", [&](json& s, const std::string& sf) -> absl::Status {
-        return Int32s(&s, sf, {"input", "output"});
+        return Integers(&s, sf, {"input", "output"});
       });
     });
   }
@@ -1300,7 +1297,7 @@ bool ExtensionFloatsToIntegers(json& j) {
   return ChangeExtensionNumbers(j, [](json& v) {
     if (!v.is_number_float()) return false;
     const double x = v.get<double>();
-    if (std::floor(x) != x || std::abs(x) > 9007199254740992.0) return false;
+    if (!WholeNumber(x)) return false;
     v = int64_t(x);
     return true;
   });
@@ -1329,7 +1326,7 @@ bool WidenExtensionIntegers(json& j) {
 //  - a Draco primitive's indices (an accessor without a bufferView) it refuses; they are removed
 //    and the importer puts them back (PreScanResult::draco_indices).
 // And integers beyond 32 bits in extensions become doubles (WidenExtensionIntegers), and core
-// integer fields written as floats (1.0) are integers already (PreScan::Int32).
+// integer fields written as floats (1.0) are integers already (PreScan::Integer).
 // A .glb is rebuilt around the new JSON chunk with its BIN chunk as it was.
 absl::Status RewriteForTinygltf(const std::string& file, const std::vector<uint8_t>& bytes,
                                 const GlbChunks& glb, const ImportLimits& limits, json* j,

@@ -197,7 +197,9 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
   }
   RETURN_IF_ERROR(ctx->InitInstance(validation));
   RETURN_IF_ERROR(ctx->PickDevice(wanted));
-  ctx->limit_caps_ = options.descriptor_limit_caps;
+  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled, options.appends, shading));
+  // Descriptor limits taken as smaller (read by CreatePipelineLayout's check alone).
+  std::vector<std::pair<std::string, uint32_t>> caps = options.descriptor_limit_caps;
   if (const char* env = std::getenv("TESSERA_DESCRIPTOR_LIMITS")) {
     for (absl::string_view item : absl::StrSplit(env, ',', absl::SkipWhitespace())) {
       const std::pair<absl::string_view, absl::string_view> kv = absl::StrSplit(item, '=');
@@ -206,14 +208,16 @@ absl::StatusOr<std::unique_ptr<Context>> Context::Create(const ContextOptions& o
         return absl::InvalidArgumentError(absl::StrCat(
             "TESSERA_DESCRIPTOR_LIMITS: \"", item, "\" is not name=value (a limit and a count)"));
       }
-      ctx->limit_caps_.emplace_back(std::string(absl::StripAsciiWhitespace(kv.first)), cap);
+      caps.emplace_back(std::string(absl::StripAsciiWhitespace(kv.first)), cap);
     }
   }
-  for (const auto& [name, cap] : ctx->limit_caps_) {
-    VkPhysicalDeviceLimits probe{};
-    RETURN_IF_ERROR(CapDescriptorLimit(probe, name, cap));
+  for (const auto& [name, cap] : caps) {
+    RETURN_IF_ERROR(CapDescriptorLimit(ctx->limits_, name, cap));
+    Log().warn(
+        "descriptor limit {} taken as at most {} (descriptor_limit_caps, "
+        "$TESSERA_DESCRIPTOR_LIMITS)",
+        name, cap);
   }
-  RETURN_IF_ERROR(ctx->InitDevice(validation, disabled, options.appends, shading));
   if (options.max_storage_buffer_range != 0) {
     uint32_t& range = ctx->limits_.maxStorageBufferRange;
     range = uint32_t(std::min<uint64_t>(range, options.max_storage_buffer_range));
@@ -486,13 +490,6 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   vkGetPhysicalDeviceProperties2(physical_, &props2);
   const VkPhysicalDeviceProperties& p = props2.properties;
   limits_ = p.limits;
-  for (const auto& [name, cap] : limit_caps_) {
-    (void)CapDescriptorLimit(limits_, name, cap);  // the names were checked in Create
-    Log().warn(
-        "descriptor limit {} taken as at most {} (descriptor_limit_caps, "
-        "$TESSERA_DESCRIPTOR_LIMITS)",
-        name, cap);
-  }
   vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
 
   VkPhysicalDeviceFeatures supported{};
@@ -507,12 +504,13 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
         p.deviceName, " lacks dynamicRendering or synchronization2 (Vulkan 1.3 features)"));
   }
 
-  // The format features Tessera relies on (vk/format_support.h).
-  const std::vector<std::string> missing = MissingFormatFeatures([&](VkFormat format) {
+  auto format_properties = [&](VkFormat format) {
     VkFormatProperties fp{};
     vkGetPhysicalDeviceFormatProperties(physical_, format, &fp);
     return fp;
-  });
+  };
+  // The format features Tessera relies on (vk/format_support.h).
+  const std::vector<std::string> missing = MissingFormatFeatures(format_properties);
   if (!missing.empty()) {
     return absl::FailedPreconditionError(
         absl::StrCat(p.deviceName, " lacks ", absl::StrJoin(missing, ", ")));
@@ -566,20 +564,15 @@ absl::Status Context::InitDevice(bool validation, const std::vector<std::string>
   }
   info.draw_indirect_count = f12_supported.drawIndirectCount && !off("draw_indirect_count");
   f12.drawIndirectCount = info.draw_indirect_count ? VK_TRUE : VK_FALSE;
-  {
-    VkFormatProperties fp{};
-    vkGetPhysicalDeviceFormatProperties(physical_, VK_FORMAT_R32_SFLOAT, &fp);
-    info.sampler_minmax =
-        f12_supported.samplerFilterMinmax && !off("sampler_minmax") &&
-        (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT) != 0;
-  }
+  auto optimal_has = [&](VkFormat format, VkFormatFeatureFlags feature) {
+    return (format_properties(format).optimalTilingFeatures & feature) != 0;
+  };
+  info.sampler_minmax =
+      f12_supported.samplerFilterMinmax && !off("sampler_minmax") &&
+      optimal_has(VK_FORMAT_R32_SFLOAT, VK_FORMAT_FEATURE_SAMPLED_IMAGE_FILTER_MINMAX_BIT);
   f12.samplerFilterMinmax = info.sampler_minmax ? VK_TRUE : VK_FALSE;
-  {
-    VkFormatProperties fp{};
-    vkGetPhysicalDeviceFormatProperties(physical_, VK_FORMAT_R16G16_SFLOAT, &fp);
-    info.storage_rg16f = (fp.optimalTilingFeatures & VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT) != 0 &&
-                         !off("storage_rg16f");
-  }
+  info.storage_rg16f = optimal_has(VK_FORMAT_R16G16_SFLOAT, VK_FORMAT_FEATURE_STORAGE_IMAGE_BIT) &&
+                       !off("storage_rg16f");
   info.sampler_indexing = supported.shaderSampledImageArrayDynamicIndexing &&
                           f12_supported.shaderSampledImageArrayNonUniformIndexing &&
                           !off("sampler_indexing");

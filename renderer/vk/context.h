@@ -39,8 +39,8 @@ struct ContextOptions {
   // Treat these descriptor limits of the device, named as the spec spells them
   // ("maxPerStageDescriptorStorageBuffers"; CapDescriptorLimit), as at most these values (also
   // $TESSERA_DESCRIPTOR_LIMITS, "name=value,..."), so that what a device with smaller limits
-  // gets can be tested on any device. Only CreatePipelineLayout's check and the choices that
-  // read limits() see them; an unknown name is INVALID_ARGUMENT.
+  // gets can be tested on any device. Only CreatePipelineLayout's check (and what else reads
+  // limits()) sees them: they apply once the device is made. An unknown name is INVALID_ARGUMENT.
   std::vector<std::pair<std::string, uint32_t>> descriptor_limit_caps;
   // How the visibility passes append pixels to lists (DeviceInfo::subgroup_appends); kAuto: by
   // the kind of device.
@@ -136,7 +136,6 @@ class Context {
   DeviceInfo info_;
   PFN_vkSetDebugUtilsObjectNameEXT set_name_ = nullptr;
   std::atomic<uint64_t> validation_count_{0};
-  std::vector<std::pair<std::string, uint32_t>> limit_caps_;  // ContextOptions's, and the env's
   // The bindings of each set layout CreateSetLayout made. A layout replaced in its holder takes
   // its entry with it; one destroyed with its holder leaves its entry until the handle is reused
   // (never looked up: the renderer makes its layouts once, the IBL bake's again only after a

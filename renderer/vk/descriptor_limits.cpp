@@ -76,7 +76,7 @@ namespace {
 struct Limit {
   const char* what;
   uint32_t DescriptorCounts::*count;
-  uint32_t VkPhysicalDeviceLimits::*per_stage;
+  uint32_t VkPhysicalDeviceLimits::*per_stage;  // null: a limit of the layout only
   uint32_t VkPhysicalDeviceLimits::*per_layout;
 };
 
@@ -99,6 +99,10 @@ constexpr Limit kLimits[] = {
     {"input attachments", &DescriptorCounts::input_attachments,
      &VkPhysicalDeviceLimits::maxPerStageDescriptorInputAttachments,
      &VkPhysicalDeviceLimits::maxDescriptorSetInputAttachments},
+    {"dynamic buffers", &DescriptorCounts::uniform_buffers_dynamic, nullptr,
+     &VkPhysicalDeviceLimits::maxDescriptorSetUniformBuffersDynamic},
+    {"dynamic buffers", &DescriptorCounts::storage_buffers_dynamic, nullptr,
+     &VkPhysicalDeviceLimits::maxDescriptorSetStorageBuffersDynamic},
 };
 
 struct Stage {
@@ -179,7 +183,7 @@ absl::Status CheckDescriptorLimits(
     DescriptorCounts c;
     for (const auto& set : sets) c += CountDescriptors(set, stage.bit);
     for (const Limit& l : kLimits) {
-      if (c.*l.count > limits.*l.per_stage) {
+      if (l.per_stage != nullptr && c.*l.count > limits.*l.per_stage) {
         return over(c.*l.count, " ", l.what, " in the ", stage.name, " stage exceed the device's ",
                     LimitName(l.per_stage), " (", limits.*l.per_stage, ")");
       }
@@ -188,16 +192,6 @@ absl::Status CheckDescriptorLimits(
       return over(c.Resources(), " resources in the ", stage.name,
                   " stage exceed the device's maxPerStageResources (", limits.maxPerStageResources,
                   ")");
-    }
-  }
-  for (const auto& [count, limit] :
-       {std::pair{all.uniform_buffers_dynamic,
-                  &VkPhysicalDeviceLimits::maxDescriptorSetUniformBuffersDynamic},
-        std::pair{all.storage_buffers_dynamic,
-                  &VkPhysicalDeviceLimits::maxDescriptorSetStorageBuffersDynamic}}) {
-    if (count > limits.*limit) {
-      return over(count, " dynamic buffers in the layout exceed the device's ", LimitName(limit),
-                  " (", limits.*limit, ")");
     }
   }
   for (const Limit& l : kLimits) {

@@ -552,10 +552,7 @@ TEST(IblTest, TheTableInEitherFormatGivesTheSamePicture) {
       Renderer::Create({.validation = true, .disable_features = {"storage_rg16f"}});
   ASSERT_TRUE(wide.ok()) << wide.status();
   EXPECT_FALSE((*wide)->device_info().storage_rg16f);
-  bool listed = false;
-  for (const DeviceFallback& f : (*wide)->device_info().fallbacks)
-    listed |= f.missing == "R16G16_SFLOAT storage images";
-  EXPECT_TRUE(listed);
+  EXPECT_TRUE(HasFallback((*wide)->device_info(), "R16G16_SFLOAT storage images"));
   std::printf("default device: %s\n", SharedRenderer().device_info().storage_rg16f
                                           ? "RG16F table"
                                           : "RGBA16F table (no R16G16_SFLOAT storage)");

@@ -541,11 +541,8 @@ TEST(RenderTest, WithoutRoomForTheVisibilityPassesTheFrameIsForward) {
             std::string::npos)
       << info.visibility_limit;
   ASSERT_FALSE(info.fallbacks.empty());
-  bool said = false;
-  for (const DeviceFallback& f : info.fallbacks)
-    said |= f.missing.find("room in the descriptor limits for the visibility passes (") == 0 &&
-            f.missing.find(info.visibility_limit) != std::string::npos;
-  EXPECT_TRUE(said);
+  EXPECT_TRUE(HasFallback(
+      info, "room in the descriptor limits for the visibility passes (" + info.visibility_limit));
   absl::StatusOr<SceneHandle> scene = (*r)->LoadScene(BuildDemoScene());
   ASSERT_TRUE(scene.ok()) << scene.status();
   Settings asked = SmallSettings(96, 64);
@@ -590,12 +587,8 @@ TEST(RenderTest, WithoutRoomForTheOneDispatchShadingItShadesPerMaterial) {
                                       "maxPerStageDescriptorSampledImages (20)"),
             std::string::npos)
       << info.shade_all_limit;
-  bool said = false;
-  for (const DeviceFallback& f : info.fallbacks)
-    said |= f.missing.find(
-                "room in the descriptor limits for the visibility shading in one "
-                "dispatch (") == 0;
-  EXPECT_TRUE(said);
+  EXPECT_TRUE(HasFallback(
+      info, "room in the descriptor limits for the visibility shading in one dispatch ("));
   absl::StatusOr<SceneHandle> scene = (*r)->LoadScene(BuildDemoScene());
   ASSERT_TRUE(scene.ok()) << scene.status();
   Settings s = SmallSettings(96, 64);

@@ -40,6 +40,13 @@ inline bool HasNote(const Frame& f, std::string_view field) {
   return false;
 }
 
+// Whether the device lists a fallback whose missing feature starts with `missing`.
+inline bool HasFallback(const DeviceInfo& info, std::string_view missing) {
+  for (const DeviceFallback& f : info.fallbacks)
+    if (std::string_view(f.missing).substr(0, missing.size()) == missing) return true;
+  return false;
+}
+
 // Every validation message a renderer's device reported, as test failures.
 inline void ExpectNoValidationMessages(const Renderer& r) {
   EXPECT_EQ(r.validation_message_count(), 0u);
